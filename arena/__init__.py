@@ -1,0 +1,1 @@
+"""Driving Arena: shared configuration and the `arena` command line."""

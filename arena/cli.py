@@ -1,0 +1,28 @@
+"""The ``arena`` command: each part of the system contributes its own Typer app.
+
+The area CLIs keep their imports light at module level so ``arena --help`` stays fast; heavy work
+(SUMO, Docker, the database) is imported inside the commands.
+"""
+
+from __future__ import annotations
+
+import typer
+
+from evaluator.cli import app as evaluator_app
+from scenarios.cli import app as scenarios_app
+from server.cli import admin_app, service_app
+from submissions.cli import sandbox_app, submission_app
+
+app = typer.Typer(
+    name="arena",
+    help="Driving Arena: evaluate driving agents and run the competition service.",
+    no_args_is_help=True,
+    pretty_exceptions_show_locals=False,
+)
+app.add_typer(scenarios_app, name="scenarios", help="Build, list, draw and verify scenario suites.")
+app.add_typer(submission_app, name="submission", help="Pack and check a submission zip.")
+app.add_typer(sandbox_app, name="sandbox", help="The agent sandbox: runtime image, leftovers.")
+app.add_typer(admin_app, name="admin", help="Organiser administration of the service.")
+# `arena evaluate|score|replay` and `arena up|worker|serve` sit at the top level.
+app.add_typer(evaluator_app)
+app.add_typer(service_app)

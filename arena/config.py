@@ -1,0 +1,83 @@
+"""The one settings object of Driving Arena.
+
+Every tunable (paths, limits, service URLs, sandbox choice) is read here from the environment
+(prefix ``ARENA_``) or an ``.env`` file, validated once, and handed out by :func:`get_settings`.
+No other module reads ``os.environ`` for configuration.
+"""
+
+from __future__ import annotations
+
+from enum import StrEnum
+from functools import lru_cache
+from pathlib import Path
+
+from pydantic import Field
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+
+class SandboxKind(StrEnum):
+    docker = "docker"
+    bubblewrap = "bubblewrap"
+    auto = "auto"
+
+
+class Settings(BaseSettings):
+    model_config = SettingsConfigDict(
+        env_prefix="ARENA_", env_file=".env", extra="ignore", frozen=True
+    )
+
+    # Where everything the service writes lives (database, uploads, results, scenario builds).
+    data_dir: Path = Path(".arena")
+
+    # Service backends. Empty means the embedded default under data_dir (SQLite + SQLAlchemy broker).
+    database_url: str = ""
+    broker_url: str = ""
+
+    # Scenario suites.
+    development_seed: int = 20221128
+    # The organisers' secret seed for the hidden suite; never committed, only set in deployment.
+    hidden_seed: int | None = None
+    hidden_suite_dir: Path | None = None
+    public_suite_dir: Path | None = None
+
+    # Sandbox.
+    sandbox: SandboxKind = SandboxKind.auto
+    agent_image: str = "driving-arena-agent:latest"
+    init_timeout_s: float = 60.0
+    step_timeout_s: float = 1.0
+    episode_timeout_s: float = 600.0
+    agent_memory_bytes: int = 2 * 1024**3
+    agent_cpus: float = 1.0
+    agent_pids: int = 64
+    agent_tmp_bytes: int = 64 * 1024**2
+    agent_log_tail_bytes: int = 64 * 1024
+
+    # Intake limits.
+    max_zip_bytes: int = 100 * 1024**2
+    max_unzipped_bytes: int = 500 * 1024**2
+    max_zip_entries: int = 10_000
+    max_compression_ratio: float = 200.0
+
+    # Service.
+    daily_quota: int = 5
+    admin_token: str | None = None
+    lease_seconds: int = 120
+    scoring_profile: str = "driving-smarts-2022"
+    jobs: int = Field(default=2, ge=1)
+
+    @property
+    def resolved_data_dir(self) -> Path:
+        return self.data_dir.expanduser().resolve()
+
+    @property
+    def resolved_database_url(self) -> str:
+        return self.database_url or f"sqlite:///{self.resolved_data_dir / 'arena.db'}"
+
+    @property
+    def resolved_broker_url(self) -> str:
+        return self.broker_url or f"sqla+sqlite:///{self.resolved_data_dir / 'broker.db'}"
+
+
+@lru_cache
+def get_settings() -> Settings:
+    return Settings()

@@ -1,0 +1,1 @@
+"""Scenario definitions, map templates, generators and the hidden/public suites."""

@@ -1,0 +1,1 @@
+"""The Driving Arena service: REST API, web pages, database, leaderboard and admin CLI."""

@@ -1,0 +1,43 @@
+"""The agent interface options a submission chooses in ``agent.yaml``.
+
+The simulator owns these because it is what honours them (action decoding, observation contents);
+the submission intake validates ``agent.yaml`` into :class:`AgentInterface`.
+"""
+
+from __future__ import annotations
+
+from enum import StrEnum
+
+from pydantic import BaseModel, ConfigDict, Field
+
+
+class ActionSpace(StrEnum):
+    TargetPose = "TargetPose"  # [x, y, heading, dt]
+    RelativeTargetPose = "RelativeTargetPose"  # [dx, dy, dheading] in the ego frame
+    Continuous = "Continuous"  # [throttle 0..1, brake 0..1, steering -1..1]
+    LaneWithContinuousSpeed = "LaneWithContinuousSpeed"  # [target_speed m/s, lane_change -1|0|1]
+
+
+ACTION_LENGTH: dict[ActionSpace, int] = {
+    ActionSpace.TargetPose: 4,
+    ActionSpace.RelativeTargetPose: 3,
+    ActionSpace.Continuous: 3,
+    ActionSpace.LaneWithContinuousSpeed: 2,
+}
+
+
+class AgentInterface(BaseModel):
+    """Contents of ``agent.yaml``; every key is optional, a misspelt key is an error."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    action_space: ActionSpace = ActionSpace.TargetPose
+    observation_radius: float = Field(default=100.0, gt=0, le=200)  # [m]
+    max_waypoint_paths: int = Field(default=4, ge=1, le=4)
+    waypoints_per_path: int = Field(default=50, ge=1, le=50)
+    # Optional ego-centred rasters: `img_pixels` square covering `img_meters` across.
+    drivable_area_grid_map: bool = False
+    occupancy_grid_map: bool = False
+    top_down_rgb: bool = False
+    img_pixels: int = Field(default=256, ge=16, le=512)
+    img_meters: float = Field(default=64.0, gt=0, le=200)

@@ -1,0 +1,31 @@
+"""The outcome of one episode as the evaluator sees it (the full per-step data is in the record)."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+from sim.agent import DoneReason
+
+
+@dataclass(frozen=True)
+class AgentOutcome:
+    id: str
+    reached_goal: bool
+    reason: DoneReason
+    steps: int  # agent-steps driven (rows in the record)
+    done_step: int  # episode step at which the agent was done (1-based)
+
+
+@dataclass(frozen=True)
+class EpisodeResult:
+    scenario_id: str
+    steps: int  # episode steps simulated
+    agents: tuple[AgentOutcome, ...]
+    record_path: str | None  # the .npz episode record, None if the simulator failed before any
+    simulator_error: str | None = None  # set when SUMO failed: not charged to the participant
+    detail: str = ""  # human-readable failure detail (traceback, agent stderr tail)
+    wall_time_s: float = 0.0
+    extra: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return asdict(self)

@@ -1,0 +1,2 @@
+"""The participant kit: the submission format, intake checks, the in-sandbox agent runner and
+example agents."""
