@@ -29,7 +29,7 @@ class Settings(BaseSettings):
     # Where everything the service writes lives (database, uploads, results, scenario builds).
     data_dir: Path = Path(".arena")
 
-    # Service backends. Empty means the embedded default under data_dir (SQLite + SQLAlchemy broker).
+    # Service backends. Empty: the embedded default under data_dir (SQLite + SQLAlchemy broker).
     database_url: str = ""
     broker_url: str = ""
 

@@ -64,7 +64,8 @@ class Mission(Frozen):
 
 class LaneChangeTrigger(Frozen):
     """Scripted aggressive manoeuvre: when ``vehicle`` is within ``gap_m`` ahead of the agent
-    (longitudinally, on an adjacent lane), it is forced into the agent's lane over ``duration_s``."""
+    (longitudinally, on an adjacent lane), it is forced into the agent's lane over
+    ``duration_s``."""
 
     vehicle: str
     agent_id: str
