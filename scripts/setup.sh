@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# Installs what Driving Arena needs on a fresh Debian machine (idempotent, fast when done).
+#   scripts/setup.sh           the project and the agent sandbox (bubblewrap; Docker when possible)
+#   scripts/setup.sh --dev     also test tools (pytest, ruff, Playwright + Debian's Chromium)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+dev=0
+[ "${1:-}" = "--dev" ] && dev=1
+
+need_apt=()
+command -v bwrap >/dev/null || need_apt+=(bubblewrap)
+if [ "$dev" = 1 ]; then
+  command -v chromium >/dev/null || need_apt+=(chromium)
+fi
+if [ "${#need_apt[@]}" -gt 0 ]; then
+  if [ "$(id -u)" = 0 ]; then
+    apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${need_apt[@]}" >/dev/null
+  else
+    echo "Please install: ${need_apt[*]} (needs root)" >&2
+  fi
+fi
+
+extras=""
+[ "$dev" = 1 ] && extras="[dev]"
+python3 -m pip install -q --disable-pip-version-check -e ".${extras}"
+
+# The Docker sandbox: engine, daemon and the offline-built agent image (skipped where impossible).
+if [ -x scripts/setup-sandbox.sh ]; then
+  scripts/setup-sandbox.sh
+fi

@@ -1,0 +1,7 @@
+#!/usr/bin/env bash
+# Sets up a fresh machine (scripts/setup.sh --dev) and runs the whole test suite.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+scripts/setup.sh --dev
+ruff check .
+python3 -m pytest "$@"
