@@ -1,0 +1,30 @@
+"""Scoring: episode records -> per-agent-step terms -> per-scenario sums -> suite metrics -> rank.
+
+Everything here is a pure function of records and a :class:`ScoringProfile`.
+"""
+
+from evaluator.scoring.episode import EpisodeScore, score_episode, score_without_record
+from evaluator.scoring.profile import DEFAULT_PROFILE, ProfileError, ScoringProfile, load_profile
+from evaluator.scoring.ranking import rank, rank_key
+from evaluator.scoring.record import AgentSummary, EpisodeRecord, RecordError, load_record
+from evaluator.scoring.suite import Metrics, aggregate, by_family, scenario_metrics
+
+__all__ = [
+    "DEFAULT_PROFILE",
+    "AgentSummary",
+    "EpisodeRecord",
+    "EpisodeScore",
+    "Metrics",
+    "ProfileError",
+    "RecordError",
+    "ScoringProfile",
+    "aggregate",
+    "by_family",
+    "load_profile",
+    "load_record",
+    "rank",
+    "rank_key",
+    "scenario_metrics",
+    "score_episode",
+    "score_without_record",
+]

@@ -1,0 +1,78 @@
+"""Scoring profiles: every constant of the scoring spec in one named, versioned file.
+
+Profiles live in ``evaluator/scoring/profiles/<name>.json``. A misspelt key, a term name that is
+not registered, or a term listed twice fails when the profile loads, not halfway through scoring.
+"""
+
+from __future__ import annotations
+
+from functools import cache
+from importlib import resources
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+
+from evaluator.scoring.registry import get_term
+
+DEFAULT_PROFILE = "driving-smarts-2022"
+
+
+class ProfileError(ValueError):
+    pass
+
+
+class ScoringProfile(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    name: str
+    version: int = Field(ge=1)
+    description: str = ""
+
+    dt_s: float = Field(gt=0)  # step length the records must have [s]
+    max_episode_steps: int = Field(gt=0)  # time charged to a scenario with a failed agent
+    # The goal radius scenarios get unless they set one [m]; the simulator applies it, and the
+    # record's `reached_goal` is what scoring reads.
+    default_goal_radius_m: float = Field(gt=0)
+
+    humanness_terms: tuple[str, ...]
+    rules_terms: tuple[str, ...]
+
+    obs_headway_s: float = Field(gt=0)  # distance_obs looks this many seconds of speed ahead
+    obs_half_angle_deg: float = Field(gt=0, le=180)  # ... within this angle of the heading
+    obs_decay_per_m: float = Field(gt=0)  # exp(-decay * d)
+    speeding_tolerance_fraction: float = Field(gt=0)  # speeding saturates at (1 + f) x limit
+    wrong_way_angle_deg: float = Field(gt=0, le=180)
+
+    @field_validator("humanness_terms", "rules_terms")
+    @classmethod
+    def _registered_once(cls, names: tuple[str, ...]) -> tuple[str, ...]:
+        if len(set(names)) != len(names):
+            raise ValueError(f"a term is listed twice: {list(names)}")
+        for name in names:
+            get_term(name)  # raises on an unknown name
+        return names
+
+    @property
+    def ref(self) -> dict[str, str | int]:
+        return {"name": self.name, "version": self.version}
+
+
+def profile_names() -> tuple[str, ...]:
+    folder = resources.files("evaluator.scoring") / "profiles"
+    return tuple(sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".json")))
+
+
+@cache
+def load_profile(name: str = DEFAULT_PROFILE) -> ScoringProfile:
+    import evaluator.scoring.terms  # noqa: F401  (registers the terms the profile names)
+
+    if name not in profile_names():
+        known = ", ".join(profile_names())
+        raise ProfileError(f"unknown scoring profile {name!r} (known: {known})")
+    text = (resources.files("evaluator.scoring") / "profiles" / f"{name}.json").read_text()
+    try:
+        profile = ScoringProfile.model_validate_json(text)
+    except ValidationError as exc:
+        raise ProfileError(f"scoring profile {name!r} is invalid: {exc}") from exc
+    if profile.name != name:
+        raise ProfileError(f"profile file {name}.json names itself {profile.name!r}")
+    return profile

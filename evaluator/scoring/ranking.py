@@ -1,0 +1,27 @@
+"""Hierarchical ranking (scoring spec): (completion, time, humanness, rules) ascending, full ties
+to the earlier submission, unscored entries after every scored one."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+from typing import Any, TypeVar
+
+from evaluator.scoring.suite import Metrics
+
+T = TypeVar("T")
+
+
+def rank_key(metrics: Metrics | None, submitted_at: Any) -> tuple:
+    if metrics is None:
+        return (1, (), submitted_at)
+    return (0, (metrics.completion, metrics.time, metrics.humanness, metrics.rules), submitted_at)
+
+
+def rank(
+    entries: Iterable[T],
+    *,
+    metrics: Callable[[T], Metrics | None],
+    submitted_at: Callable[[T], Any],
+) -> list[T]:
+    """Entries best first. ``submitted_at`` must be comparable (a datetime, or a sequence id)."""
+    return sorted(entries, key=lambda entry: rank_key(metrics(entry), submitted_at(entry)))

@@ -1,0 +1,127 @@
+"""Reading episode records (``docs/records.md``) into the arrays the metric terms use."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+FORMAT_VERSION = 1
+
+# Per agent-step fields the terms read; a valid row must have them finite.
+_TRACK_FLOATS = (
+    "x",
+    "y",
+    "heading",
+    "speed",
+    "vx",
+    "vy",
+    "lane_offset",
+    "lane_width",
+    "lane_heading",
+    "speed_limit",
+)
+
+
+class RecordError(ValueError):
+    """A record that does not follow ``docs/records.md``."""
+
+
+@dataclass(frozen=True)
+class AgentTrack:
+    """One mission agent's driven rows: per-step arrays ``(n,)``, neighbours ``(n, K)``."""
+
+    x: np.ndarray  # [m]
+    y: np.ndarray  # [m]
+    heading: np.ndarray  # [rad]
+    speed: np.ndarray  # [m/s]
+    vx: np.ndarray  # [m/s]
+    vy: np.ndarray  # [m/s]
+    lane_offset: np.ndarray  # [m], left positive
+    lane_width: np.ndarray  # [m]
+    lane_heading: np.ndarray  # [rad]
+    speed_limit: np.ndarray  # [m/s]
+    in_junction: np.ndarray  # bool
+    nbr_valid: np.ndarray  # (n, K) bool
+    nbr_x: np.ndarray  # (n, K) [m]
+    nbr_y: np.ndarray  # (n, K) [m]
+
+
+@dataclass(frozen=True)
+class AgentSummary:
+    id: str
+    reached_goal: bool
+    reason: str
+    steps: int  # agent-steps driven
+    done_step: int  # episode step (1-based) at which the agent was done
+
+
+@dataclass(frozen=True)
+class EpisodeRecord:
+    scenario_id: str
+    scenario_hash: str
+    dt: float  # [s]
+    max_episode_steps: int
+    episode_steps: int
+    agents: tuple[AgentSummary, ...]
+    tracks: tuple[AgentTrack, ...]
+
+
+def load_record(path: Path) -> EpisodeRecord:
+    try:
+        with np.load(Path(path), allow_pickle=False) as data:
+            arrays = {name: data[name] for name in data.files}
+    except (OSError, ValueError) as exc:
+        raise RecordError(f"{path}: not a readable episode record: {exc}") from exc
+    try:
+        return _parse(arrays)
+    except KeyError as exc:
+        raise RecordError(f"{path}: missing array {exc}") from None
+    except RecordError as exc:
+        raise RecordError(f"{path}: {exc}") from None
+
+
+def _parse(arrays: dict[str, np.ndarray]) -> EpisodeRecord:
+    version = int(arrays["format_version"])
+    if version != FORMAT_VERSION:
+        raise RecordError(f"format_version {version}, expected {FORMAT_VERSION}")
+    steps = arrays["steps"].astype(int)
+    agents = tuple(
+        AgentSummary(
+            id=str(arrays["agent_ids"][a]),
+            reached_goal=bool(arrays["reached_goal"][a]),
+            reason=str(arrays["done_reason"][a]),
+            steps=int(steps[a]),
+            done_step=int(arrays["done_step"][a]),
+        )
+        for a in range(len(steps))
+    )
+    tracks = tuple(_track(arrays, a, int(n)) for a, n in enumerate(steps))
+    return EpisodeRecord(
+        scenario_id=str(arrays["scenario_id"]),
+        scenario_hash=str(arrays["scenario_hash"]),
+        dt=float(arrays["dt"]),
+        max_episode_steps=int(arrays["max_episode_steps"]),
+        episode_steps=int(arrays["episode_steps"]),
+        agents=agents,
+        tracks=tracks,
+    )
+
+
+def _track(arrays: dict[str, np.ndarray], agent: int, n: int) -> AgentTrack:
+    valid = arrays["valid"][agent]
+    if n > valid.shape[0] or not valid[:n].all() or valid[n:].any():
+        raise RecordError(f"agent {agent}: `valid` does not match steps={n}")
+    fields = {name: arrays[name][agent, :n].astype(float) for name in _TRACK_FLOATS}
+    for name, values in fields.items():
+        if not np.isfinite(values).all():
+            raise RecordError(f"agent {agent}: non-finite `{name}` on a driven row")
+    nbr_valid = arrays["nbr_valid"][agent, :n].astype(bool)
+    return AgentTrack(
+        **fields,
+        in_junction=arrays["in_junction"][agent, :n].astype(bool),
+        nbr_valid=nbr_valid,
+        nbr_x=np.where(nbr_valid, arrays["nbr_x"][agent, :n], np.nan),
+        nbr_y=np.where(nbr_valid, arrays["nbr_y"][agent, :n], np.nan),
+    )

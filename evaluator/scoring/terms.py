@@ -1,0 +1,73 @@
+"""The per-agent-step terms of humanness and rules (scoring spec, metrics 3 and 4).
+
+Each term takes one agent's driven rows (an :class:`AgentTrack`, arrays of shape ``(n,)`` and
+neighbours ``(n, K)``) and the profile's constants, and returns ``(n,)`` floats.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from evaluator.scoring.profile import ScoringProfile
+from evaluator.scoring.record import AgentTrack
+from evaluator.scoring.registry import register_term
+
+
+def wrap_angle(angle: np.ndarray) -> np.ndarray:
+    """Angles [rad] wrapped to [-pi, pi)."""
+    return (angle + np.pi) % (2 * np.pi) - np.pi
+
+
+@register_term("distance_obs")
+def distance_obs(track: AgentTrack, profile: ScoringProfile) -> np.ndarray:
+    """Closeness to the nearest vehicle ahead: max ``exp(-decay * d)`` over the vehicles within
+    ``headway x speed`` [m] of the ego centre and within the half-angle of its heading."""
+    dx = track.nbr_x - track.x[:, None]  # (n, K) [m]
+    dy = track.nbr_y - track.y[:, None]
+    distance = np.hypot(dx, dy)
+    off_heading = np.abs(wrap_angle(np.arctan2(dy, dx) - track.heading[:, None]))
+    moving = track.speed[:, None] > 0.0
+    reach = profile.obs_headway_s * track.speed[:, None]  # [m]
+    ahead = (
+        track.nbr_valid
+        & moving
+        & (distance <= reach)
+        & (off_heading <= np.deg2rad(profile.obs_half_angle_deg))
+    )
+    closeness = np.exp(-profile.obs_decay_per_m * np.where(ahead, distance, 0.0))
+    return np.where(ahead, closeness, 0.0).max(axis=1, initial=0.0)
+
+
+@register_term("jerk")
+def jerk(track: AgentTrack, profile: ScoringProfile) -> np.ndarray:
+    """``|a_t - a_(t-1)| / dt`` [m/s^3] from the velocity vector; 0 on the first two rows, which
+    have no earlier acceleration to compare with."""
+    velocity = np.stack([track.vx, track.vy], axis=1)  # (n, 2) [m/s]
+    accel = np.diff(velocity, axis=0) / profile.dt_s  # (n-1, 2): row i is the accel at row i+1
+    out = np.zeros(len(track.x))
+    out[2:] = np.linalg.norm(np.diff(accel, axis=0), axis=1) / profile.dt_s
+    return out
+
+
+@register_term("lc_off")
+def lc_off(track: AgentTrack, profile: ScoringProfile) -> np.ndarray:
+    """``(distance from the lane centre / lane width)^2``."""
+    return (track.lane_offset / track.lane_width) ** 2
+
+
+@register_term("speeding")
+def speeding(track: AgentTrack, profile: ScoringProfile) -> np.ndarray:
+    """``min(max(0, speed - limit) / (fraction x limit), 1)``: 0 at the limit, 1 from
+    ``(1 + fraction) x limit`` on."""
+    over = np.maximum(track.speed - track.speed_limit, 0.0)  # [m/s]
+    return np.minimum(over / (profile.speeding_tolerance_fraction * track.speed_limit), 1.0)
+
+
+@register_term("wrong_way")
+def wrong_way(track: AgentTrack, profile: ScoringProfile) -> np.ndarray:
+    """1 where the heading is more than the profile's angle from the lane direction, outside
+    junctions (lane directions inside a junction do not say which way is right)."""
+    against = np.abs(wrap_angle(track.heading - track.lane_heading)) > np.deg2rad(
+        profile.wrong_way_angle_deg
+    )
+    return (against & ~track.in_junction).astype(float)
