@@ -1,0 +1,215 @@
+"""The road network of a scenario: lanes, junctions and the drivable area, with fast nearest-lane
+queries. Read from a SUMO ``.net.xml`` with sumolib; geometry with shapely and numpy."""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import shapely
+from shapely.geometry import LineString, Polygon
+from shapely.geometry.base import BaseGeometry
+
+from sim.road.lane import Lane, angle_between
+
+# Lanes whose centreline is within this much of the nearest one [m] compete on heading, so that
+# overlapping junction connections resolve to the one the vehicle follows.
+_TIE_DISTANCE = 0.5
+_GRID_CELL = 10.0  # [m] side of a nearest-lane index cell
+_GRID_REACH = 6.0  # [m] segments this close to a cell are listed in it
+_MAX_SEGMENT = 10.0  # [m] longer centreline segments are split in the index
+
+
+@dataclass(frozen=True)
+class LanePosition:
+    """Where a point is in lane coordinates."""
+
+    lane: Lane
+    s: float  # [m] along the lane
+    t: float  # [m] signed offset from the centreline, left positive
+    heading: float  # [rad] lane direction at s
+    distance: float  # [m] from the centreline (|t| unless past a lane end)
+
+
+class RoadNetwork:
+    """Lanes (``lanes``: id -> :class:`Lane`), junction areas (``junction_polygons``) and the
+    drivable area (union of every lane surface and junction area) of a SUMO network.
+
+    Build with :meth:`load`. Queries: :meth:`nearest_lane` (one point, heading-aware),
+    :meth:`nearest_lanes` (many points, vectorised), :meth:`is_on_road`, :meth:`in_junction`.
+    """
+
+    def __init__(self, lanes: dict[str, Lane], junction_polygons: list[Polygon]) -> None:
+        self.lanes = lanes
+        self.junction_polygons = junction_polygons
+        self.edges: dict[str, list[Lane]] = {}
+        for lane in lanes.values():
+            self.edges.setdefault(lane.edge_id, []).append(lane)
+        for edge_lanes in self.edges.values():
+            edge_lanes.sort(key=lambda lane: lane.index)
+        self._lane_list = list(lanes.values())
+        self._build_segment_index()
+        self.drivable_area: BaseGeometry = shapely.unary_union(
+            [lane_surface(lane) for lane in self._lane_list] + junction_polygons
+        )
+        shapely.prepare(self.drivable_area)
+        self._junction_area = shapely.unary_union(junction_polygons) if junction_polygons else None
+        if self._junction_area is not None:
+            shapely.prepare(self._junction_area)
+
+    @classmethod
+    def load(cls, net_path: Path) -> RoadNetwork:
+        import sumolib  # heavy; only when a network is read
+
+        net = sumolib.net.readNet(str(net_path), withInternal=True)
+        lanes: dict[str, Lane] = {}
+        for edge in net.getEdges(withInternal=True):
+            internal = edge.getFunction() == "internal"
+            for lane in edge.getLanes():
+                lanes[lane.getID()] = Lane(
+                    id=lane.getID(),
+                    edge_id=edge.getID(),
+                    index=lane.getIndex(),
+                    centreline=np.asarray(lane.getShape(), dtype=np.float64)[:, :2],
+                    width=float(lane.getWidth()),
+                    speed_limit=float(lane.getSpeed()),
+                    is_internal=internal,
+                    is_shoulder=not lane.allows("passenger"),
+                    successors=_successors(lane),
+                )
+        junctions = [
+            Polygon(node.getShape())
+            for node in net.getNodes()
+            if len(node.getShape()) >= 3 and Polygon(node.getShape()).area > 1e-6
+        ]
+        return cls(lanes, [p if p.is_valid else p.buffer(0) for p in junctions])
+
+    def _build_segment_index(self) -> None:
+        p0, p1, lane_idx, s0 = [], [], [], []
+        for k, lane in enumerate(self._lane_list):
+            # Long segments are split so that each one touches few grid cells.
+            pts, cum = _split_long_segments(lane.centreline, lane.cumulative_s)
+            p0.append(pts[:-1])
+            p1.append(pts[1:])
+            lane_idx.append(np.full(len(pts) - 1, k))
+            s0.append(cum[:-1])
+        self._seg_p0 = np.concatenate(p0)  # (S, 2) [m]
+        self._seg_d = np.concatenate(p1) - self._seg_p0  # (S, 2) [m]
+        self._seg_len2 = np.maximum((self._seg_d**2).sum(1), 1e-12)  # (S,) [m^2]
+        self._seg_len = np.sqrt(self._seg_len2)  # (S,) [m]
+        self._seg_lane = np.concatenate(lane_idx)  # (S,)
+        self._seg_s0 = np.concatenate(s0)  # (S,) [m]
+        self._seg_heading = np.arctan2(self._seg_d[:, 1], self._seg_d[:, 0])  # (S,) [rad]
+        ends = self._seg_p0 + self._seg_d
+        self._tree = shapely.STRtree(shapely.linestrings(np.stack([self._seg_p0, ends], 1)))
+        # Uniform grid: each cell lists the segments passing within _GRID_REACH of it, so a point
+        # whose nearest centreline is closer than that is answered from its own cell.
+        lo = np.floor((np.minimum(self._seg_p0, ends) - _GRID_REACH) / _GRID_CELL).astype(int)
+        hi = np.floor((np.maximum(self._seg_p0, ends) + _GRID_REACH) / _GRID_CELL).astype(int)
+        cells: dict[tuple[int, int], list[int]] = {}
+        for k in range(len(lo)):
+            for ix in range(lo[k, 0], hi[k, 0] + 1):
+                for iy in range(lo[k, 1], hi[k, 1] + 1):
+                    cells.setdefault((ix, iy), []).append(k)
+        rows = [
+            (k, *self._seg_p0[k], *self._seg_d[k], self._seg_len2[k], self._seg_len[k])
+            for k in range(len(lo))
+        ]
+        self._grid = {cell: [rows[k] for k in segs] for cell, segs in cells.items()}
+
+    def nearest_lane(self, x: float, y: float, heading: float | None = None) -> LanePosition:
+        """The lane whose centreline is nearest to (x, y) [m]. Among lanes within 0.5 m of the
+        nearest, the one best aligned with ``heading`` [rad] wins (overlapping junction lanes)."""
+        # Scalar Python on the few segments of one grid cell beats numpy's per-call overhead.
+        found = []  # (distance, u, segment)
+        for k, px, py, dx, dy, len2, _ in self._grid.get(
+            (math.floor(x / _GRID_CELL), math.floor(y / _GRID_CELL)), ()
+        ):
+            rx, ry = x - px, y - py
+            u = min(max((rx * dx + ry * dy) / len2, 0.0), 1.0)
+            found.append((math.hypot(rx - dx * u, ry - dy * u), u, k))
+        if not found or min(found)[0] + _TIE_DISTANCE > _GRID_REACH:
+            found = self._search_tree(x, y)
+        best = min(found)
+        if heading is not None:
+            close = [f for f in found if f[0] <= best[0] + _TIE_DISTANCE]
+            if len(close) > 1:
+                aligned = min(close, key=lambda f: angle_between(self._seg_heading[f[2]], heading))
+                lane_k = self._seg_lane[aligned[2]]
+                best = min(f for f in found if self._seg_lane[f[2]] == lane_k)
+        distance, u, seg = best
+        dx, dy = self._seg_d[seg]
+        rx, ry = x - self._seg_p0[seg][0], y - self._seg_p0[seg][1]
+        seg_len = self._seg_len[seg]
+        return LanePosition(
+            lane=self._lane_list[self._seg_lane[seg]],
+            s=float(self._seg_s0[seg] + u * seg_len),
+            t=float((dx * ry - dy * rx) / seg_len),
+            heading=float(self._seg_heading[seg]),
+            distance=float(distance),
+        )
+
+    def _search_tree(self, x: float, y: float) -> list[tuple[float, float, int]]:
+        point = shapely.Point(x, y)
+        _, dist = self._tree.query_nearest(point, return_distance=True)
+        segs = self._tree.query(point, predicate="dwithin", distance=float(dist[0]) + _TIE_DISTANCE)
+        rx = x - self._seg_p0[segs, 0]
+        ry = y - self._seg_p0[segs, 1]
+        dx, dy = self._seg_d[segs, 0], self._seg_d[segs, 1]
+        u = np.clip((rx * dx + ry * dy) / self._seg_len2[segs], 0.0, 1.0)
+        distance = np.hypot(rx - dx * u, ry - dy * u)
+        return list(zip(distance.tolist(), u.tolist(), segs.tolist(), strict=True))
+
+    def nearest_lanes(self, xy: np.ndarray) -> list[Lane]:
+        """Nearest lane of each point of ``xy`` (m, 2) [m], vectorised; no heading preference."""
+        if len(xy) == 0:
+            return []
+        _, seg = self._tree.query_nearest(shapely.points(xy), all_matches=False)
+        return [self._lane_list[i] for i in self._seg_lane[seg]]
+
+    def is_on_road(self, x: float, y: float) -> bool:
+        return bool(shapely.contains_xy(self.drivable_area, x, y))
+
+    def in_junction(self, x: float, y: float) -> bool:
+        return self._junction_area is not None and bool(
+            shapely.contains_xy(self._junction_area, x, y)
+        )
+
+    def lane_heading_difference(self, position: LanePosition, heading: float) -> float:
+        """Absolute angle [rad] between ``heading`` and the lane direction at ``position``."""
+        return angle_between(heading, position.heading)
+
+    @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        """(min_x, min_y, max_x, max_y) [m] of the drivable area."""
+        return tuple(self.drivable_area.bounds)
+
+
+def lane_surface(lane: Lane) -> Polygon:
+    """The lane's paved area: its centreline widened to the lane width, flat ends."""
+    return LineString(lane.centreline).buffer(lane.width / 2, cap_style="flat", join_style="round")
+
+
+def _successors(lane) -> list[str]:
+    """Lanes a vehicle enters at the end of ``lane``: the junction's internal lane when there is
+    one, else the next normal lane."""
+    out = []
+    for conn in lane.getOutgoing():
+        via = conn.getViaLaneID()
+        out.append(via if via else conn.getToLane().getID())
+    return list(dict.fromkeys(out))
+
+
+def _split_long_segments(pts: np.ndarray, cum_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The polyline ``pts`` (n, 2) with extra vertices so no segment exceeds _MAX_SEGMENT, and the
+    distance along it of each vertex."""
+    s_new = [
+        np.linspace(a, b, max(1, math.ceil((b - a) / _MAX_SEGMENT)) + 1)[:-1]
+        for a, b in itertools.pairwise(cum_s)
+    ]
+    s_all = np.concatenate([*s_new, cum_s[-1:]])
+    xy = np.stack([np.interp(s_all, cum_s, pts[:, 0]), np.interp(s_all, cum_s, pts[:, 1])], 1)
+    return xy, s_all
