@@ -1,7 +1,218 @@
-"""`arena` commands of the evaluator part."""
+"""`arena evaluate`, `arena score` and `arena replay`: local evaluation for participants and
+re-scoring for organisers."""
 
 from __future__ import annotations
 
+import json
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated
+
 import typer
+from rich.console import Console
+from rich.table import Table
+
+from arena.config import SandboxKind
+
+if TYPE_CHECKING:
+    from evaluator.runner import ScenarioOutcome
+    from evaluator.summary import Summary
 
 app = typer.Typer(no_args_is_help=True)
+
+
+@app.command()
+def evaluate(
+    path: Annotated[Path, typer.Argument(help="The submission: a zip or a folder.")],
+    suite: Annotated[
+        str, typer.Option(help="`public` (the repository's public set) or a suite folder.")
+    ] = "public",
+    scenario: Annotated[
+        list[str] | None, typer.Option(help="Only this scenario id (repeatable).")
+    ] = None,
+    jobs: Annotated[
+        int | None, typer.Option(min=1, help="Scenarios run at once (default: ARENA_JOBS).")
+    ] = None,
+    sandbox: Annotated[
+        SandboxKind | None, typer.Option(help="Agent sandbox (default: ARENA_SANDBOX).")
+    ] = None,
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            help="Results folder; re-running with the same one resumes. "
+            "(default: arena-results/<submission name>)"
+        ),
+    ] = None,
+    profile: Annotated[str | None, typer.Option(help="Scoring profile.")] = None,
+    as_json: Annotated[
+        bool, typer.Option("--json", help="Print summary.json to stdout (progress to stderr).")
+    ] = False,
+) -> None:
+    """Evaluate a submission on a scenario set and print its four metrics."""
+    from arena.config import get_settings
+    from evaluator.errors import ArenaError
+    from evaluator.runner import evaluate as run_evaluation
+    from evaluator.runner import resolve_suite
+    from evaluator.scoring import ProfileError
+
+    settings = get_settings()
+    console = Console(stderr=as_json)
+    out = out or Path("arena-results") / path.stem
+    progress = _RichProgress(console)
+    try:
+        summary = run_evaluation(
+            path,
+            resolve_suite(suite),
+            out_dir=out,
+            scenario_ids=scenario,
+            jobs=jobs or settings.jobs,
+            sandbox=sandbox or settings.sandbox,
+            profile=profile or settings.scoring_profile,
+            progress=progress,
+        )
+    except (ArenaError, ProfileError) as exc:
+        console.print(f"[bold red]error:[/] {exc}")
+        raise typer.Exit(2) from None
+    finally:
+        progress.stop()
+    _report(summary, out, console, as_json)
+
+
+@app.command()
+def score(
+    results_dir: Annotated[Path, typer.Argument(help="A results folder of `arena evaluate`.")],
+    profile: Annotated[str | None, typer.Option(help="Scoring profile.")] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print summary.json to stdout.")] = False,
+) -> None:
+    """Re-score stored episode records (no simulation) and rewrite summary.json."""
+    from arena.config import get_settings
+    from evaluator.runner import score_results_dir
+    from evaluator.scoring import ProfileError, RecordError, load_profile
+    from evaluator.summary import SUMMARY_FILE, write_summary
+
+    console = Console(stderr=as_json)
+    if not (results_dir / SUMMARY_FILE).exists():
+        console.print(f"[bold red]error:[/] {results_dir} has no {SUMMARY_FILE}")
+        raise typer.Exit(2)
+    try:
+        summary = score_results_dir(
+            results_dir, load_profile(profile or get_settings().scoring_profile)
+        )
+    except (ProfileError, RecordError) as exc:
+        console.print(f"[bold red]error:[/] {exc}")
+        raise typer.Exit(2) from None
+    write_summary(summary, results_dir)
+    _report(summary, results_dir, console, as_json)
+
+
+@app.command()
+def replay(
+    results_dir: Annotated[Path, typer.Argument(help="A results folder of `arena evaluate`.")],
+    scenario_id: Annotated[str, typer.Argument(help="The scenario to draw.")],
+    out: Annotated[Path, typer.Option(help="SVG file to write.")] = Path("replay.svg"),
+    suite: Annotated[
+        str, typer.Option(help="Suite folder holding the scenario's map, or `public`.")
+    ] = "public",
+) -> None:
+    """Draw one episode as SVG: map, ego path coloured by speed, other vehicles' trails, goal,
+    collision and off-road markers."""
+    from evaluator.replay_picture import ReplayError, draw_episode
+    from evaluator.runner import resolve_suite
+    from evaluator.runner.manifest import SuiteError
+
+    console = Console()
+    try:
+        draw_episode(results_dir, scenario_id, out, suite_dir=resolve_suite(suite))
+    except (ReplayError, SuiteError) as exc:
+        console.print(f"[bold red]error:[/] {exc}")
+        raise typer.Exit(2) from None
+    console.print(f"wrote {out}")
+
+
+class _RichProgress:
+    """Scenarios done/total, failures so far and ETA, on the console given."""
+
+    def __init__(self, console: Console) -> None:
+        from rich.progress import (
+            BarColumn,
+            MofNCompleteColumn,
+            Progress,
+            TextColumn,
+            TimeElapsedColumn,
+            TimeRemainingColumn,
+        )
+
+        self.bar = Progress(
+            TextColumn("[bold]evaluating"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TextColumn("failures {task.fields[failures]}  uncharged {task.fields[uncharged]}"),
+            TimeElapsedColumn(),
+            TextColumn("ETA"),
+            TimeRemainingColumn(),
+            console=console,
+        )
+        self.task = None
+        self.failures = 0
+        self.uncharged = 0
+
+    def started(self, total: int, already_done: int) -> None:
+        self.bar.start()
+        self.task = self.bar.add_task(
+            "evaluating", total=total, completed=already_done, failures=0, uncharged=0
+        )
+
+    def finished(self, outcome: ScenarioOutcome) -> None:
+        from evaluator.summary import ScenarioStatus
+
+        if outcome.status != ScenarioStatus.done:
+            self.uncharged += 1
+        elif not all(agent.reached_goal for agent in outcome.agents):
+            self.failures += 1
+        self.bar.update(self.task, advance=1, failures=self.failures, uncharged=self.uncharged)
+
+    def stop(self) -> None:
+        self.bar.stop()
+
+
+def _report(summary: Summary, results_dir: Path, console: Console, as_json: bool) -> None:
+    if as_json:
+        sys.stdout.write(json.dumps(summary.model_dump(mode="json"), indent=2) + "\n")
+        return
+    profile = summary.profile
+    table = Table(title=f"{summary.suite} - scoring profile {profile.name} v{profile.version}")
+    for column in ("set", "scenarios", "completion", "time", "humanness", "rules"):
+        table.add_column(column, justify="left" if column == "set" else "right")
+    counts: dict[str, int] = {}
+    for entry in summary.scenarios:
+        if entry.metrics is not None:
+            counts[entry.family] = counts.get(entry.family, 0) + 1
+    rows = [("all", sum(counts.values()), summary.metrics)]
+    rows += [(family, counts[family], m) for family, m in summary.families.items()]
+    for name, n, metrics in rows:
+        if metrics is None:
+            table.add_row(name, str(n), "-", "-", "-", "-")
+            continue
+        table.add_row(
+            name,
+            str(n),
+            f"{metrics.completion:.3f}",
+            f"{metrics.time:.1f}",
+            f"{metrics.humanness:.4f}",
+            f"{metrics.rules:.4f}",
+        )
+        if name == "all":
+            table.add_section()
+    console.print(table)
+    console.print("All four are errors: smaller is better.", style="dim")
+    for entry in summary.scenarios:
+        failed = [a for a in entry.agents if not a.reached_goal]
+        if failed:
+            reasons = ", ".join(f"{a.id} {a.reason} at step {a.done_step}" for a in failed)
+            console.print(f"[yellow]failed[/] {entry.id}: {reasons}")
+    for scenario_id in summary.uncharged:
+        entry = next(e for e in summary.scenarios if e.id == scenario_id)
+        console.print(f"[red]not charged[/] {scenario_id} ({entry.status}): {entry.error}")
+    if not summary.complete:
+        console.print("[bold yellow]incomplete:[/] re-run with the same --out to finish")
+    console.print(f"results in {results_dir} (agent logs in {results_dir / 'logs'})")

@@ -1,0 +1,178 @@
+"""Evaluate one submission on a scenario set: ``arena evaluate``.
+
+Up to ``jobs`` scenarios run at once, each in its own simulator process with its own sandboxed
+agent (the threads here only wait on those processes). ``summary.json`` is rewritten whenever a
+scenario starts or finishes, so a crash leaves a trace and a re-run with the same ``out_dir``
+resumes where it stopped.
+"""
+
+from __future__ import annotations
+
+import json
+import tempfile
+import threading
+import traceback
+from collections.abc import Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
+from pathlib import Path
+from typing import Protocol
+
+from arena.config import SandboxKind
+from evaluator.errors import ArenaError
+from evaluator.runner.manifest import Manifest, SuiteScenario, load_manifest
+from evaluator.runner.results import (
+    LOGS_DIR,
+    RECORDS_DIR,
+    is_finished,
+    stored_outcome,
+    summarize,
+)
+from evaluator.runner.scenario import ScenarioOutcome, run_scenario
+from evaluator.scoring import DEFAULT_PROFILE, ScoringProfile, load_profile
+from evaluator.summary import SUMMARY_FILE, ScenarioStatus, Summary, read_summary, write_summary
+
+TIMINGS_FILE = "timings.json"  # wall times: kept out of summary.json, which is deterministic
+
+
+class ResultsDirError(ArenaError):
+    """``out_dir`` holds results that cannot be resumed by this evaluation."""
+
+
+class Progress(Protocol):
+    def started(self, total: int, already_done: int) -> None: ...
+
+    def finished(self, outcome: ScenarioOutcome) -> None: ...
+
+
+def evaluate(
+    source: Path,
+    suite_dir: Path,
+    *,
+    out_dir: Path,
+    scenario_ids: Sequence[str] | None = None,
+    jobs: int = 1,
+    sandbox: SandboxKind | None = None,
+    profile: str = DEFAULT_PROFILE,
+    progress: Progress | None = None,
+) -> Summary:
+    from submissions.intake import prepare_submission
+
+    scoring_profile = load_profile(profile)
+    manifest = load_manifest(suite_dir).select(scenario_ids)
+    out_dir = Path(out_dir)
+    (out_dir / RECORDS_DIR).mkdir(parents=True, exist_ok=True)
+    (out_dir / LOGS_DIR).mkdir(exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="arena-submission-") as tmp:
+        submission = prepare_submission(Path(source), Path(tmp) / "submission")
+        run = _Run(out_dir, manifest, scoring_profile, submission.sha256)
+        todo = run.resume()
+        if progress:
+            progress.started(len(manifest.scenarios), len(manifest.scenarios) - len(todo))
+
+        def play(scenario: SuiteScenario) -> ScenarioOutcome:
+            run.mark_running(scenario.id)
+            return run_scenario(
+                submission, Path(suite_dir) / scenario.id, out_dir / RECORDS_DIR, sandbox=sandbox
+            )
+
+        with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
+            pending: dict[Future, SuiteScenario] = {}
+            queue = list(todo)
+            while queue or pending:
+                while queue and len(pending) < jobs:
+                    scenario = queue.pop(0)
+                    pending[pool.submit(play, scenario)] = scenario
+                done, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for future in done:
+                    outcome = _outcome_of(future, pending.pop(future))
+                    run.record(outcome)
+                    if progress:
+                        progress.finished(outcome)
+    return run.summary()
+
+
+def _outcome_of(future: Future, scenario: SuiteScenario) -> ScenarioOutcome:
+    """An exception from the runner itself (sandbox unavailable, a bug) is ours: the scenario is
+    reported uncharged with the traceback rather than ending the whole evaluation."""
+    try:
+        return future.result()
+    except Exception as exc:
+        return ScenarioOutcome(
+            scenario_id=scenario.id,
+            status=ScenarioStatus.evaluator_error,
+            steps=0,
+            agents=(),
+            record_path=None,
+            error=f"{type(exc).__name__}: {exc}",
+            log="".join(traceback.format_exception(exc)),
+        )
+
+
+class _Run:
+    """The results folder of one evaluation, written from the main thread and workers alike."""
+
+    def __init__(
+        self, out_dir: Path, manifest: Manifest, profile: ScoringProfile, submission: str
+    ) -> None:
+        self.out_dir = out_dir
+        self.manifest = manifest
+        self.profile = profile
+        self.submission = submission
+        self.outcomes: dict[str, ScenarioOutcome] = {}
+        self.running: set[str] = set()
+        self.cache: dict = {}
+        self.timings: dict[str, float] = {}
+        self.lock = threading.Lock()
+
+    def resume(self) -> list[SuiteScenario]:
+        """Keep the scenarios a previous run finished; return the ones still to run."""
+        if (self.out_dir / SUMMARY_FILE).exists():
+            previous = read_summary(self.out_dir)
+            if (previous.submission, previous.manifest_hash) != (
+                self.submission,
+                self.manifest.hash,
+            ):
+                raise ResultsDirError(
+                    f"{self.out_dir} holds results of another submission or suite "
+                    f"(submission {previous.submission[:12]}, suite {previous.suite}); "
+                    "use a fresh --out"
+                )
+            for entry in previous.scenarios:
+                if is_finished(entry, self.out_dir):
+                    self.outcomes[entry.id] = stored_outcome(entry, self.out_dir)
+            timings = self.out_dir / TIMINGS_FILE
+            if timings.exists():
+                self.timings = json.loads(timings.read_text())
+        self._write()
+        return [s for s in self.manifest.scenarios if s.id not in self.outcomes]
+
+    def mark_running(self, scenario_id: str) -> None:
+        with self.lock:
+            self.running.add(scenario_id)
+            self._write()
+
+    def record(self, outcome: ScenarioOutcome) -> None:
+        with self.lock:
+            self.running.discard(outcome.scenario_id)
+            self.outcomes[outcome.scenario_id] = outcome
+            self.cache.pop(outcome.scenario_id, None)
+            self.timings[outcome.scenario_id] = round(outcome.wall_time_s, 3)
+            (self.out_dir / LOGS_DIR / f"{outcome.scenario_id}.txt").write_text(outcome.log)
+            self._write()
+
+    def summary(self) -> Summary:
+        with self.lock:
+            return self._write()
+
+    def _write(self) -> Summary:
+        summary = summarize(
+            self.outcomes.values(),
+            self.manifest,
+            self.profile,
+            submission=self.submission,
+            running=self.running,
+            cache=self.cache,
+        )
+        write_summary(summary, self.out_dir)
+        (self.out_dir / TIMINGS_FILE).write_text(json.dumps(self.timings, indent=2) + "\n")
+        return summary

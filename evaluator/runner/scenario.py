@@ -1,0 +1,138 @@
+"""One scenario for one submission: a sandboxed agent driving in its own simulator process."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from arena.config import SandboxKind
+from evaluator.scoring import AgentSummary
+from evaluator.summary import ScenarioStatus
+from scenarios.schema import load_scenario
+
+if TYPE_CHECKING:
+    from submissions.intake import PreparedSubmission
+
+    from sim.agent import Agent
+    from sim.result import EpisodeResult
+
+# SUMO failures are usually transient (a crashed or stuck libsumo); one more try, then it is
+# reported as ours and not charged.
+SIMULATOR_ATTEMPTS = 2
+
+
+@dataclass(frozen=True)
+class SandboxedAgentFactory:
+    """Picklable: the simulator's child process calls it to start the agent in its sandbox."""
+
+    submission: PreparedSubmission
+    kind: SandboxKind | None
+    labels: dict[str, str]
+
+    def __call__(self) -> Agent:
+        from evaluator import sandbox
+
+        return sandbox.start(self.submission, kind=self.kind, labels=self.labels)
+
+
+@dataclass(frozen=True)
+class ScenarioOutcome:
+    scenario_id: str
+    status: ScenarioStatus  # done, simulator_error or evaluator_error
+    steps: int  # episode steps simulated
+    agents: tuple[AgentSummary, ...]
+    record_path: Path | None  # None when no agent drove a step, or on an uncharged error
+    error: str | None = None  # why an uncharged scenario failed
+    log: str = ""  # agent stderr tail and failure detail, for the participant
+    attempts: int = 1
+    wall_time_s: float = 0.0
+
+
+def run_scenario(
+    submission: PreparedSubmission,
+    scenario_dir: Path,
+    records_dir: Path,
+    *,
+    sandbox: SandboxKind | None = None,
+) -> ScenarioOutcome:
+    """Simulate ``scenario_dir`` with the submission's agent, writing
+    ``records_dir/<scenario_id>.npz``; a simulator error is retried once.
+
+    Agent failures come back as a ``done`` outcome whose agents carry the reason. Infrastructure
+    errors (sandbox unavailable) are raised so the caller can retry the job.
+    """
+    from sim.isolation import run_episode_isolated
+
+    from evaluator import sandbox as sandboxes
+
+    scenario = load_scenario(scenario_dir)
+    record_path = Path(records_dir) / f"{scenario.id}.npz"
+    record_path.parent.mkdir(parents=True, exist_ok=True)
+    labels = {"arena.scenario": scenario.id, "arena.submission": submission.sha256[:16]}
+    factory = SandboxedAgentFactory(submission, sandbox, labels)
+    started = time.monotonic()
+    logs = []
+    for attempt in range(1, SIMULATOR_ATTEMPTS + 1):
+        record_path.unlink(missing_ok=True)
+        try:
+            result = run_episode_isolated(
+                scenario_dir, factory, submission.interface, record_path=record_path
+            )
+        finally:
+            sandboxes.cleanup(labels)  # the episode's child may have died holding a container
+        logs.append(_log_text(result, attempt))
+        if result.simulator_error is None:
+            return _outcome(result, record_path, "\n".join(logs), attempt, started)
+    record_path.unlink(missing_ok=True)
+    return ScenarioOutcome(
+        scenario_id=scenario.id,
+        status=ScenarioStatus.simulator_error,
+        steps=result.steps,
+        agents=(),
+        record_path=None,
+        error=result.simulator_error,
+        log="\n".join(logs),
+        attempts=SIMULATOR_ATTEMPTS,
+        wall_time_s=time.monotonic() - started,
+    )
+
+
+def _outcome(
+    result: EpisodeResult, record_path: Path, log: str, attempts: int, started: float
+) -> ScenarioOutcome:
+    agents = tuple(
+        AgentSummary(
+            id=a.id,
+            reached_goal=a.reached_goal,
+            reason=str(a.reason),
+            steps=a.steps,
+            done_step=a.done_step,
+        )
+        for a in result.agents
+    )
+    return ScenarioOutcome(
+        scenario_id=result.scenario_id,
+        status=ScenarioStatus.done,
+        steps=result.steps,
+        agents=agents,
+        record_path=record_path if record_path.exists() else None,
+        log=log,
+        attempts=attempts,
+        wall_time_s=time.monotonic() - started,
+    )
+
+
+def _log_text(result: EpisodeResult, attempt: int) -> str:
+    parts = [f"--- attempt {attempt}: {result.scenario_id}"]
+    if result.simulator_error:
+        parts.append(f"simulator error: {result.simulator_error}")
+    for agent in result.agents:
+        parts.append(f"{agent.id}: {agent.reason} after {agent.steps} steps")
+    if result.detail:
+        parts.append(result.detail)
+    agent_log = result.extra.get("agent_log")
+    if agent_log:
+        parts.append("--- agent stderr (tail)\n" + str(agent_log))
+    return "\n".join(parts)

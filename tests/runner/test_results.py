@@ -1,0 +1,147 @@
+"""Summaries from outcomes and stored records, without the simulator."""
+
+import json
+
+import numpy as np
+import pytest
+
+from evaluator.runner.manifest import Manifest, SuiteError, SuiteScenario, load_manifest
+from evaluator.runner.results import record_path, score_results_dir, summarize
+from evaluator.runner.scenario import ScenarioOutcome
+from evaluator.scoring import AgentSummary, ScoringProfile, load_profile
+from evaluator.summary import ScenarioStatus, read_summary, write_summary
+from tests.scoring.builders import AgentSpec, drive, write_record
+
+PROFILE = load_profile()
+MANIFEST = Manifest(
+    suite="unit",
+    hash="f" * 64,
+    scenarios=(
+        SuiteScenario("cruise_a", "cruise"),
+        SuiteScenario("merge_a", "merge"),
+        SuiteScenario("merge_b", "merge"),
+        SuiteScenario("cruise_b", "cruise"),
+    ),
+)
+
+
+def done(results_dir, scenario_id: str, agents: list[AgentSpec]) -> ScenarioOutcome:
+    path = record_path(results_dir, scenario_id)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_record(path, scenario_id, agents)
+    return ScenarioOutcome(scenario_id, ScenarioStatus.done, 0, (), path)
+
+
+def simulator_error(scenario_id: str) -> ScenarioOutcome:
+    return ScenarioOutcome(
+        scenario_id, ScenarioStatus.simulator_error, 12, (), None, error="SUMO crashed"
+    )
+
+
+def weaving(n: int) -> dict[str, np.ndarray]:
+    return drive(n, lane_offset=np.linspace(-1.0, 1.0, n), speed=14.5)
+
+
+@pytest.fixture
+def outcomes(tmp_path):
+    return [
+        done(tmp_path, "cruise_a", [AgentSpec(weaving(300), done_step=300)]),
+        done(tmp_path, "merge_a", [AgentSpec(weaving(120), reason="collision")]),
+        done(
+            tmp_path,
+            "merge_b",
+            [AgentSpec(weaving(200), done_step=200), AgentSpec(weaving(90), reason="off_road")],
+        ),
+        simulator_error("cruise_b"),
+    ]
+
+
+def test_simulator_error_is_listed_and_not_charged(tmp_path, outcomes):
+    summary = summarize(outcomes, MANIFEST, PROFILE, submission="s" * 64)
+
+    assert summary.uncharged == ("cruise_b",)
+    assert summary.complete
+    assert summary.metrics.completion == pytest.approx((0 + 1 + 0.5) / 3)
+    assert summary.metrics.time == pytest.approx((300 + 800 + 800) / 3)
+    assert summary.families["cruise"].time == 300
+    assert summary.families["merge"].completion == 0.75
+    entry = summary.scenarios[3]
+    assert (entry.status, entry.metrics, entry.error) == ("simulator_error", None, "SUMO crashed")
+
+
+def test_scenario_entries_follow_the_manifest_and_carry_agent_outcomes(tmp_path, outcomes):
+    summary = summarize(reversed(outcomes), MANIFEST, PROFILE, submission="s" * 64)
+    assert [e.id for e in summary.scenarios] == [s.id for s in MANIFEST.scenarios]
+    merge_b = summary.scenarios[2]
+    assert [(a.id, a.reached_goal, a.reason, a.steps) for a in merge_b.agents] == [
+        ("Agent_0", True, "reached_goal", 200),
+        ("Agent_1", False, "off_road", 90),
+    ]
+    assert merge_b.metrics.completion == 0.5
+    assert merge_b.terms["lc_off"] > 0
+
+
+def test_unfinished_scenarios_are_pending_or_running(tmp_path, outcomes):
+    summary = summarize(outcomes[:1], MANIFEST, PROFILE, submission="s", running=["merge_b"])
+    assert [e.status for e in summary.scenarios] == ["done", "pending", "running", "pending"]
+    assert not summary.complete
+    assert summary.metrics.completion == 0.0
+
+
+def test_rescoring_stored_records_gives_the_same_summary(tmp_path, outcomes):
+    original = summarize(outcomes, MANIFEST, PROFILE, submission="s" * 64)
+    write_summary(original, tmp_path)
+    assert score_results_dir(tmp_path, PROFILE) == original
+    assert read_summary(tmp_path) == original
+
+
+def test_rescoring_with_another_profile_changes_only_what_it_should(tmp_path, outcomes):
+    write_summary(summarize(outcomes, MANIFEST, PROFILE, submission="s"), tmp_path)
+    lenient = ScoringProfile.model_validate(
+        PROFILE.model_dump() | {"name": "lenient", "humanness_terms": ["distance_obs", "jerk"]}
+    )
+    rescored = score_results_dir(tmp_path, lenient)
+    original = read_summary(tmp_path)
+    assert rescored.profile.name == "lenient"
+    assert rescored.metrics.completion == original.metrics.completion
+    assert rescored.metrics.humanness < original.metrics.humanness
+
+
+def test_agent_that_never_drove_is_charged_without_a_record(tmp_path):
+    never = AgentSummary("Agent_0", False, "init_timeout", 0, 0)
+    outcome = ScenarioOutcome("cruise_a", ScenarioStatus.done, 0, (never,), None)
+    summary = summarize([outcome], MANIFEST.select(["cruise_a"]), PROFILE, submission="s")
+    assert (summary.metrics.completion, summary.metrics.time) == (1.0, 800)
+    write_summary(summary, tmp_path)
+    assert score_results_dir(tmp_path, PROFILE) == summary
+
+
+def test_summary_json_has_the_documented_shape(tmp_path, outcomes):
+    write_summary(summarize(outcomes, MANIFEST, PROFILE, submission="s"), tmp_path)
+    data = json.loads((tmp_path / "summary.json").read_text())
+    assert {"submission", "suite", "manifest_hash", "profile", "metrics", "families"} <= set(data)
+    assert set(data["metrics"]) == {"completion", "time", "humanness", "rules"}
+    scenario = data["scenarios"][0]
+    assert {"id", "family", "status", "steps", "agents"} <= set(scenario)
+    assert {"id", "reached_goal", "reason", "steps"} <= set(scenario["agents"][0])
+
+
+def write_suite(folder, ids_families, suite="unit"):
+    folder.mkdir(parents=True, exist_ok=True)
+    scenarios = [{"id": i, "family": f, "variant": "v", "hash": "0"} for i, f in ids_families]
+    (folder / "manifest.json").write_text(json.dumps({"suite": suite, "scenarios": scenarios}))
+    for scenario_id, _ in ids_families:
+        (folder / scenario_id).mkdir(exist_ok=True)
+    return folder
+
+
+def test_manifest_selection_keeps_manifest_order_and_refuses_unknown_ids(tmp_path):
+    manifest = load_manifest(write_suite(tmp_path, [("a", "cruise"), ("b", "merge")]))
+    assert [s.id for s in manifest.select(["b", "a"]).scenarios] == ["a", "b"]
+    with pytest.raises(SuiteError, match="no scenario c"):
+        manifest.select(["c"])
+
+
+def test_folder_without_manifest_is_a_clear_error(tmp_path):
+    with pytest.raises(SuiteError, match=r"no manifest\.json"):
+        load_manifest(tmp_path)
