@@ -18,6 +18,8 @@ from pydantic_settings import BaseSettings, SettingsConfigDict
 class SandboxKind(StrEnum):
     docker = "docker"
     bubblewrap = "bubblewrap"
+    # Unsandboxed subprocess with rlimits only: for participants' local runs, refused by the service.
+    process = "process"
     auto = "auto"
 
 

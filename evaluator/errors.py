@@ -1,0 +1,50 @@
+"""The one error hierarchy of the evaluator.
+
+Errors are split by whose fault they are. A :class:`ParticipantError` is shown to the team and
+never retried: their zip was malformed, their agent crashed or exceeded a limit. An
+:class:`InfrastructureError` is ours (Docker daemon gone, sandbox tool missing) and the job is
+retried. Library exceptions (docker, subprocess, zipfile) are translated into these at the
+boundary where they happen, so callers only ever catch ``ArenaError`` subclasses.
+"""
+
+from __future__ import annotations
+
+from sim.agent import AgentFailed, DoneReason
+
+
+class ArenaError(Exception):
+    """Base of every error the evaluator raises on purpose."""
+
+
+class ParticipantError(ArenaError):
+    """The submission is at fault; shown to its team, not retried."""
+
+
+class InfrastructureError(ArenaError):
+    """Our side failed; the job is retried and never charged to the submission."""
+
+
+class IntakeError(ParticipantError):
+    """A submission zip broke an intake rule.
+
+    ``entry`` names the offending zip entry (or ``"<zip>"`` for the archive as a whole) and
+    ``rule`` is the short name of the rule, e.g. ``"zip-slip"`` or ``"max-entries"``.
+    """
+
+    def __init__(self, entry: str, rule: str, message: str) -> None:
+        super().__init__(f"{entry}: {message} [rule: {rule}]")
+        self.entry = entry
+        self.rule = rule
+        self.message = message
+
+
+class AgentFailure(ParticipantError, AgentFailed):
+    """The sandboxed agent as a whole failed; carries the reason and its last stderr."""
+
+    def __init__(self, reason: DoneReason, detail: str = "", stderr_tail: str = "") -> None:
+        AgentFailed.__init__(self, reason, detail)
+        self.stderr_tail = stderr_tail
+
+
+class SandboxUnavailable(InfrastructureError):
+    """The requested sandbox cannot run here (no daemon, no image, no bubblewrap)."""

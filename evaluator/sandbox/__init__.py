@@ -1,0 +1,113 @@
+"""Running untrusted agents: :func:`start` one in a sandbox and drive it through an AgentHandle.
+
+Backends: ``docker`` (production), ``bubblewrap`` (hosts without Docker) and ``process`` (no
+isolation; participants' local runs only, refused by the service through
+:func:`check_service_kind`). ``auto`` means Docker when a daemon answers, else bubblewrap.
+"""
+
+from __future__ import annotations
+
+from arena.config import SandboxKind, Settings, get_settings
+from evaluator.errors import SandboxUnavailable
+from evaluator.sandbox.backend import Backend, LaunchSpec
+from evaluator.sandbox.handle import AgentHandle
+
+__all__ = [
+    "SERVICE_KINDS",
+    "AgentHandle",
+    "backend",
+    "check_service_kind",
+    "cleanup",
+    "resolve_kind",
+    "start",
+]
+
+# Kinds that isolate the agent; the only ones the service may evaluate with.
+SERVICE_KINDS = frozenset({SandboxKind.docker, SandboxKind.bubblewrap})
+
+
+def backend(kind: SandboxKind) -> Backend:
+    if kind is SandboxKind.docker:
+        from evaluator.sandbox.docker_backend import DockerBackend
+
+        return DockerBackend()
+    if kind is SandboxKind.bubblewrap:
+        from evaluator.sandbox.bwrap_backend import BubblewrapBackend
+
+        return BubblewrapBackend()
+    if kind is SandboxKind.process:
+        from evaluator.sandbox.process_backend import ProcessBackend
+
+        return ProcessBackend()
+    raise ValueError(f"{kind} is not a concrete sandbox kind")
+
+
+def resolve_kind(
+    kind: SandboxKind | str | None = None, settings: Settings | None = None
+) -> SandboxKind:
+    """The concrete backend for ``kind`` (default: the setting); ``auto`` prefers Docker."""
+    settings = settings or get_settings()
+    kind = SandboxKind(kind or settings.sandbox)
+    if kind is not SandboxKind.auto:
+        return kind
+    if backend(SandboxKind.docker).unavailable_reason(settings) is None:
+        return SandboxKind.docker
+    reason = backend(SandboxKind.bubblewrap).unavailable_reason(settings)
+    if reason is None:
+        return SandboxKind.bubblewrap
+    raise SandboxUnavailable(f"neither Docker nor bubblewrap can run agents here: {reason}")
+
+
+def check_service_kind(
+    kind: SandboxKind | str | None = None, settings: Settings | None = None
+) -> SandboxKind:
+    """The backend the service will use; refuses the unisolated ``process`` kind."""
+    resolved = resolve_kind(kind, settings)
+    if resolved not in SERVICE_KINDS:
+        raise SandboxUnavailable(
+            f"the service never runs agents with sandbox {resolved.value!r}: it does not isolate "
+            "them; use docker or bubblewrap"
+        )
+    return resolved
+
+
+def start(
+    submission,
+    *,
+    kind: SandboxKind | str | None = None,
+    labels: dict[str, str] | None = None,
+    settings: Settings | None = None,
+) -> AgentHandle:
+    """Start ``submission`` (a PreparedSubmission) and wait until its Policy is built.
+
+    Raises :class:`~evaluator.errors.AgentFailure` when the policy fails to import or construct
+    in ``init_timeout_s``, :class:`~evaluator.errors.SandboxUnavailable` when the sandbox itself
+    cannot start.
+    """
+    settings = settings or get_settings()
+    chosen = backend(resolve_kind(kind, settings))
+    spec = LaunchSpec(
+        submission=submission.root,
+        deps=submission.deps_dir,
+        settings=settings,
+        labels=dict(labels or {}),
+    )
+    handle = AgentHandle(chosen.launch(spec), settings)
+    try:
+        handle.handshake()
+    except BaseException:
+        handle.close()
+        raise
+    return handle
+
+
+def cleanup(labels: dict[str, str] | None = None, settings: Settings | None = None) -> int:
+    """Remove leftover sandboxes of every backend carrying ``labels`` (default: all of ours)."""
+    from evaluator.sandbox.backend import SANDBOX_LABEL
+
+    settings = settings or get_settings()
+    wanted = {SANDBOX_LABEL: "1", **(labels or {})}
+    removed = 0
+    for kind in (SandboxKind.docker, SandboxKind.bubblewrap):
+        removed += backend(kind).cleanup(wanted)
+    return removed

@@ -1,0 +1,92 @@
+"""What every sandbox backend provides, so the agent handle never knows which one it drives."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Protocol
+
+from arena.config import SandboxKind, Settings
+from evaluator.sandbox.channel import Channel
+
+# Every sandbox carries this label, so leftovers of a crashed worker are found and removed.
+SANDBOX_LABEL = "driving-arena.sandbox"
+# Where the runner finds things inside every sandbox.
+SUBMISSION_MOUNT = "/submission"
+DEPS_MOUNT = "/deps"
+RUNNER_MOUNT = "/opt/arena/runner.py"
+RUNNER_PATH = Path(__file__).resolve().parents[2] / "submissions" / "runner.py"
+# One thread for BLAS/OpenMP: the agent has one CPU, and a thread each counts against its pids.
+RUNTIME_ENV = {
+    "PYTHONUNBUFFERED": "1",
+    "PYTHONDONTWRITEBYTECODE": "1",
+    "OPENBLAS_NUM_THREADS": "1",
+    "OMP_NUM_THREADS": "1",
+    "MKL_NUM_THREADS": "1",
+    "HOME": "/tmp",
+    "TMPDIR": "/tmp",
+    "LANG": "C.UTF-8",
+}
+
+
+@dataclass(frozen=True)
+class LaunchSpec:
+    """One agent to start: its folders, labels and the limits it runs under."""
+
+    submission: Path
+    deps: Path | None
+    settings: Settings
+    labels: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def all_labels(self) -> dict[str, str]:
+        return {SANDBOX_LABEL: "1", **self.labels}
+
+    def runner_args(self) -> list[str]:
+        deps = ["--deps", DEPS_MOUNT] if self.deps else []
+        return ["-I", "-B", RUNNER_MOUNT, "--submission", SUBMISSION_MOUNT, *deps]
+
+
+@dataclass(frozen=True)
+class ExitStatus:
+    code: int | None
+    oom_killed: bool = False
+
+    def describe(self) -> str:
+        if self.oom_killed:
+            return "killed for exceeding its memory limit"
+        if self.code is None:
+            return "ended for an unknown reason"
+        if self.code < 0:
+            return f"killed by signal {-self.code}"
+        if self.code > 128:
+            return f"exited with status {self.code} (signal {self.code - 128})"
+        return f"exited with status {self.code}"
+
+
+class Sandbox(Protocol):
+    """One running agent."""
+
+    def connect(self, deadline: float) -> Channel:
+        """The protocol channel, once the runner is reachable (``deadline``: monotonic time)."""
+
+    def exit_status(self, timeout: float) -> ExitStatus | None:
+        """How the agent ended, or None if it is still running after ``timeout`` seconds."""
+
+    def kill(self) -> None:
+        """Stop it and release everything it holds; safe to call twice."""
+
+    def logs(self) -> str:
+        """The last ``agent_log_tail_bytes`` of its stdout/stderr."""
+
+
+class Backend(Protocol):
+    kind: SandboxKind
+
+    def unavailable_reason(self, settings: Settings) -> str | None:
+        """Why this backend cannot run here, or None when it can."""
+
+    def launch(self, spec: LaunchSpec) -> Sandbox: ...
+
+    def cleanup(self, labels: dict[str, str]) -> int:
+        """Kill and remove every sandbox carrying all ``labels``; returns how many."""

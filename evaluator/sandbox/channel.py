@@ -1,0 +1,132 @@
+"""The evaluator's end of the agent protocol (``docs/protocol.md``), with deadlines.
+
+Frames are a 4-byte big-endian length and a payload. What we send is a pickle (protocol 5) of
+``(kind, body)``; numpy arrays are pickled as ``numpy.ndarray(shape, dtype, buffer)`` so that any
+numpy the runtime has can load them. What we receive is JSON and is never unpickled: the agent is
+untrusted. Both descriptors are non-blocking and every wait goes through ``poll`` with the time
+left, so a silent or stuck agent can never hold the evaluator past its deadline.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import pickle
+import select
+import struct
+import time
+from typing import Any
+
+import numpy as np
+
+HEADER = struct.Struct(">I")
+# Replies carry a handful of actions; anything near this size is an agent writing garbage.
+MAX_REPLY_BYTES = 16 * 1024**2
+READ_CHUNK = 256 * 1024
+
+
+class ChannelClosed(Exception):
+    """The agent's end went away (it exited or was killed)."""
+
+
+class ChannelTimeout(Exception):
+    """The deadline passed before the whole frame moved."""
+
+
+class ChannelViolation(Exception):
+    """The agent sent something that is not a protocol frame."""
+
+
+class ObservationPickler(pickle.Pickler):
+    """Pickles numpy values in a form every numpy version loads."""
+
+    def reducer_override(self, obj: Any) -> Any:
+        if isinstance(obj, np.ndarray):
+            if obj.dtype.hasobject:
+                raise TypeError("observations may not hold object arrays")
+            array = np.ascontiguousarray(obj)
+            return np.ndarray, (array.shape, array.dtype.str, bytearray(array.tobytes()))
+        if isinstance(obj, np.generic):
+            value = obj.item()
+            return type(value), (value,)
+        return NotImplemented
+
+
+class Channel:
+    def __init__(self, read_fd: int, write_fd: int) -> None:
+        self.read_fd = read_fd
+        self.write_fd = write_fd
+        os.set_blocking(read_fd, False)
+        os.set_blocking(write_fd, False)
+        self._readable = select.poll()
+        self._readable.register(read_fd, select.POLLIN)
+        self._writable = select.poll()
+        self._writable.register(write_fd, select.POLLOUT)
+        self._received = bytearray()
+        self._buffer = io.BytesIO()
+        self._pickler = ObservationPickler(self._buffer, protocol=5)
+
+    def send(self, kind: str, body: Any, deadline: float) -> None:
+        """Write one message; ``deadline`` is a ``time.monotonic()`` value."""
+        self._buffer.seek(0)
+        self._buffer.truncate()
+        self._pickler.clear_memo()
+        self._pickler.dump((kind, body))
+        payload = self._buffer.getbuffer()
+        pending = [memoryview(HEADER.pack(len(payload))), payload]
+        try:
+            while pending:
+                try:
+                    written = os.writev(self.write_fd, pending)
+                except BlockingIOError:
+                    self._wait(self._writable, deadline)
+                    continue
+                except (BrokenPipeError, ConnectionResetError) as error:
+                    raise ChannelClosed from error
+                while pending and written >= len(pending[0]):
+                    written -= len(pending[0])
+                    pending.pop(0)
+                if pending:
+                    pending[0] = pending[0][written:]
+        finally:
+            del payload, pending
+
+    def receive(self, deadline: float) -> dict[str, Any]:
+        """Read one message; ``deadline`` is a ``time.monotonic()`` value."""
+        while True:
+            if len(self._received) >= HEADER.size:
+                (size,) = HEADER.unpack_from(self._received)
+                if size > MAX_REPLY_BYTES:
+                    raise ChannelViolation(f"a reply of {size} bytes (limit {MAX_REPLY_BYTES})")
+                end = HEADER.size + size
+                if len(self._received) >= end:
+                    payload = bytes(self._received[HEADER.size : end])
+                    del self._received[:end]
+                    return decode_reply(payload)
+            try:
+                chunk = os.read(self.read_fd, READ_CHUNK)
+            except BlockingIOError:
+                self._wait(self._readable, deadline)
+                continue
+            except ConnectionResetError as error:
+                raise ChannelClosed from error
+            if not chunk:
+                raise ChannelClosed
+            self._received += chunk
+
+    @staticmethod
+    def _wait(poller: select.poll, deadline: float) -> None:
+        left = deadline - time.monotonic()
+        if left <= 0 or not poller.poll(left * 1000):
+            raise ChannelTimeout
+
+
+def decode_reply(payload: bytes) -> dict[str, Any]:
+    try:
+        message = json.loads(payload)
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise ChannelViolation(f"a reply that is not JSON: {error}") from error
+    if not isinstance(message, dict) or not isinstance(message.get("type"), str):
+        raise ChannelViolation("a reply without a message type")
+    return message

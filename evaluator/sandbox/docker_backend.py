@@ -1,0 +1,215 @@
+"""The Docker backend: one locked-down container per agent.
+
+:func:`container_options` is the only place a container is described, so every container gets
+every safety option. The protocol does not go through the Docker daemon: the container connects to
+a unix socket in a per-agent folder mounted into it, so a step costs two socket writes, no HTTP.
+"""
+
+from __future__ import annotations
+
+import os
+import select
+import shutil
+import socket
+import tempfile
+import time
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+from arena.config import SandboxKind, Settings
+from evaluator.errors import SandboxUnavailable
+from evaluator.sandbox.backend import (
+    DEPS_MOUNT,
+    RUNNER_MOUNT,
+    RUNNER_PATH,
+    RUNTIME_ENV,
+    SUBMISSION_MOUNT,
+    ExitStatus,
+    LaunchSpec,
+)
+from evaluator.sandbox.channel import Channel, ChannelClosed, ChannelTimeout
+
+SOCKET_MOUNT = "/run/arena"
+SOCKET_NAME = "agent.sock"
+UNPRIVILEGED_USER = "65534:65534"
+# The log driver keeps this much per container; we show the last agent_log_tail_bytes of it.
+LOG_MAX_SIZE = "1m"
+# How often a starting container is checked for having died before it connected [s].
+START_POLL_S = 0.1
+
+
+@lru_cache
+def docker_client():
+    import docker
+
+    return docker.from_env()
+
+
+def container_options(spec: LaunchSpec, socket_dir: Path) -> dict[str, Any]:
+    """Everything ``containers.run`` gets; the safety options are not negotiable."""
+    from docker.types import LogConfig
+
+    settings = spec.settings
+    volumes = {
+        str(spec.submission): {"bind": SUBMISSION_MOUNT, "mode": "ro"},
+        str(RUNNER_PATH): {"bind": RUNNER_MOUNT, "mode": "ro"},
+        str(socket_dir): {"bind": SOCKET_MOUNT, "mode": "ro"},
+    }
+    if spec.deps:
+        volumes[str(spec.deps)] = {"bind": DEPS_MOUNT, "mode": "ro"}
+    return {
+        "image": settings.agent_image,
+        "command": [
+            "python3",
+            *spec.runner_args(),
+            "--socket",
+            f"{SOCKET_MOUNT}/{SOCKET_NAME}",
+        ],
+        "detach": True,
+        "init": True,
+        "network_mode": "none",
+        "read_only": True,
+        "tmpfs": {"/tmp": f"rw,nosuid,nodev,size={settings.agent_tmp_bytes},mode=1777"},
+        "mem_limit": settings.agent_memory_bytes,
+        "memswap_limit": settings.agent_memory_bytes,
+        "nano_cpus": int(settings.agent_cpus * 1e9),
+        "pids_limit": settings.agent_pids,
+        "cap_drop": ["ALL"],
+        "security_opt": ["no-new-privileges"],
+        "user": UNPRIVILEGED_USER,
+        "ipc_mode": "none",
+        "working_dir": SUBMISSION_MOUNT,
+        "environment": RUNTIME_ENV,
+        "volumes": volumes,
+        "labels": spec.all_labels,
+        "log_config": LogConfig(
+            type="json-file", config={"max-size": LOG_MAX_SIZE, "max-file": "1"}
+        ),
+    }
+
+
+class DockerSandbox:
+    def __init__(self, container, listener: socket.socket, socket_dir: Path, log_limit: int):
+        self.container = container
+        self._listener = listener
+        self._socket_dir = socket_dir
+        self._log_limit = log_limit
+        self._connection: socket.socket | None = None
+        self._final_logs: str | None = None
+
+    def connect(self, deadline: float) -> Channel:
+        """Wait for the runner to connect, noticing a container that dies first."""
+        while True:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise ChannelTimeout
+            ready, _, _ = select.select([self._listener], [], [], min(left, START_POLL_S))
+            if ready:
+                break
+            if self.exit_status(timeout=0) is not None:
+                raise ChannelClosed
+        self._connection, _ = self._listener.accept()
+        self._listener.close()
+        fd = self._connection.fileno()
+        return Channel(fd, fd)
+
+    def exit_status(self, timeout: float) -> ExitStatus | None:
+        import docker.errors
+        import requests.exceptions
+
+        if timeout > 0:
+            try:
+                self.container.wait(timeout=timeout)
+            except (requests.exceptions.ConnectionError, requests.exceptions.ReadTimeout):
+                return None
+            except docker.errors.NotFound:
+                return ExitStatus(None)
+        try:
+            state = docker_client().api.inspect_container(self.container.id)["State"]
+        except docker.errors.NotFound:
+            return ExitStatus(None)
+        if state["Running"] and not state["OOMKilled"]:
+            return None
+        return ExitStatus(state["ExitCode"], oom_killed=state["OOMKilled"])
+
+    def kill(self) -> None:
+        import docker.errors
+
+        if self._final_logs is None:
+            self._final_logs = self.logs()
+        try:
+            self.container.remove(force=True)
+        except docker.errors.NotFound:
+            pass
+        except docker.errors.APIError as error:
+            # Removal already in progress is fine; anything else is for cleanup() to catch.
+            if "in progress" not in str(error):
+                raise
+        for closable in (self._connection, self._listener):
+            if closable is not None:
+                closable.close()
+        shutil.rmtree(self._socket_dir, ignore_errors=True)
+
+    def logs(self) -> str:
+        import docker.errors
+
+        if self._final_logs is not None:
+            return self._final_logs
+        try:
+            data = self.container.logs(stdout=True, stderr=True)
+        except docker.errors.NotFound:
+            return ""
+        return data[-self._log_limit :].decode("utf-8", errors="replace")
+
+
+class DockerBackend:
+    kind = SandboxKind.docker
+
+    def unavailable_reason(self, settings: Settings) -> str | None:
+        import docker.errors
+
+        try:
+            client = docker_client()
+            client.ping()
+        except docker.errors.DockerException as error:
+            return f"no Docker daemon answers ({error})"
+        try:
+            client.images.get(settings.agent_image)
+        except docker.errors.ImageNotFound:
+            return f"image {settings.agent_image} is missing (run `arena sandbox build-image`)"
+        return None
+
+    def launch(self, spec: LaunchSpec) -> DockerSandbox:
+        import docker.errors
+
+        socket_dir = Path(tempfile.mkdtemp(prefix="arena-agent-"))
+        socket_dir.chmod(0o755)
+        listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        try:
+            path = socket_dir / SOCKET_NAME
+            listener.bind(str(path))
+            # The runner connects as uid 65534; the folder holds nothing else.
+            os.chmod(path, 0o777)
+            listener.listen(1)
+            container = docker_client().containers.run(**container_options(spec, socket_dir))
+        except (OSError, docker.errors.DockerException) as error:
+            listener.close()
+            shutil.rmtree(socket_dir, ignore_errors=True)
+            raise SandboxUnavailable(f"cannot start the agent container: {error}") from error
+        return DockerSandbox(container, listener, socket_dir, spec.settings.agent_log_tail_bytes)
+
+    def cleanup(self, labels: dict[str, str]) -> int:
+        import docker.errors
+
+        selector = [f"{key}={value}" for key, value in labels.items()]
+        try:
+            containers = docker_client().containers.list(all=True, filters={"label": selector})
+        except docker.errors.DockerException:
+            return 0
+        for container in containers:
+            try:
+                container.remove(force=True)
+            except docker.errors.NotFound:
+                pass
+        return len(containers)

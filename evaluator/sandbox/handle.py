@@ -1,0 +1,136 @@
+"""The evaluator's handle on one running agent: the :class:`sim.agent.Agent` the simulator drives.
+
+Every way an agent can fail is turned into one :class:`AgentFailure` with a named reason and the
+tail of its stderr, after the sandbox has been killed: a failing agent never outlives its failure.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+from arena.config import Settings
+from evaluator.errors import AgentFailure
+from evaluator.sandbox.backend import Sandbox
+from evaluator.sandbox.channel import Channel, ChannelClosed, ChannelTimeout, ChannelViolation
+from sim.agent import DoneReason, Observation
+
+# How long a closing agent may take to say goodbye before it is killed [s].
+CLOSE_GRACE_S = 1.0
+# How long to wait for a dead agent's exit status after its stream closed [s].
+EXIT_STATUS_WAIT_S = 2.0
+
+
+class AgentHandle:
+    """A started agent. Made by :func:`evaluator.sandbox.start`, which has done hello/ready."""
+
+    def __init__(self, sandbox: Sandbox, settings: Settings) -> None:
+        self._sandbox = sandbox
+        self._step_timeout_s = settings.step_timeout_s
+        self._init_timeout_s = settings.init_timeout_s
+        self._channel: Channel | None = None
+        self._closed = False
+        self.hello: dict[str, Any] = {}
+        self.init_s: float | None = None
+
+    def handshake(self) -> None:
+        deadline = time.monotonic() + self._init_timeout_s
+        try:
+            self._channel = self._sandbox.connect(deadline)
+        except ChannelTimeout:
+            self._fail(DoneReason.init_timeout, "the sandbox did not start in time")
+        except ChannelClosed:
+            self._fail(DoneReason.sandbox_error, self._ended_detail("before the runner started"))
+        self.hello = self._expect("hello", deadline, DoneReason.init_timeout, startup=True)
+        ready = self._expect("ready", deadline, DoneReason.init_timeout)
+        self.init_s = ready.get("init_s")
+
+    def reset(self) -> None:
+        self._send("reset", None, time.monotonic() + self._init_timeout_s, DoneReason.init_timeout)
+        self._expect("done", time.monotonic() + self._init_timeout_s, DoneReason.init_timeout)
+
+    def act(self, obs: dict[str, Observation]) -> dict[str, Any]:
+        deadline = time.monotonic() + self._step_timeout_s
+        self._send("act", obs, deadline, DoneReason.step_timeout)
+        return self._expect("actions", deadline, DoneReason.step_timeout)["actions"]
+
+    def close(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        if self._channel is not None:
+            deadline = time.monotonic() + CLOSE_GRACE_S
+            try:
+                self._channel.send("close", None, deadline)
+                self._channel.receive(deadline)
+            except (ChannelClosed, ChannelTimeout, ChannelViolation):
+                pass
+        self._sandbox.kill()
+
+    def logs(self) -> str:
+        return self._sandbox.logs()
+
+    def __enter__(self) -> AgentHandle:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    def _send(self, kind: str, body: Any, deadline: float, late: DoneReason) -> None:
+        if self._closed or self._channel is None:
+            raise AgentFailure(DoneReason.sandbox_error, "the agent was already closed")
+        try:
+            self._channel.send(kind, body, deadline)
+        except ChannelTimeout:
+            self._fail(late, f"the agent did not take its {kind} message in time")
+        except ChannelClosed:
+            self._died()
+
+    def _expect(
+        self, kind: str, deadline: float, late: DoneReason, *, startup: bool = False
+    ) -> dict[str, Any]:
+        assert self._channel is not None
+        try:
+            message = self._channel.receive(deadline)
+        except ChannelTimeout:
+            limit = (
+                self._step_timeout_s if late is DoneReason.step_timeout else self._init_timeout_s
+            )
+            self._fail(late, f"no {kind} within {limit:g} s")
+        except ChannelClosed:
+            if startup:
+                self._fail(
+                    DoneReason.sandbox_error, self._ended_detail("before the runner started")
+                )
+            self._died()
+        except ChannelViolation as error:
+            self._fail(DoneReason.agent_error, f"protocol violation: {error}")
+        if message["type"] == "error":
+            reason = (
+                DoneReason.memory_limit
+                if message.get("kind") == "memory"
+                else DoneReason.agent_error
+            )
+            self._fail(reason, str(message.get("traceback") or message.get("message", "")))
+        if message["type"] != kind:
+            self._fail(
+                DoneReason.agent_error, f"protocol violation: {message['type']!r} for {kind!r}"
+            )
+        return message
+
+    def _died(self) -> None:
+        status = self._sandbox.exit_status(EXIT_STATUS_WAIT_S)
+        if status is not None and status.oom_killed:
+            self._fail(DoneReason.memory_limit, "the agent was " + status.describe())
+        self._fail(DoneReason.agent_exited, self._ended_detail("unexpectedly", status))
+
+    def _ended_detail(self, when: str, status=None) -> str:
+        status = status or self._sandbox.exit_status(EXIT_STATUS_WAIT_S)
+        how = status.describe() if status is not None else "stopped answering"
+        return f"the agent {how} {when}"
+
+    def _fail(self, reason: DoneReason, detail: str) -> None:
+        self._closed = True
+        self._sandbox.kill()
+        tail = self._sandbox.logs()
+        raise AgentFailure(reason, detail, tail)

@@ -1,0 +1,128 @@
+"""The agent runtime image, built offline.
+
+Production builds ``Dockerfile.agent`` from a registry. Where no registry is reachable (CI, air-gapped
+hosts) :func:`build_image` makes the same runtime from Debian packages: ``debootstrap`` a minimal
+bookworm root with ``python3`` and ``python3-numpy``, trim what an agent never needs, and
+``docker import`` the tarball. The tarball is cached under the data dir, so a rebuild after the
+image was removed takes seconds.
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+from arena.config import Settings, get_settings
+from evaluator.errors import SandboxUnavailable
+
+DEBIAN_SUITE = "bookworm"
+DEFAULT_MIRROR = "http://deb.debian.org/debian"
+PACKAGES = ("python3", "python3-numpy")
+# Documentation, locales, package caches: nothing an agent needs, a third of the root's size.
+TRIMMED = (
+    "usr/share/doc",
+    "usr/share/man",
+    "usr/share/info",
+    "usr/share/locale",
+    "usr/share/lintian",
+    "var/cache/apt",
+    "var/cache/debconf",
+    "var/lib/apt/lists",
+    "var/log",
+)
+IMAGE_CHANGES = (
+    "ENV PATH=/usr/local/bin:/usr/bin:/bin",
+    "ENV PYTHONDONTWRITEBYTECODE=1",
+    "WORKDIR /",
+    'CMD ["python3"]',
+)
+
+
+def rootfs_cache(settings: Settings) -> Path:
+    return settings.resolved_data_dir / "sandbox" / f"agent-rootfs-{DEBIAN_SUITE}.tar"
+
+
+def debian_mirror() -> str:
+    """The Debian mirror apt is configured with, so debootstrap goes where apt is allowed to."""
+    sources = [Path("/etc/apt/sources.list"), *Path("/etc/apt/sources.list.d").glob("*")]
+    for source in sources:
+        if not source.is_file():
+            continue
+        for line in source.read_text(errors="replace").splitlines():
+            words = line.split("#", 1)[0].split()
+            urls = [w for w in words if w.startswith(("http://", "https://"))]
+            if urls and "/debian" in urls[0] and "security" not in urls[0]:
+                return urls[0].rstrip("/")
+    return DEFAULT_MIRROR
+
+
+def image_exists(client, image: str) -> bool:
+    import docker.errors
+
+    try:
+        client.images.get(image)
+    except docker.errors.ImageNotFound:
+        return False
+    return True
+
+
+def build_rootfs_tarball(target: Path, mirror: str, log: Callable[[str], None]) -> None:
+    """debootstrap a minimal root with python3 + numpy and write it as an uncompressed tar."""
+    if shutil.which("debootstrap") is None:
+        raise SandboxUnavailable("debootstrap is not installed (apt-get install debootstrap)")
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="arena-rootfs-", dir=target.parent) as tmp:
+        root = Path(tmp) / "root"
+        log(f"debootstrap {DEBIAN_SUITE} from {mirror} (a few minutes)")
+        command = [
+            "debootstrap",
+            "--variant=minbase",
+            f"--include={','.join(PACKAGES)}",
+            DEBIAN_SUITE,
+            str(root),
+            mirror,
+        ]
+        done = subprocess.run(command, capture_output=True, text=True)
+        if done.returncode != 0:
+            raise SandboxUnavailable(f"debootstrap failed:\n{done.stdout[-4000:]}{done.stderr}")
+        for relative in TRIMMED:
+            shutil.rmtree(root / relative, ignore_errors=True)
+            (root / relative).mkdir(parents=True, exist_ok=True)
+        partial = target.with_suffix(".partial")
+        subprocess.run(["tar", "-C", str(root), "-cf", str(partial), "."], check=True)
+        partial.replace(target)
+    log(f"cached runtime root at {target}")
+
+
+def build_image(
+    settings: Settings | None = None,
+    *,
+    force: bool = False,
+    log: Callable[[str], None] = print,
+) -> str:
+    """Make ``settings.agent_image`` exist in the local Docker daemon; returns its id."""
+    import docker
+    import docker.errors
+
+    settings = settings or get_settings()
+    try:
+        client = docker.from_env()
+        client.ping()
+    except docker.errors.DockerException as error:
+        raise SandboxUnavailable(f"no Docker daemon answers: {error}") from error
+    image = settings.agent_image
+    if not force and image_exists(client, image):
+        log(f"{image} already present")
+        return client.images.get(image).id
+    tarball = rootfs_cache(settings)
+    if force or not tarball.is_file():
+        build_rootfs_tarball(tarball, debian_mirror(), log)
+    repository, _, tag = image.rpartition(":") if ":" in image else (image, "", "latest")
+    log(f"docker import {tarball.name} as {image}")
+    client.api.import_image_from_file(
+        str(tarball), repository=repository, tag=tag or "latest", changes=list(IMAGE_CHANGES)
+    )
+    return client.images.get(image).id

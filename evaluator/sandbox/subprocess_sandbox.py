@@ -1,0 +1,124 @@
+"""A sandbox that is a local child process (bubblewrap or a plain runner), talking over pipes."""
+
+from __future__ import annotations
+
+import os
+import resource
+import signal
+import subprocess
+import threading
+from collections.abc import Callable
+from pathlib import Path
+
+from evaluator.sandbox.backend import ExitStatus
+from evaluator.sandbox.channel import Channel
+
+# Children carry their labels in this variable; cleanup finds them through /proc/<pid>/environ.
+LABELS_ENV = "DRIVING_ARENA_SANDBOX_LABELS"
+
+
+def encode_labels(labels: dict[str, str]) -> str:
+    return ";".join(f"{key}={value}" for key, value in sorted(labels.items()))
+
+
+class LogTail:
+    """Drains a pipe on a thread, keeping only its last ``limit`` bytes."""
+
+    def __init__(self, pipe, limit: int) -> None:
+        self._pipe = pipe
+        self._limit = limit
+        self._data = bytearray()
+        self._lock = threading.Lock()
+        self._thread = threading.Thread(target=self._drain, name="agent-stderr", daemon=True)
+        self._thread.start()
+
+    def _drain(self) -> None:
+        fd = self._pipe.fileno()
+        while chunk := os.read(fd, 256 * 1024):
+            with self._lock:
+                self._data += chunk
+                if len(self._data) > 2 * self._limit:
+                    del self._data[: -self._limit]
+
+    def text(self, wait: float = 0.0) -> str:
+        self._thread.join(wait)
+        with self._lock:
+            return bytes(self._data[-self._limit :]).decode("utf-8", errors="replace")
+
+
+def rlimit_setter(memory_bytes: int, processes: int | None) -> Callable[[], None]:
+    """A preexec function that caps address space, processes and core dumps."""
+
+    def apply() -> None:
+        resource.setrlimit(resource.RLIMIT_AS, (memory_bytes, memory_bytes))
+        resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
+        if processes is not None:
+            resource.setrlimit(resource.RLIMIT_NPROC, (processes, processes))
+
+    return apply
+
+
+class PopenSandbox:
+    def __init__(self, process: subprocess.Popen, log_limit: int, cleanup_paths=()) -> None:
+        self.process = process
+        self._stderr = LogTail(process.stderr, log_limit)
+        self._cleanup_paths: tuple[Path, ...] = tuple(cleanup_paths)
+
+    def connect(self, deadline: float) -> Channel:
+        return Channel(self.process.stdout.fileno(), self.process.stdin.fileno())
+
+    def exit_status(self, timeout: float) -> ExitStatus | None:
+        try:
+            code = self.process.wait(timeout)
+        except subprocess.TimeoutExpired:
+            return None
+        return ExitStatus(code)
+
+    def kill(self) -> None:
+        if self.process.poll() is None:
+            try:
+                os.killpg(self.process.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            self.process.wait()
+        for stream in (self.process.stdin, self.process.stdout):
+            try:
+                stream.close()
+            except OSError:
+                pass
+        self._stderr.text(wait=1.0)
+        self.process.stderr.close()
+
+    def logs(self) -> str:
+        return self._stderr.text(wait=0.0 if self.process.poll() is None else 0.5)
+
+
+def labelled_pids(labels: dict[str, str]) -> list[int]:
+    """Processes whose environment carries all ``labels``."""
+    wanted = {f"{key}={value}" for key, value in labels.items()}
+    found = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit() or int(entry.name) == os.getpid():
+            continue
+        try:
+            environ = (entry / "environ").read_bytes().split(b"\0")
+        except OSError:
+            continue
+        prefix = f"{LABELS_ENV}=".encode()
+        for variable in environ:
+            if variable.startswith(prefix):
+                carried = set(variable[len(prefix) :].decode(errors="replace").split(";"))
+                if wanted <= carried:
+                    found.append(int(entry.name))
+                break
+    return found
+
+
+def kill_labelled(labels: dict[str, str]) -> int:
+    pids = labelled_pids(labels)
+    for pid in pids:
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+    return len(pids)

@@ -1,0 +1,178 @@
+"""The agent runner: the one program that runs inside the sandbox.
+
+It imports the participant's ``policy.py`` (working directory = the submission folder), builds
+``Policy()`` and then answers the evaluator over a framed protocol until told to close. The
+protocol is described in ``docs/protocol.md``; in short, every message is a 4-byte big-endian
+length followed by the payload. Evaluator -> agent payloads are pickles (the agent may trust its
+host); agent -> evaluator payloads are UTF-8 JSON (the host trusts nothing the agent sends).
+
+Standard library plus numpy only, and no import of this project: the sandbox holds just this file,
+the submission and its dependency folder.
+
+The protocol stream is a private copy of the original stdout (or a unix socket with ``--socket``);
+file descriptor 1 is pointed at stderr before the policy is imported, so a policy's ``print`` and
+anything its libraries write to stdout land in the log, never in the protocol.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import os
+import pickle
+import socket
+import struct
+import sys
+import time
+import traceback
+
+PROTOCOL_VERSION = 1
+HEADER = struct.Struct(">I")
+MAX_INCOMING_BYTES = 1 << 30
+
+
+class Closed(Exception):
+    """The evaluator closed the stream."""
+
+
+class Stream:
+    """Length-prefixed frames over two file descriptors (the same one for a socket)."""
+
+    def __init__(self, read_fd: int, write_fd: int) -> None:
+        self.read_fd = read_fd
+        self.write_fd = write_fd
+
+    def read_exact(self, size: int) -> bytearray:
+        buffer = bytearray(size)
+        view = memoryview(buffer)
+        received = 0
+        while received < size:
+            chunk = os.readv(self.read_fd, [view[received:]])
+            if chunk == 0:
+                raise Closed
+            received += chunk
+        return buffer
+
+    def receive(self) -> tuple[str, object]:
+        (size,) = HEADER.unpack(self.read_exact(HEADER.size))
+        if size > MAX_INCOMING_BYTES:
+            raise Closed
+        return pickle.loads(self.read_exact(size))
+
+    def send(self, message: dict) -> None:
+        payload = json.dumps(message, default=to_json, separators=(",", ":")).encode()
+        data = memoryview(HEADER.pack(len(payload)) + payload)
+        while data:
+            data = data[os.write(self.write_fd, data) :]
+
+
+def to_json(value: object) -> object:
+    """numpy values a policy returns (arrays, float32 scalars) become plain JSON values."""
+    tolist = getattr(value, "tolist", None)
+    if tolist is None:
+        raise TypeError(f"{type(value).__name__} is not a number, list or dict")
+    return tolist()
+
+
+def error_message(error: BaseException) -> dict:
+    kind = "memory" if isinstance(error, MemoryError) else "exception"
+    return {
+        "type": "error",
+        "kind": kind,
+        "message": f"{type(error).__name__}: {error}",
+        "traceback": "".join(traceback.format_exception(error)),
+    }
+
+
+def open_stream(socket_path: str | None) -> Stream:
+    """Take the protocol channel and point fds 0 and 1 away from it."""
+    if socket_path:
+        channel = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        channel.connect(socket_path)
+        fd = os.dup(channel.fileno())
+        channel.close()
+        stream = Stream(fd, fd)
+    else:
+        stream = Stream(os.dup(0), os.dup(1))
+    devnull = os.open(os.devnull, os.O_RDONLY)
+    os.dup2(devnull, 0)
+    os.close(devnull)
+    os.dup2(2, 1)
+    sys.stdout = sys.stderr
+    return stream
+
+
+def load_policy(submission: str, deps: str | None) -> object:
+    os.chdir(submission)
+    sys.path[:0] = [submission, *([deps] if deps else [])]
+    spec = importlib.util.spec_from_file_location("policy", os.path.join(submission, "policy.py"))
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["policy"] = module
+    spec.loader.exec_module(module)
+    return module.Policy()
+
+
+def serve(stream: Stream, policy: object) -> None:
+    reset = getattr(policy, "reset", None)
+    act = policy.act
+    while True:
+        try:
+            kind, body = stream.receive()
+        except Closed:
+            return
+        if kind == "act":
+            try:
+                actions = act(body)
+                if not isinstance(actions, dict):
+                    raise TypeError(
+                        f"Policy.act must return a dict of agent id -> action, "
+                        f"got {type(actions).__name__}"
+                    )
+                stream.send({"type": "actions", "actions": actions})
+            except BaseException as error:
+                stream.send(error_message(error))
+                return
+        elif kind == "reset":
+            try:
+                if reset is not None:
+                    reset()
+                stream.send({"type": "done"})
+            except BaseException as error:
+                stream.send(error_message(error))
+                return
+        elif kind == "close":
+            stream.send({"type": "done"})
+            return
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--submission", required=True)
+    parser.add_argument("--deps")
+    parser.add_argument("--socket", help="unix socket to connect to instead of stdin/stdout")
+    args = parser.parse_args()
+    started = time.perf_counter()
+    stream = open_stream(args.socket)
+    import numpy
+
+    stream.send(
+        {
+            "type": "hello",
+            "protocol": PROTOCOL_VERSION,
+            "python": sys.version.split()[0],
+            "numpy": numpy.__version__,
+        }
+    )
+    try:
+        policy = load_policy(args.submission, args.deps)
+    except BaseException as error:
+        stream.send(error_message(error))
+        return 1
+    stream.send({"type": "ready", "init_s": round(time.perf_counter() - started, 6)})
+    serve(stream, policy)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
