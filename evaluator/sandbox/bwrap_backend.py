@@ -35,7 +35,7 @@ from evaluator.sandbox.subprocess_sandbox import (
 
 RUNTIME_PYTHON = Path("/usr/bin/python3")
 UNPRIVILEGED_ID = 65534
-# Debian resolves BLAS and friends through /etc/alternatives symlinks; nothing else of /etc is bound.
+# Debian finds BLAS through /etc/alternatives symlinks; nothing else of /etc is bound.
 ETC_NEEDED = ("/etc/alternatives", "/etc/ld.so.cache")
 # Top-level directories of a merged-/usr Debian root; real directories on older layouts.
 USR_ALIASES = ("bin", "sbin", "lib", "lib32", "lib64", "libx32")

@@ -7,6 +7,7 @@ a unix socket in a per-agent folder mounted into it, so a step costs two socket 
 
 from __future__ import annotations
 
+import contextlib
 import os
 import select
 import shutil
@@ -208,8 +209,6 @@ class DockerBackend:
         except docker.errors.DockerException:
             return 0
         for container in containers:
-            try:
+            with contextlib.suppress(docker.errors.NotFound):
                 container.remove(force=True)
-            except docker.errors.NotFound:
-                pass
         return len(containers)

@@ -1,8 +1,8 @@
 """The agent runtime image, built offline.
 
-Production builds ``Dockerfile.agent`` from a registry. Where no registry is reachable (CI, air-gapped
-hosts) :func:`build_image` makes the same runtime from Debian packages: ``debootstrap`` a minimal
-bookworm root with ``python3`` and ``python3-numpy``, trim what an agent never needs, and
+Production builds ``Dockerfile.agent`` from a registry. Where no registry is reachable (CI,
+air-gapped hosts) :func:`build_image` makes the same runtime from Debian packages: debootstrap a
+minimal bookworm root with ``python3`` and ``python3-numpy``, trim what an agent never needs, and
 ``docker import`` the tarball. The tarball is cached under the data dir, so a rebuild after the
 image was removed takes seconds.
 """
