@@ -57,7 +57,10 @@ def evaluate(
 ) -> Summary:
     from submissions.intake import prepare_submission
 
+    from evaluator.sandbox import resolve_kind
+
     scoring_profile = load_profile(profile)
+    sandbox = resolve_kind(sandbox)  # once, so a missing sandbox fails before any scenario
     manifest = load_manifest(suite_dir).select(scenario_ids)
     out_dir = Path(out_dir)
     (out_dir / RECORDS_DIR).mkdir(parents=True, exist_ok=True)

@@ -1,0 +1,42 @@
+"""Fixtures for runner tests that need the simulator, the public suite and example agents."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from arena.config import SandboxKind
+
+REPO = Path(__file__).resolve().parents[2]
+EXAMPLES = REPO / "submissions" / "examples"
+# Independent of Docker; the docker-marked test covers the production sandbox.
+TEST_SANDBOX = SandboxKind.process
+
+
+def example(name: str) -> Path:
+    path = EXAMPLES / name
+    if not (path / "policy.py").exists():
+        pytest.skip(f"example agent {name} not in the tree yet")
+    return path
+
+
+@pytest.fixture(scope="session")
+def public_suite() -> Path:
+    pytest.importorskip("sim.isolation")
+    pytest.importorskip("submissions.intake")
+    from evaluator.runner import resolve_suite
+    from evaluator.runner.manifest import SuiteError
+
+    try:
+        return resolve_suite("public")
+    except SuiteError as exc:
+        pytest.skip(str(exc))
+
+
+def write_policy(folder: Path, body: str, action_space: str = "LaneWithContinuousSpeed") -> Path:
+    """A submission folder with ``policy.py`` = ``body`` and the given action space."""
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "policy.py").write_text(body)
+    (folder / "agent.yaml").write_text(f"action_space: {action_space}\n")
+    return folder

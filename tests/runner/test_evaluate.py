@@ -1,0 +1,168 @@
+"""End-to-end runs of `evaluate` on the public suite: real simulator, real sandboxed agents."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from evaluator.runner import evaluate, load_manifest, score_results_dir
+from evaluator.scoring import load_profile
+from evaluator.summary import ScenarioStatus, read_summary
+from tests.runner.conftest import TEST_SANDBOX, example, write_policy
+
+pytestmark = pytest.mark.slow
+
+# Lane keeping at a steady 8 m/s; crashes on purpose in the scenario whose start is CRASH_AT.
+STEADY_POLICY = """
+CRASH_AT = {crash_at!r}
+
+
+class Policy:
+    def act(self, obs):
+        actions = {{}}
+        for agent_id, o in obs.items():
+            start = o["ego_vehicle_state"]["mission"]["start"]
+            if CRASH_AT and abs(start[0] - CRASH_AT[0]) + abs(start[1] - CRASH_AT[1]) < 1e-3:
+                raise RuntimeError("deliberate crash in this scenario")
+            actions[agent_id] = [8.0, 0]
+        return actions
+"""
+
+
+def few_scenarios(suite: Path, n: int) -> list[str]:
+    """``n`` scenarios of different families, single-agent first, for short runs."""
+    manifest = json.loads((suite / "manifest.json").read_text())
+    chosen, families = [], set()
+    for item in sorted(manifest["scenarios"], key=lambda s: (s["agents"], s["id"])):
+        if item["family"] not in families:
+            chosen.append(item["id"])
+            families.add(item["family"])
+    return chosen[:n]
+
+
+def steady(tmp_path: Path, crash_at=None) -> Path:
+    return write_policy(tmp_path / "steady", STEADY_POLICY.format(crash_at=crash_at))
+
+
+def run(source: Path, suite: Path, out: Path, ids=None, jobs: int = 2):
+    return evaluate(source, suite, out_dir=out, scenario_ids=ids, jobs=jobs, sandbox=TEST_SANDBOX)
+
+
+def test_same_submission_twice_gives_identical_summary_and_records(public_suite, tmp_path):
+    ids = few_scenarios(public_suite, 2)
+    source = steady(tmp_path)
+    first = run(source, public_suite, tmp_path / "a", ids)
+    second = run(source, public_suite, tmp_path / "b", ids, jobs=1)
+
+    assert first.complete and first.metrics is not None
+    summary_a = (tmp_path / "a" / "summary.json").read_bytes()
+    assert summary_a == (tmp_path / "b" / "summary.json").read_bytes()
+    for scenario_id in ids:
+        record = f"records/{scenario_id}.npz"
+        assert (tmp_path / "a" / record).read_bytes() == (tmp_path / "b" / record).read_bytes()
+    # re-scoring the stored records reproduces the summary without simulating
+    assert score_results_dir(tmp_path / "a", load_profile()) == second
+
+
+def test_crash_in_one_scenario_still_scores_every_other(public_suite, tmp_path):
+    from scenarios.schema import load_scenario
+
+    ids = few_scenarios(public_suite, 3)
+    start = load_scenario(public_suite / ids[1]).missions[0].start
+    summary = run(steady(tmp_path, crash_at=start[:2]), public_suite, tmp_path / "out", ids)
+
+    entries = {entry.id: entry for entry in summary.scenarios}
+    crashed = entries[ids[1]]
+    assert crashed.status == ScenarioStatus.done  # charged, not excused
+    assert [a.reason for a in crashed.agents] == ["agent_error"]
+    assert crashed.metrics.completion == 1.0
+    for scenario_id in (ids[0], ids[2]):
+        assert entries[scenario_id].status == ScenarioStatus.done
+        assert entries[scenario_id].agents[0].reason != "agent_error"
+        assert entries[scenario_id].steps > 1
+    assert summary.uncharged == ()
+    log = (tmp_path / "out" / "logs" / f"{ids[1]}.txt").read_text()
+    assert "deliberate crash in this scenario" in log
+
+
+def test_killed_evaluation_resumes_only_the_missing_scenarios(public_suite, tmp_path):
+    ids = few_scenarios(public_suite, 3)
+    source, out = steady(tmp_path), tmp_path / "out"
+    command = [
+        sys.executable,
+        "-c",
+        "from arena.cli import app; app()",
+        "evaluate",
+        str(source),
+        "--suite",
+    ]
+    command += [
+        str(public_suite),
+        "--jobs",
+        "1",
+        "--sandbox",
+        TEST_SANDBOX.value,
+        "--out",
+        str(out),
+    ]
+    for scenario_id in ids:
+        command += ["--scenario", scenario_id]
+    runner = subprocess.Popen(command, start_new_session=True, stdout=subprocess.DEVNULL)
+    deadline = time.monotonic() + 240
+    finished = []
+    while time.monotonic() < deadline and not finished:
+        time.sleep(0.2)
+        if (out / "summary.json").exists():
+            finished = [e.id for e in read_summary(out).scenarios if e.status == "done"]
+    os.killpg(runner.pid, signal.SIGKILL)  # the runner and its episode processes
+    runner.wait()
+    assert finished, "the first scenario never finished"
+    killed = read_summary(out)
+    assert not killed.complete
+    kept = {
+        scenario_id: (out / "records" / f"{scenario_id}.npz").stat().st_mtime_ns
+        for scenario_id in finished
+    }
+
+    summary = run(source, public_suite, out, ids, jobs=1)
+
+    assert summary.complete and [e.status for e in summary.scenarios] == ["done"] * len(ids)
+    for scenario_id, mtime in kept.items():
+        assert (out / "records" / f"{scenario_id}.npz").stat().st_mtime_ns == mtime
+    assert all((out / "records" / f"{scenario_id}.npz").exists() for scenario_id in ids)
+
+
+def test_planner_beats_keep_lane_beats_random_on_the_public_set(public_suite, tmp_path):
+    results = {
+        name: run(example(name), public_suite, tmp_path / name)
+        for name in ("planner", "keep_lane", "random")
+    }
+    n = len(load_manifest(public_suite).scenarios)
+    for summary in results.values():
+        assert summary.complete and summary.uncharged == ()
+        assert len(summary.scenarios) == n
+    completion = {name: summary.metrics.completion for name, summary in results.items()}
+    assert completion["planner"] < completion["keep_lane"] < completion["random"], completion
+
+
+@pytest.mark.docker
+def test_evaluate_in_docker_sandbox(public_suite, tmp_path):
+    from arena.config import SandboxKind
+
+    ids = few_scenarios(public_suite, 1)
+    summary = evaluate(
+        steady(tmp_path),
+        public_suite,
+        out_dir=tmp_path / "out",
+        scenario_ids=ids,
+        sandbox=SandboxKind.docker,
+    )
+    assert summary.complete and summary.uncharged == ()
+    assert summary.scenarios[0].steps > 1
