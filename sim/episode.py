@@ -1,0 +1,76 @@
+"""Run one episode in this process: scenario + agent -> outcomes and the episode record."""
+
+from __future__ import annotations
+
+import time
+import traceback
+from pathlib import Path
+
+from scenarios.schema import load_scenario
+from sim.agent import Agent, AgentFailed, DoneReason
+from sim.interface import AgentInterface
+from sim.result import EpisodeResult
+from sim.simulation import Simulation
+
+
+def run_episode(
+    scenario_dir: Path,
+    agent: Agent,
+    interface: AgentInterface,
+    *,
+    record_path: Path,
+    seed: int | None = None,
+    wall_timeout_s: float | None = None,
+) -> EpisodeResult:
+    """Drive ``scenario_dir``'s mission vehicles with ``agent`` until every one is done or the
+    step limit; write the record to ``record_path`` (always, even with no rows).
+
+    Calls ``agent.reset()`` first and never ``agent.close()`` (the caller owns the agent). An
+    :class:`AgentFailed` ends every still-live agent with its reason; a bad action ends only its
+    agent (``invalid_action``); passing ``wall_timeout_s`` ends the rest with
+    ``episode_timeout``. SUMO errors propagate (the isolated runner turns them into
+    ``simulator_error``).
+    """
+    started = time.monotonic()
+    scenario = load_scenario(scenario_dir)
+    sim = Simulation(scenario, scenario_dir, interface, seed)
+    detail = ""
+    try:
+        obs = sim.reset()
+        agent.reset()
+        while not sim.done:
+            if wall_timeout_s is not None and time.monotonic() - started > wall_timeout_s:
+                sim.fail(DoneReason.episode_timeout)
+                detail = f"episode exceeded {wall_timeout_s:.0f} s wall time"
+                break
+            try:
+                actions = agent.act(obs) if obs else {}
+            except AgentFailed as exc:
+                sim.fail(exc.reason)
+                detail = exc.detail or str(exc)
+                break
+            except Exception as exc:  # an in-process policy's own bug is the agent's failure
+                sim.fail(DoneReason.agent_error)
+                detail = describe_exception(exc)
+                break
+            if not isinstance(actions, dict):
+                sim.fail(DoneReason.invalid_action)
+                detail = f"act() returned {type(actions).__name__}, expected a dict"
+                break
+            obs = sim.step(actions)
+        sim.write_record(record_path)
+    finally:
+        sim.close()
+    return EpisodeResult(
+        scenario_id=scenario.id,
+        steps=sim.step_count,
+        agents=sim.outcomes,
+        record_path=str(record_path),
+        detail=detail,
+        wall_time_s=time.monotonic() - started,
+    )
+
+
+def describe_exception(exc: BaseException) -> str:
+    """Last lines of a traceback: enough to diagnose, short enough to store."""
+    return "".join(traceback.format_exception(exc))[-4000:]

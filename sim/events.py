@@ -1,0 +1,72 @@
+"""Per-step events of a mission vehicle, from our own geometry (not SUMO's)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from sim.geometry import box_corners, boxes_overlap
+from sim.road import LanePosition, angle_between
+from sim.vehicles import VehicleStates
+
+WRONG_WAY_ANGLE = math.pi / 2  # [rad] heading difference to the lane beyond which is wrong way
+NOT_MOVING_SPEED = 0.1  # [m/s]
+NOT_MOVING_STEPS = 60  # 6 s at dt = 0.1 s
+
+
+@dataclass(frozen=True)
+class Events:
+    collisions: tuple[str, ...]  # ids of the vehicles the ego's box overlapped
+    off_road: bool
+    off_route: bool
+    on_shoulder: bool
+    wrong_way: bool
+    not_moving: bool
+    reached_goal: bool
+    reached_max_episode_steps: bool
+
+    def as_observation(self) -> dict:
+        return {
+            "collisions": list(self.collisions),
+            "off_road": self.off_road,
+            "off_route": self.off_route,
+            "on_shoulder": self.on_shoulder,
+            "wrong_way": self.wrong_way,
+            "not_moving": self.not_moving,
+            "reached_goal": self.reached_goal,
+            "reached_max_episode_steps": self.reached_max_episode_steps,
+        }
+
+
+def collisions(
+    x: float, y: float, heading: float, length: float, width: float, others: VehicleStates
+) -> tuple[str, ...]:
+    """Ids of ``others`` whose oriented box overlaps the ego's (sorted)."""
+    if not len(others):
+        return ()
+    # Boxes further apart than their half-diagonals cannot touch: skip the exact test for them.
+    reach = 0.5 * (math.hypot(length, width) + np.hypot(others.length, others.width))
+    near = np.flatnonzero(np.hypot(others.x - x, others.y - y) <= reach)
+    if len(near) == 0:
+        return ()
+    ego = box_corners(x, y, heading, length, width)
+    theirs = box_corners(
+        others.x[near],
+        others.y[near],
+        others.heading[near],
+        others.length[near],
+        others.width[near],
+    )
+    hit = boxes_overlap(ego, theirs)
+    return tuple(sorted(others.ids[i] for i in near[hit]))
+
+
+def is_wrong_way(heading: float, lane: LanePosition, in_junction: bool) -> bool:
+    """Heading more than 90 degrees from the lane's direction, outside junctions."""
+    return not in_junction and angle_between(heading, lane.heading) > WRONG_WAY_ANGLE
+
+
+def reached_goal(x: float, y: float, goal: tuple[float, float], radius: float) -> bool:
+    return math.hypot(x - goal[0], y - goal[1]) <= radius

@@ -1,0 +1,50 @@
+"""Planar geometry of vehicles: angle wrapping, oriented bounding boxes and their overlap test."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def wrap(angle: float) -> float:
+    """Wrap radians to (-pi, pi]."""
+    a = math.remainder(angle, 2 * math.pi)
+    return math.pi if a == -math.pi else a
+
+
+def box_corners(
+    x: np.ndarray, y: np.ndarray, heading: np.ndarray, length: np.ndarray, width: np.ndarray
+) -> np.ndarray:
+    """Corners (n, 4, 2) [m] of oriented rectangles centred at (x, y) [m], counter-clockwise."""
+    c, s = np.cos(heading), np.sin(heading)
+    hl, hw = np.asarray(length) / 2, np.asarray(width) / 2
+    fx, fy = c * hl, s * hl  # half-length along the heading
+    lx, ly = -s * hw, c * hw  # half-width to the left
+    cx, cy = np.asarray(x), np.asarray(y)
+    return np.stack(
+        [
+            np.stack([cx + fx - lx, cy + fy - ly], -1),
+            np.stack([cx + fx + lx, cy + fy + ly], -1),
+            np.stack([cx - fx + lx, cy - fy + ly], -1),
+            np.stack([cx - fx - lx, cy - fy - ly], -1),
+        ],
+        -2,
+    )
+
+
+def boxes_overlap(ego: np.ndarray, others: np.ndarray) -> np.ndarray:
+    """Which rectangles of ``others`` (n, 4, 2) overlap the rectangle ``ego`` (4, 2) [m].
+
+    Separating axis theorem: two convex polygons are disjoint iff their projections are disjoint
+    on one of the edge normals; rectangles have two normals each. Touching counts as overlap.
+    """
+    if len(others) == 0:
+        return np.zeros(0, dtype=bool)
+    ego_axes = np.array([ego[1] - ego[0], ego[2] - ego[1]])  # (2, 2)
+    other_axes = np.stack([others[:, 1] - others[:, 0], others[:, 2] - others[:, 1]], 1)
+    axes = np.concatenate([np.broadcast_to(ego_axes, (len(others), 2, 2)), other_axes], 1)
+    ego_proj = np.einsum("nak,ck->nac", axes, ego)  # (n, 4 axes, 4 corners)
+    other_proj = np.einsum("nak,nck->nac", axes, others)
+    separated = (ego_proj.max(-1) < other_proj.min(-1)) | (other_proj.max(-1) < ego_proj.min(-1))
+    return ~separated.any(-1)

@@ -1,0 +1,146 @@
+"""Run an episode in a fresh child process, so that SUMO (one simulation per process, and able to
+crash) can never take down or leak state into the caller.
+
+The parent never imports libsumo. A crash of the child (segfault, SUMO exception, kill, timeout)
+becomes an :class:`EpisodeResult` with ``simulator_error`` set: it is our fault, not the
+participant's, and never raises here.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from scenarios.schema import load_scenario
+from sim.agent import Agent, AgentFailed, DoneReason
+from sim.interface import AgentInterface
+from sim.result import AgentOutcome, EpisodeResult
+
+# Modules the fork server loads once, so each episode's child starts warm. Importing libsumo
+# starts nothing: only the child's own Simulation does.
+_PRELOAD = ["sim.episode", "sim.simulation", "sumolib", "libsumo"]
+# The child stops the agent this long before the hard timeout, to still write the record.
+_GRACE_S = 20.0
+
+
+def run_episode_isolated(
+    scenario_dir: Path,
+    agent_factory: Callable[[], Agent],
+    interface: AgentInterface,
+    *,
+    record_path: Path,
+    seed: int | None = None,
+    timeout_s: float = 900,
+) -> EpisodeResult:
+    """:func:`sim.episode.run_episode` in a child process.
+
+    ``agent_factory`` must be picklable (a module-level function or ``functools.partial``); it is
+    called in the child. If it raises :class:`AgentFailed`, every agent fails with that reason
+    after 0 steps (the record is still written). The child closes the agent and, when the agent
+    has a ``logs()`` method, returns its text in ``extra["agent_log"]``.
+    """
+    started = time.monotonic()
+    ctx = mp.get_context("forkserver")
+    ctx.set_forkserver_preload(_PRELOAD)
+    receiver, sender = ctx.Pipe(duplex=False)
+    child = ctx.Process(
+        target=_child_main,
+        args=(Path(scenario_dir), agent_factory, interface, Path(record_path), seed, timeout_s),
+        kwargs={"conn": sender},
+        name=f"episode-{Path(scenario_dir).name}",
+    )
+    child.start()
+    sender.close()
+    message = None
+    try:
+        if receiver.poll(timeout_s):
+            message = receiver.recv()
+    except (EOFError, OSError):
+        message = None  # the child died without answering
+    finally:
+        child.join(timeout=5)
+        if child.is_alive():
+            child.kill()
+            child.join()
+        receiver.close()
+    if isinstance(message, EpisodeResult):
+        return message
+    if message is None:
+        elapsed = time.monotonic() - started
+        if elapsed >= timeout_s:
+            error = f"episode process exceeded {timeout_s:.0f} s and was killed"
+        else:
+            error = f"episode process died (exit code {child.exitcode})"
+        return _failed_result(scenario_dir, error, "", elapsed)
+    error, detail = message
+    return _failed_result(scenario_dir, error, detail, time.monotonic() - started)
+
+
+def _child_main(scenario_dir, agent_factory, interface, record_path, seed, timeout_s, *, conn):
+    from sim.episode import describe_exception, run_episode
+
+    try:
+        try:
+            agent = agent_factory()
+        except AgentFailed as exc:
+            result = _write_failed_start(scenario_dir, interface, record_path, seed, exc)
+        else:
+            result = run_episode(
+                scenario_dir,
+                agent,
+                interface,
+                record_path=record_path,
+                seed=seed,
+                wall_timeout_s=max(timeout_s - _GRACE_S, 0.8 * timeout_s),
+            )
+            log = _close_agent(agent)
+            if log is not None:
+                result.extra["agent_log"] = log
+        conn.send(result)
+    except BaseException as exc:
+        conn.send((f"{type(exc).__name__}: {exc}", describe_exception(exc)))
+    finally:
+        conn.close()
+
+
+def _close_agent(agent: Agent) -> str | None:
+    logs = getattr(agent, "logs", None)
+    text = logs() if callable(logs) else None
+    agent.close()
+    return text
+
+
+def _write_failed_start(scenario_dir, interface, record_path, seed, exc: AgentFailed):
+    """The agent never started: every mission fails with its reason, 0 steps, empty record."""
+    from sim.simulation import Simulation
+
+    scenario = load_scenario(scenario_dir)
+    sim = Simulation(scenario, scenario_dir, interface, seed)
+    sim.fail(exc.reason)
+    sim.write_record(record_path)
+    return EpisodeResult(
+        scenario_id=scenario.id,
+        steps=0,
+        agents=sim.outcomes,
+        record_path=str(record_path),
+        detail=exc.detail or str(exc),
+    )
+
+
+def _failed_result(scenario_dir: Path, error: str, detail: str, elapsed: float) -> EpisodeResult:
+    try:
+        scenario = load_scenario(scenario_dir)
+        scenario_id, agent_ids = scenario.id, [m.agent_id for m in scenario.missions]
+    except (OSError, ValueError):
+        scenario_id, agent_ids = Path(scenario_dir).name, []
+    return EpisodeResult(
+        scenario_id=scenario_id,
+        steps=0,
+        agents=tuple(AgentOutcome(a, False, DoneReason.simulator_error, 0, 0) for a in agent_ids),
+        record_path=None,
+        simulator_error=error,
+        detail=detail,
+        wall_time_s=elapsed,
+    )

@@ -1,0 +1,81 @@
+"""A mission (ego) vehicle during an episode: pose, motion history and status."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from enum import StrEnum
+
+import numpy as np
+
+from scenarios.schema import Mission
+from sim.agent import DoneReason
+from sim.geometry import wrap
+from sim.vehicle import Pose
+
+
+class Status(StrEnum):
+    waiting = "waiting"  # start delay not over yet
+    live = "live"
+    done = "done"
+
+
+@dataclass
+class Kinematics:
+    """Derivatives of the motion, from pose differences over the step [SI units]."""
+
+    velocity: np.ndarray = field(default_factory=lambda: np.zeros(2))  # (2,) [m/s]
+    acceleration: np.ndarray = field(default_factory=lambda: np.zeros(2))  # (2,) [m/s^2]
+    jerk: np.ndarray = field(default_factory=lambda: np.zeros(2))  # (2,) [m/s^3]
+    yaw_rate: float = 0.0  # [rad/s]
+    angular_acceleration: float = 0.0  # [rad/s^2]
+    angular_jerk: float = 0.0  # [rad/s^3]
+
+
+@dataclass
+class MissionVehicle:
+    mission: Mission
+    pose: Pose
+    status: Status = Status.waiting
+    reason: DoneReason | None = None
+    done_step: int = 0
+    steps: int = 0  # agent-steps driven
+    distance_travelled: float = 0.0  # [m]
+    still_steps: int = 0  # consecutive steps below the not-moving speed
+    kinematics: Kinematics = field(default_factory=Kinematics)
+    target_lane: str | None = None  # lane controller memory (LaneWithContinuousSpeed)
+
+    @classmethod
+    def from_mission(cls, mission: Mission) -> MissionVehicle:
+        x, y, heading = mission.start
+        pose = Pose(x, y, wrap(heading), mission.start_speed, 0.0)
+        vehicle = cls(mission, pose)
+        vehicle.kinematics.velocity = mission.start_speed * np.array(
+            [math.cos(heading), math.sin(heading)]
+        )
+        return vehicle
+
+    @property
+    def id(self) -> str:
+        return self.mission.agent_id
+
+    def advance(self, new: Pose, dt: float) -> None:
+        """Move to ``new`` and update the motion derivatives (finite differences over ``dt``)."""
+        k = self.kinematics
+        velocity = np.array([new.x - self.pose.x, new.y - self.pose.y]) / dt
+        acceleration = (velocity - k.velocity) / dt
+        yaw_rate = wrap(new.heading - self.pose.heading) / dt
+        angular_acceleration = (yaw_rate - k.yaw_rate) / dt
+        first = self.steps == 0  # no previous acceleration to difference against
+        k.jerk = np.zeros(2) if first else (acceleration - k.acceleration) / dt
+        k.angular_jerk = 0.0 if first else (angular_acceleration - k.angular_acceleration) / dt
+        k.velocity, k.acceleration = velocity, acceleration
+        k.yaw_rate, k.angular_acceleration = yaw_rate, angular_acceleration
+        self.distance_travelled += float(np.hypot(*velocity)) * dt
+        self.pose = new
+        self.steps += 1
+
+    def finish(self, reason: DoneReason, step: int) -> None:
+        self.status = Status.done
+        self.reason = reason
+        self.done_step = step

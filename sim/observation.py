@@ -1,0 +1,101 @@
+"""The observation dict an agent receives, exactly as ``shared/spec/agent-interface.md`` lists it.
+
+Plain Python values (lists, floats, ints, bools, strings) so it can cross a process boundary as
+JSON. Optional rasters have their keys reserved: they are None until raster rendering exists.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sim.events import Events
+from sim.interface import AgentInterface
+from sim.mission_vehicle import MissionVehicle
+from sim.road import LanePosition, RoadNetwork
+from sim.vehicles import VehicleStates
+
+RASTERS = ("drivable_area_grid_map", "occupancy_grid_map", "top_down_rgb")
+DEFAULT_HEIGHT = 1.5  # [m] of vehicles whose height we do not know
+
+
+def build_observation(
+    *,
+    vehicle: MissionVehicle,
+    step: int,
+    dt: float,
+    lane: LanePosition,
+    events: Events,
+    neighbours: VehicleStates,
+    road: RoadNetwork,
+    waypoint_paths: list[list[dict]],
+    interface: AgentInterface,
+) -> dict:
+    pose, k, mission = vehicle.pose, vehicle.kinematics, vehicle.mission
+    obs = {
+        "dt": dt,
+        "step_count": step,
+        "elapsed_sim_time": round(step * dt, 6),
+        "distance_travelled": vehicle.distance_travelled,
+        "events": events.as_observation(),
+        "ego_vehicle_state": {
+            "id": vehicle.id,
+            "position": [pose.x, pose.y, 0.0],
+            "heading": pose.heading,
+            "speed": pose.speed,
+            "bounding_box": [mission.vehicle.length, mission.vehicle.width, mission.vehicle.height],
+            "steering": pose.steering,
+            "yaw_rate": k.yaw_rate,
+            "road_id": lane.lane.edge_id,
+            "lane_id": lane.lane.id,
+            "lane_index": lane.lane.index,
+            "lane_position": [lane.s, lane.t],
+            "linear_velocity": [float(k.velocity[0]), float(k.velocity[1]), 0.0],
+            "angular_velocity": [0.0, 0.0, k.yaw_rate],
+            "linear_acceleration": [float(k.acceleration[0]), float(k.acceleration[1]), 0.0],
+            "angular_acceleration": [0.0, 0.0, k.angular_acceleration],
+            "linear_jerk": [float(k.jerk[0]), float(k.jerk[1]), 0.0],
+            "angular_jerk": [0.0, 0.0, k.angular_jerk],
+            "mission": {
+                "start": list(mission.start),
+                "goal": {"position": list(mission.goal.position), "radius": mission.goal.radius},
+                "route": list(mission.route),
+            },
+        },
+        "neighborhood_vehicle_states": neighbour_states(neighbours, road),
+        "waypoint_paths": waypoint_paths,
+    }
+    for name in RASTERS:
+        if getattr(interface, name):
+            obs[name] = None
+    return obs
+
+
+def neighbour_states(neighbours: VehicleStates, road: RoadNetwork) -> list[dict]:
+    """Neighbour dicts; lanes SUMO did not report come from our nearest-lane query."""
+    unknown = [i for i, lane_id in enumerate(neighbours.lane_id) if lane_id not in road.lanes]
+    guessed = dict(
+        zip(
+            unknown,
+            road.nearest_lanes(np.stack([neighbours.x[unknown], neighbours.y[unknown]], 1)),
+            strict=True,
+        )
+    )
+    out = []
+    xs, ys = neighbours.x.tolist(), neighbours.y.tolist()
+    hs, vs = neighbours.heading.tolist(), neighbours.speed.tolist()
+    ls, ws = neighbours.length.tolist(), neighbours.width.tolist()
+    for i, vid in enumerate(neighbours.ids):
+        lane = guessed.get(i) or road.lanes[neighbours.lane_id[i]]
+        out.append(
+            {
+                "id": vid,
+                "position": [xs[i], ys[i], 0.0],
+                "heading": hs[i],
+                "speed": vs[i],
+                "bounding_box": [ls[i], ws[i], DEFAULT_HEIGHT],
+                "road_id": lane.edge_id,
+                "lane_id": lane.id,
+                "lane_index": lane.index,
+            }
+        )
+    return out

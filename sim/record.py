@@ -1,0 +1,183 @@
+"""The episode record: per-agent, per-step arrays saved as one compressed ``.npz``.
+
+The arrays and their meaning are documented in ``docs/records.md``; scoring reads nothing else.
+The archive is written byte-for-byte deterministically (fixed member order and timestamps), so the
+same scenario, seed and actions give an identical file.
+"""
+
+from __future__ import annotations
+
+import io
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from sim.vehicles import VehicleStates
+
+FORMAT_VERSION = 1
+
+EVENT_FLAGS = (
+    "ev_collision",
+    "ev_off_road",
+    "ev_off_route",
+    "ev_on_shoulder",
+    "ev_wrong_way",
+    "ev_not_moving",
+    "ev_reached_goal",
+)
+_FLOAT_ROW = (
+    "x",
+    "y",
+    "heading",
+    "speed",
+    "vx",
+    "vy",
+    "lane_offset",
+    "lane_width",
+    "lane_heading",
+    "speed_limit",
+)
+_NBR_FLOATS = ("x", "y", "heading", "speed", "length", "width")
+
+
+@dataclass(frozen=True)
+class RecordRow:
+    """One agent-step: the state after the step was applied."""
+
+    step: int
+    x: float
+    y: float
+    heading: float
+    speed: float
+    vx: float
+    vy: float
+    lane_id: str
+    lane_index: int
+    lane_offset: float
+    lane_width: float
+    lane_heading: float
+    speed_limit: float
+    in_junction: bool
+    flags: tuple[bool, ...]  # in EVENT_FLAGS order
+    neighbours: VehicleStates  # within the observation radius, nearest first
+
+
+@dataclass(frozen=True)
+class AgentSummary:
+    agent_id: str
+    start_step: int
+    steps: int
+    done_step: int
+    done_reason: str
+    length: float
+    width: float
+    goal: tuple[float, float]
+    goal_radius: float
+
+
+class EpisodeRecorder:
+    """Collects rows during an episode and writes the archive at the end."""
+
+    def __init__(self, agent_ids: list[str]) -> None:
+        self.agent_ids = agent_ids
+        self.rows: dict[str, list[RecordRow]] = {a: [] for a in agent_ids}
+
+    def add(self, agent_id: str, row: RecordRow) -> None:
+        self.rows[agent_id].append(row)
+
+    def arrays(
+        self, meta: dict[str, object], summaries: list[AgentSummary]
+    ) -> dict[str, np.ndarray]:
+        """Every record array by name (see docs/records.md)."""
+        n_agents = len(self.agent_ids)
+        n_rows = max((len(r) for r in self.rows.values()), default=0)
+        n_slots = max([1] + [len(row.neighbours) for rows in self.rows.values() for row in rows])
+        out: dict[str, np.ndarray] = {
+            "format_version": np.array(FORMAT_VERSION),
+            "scenario_id": _str_array(meta["scenario_id"]),
+            "scenario_hash": _str_array(meta["scenario_hash"]),
+            "seed": np.array(int(meta["seed"])),
+            "dt": np.array(float(meta["dt"])),
+            "max_episode_steps": np.array(int(meta["max_episode_steps"])),
+            "episode_steps": np.array(int(meta["episode_steps"])),
+            "agent_ids": _str_array([s.agent_id for s in summaries]),
+            "start_step": np.array([s.start_step for s in summaries], dtype=np.int64),
+            "steps": np.array([s.steps for s in summaries], dtype=np.int64),
+            "done_step": np.array([s.done_step for s in summaries], dtype=np.int64),
+            "done_reason": _str_array([s.done_reason for s in summaries]),
+            "reached_goal": np.array(
+                [s.done_reason == "reached_goal" for s in summaries], dtype=bool
+            ),
+            "length": np.array([s.length for s in summaries], dtype=np.float64),
+            "width": np.array([s.width for s in summaries], dtype=np.float64),
+            "goal_x": np.array([s.goal[0] for s in summaries], dtype=np.float64),
+            "goal_y": np.array([s.goal[1] for s in summaries], dtype=np.float64),
+            "goal_radius": np.array([s.goal_radius for s in summaries], dtype=np.float64),
+        }
+        shape = (n_agents, n_rows)
+        out["valid"] = np.zeros(shape, dtype=bool)
+        out["step"] = np.zeros(shape, dtype=np.int64)
+        out["lane_index"] = np.full(shape, -1, dtype=np.int64)
+        out["in_junction"] = np.zeros(shape, dtype=bool)
+        for name in _FLOAT_ROW:
+            out[name] = np.full(shape, np.nan)
+        for name in EVENT_FLAGS:
+            out[name] = np.zeros(shape, dtype=bool)
+        lane_ids = [[""] * n_rows for _ in range(n_agents)]
+        nbr_shape = (n_agents, n_rows, n_slots)
+        out["nbr_valid"] = np.zeros(nbr_shape, dtype=bool)
+        for name in _NBR_FLOATS:
+            out[f"nbr_{name}"] = np.full(nbr_shape, np.nan)
+        nbr_ids = [[[""] * n_slots for _ in range(n_rows)] for _ in range(n_agents)]
+        for a, agent_id in enumerate(self.agent_ids):
+            rows = self.rows[agent_id]
+            if not rows:
+                continue
+            n = len(rows)
+            out["valid"][a, :n] = True
+            out["step"][a, :n] = [r.step for r in rows]
+            out["lane_index"][a, :n] = [r.lane_index for r in rows]
+            out["in_junction"][a, :n] = [r.in_junction for r in rows]
+            for name in _FLOAT_ROW:
+                out[name][a, :n] = [getattr(r, name) for r in rows]
+            flags = np.array([r.flags for r in rows], dtype=bool)
+            for j, name in enumerate(EVENT_FLAGS):
+                out[name][a, :n] = flags[:, j]
+            lane_ids[a][:n] = [r.lane_id for r in rows]
+            for t, r in enumerate(rows):
+                k = len(r.neighbours)
+                if k == 0:
+                    continue
+                out["nbr_valid"][a, t, :k] = True
+                for name in _NBR_FLOATS:
+                    out[f"nbr_{name}"][a, t, :k] = getattr(r.neighbours, name)
+                nbr_ids[a][t][:k] = r.neighbours.ids
+        out["lane_id"] = _str_array(lane_ids)
+        out["nbr_id"] = _str_array(nbr_ids)
+        return out
+
+
+def _str_array(value) -> np.ndarray:
+    """Fixed-width unicode array (never object dtype, so loading needs no pickle)."""
+    arr = np.array(value, dtype=str)
+    return arr if arr.dtype.itemsize else arr.astype("<U1")
+
+
+def write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    """``np.savez_compressed``-compatible archive with fixed member order and timestamps."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".partial")
+    with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        for name in sorted(arrays):
+            buffer = io.BytesIO()
+            np.lib.format.write_array(
+                buffer, np.ascontiguousarray(arrays[name]), allow_pickle=False
+            )
+            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            info.compress_type = zipfile.ZIP_DEFLATED
+            info.external_attr = 0o600 << 16
+            zf.writestr(info, buffer.getvalue())
+    tmp.replace(path)

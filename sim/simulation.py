@@ -1,0 +1,420 @@
+"""One episode of a scenario: SUMO traffic (or replay), our mission vehicles, events, observations
+and the record. :func:`sim.episode.run_episode` drives it with an agent; tools may use it directly.
+
+Typical use::
+
+    sim = Simulation(scenario, scenario_dir, AgentInterface(), seed=7)
+    obs = sim.reset()
+    while not sim.done:
+        obs = sim.step({agent_id: action for agent_id in obs})
+    sim.write_record(path)
+    sim.close()
+
+A scene with no mission agents (the scenario recorder) uses :func:`scene_states`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+
+from scenarios.schema import ReplayTraffic, Scenario, content_hash
+from sim.agent import DoneReason
+from sim.events import NOT_MOVING_SPEED, NOT_MOVING_STEPS, Events, collisions, is_wrong_way
+from sim.events import reached_goal as within_goal
+from sim.interface import AgentInterface
+from sim.mission_vehicle import MissionVehicle, Status
+from sim.observation import build_observation
+from sim.record import AgentSummary, EpisodeRecorder, RecordRow, write_npz
+from sim.replay import ReplayTable
+from sim.result import AgentOutcome
+from sim.road import LanePosition, RoadNetwork
+from sim.road.waypoints import preferred_successor, waypoint_paths
+from sim.traffic import SumoTraffic
+from sim.triggers import CutInTriggers
+from sim.vehicle import DECODERS, ControlContext, parse_action
+from sim.vehicles import VehicleStates
+
+# SUMO reports vehicles around an ego by front-bumper distance; ask a little wider, filter by
+# centre distance ourselves.
+_CONTEXT_MARGIN = 10.0  # [m]
+# Done for these reasons, the vehicle leaves the road network at once.
+_REMOVED_REASONS = {DoneReason.collision, DoneReason.off_road, DoneReason.reached_goal}
+
+
+class Simulation:
+    """An episode of ``scenario``. Not reusable across processes: libsumo allows one running
+    simulation per process, so create, run and :meth:`close` one at a time."""
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        scenario_dir: Path,
+        interface: AgentInterface,
+        seed: int | None = None,
+        *,
+        with_missions: bool = True,
+    ) -> None:
+        self.scenario = scenario
+        self.scenario_dir = Path(scenario_dir)
+        self.interface = interface
+        self.seed = scenario.seed if seed is None else seed
+        self.dt = scenario.step_length
+        self.road = RoadNetwork.load(self.scenario_dir / scenario.map)
+        self._missions = scenario.missions if with_missions else ()
+        self._traffic: SumoTraffic | None = None
+        self._replay: ReplayTable | None = None
+        self._bubble_radius: float | None = None
+        self._in_sumo_replay: set[str] = set()
+        self._triggers: CutInTriggers | None = None
+        # Present before reset() so that an agent failing at start-up still has outcomes.
+        self.vehicles = [MissionVehicle.from_mission(m) for m in self._missions]
+        self._lanes: dict[str, LanePosition] = {}
+        self.step_count = 0
+        self.recorder = EpisodeRecorder([m.agent_id for m in self._missions])
+
+    # --- lifecycle ---------------------------------------------------------------------------
+
+    def reset(self) -> dict[str, dict]:
+        """Start SUMO and place the vehicles; the observations of agents starting at step 0."""
+        self.close()
+        sc, folder = self.scenario, self.scenario_dir
+        routes = folder / sc.traffic.routes if sc.traffic.kind == "sumo" else None
+        self._traffic = SumoTraffic(folder / sc.map, routes, self.seed, self.dt)
+        if isinstance(sc.traffic, ReplayTraffic):
+            self._replay = ReplayTable(folder / sc.traffic.trajectories, self.dt)
+            self._bubble_radius = sc.traffic.bubble_radius
+        else:
+            self._triggers = CutInTriggers(sc.traffic.triggers)
+        self.vehicles = [MissionVehicle.from_mission(m) for m in self._missions]
+        self.recorder = EpisodeRecorder([m.agent_id for m in self._missions])
+        self.step_count = 0
+        self._lanes = {}
+        entering = [v for v in self.vehicles if v.mission.start_step <= 0]
+        for v in entering:
+            self._enter(v)
+        self._place_replay_in_sumo(0)
+        self._traffic.step()
+        return {
+            v.id: self._observe(v, self._surroundings(v), self._events_at_rest(v)) for v in entering
+        }
+
+    def close(self) -> None:
+        if self._traffic is not None:
+            self._traffic.close()
+            self._traffic = None
+
+    # --- stepping ----------------------------------------------------------------------------
+
+    def step(self, actions: dict[str, object]) -> dict[str, dict]:
+        """Apply one action per live agent, advance every vehicle by dt, detect events, record.
+
+        A missing, wrongly shaped or non-finite action ends that agent with ``invalid_action``.
+        Returns the observations of the agents still live afterwards.
+        """
+        traffic = self._traffic
+        assert traffic is not None, "reset() first"
+        self.step_count += 1
+        step = self.step_count
+        space = self.interface.action_space
+        driven = []
+        for v in self.live:
+            action = parse_action(actions[v.id], space) if v.id in actions else None
+            if action is None:
+                self._finish(v, DoneReason.invalid_action)
+                continue
+            ctx = ControlContext(
+                self.dt, v.mission.vehicle.length, self.road, v.mission.route, v.target_lane
+            )
+            new = DECODERS[space](action, v.pose, ctx)
+            v.target_lane = ctx.target_lane
+            v.advance(new, self.dt)
+            traffic.move(v.id, new.x, new.y, new.heading, new.speed)
+            driven.append(v)
+        entering = [
+            v for v in self.vehicles if v.status is Status.waiting and v.mission.start_step <= step
+        ]
+        for v in entering:
+            self._enter(v)
+        self._place_replay_in_sumo(step)
+        if self._triggers is not None:
+            self._triggers.apply(traffic, self._lanes, self.road)
+        traffic.step()
+
+        surroundings = {v.id: self._surroundings(v) for v in driven + entering}
+        events = {}
+        for v in driven:
+            events[v.id] = self._detect(v, surroundings[v.id], step)
+        for v in driven:
+            ev = events[v.id]
+            if ev.collisions:
+                self._finish(v, DoneReason.collision)
+            elif ev.off_road:
+                self._finish(v, DoneReason.off_road)
+            elif ev.reached_goal:
+                self._finish(v, DoneReason.reached_goal)
+        if step >= self.scenario.max_episode_steps:
+            for v in self.vehicles:
+                if v.status is not Status.done:
+                    self._finish(v, DoneReason.max_episode_steps)
+        obs = {}
+        for v in self.live:
+            ev = events.get(v.id) or self._events_at_rest(v)
+            obs[v.id] = self._observe(v, surroundings[v.id], ev)
+        return obs
+
+    def fail(self, reason: DoneReason, agent_ids: list[str] | None = None) -> None:
+        """End the given (default: every not yet done) agent with ``reason`` (agent failures)."""
+        for v in self.vehicles:
+            if v.status is not Status.done and (agent_ids is None or v.id in agent_ids):
+                self._finish(v, reason)
+
+    # --- state -------------------------------------------------------------------------------
+
+    @property
+    def live(self) -> list[MissionVehicle]:
+        return [v for v in self.vehicles if v.status is Status.live]
+
+    @property
+    def done(self) -> bool:
+        return all(v.status is Status.done for v in self.vehicles) or (
+            self.step_count >= self.scenario.max_episode_steps
+        )
+
+    @property
+    def outcomes(self) -> tuple[AgentOutcome, ...]:
+        return tuple(
+            AgentOutcome(
+                id=v.id,
+                reached_goal=v.reason is DoneReason.reached_goal,
+                reason=v.reason or DoneReason.max_episode_steps,
+                steps=v.steps,
+                done_step=v.done_step,
+            )
+            for v in self.vehicles
+        )
+
+    def background_states(self) -> VehicleStates:
+        """Every vehicle that is not a mission vehicle, as of the last step (SUMO and replay)."""
+        assert self._traffic is not None, "reset() first"
+        sumo = self._traffic.all_vehicles()
+        ours = {v.id for v in self.vehicles}
+        return VehicleStates.concat([sumo.without(ours), self._replay_states(self.step_count)])
+
+    def write_record(self, path: Path) -> None:
+        meta = {
+            "scenario_id": self.scenario.id,
+            "scenario_hash": content_hash(self.scenario_dir),
+            "seed": self.seed,
+            "dt": self.dt,
+            "max_episode_steps": self.scenario.max_episode_steps,
+            "episode_steps": self.step_count,
+        }
+        summaries = [
+            AgentSummary(
+                agent_id=v.id,
+                start_step=v.mission.start_step,
+                steps=v.steps,
+                done_step=v.done_step,
+                done_reason=str(v.reason or DoneReason.max_episode_steps),
+                length=v.mission.vehicle.length,
+                width=v.mission.vehicle.width,
+                goal=v.mission.goal.position,
+                goal_radius=v.mission.goal.radius,
+            )
+            for v in self.vehicles
+        ]
+        write_npz(path, self.recorder.arrays(meta, summaries))
+
+    # --- internals ---------------------------------------------------------------------------
+
+    def _enter(self, v: MissionVehicle) -> None:
+        m = v.mission
+        assert self._traffic is not None
+        self._traffic.add_vehicle(
+            v.id, list(m.route), m.vehicle.length, m.vehicle.width, m.vehicle.height
+        )
+        self._traffic.move(v.id, v.pose.x, v.pose.y, v.pose.heading, v.pose.speed)
+        self._traffic.watch_around(v.id, self.interface.observation_radius + _CONTEXT_MARGIN)
+        v.status = Status.live
+
+    def _finish(self, v: MissionVehicle, reason: DoneReason) -> None:
+        v.finish(reason, self.step_count)
+        if self._traffic is not None and reason in _REMOVED_REASONS:
+            self._traffic.remove(v.id)
+
+    def _replay_states(self, step: int) -> VehicleStates:
+        if self._replay is None or self._bubble_radius is not None:
+            return VehicleStates.empty()
+        return self._replay.states(step)
+
+    def _surroundings(self, v: MissionVehicle) -> VehicleStates:
+        """Other vehicles within the observation radius of ``v``'s centre, nearest first."""
+        assert self._traffic is not None
+        ours = {o.id for o in self.vehicles}
+        sumo = self._traffic.vehicles_around(v.id).without(ours)
+        others = [o for o in self.live if o is not v]
+        egos = VehicleStates(
+            [o.id for o in others],
+            np.array([o.pose.x for o in others]),
+            np.array([o.pose.y for o in others]),
+            np.array([o.pose.heading for o in others]),
+            np.array([o.pose.speed for o in others]),
+            np.array([o.mission.vehicle.length for o in others]),
+            np.array([o.mission.vehicle.width for o in others]),
+            [self._lanes[o.id].lane.id if o.id in self._lanes else "" for o in others],
+        )
+        near = VehicleStates.concat([sumo, self._replay_states(self.step_count), egos])
+        if not len(near):
+            return near
+        distance = np.hypot(near.x - v.pose.x, near.y - v.pose.y)
+        keep = np.flatnonzero(distance <= self.interface.observation_radius)
+        return near.select(keep[np.argsort(distance[keep], kind="stable")])
+
+    def _lane_of(self, v: MissionVehicle) -> LanePosition:
+        lane = self.road.nearest_lane(v.pose.x, v.pose.y, v.pose.heading)
+        self._lanes[v.id] = lane
+        return lane
+
+    def _detect(self, v: MissionVehicle, near: VehicleStates, step: int) -> Events:
+        pose, m = v.pose, v.mission
+        lane = self._lane_of(v)
+        in_junction = lane.lane.is_internal or self.road.in_junction(pose.x, pose.y)
+        v.still_steps = v.still_steps + 1 if pose.speed < NOT_MOVING_SPEED else 0
+        events = Events(
+            collisions=collisions(
+                pose.x, pose.y, pose.heading, m.vehicle.length, m.vehicle.width, near
+            ),
+            off_road=not self.road.is_on_road(pose.x, pose.y),
+            off_route=not lane.lane.is_internal and lane.lane.edge_id not in m.route,
+            on_shoulder=lane.lane.is_shoulder,
+            wrong_way=is_wrong_way(pose.heading, lane, in_junction),
+            not_moving=v.still_steps >= NOT_MOVING_STEPS,
+            reached_goal=within_goal(pose.x, pose.y, m.goal.position, m.goal.radius),
+            reached_max_episode_steps=step >= self.scenario.max_episode_steps,
+        )
+        vx, vy = v.kinematics.velocity
+        self.recorder.add(
+            v.id,
+            RecordRow(
+                step=step,
+                x=pose.x,
+                y=pose.y,
+                heading=pose.heading,
+                speed=pose.speed,
+                vx=float(vx),
+                vy=float(vy),
+                lane_id=lane.lane.id,
+                lane_index=lane.lane.index,
+                lane_offset=lane.t,
+                lane_width=lane.lane.width,
+                lane_heading=lane.heading,
+                speed_limit=lane.lane.speed_limit,
+                in_junction=in_junction,
+                flags=(
+                    bool(events.collisions),
+                    events.off_road,
+                    events.off_route,
+                    events.on_shoulder,
+                    events.wrong_way,
+                    events.not_moving,
+                    events.reached_goal,
+                ),
+                neighbours=near,
+            ),
+        )
+        return events
+
+    def _events_at_rest(self, v: MissionVehicle) -> Events:
+        """Events of an agent that has not driven yet (just entered): nothing happened."""
+        self._lane_of(v)
+        return Events((), False, False, False, False, False, False, False)
+
+    def _observe(self, v: MissionVehicle, near: VehicleStates, events: Events) -> dict:
+        lane = self._lanes[v.id]
+        paths = waypoint_paths(
+            self.road,
+            lane,
+            v.pose.x,
+            v.pose.y,
+            v.mission.route,
+            self.interface.max_waypoint_paths,
+            self.interface.waypoints_per_path,
+        )
+        return build_observation(
+            vehicle=v,
+            step=self.step_count,
+            dt=self.dt,
+            lane=lane,
+            events=events,
+            neighbours=near,
+            road=self.road,
+            waypoint_paths=paths,
+            interface=self.interface,
+        )
+
+    def _place_replay_in_sumo(self, step: int) -> None:
+        """Replay with a reactive bubble: recorded vehicles live in SUMO (so that vehicles handed
+        over react to them), moved to their recorded states until an ego comes within the
+        bubble radius, then driven by SUMO for the rest of the episode."""
+        if self._replay is None or self._bubble_radius is None:
+            return
+        table, traffic = self._replay, self._traffic
+        assert traffic is not None
+        present = table.present(step)
+        for k in set(self._in_sumo_replay_rows()) - set(present.tolist()):
+            vid = table.ids[k]
+            if table.active[k]:
+                traffic.remove(vid)
+                self._in_sumo_replay.discard(vid)
+        egos = [(v.pose.x, v.pose.y) for v in self.live]
+        for k in present:
+            vid = table.ids[k]
+            x, y, h, s = (
+                table.x[k, step],
+                table.y[k, step],
+                table.heading[k, step],
+                table.speed[k, step],
+            )
+            if vid not in self._in_sumo_replay:
+                traffic.add_vehicle(vid, self._route_from(x, y, h), table.length[k], table.width[k])
+                self._in_sumo_replay.add(vid)
+            traffic.move(vid, x, y, h, s)
+            if any(math.hypot(x - ex, y - ey) <= self._bubble_radius for ex, ey in egos):
+                table.active[k] = False
+                traffic.release(vid, s)
+
+    def _in_sumo_replay_rows(self) -> list[int]:
+        assert self._replay is not None
+        return [k for k, vid in enumerate(self._replay.ids) if vid in self._in_sumo_replay]
+
+    def _route_from(self, x: float, y: float, heading: float) -> list[str]:
+        """Edges ahead of a point, following the road for a vehicle SUMO will drive."""
+        lane = self.road.nearest_lane(x, y, heading).lane
+        edges: list[str] = []
+        while lane is not None and len(edges) < 64:
+            if not lane.is_internal and lane.edge_id not in edges:
+                edges.append(lane.edge_id)
+            elif not lane.is_internal:
+                break
+            lane = preferred_successor(self.road, lane, ())
+        return edges
+
+
+def scene_states(
+    scenario: Scenario, scenario_dir: Path, steps: int, seed: int | None = None
+) -> Iterator[VehicleStates]:
+    """Run ``scenario``'s traffic alone (mission vehicles left out) for ``steps`` steps and yield
+    every vehicle's state after each step (SUMO and replay vehicles; centre, heading, speed,
+    dimensions, lane). Used to record scenes; runs SUMO in this process."""
+    sim = Simulation(scenario, scenario_dir, AgentInterface(), seed, with_missions=False)
+    try:
+        sim.reset()
+        for _ in range(steps):
+            sim.step({})
+            yield sim.background_states()
+    finally:
+        sim.close()

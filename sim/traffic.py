@@ -1,0 +1,207 @@
+"""SUMO through libsumo: background traffic, and the mission vehicles as SUMO sees them.
+
+libsumo holds one simulation per process and a second ``start()`` silently discards the first,
+so exactly one :class:`SumoTraffic` may be open per process (checked). SUMO positions are the
+front bumper and angles are degrees clockwise from north; this module converts to our
+convention (centre, radians counter-clockwise from +x) at the boundary.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from pathlib import Path
+
+import numpy as np
+
+from sim.vehicles import VehicleStates
+
+_open_instance: SumoTraffic | None = None
+
+# Speed / lane-change modes of SUMO: 0 = obey nothing (we or a script drive it); defaults below.
+DEFAULT_SPEED_MODE = 31
+DEFAULT_LANE_CHANGE_MODE = 1621
+
+
+class SumoError(RuntimeError):
+    """SUMO failed (bad input files, internal error): the episode ends with simulator_error."""
+
+
+def sumo_command(net: Path, routes: Path | None, seed: int, step_length: float) -> list[str]:
+    cmd = ["sumo", "-n", str(net), "--step-length", str(step_length), "--seed", str(seed)]
+    if routes is not None:
+        cmd += ["-r", str(routes)]
+    options = {
+        "--collision.action": "none",  # we detect collisions with our own geometry
+        "--time-to-teleport": "-1",
+        "--no-step-log": "true",
+        "--no-warnings": "true",
+        "--duration-log.disable": "true",
+        "--device.rerouting.probability": "0",
+    }
+    return [*cmd, *(item for pair in options.items() for item in pair)]
+
+
+class SumoTraffic:
+    """One running SUMO simulation. Create, :meth:`step`, read states, :meth:`close`."""
+
+    def __init__(self, net: Path, routes: Path | None, seed: int, step_length: float) -> None:
+        global _open_instance
+        if _open_instance is not None:
+            raise RuntimeError("one SUMO simulation per process: close the previous one first")
+        import libsumo  # heavy; only in the process that simulates
+
+        self._ls = libsumo
+        self._tc = libsumo.constants
+        try:
+            libsumo.start(sumo_command(net, routes, seed, step_length))
+        except libsumo.TraCIException as exc:
+            raise SumoError(f"SUMO failed to start: {exc}") from exc
+        _open_instance = self
+        self._dims: dict[str, tuple[float, float]] = {}  # vehicle id -> (length, width) [m]
+        self._context_radius: dict[str, float] = {}
+        self._vars = [
+            self._tc.VAR_POSITION,
+            self._tc.VAR_ANGLE,
+            self._tc.VAR_SPEED,
+            self._tc.VAR_LANE_ID,
+        ]
+
+    @property
+    def libsumo(self):
+        """The libsumo module, for scripted interventions (tests, triggers)."""
+        return self._ls
+
+    def step(self) -> None:
+        try:
+            self._ls.simulationStep()
+        except self._ls.TraCIException as exc:
+            raise SumoError(f"SUMO step failed: {exc}") from exc
+
+    @property
+    def time(self) -> float:
+        return self._ls.simulation.getTime()
+
+    def close(self) -> None:
+        global _open_instance
+        if _open_instance is self:
+            self._ls.close()
+            _open_instance = None
+
+    # --- vehicles we place ------------------------------------------------------------------
+
+    def add_vehicle(
+        self, vid: str, edges: list[str], length: float, width: float, height: float = 1.5
+    ) -> None:
+        """Add a vehicle that we move ourselves (speed and lane-change mode 0). It enters SUMO
+        at the next step, where the next :meth:`move` puts it."""
+        ls = self._ls
+        type_id = f"__type_{vid}"
+        ls.vehicletype.copy("DEFAULT_VEHTYPE", type_id)
+        ls.vehicletype.setLength(type_id, length)
+        ls.vehicletype.setWidth(type_id, width)
+        ls.vehicletype.setHeight(type_id, height)
+        ls.vehicletype.setMinGap(type_id, 0.0)
+        route_id = f"__route_{vid}"
+        ls.route.add(route_id, edges)
+        ls.vehicle.add(vid, route_id, typeID=type_id, depart="now", departLane="best")
+        ls.vehicle.setSpeedMode(vid, 0)
+        ls.vehicle.setLaneChangeMode(vid, 0)
+        self._dims[vid] = (length, width)
+
+    def move(self, vid: str, x: float, y: float, heading: float, speed: float) -> None:
+        """Put vehicle ``vid`` with its centre at (x, y) [m], ``heading`` [rad], ``speed`` [m/s]
+        at the next step. SUMO maps it to the nearest lane of any edge (keepRoute=2) so that its
+        drivers see it; where no lane is near (off road) the vehicle stays where it was."""
+        half = self._dims[vid][0] / 2
+        fx, fy = x + half * math.cos(heading), y + half * math.sin(heading)
+        angle = 90.0 - math.degrees(heading)
+        try:
+            self._ls.vehicle.moveToXY(vid, "", -1, fx, fy, angle, keepRoute=2)
+            self._ls.vehicle.setPreviousSpeed(vid, speed)
+        except self._ls.TraCIException:
+            pass
+
+    def release(self, vid: str, speed: float) -> None:
+        """Hand a vehicle we were moving over to SUMO's driver model from now on."""
+        ls = self._ls
+        ls.vehicle.setSpeedMode(vid, DEFAULT_SPEED_MODE)
+        ls.vehicle.setLaneChangeMode(vid, DEFAULT_LANE_CHANGE_MODE)
+        ls.vehicle.setSpeed(vid, -1)
+        ls.vehicle.setPreviousSpeed(vid, speed)
+
+    def remove(self, vid: str) -> None:
+        with contextlib.suppress(self._ls.TraCIException):  # already left the network
+            self._ls.vehicle.remove(vid)
+        self._context_radius.pop(vid, None)
+
+    def force_lane_change(self, vid: str, lane_index: int, duration: float) -> None:
+        """Make a SUMO vehicle change to ``lane_index`` now, ignoring safety (cut-in)."""
+        self._ls.vehicle.setLaneChangeMode(vid, 0)
+        self._ls.vehicle.changeLane(vid, lane_index, duration)
+
+    # --- reading states ---------------------------------------------------------------------
+
+    def watch_around(self, vid: str, radius: float) -> None:
+        """Report, from the next step on, the vehicles within ``radius`` [m] of ``vid``."""
+        self._ls.vehicle.subscribeContext(
+            vid, self._tc.CMD_GET_VEHICLE_VARIABLE, radius, self._vars
+        )
+        self._context_radius[vid] = radius
+
+    def vehicles_around(self, vid: str) -> VehicleStates:
+        """Vehicles SUMO found near ``vid`` at the last step (``vid`` itself excluded)."""
+        results = self._ls.vehicle.getContextSubscriptionResults(vid)
+        results.pop(vid, None)
+        return self._states(results)
+
+    def all_vehicles(self) -> VehicleStates:
+        """Every vehicle in the network (slower; for recording whole scenes)."""
+        ls, tc = self._ls, self._tc
+        results = {
+            v: {
+                tc.VAR_POSITION: ls.vehicle.getPosition(v),
+                tc.VAR_ANGLE: ls.vehicle.getAngle(v),
+                tc.VAR_SPEED: ls.vehicle.getSpeed(v),
+                tc.VAR_LANE_ID: ls.vehicle.getLaneID(v),
+            }
+            for v in ls.vehicle.getIDList()
+        }
+        return self._states(results)
+
+    def _states(self, results: dict[str, dict]) -> VehicleStates:
+        n = len(results)
+        if n == 0:
+            return VehicleStates.empty()
+        tc = self._tc
+        ids = sorted(results)  # sorted: the order must not depend on SUMO's internal containers
+        rows = np.empty((n, 6))
+        for k, v in enumerate(ids):
+            r = results[v]
+            dims = self._dims.get(v)
+            if dims is None:
+                dims = self._dims[v] = (
+                    self._ls.vehicle.getLength(v),
+                    self._ls.vehicle.getWidth(v),
+                )
+            fx, fy = r[tc.VAR_POSITION]
+            rows[k] = (fx, fy, r[tc.VAR_ANGLE], r[tc.VAR_SPEED], dims[0], dims[1])
+        heading = np.radians(90.0 - rows[:, 2])
+        heading = np.pi - np.mod(np.pi - heading, 2 * np.pi)
+        half = rows[:, 4] / 2
+        return VehicleStates(
+            ids,
+            rows[:, 0] - half * np.cos(heading),
+            rows[:, 1] - half * np.sin(heading),
+            heading,
+            rows[:, 3],
+            rows[:, 4],
+            rows[:, 5],
+            [results[v][tc.VAR_LANE_ID] for v in ids],
+        )
+
+    def lane_index(self, vid: str) -> int:
+        return self._ls.vehicle.getLaneIndex(vid)
+
+    def lane_position(self, vid: str) -> tuple[str, float]:
+        return self._ls.vehicle.getLaneID(vid), self._ls.vehicle.getLanePosition(vid)

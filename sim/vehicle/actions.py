@@ -1,0 +1,131 @@
+"""The four action spaces of the agent interface: validation and decoding into the next pose.
+
+Each decoder takes a validated, clipped action and the vehicle's current pose and returns the
+pose after one step. Out-of-range values are clipped; a non-finite value or a wrong length is an
+invalid action (:func:`parse_action` returns None).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from sim.geometry import wrap
+from sim.interface import ACTION_LENGTH, ActionSpace
+from sim.road.waypoints import preferred_successor
+from sim.vehicle.bicycle import Pose, bicycle_step, wheelbase
+from sim.vehicle.limits import LIMITS
+
+if TYPE_CHECKING:
+    from sim.road import RoadNetwork
+
+
+@dataclass
+class ControlContext:
+    """What decoders may need besides the action: the step, the vehicle and the road."""
+
+    dt: float  # [s]
+    length: float  # [m] vehicle length
+    road: RoadNetwork
+    route: tuple[str, ...]
+    # LaneWithContinuousSpeed keeps the lane it is steering to between steps.
+    target_lane: str | None = None
+
+
+def parse_action(raw: object, space: ActionSpace) -> np.ndarray | None:
+    """The action as a float array of the space's length, or None when it is invalid."""
+    try:
+        arr = np.asarray(raw, dtype=np.float64)
+    except (TypeError, ValueError):
+        return None
+    if arr.shape != (ACTION_LENGTH[space],) or not np.isfinite(arr).all():
+        return None
+    return arr
+
+
+def _limit_displacement(pose: Pose, x: float, y: float, heading: float, dt: float) -> Pose:
+    dx, dy = x - pose.x, y - pose.y
+    dist = math.hypot(dx, dy)
+    max_dist = LIMITS.max_speed * dt
+    if dist > max_dist:
+        dx, dy, dist = dx * max_dist / dist, dy * max_dist / dist, max_dist
+    return Pose(pose.x + dx, pose.y + dy, wrap(heading), dist / dt, 0.0)
+
+
+def target_pose(action: np.ndarray, pose: Pose, ctx: ControlContext) -> Pose:
+    """[x, y, heading, dt]: move to the pose over one step (``dt`` element is not used: a step
+    is always ``ctx.dt``); displacement capped at max_speed x dt."""
+    return _limit_displacement(pose, action[0], action[1], action[2], ctx.dt)
+
+
+def relative_target_pose(action: np.ndarray, pose: Pose, ctx: ControlContext) -> Pose:
+    """[dx, dy, dheading] in the ego frame (x forward, y left); same displacement cap."""
+    c, s = math.cos(pose.heading), math.sin(pose.heading)
+    x = pose.x + c * action[0] - s * action[1]
+    y = pose.y + s * action[0] + c * action[1]
+    return _limit_displacement(pose, x, y, pose.heading + action[2], ctx.dt)
+
+
+def continuous(action: np.ndarray, pose: Pose, ctx: ControlContext) -> Pose:
+    """[throttle 0..1, brake 0..1, steering -1..1] through the kinematic bicycle model."""
+    throttle, brake, steer = np.clip(action, [0.0, 0.0, -1.0], [1.0, 1.0, 1.0])
+    acceleration = throttle * LIMITS.max_acceleration - brake * LIMITS.max_deceleration
+    return bicycle_step(
+        pose, acceleration, steer * LIMITS.max_steering, ctx.dt, ctx.length, LIMITS.max_speed
+    )
+
+
+def lane_with_continuous_speed(action: np.ndarray, pose: Pose, ctx: ControlContext) -> Pose:
+    """[target_speed m/s, lane_change -1|0|+1]: a built-in controller tracks the target speed and
+    the centreline of the target lane (+1 = one lane to the left, -1 = right), pure pursuit."""
+    target_speed = float(np.clip(action[0], 0.0, LIMITS.max_lane_speed))
+    lane_change = int(np.rint(np.clip(action[1], -1.0, 1.0)))
+    here = ctx.road.nearest_lane(pose.x, pose.y, pose.heading)
+    target = ctx.road.lanes.get(ctx.target_lane) if ctx.target_lane else None
+    if target is None or target.edge_id != here.lane.edge_id:
+        target = here.lane
+    if lane_change and (target is here.lane or abs(here.t) < 0.5):
+        siblings = ctx.road.edges[here.lane.edge_id]
+        index = here.lane.index + lane_change
+        if 0 <= index < len(siblings):
+            target = siblings[index]
+    ctx.target_lane = target.id
+    acceleration = np.clip(
+        (target_speed - pose.speed) / max(ctx.dt, 0.5),
+        -LIMITS.max_deceleration,
+        LIMITS.max_acceleration,
+    )
+    lookahead = max(4.0, 0.8 * pose.speed)
+    aim_x, aim_y = _point_ahead(ctx, target.id, target.project(pose.x, pose.y)[0] + lookahead)
+    alpha = wrap(math.atan2(aim_y - pose.y, aim_x - pose.x) - pose.heading)
+    distance = max(math.hypot(aim_x - pose.x, aim_y - pose.y), 1e-3)
+    steering = math.atan(2 * wheelbase(ctx.length) * math.sin(alpha) / distance)
+    steering = float(np.clip(steering, -LIMITS.max_steering, LIMITS.max_steering))
+    return bicycle_step(pose, float(acceleration), steering, ctx.dt, ctx.length, LIMITS.max_speed)
+
+
+def _point_ahead(ctx: ControlContext, lane_id: str, s: float) -> tuple[float, float]:
+    """The centreline point ``s`` [m] along ``lane_id``, continuing into successors (preferring
+    the mission route) past its end."""
+    lane = ctx.road.lanes[lane_id]
+    for _ in range(8):
+        if s <= lane.length or not lane.successors:
+            break
+        s -= lane.length
+        lane = preferred_successor(ctx.road, lane, ctx.route)
+    x, y = lane.position_at(s)
+    return float(x), float(y)
+
+
+Decoder = Callable[[np.ndarray, Pose, ControlContext], Pose]
+
+DECODERS: dict[ActionSpace, Decoder] = {
+    ActionSpace.TargetPose: target_pose,
+    ActionSpace.RelativeTargetPose: relative_target_pose,
+    ActionSpace.Continuous: continuous,
+    ActionSpace.LaneWithContinuousSpeed: lane_with_continuous_speed,
+}
