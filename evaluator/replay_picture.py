@@ -13,6 +13,7 @@ from xml.sax.saxutils import escape
 import numpy as np
 
 from evaluator.runner.results import record_path
+from evaluator.scoring.record import scalar
 
 MARGIN_M = 15.0  # around the drawn episode [m]
 PIXELS_PER_M = 4.0
@@ -163,7 +164,7 @@ def _ego(rec: dict[str, np.ndarray], a: int, view: _View, top_speed: float) -> s
 
 
 def _legend(rec: dict[str, np.ndarray], view: _View, top_speed: float) -> str:
-    lines = [f"{rec['scenario_id']}"]
+    lines = [str(scalar(rec["scenario_id"]))]
     for a in range(len(rec["agent_ids"])):
         lines.append(
             f"{rec['agent_ids'][a]}: {rec['done_reason'][a]} at step {int(rec['done_step'][a])}"

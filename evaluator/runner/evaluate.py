@@ -55,9 +55,8 @@ def evaluate(
     profile: str = DEFAULT_PROFILE,
     progress: Progress | None = None,
 ) -> Summary:
-    from submissions.intake import prepare_submission
-
     from evaluator.sandbox import resolve_kind
+    from submissions.intake import prepare_submission
 
     scoring_profile = load_profile(profile)
     sandbox = resolve_kind(sandbox)  # once, so a missing sandbox fails before any scenario

@@ -82,8 +82,16 @@ def load_record(path: Path) -> EpisodeRecord:
         raise RecordError(f"{path}: {exc}") from None
 
 
+def scalar(array: np.ndarray) -> int | float | str | bool:
+    """The value of a metadata array: 0-d per the format; a 1-element array is accepted too
+    (``np.ascontiguousarray`` in a writer turns 0-d into shape (1,))."""
+    if array.size != 1:
+        raise RecordError(f"metadata array of shape {array.shape}, expected a single value")
+    return array.reshape(()).item()
+
+
 def _parse(arrays: dict[str, np.ndarray]) -> EpisodeRecord:
-    version = int(arrays["format_version"])
+    version = scalar(arrays["format_version"])
     if version != FORMAT_VERSION:
         raise RecordError(f"format_version {version}, expected {FORMAT_VERSION}")
     steps = arrays["steps"].astype(int)
@@ -99,11 +107,11 @@ def _parse(arrays: dict[str, np.ndarray]) -> EpisodeRecord:
     )
     tracks = tuple(_track(arrays, a, int(n)) for a, n in enumerate(steps))
     return EpisodeRecord(
-        scenario_id=str(arrays["scenario_id"]),
-        scenario_hash=str(arrays["scenario_hash"]),
-        dt=float(arrays["dt"]),
-        max_episode_steps=int(arrays["max_episode_steps"]),
-        episode_steps=int(arrays["episode_steps"]),
+        scenario_id=str(scalar(arrays["scenario_id"])),
+        scenario_hash=str(scalar(arrays["scenario_hash"])),
+        dt=float(scalar(arrays["dt"])),
+        max_episode_steps=int(scalar(arrays["max_episode_steps"])),
+        episode_steps=int(scalar(arrays["episode_steps"])),
         agents=agents,
         tracks=tracks,
     )
