@@ -66,6 +66,10 @@ class Settings(BaseSettings):
     lease_seconds: int = 120
     scoring_profile: str = "driving-smarts-2022"
     jobs: int = Field(default=2, ge=1)
+    # Prefix on every broker key, so several deployments (or test sessions) can share one Redis.
+    broker_key_prefix: str = ""
+    # How often a worker looks for evaluations whose lease expired [s].
+    reaper_interval_s: float = 30.0
 
     @property
     def resolved_data_dir(self) -> Path:

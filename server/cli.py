@@ -1,8 +1,341 @@
-"""`arena admin ...` and the service commands (`arena up`)."""
+"""`arena admin ...` (organisers) and the service commands `arena up`, `arena serve`,
+`arena worker`. Thin: every command calls the same service functions as the API."""
 
 from __future__ import annotations
 
+from pathlib import Path
+from typing import Annotated
+
 import typer
+from rich.console import Console
+from rich.table import Table
 
 admin_app = typer.Typer(no_args_is_help=True)
 service_app = typer.Typer(no_args_is_help=True)
+teams_app = typer.Typer(no_args_is_help=True, help="Teams and their API tokens.")
+submissions_app = typer.Typer(no_args_is_help=True, help="Inspect and act on submissions.")
+leaderboard_app = typer.Typer(no_args_is_help=True, help="Export the leaderboard.")
+db_app = typer.Typer(no_args_is_help=True, help="The database schema.")
+admin_app.add_typer(teams_app, name="teams")
+admin_app.add_typer(submissions_app, name="submissions")
+admin_app.add_typer(leaderboard_app, name="leaderboard")
+admin_app.add_typer(db_app, name="db")
+
+console = Console()
+SubmissionId = Annotated[int, typer.Argument(help="Submission id.")]
+
+
+class _Context:
+    """Settings, database and task queue, built on first use by a command."""
+
+    def __init__(self) -> None:
+        from arena.config import get_settings
+        from server.core.db import Database
+        from server.services.queue import TaskQueue
+
+        self.settings = get_settings()
+        self.db = Database(self.settings.resolved_database_url)
+        self.queue = TaskQueue(self.settings)
+
+
+def _fail(exc: Exception) -> typer.Exit:
+    console.print(f"[red]error:[/red] {getattr(exc, 'message', exc)}")
+    return typer.Exit(1)
+
+
+def _run(action):
+    from server.services.errors import ServiceError
+    from server.status import IllegalTransition
+
+    try:
+        return action()
+    except (ServiceError, IllegalTransition) as exc:
+        raise _fail(exc) from None
+
+
+# --- db ---------------------------------------------------------------------------------------
+
+
+@db_app.command("upgrade")
+def db_upgrade(revision: str = "head") -> None:
+    """Apply the Alembic migrations to the configured database."""
+    from arena.config import get_settings
+    from server.core.migrate import current_revision, upgrade_database
+
+    url = get_settings().resolved_database_url
+    upgrade_database(url, revision)
+    console.print(f"database at revision [bold]{current_revision(url)}[/bold]")
+
+
+# --- teams ------------------------------------------------------------------------------------
+
+
+@teams_app.command("create")
+def teams_create(name: str) -> None:
+    """Create a team and print its API token (shown once)."""
+    from server.services import teams
+
+    ctx = _Context()
+    with ctx.db.session() as session:
+        team, token = _run(lambda: teams.create_team(session, name))
+    console.print(f"team [bold]{team.name}[/bold] (id {team.id}) token: [green]{token}[/green]")
+
+
+@teams_app.command("list")
+def teams_list() -> None:
+    from server.services import teams
+
+    ctx = _Context()
+    with ctx.db.session() as session:
+        rows = teams.list_teams(session)
+    table = Table("id", "team", "submissions", "created")
+    for row in rows:
+        table.add_row(
+            str(row.id), row.name, str(row.submissions), f"{row.created_at:%Y-%m-%d %H:%M}"
+        )
+    console.print(table)
+
+
+@teams_app.command("rotate-token")
+def teams_rotate(name: str) -> None:
+    """Revoke the team's tokens and print a new one."""
+    from server.services import teams
+
+    ctx = _Context()
+    with ctx.db.session() as session:
+        team = _run(lambda: teams.get_team(session, name))
+        token = teams.rotate_token(session, team)
+    console.print(f"new token for [bold]{name}[/bold]: [green]{token}[/green]")
+
+
+# --- submissions ------------------------------------------------------------------------------
+
+
+def _metric(value: float | None, digits: int = 4) -> str:
+    return "-" if value is None else f"{value:.{digits}f}"
+
+
+@submissions_app.command("list")
+def submissions_list(limit: int = 50) -> None:
+    from server.services import submissions
+
+    ctx = _Context()
+    with ctx.db.session() as session:
+        rows = submissions.list_submissions(session, limit=limit)
+    table = Table("id", "team", "track", "method", "status", "progress", "completion", "time")
+    for row in rows:
+        m = row.metrics
+        table.add_row(
+            str(row.id),
+            row.team,
+            row.track,
+            row.method_name,
+            row.status,
+            f"{row.progress.done}/{row.progress.total}",
+            _metric(m and m.completion),
+            _metric(m and m.time, 1),
+        )
+    console.print(table)
+
+
+@submissions_app.command("show")
+def submissions_show(submission_id: SubmissionId) -> None:
+    """Everything about a submission, including per-scenario results (organisers only)."""
+    from server.services import submissions
+
+    ctx = _Context()
+    with ctx.db.session() as session:
+        submission = _run(lambda: submissions.get_submission(session, submission_id))
+        view = submissions.detail(session, submission)
+        runs = [
+            (
+                run.attempt,
+                run.status,
+                run.worker,
+                run.scoring_profile,
+                run.error,
+                sorted((r.scenario_id, r.family, r.status, r.reason, r.steps) for r in run.results),
+            )
+            for run in submission.runs
+        ]
+    console.print(view.model_dump_json(indent=2, exclude={"families"}))
+    for attempt, status, worker, profile, error, results in runs:
+        table = Table(
+            "scenario",
+            "family",
+            "status",
+            "reason",
+            "steps",
+            title=f"attempt {attempt}: {status} ({profile}) {worker} {error}",
+        )
+        for row in results:
+            table.add_row(*map(str, row))
+        console.print(table)
+
+
+@submissions_app.command("cancel")
+def submissions_cancel(submission_id: SubmissionId) -> None:
+    from server.services import submissions
+
+    ctx = _Context()
+    _run(lambda: submissions.cancel(ctx.db, ctx.queue, submission_id))
+    console.print(f"submission {submission_id} cancelled")
+
+
+@submissions_app.command("disqualify")
+def submissions_disqualify(
+    submission_id: SubmissionId,
+    reason: Annotated[str, typer.Option(help="Shown to the team.")] = "",
+) -> None:
+    from server.services import submissions
+
+    ctx = _Context()
+    _run(lambda: submissions.disqualify(ctx.db, ctx.queue, submission_id, reason))
+    console.print(f"submission {submission_id} disqualified")
+
+
+@submissions_app.command("requeue")
+def submissions_requeue(submission_id: SubmissionId) -> None:
+    """Send an unfinished submission's work again (lost messages, dead worker)."""
+    from server.services import admin
+
+    ctx = _Context()
+    console.print(_run(lambda: admin.requeue(ctx.db, ctx.settings, ctx.queue, submission_id)))
+
+
+# --- rescore / rerun / status ------------------------------------------------------------------
+
+
+@admin_app.command("rescore")
+def rescore(
+    submission_id: Annotated[int | None, typer.Argument(help="Submission id.")] = None,
+    all_: Annotated[bool, typer.Option("--all", help="Every scored submission.")] = False,
+    profile: Annotated[str | None, typer.Option(help="Scoring profile name.")] = None,
+) -> None:
+    """Recompute scores from the stored episode records (no simulation)."""
+    from rich.progress import Progress
+
+    from server.services import admin
+
+    if (submission_id is None) == (not all_):
+        raise typer.BadParameter("give one submission id or --all")
+    ctx = _Context()
+    runs = admin.rescore_targets(ctx.db, None if all_ else submission_id)
+    if not runs:
+        raise _fail(ValueError("no scored evaluation to re-score"))
+    table = Table("run", "completion", "time", "humanness", "rules")
+    with Progress(console=console) as progress:
+        task = progress.add_task("re-scoring", total=len(runs))
+        for run_id in runs:
+            metrics = _run(lambda run_id=run_id: admin.rescore_run(ctx.db, run_id, profile))
+            table.add_row(
+                str(run_id),
+                *(f"{metrics[k]:.4f}" for k in ("completion", "time", "humanness", "rules")),
+            )
+            progress.advance(task)
+    console.print(table)
+
+
+@admin_app.command("rerun")
+def rerun(submission_id: SubmissionId) -> None:
+    """Simulate a scored or failed submission again, as a new attempt."""
+    from server.services import admin
+
+    ctx = _Context()
+    attempt = _run(lambda: admin.rerun(ctx.db, ctx.settings, ctx.queue, submission_id))
+    console.print(f"submission {submission_id}: attempt {attempt} queued")
+
+
+@admin_app.command("status")
+def status() -> None:
+    """Queue depth, workers, submissions by status and runs whose lease expired."""
+    from server.services import admin
+
+    ctx = _Context()
+    state = admin.service_status(ctx.db, ctx.queue)
+    depth = "broker unreachable" if state.queue_depth is None else state.queue_depth
+    console.print(f"queue depth: {depth}")
+    if state.workers is None:
+        console.print("workers: (the embedded broker cannot list workers)")
+    else:
+        console.print(f"workers ({len(state.workers)}): {', '.join(state.workers) or 'none'}")
+    console.print(f"running evaluations: {state.running_runs}")
+    table = Table("status", "submissions")
+    for name, count in state.submissions.items():
+        table.add_row(name, str(count))
+    console.print(table)
+    if state.stuck_runs:
+        stuck = Table("run", "submission", "worker", "lease expired at", title="stuck runs")
+        for run in state.stuck_runs:
+            stuck.add_row(
+                str(run.run_id), str(run.submission_id), run.worker, str(run.lease_expires_at)
+            )
+        console.print(stuck)
+    else:
+        console.print("stuck runs: none")
+
+
+@leaderboard_app.command("export")
+def leaderboard_export(
+    track: str = "freestyle",
+    csv: Annotated[bool, typer.Option("--csv", help="CSV (the only format for now).")] = True,
+    out: Annotated[Path | None, typer.Option(help="File to write (default: stdout).")] = None,
+) -> None:
+    from server.models import Track
+    from server.services import leaderboard
+
+    ctx = _Context()
+    with ctx.db.session() as session:
+        text = leaderboard.to_csv(leaderboard.compute(session, Track(track)))
+    if out is None:
+        typer.echo(text, nl=False)
+    else:
+        out.write_text(text)
+        console.print(f"wrote {out}")
+
+
+# --- service ----------------------------------------------------------------------------------
+
+
+@service_app.command("serve")
+def serve(host: str = "127.0.0.1", port: int = 8000, workers: int = 1) -> None:
+    """Run the API and web pages (uvicorn)."""
+    import uvicorn
+
+    uvicorn.run("server.app:create_app", factory=True, host=host, port=port, workers=workers)
+
+
+@service_app.command("worker")
+def worker(
+    concurrency: Annotated[
+        int | None, typer.Option(help="Scenarios at once (default: jobs).")
+    ] = None,
+    loglevel: str = "INFO",
+) -> None:
+    """Run a Celery worker that evaluates submissions."""
+    from evaluator.celery_app import create_celery_app
+
+    app = create_celery_app()
+    argv = [
+        "worker",
+        f"--loglevel={loglevel}",
+        "-O",
+        "fair",
+        "--without-mingle",
+        "--without-gossip",
+    ]
+    if concurrency:
+        argv.append(f"--concurrency={concurrency}")
+    app.worker_main(argv)
+
+
+@service_app.command("up")
+def up(
+    host: str = "127.0.0.1",
+    port: int = 8000,
+    demo_team: str = "demo",
+) -> None:
+    """Everything on this machine: database, scenario suites, API and a worker (Ctrl-C stops)."""
+    from server.embedded import run_embedded
+
+    run_embedded(console, host=host, port=port, demo_team=demo_team)

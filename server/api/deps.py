@@ -1,0 +1,96 @@
+"""Dependencies of the API routes: the session, the caller's team, the admin check and the
+ownership check. Each is written once here and declared by the handlers that need it."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Annotated
+
+from fastapi import Depends, HTTPException, Path, Request, status
+from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
+from sqlalchemy.orm import Session
+
+from arena.config import Settings
+from server.core.db import Database
+from server.models import Submission, Team
+from server.security import same_secret
+from server.services.leaderboard import LeaderboardCache
+from server.services.queue import TaskQueue
+from server.services.teams import team_for_token
+
+bearer = HTTPBearer(auto_error=False)
+
+
+def get_settings_dep(request: Request) -> Settings:
+    return request.app.state.settings
+
+
+def get_db(request: Request) -> Database:
+    return request.app.state.db
+
+
+def get_queue(request: Request) -> TaskQueue:
+    return request.app.state.queue
+
+
+def get_leaderboard_cache(request: Request) -> LeaderboardCache:
+    return request.app.state.leaderboard
+
+
+def get_session(db: Annotated[Database, Depends(get_db)]) -> Iterator[Session]:
+    with db.session() as session:
+        yield session
+
+
+SettingsDep = Annotated[Settings, Depends(get_settings_dep)]
+DatabaseDep = Annotated[Database, Depends(get_db)]
+QueueDep = Annotated[TaskQueue, Depends(get_queue)]
+LeaderboardDep = Annotated[LeaderboardCache, Depends(get_leaderboard_cache)]
+SessionDep = Annotated[Session, Depends(get_session)]
+Credentials = Annotated[HTTPAuthorizationCredentials | None, Depends(bearer)]
+
+
+def _unauthorized(message: str) -> HTTPException:
+    return HTTPException(
+        status.HTTP_401_UNAUTHORIZED, message, headers={"WWW-Authenticate": "Bearer"}
+    )
+
+
+def get_current_team(db: DatabaseDep, credentials: Credentials) -> Team:
+    """The caller's team, looked up in a transaction of its own (an upload must not hold one
+    open while its body streams in). The returned row is detached: id and name only."""
+    if credentials is None:
+        raise _unauthorized("send your team token: Authorization: Bearer <token>")
+    with db.session() as session:
+        team = team_for_token(session, credentials.credentials)
+        if team is None:
+            raise _unauthorized("unknown or revoked team token")
+        session.expunge(team)
+    return team
+
+
+CurrentTeam = Annotated[Team, Depends(get_current_team)]
+
+
+def require_admin(settings: SettingsDep, credentials: Credentials) -> None:
+    if settings.admin_token is None:
+        raise HTTPException(status.HTTP_403_FORBIDDEN, "no admin token is configured")
+    if credentials is None or not same_secret(credentials.credentials, settings.admin_token):
+        raise _unauthorized("admin token required")
+
+
+AdminDep = Depends(require_admin)
+
+
+def get_owned_submission(
+    session: SessionDep, team: CurrentTeam, submission_id: Annotated[int, Path(ge=1)]
+) -> Submission:
+    """The submission, if it belongs to the caller's team. Another team's submission is reported
+    as missing (404), so ids reveal nothing."""
+    submission = session.get(Submission, submission_id)
+    if submission is None or submission.team_id != team.id:
+        raise HTTPException(status.HTTP_404_NOT_FOUND, f"no submission {submission_id}")
+    return submission
+
+
+OwnedSubmission = Annotated[Submission, Depends(get_owned_submission)]

@@ -1,0 +1,11 @@
+"""The versioned API router: every resource router, collected in one place."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter
+
+from server.api.routes import admin, health, leaderboard, metrics, scenarios, submissions
+
+api_router = APIRouter(prefix="/api/v1")
+for module in (submissions, leaderboard, scenarios, health, metrics, admin):
+    api_router.include_router(module.router)

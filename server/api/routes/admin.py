@@ -1,0 +1,57 @@
+"""/admin: organiser actions over HTTP (the same service functions as `arena admin`)."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, Body, Path
+from starlette.concurrency import run_in_threadpool
+
+from server.api.deps import AdminDep, DatabaseDep, QueueDep, SessionDep, SettingsDep
+from server.schemas import SubmissionSummary
+from server.services import admin, submissions
+
+router = APIRouter(prefix="/admin", tags=["admin"], dependencies=[AdminDep])
+SubmissionId = Annotated[int, Path(ge=1)]
+
+
+@router.get("/submissions", response_model=list[SubmissionSummary])
+def all_submissions(session: SessionDep, limit: int = 100) -> list[SubmissionSummary]:
+    return submissions.list_submissions(session, limit=limit)
+
+
+@router.post("/submissions/{submission_id}/disqualify", response_model=SubmissionSummary)
+def disqualify(
+    submission_id: SubmissionId,
+    db: DatabaseDep,
+    queue: QueueDep,
+    reason: Annotated[str, Body(embed=True)] = "",
+) -> SubmissionSummary:
+    submissions.disqualify(db, queue, submission_id, reason)
+    with db.session() as session:
+        return submissions.summary(session, submissions.get_submission(session, submission_id))
+
+
+@router.post("/submissions/{submission_id}/requeue")
+def requeue(
+    submission_id: SubmissionId, db: DatabaseDep, settings: SettingsDep, queue: QueueDep
+) -> dict[str, str]:
+    return {"result": admin.requeue(db, settings, queue, submission_id)}
+
+
+@router.post("/submissions/{submission_id}/rerun")
+def rerun(
+    submission_id: SubmissionId, db: DatabaseDep, settings: SettingsDep, queue: QueueDep
+) -> dict[str, int]:
+    return {"attempt": admin.rerun(db, settings, queue, submission_id)}
+
+
+@router.post("/submissions/{submission_id}/rescore")
+async def rescore(
+    submission_id: SubmissionId, db: DatabaseDep, profile: str | None = None
+) -> dict[str, dict[str, float]]:
+    runs = admin.rescore_targets(db, submission_id)
+    return {
+        str(run_id): await run_in_threadpool(admin.rescore_run, db, run_id, profile)
+        for run_id in runs
+    }

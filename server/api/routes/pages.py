@@ -1,0 +1,47 @@
+"""HTML pages: leaderboard, submit form, submission progress. They read the same service
+functions as the API; the submit and submission pages talk to the API from the browser with the
+team token the user typed (kept in the browser's session storage, never in a cookie)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+from fastapi import APIRouter, Request
+from fastapi import Path as PathParam
+from fastapi.responses import HTMLResponse
+from fastapi.templating import Jinja2Templates
+
+from server.api.deps import LeaderboardDep
+from server.models import Track
+from server.services.leaderboard import METRICS
+
+templates = Jinja2Templates(directory=Path(__file__).resolve().parents[2] / "templates")
+router = APIRouter(include_in_schema=False)
+
+
+@router.get("/", response_class=HTMLResponse)
+def leaderboard_page(
+    request: Request, cache: LeaderboardDep, track: Track = Track.freestyle
+) -> HTMLResponse:
+    board = cache.get(track).board
+    families = sorted({family for entry in board.entries for family in entry.families})
+    return templates.TemplateResponse(
+        request,
+        "leaderboard.html",
+        {"board": board, "tracks": list(Track), "metrics": METRICS, "families": families},
+    )
+
+
+@router.get("/submit", response_class=HTMLResponse)
+def submit_page(request: Request) -> HTMLResponse:
+    return templates.TemplateResponse(request, "submit.html", {"tracks": list(Track)})
+
+
+@router.get("/submissions/{submission_id}", response_class=HTMLResponse)
+def submission_page(
+    request: Request, submission_id: Annotated[int, PathParam(ge=1)]
+) -> HTMLResponse:
+    return templates.TemplateResponse(
+        request, "submission.html", {"submission_id": submission_id, "metrics": METRICS}
+    )

@@ -1,0 +1,77 @@
+"""/submissions: upload, list, detail, logs, cancel."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, Request, status
+from starlette.concurrency import run_in_threadpool
+
+from server.api.deps import (
+    CurrentTeam,
+    DatabaseDep,
+    OwnedSubmission,
+    QueueDep,
+    SessionDep,
+    SettingsDep,
+)
+from server.api.upload import receive_form
+from server.models import Track
+from server.schemas import SubmissionDetail, SubmissionLogs, SubmissionSummary
+from server.services import submissions
+from server.services.errors import InvalidUpload
+
+router = APIRouter(prefix="/submissions", tags=["submissions"])
+
+
+@router.post("", status_code=status.HTTP_201_CREATED, response_model=SubmissionDetail)
+async def create_submission(
+    request: Request, team: CurrentTeam, db: DatabaseDep, settings: SettingsDep, queue: QueueDep
+) -> SubmissionDetail:
+    """Multipart form: ``file`` (the zip), ``track`` (freestyle|offline), ``method_name``,
+    ``description``. The zip is checked before the response: a bad one gets 422 with the reason."""
+    form = await receive_form(
+        request, settings.resolved_data_dir / "uploads", settings.max_zip_bytes
+    )
+    try:
+        track = Track(form.fields.get("track", Track.freestyle))
+    except ValueError:
+        form.file_path.unlink(missing_ok=True)
+        raise InvalidUpload("track: must be 'freestyle' or 'offline'") from None
+    new = submissions.NewSubmission(
+        track=track,
+        method_name=form.fields.get("method_name", ""),
+        description=form.fields.get("description", ""),
+    )
+    try:
+        created = await run_in_threadpool(
+            submissions.accept_upload, db, settings, queue, team.id, new, form.file_path
+        )
+    finally:
+        form.file_path.unlink(missing_ok=True)
+    with db.session() as session:
+        return submissions.detail(session, submissions.get_submission(session, created.id))
+
+
+@router.get("", response_model=list[SubmissionSummary])
+def list_submissions(session: SessionDep, team: CurrentTeam) -> list[SubmissionSummary]:
+    """The caller's team's submissions, newest first."""
+    return submissions.list_submissions(session, team.id)
+
+
+@router.get("/{submission_id}", response_model=SubmissionDetail)
+def get_submission(session: SessionDep, submission: OwnedSubmission) -> SubmissionDetail:
+    return submissions.detail(session, submission)
+
+
+@router.get("/{submission_id}/logs", response_model=SubmissionLogs)
+def get_logs(submission: OwnedSubmission) -> SubmissionLogs:
+    """The agent's stdout/stderr tail per scenario (labelled by family, never by hidden id)."""
+    return submissions.logs(submission)
+
+
+@router.post("/{submission_id}/cancel", response_model=SubmissionSummary)
+def cancel_submission(
+    submission: OwnedSubmission, db: DatabaseDep, queue: QueueDep
+) -> SubmissionSummary:
+    submissions.cancel(db, queue, submission.id)
+    with db.session() as session:
+        return submissions.summary(session, submissions.get_submission(session, submission.id))

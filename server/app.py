@@ -1,0 +1,56 @@
+"""The FastAPI application factory (``uvicorn --factory server.app:create_app``)."""
+
+from __future__ import annotations
+
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+from pathlib import Path
+
+from fastapi import FastAPI, Request
+from fastapi.responses import JSONResponse
+from fastapi.staticfiles import StaticFiles
+
+from arena.config import Settings, get_settings
+from server.api.main import api_router
+from server.api.routes import pages
+from server.core.db import Database
+from server.services.errors import ServiceError
+from server.services.leaderboard import LeaderboardCache
+from server.services.queue import TaskQueue
+from server.status import IllegalTransition
+
+STATIC_DIR = Path(__file__).resolve().parent / "static"
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    settings = settings or get_settings()
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        yield
+        app.state.queue.close()
+        app.state.db.engine.dispose()
+
+    app = FastAPI(
+        title="Driving Arena",
+        version="1",
+        description="Evaluation service and leaderboard for autonomous-driving agents.",
+        lifespan=lifespan,
+    )
+    app.state.settings = settings
+    app.state.db = Database(settings.resolved_database_url)
+    app.state.queue = TaskQueue(settings)
+    app.state.leaderboard = LeaderboardCache(app.state.db)
+
+    @app.exception_handler(ServiceError)
+    async def _service_error(_: Request, exc: ServiceError) -> JSONResponse:
+        return JSONResponse({"detail": exc.message}, status_code=exc.status_code)
+
+    @app.exception_handler(IllegalTransition)
+    async def _illegal(_: Request, exc: IllegalTransition) -> JSONResponse:
+        return JSONResponse({"detail": str(exc)}, status_code=409)
+
+    app.include_router(api_router)
+    app.include_router(pages.router)
+    app.mount("/static", StaticFiles(directory=STATIC_DIR), name="static")
+    return app

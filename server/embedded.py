@@ -1,0 +1,169 @@
+"""`arena up`: the whole service on one machine with the embedded defaults (SQLite database,
+SQLAlchemy broker), API and worker as child processes stopped together on Ctrl-C."""
+
+from __future__ import annotations
+
+import os
+import secrets
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import httpx
+from rich.console import Console
+from rich.panel import Panel
+
+from arena.config import Settings, get_settings
+
+ARENA = [sys.executable, "-c", "from arena.cli import app; app()"]
+
+
+def run_embedded(console: Console, *, host: str, port: int, demo_team: str) -> None:
+    settings = get_settings()
+    data = settings.resolved_data_dir
+    data.mkdir(parents=True, exist_ok=True)
+    env = dict(os.environ)
+    env["ARENA_DATA_DIR"] = str(data)
+
+    admin_token = settings.admin_token or _stored_admin_token(data)
+    env["ARENA_ADMIN_TOKEN"] = admin_token
+
+    from server.core.migrate import upgrade_database
+
+    console.print(f"database: {settings.resolved_database_url}")
+    upgrade_database(settings.resolved_database_url)
+
+    env["ARENA_PUBLIC_SUITE_DIR"] = str(_public_suite(console, settings, env))
+    env["ARENA_HIDDEN_SUITE_DIR"] = str(_hidden_suite(console, settings, env))
+
+    from evaluator import sandbox
+
+    kind = sandbox.check_service_kind(settings=settings)
+    env["ARENA_SANDBOX"] = kind.value
+    console.print(f"sandbox: [bold]{kind.value}[/bold]")
+
+    token = _demo_team_token(settings, demo_team)
+
+    children = [
+        subprocess.Popen([*ARENA, "worker"], env=env, start_new_session=True),
+        subprocess.Popen(
+            [*ARENA, "serve", "--host", host, "--port", str(port)], env=env, start_new_session=True
+        ),
+    ]
+    url = f"http://{host}:{port}"
+    try:
+        _wait_healthy(f"{url}/api/v1/healthz", children)
+        console.print(
+            Panel.fit(
+                f"Driving Arena is up at [bold]{url}[/bold]\n\n"
+                f"team [bold]{demo_team}[/bold] token: [green]{token}[/green]\n"
+                f"admin token: [yellow]{admin_token}[/yellow]\n\n"
+                f"Submit at {url}/submit · API docs at {url}/docs · Ctrl-C stops everything",
+                title="arena up",
+            )
+        )
+        while all(child.poll() is None for child in children):
+            time.sleep(0.5)
+        console.print("[red]a service process exited; stopping the others[/red]")
+    except KeyboardInterrupt:
+        console.print("stopping…")
+    finally:
+        _stop(children)
+
+
+def _stored_admin_token(data: Path) -> str:
+    """The admin token of this data folder, made once and kept readable only by its owner."""
+    path = data / "admin_token"
+    if not path.exists():
+        path.write_text(secrets.token_urlsafe(32) + "\n")
+        path.chmod(0o600)
+    return path.read_text().strip()
+
+
+def _build_suite(console: Console, env: dict, suite: str, out: Path, seed: int | None) -> None:
+    command = [*ARENA, "scenarios", "build", "--suite", suite, "--out", str(out)]
+    if seed is not None:
+        command += ["--seed", str(seed)]
+    console.print(f"building the {suite} scenario suite in {out} …")
+    subprocess.run(command, env=env, check=True)
+
+
+def _public_suite(console: Console, settings: Settings, env: dict) -> Path:
+    from server.services.suites import public_suite_dir
+
+    folder = public_suite_dir(settings)
+    if not (folder / "manifest.json").exists():
+        folder = settings.resolved_data_dir / "suites" / "public"
+        if not (folder / "manifest.json").exists():
+            _build_suite(console, env, "public", folder, None)
+    console.print(f"public suite: {folder}")
+    return folder
+
+
+def _hidden_suite(console: Console, settings: Settings, env: dict) -> Path:
+    from server.services.suites import evaluation_suite_dir
+
+    folder = evaluation_suite_dir(settings)
+    if (folder / "manifest.json").exists():
+        console.print(f"hidden suite: {folder}")
+        return folder
+    seed = settings.hidden_seed
+    if seed is None:
+        seed = settings.development_seed
+        console.print(
+            Panel.fit(
+                "No secret seed is configured (ARENA_HIDDEN_SEED): the hidden suite is built from "
+                f"the PUBLIC DEVELOPMENT SEED {seed}.\nAnyone can rebuild these scenarios. Fine "
+                "for a demo, never for a competition.",
+                title="[bold red]WARNING[/bold red]",
+                border_style="red",
+            )
+        )
+    _build_suite(console, env, "hidden", folder, seed)
+    return folder
+
+
+def _demo_team_token(settings: Settings, name: str) -> str:
+    """A fresh token for the demo team (created on first run; tokens are stored hashed, so a
+    restart issues a new one)."""
+    from server.core.db import Database
+    from server.services import teams
+    from server.services.errors import NotFound
+
+    db = Database(settings.resolved_database_url)
+    try:
+        with db.session() as session:
+            try:
+                return teams.rotate_token(session, teams.get_team(session, name))
+            except NotFound:
+                return teams.create_team(session, name)[1]
+    finally:
+        db.engine.dispose()
+
+
+def _wait_healthy(url: str, children: list[subprocess.Popen], timeout_s: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if any(child.poll() is not None for child in children):
+            raise RuntimeError("a service process exited during start-up")
+        try:
+            if httpx.get(url, timeout=2.0).status_code == 200:
+                return
+        except httpx.HTTPError:
+            pass
+        time.sleep(0.3)
+    raise RuntimeError(f"the API did not become healthy within {timeout_s:.0f} s")
+
+
+def _stop(children: list[subprocess.Popen]) -> None:
+    for child in children:
+        if child.poll() is None:
+            os.killpg(child.pid, signal.SIGTERM)
+    for child in children:
+        try:
+            child.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            os.killpg(child.pid, signal.SIGKILL)
+            child.wait()

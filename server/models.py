@@ -1,0 +1,207 @@
+"""Database tables (SQLAlchemy 2.0 typed ORM). API shapes live in :mod:`server.schemas`.
+
+Alembic autogenerates migrations from :data:`Base.metadata`; every schema change is a migration.
+"""
+
+from __future__ import annotations
+
+from datetime import UTC, datetime
+from enum import StrEnum
+from typing import Any
+
+from sqlalchemy import (
+    JSON,
+    BigInteger,
+    DateTime,
+    Enum,
+    Float,
+    ForeignKey,
+    Index,
+    Integer,
+    MetaData,
+    String,
+    Text,
+    TypeDecorator,
+    UniqueConstraint,
+)
+from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
+
+from server.status import RunStatus, SubmissionStatus
+
+
+def utcnow() -> datetime:
+    return datetime.now(UTC)
+
+
+class Track(StrEnum):
+    """Driving SMARTS tracks: any method, or offline learning from recorded data only."""
+
+    freestyle = "freestyle"
+    offline = "offline"
+
+
+# Stable constraint names so Alembic migrations are identical on SQLite and PostgreSQL.
+NAMING = {
+    "ix": "ix_%(column_0_label)s",
+    "uq": "uq_%(table_name)s_%(column_0_name)s",
+    "ck": "ck_%(table_name)s_%(constraint_name)s",
+    "fk": "fk_%(table_name)s_%(column_0_name)s_%(referred_table_name)s",
+    "pk": "pk_%(table_name)s",
+}
+
+
+class UTCDateTime(TypeDecorator):
+    """Timezone-aware UTC datetimes on every backend (SQLite hands back naive ones)."""
+
+    impl = DateTime(timezone=True)
+    cache_ok = True
+
+    def process_bind_param(self, value: datetime | None, dialect) -> datetime | None:
+        return value.astimezone(UTC) if value is not None else None
+
+    def process_result_value(self, value: datetime | None, dialect) -> datetime | None:
+        if value is not None and value.tzinfo is None:
+            return value.replace(tzinfo=UTC)
+        return value
+
+
+class Base(DeclarativeBase):
+    metadata = MetaData(naming_convention=NAMING)
+    type_annotation_map = {datetime: UTCDateTime(), dict[str, Any]: JSON}  # noqa: RUF012
+
+
+def _enum(cls: type[StrEnum]) -> Enum:
+    # Stored as plain strings (no native PG enum): adding a value needs no type migration.
+    return Enum(cls, native_enum=False, length=16, validate_strings=True)
+
+
+class Team(Base):
+    __tablename__ = "teams"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    name: Mapped[str] = mapped_column(String(64), unique=True)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+
+    tokens: Mapped[list[ApiToken]] = relationship(back_populates="team")
+
+
+class ApiToken(Base):
+    """A team's bearer token, stored as the sha256 of the secret; revoked on rotation."""
+
+    __tablename__ = "api_tokens"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    team_id: Mapped[int] = mapped_column(ForeignKey("teams.id"), index=True)
+    token_sha256: Mapped[str] = mapped_column(String(64), unique=True)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    revoked_at: Mapped[datetime | None]
+
+    team: Mapped[Team] = relationship(back_populates="tokens")
+
+
+class Submission(Base):
+    __tablename__ = "submissions"
+    __table_args__ = (Index("ix_submissions_team_track_created", "team_id", "track", "created_at"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    team_id: Mapped[int] = mapped_column(ForeignKey("teams.id"))
+    track: Mapped[Track] = mapped_column(_enum(Track))
+    method_name: Mapped[str] = mapped_column(String(128))
+    description: Mapped[str] = mapped_column(Text, default="")
+    file_sha256: Mapped[str] = mapped_column(String(64))
+    file_size: Mapped[int] = mapped_column(BigInteger)
+    # Folder under data_dir holding upload.zip and the prepared (extracted) submission.
+    storage_dir: Mapped[str] = mapped_column(String(512))
+    status: Mapped[SubmissionStatus] = mapped_column(_enum(SubmissionStatus), index=True)
+    status_reason: Mapped[str] = mapped_column(Text, default="")
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    queued_at: Mapped[datetime | None]
+    # Set when the first evaluation starts: a submission cancelled before it does not count
+    # towards the daily quota.
+    started_at: Mapped[datetime | None]
+    finished_at: Mapped[datetime | None]
+
+    team: Mapped[Team] = relationship()
+    runs: Mapped[list[EvaluationRun]] = relationship(
+        back_populates="submission", order_by="EvaluationRun.attempt"
+    )
+
+
+class EvaluationRun(Base):
+    """One attempt at simulating a submission on the evaluation suite."""
+
+    __tablename__ = "evaluation_runs"
+    __table_args__ = (UniqueConstraint("submission_id", "attempt"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    submission_id: Mapped[int] = mapped_column(ForeignKey("submissions.id"), index=True)
+    attempt: Mapped[int] = mapped_column(Integer)
+    status: Mapped[RunStatus] = mapped_column(_enum(RunStatus), index=True)
+    suite_dir: Mapped[str] = mapped_column(String(512))
+    manifest_sha256: Mapped[str] = mapped_column(String(64))
+    scenario_count: Mapped[int] = mapped_column(Integer)
+    scoring_profile: Mapped[str] = mapped_column(String(64))
+    scoring_version: Mapped[str] = mapped_column(String(32), default="")
+    worker: Mapped[str] = mapped_column(String(255), default="")
+    lease_expires_at: Mapped[datetime | None]
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    started_at: Mapped[datetime | None]
+    finished_at: Mapped[datetime | None]
+    error: Mapped[str] = mapped_column(Text, default="")
+
+    submission: Mapped[Submission] = relationship(back_populates="runs")
+    results: Mapped[list[ScenarioResult]] = relationship(back_populates="run")
+    score: Mapped[Score | None] = relationship(back_populates="run")
+
+
+class ScenarioResult(Base):
+    """The outcome of one scenario in one run. Unique per (run, scenario): a redelivered task
+    finds the row already there and cannot count the scenario twice."""
+
+    __tablename__ = "scenario_results"
+    __table_args__ = (UniqueConstraint("run_id", "scenario_id"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    run_id: Mapped[int] = mapped_column(ForeignKey("evaluation_runs.id"))
+    scenario_id: Mapped[str] = mapped_column(String(128))
+    family: Mapped[str] = mapped_column(String(64))
+    # "success", "failure" (charged to the agent) or "simulator_error" (not charged).
+    status: Mapped[str] = mapped_column(String(32))
+    reason: Mapped[str] = mapped_column(String(64), default="")
+    steps: Mapped[int] = mapped_column(Integer, default=0)
+    record_path: Mapped[str | None] = mapped_column(String(512))
+    log_tail: Mapped[str] = mapped_column(Text, default="")
+    detail: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    worker: Mapped[str] = mapped_column(String(255), default="")
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+
+    run: Mapped[EvaluationRun] = relationship(back_populates="results")
+
+
+class Score(Base):
+    """The four metrics of a run (all errors: smaller is better) and their per-family values."""
+
+    __tablename__ = "scores"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    run_id: Mapped[int] = mapped_column(ForeignKey("evaluation_runs.id"), unique=True)
+    completion: Mapped[float] = mapped_column(Float)
+    time: Mapped[float] = mapped_column(Float)
+    humanness: Mapped[float] = mapped_column(Float)
+    rules: Mapped[float] = mapped_column(Float)
+    families: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    profile: Mapped[str] = mapped_column(String(64))
+    profile_version: Mapped[str] = mapped_column(String(32), default="")
+    computed_at: Mapped[datetime] = mapped_column(default=utcnow)
+
+    run: Mapped[EvaluationRun] = relationship(back_populates="score")
+
+
+class LeaderboardGeneration(Base):
+    """One counter, bumped whenever a change can reorder the leaderboard (a score written or
+    replaced, a disqualification). API processes compare it to drop their cached leaderboard."""
+
+    __tablename__ = "leaderboard_generation"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    value: Mapped[int] = mapped_column(BigInteger, default=0)

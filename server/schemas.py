@@ -1,0 +1,99 @@
+"""API shapes (pydantic). Database tables are in :mod:`server.models`."""
+
+from __future__ import annotations
+
+from datetime import datetime
+
+from pydantic import BaseModel, ConfigDict
+
+from server.models import Track
+from server.status import SubmissionStatus
+
+
+class Schema(BaseModel):
+    model_config = ConfigDict(frozen=True, from_attributes=True)
+
+
+class Metrics(Schema):
+    """The four errors of the scoring spec; smaller is better."""
+
+    completion: float
+    time: float  # [steps]
+    humanness: float
+    rules: float
+
+
+class FamilyMetrics(Metrics):
+    scenarios: int
+
+
+class Progress(Schema):
+    done: int
+    total: int
+
+
+class SubmissionSummary(Schema):
+    id: int
+    team: str
+    track: Track
+    method_name: str
+    status: SubmissionStatus
+    created_at: datetime
+    progress: Progress
+    metrics: Metrics | None
+
+
+class SubmissionDetail(SubmissionSummary):
+    description: str
+    status_reason: str
+    file_sha256: str
+    file_size: int  # [bytes]
+    attempt: int
+    scoring_profile: str | None
+    families: dict[str, FamilyMetrics]
+    # family -> failure reason -> number of scenarios. Scenario ids of the hidden suite are never
+    # shown to participants; these counts are.
+    failure_reasons: dict[str, dict[str, int]]
+
+
+class ScenarioLog(Schema):
+    label: str  # "<family> #<k>": stands in for the hidden scenario id
+    family: str
+    status: str
+    reason: str
+    log_tail: str
+
+
+class SubmissionLogs(Schema):
+    submission_id: int
+    scenarios: list[ScenarioLog]
+
+
+class LeaderboardEntry(Schema):
+    rank: int
+    team: str
+    submission_id: int
+    method_name: str
+    submitted_at: datetime
+    metrics: Metrics
+    families: dict[str, FamilyMetrics]
+
+
+class Leaderboard(Schema):
+    track: Track
+    entries: list[LeaderboardEntry]
+
+
+class PublicScenario(Schema):
+    id: str
+    family: str
+    variant: str
+    volume: str
+    agents: int
+    reactive: bool
+
+
+class Health(Schema):
+    status: str
+    database: bool
+    broker: bool

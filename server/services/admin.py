@@ -1,0 +1,141 @@
+"""Organiser actions that re-drive evaluations: re-queue, re-run, re-score, service status."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from datetime import datetime
+
+from sqlalchemy import func, select
+
+from arena.config import Settings
+from evaluator.scoring import load_profile
+from server.core.db import Database
+from server.models import EvaluationRun, Submission, utcnow
+from server.services import evaluation, scoring
+from server.services.errors import Conflict
+from server.services.evaluation import RunPlan, lock
+from server.services.queue import TaskQueue
+from server.status import ACTIVE_RUN, SUBMISSION_MOVES, RunStatus, SubmissionStatus, advance
+
+
+def send_plan(queue: TaskQueue, plan: RunPlan) -> None:
+    for scenario_id in plan.scenario_ids:
+        queue.run_scenario(plan.run_id, scenario_id)
+    if plan.aggregate:
+        queue.aggregate(plan.run_id)
+
+
+def requeue(db: Database, settings: Settings, queue: TaskQueue, submission_id: int) -> str:
+    """Send an unfinished submission's work again (after lost messages or a dead worker).
+    Safe to repeat: tasks skip what is already done."""
+    with db.session() as session:
+        submission = lock(session, Submission, submission_id)
+        plan = None
+        if submission.status == SubmissionStatus.received:
+            submission.status = advance(
+                submission.status, SubmissionStatus.queued, SUBMISSION_MOVES
+            )
+        if submission.status == SubmissionStatus.queued:
+            submission.queued_at = utcnow()
+        else:
+            runs = [run for run in submission.runs if run.status in ACTIVE_RUN]
+            if not runs:
+                raise Conflict(
+                    f"submission {submission_id} is {submission.status} with no evaluation in "
+                    "progress; use rerun for a new attempt"
+                )
+            pending = evaluation.pending_scenarios(runs[-1])
+            runs[-1].lease_expires_at = evaluation.lease_until(settings)
+            plan = RunPlan(run_id=runs[-1].id, scenario_ids=pending, aggregate=not pending)
+    if plan is None:
+        queue.evaluate(submission_id)
+        return "evaluation queued"
+    send_plan(queue, plan)
+    if plan.scenario_ids:
+        return f"{len(plan.scenario_ids)} scenario(s) re-sent"
+    return "aggregation re-sent"
+
+
+def rerun(db: Database, settings: Settings, queue: TaskQueue, submission_id: int) -> int:
+    """A new simulation attempt; returns its attempt number."""
+    with db.session() as session:
+        plan = evaluation.rerun(session, settings, submission_id)
+        attempt = session.get(EvaluationRun, plan.run_id).attempt
+    send_plan(queue, plan)
+    return attempt
+
+
+def rescore_targets(db: Database, submission_id: int | None) -> list[int]:
+    """Run ids to re-score: the given submission's scored runs, or every scored run."""
+    with db.session() as session:
+        query = select(EvaluationRun.id).where(EvaluationRun.status == RunStatus.scored)
+        if submission_id is not None:
+            query = query.where(EvaluationRun.submission_id == submission_id)
+        return list(session.scalars(query.order_by(EvaluationRun.id)))
+
+
+def rescore_run(db: Database, run_id: int, profile_name: str | None) -> dict[str, float]:
+    """Recompute a scored run from its stored records (no simulation)."""
+    with db.session() as session:
+        run = lock(session, EvaluationRun, run_id)
+        if run.status != RunStatus.scored:
+            raise Conflict(f"run {run_id} is {run.status}; only scored runs can be re-scored")
+        profile = load_profile(profile_name or run.scoring_profile)
+        run_score = scoring.score_results(run.results, profile)
+        if run_score is None:
+            raise Conflict(f"run {run_id} has no charged scenario to score")
+        run.scoring_profile = profile.name
+        run.scoring_version = str(profile.version)
+        evaluation.write_score(session, run, run_score, profile.name, str(profile.version))
+        return run_score.metrics
+
+
+@dataclass(frozen=True)
+class StuckRun:
+    run_id: int
+    submission_id: int
+    worker: str
+    lease_expires_at: datetime | None
+
+
+@dataclass(frozen=True)
+class ServiceStatus:
+    queue_depth: int | None
+    workers: list[str] | None
+    submissions: dict[str, int]
+    running_runs: int
+    stuck_runs: list[StuckRun]
+
+
+def service_status(db: Database, queue: TaskQueue) -> ServiceStatus:
+    with db.session() as session:
+        counts = dict(
+            session.execute(
+                select(Submission.status, func.count()).group_by(Submission.status)
+            ).all()
+        )
+        active = list(
+            session.scalars(select(EvaluationRun).where(EvaluationRun.status.in_(list(ACTIVE_RUN))))
+        )
+        moment = utcnow()
+        stuck = [
+            StuckRun(run.id, run.submission_id, run.worker, run.lease_expires_at)
+            for run in active
+            if run.lease_expires_at is not None and run.lease_expires_at < moment
+        ]
+        running = sum(run.status == RunStatus.running for run in active)
+    try:
+        depth = queue.depth()
+    except Exception:
+        depth = None
+    try:
+        workers = queue.workers()
+    except Exception:
+        workers = None
+    return ServiceStatus(
+        queue_depth=depth,
+        workers=workers,
+        submissions={str(status): counts.get(status, 0) for status in SubmissionStatus},
+        running_runs=running,
+        stuck_runs=stuck,
+    )

@@ -1,0 +1,149 @@
+"""The leaderboard: each team's best scored submission per track, ranked by the scoring spec.
+
+The ordering rule lives in :func:`evaluator.scoring.rank` (lexicographic on the four errors, full
+ties to the earlier submission); this module only chooses the candidates and caches the result.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import threading
+import time
+from dataclasses import dataclass
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from evaluator.scoring import Metrics as ScoringMetrics
+from evaluator.scoring import rank
+from server.core.db import Database
+from server.models import (
+    EvaluationRun,
+    LeaderboardGeneration,
+    Score,
+    Submission,
+    Team,
+    Track,
+)
+from server.schemas import FamilyMetrics, Leaderboard, LeaderboardEntry, Metrics
+from server.status import RunStatus, SubmissionStatus
+
+METRICS = ("completion", "time", "humanness", "rules")
+
+
+def compute(session: Session, track: Track) -> Leaderboard:
+    rows = session.execute(
+        select(Submission, Team.name, EvaluationRun.attempt, Score)
+        .join(Team, Team.id == Submission.team_id)
+        .join(EvaluationRun, EvaluationRun.submission_id == Submission.id)
+        .join(Score, Score.run_id == EvaluationRun.id)
+        .where(
+            Submission.track == track,
+            Submission.status == SubmissionStatus.scored,
+            EvaluationRun.status == RunStatus.scored,
+        )
+    ).all()
+    # A submission's standing score is that of its latest scored attempt.
+    latest: dict[int, tuple] = {}
+    for submission, team, attempt, score in rows:
+        if submission.id not in latest or attempt > latest[submission.id][2]:
+            latest[submission.id] = (submission, team, attempt, score)
+
+    def metrics(row: tuple) -> ScoringMetrics:
+        score = row[3]
+        return ScoringMetrics(**{name: getattr(score, name) for name in METRICS})
+
+    def submitted_at(row: tuple) -> tuple:
+        return (row[0].created_at, row[0].id)
+
+    best_per_team: dict[str, tuple] = {}
+    for row in rank(latest.values(), metrics=metrics, submitted_at=submitted_at):
+        best_per_team.setdefault(row[1], row)
+    entries = [
+        LeaderboardEntry(
+            rank=position,
+            team=team,
+            submission_id=submission.id,
+            method_name=submission.method_name,
+            submitted_at=submission.created_at,
+            metrics=Metrics.model_validate(score),
+            families={
+                family: FamilyMetrics.model_validate(values)
+                for family, values in score.families.items()
+            },
+        )
+        for position, (submission, team, _, score) in enumerate(best_per_team.values(), start=1)
+    ]
+    return Leaderboard(track=track, entries=entries)
+
+
+def generation(session: Session) -> int:
+    return (
+        session.scalar(select(LeaderboardGeneration.value).where(LeaderboardGeneration.id == 1))
+        or 0
+    )
+
+
+def to_csv(board: Leaderboard) -> str:
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(["rank", "team", "submission_id", "method_name", "submitted_at", *METRICS])
+    for entry in board.entries:
+        writer.writerow(
+            [
+                entry.rank,
+                entry.team,
+                entry.submission_id,
+                entry.method_name,
+                entry.submitted_at.isoformat(),
+                *(repr(getattr(entry.metrics, name)) for name in METRICS),
+            ]
+        )
+    return out.getvalue()
+
+
+@dataclass
+class _Cached:
+    generation: int
+    checked_at: float  # time.monotonic() [s]
+    board: Leaderboard
+    json: bytes
+
+
+class LeaderboardCache:
+    """Computed leaderboards per track, kept until the generation counter changes.
+
+    Workers in other processes bump the counter when they write a score; this process looks at it
+    at most every ``recheck_s`` seconds, so a new score shows within that delay and a burst of
+    requests costs no database work at all.
+    """
+
+    def __init__(self, db: Database, recheck_s: float = 1.0) -> None:
+        self.db = db
+        self.recheck_s = recheck_s
+        self._cached: dict[Track, _Cached] = {}
+        self._lock = threading.Lock()
+
+    def get(self, track: Track) -> _Cached:
+        cached = self._cached.get(track)
+        moment = time.monotonic()
+        if cached is not None and moment - cached.checked_at < self.recheck_s:
+            return cached
+        with self._lock:
+            cached = self._cached.get(track)
+            if cached is not None and time.monotonic() - cached.checked_at < self.recheck_s:
+                return cached
+            with self.db.session() as session:
+                current = generation(session)
+                if cached is None or cached.generation != current:
+                    board = compute(session, track)
+                    cached = _Cached(current, moment, board, board.model_dump_json().encode())
+                else:
+                    cached.checked_at = moment
+            self._cached[track] = cached
+            return cached
+
+    def invalidate(self) -> None:
+        with self._lock:
+            self._cached.clear()

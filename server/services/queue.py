@@ -1,0 +1,69 @@
+"""Sending work to the Celery workers, by task name (the API never imports the tasks)."""
+
+from __future__ import annotations
+
+from functools import cached_property
+
+from celery import Celery
+
+from arena.config import Settings
+from evaluator.celery_app import (
+    QUEUE,
+    TASK_AGGREGATE,
+    TASK_EVALUATE,
+    TASK_SCENARIO,
+    create_celery_app,
+    is_embedded_broker,
+)
+
+
+def scenario_task_id(run_id: int, scenario_id: str) -> str:
+    """Deterministic, so cancel can revoke a run's queued tasks without having stored their ids."""
+    return f"run-{run_id}-{scenario_id}"
+
+
+class TaskQueue:
+    """Call only after the database transaction that made the work visible has committed."""
+
+    def __init__(self, settings: Settings) -> None:
+        self.settings = settings
+
+    @cached_property
+    def celery(self) -> Celery:
+        return create_celery_app(self.settings)
+
+    def evaluate(self, submission_id: int) -> None:
+        self.celery.send_task(TASK_EVALUATE, kwargs={"submission_id": submission_id}, queue=QUEUE)
+
+    def run_scenario(self, run_id: int, scenario_id: str) -> None:
+        self.celery.send_task(
+            TASK_SCENARIO,
+            kwargs={"run_id": run_id, "scenario_id": scenario_id},
+            task_id=scenario_task_id(run_id, scenario_id),
+            queue=QUEUE,
+        )
+
+    def aggregate(self, run_id: int) -> None:
+        self.celery.send_task(TASK_AGGREGATE, kwargs={"run_id": run_id}, queue=QUEUE)
+
+    def revoke(self, task_ids: list[str]) -> None:
+        """Best effort: tasks also check the run's status before doing anything."""
+        if task_ids and not is_embedded_broker(self.settings.resolved_broker_url):
+            self.celery.control.revoke(task_ids)
+
+    def depth(self) -> int:
+        """Messages waiting in the evaluation queue."""
+        with self.celery.connection_for_read() as connection:
+            declared = connection.default_channel.queue_declare(QUEUE, passive=True)
+            return declared.message_count
+
+    def workers(self) -> list[str] | None:
+        """Names of the workers that answer a ping; None where the broker cannot broadcast."""
+        if is_embedded_broker(self.settings.resolved_broker_url):
+            return None
+        replies = self.celery.control.ping(timeout=1.0) or []
+        return sorted(name for reply in replies for name in reply)
+
+    def close(self) -> None:
+        if "celery" in self.__dict__:
+            self.celery.close()

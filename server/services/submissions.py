@@ -1,0 +1,261 @@
+"""Submissions: accept an upload, show it to its team, cancel, disqualify, re-queue."""
+
+from __future__ import annotations
+
+import shutil
+import uuid
+from dataclasses import dataclass
+from datetime import datetime, time
+from pathlib import Path
+
+from sqlalchemy import func, or_, select
+from sqlalchemy.orm import Session
+
+from arena.config import Settings
+from server.core.db import Database
+from server.models import EvaluationRun, ScenarioResult, Submission, Team, Track, utcnow
+from server.schemas import (
+    FamilyMetrics,
+    Metrics,
+    Progress,
+    ScenarioLog,
+    SubmissionDetail,
+    SubmissionLogs,
+    SubmissionSummary,
+)
+from server.services import scoring
+from server.services.errors import Conflict, InvalidUpload, NotFound, QuotaExceeded
+from server.services.evaluation import bump_leaderboard, cancel_run, lock
+from server.services.queue import TaskQueue, scenario_task_id
+from server.status import ACTIVE_RUN, SUBMISSION_MOVES, RunStatus, SubmissionStatus, advance
+
+S = SubmissionStatus
+
+
+@dataclass(frozen=True)
+class NewSubmission:
+    track: Track
+    method_name: str
+    description: str = ""
+
+
+def quota_used(session: Session, team_id: int, track: Track, moment: datetime) -> int:
+    """Submissions of the UTC day so far that count: failed ones and ones cancelled before
+    their evaluation started do not."""
+    day_start = datetime.combine(moment.date(), time.min, tzinfo=moment.tzinfo)
+    return session.scalar(
+        select(func.count())
+        .select_from(Submission)
+        .where(
+            Submission.team_id == team_id,
+            Submission.track == track,
+            Submission.created_at >= day_start,
+            Submission.status != S.failed,
+            or_(Submission.status != S.cancelled, Submission.started_at.is_not(None)),
+        )
+    )
+
+
+def check_quota(session: Session, settings: Settings, team_id: int, track: Track) -> None:
+    if quota_used(session, team_id, track, utcnow()) >= settings.daily_quota:
+        raise QuotaExceeded(
+            f"daily quota reached: {settings.daily_quota} submissions per team and track per "
+            "UTC day (failed and cancelled-before-start ones do not count)"
+        )
+
+
+def accept_upload(
+    db: Database,
+    settings: Settings,
+    queue: TaskQueue,
+    team_id: int,
+    new: NewSubmission,
+    upload: Path,
+) -> Submission:
+    """Check the zip at ``upload`` with the intake, store it and queue its evaluation.
+
+    The intake runs before anything is recorded, so a rejected zip leaves no trace and does not
+    count towards the quota."""
+    from evaluator.errors import IntakeError
+    from submissions.intake import prepare_submission
+
+    method_name = new.method_name.strip()
+    if not method_name or len(method_name) > 128:
+        raise InvalidUpload("method_name: give the method a name of 1 to 128 characters")
+    with db.session() as session:
+        check_quota(session, settings, team_id, new.track)
+    storage = settings.resolved_data_dir / "submissions" / uuid.uuid4().hex
+    storage.mkdir(parents=True)
+    try:
+        zip_path = storage / "upload.zip"
+        shutil.move(upload, zip_path)
+        try:
+            prepared = prepare_submission(zip_path, storage / "prepared")
+        except IntakeError as exc:
+            raise InvalidUpload(str(exc)) from exc
+        with db.session() as session:
+            lock(session, Team, team_id)  # serialises concurrent uploads of one team (quota)
+            check_quota(session, settings, team_id, new.track)
+            submission = Submission(
+                team_id=team_id,
+                track=new.track,
+                method_name=method_name,
+                description=new.description.strip() or (prepared.explanation or "").strip(),
+                file_sha256=prepared.sha256,
+                file_size=prepared.size,
+                storage_dir=str(storage),
+                status=S.received,
+            )
+            session.add(submission)
+            session.flush()
+            submission.status = advance(submission.status, S.queued, SUBMISSION_MOVES)
+            submission.queued_at = utcnow()
+    except BaseException:
+        shutil.rmtree(storage, ignore_errors=True)
+        raise
+    # After the commit: a worker that picks the task up finds the row. If the broker is down the
+    # reaper sends it later.
+    try:
+        queue.evaluate(submission.id)
+    except Exception as exc:
+        import logging
+
+        logging.getLogger(__name__).warning("queueing submission %s failed: %s", submission.id, exc)
+    return submission
+
+
+def get_submission(session: Session, submission_id: int) -> Submission:
+    submission = session.get(Submission, submission_id)
+    if submission is None:
+        raise NotFound(f"no submission {submission_id}")
+    return submission
+
+
+def list_submissions(
+    session: Session, team_id: int | None = None, limit: int = 100
+) -> list[SubmissionSummary]:
+    query = select(Submission).order_by(Submission.id.desc()).limit(limit)
+    if team_id is not None:
+        query = query.where(Submission.team_id == team_id)
+    return [summary(session, submission) for submission in session.scalars(query)]
+
+
+def current_run(submission: Submission) -> EvaluationRun | None:
+    """The run whose score stands: the latest scored attempt, else the latest attempt."""
+    scored = [run for run in submission.runs if run.status == RunStatus.scored]
+    return (scored or submission.runs or [None])[-1]
+
+
+def active_run(submission: Submission) -> EvaluationRun | None:
+    active = [run for run in submission.runs if run.status in ACTIVE_RUN]
+    return active[-1] if active else None
+
+
+def summary(session: Session, submission: Submission) -> SubmissionSummary:
+    return SubmissionSummary(**_summary_fields(session, submission))
+
+
+def _summary_fields(session: Session, submission: Submission) -> dict:
+    run = active_run(submission) or current_run(submission)
+    done = 0
+    if run is not None:
+        done = session.scalar(
+            select(func.count())
+            .select_from(ScenarioResult)
+            .where(
+                ScenarioResult.run_id == run.id,
+                ScenarioResult.status.in_(list(scoring.FINISHED)),
+            )
+        )
+    scored = current_run(submission)
+    score = scored.score if scored is not None else None
+    return {
+        "id": submission.id,
+        "team": submission.team.name,
+        "track": submission.track,
+        "method_name": submission.method_name,
+        "status": submission.status,
+        "created_at": submission.created_at,
+        "progress": Progress(done=done, total=run.scenario_count if run else 0),
+        "metrics": Metrics.model_validate(score) if score is not None else None,
+    }
+
+
+def detail(session: Session, submission: Submission) -> SubmissionDetail:
+    """Everything its own team may see. Never hands out hidden scenario ids."""
+    run = current_run(submission)
+    score = run.score if run is not None else None
+    reasons: dict[str, dict[str, int]] = {}
+    for result in run.results if run is not None else []:
+        if result.status not in (scoring.SUCCESS, scoring.RUNNING):
+            by_reason = reasons.setdefault(result.family, {})
+            reason = result.reason or result.status
+            by_reason[reason] = by_reason.get(reason, 0) + 1
+    return SubmissionDetail(
+        **_summary_fields(session, submission),
+        description=submission.description,
+        status_reason=submission.status_reason,
+        file_sha256=submission.file_sha256,
+        file_size=submission.file_size,
+        attempt=run.attempt if run is not None else 0,
+        scoring_profile=score.profile if score is not None else None,
+        families={
+            family: FamilyMetrics.model_validate(values)
+            for family, values in (score.families if score is not None else {}).items()
+        },
+        failure_reasons={family: reasons[family] for family in sorted(reasons)},
+    )
+
+
+def logs(submission: Submission) -> SubmissionLogs:
+    """The agent's output tail per finished scenario, labelled by family and ordinal."""
+    run = current_run(submission)
+    entries = []
+    ordinal: dict[str, int] = {}
+    results = sorted(run.results, key=lambda r: (r.family, r.id)) if run is not None else []
+    for result in results:
+        ordinal[result.family] = ordinal.get(result.family, 0) + 1
+        if result.status == scoring.RUNNING:
+            continue
+        entries.append(
+            ScenarioLog(
+                label=f"{result.family} #{ordinal[result.family]}",
+                family=result.family,
+                status=result.status,
+                reason=result.reason,
+                log_tail=result.log_tail,
+            )
+        )
+    return SubmissionLogs(submission_id=submission.id, scenarios=entries)
+
+
+def cancel(db: Database, queue: TaskQueue, submission_id: int) -> Submission:
+    """Stop a submission that has not finished: queued tasks are revoked and the workers kill
+    its running sandboxes (they see the cancelled run on their next lease heartbeat)."""
+    with db.session() as session:
+        submission = lock(session, Submission, submission_id)
+        if submission.status not in (S.received, S.queued, S.running):
+            raise Conflict(f"submission {submission_id} is {submission.status}; cannot cancel")
+        submission.status = advance(submission.status, S.cancelled, SUBMISSION_MOVES)
+        submission.finished_at = utcnow()
+        unfinished: list[str] = []
+        for run in submission.runs:
+            if run.status in ACTIVE_RUN:
+                unfinished += [scenario_task_id(run.id, sid) for sid in cancel_run(session, run)]
+    queue.revoke(unfinished)
+    return submission
+
+
+def disqualify(db: Database, queue: TaskQueue, submission_id: int, reason: str) -> Submission:
+    with db.session() as session:
+        submission = lock(session, Submission, submission_id)
+        submission.status = advance(submission.status, S.disqualified, SUBMISSION_MOVES)
+        submission.status_reason = reason
+        submission.finished_at = submission.finished_at or utcnow()
+        unfinished: list[str] = []
+        for run in submission.runs:
+            if run.status in ACTIVE_RUN:
+                unfinished += [scenario_task_id(run.id, sid) for sid in cancel_run(session, run)]
+        bump_leaderboard(session)
+    queue.revoke(unfinished)
+    return submission

@@ -1,0 +1,162 @@
+// Driving Arena pages: submit through the API and poll a submission's progress.
+// The team token stays in this tab's sessionStorage and goes only into Authorization headers.
+const Arena = (() => {
+  const API = "/api/v1";
+  const TOKEN_KEY = "arena-token";
+  const $ = (id) => document.getElementById(id);
+  const headers = (token) => ({ Authorization: `Bearer ${token}` });
+
+  async function errorText(response) {
+    try {
+      const body = await response.json();
+      return typeof body.detail === "string" ? body.detail : JSON.stringify(body.detail);
+    } catch {
+      return `${response.status} ${response.statusText}`;
+    }
+  }
+
+  function submitForm() {
+    const form = $("submit-form");
+    $("token").value = sessionStorage.getItem(TOKEN_KEY) || "";
+    form.addEventListener("submit", async (event) => {
+      event.preventDefault();
+      const token = $("token").value.trim();
+      const data = new FormData();
+      data.append("track", $("track").value);
+      data.append("method_name", $("method_name").value);
+      data.append("description", $("description").value);
+      data.append("file", $("file").files[0]);
+      $("submit-error").hidden = true;
+      $("submit-button").disabled = true;
+      $("submit-status").textContent = "Uploading and checking the zip…";
+      try {
+        const response = await fetch(`${API}/submissions`, {
+          method: "POST", headers: headers(token), body: data,
+        });
+        if (!response.ok) {
+          $("submit-status").textContent = `Rejected (${response.status}).`;
+          $("submit-error").textContent = await errorText(response);
+          $("submit-error").hidden = false;
+          return;
+        }
+        sessionStorage.setItem(TOKEN_KEY, token);
+        const submission = await response.json();
+        window.location.href = `/submissions/${submission.id}`;
+      } catch (error) {
+        $("submit-status").textContent = "Upload failed.";
+        $("submit-error").textContent = String(error);
+        $("submit-error").hidden = false;
+      } finally {
+        $("submit-button").disabled = false;
+      }
+    });
+  }
+
+  function fmt(metric, value) {
+    return metric === "time" ? value.toFixed(1) : value.toFixed(4);
+  }
+
+  function chart(families) {
+    const names = Object.keys(families).sort();
+    const row = 22;
+    const bars = names.map((name, i) => {
+      const value = families[name].completion;
+      return `<text x="0" y="${row * i + 15}" class="label">${name}</text>` +
+        `<rect x="150" y="${row * i + 4}" width="${(value * 220).toFixed(1)}" height="14" class="bar">` +
+        `<title>${name}: ${value.toFixed(3)}</title></rect>` +
+        `<text x="${156 + value * 220}" y="${row * i + 15}" class="value">${value.toFixed(2)}</text>`;
+    }).join("");
+    const h = row * names.length;
+    return `<svg class="chart" role="img" aria-label="completion error per scenario family" ` +
+      `viewBox="0 0 420 ${h + 24}" width="420">${bars}` +
+      `<line x1="150" x2="370" y1="${h + 4}" y2="${h + 4}" class="axis"/>` +
+      `<text x="150" y="${h + 18}" class="value">0</text>` +
+      `<text x="362" y="${h + 18}" class="value">1</text></svg>`;
+  }
+
+  function escape(text) {
+    const div = document.createElement("div");
+    div.textContent = text;
+    return div.innerHTML;
+  }
+
+  function render(s, metrics) {
+    $("submission").hidden = false;
+    $("method").textContent = s.method_name;
+    $("track").textContent = s.track;
+    $("status").textContent = s.status;
+    $("status").className = `status-${s.status}`;
+    $("status-reason").textContent = s.status_reason || "";
+    const pct = s.progress.total ? (100 * s.progress.done) / s.progress.total : 0;
+    $("progress-bar").style.width = `${pct}%`;
+    $("progress-text").textContent = `${s.progress.done} / ${s.progress.total} scenarios`;
+    $("cancel").hidden = !["received", "queued", "running"].includes(s.status);
+    for (const metric of metrics) {
+      $(`metric-${metric}`).textContent = s.metrics ? fmt(metric, s.metrics[metric]) : "–";
+    }
+    const families = Object.keys(s.families).sort();
+    $("families").innerHTML = families.length ? `<table><thead><tr><th>family</th>` +
+      `<th class="num">scenarios</th>${metrics.map((m) => `<th class="num">${m}</th>`).join("")}` +
+      `</tr></thead><tbody>${families.map((f) => `<tr><td>${escape(f)}</td>` +
+      `<td class="num">${s.families[f].scenarios}</td>` +
+      metrics.map((m) => `<td class="num">${fmt(m, s.families[f][m])}</td>`).join("") +
+      `</tr>`).join("")}</tbody></table>` : "";
+    $("chart").innerHTML = families.length ? chart(s.families) : "";
+    const failures = Object.entries(s.failure_reasons);
+    $("failures").innerHTML = failures.length ? `<ul>${failures.map(([family, reasons]) =>
+      `<li><strong>${escape(family)}</strong>: ${Object.entries(reasons)
+        .map(([r, n]) => `${escape(r)} × ${n}`).join(", ")}</li>`).join("")}</ul>`
+      : `<p class="empty">None.</p>`;
+  }
+
+  async function loadLogs(id, token) {
+    const response = await fetch(`${API}/submissions/${id}/logs`, { headers: headers(token) });
+    if (!response.ok) return;
+    const logs = await response.json();
+    $("logs").innerHTML = logs.scenarios.filter((e) => e.status !== "success" || e.log_tail)
+      .map((e) => `<h3>${escape(e.label)} · ${escape(e.reason || e.status)}</h3>` +
+        `<pre>${escape(e.log_tail || "(no output)")}</pre>`).join("");
+  }
+
+  function submissionPage(id, metrics) {
+    let token = sessionStorage.getItem(TOKEN_KEY);
+    const finished = ["scored", "failed", "cancelled", "disqualified"];
+    async function poll() {
+      const response = await fetch(`${API}/submissions/${id}`, { headers: headers(token) });
+      if (!response.ok) {
+        $("page-error").textContent = await errorText(response);
+        $("page-error").hidden = false;
+        $("token-form").hidden = false;
+        return;
+      }
+      $("page-error").hidden = true;
+      $("token-form").hidden = true;
+      const s = await response.json();
+      render(s, metrics);
+      if (finished.includes(s.status)) {
+        loadLogs(id, token);
+      } else {
+        setTimeout(poll, 2000);
+      }
+    }
+    $("token-form").addEventListener("submit", (event) => {
+      event.preventDefault();
+      token = $("token").value.trim();
+      sessionStorage.setItem(TOKEN_KEY, token);
+      poll();
+    });
+    $("cancel").addEventListener("click", async () => {
+      const response = await fetch(`${API}/submissions/${id}/cancel`, {
+        method: "POST", headers: headers(token),
+      });
+      if (!response.ok) {
+        $("page-error").textContent = await errorText(response);
+        $("page-error").hidden = false;
+      }
+      poll();
+    });
+    if (token) poll(); else $("token-form").hidden = false;
+  }
+
+  return { submitForm, submissionPage };
+})();

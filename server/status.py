@@ -1,0 +1,69 @@
+"""Submission and evaluation-run status: an enum state machine that never moves backwards.
+
+A submission goes ``received -> queued -> running -> scored | failed``; it can be ``cancelled``
+before it finishes and ``disqualified`` at any time. A later evaluation attempt (``arena admin
+rerun``) that scores turns a ``failed`` submission ``scored``; a ``scored`` one never becomes
+``failed`` again (a failed re-run leaves the earlier score standing).
+"""
+
+from __future__ import annotations
+
+from enum import StrEnum
+from typing import TypeVar
+
+
+class SubmissionStatus(StrEnum):
+    received = "received"
+    queued = "queued"
+    running = "running"
+    scored = "scored"
+    failed = "failed"
+    cancelled = "cancelled"
+    disqualified = "disqualified"
+
+
+class RunStatus(StrEnum):
+    queued = "queued"
+    running = "running"
+    scored = "scored"
+    failed = "failed"
+    cancelled = "cancelled"
+
+
+S = SubmissionStatus
+R = RunStatus
+
+SUBMISSION_MOVES: dict[SubmissionStatus, frozenset[SubmissionStatus]] = {
+    S.received: frozenset({S.queued, S.failed, S.cancelled, S.disqualified}),
+    S.queued: frozenset({S.running, S.failed, S.cancelled, S.disqualified}),
+    S.running: frozenset({S.scored, S.failed, S.cancelled, S.disqualified}),
+    S.scored: frozenset({S.disqualified}),
+    S.failed: frozenset({S.scored, S.disqualified}),
+    S.cancelled: frozenset({S.disqualified}),
+    S.disqualified: frozenset(),
+}
+
+RUN_MOVES: dict[RunStatus, frozenset[RunStatus]] = {
+    R.queued: frozenset({R.running, R.failed, R.cancelled}),
+    R.running: frozenset({R.scored, R.failed, R.cancelled}),
+    R.scored: frozenset(),
+    R.failed: frozenset(),
+    R.cancelled: frozenset(),
+}
+
+ACTIVE_SUBMISSION = frozenset({S.received, S.queued, S.running})
+ACTIVE_RUN = frozenset({R.queued, R.running})
+
+
+class IllegalTransition(ValueError):
+    """A status change the state machine forbids (e.g. ``scored -> running``)."""
+
+
+T = TypeVar("T", SubmissionStatus, RunStatus)
+
+
+def advance(current: T, new: T, moves: dict[T, frozenset[T]]) -> T:
+    """``new`` if ``current -> new`` is a legal move; else :class:`IllegalTransition`."""
+    if new not in moves[current]:
+        raise IllegalTransition(f"cannot move from {current} to {new}")
+    return new
