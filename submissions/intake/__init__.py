@@ -1,0 +1,101 @@
+"""Submission intake: a zip (or folder) in, a checked, extracted, read-only submission out.
+
+:func:`prepare_submission` is the only way a submission reaches a sandbox. Each rule it enforces
+has a short name, carried by the :class:`~evaluator.errors.IntakeError` it raises together with
+the entry at fault; ``docs/submissions.md`` lists them all.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+from arena.config import Settings, get_settings
+from evaluator.errors import IntakeError
+from sim.interface import AgentInterface
+from submissions.intake.archive import Budget, check_members, extract, open_zip, remove_tree
+from submissions.intake.contents import (
+    REQUIREMENTS,
+    check_policy,
+    load_explanation,
+    load_interface,
+    read_text,
+)
+from submissions.intake.dependencies import install_requirements
+from submissions.intake.pack import pack_folder
+
+__all__ = ["IntakeError", "PreparedSubmission", "check_zip", "pack_folder", "prepare_submission"]
+
+
+@dataclass(frozen=True)
+class PreparedSubmission:
+    """A submission that passed intake, ready to :func:`evaluator.sandbox.start`."""
+
+    root: Path  # the extracted, read-only folder holding policy.py
+    deps_dir: Path | None  # its installed requirements (read-only, shared by hash), if any
+    interface: AgentInterface
+    sha256: str  # of the zip's bytes
+    size: int  # of the zip [bytes]
+    explanation: str | None
+
+
+@dataclass(frozen=True)
+class CheckedZip:
+    interface: AgentInterface
+    explanation: str | None
+    requirements: str | None
+    sha256: str
+    size: int
+
+
+def check_zip(path: Path, settings: Settings | None = None) -> CheckedZip:
+    """Every rule that can be judged from the zip alone; nothing is written."""
+    settings = settings or get_settings()
+    with open_zip(path, settings) as archive:
+        check_members(archive, Budget(settings), depth=0)
+        check_policy(archive)
+        interface = load_interface(archive)
+        explanation = load_explanation(archive)
+        requirements = read_text(archive, REQUIREMENTS)
+    digest = hashlib.sha256()
+    with path.open("rb") as handle:
+        while chunk := handle.read(1024**2):
+            digest.update(chunk)
+    return CheckedZip(interface, explanation, requirements, digest.hexdigest(), path.stat().st_size)
+
+
+def prepare_submission(
+    source: Path, dest: Path, settings: Settings | None = None
+) -> PreparedSubmission:
+    """Check ``source`` (a zip, or a folder zipped the same way), extract it into ``dest``
+    (replacing what was there) and install its requirements.
+
+    Raises :class:`~evaluator.errors.IntakeError` naming the entry and the rule at fault.
+    """
+    settings = settings or get_settings()
+    source = Path(source)
+    dest = Path(dest)
+    if source.is_dir():
+        with tempfile.TemporaryDirectory(prefix="arena-pack-") as tmp:
+            return prepare_submission(pack_folder(source, Path(tmp) / "agent.zip"), dest, settings)
+    if not source.is_file():
+        raise IntakeError(str(source), "not-found", "no such file")
+    checked = check_zip(source, settings)
+    deps_dir = install_requirements(checked.requirements or "", settings)
+    remove_tree(dest)
+    with open_zip(source, settings) as archive:
+        try:
+            extract(archive, dest, settings)
+        except BaseException:
+            remove_tree(dest)
+            raise
+    return PreparedSubmission(
+        root=dest.resolve(),
+        deps_dir=deps_dir,
+        interface=checked.interface,
+        sha256=checked.sha256,
+        size=checked.size,
+        explanation=checked.explanation,
+    )

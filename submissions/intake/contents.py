@@ -1,0 +1,95 @@
+"""Checks of what a submission holds: ``policy.py``, ``agent.yaml``, ``explanation.md``.
+
+Nothing of the participant's is imported or run on the host: ``policy.py`` is compiled and its
+syntax tree searched for a ``Policy`` definition, and ``agent.yaml`` is parsed with the safe loader.
+"""
+
+from __future__ import annotations
+
+import ast
+import zipfile
+
+import yaml
+from pydantic import ValidationError
+
+from evaluator.errors import IntakeError
+from sim.interface import AgentInterface
+
+POLICY = "policy.py"
+AGENT_YAML = "agent.yaml"
+REQUIREMENTS = "requirements.txt"
+EXPLANATION = "explanation.md"
+# The explanation is shown on a web page; the rest of a long file is cut.
+MAX_EXPLANATION_CHARS = 20_000
+
+
+def read_text(archive: zipfile.ZipFile, name: str) -> str | None:
+    """A root-level text file of the zip, or None when it is absent."""
+    try:
+        data = archive.read(name)
+    except KeyError:
+        return None
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as error:
+        raise IntakeError(name, "not-utf8", f"is not UTF-8 text ({error})") from error
+
+
+def check_policy(archive: zipfile.ZipFile) -> None:
+    source = read_text(archive, POLICY)
+    if source is None:
+        nested = [n for n in archive.namelist() if n.endswith(f"/{POLICY}")]
+        hint = f"; found {nested[0]}: zip the folder's contents, not the folder" if nested else ""
+        raise IntakeError(POLICY, "policy-missing", f"the zip has no {POLICY} at its root{hint}")
+    try:
+        tree = compile(source, POLICY, "exec", flags=ast.PyCF_ONLY_AST, dont_inherit=True)
+        compile(tree, POLICY, "exec", dont_inherit=True)
+    except SyntaxError as error:
+        where = f"line {error.lineno}" + (f", column {error.offset}" if error.offset else "")
+        raise IntakeError(POLICY, "policy-syntax", f"{error.msg} ({where})") from error
+    except ValueError as error:
+        raise IntakeError(POLICY, "policy-syntax", str(error)) from error
+    if not defines_policy(tree):
+        raise IntakeError(POLICY, "policy-class", "defines no top-level class Policy")
+
+
+def defines_policy(tree: ast.Module) -> bool:
+    """A top-level ``class Policy``, ``Policy = ...`` or ``from x import ... as Policy``."""
+    for node in tree.body:
+        if isinstance(node, ast.ClassDef) and node.name == "Policy":
+            return True
+        if isinstance(node, ast.Assign | ast.AnnAssign):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            if any(isinstance(t, ast.Name) and t.id == "Policy" for t in targets):
+                return True
+        imported = isinstance(node, ast.ImportFrom | ast.Import)
+        if imported and any((alias.asname or alias.name) == "Policy" for alias in node.names):
+            return True
+    return False
+
+
+def load_interface(archive: zipfile.ZipFile) -> AgentInterface:
+    text = read_text(archive, AGENT_YAML)
+    if text is None:
+        return AgentInterface()
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as error:
+        raise IntakeError(AGENT_YAML, "agent-yaml", f"is not valid YAML: {error}") from error
+    if data is None:
+        return AgentInterface()
+    if not isinstance(data, dict):
+        raise IntakeError(AGENT_YAML, "agent-yaml", "must be a mapping of option: value")
+    try:
+        return AgentInterface.model_validate(data)
+    except ValidationError as error:
+        problems = "; ".join(
+            f"{'.'.join(str(p) for p in e['loc']) or 'agent.yaml'}: {e['msg']}"
+            for e in error.errors()
+        )
+        raise IntakeError(AGENT_YAML, "agent-yaml", problems) from error
+
+
+def load_explanation(archive: zipfile.ZipFile) -> str | None:
+    text = read_text(archive, EXPLANATION)
+    return None if text is None else text[:MAX_EXPLANATION_CHARS]

@@ -1,0 +1,105 @@
+"""A submission's ``requirements.txt``, installed from wheels only into its own folder.
+
+pip resolves on the host with ``--only-binary=:all:`` (an sdist would run its build code here) and
+then installs offline from the downloaded wheels with ``--target``; installing a wheel runs no code.
+Folders are shared by every submission with the same requirements, keyed by their hash.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from packaging.requirements import InvalidRequirement, Requirement
+
+from arena.config import Settings
+from evaluator.errors import IntakeError
+from submissions.intake.archive import make_read_only, remove_tree
+from submissions.intake.contents import REQUIREMENTS
+
+PIP_TIMEOUT_S = 600
+COMPLETE_MARKER = ".complete"
+
+
+def parse_requirements(text: str) -> list[str]:
+    """Normalised requirement lines; pip options, URLs and local paths are refused."""
+    lines = []
+    for number, raw in enumerate(text.splitlines(), start=1):
+        line = raw.split(" #", 1)[0].strip()
+        if not line or line.startswith("#"):
+            continue
+        entry = f"{REQUIREMENTS}:{number}"
+        if line.startswith("-"):
+            raise IntakeError(entry, "requirements-option", f"pip options are not allowed: {line}")
+        try:
+            requirement = Requirement(line)
+        except InvalidRequirement as error:
+            raise IntakeError(entry, "requirements-syntax", f"{line!r}: {error}") from error
+        if requirement.url:
+            raise IntakeError(entry, "requirements-url", f"direct URLs are not allowed: {line}")
+        lines.append(str(requirement))
+    return sorted(lines)
+
+
+def requirements_key(requirements: list[str]) -> str:
+    tag = f"cp{sys.version_info.major}{sys.version_info.minor}"
+    return hashlib.sha256("\n".join([tag, *requirements]).encode()).hexdigest()[:32]
+
+
+def install_requirements(text: str, settings: Settings) -> Path | None:
+    """The folder holding the installed requirements, or None when there are none."""
+    requirements = parse_requirements(text)
+    if not requirements:
+        return None
+    cache = settings.resolved_data_dir / "deps"
+    target = cache / requirements_key(requirements)
+    if (target / COMPLETE_MARKER).is_file():
+        return target
+    cache.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="deps-", dir=cache) as tmp:
+        work = Path(tmp)
+        listed = work / REQUIREMENTS
+        listed.write_text("\n".join(requirements) + "\n")
+        wheels = work / "wheels"
+        pip(
+            ["download", "--only-binary=:all:", "--dest", str(wheels), "-r", str(listed)],
+            "no-wheel",
+            "could not be resolved to wheels (source distributions are not accepted)",
+        )
+        installed = work / "deps"
+        pip(
+            [
+                "install",
+                "--no-index",
+                "--only-binary=:all:",
+                "--no-compile",
+                "--find-links",
+                str(wheels),
+                "--target",
+                str(installed),
+                "-r",
+                str(listed),
+            ],
+            "install-failed",
+            "could not be installed from the downloaded wheels",
+        )
+        (installed / COMPLETE_MARKER).write_text("\n".join(requirements) + "\n")
+        make_read_only(installed)
+        remove_tree(target)
+        shutil.move(str(installed), target)
+    return target
+
+
+def pip(arguments: list[str], rule: str, failure: str) -> None:
+    command = [sys.executable, "-m", "pip", "--disable-pip-version-check", "-q", *arguments]
+    try:
+        done = subprocess.run(command, capture_output=True, text=True, timeout=PIP_TIMEOUT_S)
+    except subprocess.TimeoutExpired as error:
+        raise IntakeError(REQUIREMENTS, rule, f"{failure}: pip timed out") from error
+    if done.returncode != 0:
+        detail = (done.stderr or done.stdout).strip().splitlines()
+        raise IntakeError(REQUIREMENTS, rule, f"{failure}: {' / '.join(detail[-3:])}")
