@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from arena.config import SandboxKind
@@ -71,7 +72,7 @@ def evaluate(
             progress=progress,
         )
     except (ArenaError, ProfileError) as exc:
-        console.print(f"[bold red]error:[/] {exc}")
+        console.print(f"[bold red]error:[/] {escape(str(exc))}")
         raise typer.Exit(2) from None
     finally:
         progress.stop()
@@ -92,14 +93,14 @@ def score(
 
     console = Console(stderr=as_json)
     if not (results_dir / SUMMARY_FILE).exists():
-        console.print(f"[bold red]error:[/] {results_dir} has no {SUMMARY_FILE}")
+        console.print(f"[bold red]error:[/] {escape(str(results_dir))} has no {SUMMARY_FILE}")
         raise typer.Exit(2)
     try:
         summary = score_results_dir(
             results_dir, load_profile(profile or get_settings().scoring_profile)
         )
     except (ProfileError, RecordError) as exc:
-        console.print(f"[bold red]error:[/] {exc}")
+        console.print(f"[bold red]error:[/] {escape(str(exc))}")
         raise typer.Exit(2) from None
     write_summary(summary, results_dir)
     _report(summary, results_dir, console, as_json)
@@ -124,7 +125,7 @@ def replay(
     try:
         draw_episode(results_dir, scenario_id, out, suite_dir=resolve_suite(suite))
     except (ReplayError, SuiteError) as exc:
-        console.print(f"[bold red]error:[/] {exc}")
+        console.print(f"[bold red]error:[/] {escape(str(exc))}")
         raise typer.Exit(2) from None
     console.print(f"wrote {out}")
 
@@ -212,7 +213,8 @@ def _report(summary: Summary, results_dir: Path, console: Console, as_json: bool
             console.print(f"[yellow]failed[/] {entry.id}: {reasons}")
     for scenario_id in summary.uncharged:
         entry = next(e for e in summary.scenarios if e.id == scenario_id)
-        console.print(f"[red]not charged[/] {scenario_id} ({entry.status}): {entry.error}")
+        error = escape(str(entry.error))
+        console.print(f"[red]not charged[/] {scenario_id} ({entry.status}): {error}")
     if not summary.complete:
         console.print("[bold yellow]incomplete:[/] re-run with the same --out to finish")
     console.print(f"results in {results_dir} (agent logs in {results_dir / 'logs'})")

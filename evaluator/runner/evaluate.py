@@ -62,10 +62,10 @@ def evaluate(
     sandbox = resolve_kind(sandbox)  # once, so a missing sandbox fails before any scenario
     manifest = load_manifest(suite_dir).select(scenario_ids)
     out_dir = Path(out_dir)
-    (out_dir / RECORDS_DIR).mkdir(parents=True, exist_ok=True)
-    (out_dir / LOGS_DIR).mkdir(exist_ok=True)
     with tempfile.TemporaryDirectory(prefix="arena-submission-") as tmp:
         submission = prepare_submission(Path(source), Path(tmp) / "submission")
+        (out_dir / RECORDS_DIR).mkdir(parents=True, exist_ok=True)
+        (out_dir / LOGS_DIR).mkdir(exist_ok=True)
         run = _Run(out_dir, manifest, scoring_profile, submission.sha256)
         todo = run.resume()
         if progress:
