@@ -25,13 +25,15 @@ def example(name: str) -> Path:
 def public_suite() -> Path:
     pytest.importorskip("sim.isolation")
     pytest.importorskip("submissions.intake")
-    from evaluator.runner import resolve_suite
+    from evaluator.runner import load_manifest, resolve_suite
     from evaluator.runner.manifest import SuiteError
 
     try:
-        return resolve_suite("public")
+        suite = resolve_suite("public")
+        load_manifest(suite)
     except SuiteError as exc:
         pytest.skip(str(exc))
+    return suite
 
 
 def write_policy(folder: Path, body: str, action_space: str = "LaneWithContinuousSpeed") -> Path:

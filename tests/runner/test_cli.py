@@ -1,0 +1,64 @@
+"""`arena score` and `arena replay` on a results folder built from synthetic records."""
+
+import json
+
+import pytest
+from typer.testing import CliRunner
+
+from arena.cli import app
+from evaluator.runner.manifest import Manifest, SuiteScenario
+from evaluator.runner.results import record_path, summarize
+from evaluator.runner.scenario import ScenarioOutcome
+from evaluator.scoring import load_profile
+from evaluator.summary import ScenarioStatus, read_summary, write_summary
+from tests.scoring.builders import AgentSpec, drive, write_record
+
+MANIFEST = Manifest("unit", "f" * 64, (SuiteScenario("a", "cruise"), SuiteScenario("b", "merge")))
+
+
+@pytest.fixture
+def results(tmp_path):
+    outcomes = []
+    for scenario_id, spec in (
+        ("a", AgentSpec(drive(300, lane_offset=0.5), done_step=300)),
+        ("b", AgentSpec(drive(120), reason="collision")),
+    ):
+        path = record_path(tmp_path, scenario_id)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_record(path, scenario_id, [spec])
+        outcomes.append(ScenarioOutcome(scenario_id, ScenarioStatus.done, 0, (), path))
+    write_summary(summarize(outcomes, MANIFEST, load_profile(), submission="s" * 64), tmp_path)
+    return tmp_path
+
+
+def test_score_prints_the_metrics_table_and_failures(results):
+    result = CliRunner().invoke(app, ["score", str(results)])
+    assert result.exit_code == 0, result.output
+    assert "completion" in result.output and "merge" in result.output
+    assert "b: Agent_0 collision at step 120" in result.output
+
+
+def test_score_json_is_the_rewritten_summary(results):
+    result = CliRunner().invoke(app, ["score", str(results), "--json"])
+    assert result.exit_code == 0
+    printed = json.loads(result.stdout)
+    assert printed == read_summary(results).model_dump(mode="json")
+    assert printed["metrics"]["completion"] == 0.5
+    assert printed["metrics"]["time"] == 550.0
+
+
+def test_score_refuses_an_unknown_profile_without_touching_the_summary(results):
+    before = (results / "summary.json").read_bytes()
+    result = CliRunner().invoke(app, ["score", str(results), "--profile", "nope"])
+    assert result.exit_code == 2
+    assert "unknown scoring profile 'nope'" in result.output
+    assert (results / "summary.json").read_bytes() == before
+
+
+def test_replay_writes_a_picture(results, tmp_path):
+    out = tmp_path / "b.svg"
+    result = CliRunner().invoke(
+        app, ["replay", str(results), "b", "--out", str(out), "--suite", str(tmp_path)]
+    )
+    assert result.exit_code == 0, result.output
+    assert "collision at step 120" in out.read_text()
