@@ -188,9 +188,7 @@ def inflated_size(archive: zipfile.ZipFile, info: zipfile.ZipInfo, kind: str, ca
     return produced
 
 
-def read_bounded(
-    archive: zipfile.ZipFile, info: zipfile.ZipInfo, shown: str, budget: Budget
-) -> bytes:
+def read_bounded(archive: zipfile.ZipFile, info: zipfile.ZipInfo, shown: str) -> bytes:
     with archive.open(info) as handle:
         data = handle.read(info.file_size + 1)
     if len(data) > info.file_size:

@@ -1,0 +1,41 @@
+"""Requirements are resolved from PyPI (the one network the tests may use)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from arena.config import Settings
+from evaluator.errors import IntakeError
+from submissions.intake import prepare_submission
+from submissions.intake.dependencies import parse_requirements
+from tests.submissions.zips import with_policy, write_zip
+
+pytestmark = pytest.mark.slow
+
+
+def test_requirements_install_from_wheels_and_are_cached(tmp_path: Path) -> None:
+    settings = Settings(data_dir=tmp_path / "data")
+    upload = write_zip(tmp_path / "a.zip", with_policy(**{"requirements.txt": "six==1.16.0\n"}))
+    first = prepare_submission(upload, tmp_path / "a", settings)
+    assert first.deps_dir is not None and (first.deps_dir / "six.py").is_file()
+    second = prepare_submission(upload, tmp_path / "b", settings)
+    assert second.deps_dir == first.deps_dir
+
+
+def test_a_requirement_without_a_wheel_is_rejected(tmp_path: Path) -> None:
+    settings = Settings(data_dir=tmp_path / "data")
+    # PyYAML 5.1 (2019) published no wheels for CPython 3.11 on Linux: source only.
+    upload = write_zip(tmp_path / "a.zip", with_policy(**{"requirements.txt": "PyYAML==5.1\n"}))
+    with pytest.raises(IntakeError) as caught:
+        prepare_submission(upload, tmp_path / "a", settings)
+    assert (caught.value.entry, caught.value.rule) == ("requirements.txt", "no-wheel")
+    assert not (tmp_path / "a").exists()
+
+
+def test_requirements_are_normalised_before_hashing() -> None:
+    assert parse_requirements("numpy >= 1.24  # fast\n\n# comment\nsix==1.16.0\n") == [
+        "numpy>=1.24",
+        "six==1.16.0",
+    ]

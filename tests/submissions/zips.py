@@ -1,0 +1,42 @@
+"""Builders of submission zips, good and hostile."""
+
+from __future__ import annotations
+
+import gzip
+import io
+import zipfile
+from pathlib import Path
+
+GOOD_POLICY = """
+class Policy:
+    def act(self, obs):
+        return {agent_id: [10.0, 0.0] for agent_id in obs}
+"""
+
+
+def entry(name: str, mode: int = 0o100644) -> zipfile.ZipInfo:
+    info = zipfile.ZipInfo(name, date_time=(1980, 1, 1, 0, 0, 0))
+    info.external_attr = mode << 16
+    info.compress_type = zipfile.ZIP_DEFLATED
+    return info
+
+
+def zip_bytes(files: dict[str | zipfile.ZipInfo, bytes | str]) -> bytes:
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w", compression=zipfile.ZIP_DEFLATED) as archive:
+        for name, data in files.items():
+            archive.writestr(name if isinstance(name, zipfile.ZipInfo) else entry(name), data)
+    return buffer.getvalue()
+
+
+def write_zip(path: Path, files: dict[str | zipfile.ZipInfo, bytes | str]) -> Path:
+    path.write_bytes(zip_bytes(files))
+    return path
+
+
+def with_policy(**extra: bytes | str) -> dict:
+    return {"policy.py": GOOD_POLICY, **extra}
+
+
+def gzip_bytes(data: bytes) -> bytes:
+    return gzip.compress(data, compresslevel=9)
