@@ -1,0 +1,305 @@
+"""Reactive scenario generators, one per family, each a pure function of (spec, rng).
+
+A generator returns a :class:`Draft` (map template, missions, background traffic, triggers); the
+suite builder turns it into a scenario folder. Registered in :data:`GENERATORS` by family.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from scenarios.maps import build_map
+from scenarios.netinfo import NetInfo, net_info
+from scenarios.schema import Family, Goal, LaneChangeTrigger, Mission
+from scenarios.traffic import (
+    VOLUME_PER_LANE,
+    Flow,
+    Routes,
+    Vehicle,
+    driver_types,
+    initial_vehicles,
+    slow_type,
+)
+
+GOAL_RADIUS = 2.5  # [m]
+GOAL_BEFORE_END = 40.0  # [m] goals sit this far before the end of the route's final edge
+INTERSECTION_VOLUME_SCALE = 0.5  # crossing flows of both directions add up: keep gaps usable
+
+
+@dataclass(frozen=True)
+class Spec:
+    """What to generate: one row of a suite composition."""
+
+    family: Family
+    variant: str
+    volume: str | None
+    agents: int = 1
+    reactive: bool = True
+
+
+@dataclass
+class Draft:
+    template: str
+    missions: list[Mission]
+    routes: Routes = field(default_factory=Routes)
+    triggers: list[LaneChangeTrigger] = field(default_factory=list)
+
+
+class MapLibrary:
+    """Built maps of one suite build (netconvert once per template, cached on disk)."""
+
+    def __init__(self, cache_dir: Path) -> None:
+        self.cache_dir = Path(cache_dir)
+        self._paths: dict[str, Path] = {}
+
+    def path(self, template: str) -> Path:
+        if template not in self._paths:
+            self._paths[template] = build_map(template, self.cache_dir)
+        return self._paths[template]
+
+    def info(self, template: str) -> NetInfo:
+        return net_info(self.path(template))
+
+
+Generator = Callable[[Spec, np.random.Generator, MapLibrary], Draft]
+
+
+def make_mission(
+    info: NetInfo,
+    index: int,
+    start: tuple[str, int, float],
+    route: tuple[str, ...],
+    goal_lane: int,
+    start_speed: float,
+    start_step: int = 0,
+    goal_s: float | None = None,
+) -> Mission:
+    """Mission of ``Agent_<index>`` starting at (edge, lane, offset [m]) on ``route``; the goal sits
+    on ``goal_lane`` of the route's final edge."""
+    edge, lane, s = start
+    final = route[-1]
+    gs = info.length(final) - GOAL_BEFORE_END if goal_s is None else goal_s
+    gx, gy, _ = info.pose(final, goal_lane, gs)
+    return Mission(
+        agent_id=f"Agent_{index}",
+        start=info.pose(edge, lane, s),
+        start_speed=round(start_speed, 2),
+        start_step=start_step,
+        route=route,
+        goal=Goal(position=(gx, gy), radius=GOAL_RADIUS),
+    )
+
+
+def _volume(spec: Spec, scale: float = 1.0) -> float:
+    return VOLUME_PER_LANE[spec.volume or "mid"] * scale
+
+
+def _highway_traffic(
+    draft: Draft,
+    info: NetInfo,
+    rng: np.random.Generator,
+    per_lane: float,
+    keep_clear: list[tuple[int, float]],
+    flow_begin: float,
+) -> None:
+    routes = draft.routes
+    routes.vtypes = driver_types(rng)
+    lanes = info.lanes("in")
+    through = routes.route(("in", "out"))
+    speed = info.speed("in")
+    routes.vehicles += initial_vehicles(
+        rng, "init_in", through, lanes, (5.0, info.length("in") - 10.0), per_lane, speed, keep_clear
+    )
+    routes.vehicles += initial_vehicles(
+        rng, "init_out", routes.route(("out",)), lanes, (5.0, 250.0), per_lane, speed, []
+    )
+    routes.flows.append(
+        Flow("flow_in", through, per_lane * lanes * rng.uniform(0.85, 1.15), begin=flow_begin)
+    )
+
+
+def _highway_template(variant: str) -> str:
+    lanes = variant.split("_")[0]  # "2lane", "3lane", "4lane"
+    return f"highway_{lanes}" + ("_curve" if "curve" in variant else "")
+
+
+def cruise(spec: Spec, rng: np.random.Generator, maps: MapLibrary) -> Draft:
+    template = _highway_template(spec.variant)
+    info = maps.info(template)
+    draft = Draft(template, [])
+    lanes = rng.permutation(info.lanes("in"))[: spec.agents]
+    delays = [0, *sorted(int(d) for d in rng.integers(5, 25, spec.agents - 1))]
+    for i, (lane, delay) in enumerate(zip(lanes, delays, strict=True)):
+        goal_lane = int(rng.integers(info.lanes("out")))
+        draft.missions.append(
+            make_mission(
+                info, i, ("in", int(lane), 40.0), ("in", "out"), goal_lane, rng.uniform(8, 14), delay
+            )
+        )
+    keep = [(int(lane), 40.0) for lane in lanes]
+    _highway_traffic(draft, info, rng, _volume(spec), keep, flow_begin=max(delays) * 0.1 + 3.0)
+    return draft
+
+
+def overtake(spec: Spec, rng: np.random.Generator, maps: MapLibrary) -> Draft:
+    template = _highway_template(spec.variant)
+    info = maps.info(template)
+    lane = 0
+    draft = Draft(template, [])
+    draft.missions.append(
+        make_mission(info, 0, ("in", lane, 30.0), ("in", "out"), lane, rng.uniform(10, 14))
+    )
+    # Other lanes carry the volume's traffic; the ego lane ahead is blocked by slow leaders.
+    _highway_traffic(draft, info, rng, _volume(spec, 0.6), [(lane, 30.0)], flow_begin=3.0)
+    slow_speed = rng.uniform(5.0, 7.0) if spec.variant.endswith("slow") else rng.uniform(9.0, 12.0)
+    draft.routes.vtypes.append(slow_type("slow", slow_speed))
+    through = draft.routes.route(("in", "out"))
+    lead = 30.0 + rng.uniform(35.0, 55.0)
+    draft.routes.vehicles = [
+        v for v in draft.routes.vehicles if not (v.lane == lane and 25.0 < v.pos < lead + 80.0)
+    ]
+    draft.routes.vehicles.append(Vehicle("slow_0", through, 0.0, lane, lead, slow_speed, "slow"))
+    if info.lanes("in") >= 3:
+        second = lead + rng.uniform(30.0, 60.0)
+        draft.routes.vehicles.append(
+            Vehicle("slow_1", through, 0.0, 1, second, slow_speed, "slow")
+        )
+    return draft
+
+
+def cut_in(spec: Spec, rng: np.random.Generator, maps: MapLibrary) -> Draft:
+    template = _highway_template(spec.variant)
+    info = maps.info(template)
+    lane, cutter_lane = 1, 2
+    draft = Draft(template, [])
+    draft.missions.append(
+        make_mission(info, 0, ("in", lane, 30.0), ("in", "out"), lane, rng.uniform(12, 15))
+    )
+    keep = [(lane, 30.0), (cutter_lane, 30.0)]
+    _highway_traffic(draft, info, rng, _volume(spec, 0.7), keep, flow_begin=3.0)
+    through = draft.routes.route(("in", "out"))
+    draft.routes.vtypes.append(slow_type("cutter", rng.uniform(14.0, 17.0)))
+    ahead = 30.0 + rng.uniform(20.0, 35.0)
+    draft.routes.vehicles = [
+        v for v in draft.routes.vehicles if not (v.lane == cutter_lane and abs(v.pos - ahead) < 30)
+    ]
+    draft.routes.vehicles.append(Vehicle("cutin", through, 0.0, cutter_lane, ahead, 13.0, "cutter"))
+    draft.triggers.append(
+        LaneChangeTrigger(
+            vehicle="cutin", agent_id="Agent_0", gap_m=round(rng.uniform(8.0, 14.0), 1)
+        )
+    )
+    return draft
+
+
+def merge(spec: Spec, rng: np.random.Generator, maps: MapLibrary) -> Draft:
+    template = f"merge_{spec.variant}"
+    info = maps.info(template)
+    route = ("ramp", "merge", "out")
+    draft = Draft(template, [])
+    draft.missions.append(
+        make_mission(
+            info, 0, ("ramp", 0, 20.0), route, info.driving_lanes("out")[0], rng.uniform(8, 12)
+        )
+    )
+    keep: list[tuple[int, float]] = []
+    if spec.agents > 1:
+        main = ("in", "merge", "out")
+        delay = int(rng.integers(0, 30))
+        goal_lane = int(rng.choice(info.driving_lanes("out")))
+        draft.missions.append(
+            make_mission(info, 1, ("in", 0, 60.0), main, goal_lane, rng.uniform(10, 14), delay)
+        )
+        keep.append((0, 60.0))
+    routes = draft.routes
+    routes.vtypes = driver_types(rng)
+    lanes = info.lanes("in")
+    main_route = routes.route(("in", "merge", "out"))
+    per_lane = _volume(spec, 0.8)
+    speed = info.speed("in")
+    routes.vehicles += initial_vehicles(
+        rng, "init_in", main_route, lanes, (5.0, info.length("in") - 10.0), per_lane, speed, keep
+    )
+    routes.flows.append(
+        Flow("flow_in", main_route, per_lane * lanes * rng.uniform(0.85, 1.15), begin=4.0)
+    )
+    routes.flows.append(
+        Flow("flow_ramp", routes.route(route), rng.uniform(60, 150), lane="0", begin=8.0)
+    )
+    return draft
+
+
+def _intersection_traffic(
+    draft: Draft, info: NetInfo, rng: np.random.Generator, per_lane: float, arms: list[str]
+) -> None:
+    """Flows from every incoming arm to every reachable outgoing arm; main-road arms (more
+    lanes) carry ``per_lane`` per lane, minor arms a quarter of it; turns are a minority."""
+    routes = draft.routes
+    routes.vtypes = driver_types(rng)
+    for src in arms:
+        lanes = info.lanes(src)
+        rate = per_lane * lanes * (1.0 if lanes > 1 else 0.25)
+        for direction, share in (("s", 0.7), ("l", 0.15), ("r", 0.15)):
+            dst = info.turn(src, direction)
+            if dst is None:
+                continue
+            routes.flows.append(
+                Flow(
+                    f"flow_{src}_{direction}",
+                    routes.route((src, dst)),
+                    rate * share * rng.uniform(0.8, 1.2),
+                    lane="best",
+                )
+            )
+
+
+def left_turn_t(spec: Spec, rng: np.random.Generator, maps: MapLibrary) -> Draft:
+    template = "t_intersection_rotated" if spec.variant.endswith("rotated") else "t_intersection"
+    return _turn(spec, rng, maps, template, "l", None, ["w_in", "e_in", "s_in"])
+
+
+def turn_c(spec: Spec, rng: np.random.Generator, maps: MapLibrary) -> Draft:
+    template = "cross_upside" if "upside" in spec.variant else "cross"
+    if spec.variant.endswith("rotated"):
+        template += "_rotated"
+    direction = "l" if spec.variant.startswith("left") else "r"
+    goal_lane = 1 if "middle_lane" in spec.variant else (2 if direction == "l" else 0)
+    return _turn(spec, rng, maps, template, direction, goal_lane, ["w_in", "e_in", "s_in", "n_in"])
+
+
+def _turn(
+    spec: Spec,
+    rng: np.random.Generator,
+    maps: MapLibrary,
+    template: str,
+    direction: str,
+    goal_lane: int | None,
+    arms: list[str],
+) -> Draft:
+    info = maps.info(template)
+    target = info.turn("s_in", direction)
+    assert target is not None, f"{template}: no {direction} turn from s_in"
+    lane = int(rng.integers(info.lanes(target))) if goal_lane is None else goal_lane
+    start = info.length("s_in") - rng.uniform(50.0, 70.0)
+    draft = Draft(template, [])
+    draft.missions.append(
+        make_mission(
+            info, 0, ("s_in", 0, start), ("s_in", target), lane, rng.uniform(5, 9), goal_s=80.0
+        )
+    )
+    _intersection_traffic(draft, info, rng, _volume(spec, INTERSECTION_VOLUME_SCALE), arms)
+    return draft
+
+
+GENERATORS: dict[Family, Generator] = {
+    Family.cruise: cruise,
+    Family.overtake: overtake,
+    Family.cut_in: cut_in,
+    Family.merge: merge,
+    Family.left_turn_t: left_turn_t,
+    Family.turn_c: turn_c,
+}

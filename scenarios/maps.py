@@ -1,0 +1,331 @@
+"""Map templates: road layouts written as plain SUMO node/edge/connection XML, built with netconvert.
+
+Every template is a pure function of its parameters, so a built ``.net.xml`` is a pure function of
+the template name (netconvert is deterministic; its date/config header comment is stripped). Built
+maps are cached on disk by the hash of the netconvert inputs, so a suite build runs netconvert once
+per template.
+
+Conventions (documented in docs/scenarios.md): right-hand traffic, metres, lane 0 is the
+rightmost lane; a *shoulder* is a lane whose ``allow`` list is exactly ``emergency``; every lane has
+a speed limit.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import re
+import shutil
+import subprocess
+import tempfile
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+
+LANE_WIDTH = 3.2  # [m]
+SHOULDER_WIDTH = 2.5  # [m]
+HIGHWAY_SPEED = 22.22  # [m/s] 80 km/h
+RAMP_SPEED = 16.67  # [m/s] 60 km/h
+URBAN_SPEED = 13.89  # [m/s] 50 km/h
+MINOR_SPEED = 11.11  # [m/s] 40 km/h
+
+Point = tuple[float, float]
+
+
+@dataclass(frozen=True)
+class Edge:
+    id: str
+    start: str
+    end: str
+    lanes: int
+    speed: float  # [m/s]
+    priority: int = 1
+    shape: tuple[Point, ...] = ()  # inner points only; the node positions are added
+    shoulder: bool = False  # lane 0 is a shoulder
+
+
+@dataclass(frozen=True)
+class Template:
+    """A road layout before netconvert: nodes, edges, explicit lane connections."""
+
+    nodes: dict[str, Point]
+    edges: tuple[Edge, ...]
+    connections: tuple[tuple[str, str, int, int], ...] = ()  # from, to, fromLane, toLane
+    node_types: dict[str, str] = field(default_factory=dict)
+
+    def transformed(self, fn: Callable[[Point], Point]) -> Template:
+        return Template(
+            nodes={k: fn(p) for k, p in self.nodes.items()},
+            edges=tuple(
+                Edge(**{**e.__dict__, "shape": tuple(fn(p) for p in e.shape)}) for e in self.edges
+            ),
+            connections=self.connections,
+            node_types=self.node_types,
+        )
+
+    def to_xml(self) -> tuple[str, str, str]:
+        """(nodes, edges, connections) plain XML documents."""
+        nodes = ["<nodes>"]
+        for nid, (x, y) in sorted(self.nodes.items()):
+            kind = self.node_types.get(nid, "priority")
+            nodes.append(f'  <node id="{nid}" x="{x:.3f}" y="{y:.3f}" type="{kind}"/>')
+        nodes.append("</nodes>")
+        edges = ["<edges>"]
+        for e in self.edges:
+            shape = ""
+            if e.shape:
+                pts = [self.nodes[e.start], *e.shape, self.nodes[e.end]]
+                shape = ' shape="' + " ".join(f"{x:.3f},{y:.3f}" for x, y in pts) + '"'
+            edges.append(
+                f'  <edge id="{e.id}" from="{e.start}" to="{e.end}" numLanes="{e.lanes}" '
+                f'speed="{e.speed:.2f}" priority="{e.priority}" width="{LANE_WIDTH}"{shape}>'
+            )
+            for i in range(e.lanes):
+                if e.shoulder and i == 0:
+                    edges.append(
+                        f'    <lane index="0" allow="emergency" width="{SHOULDER_WIDTH}" '
+                        f'speed="{e.speed:.2f}"/>'
+                    )
+                else:
+                    edges.append(f'    <lane index="{i}" speed="{e.speed:.2f}"/>')
+            edges.append("  </edge>")
+        edges.append("</edges>")
+        cons = ["<connections>"]
+        for src, dst, fl, tl in self.connections:
+            cons.append(f'  <connection from="{src}" to="{dst}" fromLane="{fl}" toLane="{tl}"/>')
+        cons.append("</connections>")
+        return "\n".join(nodes) + "\n", "\n".join(edges) + "\n", "\n".join(cons) + "\n"
+
+
+def _arc(length: float, radius: float, s: float) -> Point:
+    """Point at arc length ``s`` [m] on a left-curving arc of ``radius`` [m] starting at the
+    origin heading +x."""
+    a = s / radius
+    return (radius * math.sin(a), radius * (1.0 - math.cos(a)))
+
+
+def highway(lanes: int, curved: bool = False) -> Template:
+    """600 m two-edge highway (``in`` then ``out``); curved variants bend left on a 400 m radius."""
+    length, radius = 600.0, 400.0
+    if curved:
+        at = lambda s: _arc(length, radius, s)  # noqa: E731
+    else:
+        at = lambda s: (s, 0.0)  # noqa: E731
+    nodes = {"a": at(0.0), "b": at(300.0), "c": at(600.0)}
+    inner = lambda s0, s1: tuple(at(s) for s in range(int(s0) + 20, int(s1), 20)) if curved else ()  # noqa: E731
+    edges = (
+        Edge("in", "a", "b", lanes, HIGHWAY_SPEED, 3, inner(0, 300)),
+        Edge("out", "b", "c", lanes, HIGHWAY_SPEED, 3, inner(300, 600)),
+    )
+    return Template(nodes, edges)
+
+
+def merge(main_lanes: int, accel: float, shoulder: bool, curved: bool = False) -> Template:
+    """A main road (``in`` -> ``merge`` -> ``out``) joined from the right by a one-lane ``ramp``.
+
+    ``merge`` carries an acceleration lane (index 0) of length ``accel`` [m] that ends at its end
+    (or continues as the shoulder of ``out`` when ``shoulder``)."""
+    radius = 700.0
+    if curved:
+        at = lambda s, off=0.0: _offset_arc(s, radius, off)  # noqa: E731
+    else:
+        at = lambda s, off=0.0: (s, off)  # noqa: E731
+    b, c, d = 250.0, 250.0 + accel, 250.0 + accel + 300.0
+    nodes = {"a": at(0.0), "b": at(b), "c": at(c), "d": at(d), "r": at(40.0, -70.0)}
+    inner = lambda s0, s1: tuple(at(s) for s in range(int(s0) + 25, int(s1), 25)) if curved else ()  # noqa: E731
+    ramp_shape = (at(120.0, -45.0), at(190.0, -14.0), at(225.0, -4.5))
+    out_lanes = main_lanes + (1 if shoulder else 0)
+    edges = (
+        Edge("in", "a", "b", main_lanes, HIGHWAY_SPEED, 3, inner(0, b)),
+        Edge("ramp", "r", "b", 1, RAMP_SPEED, 1, ramp_shape),
+        Edge("merge", "b", "c", main_lanes + 1, HIGHWAY_SPEED, 3, inner(b, c)),
+        Edge("out", "c", "d", out_lanes, HIGHWAY_SPEED, 3, inner(c, d), shoulder=shoulder),
+    )
+    shift = 1 if shoulder else 0
+    connections = [("in", "merge", i, i + 1) for i in range(main_lanes)]
+    connections.append(("ramp", "merge", 0, 0))
+    connections += [("merge", "out", i + 1, i + shift) for i in range(main_lanes)]
+    if shoulder:
+        connections.append(("merge", "out", 0, 0))
+    return Template(nodes, edges, tuple(connections))
+
+
+def _offset_arc(s: float, radius: float, offset: float) -> Point:
+    """Point at arc length ``s`` on the left-curving arc, ``offset`` [m] to its left."""
+    a = s / radius
+    r = radius - offset
+    return (r * math.sin(a), radius - r * math.cos(a))
+
+
+def t_intersection() -> Template:
+    """Major road west-east (2 lanes each way, priority), one-lane minor road from the south with a
+    stop sign (junction type ``priority_stop``: minor links get state ``s``)."""
+    nodes = {"J": (0.0, 0.0), "W": (-250.0, 0.0), "E": (250.0, 0.0), "S": (0.0, -200.0)}
+    edges = (
+        Edge("w_in", "W", "J", 2, URBAN_SPEED, 3),
+        Edge("w_out", "J", "W", 2, URBAN_SPEED, 3),
+        Edge("e_in", "E", "J", 2, URBAN_SPEED, 3),
+        Edge("e_out", "J", "E", 2, URBAN_SPEED, 3),
+        Edge("s_in", "S", "J", 1, MINOR_SPEED, 1),
+        Edge("s_out", "J", "S", 1, MINOR_SPEED, 1),
+    )
+    connections = (("s_in", "w_out", 0, 0), ("s_in", "w_out", 0, 1), ("s_in", "e_out", 0, 0))
+    return Template(nodes, edges, connections, {"J": "priority_stop"})
+
+
+def cross_intersection() -> Template:
+    """Unsignalised cross: three-lane main road west-east with priority, one-lane minor road
+    south-north crossing it at a skew (so mirrored variants differ from rotated ones)."""
+    nodes = {
+        "J": (0.0, 0.0),
+        "W": (-250.0, 0.0),
+        "E": (250.0, 0.0),
+        "S": (-50.0, -190.0),
+        "N": (50.0, 190.0),
+    }
+    edges = (
+        Edge("w_in", "W", "J", 3, URBAN_SPEED, 3),
+        Edge("w_out", "J", "W", 3, URBAN_SPEED, 3),
+        Edge("e_in", "E", "J", 3, URBAN_SPEED, 3),
+        Edge("e_out", "J", "E", 3, URBAN_SPEED, 3),
+        Edge("s_in", "S", "J", 1, MINOR_SPEED, 1),
+        Edge("s_out", "J", "S", 1, MINOR_SPEED, 1),
+        Edge("n_in", "N", "J", 1, MINOR_SPEED, 1),
+        Edge("n_out", "J", "N", 1, MINOR_SPEED, 1),
+    )
+    connections = []
+    for src, left, right, straight in (
+        ("s_in", "w_out", "e_out", "n_out"),
+        ("n_in", "e_out", "w_out", "s_out"),
+    ):
+        connections += [(src, left, 0, i) for i in range(3)]
+        connections += [(src, right, 0, i) for i in range(3)]
+        connections.append((src, straight, 0, 0))
+    return Template(nodes, edges, tuple(connections))
+
+
+def urban() -> Template:
+    """Mixed urban map: a two-lane avenue with an unsignalised cross junction and a stop-sign T
+    junction 200 m apart."""
+    nodes = {
+        "W": (-200.0, 0.0),
+        "J1": (0.0, 0.0),
+        "J2": (200.0, 0.0),
+        "E": (400.0, 0.0),
+        "N1": (0.0, 180.0),
+        "S1": (0.0, -180.0),
+        "S2": (200.0, -180.0),
+    }
+    edges = []
+    for a, b, lanes, speed, prio in (
+        ("W", "J1", 2, URBAN_SPEED, 3),
+        ("J1", "J2", 2, URBAN_SPEED, 3),
+        ("J2", "E", 2, URBAN_SPEED, 3),
+        ("N1", "J1", 1, MINOR_SPEED, 1),
+        ("S1", "J1", 1, MINOR_SPEED, 1),
+        ("S2", "J2", 1, MINOR_SPEED, 1),
+    ):
+        edges.append(Edge(f"{a}_{b}", a, b, lanes, speed, prio))
+        edges.append(Edge(f"{b}_{a}", b, a, lanes, speed, prio))
+    return Template(nodes, tuple(edges), (), {"J2": "priority_stop"})
+
+
+def _rotate(deg: float) -> Callable[[Point], Point]:
+    c, s = math.cos(math.radians(deg)), math.sin(math.radians(deg))
+    return lambda p: (c * p[0] - s * p[1], s * p[0] + c * p[1])
+
+
+def _mirror(p: Point) -> Point:
+    return (p[0], -p[1])
+
+
+TEMPLATES: dict[str, Callable[[], Template]] = {
+    "highway_2lane": lambda: highway(2),
+    "highway_3lane": lambda: highway(3),
+    "highway_4lane": lambda: highway(4),
+    "highway_2lane_curve": lambda: highway(2, curved=True),
+    "highway_3lane_curve": lambda: highway(3, curved=True),
+    "highway_4lane_curve": lambda: highway(4, curved=True),
+    "merge_2lane": lambda: merge(2, 160.0, shoulder=False),
+    "merge_2lane_shoulder": lambda: merge(2, 160.0, shoulder=True),
+    "merge_2lane_shoulder_short": lambda: merge(2, 70.0, shoulder=True),
+    "merge_3lane_curve": lambda: merge(3, 160.0, shoulder=False, curved=True),
+    "merge_3lane_shoulder": lambda: merge(3, 160.0, shoulder=True),
+    "merge_3lane_shoulder_short": lambda: merge(3, 70.0, shoulder=True),
+    "merge_4lane": lambda: merge(4, 160.0, shoulder=False),
+    "t_intersection": t_intersection,
+    "t_intersection_rotated": lambda: t_intersection().transformed(_rotate(90.0)),
+    "cross": cross_intersection,
+    "cross_rotated": lambda: cross_intersection().transformed(_rotate(90.0)),
+    # Mirrored upside down: the minor road's south arm comes from the north and its skew flips;
+    # traffic stays right-hand (netconvert lays lanes out from the edge directions), so a turn
+    # onto the same edge changes side: generators pick turns by direction, not by edge name.
+    "cross_upside": lambda: cross_intersection().transformed(_mirror),
+    "cross_upside_rotated": lambda: cross_intersection()
+    .transformed(_mirror)
+    .transformed(_rotate(90.0)),
+    "replay_highway": lambda: merge(5, 200.0, shoulder=False),
+    "urban": urban,
+}
+
+_HEADER = re.compile(rb"<!-- generated on .*?-->\s*", re.DOTALL)
+NETCONVERT_OPTIONS = (
+    "--offset.disable-normalization",
+    "true",
+    "--no-turnarounds",
+    "true",
+    "--junctions.corner-detail",
+    "5",
+    "--default.lanewidth",
+    str(LANE_WIDTH),
+)
+
+
+class MapBuildError(RuntimeError):
+    pass
+
+
+@lru_cache(maxsize=1)
+def netconvert_version() -> str:
+    out = subprocess.run(["netconvert", "--version"], capture_output=True, text=True, check=True)
+    return out.stdout.splitlines()[0].strip()
+
+
+def build_map(name: str, cache_dir: Path) -> Path:
+    """The ``.net.xml`` of template ``name``, built once into ``cache_dir`` and reused."""
+    if name not in TEMPLATES:
+        raise KeyError(f"unknown map template {name!r}; known: {', '.join(sorted(TEMPLATES))}")
+    documents = TEMPLATES[name]().to_xml()
+    key = hashlib.sha256(
+        "\0".join([*documents, *NETCONVERT_OPTIONS, netconvert_version()]).encode()
+    ).hexdigest()[:16]
+    target = Path(cache_dir) / f"{name}-{key}.net.xml"
+    if target.exists():
+        return target
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        tmpdir = Path(tmp)
+        for suffix, text in zip(("nod", "edg", "con"), documents, strict=True):
+            (tmpdir / f"map.{suffix}.xml").write_text(text)
+        cmd = [
+            "netconvert",
+            "-n",
+            "map.nod.xml",
+            "-e",
+            "map.edg.xml",
+            "-x",
+            "map.con.xml",
+            "-o",
+            "map.net.xml",
+            *NETCONVERT_OPTIONS,
+            "--no-warnings",
+        ]
+        proc = subprocess.run(cmd, cwd=tmpdir, capture_output=True, text=True)
+        if proc.returncode != 0:
+            raise MapBuildError(f"netconvert failed for {name}: {proc.stderr.strip()}")
+        data = _HEADER.sub(b"", (tmpdir / "map.net.xml").read_bytes(), count=1)
+        partial = target.with_suffix(".tmp")
+        partial.write_bytes(data)
+        shutil.move(partial, target)
+    return target

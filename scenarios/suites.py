@@ -1,0 +1,245 @@
+"""The hidden suite (128 scenarios, composition of the scenario spec) and the public set.
+
+A suite is a pure function of (suite, seed): every scenario's traffic seed is derived from a
+domain-separated hash of the suite name, the suite seed and the scenario's row, so a public
+scenario never equals a hidden one and the hidden seed cannot be recovered from a public build.
+The hidden seed itself is never written anywhere: the manifest carries its fingerprint.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import shutil
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from scenarios.generators import GENERATORS, MapLibrary, Spec
+from scenarios.replay.builder import KIND_SCENE, Candidate, candidates, write_replay
+from scenarios.replay.scenes import SCENES, recorded
+from scenarios.schema import Family, Scenario, content_hash
+from scenarios.writer import write_reactive
+
+MANIFEST = "manifest.json"
+PUBLIC_SEED = 2022
+BUBBLE_RADIUS = 40.0  # [m]
+
+F = Family
+LOW_MID = ("low", "mid")
+# Reactive composition (scenario spec, "Reactive scenarios (71)").
+REACTIVE: tuple[tuple[Family, tuple[str, ...], tuple[str | None, ...], tuple[int, ...]], ...] = (
+    (F.left_turn_t, ("left_turn_t", "left_turn_t_rotated"), LOW_MID, (1,)),
+    (
+        F.turn_c,
+        (
+            "left_turn_c",
+            "left_turn_c_rotated",
+            "left_turn_middle_lane_c",
+            "left_turn_upside_c",
+            "left_turn_upside_c_rotated",
+            "right_turn_c",
+            "right_turn_c_rotated",
+        ),
+        LOW_MID,
+        (1,),
+    ),
+    (
+        F.merge,
+        (
+            "2lane",
+            "2lane_shoulder",
+            "2lane_shoulder_short",
+            "3lane_curve",
+            "3lane_shoulder",
+            "3lane_shoulder_short",
+            "4lane",
+        ),
+        LOW_MID,
+        (1, 2),
+    ),
+    (F.cruise, ("2lane", "3lane_curve", "4lane"), ("low", "high"), (1,)),
+    (F.cruise, ("2lane",), ("low", "high"), (2,)),
+    (F.cruise, ("3lane_curve",), ("low", "high"), (3,)),
+    (F.cut_in, ("3lane", "4lane"), ("mid",), (1,)),
+    (
+        F.overtake,
+        ("2lane", "2lane_slow", "3lane_curve", "3lane_curve_slow", "4lane", "4lane_slow"),
+        LOW_MID,
+        (1,),
+    ),
+)
+# Non-reactive replays (scenario spec, "Non-reactive replays (57)"): (kind, agents, count).
+REPLAYS: tuple[tuple[str, int, int], ...] = (
+    ("cruise", 1, 18),
+    ("lane_change", 1, 11),
+    ("merge", 1, 7),
+    ("merge", 2, 6),
+    ("overtake", 1, 4),
+    ("right_turn", 1, 7),
+    ("left_turn", 1, 2),
+    ("cut_off", 1, 1),
+    ("urban", 1, 1),
+)
+BUBBLE = Spec(F.replay, "i80_bubble", None, 1, reactive=True)
+
+
+def hidden_specs() -> list[Spec]:
+    specs = [
+        Spec(family, variant, volume, agents)
+        for family, variants, volumes, agent_counts in REACTIVE
+        for variant in variants
+        for agents in agent_counts
+        for volume in volumes
+    ]
+    specs.append(BUBBLE)
+    for kind, agents, count in REPLAYS:
+        specs += [Spec(F.replay, kind, None, agents, reactive=False)] * count
+    return specs
+
+
+def public_specs() -> list[Spec]:
+    """One scenario per family/variant group (alternating volumes), plus every replay kind."""
+    specs = []
+    for family, variants, volumes, agent_counts in REACTIVE:
+        for i, variant in enumerate(variants):
+            agents = agent_counts[i % len(agent_counts)]
+            specs.append(Spec(family, variant, volumes[i % len(volumes)], agents))
+    specs.append(BUBBLE)
+    specs += [Spec(F.replay, kind, None, agents, reactive=False) for kind, agents, _ in REPLAYS]
+    return specs
+
+
+SUITES: dict[str, Callable[[], list[Spec]]] = {"hidden": hidden_specs, "public": public_specs}
+
+
+def derive_seed(suite: str, suite_seed: int, *parts: object) -> int:
+    """A 31-bit seed (SUMO takes int32) from a domain-separated hash."""
+    text = "/".join(["driving-arena", suite, str(suite_seed), *map(str, parts)])
+    return int.from_bytes(hashlib.sha256(text.encode()).digest()[:4], "big") & 0x7FFFFFFF
+
+
+def seed_fingerprint(seed: int) -> str:
+    return hashlib.sha256(f"driving-arena/seed-fingerprint/{seed}".encode()).hexdigest()[:16]
+
+
+def scenario_id(suite: str, index: int, spec: Spec) -> str:
+    parts = [f"{suite[0]}{index:03d}"]
+    if not spec.variant.startswith(spec.family.value):
+        parts.append(spec.family.value)
+    parts.append(spec.variant)
+    if spec.volume:
+        parts.append(spec.volume)
+    if spec.agents > 1:
+        parts.append(f"{spec.agents}agents")
+    return "_".join(parts)
+
+
+@dataclass
+class _ReplayPool:
+    """Removable vehicles per kind, cut from scenes recorded for this build, handed out without
+    reuse."""
+
+    suite: str
+    seed: int
+    maps: MapLibrary
+    pools: dict[str, dict[str, list[Candidate]]]
+    recordings: dict[str, object]
+    used: set[str]
+
+    def take(self, kind: str, agents: int, rng: np.random.Generator) -> tuple[str, Candidate]:
+        scene = KIND_SCENE[kind]
+        if scene not in self.pools:
+            rec = recorded(SCENES[scene], derive_seed(self.suite, self.seed, "scene", scene), self.maps)
+            self.recordings[scene] = rec
+            info = self.maps.info(SCENES[scene].template)
+            self.pools[scene] = candidates(rec, info, scene, SCENES[scene].duration_s)
+        pool = self.pools[scene].get("merge_pair" if agents > 1 else kind, [])
+        free = [c for c in pool if not self.used.intersection(c.vehicle_ids)]
+        if not free:
+            raise RuntimeError(f"scene {scene!r} has no unused {kind!r} vehicle left")
+        chosen = free[int(rng.integers(len(free)))]
+        self.used.update(chosen.vehicle_ids)
+        return scene, chosen
+
+
+def build_suite(
+    suite: str,
+    seed: int,
+    out: Path,
+    cache_dir: Path,
+    progress: Callable[[str], None] = lambda _: None,
+) -> dict:
+    """Write every scenario of ``suite`` under ``out`` plus ``manifest.json``; returns the
+    manifest. ``out`` is replaced."""
+    specs = SUITES[suite]()
+    if out.exists():
+        shutil.rmtree(out)
+    out.mkdir(parents=True)
+    maps = MapLibrary(cache_dir)
+    replays = _ReplayPool(suite, seed, maps, {}, {}, set())
+    entries = []
+    for index, spec in enumerate(specs):
+        sid = scenario_id(suite, index, spec)
+        scenario_seed = derive_seed(suite, seed, index, spec.family, spec.variant, spec.volume)
+        rng = np.random.default_rng(scenario_seed)
+        folder = out / sid
+        if spec.family is F.replay:
+            scene, chosen = replays.take(spec.variant, spec.agents, rng)
+            scenario = write_replay(
+                folder,
+                sid,
+                spec.variant,
+                replays.recordings[scene],
+                chosen,
+                maps.path(SCENES[scene].template),
+                scenario_seed,
+                BUBBLE_RADIUS if spec.reactive else None,
+            )
+        else:
+            draft = GENERATORS[spec.family](spec, rng, maps)
+            scenario = write_reactive(folder, sid, spec, scenario_seed, draft, maps.path(draft.template))
+        entries.append(manifest_entry(scenario, folder))
+        progress(sid)
+    manifest = {"suite": suite, "scenarios": entries}
+    if suite == "public":
+        manifest["seed"] = seed
+    else:
+        manifest["seed_fingerprint"] = seed_fingerprint(seed)
+    write_manifest(out, manifest)
+    return manifest
+
+
+def manifest_entry(scenario: Scenario, folder: Path) -> dict:
+    return {
+        "id": scenario.id,
+        "family": scenario.family.value,
+        "variant": scenario.variant,
+        "volume": scenario.volume,
+        "agents": scenario.agents,
+        "reactive": scenario.reactive,
+        "hash": content_hash(folder),
+        "label": scenario.label.value,
+        "unsolvable_reason": scenario.unsolvable_reason,
+    }
+
+
+def write_manifest(out: Path, manifest: dict) -> None:
+    (Path(out) / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
+
+
+def read_manifest(out: Path) -> dict:
+    path = Path(out) / MANIFEST
+    if not path.exists():
+        raise FileNotFoundError(f"{out} is not a built suite: no {MANIFEST}")
+    return json.loads(path.read_text())
+
+
+def public_suite_dir() -> Path:
+    """The shipped public set (built from :data:`PUBLIC_SEED`, committed in the repository)."""
+    from arena.config import get_settings
+
+    configured = get_settings().public_suite_dir
+    return configured if configured is not None else Path(__file__).parent / "public"
