@@ -30,6 +30,7 @@ class CutInTriggers:
             ego = agent_lane.lane
             if lane is None or lane.edge_id != ego.edge_id or abs(lane.index - ego.index) != 1:
                 continue
-            if 0.0 <= s - agent_lane.s <= trigger.gap_m:
+            centre_s = s - traffic.libsumo.vehicle.getLength(trigger.vehicle) / 2
+            if 0.0 <= centre_s - agent_lane.s <= trigger.gap_m:
                 traffic.force_lane_change(trigger.vehicle, ego.index, trigger.duration_s)
                 self._pending.remove(trigger)

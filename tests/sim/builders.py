@@ -114,6 +114,7 @@ ROUTES_HEAD = (
     '<vType id="car" length="4.5" width="1.8" sigma="0.5"/>'
     '<vType id="reckless" length="4.5" width="1.8" sigma="0" decel="0.5" emergencyDecel="0.5" '
     'apparentDecel="0.5" minGap="0" tau="0.1"/>'
+    '<vType id="steady" length="4.5" width="1.8" sigma="0" speedDev="0"/>'
     '<route id="east" edges="E"/>'
 )
 

@@ -1,0 +1,66 @@
+"""Scripted test agents. Module-level factories so that the isolated runner can pickle them."""
+
+from __future__ import annotations
+
+import os
+import signal
+from collections.abc import Callable
+
+from sim.agent import AgentFailed, DoneReason
+
+Policy = Callable[[dict], list[float]]  # one agent's observation -> its action
+
+
+class ScriptedAgent:
+    """Applies ``policy`` to every agent's observation; keeps every observation it saw."""
+
+    def __init__(self, policy: Policy) -> None:
+        self.policy = policy
+        self.seen: list[dict[str, dict]] = []
+        self.closed = False
+
+    def reset(self) -> None:
+        self.seen = []
+
+    def act(self, obs: dict[str, dict]) -> dict[str, list[float]]:
+        self.seen.append(obs)
+        return {agent_id: self.policy(o) for agent_id, o in obs.items()}
+
+    def close(self) -> None:
+        self.closed = True
+
+    def logs(self) -> str:
+        return f"acted {len(self.seen)} times"
+
+
+def drive_straight(speed: float) -> Policy:
+    """TargetPose: keep heading and lateral position, advance ``speed`` [m/s] x 0.1 s."""
+
+    def policy(obs: dict) -> list[float]:
+        x, y, _ = obs["ego_vehicle_state"]["position"]
+        heading = obs["ego_vehicle_state"]["heading"]
+        return [x + speed * 0.1, y, heading, 0.1]
+
+    return policy
+
+
+def stand_still(obs: dict) -> list[float]:
+    x, y, _ = obs["ego_vehicle_state"]["position"]
+    return [x, y, obs["ego_vehicle_state"]["heading"], 0.1]
+
+
+def cruising_agent() -> ScriptedAgent:
+    return ScriptedAgent(drive_straight(10.0))
+
+
+class _Crashing(ScriptedAgent):
+    def act(self, obs):
+        os.kill(os.getpid(), signal.SIGSEGV)  # what a segfaulting SUMO does to its process
+
+
+def crashing_agent() -> ScriptedAgent:
+    return _Crashing(stand_still)
+
+
+def agent_that_times_out_at_init() -> ScriptedAgent:
+    raise AgentFailed(DoneReason.init_timeout, "Policy() took more than 60 s")

@@ -1,0 +1,36 @@
+import math
+
+import numpy as np
+from shapely.geometry import Polygon
+
+from sim.geometry import box_corners, boxes_overlap, wrap
+
+
+def box(x, y, heading, length=4.5, width=1.8):
+    return box_corners(np.array([x]), np.array([y]), np.array([heading]), length, width)
+
+
+def test_side_by_side_overlap_is_detected():
+    ego = box(0.0, 0.0, 0.0)[0]
+    # Side swipe: centres 1.7 m apart laterally, bodies 1.8 m wide -> 0.1 m overlap.
+    assert boxes_overlap(ego, box(1.0, 1.7, 0.0)).tolist() == [True]
+    assert boxes_overlap(ego, box(1.0, 1.9, 0.0)).tolist() == [False]
+
+
+def test_overlap_agrees_with_polygon_intersection():
+    # Random rotated boxes against an exact polygon test (shapely).
+    rng = np.random.default_rng(7)
+    n = 400
+    x, y = rng.uniform(-6, 6, n), rng.uniform(-4, 4, n)
+    heading = rng.uniform(-math.pi, math.pi, n)
+    others = box_corners(x, y, heading, np.full(n, 4.5), np.full(n, 1.8))
+    ego = box(0.0, 0.0, 0.3)[0]
+    expected = [Polygon(ego).intersects(Polygon(c)) for c in others]
+    assert boxes_overlap(ego, others).tolist() == expected
+    assert 50 < sum(expected) < n - 50  # both outcomes are exercised
+
+
+def test_wrap_is_half_open_interval():
+    assert wrap(math.pi) == math.pi
+    assert wrap(-math.pi) == math.pi
+    assert wrap(3 * math.pi / 2) == -math.pi / 2

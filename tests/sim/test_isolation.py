@@ -1,0 +1,73 @@
+"""Episodes in a child process: results come back, crashes become simulator_error."""
+
+from functools import partial
+
+import numpy as np
+
+from sim.agent import DoneReason
+from sim.interface import AgentInterface
+from sim.isolation import run_episode_isolated
+from tests.sim.agents import (
+    ScriptedAgent,
+    agent_that_times_out_at_init,
+    crashing_agent,
+    cruising_agent,
+    stand_still,
+)
+from tests.sim.builders import ScenarioSpec, make_scenario
+
+
+def test_isolated_episode_returns_the_result_and_agent_log(tmp_path):
+    folder = make_scenario(tmp_path / "sc", ScenarioSpec())
+    record = tmp_path / "out" / "sc.npz"
+    result = run_episode_isolated(folder, cruising_agent, AgentInterface(), record_path=record)
+    assert result.simulator_error is None
+    assert result.agents[0].reason is DoneReason.reached_goal
+    assert result.extra["agent_log"] == f"acted {result.steps} times"
+    with np.load(record) as data:
+        assert int(data["steps"][0]) == result.agents[0].steps
+
+
+def test_picklable_partial_factory(tmp_path):
+    folder = make_scenario(tmp_path / "sc", ScenarioSpec(max_episode_steps=20))
+    result = run_episode_isolated(
+        folder,
+        partial(ScriptedAgent, stand_still),
+        AgentInterface(),
+        record_path=tmp_path / "r.npz",
+    )
+    assert result.agents[0].reason is DoneReason.max_episode_steps and result.steps == 20
+
+
+def test_a_crashing_process_yields_simulator_error(tmp_path):
+    folder = make_scenario(tmp_path / "sc", ScenarioSpec())
+    result = run_episode_isolated(
+        folder, crashing_agent, AgentInterface(), record_path=tmp_path / "r.npz"
+    )
+    assert result.simulator_error and "exit code -11" in result.simulator_error
+    assert [a.reason for a in result.agents] == [DoneReason.simulator_error]
+    assert result.record_path is None
+
+
+def test_sumo_failing_on_corrupt_input_yields_simulator_error(tmp_path):
+    folder = make_scenario(tmp_path / "sc", ScenarioSpec())
+    (folder / "traffic.rou.xml").write_text("<routes><vehicle id='x' route='nowhere'/></routes>")
+    result = run_episode_isolated(
+        folder, cruising_agent, AgentInterface(), record_path=tmp_path / "r.npz"
+    )
+    assert result.simulator_error and "SumoError" in result.simulator_error
+    assert [a.reason for a in result.agents] == [DoneReason.simulator_error]
+    assert "Traceback" in result.detail
+
+
+def test_agent_failing_at_init_fails_every_agent_and_still_writes_the_record(tmp_path):
+    folder = make_scenario(tmp_path / "sc", ScenarioSpec())
+    record = tmp_path / "r.npz"
+    result = run_episode_isolated(
+        folder, agent_that_times_out_at_init, AgentInterface(), record_path=record
+    )
+    assert result.simulator_error is None
+    assert [(a.reason, a.steps) for a in result.agents] == [(DoneReason.init_timeout, 0)]
+    with np.load(record) as data:
+        assert list(data["done_reason"]) == ["init_timeout"]
+        assert data["x"].shape == (1, 0)

@@ -1,0 +1,69 @@
+import math
+
+import numpy as np
+import pytest
+
+from sim.road import RoadNetwork
+from sim.road.waypoints import waypoint_paths
+from tests.sim.builders import LANE_WIDTH, build_net, lane_y, straight_road
+
+
+@pytest.fixture(scope="module")
+def road(tmp_path_factory) -> RoadNetwork:
+    return RoadNetwork.load(straight_road(tmp_path_factory.mktemp("road")))
+
+
+def test_lanes_have_shape_width_speed_and_direction(road):
+    east = road.lanes["E_1"]
+    assert east.edge_id == "E" and east.index == 1 and not east.is_internal
+    assert east.width == pytest.approx(LANE_WIDTH) and east.speed_limit == pytest.approx(13.89)
+    assert east.centreline[:, 1] == pytest.approx(lane_y(1))
+    assert east.heading_start == pytest.approx(0.0)
+    assert road.lanes["W_0"].heading_start == pytest.approx(math.pi)
+
+
+def test_nearest_lane_gives_lane_coordinates(road):
+    pos = road.nearest_lane(100.0, lane_y(1) + 0.7, 0.0)
+    assert pos.lane.id == "E_1"
+    assert pos.t == pytest.approx(0.7)  # left of the centreline is positive
+    assert pos.s == pytest.approx(100.0 - road.lanes["E_1"].centreline[0, 0])
+    assert road.nearest_lane(100.0, 1.0, 0.0).lane.id == "W_0"
+    lanes = road.nearest_lanes(np.array([[50.0, lane_y(0)], [60.0, 1.6]]))
+    assert [lane.id for lane in lanes] == ["E_0", "W_0"]
+
+
+def test_drivable_area_covers_lanes_only(road):
+    assert road.is_on_road(100.0, lane_y(0) - 1.5)
+    assert not road.is_on_road(100.0, lane_y(0) - 1.7)
+    assert not road.is_on_road(100.0, 20.0)
+
+
+def test_waypoint_paths_follow_each_lane_ahead(road):
+    pos = road.nearest_lane(100.3, lane_y(1), 0.0)
+    paths = waypoint_paths(road, pos, 100.3, lane_y(1), ("E",), 4, 50)
+    assert [p[0]["lane_id"] for p in paths] == ["E_0", "E_1"]
+    for path in paths:
+        assert len(path) == 50
+        xs = np.array([w["pos"][0] for w in path])
+        assert np.diff(xs) == pytest.approx(1.0)
+        assert 100.3 <= xs[0] <= 101.3
+
+
+def test_junction_lanes_and_areas(tmp_path):
+    # A T-junction: the internal lanes join the arms, and the junction polygon is not a lane.
+    net = build_net(
+        tmp_path,
+        [("a", -100.0, 0.0), ("c", 0.0, 0.0), ("b", 100.0, 0.0), ("s", 0.0, -100.0)],
+        [
+            {"id": "in", "from": "a", "to": "c", "numLanes": 1},
+            {"id": "out", "from": "c", "to": "b", "numLanes": 1},
+            {"id": "down", "from": "c", "to": "s", "numLanes": 1},
+        ],
+    )
+    road = RoadNetwork.load(net)
+    assert road.junction_polygons
+    internal = [lane for lane in road.lanes.values() if lane.is_internal]
+    assert internal
+    assert road.in_junction(0.0, -2.0)
+    successors = {road.lanes[s].successors[0] for s in road.lanes["in_0"].successors}
+    assert successors == {"out_0", "down_0"}
