@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import stat
 import subprocess
 from pathlib import Path
 
@@ -54,6 +55,20 @@ def root_layout() -> list[str]:
     return arguments
 
 
+def require_reachable(path: Path) -> None:
+    """bubblewrap binds as uid 65534: every folder above ``path`` must let others enter it."""
+    if os.geteuid() != 0:
+        return
+    for folder in [*reversed(path.parents), path]:
+        mode = folder.stat().st_mode
+        if not mode & stat.S_IXOTH or (folder == path and not mode & stat.S_IROTH):
+            raise SandboxUnavailable(
+                f"the bubblewrap sandbox runs as uid {UNPRIVILEGED_ID}, which cannot enter "
+                f"{folder} (mode {stat.S_IMODE(mode):o}): keep submissions and the data dir "
+                f"under folders others may enter (chmod o+rx)"
+            )
+
+
 class BubblewrapBackend:
     kind = SandboxKind.bubblewrap
 
@@ -71,25 +86,24 @@ class BubblewrapBackend:
 
     def launch(self, spec: LaunchSpec) -> PopenSandbox:
         settings = spec.settings
-        bound = {SUBMISSION_MOUNT: spec.submission, RUNNER_MOUNT: RUNNER_PATH}
+        binds = {SUBMISSION_MOUNT: spec.submission}
         if spec.deps:
-            bound[DEPS_MOUNT] = spec.deps
-        # Bound through descriptors opened here, so the unprivileged bwrap needs no search
-        # permission on the folders above them (pytest's 0700 tmp, a root-only data dir).
-        fds = {
-            target: os.open(source, os.O_PATH | os.O_CLOEXEC) for target, source in bound.items()
-        }
+            binds[DEPS_MOUNT] = spec.deps
+        for source in binds.values():
+            require_reachable(source)
+        # The runner goes in as data read from a descriptor: it may live under a root-only
+        # prefix (a virtualenv in /root) that uid 65534 cannot enter.
+        runner_fd = os.open(RUNNER_PATH, os.O_RDONLY | os.O_CLOEXEC)
+        dropping = os.geteuid() == 0
         try:
-            command = self.command(spec, fds)
-            dropping = os.geteuid() == 0
             process = subprocess.Popen(
-                command,
+                self.command(spec, binds, runner_fd),
                 stdin=subprocess.PIPE,
                 stdout=subprocess.PIPE,
                 stderr=subprocess.PIPE,
                 cwd="/",
                 env={"PATH": os.defpath, LABELS_ENV: encode_labels(spec.all_labels)},
-                pass_fds=tuple(fds.values()),
+                pass_fds=(runner_fd,),
                 start_new_session=True,
                 preexec_fn=rlimit_setter(settings.agent_memory_bytes, settings.agent_pids),
                 user=UNPRIVILEGED_ID if dropping else None,
@@ -99,16 +113,15 @@ class BubblewrapBackend:
         except OSError as error:
             raise SandboxUnavailable(f"cannot start bubblewrap: {error}") from error
         finally:
-            for fd in fds.values():
-                os.close(fd)
+            os.close(runner_fd)
         return PopenSandbox(process, settings.agent_log_tail_bytes)
 
     @staticmethod
-    def command(spec: LaunchSpec, fds: dict[str, int]) -> list[str]:
+    def command(spec: LaunchSpec, binds: dict[str, Path], runner_fd: int) -> list[str]:
         settings = spec.settings
-        binds = []
-        for target, fd in fds.items():
-            binds += ["--ro-bind-fd", str(fd), target]
+        mounts = ["--perms", "0444", "--ro-bind-data", str(runner_fd), RUNNER_MOUNT]
+        for target, source in binds.items():
+            mounts += ["--ro-bind", str(source), target]
         environment = []
         for key, value in RUNTIME_ENV.items():
             environment += ["--setenv", key, value]
@@ -136,7 +149,7 @@ class BubblewrapBackend:
             "/tmp",
             "--dir",
             "/opt/arena",
-            *binds,
+            *mounts,
             "--remount-ro",
             "/",
             "--chdir",
@@ -145,6 +158,10 @@ class BubblewrapBackend:
             "--setenv",
             "PATH",
             "/usr/bin:/bin",
+            # Inside too, so cleanup() finds the agent's own processes, not just bwrap.
+            "--setenv",
+            LABELS_ENV,
+            encode_labels(spec.all_labels),
             *environment,
             str(RUNTIME_PYTHON),
             *spec.runner_args(),

@@ -1,0 +1,90 @@
+"""Fixtures for sandbox tests: real sandboxes of each backend, unique labels, leftover checks."""
+
+from __future__ import annotations
+
+import tempfile
+import uuid
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from arena.config import SandboxKind, Settings
+from evaluator.sandbox import backend, start
+from evaluator.sandbox.backend import SANDBOX_LABEL
+from evaluator.sandbox.subprocess_sandbox import labelled_pids
+from submissions.intake.archive import remove_tree
+from tests.sandbox.agents import agent, observation
+
+ISOLATING = [
+    pytest.param(SandboxKind.bubblewrap, marks=pytest.mark.bwrap, id="bubblewrap"),
+    pytest.param(SandboxKind.docker, marks=pytest.mark.docker, id="docker"),
+]
+ALL_KINDS = [*ISOLATING, pytest.param(SandboxKind.process, id="process")]
+
+
+@pytest.fixture(scope="session")
+def sandbox_base() -> Iterator[Path]:
+    """A folder the sandbox uid may enter (pytest's own tmp is private to root)."""
+    base = Path(tempfile.mkdtemp(prefix="arena-sandbox-tests-"))
+    base.chmod(0o755)
+    yield base
+    remove_tree(base)
+
+
+@pytest.fixture(scope="session")
+def settings(sandbox_base: Path) -> Settings:
+    return Settings(data_dir=sandbox_base / "data", init_timeout_s=20.0, step_timeout_s=1.0)
+
+
+def usable(kind: SandboxKind, settings: Settings) -> SandboxKind:
+    reason = backend(kind).unavailable_reason(settings)
+    if reason is not None:
+        pytest.skip(f"{kind.value} sandbox unavailable here: {reason}")
+    return kind
+
+
+@pytest.fixture(params=ISOLATING)
+def kind(request: pytest.FixtureRequest, settings: Settings) -> SandboxKind:
+    return usable(request.param, settings)
+
+
+@pytest.fixture(params=ALL_KINDS)
+def any_kind(request: pytest.FixtureRequest, settings: Settings) -> SandboxKind:
+    return usable(request.param, settings)
+
+
+@pytest.fixture
+def labels() -> dict[str, str]:
+    return {"driving-arena.test": uuid.uuid4().hex}
+
+
+@pytest.fixture(scope="session")
+def good_agent(sandbox_base: Path, settings: Settings):
+    return agent(sandbox_base / "good", settings)
+
+
+def leftovers(kind: SandboxKind, labels: dict[str, str]) -> list:
+    wanted = {SANDBOX_LABEL: "1", **labels}
+    if kind is SandboxKind.docker:
+        from evaluator.sandbox.docker_backend import docker_client
+
+        selector = [f"{key}={value}" for key, value in wanted.items()]
+        return docker_client().containers.list(all=True, filters={"label": selector})
+    return labelled_pids(wanted)
+
+
+def assert_clean_and_healthy(kind: SandboxKind, labels, settings: Settings, good_agent) -> None:
+    """Nothing of the last agent is left, and the next agent on this worker runs fine."""
+    assert leftovers(kind, labels) == []
+    with start(good_agent, kind=kind, labels=labels, settings=settings) as handle:
+        handle.reset()
+        assert handle.act(observation()) == {"Agent_0": [1.0, 0.0]}
+    assert leftovers(kind, labels) == []
+
+
+@pytest.fixture
+def tmp(sandbox_base: Path) -> Path:
+    folder = Path(tempfile.mkdtemp(dir=sandbox_base))
+    folder.chmod(0o755)
+    return folder
