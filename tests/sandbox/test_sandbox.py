@@ -1,0 +1,135 @@
+"""The sandbox as the evaluator uses it: examples run, observations and logs cross intact."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from arena.config import SandboxKind, Settings
+from evaluator.errors import AgentFailure, SandboxUnavailable
+from evaluator.sandbox import check_service_kind, cleanup, resolve_kind, start
+from sim.agent import DoneReason
+from submissions.intake import pack_folder, prepare_submission
+from tests.sandbox.agents import agent, observation
+from tests.sandbox.conftest import leftovers
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "submissions" / "examples"
+
+
+def packed_example(name: str, tmp: Path, settings: Settings):
+    zipped = pack_folder(EXAMPLES / name, tmp / f"{name}.zip")
+    return prepare_submission(zipped, tmp / name, settings)
+
+
+def test_keep_lane_follows_the_lead_vehicle(any_kind, settings, labels, tmp) -> None:
+    submission = packed_example("keep_lane", tmp, settings)
+    with start(submission, kind=any_kind, labels=labels, settings=settings) as handle:
+        handle.reset()
+        actions = handle.act(observation(("Agent_0", "Agent_1")))
+    # The lead is 10 m ahead (centre to centre) at 10 m/s: a 5.5 m gap, below the 8 m minimum.
+    assert actions["Agent_0"] == pytest.approx([10.0 + (5.5 - 8.0) / 1.5, 0.0])
+    assert set(actions) == {"Agent_0", "Agent_1"}
+    assert leftovers(any_kind, labels) == []
+
+
+def test_random_gives_reachable_target_poses(any_kind, settings, labels, tmp) -> None:
+    submission = packed_example("random", tmp, settings)
+    with start(submission, kind=any_kind, labels=labels, settings=settings) as handle:
+        for _ in range(20):
+            x, y, heading, dt = handle.act(observation())["Agent_0"]
+            assert np.hypot(x - 100.0, y) < 2.8 + 10.0 and dt == 0.1 and abs(heading) < 1e-9
+
+
+def test_numpy_rasters_cross_intact(any_kind, settings, labels, tmp) -> None:
+    act = """
+    image = obs['Agent_0']['top_down_rgb']
+    image[0, 0, 0] = 7  # writable, like a local array
+    return {'Agent_0': [float(image.sum()), *image.shape, float(obs['Agent_0']['dt'])]}
+    """
+    submission = agent(tmp, settings, act=act)
+    obs = observation()
+    image = np.arange(64 * 64 * 3, dtype=np.uint8).reshape(64, 64, 3)
+    obs["Agent_0"]["top_down_rgb"] = image
+    obs["Agent_0"]["dt"] = np.float32(0.1)
+    with start(submission, kind=any_kind, labels=labels, settings=settings) as handle:
+        total, *shape, dt = handle.act(obs)["Agent_0"]
+    assert total == float(image.sum()) + 7 - image[0, 0, 0]
+    assert shape == [64, 64, 3] and dt == pytest.approx(0.1)
+
+
+def test_prints_go_to_the_log_not_the_protocol(any_kind, settings, labels, tmp) -> None:
+    act = """
+    print('thinking about', sorted(obs))
+    sys.stdout.flush()
+    os.write(1, b'raw fd 1\\n')
+    return {k: [3.0, 0.0] for k in obs}
+    """
+    submission = agent(tmp, settings, act=act, init="print('loaded')")
+    with start(submission, kind=any_kind, labels=labels, settings=settings) as handle:
+        assert handle.act(observation()) == {"Agent_0": [3.0, 0.0]}
+        handle.close()
+        assert handle.logs() == "loaded\nthinking about ['Agent_0']\nraw fd 1\n"
+
+
+def test_a_failure_carries_the_stderr_tail(any_kind, settings, labels, tmp) -> None:
+    submission = agent(tmp, settings, act="print('about to fail'); 1 / 0")
+    with (
+        pytest.raises(AgentFailure) as caught,
+        start(submission, kind=any_kind, labels=labels, settings=settings) as handle,
+    ):
+        handle.act(observation())
+    assert caught.value.reason is DoneReason.agent_error
+    assert "ZeroDivisionError" in caught.value.detail
+    assert "about to fail" in caught.value.stderr_tail
+    with pytest.raises(AgentFailure):
+        handle.act(observation())
+
+
+def test_cleanup_removes_what_a_crashed_worker_left(kind, settings, labels, good_agent) -> None:
+    handle = start(good_agent, kind=kind, labels=labels, settings=settings)
+    assert leftovers(kind, labels) != []
+    assert cleanup(labels, settings) >= 1
+    assert leftovers(kind, labels) == []
+    with pytest.raises(AgentFailure) as caught:
+        handle.act(observation())
+    assert caught.value.reason is DoneReason.agent_exited
+    handle.close()
+
+
+@pytest.mark.slow
+def test_requirements_are_importable_inside(any_kind, settings, labels, tmp) -> None:
+    folder = tmp / "src"
+    folder.mkdir()
+    (folder / "requirements.txt").write_text("six==1.16.0\n")
+    (folder / "policy.py").write_text(
+        "import six\n\nclass Policy:\n    def act(self, obs):\n"
+        "        return {k: [float(six.PY3), 0.0] for k in obs}\n"
+    )
+    submission = prepare_submission(folder, tmp / "submission", settings)
+    with start(submission, kind=any_kind, labels=labels, settings=settings) as handle:
+        assert handle.act(observation()) == {"Agent_0": [1.0, 0.0]}
+
+
+def test_auto_prefers_docker_and_the_service_refuses_process(settings) -> None:
+    from evaluator.sandbox import backend
+
+    docker_ok = backend(SandboxKind.docker).unavailable_reason(settings) is None
+    expected = SandboxKind.docker if docker_ok else SandboxKind.bubblewrap
+    assert resolve_kind("auto", settings) is expected
+    assert resolve_kind("process", settings) is SandboxKind.process
+    with pytest.raises(SandboxUnavailable, match="does not isolate"):
+        check_service_kind("process", settings)
+    assert check_service_kind("auto", settings) is expected
+
+
+def test_bubblewrap_explains_an_unreachable_submission(settings, tmp_path) -> None:
+    """pytest's tmp is private to root: the sandbox uid could not bind it."""
+    import os
+
+    if os.geteuid() != 0:
+        pytest.skip("only root evaluators drop bubblewrap to uid 65534")
+    hidden = agent(tmp_path, settings)
+    with pytest.raises(SandboxUnavailable, match="cannot enter"):
+        start(hidden, kind=SandboxKind.bubblewrap, settings=settings)
