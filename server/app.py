@@ -29,7 +29,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         yield
         app.state.queue.close()
-        app.state.db.engine.dispose()
+        app.state.db.dispose()
 
     app = FastAPI(
         title="Driving Arena",

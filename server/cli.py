@@ -86,7 +86,7 @@ def teams_list() -> None:
     from server.services import teams
 
     ctx = _Context()
-    with ctx.db.session() as session:
+    with ctx.db.read_session() as session:
         rows = teams.list_teams(session)
     table = Table("id", "team", "submissions", "created")
     for row in rows:
@@ -120,7 +120,7 @@ def submissions_list(limit: int = 50) -> None:
     from server.services import submissions
 
     ctx = _Context()
-    with ctx.db.session() as session:
+    with ctx.db.read_session() as session:
         rows = submissions.list_submissions(session, limit=limit)
     table = Table("id", "team", "track", "method", "status", "progress", "completion", "time")
     for row in rows:
@@ -144,7 +144,7 @@ def submissions_show(submission_id: SubmissionId) -> None:
     from server.services import submissions
 
     ctx = _Context()
-    with ctx.db.session() as session:
+    with ctx.db.read_session() as session:
         submission = _run(lambda: submissions.get_submission(session, submission_id))
         view = submissions.detail(session, submission)
         runs = [
@@ -285,7 +285,7 @@ def leaderboard_export(
     from server.services import leaderboard
 
     ctx = _Context()
-    with ctx.db.session() as session:
+    with ctx.db.read_session() as session:
         text = leaderboard.to_csv(leaderboard.compute(session, Track(track)))
     if out is None:
         typer.echo(text, nl=False)

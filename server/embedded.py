@@ -140,7 +140,7 @@ def _demo_team_token(settings: Settings, name: str) -> str:
             except NotFound:
                 return teams.create_team(session, name)[1]
     finally:
-        db.engine.dispose()
+        db.dispose()
 
 
 def _wait_healthy(url: str, children: list[subprocess.Popen], timeout_s: float = 60.0) -> None:

@@ -38,7 +38,9 @@ def get_leaderboard_cache(request: Request) -> LeaderboardCache:
 
 
 def get_session(db: Annotated[Database, Depends(get_db)]) -> Iterator[Session]:
-    with db.session() as session:
+    """A read session for the request; changes go through service functions, which open their
+    own short write transactions."""
+    with db.read_session() as session:
         yield session
 
 
@@ -61,7 +63,7 @@ def get_current_team(db: DatabaseDep, credentials: Credentials) -> Team:
     open while its body streams in). The returned row is detached: id and name only."""
     if credentials is None:
         raise _unauthorized("send your team token: Authorization: Bearer <token>")
-    with db.session() as session:
+    with db.read_session() as session:
         team = team_for_token(session, credentials.credentials)
         if team is None:
             raise _unauthorized("unknown or revoked team token")

@@ -19,7 +19,9 @@ from sqlalchemy.orm import Session, sessionmaker
 from arena.config import get_settings
 
 
-def make_engine(url: str) -> Engine:
+def make_engine(url: str, *, read_only: bool = False) -> Engine:
+    """An engine for ``url``. On SQLite, ``read_only`` engines begin deferred transactions (WAL
+    readers never wait for writers); the others take the write lock up front."""
     if not url.startswith("sqlite"):
         return create_engine(url, pool_pre_ping=True, pool_size=10, max_overflow=20)
     path = url.removeprefix("sqlite:///")
@@ -40,7 +42,7 @@ def make_engine(url: str) -> Engine:
 
     @event.listens_for(engine, "begin")
     def _on_begin(connection) -> None:
-        connection.exec_driver_sql("BEGIN IMMEDIATE")
+        connection.exec_driver_sql("BEGIN" if read_only else "BEGIN IMMEDIATE")
 
     return engine
 
@@ -52,6 +54,10 @@ class Database:
         self.url = url
         self.engine = make_engine(url)
         self.sessions = sessionmaker(self.engine, expire_on_commit=False)
+        self.read_engine = (
+            make_engine(url, read_only=True) if url.startswith("sqlite") else self.engine
+        )
+        self.read_sessions = sessionmaker(self.read_engine, expire_on_commit=False)
 
     @contextmanager
     def session(self) -> Iterator[Session]:
@@ -59,9 +65,19 @@ class Database:
         with self.sessions() as session, session.begin():
             yield session
 
+    @contextmanager
+    def read_session(self) -> Iterator[Session]:
+        """A session for reading only (request handlers' lookups): never blocks on writers."""
+        with self.read_sessions() as session, session.begin():
+            yield session
+
+    def dispose(self, *, close: bool = True) -> None:
+        self.engine.dispose(close=close)
+        self.read_engine.dispose(close=close)
+
     def after_fork(self) -> None:
         """Drop connections inherited from a parent process (Celery prefork children)."""
-        self.engine.dispose(close=False)
+        self.dispose(close=False)
 
 
 @lru_cache

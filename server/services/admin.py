@@ -67,7 +67,7 @@ def rerun(db: Database, settings: Settings, queue: TaskQueue, submission_id: int
 
 def rescore_targets(db: Database, submission_id: int | None) -> list[int]:
     """Run ids to re-score: the given submission's scored runs, or every scored run."""
-    with db.session() as session:
+    with db.read_session() as session:
         query = select(EvaluationRun.id).where(EvaluationRun.status == RunStatus.scored)
         if submission_id is not None:
             query = query.where(EvaluationRun.submission_id == submission_id)
@@ -108,7 +108,7 @@ class ServiceStatus:
 
 
 def service_status(db: Database, queue: TaskQueue) -> ServiceStatus:
-    with db.session() as session:
+    with db.read_session() as session:
         counts = dict(
             session.execute(
                 select(Submission.status, func.count()).group_by(Submission.status)

@@ -25,10 +25,12 @@ class UploadTooLarge(ServiceError):
     status_code = 413
 
 
-class InvalidUpload(ServiceError):
-    """The upload or the zip inside it was rejected (the intake's message is passed through)."""
-
+class InvalidInput(ServiceError):
     status_code = 422
+
+
+class InvalidUpload(InvalidInput):
+    """The upload or the zip inside it was rejected (the intake's message is passed through)."""
 
 
 class QuotaExceeded(ServiceError):

@@ -134,7 +134,7 @@ class LeaderboardCache:
             cached = self._cached.get(track)
             if cached is not None and time.monotonic() - cached.checked_at < self.recheck_s:
                 return cached
-            with self.db.session() as session:
+            with self.db.read_session() as session:
                 current = generation(session)
                 if cached is None or cached.generation != current:
                     board = compute(session, track)

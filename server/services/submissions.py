@@ -78,11 +78,12 @@ def accept_upload(
     count towards the quota."""
     from evaluator.errors import IntakeError
     from submissions.intake import prepare_submission
+    from submissions.intake.archive import remove_tree
 
     method_name = new.method_name.strip()
     if not method_name or len(method_name) > 128:
         raise InvalidUpload("method_name: give the method a name of 1 to 128 characters")
-    with db.session() as session:
+    with db.read_session() as session:
         check_quota(session, settings, team_id, new.track)
     storage = settings.resolved_data_dir / "submissions" / uuid.uuid4().hex
     storage.mkdir(parents=True)
@@ -90,7 +91,7 @@ def accept_upload(
         zip_path = storage / "upload.zip"
         shutil.move(upload, zip_path)
         try:
-            prepared = prepare_submission(zip_path, storage / "prepared")
+            prepared = prepare_submission(zip_path, storage / "prepared", settings)
         except IntakeError as exc:
             raise InvalidUpload(str(exc)) from exc
         with db.session() as session:
@@ -111,7 +112,7 @@ def accept_upload(
             submission.status = advance(submission.status, S.queued, SUBMISSION_MOVES)
             submission.queued_at = utcnow()
     except BaseException:
-        shutil.rmtree(storage, ignore_errors=True)
+        remove_tree(storage)
         raise
     # After the commit: a worker that picks the task up finds the row. If the broker is down the
     # reaper sends it later.

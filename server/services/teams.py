@@ -10,7 +10,7 @@ from sqlalchemy.orm import Session
 
 from server.models import ApiToken, Submission, Team, utcnow
 from server.security import hash_token, new_token
-from server.services.errors import Conflict, InvalidUpload, NotFound
+from server.services.errors import Conflict, InvalidInput, NotFound
 
 TEAM_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9 _.-]{0,63}$")
 
@@ -26,7 +26,7 @@ class TeamRow:
 def create_team(session: Session, name: str) -> tuple[Team, str]:
     """A new team and its first token (returned in clear once; only its hash is stored)."""
     if not TEAM_NAME.match(name):
-        raise InvalidUpload(
+        raise InvalidInput(
             f"team name {name!r}: use 1-64 letters, digits, spaces, '_', '.' or '-'"
         )
     if session.scalar(select(Team.id).where(Team.name == name)) is not None:

@@ -28,7 +28,7 @@ def disqualify(
     reason: Annotated[str, Body(embed=True)] = "",
 ) -> SubmissionSummary:
     submissions.disqualify(db, queue, submission_id, reason)
-    with db.session() as session:
+    with db.read_session() as session:
         return submissions.summary(session, submissions.get_submission(session, submission_id))
 
 

@@ -14,7 +14,7 @@ router = APIRouter(tags=["health"])
 @router.get("/healthz", response_model=Health)
 def healthz(db: DatabaseDep, queue: QueueDep, response: Response) -> Health:
     try:
-        with db.session() as session:
+        with db.read_session() as session:
             session.execute(text("SELECT 1"))
         database = True
     except Exception:

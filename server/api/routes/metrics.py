@@ -31,7 +31,7 @@ class ArenaCollector:
         except Exception:
             depth.add_metric([], float("nan"))
         yield depth
-        with self.db.session() as session:
+        with self.db.read_session() as session:
             running = session.scalar(
                 select(func.count())
                 .select_from(EvaluationRun)

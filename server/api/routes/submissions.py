@@ -47,7 +47,7 @@ async def create_submission(
         )
     finally:
         form.file_path.unlink(missing_ok=True)
-    with db.session() as session:
+    with db.read_session() as session:
         return submissions.detail(session, submissions.get_submission(session, created.id))
 
 
@@ -73,5 +73,5 @@ def cancel_submission(
     submission: OwnedSubmission, db: DatabaseDep, queue: QueueDep
 ) -> SubmissionSummary:
     submissions.cancel(db, queue, submission.id)
-    with db.session() as session:
+    with db.read_session() as session:
         return submissions.summary(session, submissions.get_submission(session, submission.id))

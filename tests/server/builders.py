@@ -1,0 +1,94 @@
+"""Small builders of service test data."""
+
+from __future__ import annotations
+
+import json
+from datetime import datetime, timedelta
+from pathlib import Path
+
+from server.core.db import Database
+from server.models import EvaluationRun, Score, Submission, Track, utcnow
+from server.services import evaluation, teams
+from server.status import RunStatus, SubmissionStatus
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "submissions" / "examples"
+METRICS = ("completion", "time", "humanness", "rules")
+
+
+def write_suite(root: Path, families: dict[str, int]) -> Path:
+    """A suite folder with a manifest and empty scenario folders (enough for the bookkeeping;
+    the end-to-end tests use real scenarios)."""
+    entries = []
+    for family, count in families.items():
+        for k in range(count):
+            sid = f"hidden_{family}_{k}"
+            (root / sid).mkdir(parents=True)
+            entries.append({"id": sid, "family": family, "hash": sid})
+    (root / "manifest.json").write_text(json.dumps({"suite": "hidden", "scenarios": entries}))
+    return root
+
+
+def make_team(db: Database, name: str) -> tuple[int, str]:
+    with db.session() as session:
+        team, token = teams.create_team(session, name)
+        return team.id, token
+
+
+def bearer(token: str) -> dict[str, str]:
+    return {"Authorization": f"Bearer {token}"}
+
+
+def pack_example(name: str, out_dir: Path) -> Path:
+    from submissions.intake import pack_folder
+
+    return pack_folder(EXAMPLES / name, out_dir / f"{name}.zip")
+
+
+def seed_scored(
+    db: Database,
+    team_id: int,
+    metrics: tuple[float, float, float, float],
+    *,
+    track: Track = Track.freestyle,
+    created_at: datetime | None = None,
+    method_name: str = "method",
+    families: dict | None = None,
+    status: SubmissionStatus = SubmissionStatus.scored,
+) -> int:
+    """A submission with one scored run and its score, as if a worker had evaluated it."""
+    created_at = created_at or utcnow()
+    with db.session() as session:
+        submission = Submission(
+            team_id=team_id,
+            track=track,
+            method_name=method_name,
+            file_sha256="0" * 64,
+            file_size=1,
+            storage_dir="/nonexistent",
+            status=status,
+            created_at=created_at,
+            started_at=created_at + timedelta(seconds=1),
+        )
+        session.add(submission)
+        session.flush()
+        run = EvaluationRun(
+            submission_id=submission.id,
+            attempt=1,
+            status=RunStatus.scored,
+            suite_dir="/nonexistent",
+            manifest_sha256="0" * 64,
+            scenario_count=1,
+            scoring_profile="driving-smarts-2022",
+        )
+        session.add(run)
+        session.flush()
+        session.add(
+            Score(
+                run_id=run.id,
+                profile="driving-smarts-2022",
+                families=families or {},
+                **dict(zip(METRICS, metrics, strict=True)),
+            )
+        )
+        evaluation.bump_leaderboard(session)
+        return submission.id

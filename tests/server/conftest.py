@@ -1,0 +1,101 @@
+"""Fixtures of the service tests: every database test runs on SQLite and on PostgreSQL (a fresh
+database per session, dropped at the end); tasks go to the shared Redis under a key prefix of
+this session, removed at the end."""
+
+from __future__ import annotations
+
+import uuid
+from collections.abc import Iterator
+from pathlib import Path
+
+import psycopg
+import pytest
+import redis
+from fastapi.testclient import TestClient
+from sqlalchemy import text
+
+from arena.config import Settings
+from server.app import create_app
+from server.core.db import Database
+from server.core.migrate import upgrade_database
+from server.models import Base
+from tests.server.builders import write_suite
+
+POSTGRES_ADMIN = "postgresql://postgres@127.0.0.1:5432/test"
+REDIS_URL = "redis://127.0.0.1:6379/0"
+ADMIN_TOKEN = "admin-secret-for-tests"
+
+
+def _create_pg_database() -> tuple[str, str]:
+    name = f"arena_test_{uuid.uuid4().hex[:10]}"
+    with psycopg.connect(POSTGRES_ADMIN, autocommit=True) as connection:
+        connection.execute(f'CREATE DATABASE "{name}"')
+    return name, f"postgresql+psycopg://postgres@127.0.0.1:5432/{name}"
+
+
+def _drop_pg_database(name: str) -> None:
+    with psycopg.connect(POSTGRES_ADMIN, autocommit=True) as connection:
+        connection.execute(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
+
+
+@pytest.fixture(scope="session", params=["sqlite", "postgresql"])
+def database_url(request, tmp_path_factory) -> Iterator[str]:
+    if request.param == "sqlite":
+        url = f"sqlite:///{tmp_path_factory.mktemp('sqlite') / 'arena.db'}"
+        upgrade_database(url)
+        yield url
+        return
+    name, url = _create_pg_database()
+    try:
+        upgrade_database(url)
+        yield url
+    finally:
+        _drop_pg_database(name)
+
+
+@pytest.fixture(scope="session")
+def broker_prefix() -> Iterator[str]:
+    prefix = f"arena-test-{uuid.uuid4().hex[:8]}:"
+    yield prefix
+    client = redis.Redis.from_url(REDIS_URL)
+    keys = list(client.scan_iter(f"{prefix}*"))
+    if keys:
+        client.delete(*keys)
+
+
+@pytest.fixture
+def suite_dir(tmp_path) -> Path:
+    return write_suite(tmp_path / "suite", {"cruise": 2, "merge": 1})
+
+
+@pytest.fixture
+def settings(tmp_path, database_url, broker_prefix, suite_dir) -> Settings:
+    return Settings(
+        _env_file=None,
+        data_dir=tmp_path / "data",
+        database_url=database_url,
+        broker_url=REDIS_URL,
+        broker_key_prefix=broker_prefix,
+        hidden_suite_dir=suite_dir,
+        public_suite_dir=suite_dir,
+        admin_token=ADMIN_TOKEN,
+        daily_quota=3,
+        lease_seconds=60,
+    )
+
+
+@pytest.fixture
+def db(settings) -> Iterator[Database]:
+    database = Database(settings.database_url)
+    yield database
+    # Empty every table (children first) so the next test starts clean on the shared database.
+    with database.session() as session:
+        for table in reversed(Base.metadata.sorted_tables):
+            session.execute(text(f"DELETE FROM {table.name}"))
+    database.dispose()
+
+
+@pytest.fixture
+def client(settings, db) -> Iterator[TestClient]:
+    with TestClient(create_app(settings)) as test_client:
+        yield test_client

@@ -1,0 +1,170 @@
+"""POST/GET /submissions over HTTP with the real intake, database and broker: uploads, rejections,
+authentication, ownership, quotas and cancel."""
+
+from __future__ import annotations
+
+import io
+import zipfile
+
+import pytest
+from sqlalchemy import func, select
+
+from server.models import Submission
+from server.services import evaluation
+from server.status import SubmissionStatus
+from tests.server.builders import bearer, make_team, pack_example
+
+
+def upload(client, token, payload: bytes, *, track="freestyle", method="keep lane"):
+    return client.post(
+        "/api/v1/submissions",
+        headers=bearer(token),
+        data={"track": track, "method_name": method, "description": "test"},
+        files={"file": ("agent.zip", payload, "application/zip")},
+    )
+
+
+def zip_bytes(entries: dict[str, bytes]) -> bytes:
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w") as archive:
+        for name, data in entries.items():
+            info = zipfile.ZipInfo(name)
+            info.external_attr = 0o100644 << 16  # a regular file, as zip tools write it
+            archive.writestr(info, data)
+    return buffer.getvalue()
+
+
+@pytest.fixture
+def keep_lane_zip(tmp_path) -> bytes:
+    return pack_example("keep_lane", tmp_path).read_bytes()
+
+
+def count_submissions(db) -> int:
+    with db.session() as session:
+        return session.scalar(select(func.count()).select_from(Submission))
+
+
+def test_upload_is_checked_stored_and_queued(client, db, settings, keep_lane_zip):
+    _, token = make_team(db, "alpha")
+    response = upload(client, token, keep_lane_zip)
+    assert response.status_code == 201, response.text
+    body = response.json()
+    assert body["status"] == "queued"
+    assert body["team"] == "alpha"
+    assert body["file_size"] == len(keep_lane_zip)
+    assert body["progress"] == {"done": 0, "total": 0}
+    listed = client.get("/api/v1/submissions", headers=bearer(token)).json()
+    assert [item["id"] for item in listed] == [body["id"]]
+    with db.session() as session:
+        stored = session.get(Submission, body["id"])
+        assert (settings.resolved_data_dir / stored.storage_dir / "upload.zip").is_file()
+
+
+@pytest.mark.parametrize(
+    "payload,needle",
+    [
+        (b"this is not a zip", ""),
+        (zip_bytes({"agent.yaml": b"action_space: TargetPose\n"}), "policy.py"),
+        (zip_bytes({"policy.py": b"class Policy(:\n"}), "policy.py"),
+        (zip_bytes({"../evil.py": b"x = 1\n", "policy.py": b"class Policy: pass\n"}), "evil"),
+    ],
+    ids=["not-a-zip", "no-policy", "syntax-error", "zip-slip"],
+)
+def test_malformed_upload_gets_422_with_the_intake_message(client, db, payload, needle):
+    _, token = make_team(db, "alpha")
+    response = upload(client, token, payload)
+    assert response.status_code == 422
+    detail = response.json()["detail"]
+    assert "[rule:" in detail and needle in detail
+    assert count_submissions(db) == 0
+
+
+def test_upload_without_file_or_with_a_bad_track_is_rejected(client, db, keep_lane_zip):
+    _, token = make_team(db, "alpha")
+    response = client.post(
+        "/api/v1/submissions", headers=bearer(token), data={"method_name": "x"}, files={}
+    )
+    assert response.status_code == 422
+    assert upload(client, token, keep_lane_zip, track="nascar").status_code == 422
+    assert upload(client, token, keep_lane_zip, method="  ").status_code == 422
+    assert count_submissions(db) == 0
+
+
+def test_missing_or_unknown_token_is_401(client, db, keep_lane_zip):
+    assert client.get("/api/v1/submissions").status_code == 401
+    assert client.get("/api/v1/submissions", headers=bearer("arena_nope")).status_code == 401
+    assert upload(client, "arena_nope", keep_lane_zip).status_code == 401
+
+
+def test_rotated_token_stops_working(client, db):
+    from server.services import teams
+
+    _, old = make_team(db, "alpha")
+    with db.session() as session:
+        new = teams.rotate_token(session, teams.get_team(session, "alpha"))
+    assert client.get("/api/v1/submissions", headers=bearer(old)).status_code == 401
+    assert client.get("/api/v1/submissions", headers=bearer(new)).status_code == 200
+
+
+def test_a_team_never_sees_another_teams_submission(client, db, keep_lane_zip):
+    _, token_a = make_team(db, "alpha")
+    _, token_b = make_team(db, "bravo")
+    sid = upload(client, token_a, keep_lane_zip).json()["id"]
+    for path in (f"/api/v1/submissions/{sid}", f"/api/v1/submissions/{sid}/logs"):
+        assert client.get(path, headers=bearer(token_a)).status_code == 200
+        response = client.get(path, headers=bearer(token_b))
+        assert response.status_code == 404
+        assert "alpha" not in response.text
+    assert client.post(f"/api/v1/submissions/{sid}/cancel", headers=bearer(token_b)).status_code == 404
+    assert client.get("/api/v1/submissions", headers=bearer(token_b)).json() == []
+
+
+def test_daily_quota_per_team_and_track(client, db, settings, keep_lane_zip):
+    _, token = make_team(db, "alpha")
+    ids = [upload(client, token, keep_lane_zip).json()["id"] for _ in range(settings.daily_quota)]
+    response = upload(client, token, keep_lane_zip)
+    assert response.status_code == 429
+    assert "quota" in response.json()["detail"]
+    # Another track has its own quota.
+    assert upload(client, token, keep_lane_zip, track="offline").status_code == 201
+    # Cancelled before it started: does not count.
+    assert client.post(f"/api/v1/submissions/{ids[0]}/cancel", headers=bearer(token)).status_code == 200
+    assert upload(client, token, keep_lane_zip).status_code == 201
+    assert upload(client, token, keep_lane_zip).status_code == 429
+    # Failed: does not count either.
+    with db.session() as session:
+        submission = evaluation.lock(session, Submission, ids[1])
+        submission.status = SubmissionStatus.failed
+    assert upload(client, token, keep_lane_zip).status_code == 201
+
+
+def test_cancel_once_then_conflict(client, db, keep_lane_zip):
+    _, token = make_team(db, "alpha")
+    sid = upload(client, token, keep_lane_zip).json()["id"]
+    response = client.post(f"/api/v1/submissions/{sid}/cancel", headers=bearer(token))
+    assert response.status_code == 200
+    assert response.json()["status"] == "cancelled"
+    again = client.post(f"/api/v1/submissions/{sid}/cancel", headers=bearer(token))
+    assert again.status_code == 409
+
+
+def test_upload_declared_over_the_cap_is_refused_before_reading(client, db, settings):
+    _, token = make_team(db, "alpha")
+    too_big = settings.max_zip_bytes + 50 * 2**20
+
+    def body():  # never consumed: the declared length is enough to refuse
+        raise AssertionError("the server read the body of an oversized upload")
+        yield b""
+
+    response = client.post(
+        "/api/v1/submissions",
+        headers={
+            **bearer(token),
+            "Content-Type": "multipart/form-data; boundary=x",
+            "Content-Length": str(too_big),
+        },
+        content=body(),
+    )
+    assert response.status_code == 413
+    assert "MiB" in response.json()["detail"]
+    assert count_submissions(db) == 0

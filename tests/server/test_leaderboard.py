@@ -1,0 +1,87 @@
+"""Leaderboard ranking (the scoring spec's order, through evaluator.scoring.rank), best submission
+per team, the cache and its invalidation, CSV."""
+
+from __future__ import annotations
+
+import csv
+import io
+from datetime import timedelta
+
+from server.models import Track, utcnow
+from server.services import submissions
+from server.services.leaderboard import LeaderboardCache
+from server.services.queue import TaskQueue
+from server.status import SubmissionStatus
+from tests.server.builders import make_team, seed_scored
+
+
+def board(client, track="freestyle"):
+    response = client.get("/api/v1/leaderboard", params={"track": track})
+    assert response.status_code == 200
+    return response.json()["entries"]
+
+
+def test_lexicographic_order_best_per_team_ties_to_the_earlier(client, db):
+    t0 = utcnow() - timedelta(hours=5)
+    teams = {name: make_team(db, name)[0] for name in ("a", "b", "c", "d", "e")}
+    # completion decides first, even against a far better time.
+    seed_scored(db, teams["a"], (0.5, 100.0, 0.1, 0.0), created_at=t0)
+    seed_scored(db, teams["b"], (0.25, 700.0, 0.9, 0.9), created_at=t0)
+    # Same completion: time breaks the tie; then humanness.
+    seed_scored(db, teams["c"], (0.25, 600.0, 0.9, 0.9), created_at=t0)
+    seed_scored(db, teams["d"], (0.25, 600.0, 0.8, 0.9), created_at=t0 + timedelta(hours=1))
+    # A full tie with d goes to the earlier submission (d).
+    seed_scored(db, teams["e"], (0.25, 600.0, 0.8, 0.9), created_at=t0 + timedelta(hours=2))
+    # Team a's better second submission replaces its first; its worse third does not.
+    best_a = seed_scored(db, teams["a"], (0.0, 300.0, 0.5, 0.5), created_at=t0 + timedelta(hours=3))
+    seed_scored(db, teams["a"], (0.75, 300.0, 0.5, 0.5), created_at=t0 + timedelta(hours=4))
+    # Unscored and disqualified submissions are never ranked; another track is separate.
+    seed_scored(db, teams["b"], (0.0, 1.0, 0.0, 0.0), status=SubmissionStatus.disqualified)
+    seed_scored(db, teams["c"], (0.0, 1.0, 0.0, 0.0), status=SubmissionStatus.running)
+    seed_scored(db, teams["e"], (0.0, 1.0, 0.0, 0.0), track=Track.offline)
+    entries = board(client)
+    assert [e["team"] for e in entries] == ["a", "d", "e", "c", "b"]
+    assert [e["rank"] for e in entries] == [1, 2, 3, 4, 5]
+    assert entries[0]["submission_id"] == best_a
+    assert [e["team"] for e in board(client, "offline")] == ["e"]
+
+
+def test_leaderboard_shows_per_family_metrics(client, db):
+    team, _ = make_team(db, "a")
+    families = {"merge": {"completion": 0.5, "time": 500.0, "humanness": 0.2, "rules": 0.0,
+                          "scenarios": 2}}
+    seed_scored(db, team, (0.5, 500.0, 0.2, 0.0), families=families)
+    assert board(client)[0]["families"] == families
+
+
+def test_cache_serves_until_a_score_changes_the_generation(settings, db):
+    team, _ = make_team(db, "a")
+    cache = LeaderboardCache(db, recheck_s=3600)
+    assert cache.get(Track.freestyle).board.entries == []
+    seed_scored(db, team, (0.5, 500.0, 0.2, 0.0))
+    # Within the re-check interval the cached board is served as it was...
+    assert cache.get(Track.freestyle).board.entries == []
+    # ...and once the generation is looked at again, the new score shows.
+    cache.recheck_s = 0
+    assert [e.team for e in cache.get(Track.freestyle).board.entries] == ["a"]
+
+
+def test_disqualification_drops_the_entry(client, db, settings):
+    team, _ = make_team(db, "a")
+    sid = seed_scored(db, team, (0.5, 500.0, 0.2, 0.0))
+    client.app.state.leaderboard.recheck_s = 0
+    assert len(board(client)) == 1
+    submissions.disqualify(db, TaskQueue(settings), sid, "copied")
+    assert board(client) == []
+
+
+def test_csv_export(client, db):
+    team, _ = make_team(db, "a b")
+    seed_scored(db, team, (0.25, 412.5, 0.125, 0.0), method_name='lanes, "best"')
+    response = client.get("/api/v1/leaderboard.csv")
+    assert response.status_code == 200
+    assert response.headers["content-type"].startswith("text/csv")
+    rows = list(csv.DictReader(io.StringIO(response.text)))
+    assert rows[0]["team"] == "a b"
+    assert rows[0]["method_name"] == 'lanes, "best"'
+    assert float(rows[0]["time"]) == 412.5

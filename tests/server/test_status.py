@@ -1,0 +1,58 @@
+"""The status state machine: legal moves pass, everything else (in particular any move
+backwards) is refused."""
+
+from __future__ import annotations
+
+import itertools
+
+import pytest
+
+from server.status import (
+    RUN_MOVES,
+    SUBMISSION_MOVES,
+    IllegalTransition,
+    RunStatus,
+    SubmissionStatus,
+    advance,
+)
+
+S = SubmissionStatus
+# The lifecycle order; a legal move never goes to an earlier stage.
+STAGE = {
+    S.received: 0,
+    S.queued: 1,
+    S.running: 2,
+    S.scored: 3,
+    S.failed: 3,
+    S.cancelled: 3,
+    S.disqualified: 4,
+}
+
+
+@pytest.mark.parametrize("current,new", list(itertools.product(SubmissionStatus, repeat=2)))
+def test_submission_moves(current, new):
+    if new in SUBMISSION_MOVES[current]:
+        assert advance(current, new, SUBMISSION_MOVES) == new
+        assert STAGE[new] >= STAGE[current]
+    else:
+        with pytest.raises(IllegalTransition):
+            advance(current, new, SUBMISSION_MOVES)
+
+
+@pytest.mark.parametrize("current,new", list(itertools.product(RunStatus, repeat=2)))
+def test_run_moves(current, new):
+    if new in RUN_MOVES[current]:
+        assert advance(current, new, RUN_MOVES) == new
+    else:
+        with pytest.raises(IllegalTransition):
+            advance(current, new, RUN_MOVES)
+
+
+def test_the_main_path_is_legal_and_scored_never_goes_back():
+    status = S.received
+    for new in (S.queued, S.running, S.scored):
+        status = advance(status, new, SUBMISSION_MOVES)
+    for earlier in (S.received, S.queued, S.running, S.failed):
+        with pytest.raises(IllegalTransition):
+            advance(status, earlier, SUBMISSION_MOVES)
+    assert advance(status, S.disqualified, SUBMISSION_MOVES) == S.disqualified
