@@ -92,3 +92,31 @@ def seed_scored(
         )
         evaluation.bump_leaderboard(session)
         return submission.id
+
+
+def queued_submission(db: Database, team_id: int, track: Track = Track.freestyle) -> int:
+    with db.session() as session:
+        submission = Submission(
+            team_id=team_id,
+            track=track,
+            method_name="m",
+            file_sha256="0" * 64,
+            file_size=1,
+            storage_dir="/nonexistent",
+            status=SubmissionStatus.queued,
+            queued_at=utcnow(),
+        )
+        session.add(submission)
+        session.flush()
+        return submission.id
+
+
+def agent(reached_goal: bool, done_step: int = 100, reason: str | None = None) -> dict:
+    """An agent summary that drove no recorded step (scored without a record)."""
+    return {
+        "id": "Agent_0",
+        "reached_goal": reached_goal,
+        "reason": reason or ("reached_goal" if reached_goal else "collision"),
+        "steps": 0,
+        "done_step": done_step,
+    }

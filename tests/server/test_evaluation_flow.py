@@ -1,0 +1,203 @@
+"""The run life cycle in the database, as the Celery tasks drive it: fan-out, idempotent results,
+aggregation, leases and the reaper, cancel, re-run and re-score."""
+
+from __future__ import annotations
+
+from datetime import timedelta
+
+import pytest
+from sqlalchemy import func, select, update
+
+from server.models import EvaluationRun, ScenarioResult, Submission, utcnow
+from server.services import admin, evaluation, scoring
+from server.services.errors import Conflict
+from server.services.evaluation import ScenarioOutcomeIn
+from server.services.queue import TaskQueue
+from server.status import RunStatus, SubmissionStatus
+from tests.server.builders import agent, make_team, queued_submission
+
+
+def start(db, settings, submission_id):
+    with db.session() as session:
+        return evaluation.start_evaluation(session, settings, submission_id)
+
+
+def claim(db, settings, run_id, scenario_id, worker="w1"):
+    with db.session() as session:
+        return evaluation.claim_scenario(session, settings, run_id, scenario_id, worker)
+
+
+def finish(db, run_id, scenario_id, *, success=True, status=None, reason=""):
+    outcome = ScenarioOutcomeIn(
+        scenario_id=scenario_id,
+        status=status or (scoring.SUCCESS if success else scoring.FAILURE),
+        reason=reason or ("reached_goal" if success else "collision"),
+        detail={"agents": [agent(success)]},
+    )
+    with db.session() as session:
+        return evaluation.record_scenario(session, run_id, outcome)
+
+
+def aggregate(db, run_id):
+    with db.session() as session:
+        return evaluation.finish_run(session, run_id)
+
+
+def status_of(db, submission_id):
+    with db.session() as session:
+        return session.get(Submission, submission_id).status
+
+
+def expire_lease(db, run_id):
+    with db.session() as session:
+        session.execute(
+            update(EvaluationRun)
+            .where(EvaluationRun.id == run_id)
+            .values(lease_expires_at=utcnow() - timedelta(seconds=1))
+        )
+
+
+@pytest.fixture
+def submission_id(db):
+    team, _ = make_team(db, "alpha")
+    return queued_submission(db, team)
+
+
+def test_fan_out_results_and_aggregation(db, settings, submission_id):
+    plan = start(db, settings, submission_id)
+    assert len(plan.scenario_ids) == 3 and not plan.aggregate
+    assert start(db, settings, submission_id) is None  # a redelivered evaluate task
+    assert status_of(db, submission_id) == SubmissionStatus.running
+    ids = plan.scenario_ids
+    for sid in ids:
+        assert claim(db, settings, plan.run_id, sid) is not None
+    assert finish(db, plan.run_id, ids[0]) is False
+    assert finish(db, plan.run_id, ids[1], success=False) is False
+    assert finish(db, plan.run_id, ids[1]) is False  # duplicate delivery: ignored
+    assert finish(db, plan.run_id, ids[2]) is True  # the last one: send the aggregation
+    assert finish(db, plan.run_id, ids[2]) is False
+    with db.session() as session:
+        rows = session.scalar(
+            select(func.count()).where(ScenarioResult.run_id == plan.run_id)
+        )
+        assert rows == 3
+    assert aggregate(db, plan.run_id) == RunStatus.scored
+    assert aggregate(db, plan.run_id) is None  # a redelivered aggregation
+    assert status_of(db, submission_id) == SubmissionStatus.scored
+    with db.session() as session:
+        score = session.get(EvaluationRun, plan.run_id).score
+        assert score.completion == pytest.approx(1 / 3)
+        assert score.time == pytest.approx((100 + 800 + 100) / 3)
+        assert score.families["merge"]["scenarios"] == 1
+
+
+def test_a_claim_is_exclusive_while_the_lease_lives(db, settings, submission_id):
+    plan = start(db, settings, submission_id)
+    sid = plan.scenario_ids[0]
+    assert claim(db, settings, plan.run_id, sid, "w1") is not None
+    assert claim(db, settings, plan.run_id, sid, "w2") is None
+    expire_lease(db, plan.run_id)
+    # The first worker stopped renewing the lease: another may take the scenario over.
+    assert claim(db, settings, plan.run_id, sid, "w2") is not None
+    assert finish(db, plan.run_id, sid) is False
+    assert claim(db, settings, plan.run_id, sid, "w3") is None  # finished: nothing to do
+
+
+def test_reaper_resends_stale_claims_and_lost_messages(db, settings, submission_id):
+    plan = start(db, settings, submission_id)
+    first, *rest = plan.scenario_ids
+    claim(db, settings, plan.run_id, first)
+    with db.session() as session:
+        assert evaluation.reap(session, settings, queue_empty=True).plans == ()  # lease valid
+    expire_lease(db, plan.run_id)
+    with db.session() as session:
+        reaped = evaluation.reap(session, settings, queue_empty=False)
+    # A stale claim is re-sent even while the queue is busy, with everything still pending.
+    assert [p.scenario_ids for p in reaped.plans] == [plan.scenario_ids]
+    with db.session() as session:  # the lease was renewed: not re-sent again at once
+        assert evaluation.reap(session, settings, queue_empty=True).plans == ()
+    finish(db, plan.run_id, first)
+    expire_lease(db, plan.run_id)
+    with db.session() as session:
+        # Never claimed, queue busy: the tasks may still be waiting their turn.
+        assert evaluation.reap(session, settings, queue_empty=False).plans == ()
+    with db.session() as session:
+        reaped = evaluation.reap(session, settings, queue_empty=True)
+    assert [p.scenario_ids for p in reaped.plans] == [tuple(rest)]
+
+
+def test_reaper_resends_a_submission_whose_first_task_was_lost(db, settings, submission_id):
+    with db.session() as session:
+        session.execute(
+            update(Submission).values(queued_at=utcnow() - timedelta(hours=1))
+        )
+    with db.session() as session:
+        assert evaluation.reap(session, settings, queue_empty=False).submission_ids == ()
+    with db.session() as session:
+        assert evaluation.reap(session, settings, queue_empty=True).submission_ids == (
+            submission_id,
+        )
+
+
+def test_cancel_stops_a_running_evaluation(db, settings, submission_id):
+    from server.services import submissions
+
+    plan = start(db, settings, submission_id)
+    claim(db, settings, plan.run_id, plan.scenario_ids[0])
+    submissions.cancel(db, TaskQueue(settings), submission_id)
+    assert status_of(db, submission_id) == SubmissionStatus.cancelled
+    with db.session() as session:
+        assert not evaluation.heartbeat(session, settings, plan.run_id, "w1")
+    assert finish(db, plan.run_id, plan.scenario_ids[0]) is False
+    assert claim(db, settings, plan.run_id, plan.scenario_ids[1]) is None
+    with pytest.raises(Conflict):
+        submissions.cancel(db, TaskQueue(settings), submission_id)
+
+
+def test_simulator_errors_only_fail_the_run(db, settings, submission_id):
+    plan = start(db, settings, submission_id)
+    for sid in plan.scenario_ids:
+        claim(db, settings, plan.run_id, sid)
+        finish(db, plan.run_id, sid, status=scoring.SIMULATOR_ERROR, reason="simulator_error")
+    assert aggregate(db, plan.run_id) == RunStatus.failed
+    assert status_of(db, submission_id) == SubmissionStatus.failed
+
+
+def run_everything(db, settings, plan, success=True):
+    for sid in plan.scenario_ids:
+        claim(db, settings, plan.run_id, sid)
+        finish(db, plan.run_id, sid, success=success)
+    return aggregate(db, plan.run_id)
+
+
+def test_rerun_is_a_new_attempt_and_the_old_score_stands_meanwhile(db, settings, submission_id):
+    queue = TaskQueue(settings)
+    first = start(db, settings, submission_id)
+    run_everything(db, settings, first, success=False)
+    assert admin.rerun(db, settings, queue, submission_id) == 2
+    with pytest.raises(Conflict):
+        admin.rerun(db, settings, queue, submission_id)  # one attempt at a time
+    assert status_of(db, submission_id) == SubmissionStatus.scored
+    with db.session() as session:
+        second = session.scalar(
+            select(EvaluationRun).where(EvaluationRun.attempt == 2)
+        )
+        plan = evaluation.RunPlan(
+            run_id=second.id, scenario_ids=evaluation.pending_scenarios(second)
+        )
+    run_everything(db, settings, plan, success=True)
+    with db.session() as session:
+        from server.services import submissions
+
+        view = submissions.detail(session, session.get(Submission, submission_id))
+    assert view.attempt == 2 and view.metrics.completion == 0.0
+
+
+def test_rescore_recomputes_from_stored_results(db, settings, submission_id):
+    plan = start(db, settings, submission_id)
+    run_everything(db, settings, plan)
+    assert admin.rescore_targets(db, submission_id) == [plan.run_id]
+    metrics = admin.rescore_run(db, plan.run_id, "driving-smarts-2022")
+    assert metrics["completion"] == 0.0 and metrics["time"] == 100.0
+    with db.session() as session:
+        assert session.get(EvaluationRun, plan.run_id).score.profile == "driving-smarts-2022"
