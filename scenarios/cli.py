@@ -1,7 +1,183 @@
-"""`arena` commands of the scenarios part."""
+"""`arena scenarios` commands: build, list, show and verify scenario suites."""
 
 from __future__ import annotations
+
+from enum import StrEnum
+from pathlib import Path
+from typing import Annotated
 
 import typer
 
 app = typer.Typer(no_args_is_help=True)
+
+
+class SuiteName(StrEnum):
+    hidden = "hidden"
+    public = "public"
+
+
+def _console():
+    from rich.console import Console
+
+    return Console()
+
+
+def _progress():
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    return Progress(
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        TextColumn("{task.fields[current]}"),
+        console=_console(),
+    )
+
+
+def _cache_dir() -> Path:
+    from arena.config import get_settings
+
+    return get_settings().resolved_data_dir / "cache" / "scenarios"
+
+
+def _hidden_seed(seed: int | None, dev: bool) -> int:
+    from arena.config import get_settings
+
+    settings = get_settings()
+    if seed is not None:
+        return seed
+    if settings.hidden_seed is not None:
+        return settings.hidden_seed
+    if dev:
+        return settings.development_seed
+    raise typer.BadParameter(
+        "no hidden seed: pass --seed, set ARENA_HIDDEN_SEED in the organisers' environment, or "
+        "use --dev for the development seed (never for a real competition)",
+        param_hint="--seed",
+    )
+
+
+@app.command()
+def build(
+    out: Annotated[Path, typer.Option(help="Folder to write the suite into (replaced).")],
+    suite: Annotated[SuiteName, typer.Option(help="Which suite.")] = SuiteName.hidden,
+    seed: Annotated[int | None, typer.Option(help="Hidden suite seed (secret).")] = None,
+    dev: Annotated[bool, typer.Option(help="Hidden suite from the development seed.")] = False,
+) -> None:
+    """Build the hidden suite (128 scenarios) or the public set into OUT with a manifest.json."""
+    from scenarios.suites import PUBLIC_SEED, SUITES, build_suite
+
+    if suite is SuiteName.public:
+        if seed is not None or dev:
+            raise typer.BadParameter("the public set is always built from its committed seed")
+        suite_seed = PUBLIC_SEED
+    else:
+        suite_seed = _hidden_seed(seed, dev)
+    total = len(SUITES[suite.value]())
+    with _progress() as progress:
+        task = progress.add_task(f"building {suite.value}", total=total, current="")
+        manifest = build_suite(
+            suite.value,
+            suite_seed,
+            out,
+            _cache_dir(),
+            lambda sid: progress.update(task, advance=1, current=sid),
+        )
+    _console().print(f"wrote {len(manifest['scenarios'])} scenarios and manifest.json to {out}")
+
+
+@app.command("list")
+def list_(
+    directory: Annotated[Path, typer.Argument(help="A built suite folder.")],
+) -> None:
+    """Table of the scenarios of a built suite."""
+    from rich.table import Table
+
+    from scenarios.suites import read_manifest
+
+    manifest = _read(directory, read_manifest)
+    table = Table(title=f"{manifest['suite']} suite: {len(manifest['scenarios'])} scenarios")
+    for column in ("id", "family", "variant", "volume", "agents", "reactive", "label", "hash"):
+        table.add_column(column)
+    table.add_column("unsolvable reason", style="red")
+    for s in manifest["scenarios"]:
+        table.add_row(
+            s["id"],
+            s["family"],
+            s["variant"],
+            s["volume"] or "-",
+            str(s["agents"]),
+            "yes" if s["reactive"] else "no",
+            s["label"],
+            s["hash"][:12],
+            s.get("unsolvable_reason") or "",
+        )
+    _console().print(table)
+
+
+def _read(directory: Path, reader):
+    try:
+        return reader(directory)
+    except FileNotFoundError as exc:
+        raise typer.BadParameter(str(exc)) from exc
+
+
+@app.command()
+def show(
+    scenario: Annotated[str, typer.Argument(help="Scenario id (or path to its folder).")],
+    out: Annotated[Path, typer.Option(help="SVG file to write.")] = Path("scenario.svg"),
+    suite_dir: Annotated[
+        Path | None,
+        typer.Option("--suite-dir", help="Built suite holding the id (default: public)."),
+    ] = None,
+    step: Annotated[int, typer.Option(help="Draw the traffic at this step.", min=0)] = 0,
+) -> None:
+    """Draw a scenario: map, lanes, traffic at STEP, mission starts, routes and goals."""
+    from scenarios.picture import draw_scenario
+    from scenarios.suites import public_suite_dir
+
+    folder = Path(scenario)
+    if not (folder / "scenario.json").exists():
+        folder = (suite_dir or public_suite_dir()) / scenario
+    if not (folder / "scenario.json").exists():
+        raise typer.BadParameter(f"no scenario {scenario!r} in {folder.parent}")
+    out.write_text(draw_scenario(folder, step))
+    _console().print(f"wrote {out}")
+
+
+@app.command()
+def verify(
+    directory: Annotated[Path, typer.Argument(help="A built suite folder.")],
+    jobs: Annotated[int, typer.Option(help="Episodes run in parallel.", min=1)] = 1,
+    only: Annotated[list[str] | None, typer.Option(help="Verify just these ids.")] = None,
+) -> None:
+    """Run the expert on every scenario (log replay for replays, the reference planner for
+    reactive ones); record unsolved reasons in the manifest; print `solved=<k>/<n>`."""
+    from rich.table import Table
+
+    from scenarios.suites import read_manifest
+    from scenarios.verify import verify_suite
+
+    manifest = _read(directory, read_manifest)
+    ids = [s["id"] for s in manifest["scenarios"] if not only or s["id"] in only]
+    with _progress() as progress:
+        task = progress.add_task("verifying", total=len(ids), current="")
+        results = verify_suite(
+            directory, ids, jobs, lambda r: progress.update(task, advance=1, current=r.scenario_id)
+        )
+    table = Table(title="expert runs")
+    for column in ("id", "expert", "solved", "steps", "reason"):
+        table.add_column(column)
+    for r in results:
+        table.add_row(
+            r.scenario_id,
+            r.expert,
+            "[green]yes" if r.solved else "[red]no",
+            str(r.steps),
+            r.reason or "",
+        )
+    console = _console()
+    console.print(table)
+    solved = sum(r.solved for r in results)
+    console.print(f"solved={solved}/{len(results)}")

@@ -137,7 +137,13 @@ def cruise(spec: Spec, rng: np.random.Generator, maps: MapLibrary) -> Draft:
         goal_lane = int(rng.integers(info.lanes("out")))
         draft.missions.append(
             make_mission(
-                info, i, ("in", int(lane), 40.0), ("in", "out"), goal_lane, rng.uniform(8, 14), delay
+                info,
+                i,
+                ("in", int(lane), 40.0),
+                ("in", "out"),
+                goal_lane,
+                rng.uniform(8, 14),
+                delay,
             )
         )
     keep = [(int(lane), 40.0) for lane in lanes]
@@ -156,7 +162,7 @@ def overtake(spec: Spec, rng: np.random.Generator, maps: MapLibrary) -> Draft:
     # Other lanes carry the volume's traffic; the ego lane ahead is blocked by slow leaders.
     _highway_traffic(draft, info, rng, _volume(spec, 0.6), [(lane, 30.0)], flow_begin=3.0)
     slow_speed = rng.uniform(5.0, 7.0) if spec.variant.endswith("slow") else rng.uniform(9.0, 12.0)
-    draft.routes.vtypes.append(slow_type("slow", slow_speed))
+    draft.routes.special_types.append(slow_type("slow", slow_speed))
     through = draft.routes.route(("in", "out"))
     lead = 30.0 + rng.uniform(35.0, 55.0)
     draft.routes.vehicles = [
@@ -165,9 +171,7 @@ def overtake(spec: Spec, rng: np.random.Generator, maps: MapLibrary) -> Draft:
     draft.routes.vehicles.append(Vehicle("slow_0", through, 0.0, lane, lead, slow_speed, "slow"))
     if info.lanes("in") >= 3:
         second = lead + rng.uniform(30.0, 60.0)
-        draft.routes.vehicles.append(
-            Vehicle("slow_1", through, 0.0, 1, second, slow_speed, "slow")
-        )
+        draft.routes.vehicles.append(Vehicle("slow_1", through, 0.0, 1, second, slow_speed, "slow"))
     return draft
 
 
@@ -182,7 +186,7 @@ def cut_in(spec: Spec, rng: np.random.Generator, maps: MapLibrary) -> Draft:
     keep = [(lane, 30.0), (cutter_lane, 30.0)]
     _highway_traffic(draft, info, rng, _volume(spec, 0.7), keep, flow_begin=3.0)
     through = draft.routes.route(("in", "out"))
-    draft.routes.vtypes.append(slow_type("cutter", rng.uniform(14.0, 17.0)))
+    draft.routes.special_types.append(slow_type("cutter", rng.uniform(14.0, 17.0)))
     ahead = 30.0 + rng.uniform(20.0, 35.0)
     draft.routes.vehicles = [
         v for v in draft.routes.vehicles if not (v.lane == cutter_lane and abs(v.pos - ahead) < 30)

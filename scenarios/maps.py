@@ -1,4 +1,4 @@
-"""Map templates: road layouts written as plain SUMO node/edge/connection XML, built with netconvert.
+"""Map templates: road layouts as plain SUMO node/edge/connection XML, built with netconvert.
 
 Every template is a pure function of its parameters, so a built ``.net.xml`` is a pure function of
 the template name (netconvert is deterministic; its date/config header comment is stripped). Built
@@ -98,25 +98,32 @@ class Template:
         return "\n".join(nodes) + "\n", "\n".join(edges) + "\n", "\n".join(cons) + "\n"
 
 
-def _arc(length: float, radius: float, s: float) -> Point:
-    """Point at arc length ``s`` [m] on a left-curving arc of ``radius`` [m] starting at the
-    origin heading +x."""
-    a = s / radius
-    return (radius * math.sin(a), radius * (1.0 - math.cos(a)))
+def _centreline(curved: bool, radius: float) -> Callable[..., Point]:
+    """Point at arc length ``s`` [m] and left offset ``off`` [m] of a road starting at the origin
+    heading +x: straight, or curving left on ``radius`` [m]."""
+
+    def at(s: float, off: float = 0.0) -> Point:
+        if not curved:
+            return (s, off)
+        a, r = s / radius, radius - off
+        return (r * math.sin(a), radius - r * math.cos(a))
+
+    return at
+
+
+def _inner(at: Callable[..., Point], s0: float, s1: float, step: int) -> tuple[Point, ...]:
+    """Shape points strictly between arc lengths ``s0`` and ``s1`` every ``step`` [m]."""
+    return tuple(at(float(s)) for s in range(int(s0) + step, int(s1), step))
 
 
 def highway(lanes: int, curved: bool = False) -> Template:
     """600 m two-edge highway (``in`` then ``out``); curved variants bend left on a 400 m radius."""
-    length, radius = 600.0, 400.0
-    if curved:
-        at = lambda s: _arc(length, radius, s)  # noqa: E731
-    else:
-        at = lambda s: (s, 0.0)  # noqa: E731
+    at = _centreline(curved, 400.0)
     nodes = {"a": at(0.0), "b": at(300.0), "c": at(600.0)}
-    inner = lambda s0, s1: tuple(at(s) for s in range(int(s0) + 20, int(s1), 20)) if curved else ()  # noqa: E731
+    shape = (lambda s0, s1: _inner(at, s0, s1, 20)) if curved else (lambda s0, s1: ())
     edges = (
-        Edge("in", "a", "b", lanes, HIGHWAY_SPEED, 3, inner(0, 300)),
-        Edge("out", "b", "c", lanes, HIGHWAY_SPEED, 3, inner(300, 600)),
+        Edge("in", "a", "b", lanes, HIGHWAY_SPEED, 3, shape(0, 300)),
+        Edge("out", "b", "c", lanes, HIGHWAY_SPEED, 3, shape(300, 600)),
     )
     return Template(nodes, edges)
 
@@ -126,21 +133,17 @@ def merge(main_lanes: int, accel: float, shoulder: bool, curved: bool = False) -
 
     ``merge`` carries an acceleration lane (index 0) of length ``accel`` [m] that ends at its end
     (or continues as the shoulder of ``out`` when ``shoulder``)."""
-    radius = 700.0
-    if curved:
-        at = lambda s, off=0.0: _offset_arc(s, radius, off)  # noqa: E731
-    else:
-        at = lambda s, off=0.0: (s, off)  # noqa: E731
+    at = _centreline(curved, 700.0)
     b, c, d = 250.0, 250.0 + accel, 250.0 + accel + 300.0
     nodes = {"a": at(0.0), "b": at(b), "c": at(c), "d": at(d), "r": at(40.0, -70.0)}
-    inner = lambda s0, s1: tuple(at(s) for s in range(int(s0) + 25, int(s1), 25)) if curved else ()  # noqa: E731
+    shape = (lambda s0, s1: _inner(at, s0, s1, 25)) if curved else (lambda s0, s1: ())
     ramp_shape = (at(120.0, -45.0), at(190.0, -14.0), at(225.0, -4.5))
     out_lanes = main_lanes + (1 if shoulder else 0)
     edges = (
-        Edge("in", "a", "b", main_lanes, HIGHWAY_SPEED, 3, inner(0, b)),
+        Edge("in", "a", "b", main_lanes, HIGHWAY_SPEED, 3, shape(0, b)),
         Edge("ramp", "r", "b", 1, RAMP_SPEED, 1, ramp_shape),
-        Edge("merge", "b", "c", main_lanes + 1, HIGHWAY_SPEED, 3, inner(b, c)),
-        Edge("out", "c", "d", out_lanes, HIGHWAY_SPEED, 3, inner(c, d), shoulder=shoulder),
+        Edge("merge", "b", "c", main_lanes + 1, HIGHWAY_SPEED, 3, shape(b, c)),
+        Edge("out", "c", "d", out_lanes, HIGHWAY_SPEED, 3, shape(c, d), shoulder=shoulder),
     )
     shift = 1 if shoulder else 0
     connections = [("in", "merge", i, i + 1) for i in range(main_lanes)]
@@ -149,13 +152,6 @@ def merge(main_lanes: int, accel: float, shoulder: bool, curved: bool = False) -
     if shoulder:
         connections.append(("merge", "out", 0, 0))
     return Template(nodes, edges, tuple(connections))
-
-
-def _offset_arc(s: float, radius: float, offset: float) -> Point:
-    """Point at arc length ``s`` on the left-curving arc, ``offset`` [m] to its left."""
-    a = s / radius
-    r = radius - offset
-    return (r * math.sin(a), radius - r * math.cos(a))
 
 
 def t_intersection() -> Template:
@@ -262,9 +258,9 @@ TEMPLATES: dict[str, Callable[[], Template]] = {
     # traffic stays right-hand (netconvert lays lanes out from the edge directions), so a turn
     # onto the same edge changes side: generators pick turns by direction, not by edge name.
     "cross_upside": lambda: cross_intersection().transformed(_mirror),
-    "cross_upside_rotated": lambda: cross_intersection()
-    .transformed(_mirror)
-    .transformed(_rotate(90.0)),
+    "cross_upside_rotated": lambda: (
+        cross_intersection().transformed(_mirror).transformed(_rotate(90.0))
+    ),
     "replay_highway": lambda: merge(5, 200.0, shoulder=False),
     "urban": urban,
 }

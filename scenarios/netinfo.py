@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 from functools import lru_cache
 from pathlib import Path
@@ -31,7 +32,7 @@ class NetInfo:
         x, y = positionAtShapeOffset(shape, s)
         # Heading of the shape segment holding s (the last one past the end).
         walked = 0.0
-        for (x1, y1), (x2, y2) in zip(shape[:-1], shape[1:], strict=True):
+        for (x1, y1), (x2, y2) in itertools.pairwise(shape):
             walked += math.hypot(x2 - x1, y2 - y1)
             if walked >= s:
                 break

@@ -152,7 +152,9 @@ class _ReplayPool:
     def take(self, kind: str, agents: int, rng: np.random.Generator) -> tuple[str, Candidate]:
         scene = KIND_SCENE[kind]
         if scene not in self.pools:
-            rec = recorded(SCENES[scene], derive_seed(self.suite, self.seed, "scene", scene), self.maps)
+            rec = recorded(
+                SCENES[scene], derive_seed(self.suite, self.seed, "scene", scene), self.maps
+            )
             self.recordings[scene] = rec
             info = self.maps.info(SCENES[scene].template)
             self.pools[scene] = candidates(rec, info, scene, SCENES[scene].duration_s)
@@ -200,7 +202,9 @@ def build_suite(
             )
         else:
             draft = GENERATORS[spec.family](spec, rng, maps)
-            scenario = write_reactive(folder, sid, spec, scenario_seed, draft, maps.path(draft.template))
+            scenario = write_reactive(
+                folder, sid, spec, scenario_seed, draft, maps.path(draft.template)
+            )
         entries.append(manifest_entry(scenario, folder))
         progress(sid)
     manifest = {"suite": suite, "scenarios": entries}

@@ -41,7 +41,8 @@ class Vehicle:
 class Routes:
     """Everything one ``.rou.xml`` holds; ``to_xml`` sorts vehicles by departure as SUMO needs."""
 
-    vtypes: list[dict[str, str]] = field(default_factory=list)
+    vtypes: list[dict[str, str]] = field(default_factory=list)  # the "drivers" distribution
+    special_types: list[dict[str, str]] = field(default_factory=list)  # scripted vehicles' types
     routes: dict[str, tuple[str, ...]] = field(default_factory=dict)
     flows: list[Flow] = field(default_factory=list)
     vehicles: list[Vehicle] = field(default_factory=list)
@@ -54,7 +55,7 @@ class Routes:
 
     def to_xml(self) -> str:
         lines = ['<?xml version="1.0" encoding="UTF-8"?>', "<routes>"]
-        for vt in self.vtypes:
+        for vt in self.vtypes + self.special_types:
             attrs = " ".join(f'{k}="{v}"' for k, v in vt.items())
             lines.append(f"  <vType {attrs}/>")
         if self.vtypes:

@@ -8,6 +8,7 @@ replay expert of ``arena scenarios verify``).
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -51,7 +52,7 @@ def _lane_changes(rec: Recording, vid: str) -> list[int]:
         main_lane = _main_lane(lane)
         if main_lane > -90 and (not seq or seq[-1] != main_lane):
             seq.append(main_lane)
-    return [int(np.sign(b - a)) for a, b in zip(seq[:-1], seq[1:], strict=True)]
+    return [int(np.sign(b - a)) for a, b in itertools.pairwise(seq)]
 
 
 def _complete(rec: Recording, vid: str, duration_s: float) -> bool:
@@ -173,7 +174,7 @@ def _merge_pairs(rec: Recording, merges: list[Candidate]) -> list[Candidate]:
     """Two ramp vehicles entering 2-8 s apart: two agents merging one after the other."""
     starts = sorted((rec.trajectories[c.vehicle_ids[0]].time[0], c.vehicle_ids[0]) for c in merges)
     pairs = []
-    for (t_a, a), (t_b, b) in zip(starts[:-1], starts[1:], strict=True):
+    for (t_a, a), (t_b, b) in itertools.pairwise(starts):
         if 2.0 <= t_b - t_a <= 8.0:
             pairs.append(Candidate((a, b)))
     return pairs
@@ -237,9 +238,7 @@ def write_replay(
                 start_speed=round(float(ego.speed[0]), 3),
                 start_step=round(float(ego.time[0]) / 0.1),
                 route=rec.edges[vid],
-                goal=Goal(
-                    position=(round(ego.x[-1], 3), round(ego.y[-1], 3)), radius=GOAL_RADIUS
-                ),
+                goal=Goal(position=(round(ego.x[-1], 3), round(ego.y[-1], 3)), radius=GOAL_RADIUS),
                 vehicle=VehicleDims(length=ego.length, width=ego.width),
             )
         )
@@ -248,7 +247,12 @@ def write_replay(
     write_trajectories(
         folder / EXPERT_FILE,
         [
-            Trajectory(f"Agent_{i}", *(getattr(e, f) for f in ("time", "x", "y", "heading", "speed")), e.length, e.width)
+            Trajectory(
+                f"Agent_{i}",
+                *(getattr(e, f) for f in ("time", "x", "y", "heading", "speed")),
+                e.length,
+                e.width,
+            )
             for i, e in enumerate(egos)
         ],
     )

@@ -12,13 +12,16 @@ def corners(boxes: np.ndarray) -> np.ndarray:
     dx = np.stack([length, length, -length, -length], axis=1) / 2
     dy = np.stack([width, -width, -width, width], axis=1) / 2
     return np.stack(
-        [x[:, None] + c[:, None] * dx - s[:, None] * dy, y[:, None] + s[:, None] * dx + c[:, None] * dy],
+        [
+            x[:, None] + c[:, None] * dx - s[:, None] * dy,
+            y[:, None] + s[:, None] * dx + c[:, None] * dy,
+        ],
         axis=2,
     )
 
 
 def boxes_overlap(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(n,) whether box ``a[i]`` overlaps box ``b[i]``; both (n, 5) [x, y, heading, length, width]."""
+    """(n,) whether box ``a[i]`` overlaps ``b[i]``; both (n, 5) [x, y, heading, length, width]."""
     ca, cb = corners(a), corners(b)
     overlap = np.ones(len(a), dtype=bool)
     for heading in (a[:, 2], a[:, 2] + np.pi / 2, b[:, 2], b[:, 2] + np.pi / 2):

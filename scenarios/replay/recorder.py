@@ -74,7 +74,7 @@ def record_scene(net_path: Path, routes: Routes, seed: int, duration_s: float) -
 def _dimensions(routes: Routes) -> dict[str, tuple[float, float]]:
     return {
         vt["id"]: (float(vt.get("length", 5.0)), float(vt.get("width", 1.8)))
-        for vt in routes.vtypes
+        for vt in routes.vtypes + routes.special_types
     }
 
 
@@ -92,7 +92,13 @@ def parse_fcd(path: Path, dims: dict[str, tuple[float, float]]) -> Recording:
             vid = elem.get("id")
             heading = math.remainder(math.radians(90.0 - float(elem.get("angle"))), math.tau)
             rows.setdefault(vid, []).append(
-                (time, float(elem.get("x")), float(elem.get("y")), heading, float(elem.get("speed")))
+                (
+                    time,
+                    float(elem.get("x")),
+                    float(elem.get("y")),
+                    heading,
+                    float(elem.get("speed")),
+                )
             )
             lanes.setdefault(vid, []).append(elem.get("lane"))
             types[vid] = elem.get("type")

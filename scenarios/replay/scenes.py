@@ -9,7 +9,6 @@ from __future__ import annotations
 import hashlib
 import pickle
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -42,7 +41,9 @@ def scene_routes(scene: Scene, rng: np.random.Generator, maps: MapLibrary) -> Ro
             Flow("main", routes.route(("in", "merge", "out")), rng.uniform(2600, 3200), end=end)
         )
         routes.flows.append(
-            Flow("ramp", routes.route(("ramp", "merge", "out")), rng.uniform(550, 700), "0", end=end)
+            Flow(
+                "ramp", routes.route(("ramp", "merge", "out")), rng.uniform(550, 700), "0", end=end
+            )
         )
         return routes
     for src in sorted(e.getID() for e in info.net.getEdges() if _is_entry(e)):
@@ -57,7 +58,9 @@ def scene_routes(scene: Scene, rng: np.random.Generator, maps: MapLibrary) -> Ro
                 path.append(nxt)
             rate = (120.0 if info.lanes(src) > 1 else 60.0) * rng.uniform(0.8, 1.2)
             rate *= 2.0 if direction == "s" else 1.0
-            routes.flows.append(Flow(f"{src}_{direction}", routes.route(tuple(path)), rate, "best", end=end))
+            routes.flows.append(
+                Flow(f"{src}_{direction}", routes.route(tuple(path)), rate, "best", end=end)
+            )
     return routes
 
 

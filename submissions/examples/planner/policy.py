@@ -1,0 +1,391 @@
+"""Reference rule-based planner: the strongest baseline of Driving Arena, using observations only.
+
+Per agent and step:
+1. Paths: the waypoint paths of the observation (one per lane of the ego's road, continuing along
+   the route) become polylines with arc length; anything can be projected onto them.
+2. Lane choice: the lane whose path, extrapolated with its own curvature, passes nearest the goal;
+   far from the goal a faster adjacent lane is taken to overtake slow traffic; lanes that end or
+   are shoulders are left. A lane change starts only when the gaps ahead and behind in the target
+   lane are safe for both vehicles.
+3. Speed: IDM on the nearest vehicle ahead inside the ego's corridor (current and target lane),
+   the speed limit and a curvature limit; the end of a lane is a stopped obstacle.
+4. Junctions: approaching a turn (or a road with higher priority), stop at the stop line, then go
+   only when no other vehicle, predicted at constant velocity, will be near a point of our path
+   while we pass it.
+5. Action: TargetPose one step along the target path, easing the lateral offset to the target
+   lane at a bounded lateral speed.
+
+Only numpy and the standard library.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+DT = 0.1  # [s]
+A_MAX = 2.5  # [m/s^2] IDM acceleration
+B_COMF = 3.0  # [m/s^2] IDM comfortable deceleration
+B_MAX = 7.0  # [m/s^2] hardest braking we command
+HEADWAY = 1.2  # [s] IDM time headway
+S0 = 3.0  # [m] IDM standstill gap
+A_LAT = 2.5  # [m/s^2] lateral acceleration allowed in curves
+LAT_SPEED = 1.2  # [m/s] lateral speed of a lane change
+GOAL_LANE_DISTANCE = 150.0  # [m] within this distance only the goal lane counts
+STOP_SPEED = 0.3  # [m/s] counts as stopped at a stop line
+CONFLICT_RADIUS = 2.8  # [m] another vehicle this near a path point blocks it
+SHOULDER_WIDTH = 3.0  # [m] narrower lanes are shoulders
+
+
+def wrap(a: float) -> float:
+    return (a + math.pi) % (2 * math.pi) - math.pi
+
+
+class Path:
+    """A waypoint path as a polyline: points (n, 2) [m], headings (n,), arc length (n,) [m]."""
+
+    def __init__(self, waypoints: list[dict]) -> None:
+        self.xy = np.array([w["pos"][:2] for w in waypoints], dtype=float)
+        self.heading = np.array([w["heading"] for w in waypoints], dtype=float)
+        seg = np.hypot(*np.diff(self.xy, axis=0).T) if len(self.xy) > 1 else np.zeros(0)
+        self.s = np.concatenate([[0.0], np.cumsum(seg)])
+        self.lane_index = int(waypoints[0]["lane_index"])
+        self.lane_ids = [w["lane_id"] for w in waypoints]
+        self.width = float(waypoints[0].get("lane_width") or 3.2)
+        self.limits = np.array([w.get("speed_limit") or 13.9 for w in waypoints], dtype=float)
+        self.length = float(self.s[-1])
+        h = np.unwrap(self.heading)
+        tail = max(0, len(h) - 20)
+        span = self.s[-1] - self.s[tail]
+        self.end_curvature = float((h[-1] - h[tail]) / span) if span > 1.0 else 0.0
+
+    def on_route(self, route: set[str]) -> bool:
+        edges = {lane.rsplit("_", 1)[0] for lane in self.lane_ids if not lane.startswith(":")}
+        return edges <= route
+
+    def point(self, s: float) -> tuple[float, float, float]:
+        """(x, y, heading) at arc length ``s``; straight extension beyond both ends."""
+        if len(self.xy) == 1 or s <= 0.0:
+            h = self.heading[0]
+            return self.xy[0, 0] + s * math.cos(h), self.xy[0, 1] + s * math.sin(h), h
+        if s >= self.length:
+            h = self.heading[-1]
+            d = s - self.length
+            return self.xy[-1, 0] + d * math.cos(h), self.xy[-1, 1] + d * math.sin(h), h
+        i = int(np.searchsorted(self.s, s) - 1)
+        f = (s - self.s[i]) / max(self.s[i + 1] - self.s[i], 1e-9)
+        x, y = self.xy[i] + f * (self.xy[i + 1] - self.xy[i])
+        h = self.heading[i] + f * wrap(self.heading[i + 1] - self.heading[i])
+        return float(x), float(y), float(h)
+
+    def project(self, x: float, y: float) -> tuple[float, float]:
+        """(s [m], lateral offset [m], left positive) of a point; extends beyond both ends."""
+        p = np.array([x, y])
+        if len(self.xy) == 1:
+            return self._extend(p, 0)
+        a, b = self.xy[:-1], self.xy[1:]
+        ab = b - a
+        t = np.clip(((p - a) * ab).sum(1) / np.maximum((ab * ab).sum(1), 1e-9), 0.0, 1.0)
+        d = np.hypot(*(a + t[:, None] * ab - p).T)
+        i = int(np.argmin(d))
+        if i == 0 and t[0] <= 0.0:
+            return self._extend(p, 0)
+        if i == len(ab) - 1 and t[-1] >= 1.0:
+            return self._extend(p, len(self.xy) - 1)
+        seg = ab[i] / max(np.hypot(*ab[i]), 1e-9)
+        rel = p - a[i]
+        return float(self.s[i] + t[i] * np.hypot(*ab[i])), float(seg[0] * rel[1] - seg[1] * rel[0])
+
+    def _extend(self, p: np.ndarray, k: int) -> tuple[float, float]:
+        h = self.heading[k]
+        rel = p - self.xy[k]
+        c, s = math.cos(h), math.sin(h)
+        return float(self.s[k] + c * rel[0] + s * rel[1]), float(c * rel[1] - s * rel[0])
+
+    def goal_offset(self, gx: float, gy: float) -> float:
+        """Lateral distance [m] of the goal from this lane, extrapolated along a constant-curvature
+        arc beyond the path's end."""
+        s, lat = self.project(gx, gy)
+        if s <= self.length:
+            return abs(lat)
+        x, y, h = self.point(self.length)
+        k = self.end_curvature
+        d = np.arange(0.0, 800.0, 1.0)
+        a = h + k * d
+        if abs(k) > 1e-6:
+            px = x + (np.sin(a) - math.sin(h)) / k
+            py = y - (np.cos(a) - math.cos(h)) / k
+        else:
+            px, py = x + d * math.cos(h), y + d * math.sin(h)
+        return float(np.hypot(gx - px, gy - py).min())
+
+    def junction_span(self) -> tuple[int, int] | None:
+        """Waypoint indices (first internal, first after) of the next junction, if any."""
+        first = next((i for i, lane in enumerate(self.lane_ids) if lane.startswith(":")), None)
+        if first is None:
+            return None
+        after = next(
+            (i for i in range(first, len(self.lane_ids)) if not self.lane_ids[i].startswith(":")),
+            len(self.lane_ids) - 1,
+        )
+        return first, after
+
+
+class AgentPlanner:
+    """State and decisions of one mission vehicle."""
+
+    def __init__(self) -> None:
+        self.target_lane: int | None = None
+        self.stopped_at_line = False
+        self.committed_junction = False
+        self.last_road: str | None = None
+        # The last target path that followed the route: inside a junction the observed path can
+        # be a different connection (overlapping internal lanes), so we keep to this one.
+        self.memory: Path | None = None
+        self.blocked = False  # a needed lane change waits for a gap
+
+    def act(self, obs: dict) -> list[float]:
+        ego = obs["ego_vehicle_state"]
+        x, y = float(ego["position"][0]), float(ego["position"][1])
+        heading, speed = float(ego["heading"]), float(ego["speed"])
+        length, width = float(ego["bounding_box"][0]), float(ego["bounding_box"][1])
+        route = set(ego["mission"]["route"])
+        paths = [Path(p) for p in obs.get("waypoint_paths") or [] if len(p) >= 2]
+        paths = [p for p in paths if p.on_route(route)]
+        if not paths:
+            if self.memory is None or self.memory.project(x, y)[0] > self.memory.length - 1.0:
+                return self._brake(x, y, heading, speed)
+            paths = [self.memory]
+        goal = ego["mission"]["goal"]["position"]
+        gx, gy = float(goal[0]), float(goal[1])
+        others = obs.get("neighborhood_vehicle_states") or []
+        road = ego.get("road_id")
+        if road != self.last_road:
+            self.last_road = road
+            self.target_lane = None
+            if not str(road).startswith(":"):
+                self.stopped_at_line = False
+                self.committed_junction = False
+        current = min(paths, key=lambda p: abs(p.project(x, y)[1]))
+        target = self._choose_lane(paths, current, x, y, gx, gy, speed, length, others)
+
+        # Speed: IDM on the corridors of the current and target lanes.
+        v_desired = self._desired_speed(current, target, x, y)
+        if self.blocked:
+            v_desired = min(v_desired, max(0.7 * speed, 4.0))
+        gap, lead_speed = self._lead(current, x, y, length, width, others)
+        if target is not current:
+            g2, v2 = self._lead(target, x, y, length, width, others)
+            if g2 < gap:
+                gap, lead_speed = g2, v2
+        end_gap = self._lane_end_gap(current, target, x, y, length, gx, gy)
+        if end_gap < gap:
+            gap, lead_speed = end_gap, 0.0
+        stop_gap = self._junction_gap(current, x, y, speed, length, others)
+        if stop_gap is not None and stop_gap < gap:
+            gap, lead_speed = stop_gap, 0.0
+        accel = idm(speed, v_desired, gap, lead_speed)
+        if target is not self.memory:
+            self.memory = target
+        return self._pose(target, x, y, heading, speed, accel)
+
+    # --- lanes -----------------------------------------------------------------------------
+
+    def _choose_lane(self, paths, current, x, y, gx, gy, speed, length, others) -> Path:
+        self.blocked = False
+        usable = [p for p in paths if p.width >= SHOULDER_WIDTH] or paths
+        goal_dist = math.hypot(gx - x, gy - y)
+        offsets = {id(p): p.goal_offset(gx, gy) for p in usable}
+        goal_path = min(usable, key=lambda p: offsets[id(p)])
+        wanted = goal_path
+        ending = [p for p in usable if p.length < 45.0 and goal_dist > p.length + 5.0]
+        if goal_dist > GOAL_LANE_DISTANCE and current in usable and current not in ending:
+            # Overtaking: prefer an adjacent lane whose traffic ahead is faster.
+            def score(p: Path) -> float:
+                gap, v = self._lead(p, x, y, length, 1.8, others)
+                value = min(v if gap < 60.0 else 99.0, 30.0)
+                return value + (2.0 if p is current else 0.0) + (0.5 if p is goal_path else 0.0)
+
+            near = [p for p in usable if abs(p.lane_index - current.lane_index) <= 1]
+            near = [p for p in near if p not in ending]
+            wanted = max(near, key=score) if near else goal_path
+        if wanted.lane_index == current.lane_index:
+            self.target_lane = current.lane_index
+            return current
+        step = 1 if wanted.lane_index > current.lane_index else -1
+        nxt = next((p for p in paths if p.lane_index == current.lane_index + step), None)
+        if nxt is None:
+            return current
+        if self.target_lane == nxt.lane_index or self._gap_ok(nxt, x, y, speed, length, others):
+            self.target_lane = nxt.lane_index
+            return nxt
+        # A lane change we must make is blocked: drop back to find a gap.
+        self.blocked = wanted is goal_path and (goal_dist < GOAL_LANE_DISTANCE or current in ending)
+        return current
+
+    def _gap_ok(self, path: Path, x, y, speed, length, others) -> bool:
+        s0, _ = path.project(x, y)
+        for o in others:
+            ox, oy = o["position"][0], o["position"][1]
+            s, lat = path.project(ox, oy)
+            if abs(lat) > path.width * 0.5 + 0.4:
+                continue
+            half = 0.5 * (length + o["bounding_box"][0])
+            v = o["speed"]
+            if s >= s0:
+                if s - s0 - half < max(4.0, 0.5 * speed + (speed - v) * 1.5):
+                    return False
+            elif s0 - s - half < max(5.0, 0.6 * v + (v - speed) * 2.5):
+                return False
+        return True
+
+    # --- speed -----------------------------------------------------------------------------
+
+    def _desired_speed(self, current: Path, target: Path, x, y) -> float:
+        s0, _ = target.project(x, y)
+        ahead = (target.s >= s0) & (target.s <= s0 + 40.0)
+        limit = float(target.limits[ahead].min()) if ahead.any() else float(target.limits[0])
+        h = np.unwrap(target.heading)
+        v = limit
+        if len(h) > 3:
+            ds = np.maximum(np.diff(target.s), 1e-6)
+            kappa = np.abs(np.diff(h)) / ds
+            for k, s in zip(kappa, target.s[1:], strict=True):
+                if s < s0 or k < 1e-3:
+                    continue
+                # Slow enough now to reach the curve's speed with comfortable braking.
+                v_curve = math.sqrt(A_LAT / k)
+                v = min(v, math.sqrt(v_curve**2 + 2 * B_COMF * max(s - s0, 0.0)))
+        return max(v, 0.0)
+
+    def _lead(self, path: Path, x, y, length, width, others) -> tuple[float, float]:
+        """(gap [m], speed [m/s]) of the nearest vehicle ahead within the lane corridor."""
+        s0, _ = path.project(x, y)
+        best = (1e9, 30.0)
+        for o in others:
+            s, lat = path.project(o["position"][0], o["position"][1])
+            if s <= s0 or s - s0 > 120.0:
+                continue
+            if abs(lat) > 0.5 * (width + o["bounding_box"][1]) + 0.3:
+                continue
+            gap = s - s0 - 0.5 * (length + o["bounding_box"][0])
+            along = o["speed"] * math.cos(wrap(o["heading"] - path.point(s)[2]))
+            if gap < best[0]:
+                best = (gap, max(along, 0.0))
+        return best
+
+    def _lane_end_gap(self, current: Path, target: Path, x, y, length, gx, gy) -> float:
+        """Distance to the end of a lane that stops short of the goal (acceleration lane)."""
+        s0, _ = current.project(x, y)
+        goal_s, _ = current.project(gx, gy)
+        if current.length < 45.0 and goal_s > current.length + 2.0 and target is current:
+            return current.length - s0 - 0.5 * length - 1.0
+        return 1e9
+
+    def _junction_gap(self, path: Path, x, y, speed, length, others) -> float | None:
+        """Distance to the stop line while we must stop or yield there, else None."""
+        span = path.junction_span()
+        if self.committed_junction or span is None:
+            if span is not None and span[0] == 0:
+                self.committed_junction = True
+            return None
+        first, after = span
+        if first == 0:
+            self.committed_junction = True
+            return None
+        s_line = path.s[first]
+        s0, _ = path.project(x, y)
+        dist = s_line - s0 - 0.5 * length
+        if dist > 60.0:
+            return None
+        turn = abs(wrap(path.heading[after] - path.heading[first])) > 0.5
+        minor = path.limits[after] > path.limits[max(first - 1, 0)] + 0.5
+        if not (turn or minor):
+            return None
+        if turn and not self.stopped_at_line:
+            if dist < 3.0 and speed < STOP_SPEED:
+                self.stopped_at_line = True
+            else:
+                return max(dist, 0.0)
+        if self._conflict(path, first, after, s0, speed, length, others):
+            return max(dist, 0.0)
+        if dist < 2.0:
+            self.committed_junction = True
+        return None
+
+    def _conflict(self, path: Path, first, after, s0, speed, length, others) -> bool:
+        """Will another vehicle be near a point of our path through the junction while we pass
+        it? Others move at constant velocity; we accelerate from our speed at A_MAX."""
+        end = min(after + 12, len(path.s) - 1)
+        zone_s = path.s[max(first - 2, 0) : end + 1]
+        zone = path.xy[max(first - 2, 0) : end + 1]
+        d = np.maximum(zone_s - s0, 0.0)
+        v_top = 10.0
+        t_reach = np.where(
+            speed + np.sqrt(np.maximum(speed**2 + 2 * A_MAX * d, 0)) > 0,
+            (np.sqrt(speed**2 + 2 * A_MAX * d) - speed) / A_MAX,
+            0.0,
+        )
+        t_reach = np.minimum(t_reach, d / v_top + v_top / (2 * A_MAX))
+        t_in = t_reach - 1.2
+        t_out = t_reach + (length + 2.0) / max(speed, 2.0) + 1.2
+        times = np.arange(0.0, 9.0, 0.25)
+        ego_h = path.heading[0]
+        for o in others:
+            ox, oy, oh, ov = o["position"][0], o["position"][1], o["heading"], o["speed"]
+            rel = math.cos(ego_h) * (ox - path.xy[0, 0]) + math.sin(ego_h) * (oy - path.xy[0, 1])
+            if abs(wrap(oh - ego_h)) < 0.5 and rel < 0:
+                continue  # following us
+            px = ox + ov * math.cos(oh) * times
+            py = oy + ov * math.sin(oh) * times
+            dist = np.hypot(px[:, None] - zone[None, :, 0], py[:, None] - zone[None, :, 1])
+            near = dist < CONFLICT_RADIUS + 0.5 * o["bounding_box"][0] * (ov > 0.5)
+            ti, zi = np.nonzero(near)
+            if len(ti) and np.any((times[ti] >= t_in[zi]) & (times[ti] <= t_out[zi])):
+                return True
+        return False
+
+    # --- action ----------------------------------------------------------------------------
+
+    def _pose(self, target: Path, x, y, heading, speed, accel) -> list[float]:
+        v = max(0.0, speed + accel * DT)
+        s0, lat = target.project(x, y)
+        ds = 0.5 * (speed + v) * DT
+        if ds < 1e-3:
+            return [x, y, heading, DT]
+        new_lat = lat - math.copysign(min(abs(lat), LAT_SPEED * DT * max(1.0, v / 10.0)), lat)
+        px, py, ph = target.point(s0 + ds)
+        nx, ny = -math.sin(ph), math.cos(ph)
+        tx, ty = px + nx * new_lat, py + ny * new_lat
+        h = math.atan2(ty - y, tx - x) if math.hypot(tx - x, ty - y) > 0.05 else ph
+        return [tx, ty, wrap(h), DT]
+
+    def _brake(self, x, y, heading, speed) -> list[float]:
+        ds = max(0.0, speed - B_MAX * DT) * DT
+        return [x + ds * math.cos(heading), y + ds * math.sin(heading), heading, DT]
+
+
+def idm(v: float, v0: float, gap: float, v_lead: float) -> float:
+    """Intelligent Driver Model acceleration [m/s^2], clipped to [-B_MAX, A_MAX]."""
+    v0 = max(v0, 0.1)
+    free = 1.0 - (v / v0) ** 4
+    if gap >= 1e8:
+        return float(np.clip(A_MAX * free, -B_MAX, A_MAX))
+    s_star = S0 + max(0.0, v * HEADWAY + v * (v - v_lead) / (2 * math.sqrt(A_MAX * B_COMF)))
+    a = A_MAX * (free - (s_star / max(gap, 0.1)) ** 2)
+    return float(np.clip(a, -B_MAX, A_MAX))
+
+
+class Policy:
+    def __init__(self) -> None:
+        self.agents: dict[str, AgentPlanner] = {}
+
+    def reset(self) -> None:
+        self.agents = {}
+
+    def act(self, obs: dict[str, dict]) -> dict[str, list[float]]:
+        return {
+            agent_id: self.agents.setdefault(agent_id, AgentPlanner()).act(agent_obs)
+            for agent_id, agent_obs in obs.items()
+        }
