@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Protocol
@@ -11,6 +12,8 @@ from evaluator.sandbox.channel import Channel
 
 # Every sandbox carries this label, so leftovers of a crashed worker are found and removed.
 SANDBOX_LABEL = "driving-arena.sandbox"
+# And this one, unique to it, so killing one sandbox never touches another with the same labels.
+INSTANCE_LABEL = "driving-arena.instance"
 # Where the runner finds things inside every sandbox.
 SUBMISSION_MOUNT = "/submission"
 DEPS_MOUNT = "/deps"
@@ -37,10 +40,15 @@ class LaunchSpec:
     deps: Path | None
     settings: Settings
     labels: dict[str, str] = field(default_factory=dict)
+    instance: str = field(default_factory=lambda: uuid.uuid4().hex)
 
     @property
     def all_labels(self) -> dict[str, str]:
-        return {SANDBOX_LABEL: "1", **self.labels}
+        return {**self.labels, SANDBOX_LABEL: "1", INSTANCE_LABEL: self.instance}
+
+    @property
+    def instance_labels(self) -> dict[str, str]:
+        return {INSTANCE_LABEL: self.instance}
 
     def runner_args(self) -> list[str]:
         deps = ["--deps", DEPS_MOUNT] if self.deps else []

@@ -114,7 +114,7 @@ class BubblewrapBackend:
             raise SandboxUnavailable(f"cannot start bubblewrap: {error}") from error
         finally:
             os.close(runner_fd)
-        return PopenSandbox(process, settings.agent_log_tail_bytes)
+        return PopenSandbox(process, settings.agent_log_tail_bytes, spec.instance_labels)
 
     @staticmethod
     def command(spec: LaunchSpec, binds: dict[str, Path], runner_fd: int) -> list[str]:

@@ -56,7 +56,7 @@ class ProcessBackend:
             start_new_session=True,
             preexec_fn=rlimit_setter(spec.settings.agent_memory_bytes, None),
         )
-        return PopenSandbox(process, spec.settings.agent_log_tail_bytes)
+        return PopenSandbox(process, spec.settings.agent_log_tail_bytes, spec.instance_labels)
 
     def cleanup(self, labels: dict[str, str]) -> int:
         return kill_labelled(labels)

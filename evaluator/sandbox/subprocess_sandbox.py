@@ -8,6 +8,7 @@ import resource
 import signal
 import subprocess
 import threading
+import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -60,10 +61,10 @@ def rlimit_setter(memory_bytes: int, processes: int | None) -> Callable[[], None
 
 
 class PopenSandbox:
-    def __init__(self, process: subprocess.Popen, log_limit: int, cleanup_paths=()) -> None:
+    def __init__(self, process: subprocess.Popen, log_limit: int, labels: dict[str, str]) -> None:
         self.process = process
         self._stderr = LogTail(process.stderr, log_limit)
-        self._cleanup_paths: tuple[Path, ...] = tuple(cleanup_paths)
+        self._labels = labels
 
     def connect(self, deadline: float) -> Channel:
         return Channel(self.process.stdout.fileno(), self.process.stdin.fileno())
@@ -80,6 +81,9 @@ class PopenSandbox:
             with contextlib.suppress(ProcessLookupError):
                 os.killpg(self.process.pid, signal.SIGKILL)
             self.process.wait()
+        # What the agent forked inside its own session or pid namespace dies with the sandbox's
+        # init a moment later; wait for that too, so nothing outlives kill().
+        kill_labelled(self._labels)
         for stream in (self.process.stdin, self.process.stdout):
             with contextlib.suppress(OSError):
                 stream.close()
@@ -91,8 +95,9 @@ class PopenSandbox:
 
 
 def labelled_pids(labels: dict[str, str]) -> list[int]:
-    """Processes whose environment carries all ``labels``."""
+    """Live (not zombie) processes whose environment carries all ``labels``."""
     wanted = {f"{key}={value}" for key, value in labels.items()}
+    prefix = f"{LABELS_ENV}=".encode()
     found = []
     for entry in Path("/proc").iterdir():
         if not entry.name.isdigit() or int(entry.name) == os.getpid():
@@ -101,19 +106,31 @@ def labelled_pids(labels: dict[str, str]) -> list[int]:
             environ = (entry / "environ").read_bytes().split(b"\0")
         except OSError:
             continue
-        prefix = f"{LABELS_ENV}=".encode()
         for variable in environ:
             if variable.startswith(prefix):
                 carried = set(variable[len(prefix) :].decode(errors="replace").split(";"))
-                if wanted <= carried:
+                if wanted <= carried and is_alive(int(entry.name)):
                     found.append(int(entry.name))
                 break
     return found
 
 
-def kill_labelled(labels: dict[str, str]) -> int:
+def is_alive(pid: int) -> bool:
+    """True unless the process is gone or a zombie (dead, holding nothing but its pid)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat.rsplit(")", 1)[1].split()[0] not in ("Z", "X")
+
+
+def kill_labelled(labels: dict[str, str], wait_s: float = 5.0) -> int:
+    """SIGKILL the labelled processes and wait until they are dead."""
     pids = labelled_pids(labels)
     for pid in pids:
         with contextlib.suppress(ProcessLookupError):
             os.kill(pid, signal.SIGKILL)
+    deadline = time.monotonic() + wait_s
+    while any(is_alive(pid) for pid in pids) and time.monotonic() < deadline:
+        time.sleep(0.01)
     return len(pids)
