@@ -1,0 +1,52 @@
+#!/usr/bin/env bash
+# The agent sandbox on a fresh Debian machine: bubblewrap (+ Debian's python3-numpy, the runtime it
+# binds), the Docker engine with a running daemon, and the agent image built offline.
+# Idempotent; takes about a second when everything is already there. Needs root for apt/dockerd.
+#   scripts/setup-sandbox.sh
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+log() { echo "setup-sandbox: $*" >&2; }
+
+missing=()
+command -v bwrap >/dev/null || missing+=(bubblewrap)
+command -v debootstrap >/dev/null || missing+=(debootstrap)
+command -v dockerd >/dev/null || missing+=(docker.io)
+/usr/bin/python3 -c "import numpy" 2>/dev/null || missing+=(python3 python3-numpy)
+if [ "${#missing[@]}" -gt 0 ]; then
+  if [ "$(id -u)" != 0 ]; then
+    log "please install as root: apt-get install ${missing[*]}"
+    exit 1
+  fi
+  log "installing ${missing[*]}"
+  apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+
+# The daemon: no bridge network and no iptables rules, since agents never get a network anyway.
+if ! docker info >/dev/null 2>&1; then
+  if [ "$(id -u)" != 0 ]; then
+    log "no Docker daemon answers and only root can start one; the Docker sandbox stays unavailable"
+    exit 0
+  fi
+  mkdir -p /var/log
+  log "starting dockerd (log: /var/log/dockerd.log)"
+  setsid nohup dockerd --bridge=none --iptables=false >/var/log/dockerd.log 2>&1 < /dev/null &
+  for _ in $(seq 120); do
+    docker info >/dev/null 2>&1 && break
+    sleep 0.5
+  done
+  if ! docker info >/dev/null 2>&1; then
+    log "dockerd did not come up; last lines of /var/log/dockerd.log:"
+    tail -n 20 /var/log/dockerd.log >&2 || true
+    exit 1
+  fi
+fi
+
+# The agent image (offline: debootstrap + docker import; the root tarball is cached in the data dir).
+image="$(python3 -c 'from arena.config import get_settings; print(get_settings().agent_image)')"
+if ! docker image inspect "$image" >/dev/null 2>&1; then
+  log "building $image"
+  python3 -c 'from arena.cli import app; app()' sandbox build-image
+fi
+log "ready: bubblewrap, dockerd and $image"
