@@ -19,9 +19,11 @@ from sim.render import GOAL_COLOUR, SvgCanvas
 
 # Slow (blue) to fast (red), as fractions of the top speed drawn.
 SPEED_COLOURS = ((0.0, (49, 54, 149)), (0.5, (255, 255, 191)), (1.0, (165, 0, 38)))
-TRAIL_COLOUR = "#3a6fb0"
+TRAIL_COLOUR = "#7fd3ff"
 EVENT_MARKERS = (("ev_collision", "#d62728", "collision"), ("ev_off_road", "#ff7f0e", "off road"))
 MARKER_SIZE_M = 2.5
+MARGIN_M = 30.0  # around the mission agents' paths and goals
+PICTURE_WIDTH_PX = 1200.0
 
 
 class ReplayError(ValueError):
@@ -56,20 +58,22 @@ def episode_svg(rec: dict[str, np.ndarray], scenario_dir: Path | None) -> str:
 
 
 def _canvas_with_map(rec: dict[str, np.ndarray], scenario_dir: Path | None) -> SvgCanvas:
-    if scenario_dir is None:
-        valid, nbr = rec["valid"], rec["nbr_valid"]
-        xs = np.concatenate([rec["x"][valid], rec["nbr_x"][nbr], rec["goal_x"]])
-        ys = np.concatenate([rec["y"][valid], rec["nbr_y"][nbr], rec["goal_y"]])
-        return SvgCanvas((xs.min(), ys.min(), xs.max(), ys.max()), scale=4.0)
-    from scenarios.picture import stop_lanes
-    from scenarios.schema import load_scenario
-    from sim.render import draw_road
-    from sim.road import RoadNetwork
+    """A canvas around what the mission agents did (their paths and goals), with the road map
+    under it when the scenario is at hand."""
+    valid = rec["valid"]
+    xs = np.concatenate([rec["x"][valid], rec["goal_x"]])
+    ys = np.concatenate([rec["y"][valid], rec["goal_y"]])
+    extent = max(float(np.ptp(xs)), float(np.ptp(ys)), 1.0) + 2 * MARGIN_M  # [m]
+    scale = min(6.0, max(0.5, PICTURE_WIDTH_PX / extent))  # [px/m]
+    canvas = SvgCanvas((xs.min(), ys.min(), xs.max(), ys.max()), scale, margin=MARGIN_M)
+    if scenario_dir is not None:
+        from scenarios.picture import stop_lanes
+        from scenarios.schema import load_scenario
+        from sim.render import draw_road
+        from sim.road import RoadNetwork
 
-    net_path = scenario_dir / load_scenario(scenario_dir).map
-    road = RoadNetwork.load(net_path)
-    canvas = SvgCanvas.around(road)
-    draw_road(canvas, road, stop_lanes(net_path))
+        net_path = scenario_dir / load_scenario(scenario_dir).map
+        draw_road(canvas, RoadNetwork.load(net_path), stop_lanes(net_path))
     return canvas
 
 
@@ -85,7 +89,7 @@ def _trails(canvas: SvgCanvas, rec: dict[str, np.ndarray]) -> None:
     for vehicle in sorted(paths):
         xy = np.array([paths[vehicle][s] for s in sorted(paths[vehicle])])
         if len(xy) > 1:
-            canvas.polyline(xy, TRAIL_COLOUR, 0.4, opacity=0.5)
+            canvas.polyline(xy, TRAIL_COLOUR, 0.8, opacity=0.6)
 
 
 def _speed_colour(fraction: float) -> str:
@@ -107,7 +111,7 @@ def _ego(canvas: SvgCanvas, rec: dict[str, np.ndarray], a: int, top_speed: float
     xy = np.column_stack([rec["x"][a, :n], rec["y"][a, :n]])
     for t in range(1, n):
         colour = _speed_colour(float(rec["speed"][a, t]) / top_speed)
-        canvas.polyline(xy[t - 1 : t + 1], colour, 1.0)
+        canvas.polyline(xy[t - 1 : t + 1], colour, 1.2)
     if n:
         last = n - 1
         heading = float(rec["heading"][a, last])
@@ -116,7 +120,7 @@ def _ego(canvas: SvgCanvas, rec: dict[str, np.ndarray], a: int, top_speed: float
     for flag, colour, label in EVENT_MARKERS:
         for t in np.flatnonzero(rec[flag][a, :n]):
             _cross(canvas, *xy[t], colour)
-            canvas.text(*xy[t] + [0.0, 3.0], f"{label} @ step {int(rec['step'][a, t])}", 2.5)
+            canvas.text(*xy[t] - [0.0, 5.0], f"{label} @ step {int(rec['step'][a, t])}", 2.5)
 
 
 def _cross(canvas: SvgCanvas, x: float, y: float, colour: str) -> None:
@@ -128,17 +132,23 @@ def _cross(canvas: SvgCanvas, x: float, y: float, colour: str) -> None:
 def _legend(
     canvas: SvgCanvas, rec: dict[str, np.ndarray], top_speed: float, *, map_drawn: bool
 ) -> None:
-    canvas.title(str(scalar(rec["scenario_id"])))
-    lines = [
+    """A text strip under the drawing, so it never hides the road."""
+    lines = [str(scalar(rec["scenario_id"]))]
+    lines += [
         f"{rec['agent_ids'][a]}: {rec['done_reason'][a]} at step {int(rec['done_step'][a])}"
         for a in range(len(rec["agent_ids"]))
     ]
-    lines.append(f"ego path: blue 0 m/s to red {top_speed:.1f} m/s; thin blue: other vehicles")
+    lines.append(f"ego path: blue 0 m/s to red {top_speed:.1f} m/s; light blue: other vehicles")
     lines.append("x: collision (red), off road (orange); green circle: goal")
     if not map_drawn:
         lines.append("map not drawn: the scenario folder was not found (--suite)")
+    top = canvas.height
+    canvas.height += 12 + 18 * len(lines)
+    canvas.elements.append(
+        f'<rect x="0" y="{top:.1f}" width="100%" height="{canvas.height - top:.1f}" fill="#fff"/>'
+    )
     for i, line in enumerate(lines):
         canvas.elements.append(
-            f'<text x="8" y="{40 + 18 * i}" font-size="14" font-family="sans-serif">'
+            f'<text x="8" y="{top + 20 + 18 * i:.1f}" font-size="14" font-family="sans-serif">'
             f"{escape(line)}</text>"
         )
