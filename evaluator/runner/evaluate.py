@@ -63,6 +63,7 @@ def evaluate(
     manifest = load_manifest(suite_dir).select(scenario_ids)
     out_dir = Path(out_dir)
     with tempfile.TemporaryDirectory(prefix="arena-submission-") as tmp:
+        Path(tmp).chmod(0o755)  # sandboxes run the agent as another user, who must enter it
         submission = prepare_submission(Path(source), Path(tmp) / "submission")
         (out_dir / RECORDS_DIR).mkdir(parents=True, exist_ok=True)
         (out_dir / LOGS_DIR).mkdir(exist_ok=True)
