@@ -20,6 +20,7 @@ from scenarios.traffic import (
     Flow,
     Routes,
     Vehicle,
+    clear_around,
     driver_types,
     initial_vehicles,
     slow_type,
@@ -165,12 +166,11 @@ def overtake(spec: Spec, rng: np.random.Generator, maps: MapLibrary) -> Draft:
     draft.routes.special_types.append(slow_type("slow", slow_speed))
     through = draft.routes.route(("in", "out"))
     lead = 30.0 + rng.uniform(35.0, 55.0)
-    draft.routes.vehicles = [
-        v for v in draft.routes.vehicles if not (v.lane == lane and 25.0 < v.pos < lead + 80.0)
-    ]
+    draft.routes.vehicles = clear_around(draft.routes.vehicles, lane, lead, lead - 25.0, 80.0)
     draft.routes.vehicles.append(Vehicle("slow_0", through, 0.0, lane, lead, slow_speed, "slow"))
     if info.lanes("in") >= 3:
         second = lead + rng.uniform(30.0, 60.0)
+        draft.routes.vehicles = clear_around(draft.routes.vehicles, 1, second)
         draft.routes.vehicles.append(Vehicle("slow_1", through, 0.0, 1, second, slow_speed, "slow"))
     return draft
 
@@ -188,9 +188,7 @@ def cut_in(spec: Spec, rng: np.random.Generator, maps: MapLibrary) -> Draft:
     through = draft.routes.route(("in", "out"))
     draft.routes.special_types.append(slow_type("cutter", rng.uniform(14.0, 17.0)))
     ahead = 30.0 + rng.uniform(20.0, 35.0)
-    draft.routes.vehicles = [
-        v for v in draft.routes.vehicles if not (v.lane == cutter_lane and abs(v.pos - ahead) < 30)
-    ]
+    draft.routes.vehicles = clear_around(draft.routes.vehicles, cutter_lane, ahead)
     draft.routes.vehicles.append(Vehicle("cutin", through, 0.0, cutter_lane, ahead, 13.0, "cutter"))
     draft.triggers.append(
         LaneChangeTrigger(

@@ -12,13 +12,15 @@ import hashlib
 import json
 import shutil
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from scenarios.generators import GENERATORS, MapLibrary, Spec
+from scenarios.maps import netconvert_version
 from scenarios.replay.builder import KIND_SCENE, Candidate, candidates, write_replay
+from scenarios.replay.recorder import Recording
 from scenarios.replay.scenes import SCENES, recorded
 from scenarios.schema import Family, Scenario, content_hash
 from scenarios.writer import write_reactive
@@ -137,34 +139,48 @@ def scenario_id(suite: str, index: int, spec: Spec) -> str:
     return "_".join(parts)
 
 
+MAX_TAKES_PER_SCENE = 4  # recordings of one scene per build before giving up on a kind
+
+
 @dataclass
 class _ReplayPool:
-    """Removable vehicles per kind, cut from scenes recorded for this build, handed out without
-    reuse."""
+    """Removable vehicles per kind, cut from scenes recorded for this build and handed out
+    without reuse; a scene whose recordings run out of a kind is recorded again (next take)."""
 
     suite: str
     seed: int
     maps: MapLibrary
-    pools: dict[str, dict[str, list[Candidate]]]
-    recordings: dict[str, object]
-    used: set[str]
+    takes: dict[str, list[tuple[Recording, dict[str, list[Candidate]]]]] = field(
+        default_factory=dict
+    )
+    used: set[tuple[int, str]] = field(default_factory=set)
 
-    def take(self, kind: str, agents: int, rng: np.random.Generator) -> tuple[str, Candidate]:
+    def take(
+        self, kind: str, agents: int, rng: np.random.Generator
+    ) -> tuple[str, Recording, Candidate]:
         scene = KIND_SCENE[kind]
-        if scene not in self.pools:
-            rec = recorded(
-                SCENES[scene], derive_seed(self.suite, self.seed, "scene", scene), self.maps
-            )
-            self.recordings[scene] = rec
-            info = self.maps.info(SCENES[scene].template)
-            self.pools[scene] = candidates(rec, info, scene, SCENES[scene].duration_s)
-        pool = self.pools[scene].get("merge_pair" if agents > 1 else kind, [])
-        free = [c for c in pool if not self.used.intersection(c.vehicle_ids)]
-        if not free:
-            raise RuntimeError(f"scene {scene!r} has no unused {kind!r} vehicle left")
-        chosen = free[int(rng.integers(len(free)))]
-        self.used.update(chosen.vehicle_ids)
-        return scene, chosen
+        pool_name = "merge_pair" if agents > 1 else kind
+        takes = self.takes.setdefault(scene, [])
+        for take in range(MAX_TAKES_PER_SCENE):
+            if take == len(takes):
+                takes.append(self._record(scene, take))
+            rec, pools = takes[take]
+            free = [
+                c
+                for c in pools.get(pool_name, [])
+                if not self.used.intersection((take, v) for v in c.vehicle_ids)
+            ]
+            if free:
+                chosen = free[int(rng.integers(len(free)))]
+                self.used.update((take, v) for v in chosen.vehicle_ids)
+                return scene, rec, chosen
+        raise RuntimeError(f"scene {scene!r} has no unused {kind!r} vehicle left")
+
+    def _record(self, scene: str, take: int) -> tuple[Recording, dict[str, list[Candidate]]]:
+        parts = ("scene", scene) if take == 0 else ("scene", scene, take)
+        rec = recorded(SCENES[scene], derive_seed(self.suite, self.seed, *parts), self.maps)
+        info = self.maps.info(SCENES[scene].template)
+        return rec, candidates(rec, info, scene, SCENES[scene].duration_s)
 
 
 def build_suite(
@@ -181,7 +197,7 @@ def build_suite(
         shutil.rmtree(out)
     out.mkdir(parents=True)
     maps = MapLibrary(cache_dir)
-    replays = _ReplayPool(suite, seed, maps, {}, {}, set())
+    replays = _ReplayPool(suite, seed, maps)
     entries = []
     for index, spec in enumerate(specs):
         sid = scenario_id(suite, index, spec)
@@ -189,12 +205,12 @@ def build_suite(
         rng = np.random.default_rng(scenario_seed)
         folder = out / sid
         if spec.family is F.replay:
-            scene, chosen = replays.take(spec.variant, spec.agents, rng)
+            scene, recording, chosen = replays.take(spec.variant, spec.agents, rng)
             scenario = write_replay(
                 folder,
                 sid,
                 spec.variant,
-                replays.recordings[scene],
+                recording,
                 chosen,
                 maps.path(SCENES[scene].template),
                 scenario_seed,
@@ -207,7 +223,7 @@ def build_suite(
             )
         entries.append(manifest_entry(scenario, folder))
         progress(sid)
-    manifest = {"suite": suite, "scenarios": entries}
+    manifest = {"suite": suite, "netconvert": netconvert_version(), "scenarios": entries}
     if suite == "public":
         manifest["seed"] = seed
     else:

@@ -156,6 +156,9 @@ def initial_vehicles(
     Gaps are exponential with the mean spacing of a flow of ``per_lane_hour`` at ``speed``;
     ``keep_clear`` lists (lane, position [m]) spots (mission starts) left free by 25 m."""
     mean_gap = max(speed * 3600.0 / per_lane_hour, 20.0)
+    # SUMO inserts a vehicle only with a safe gap to the one ahead; one that cannot enter at step
+    # 0 would pop in later wherever there is room, possibly beside a mission vehicle.
+    min_gap = 1.6 * speed + 6.0
     out: list[Vehicle] = []
     for lane in range(lanes):
         pos = span[0] + rng.uniform(0.0, mean_gap)
@@ -164,5 +167,14 @@ def initial_vehicles(
                 out.append(
                     Vehicle(f"{prefix}{lane}_{len(out)}", route, 0.0, lane, pos, speed * 0.9)
                 )
-            pos += max(rng.exponential(mean_gap), 15.0)
+            pos += max(rng.exponential(mean_gap), min_gap)
     return out
+
+
+def clear_around(
+    vehicles: list[Vehicle], lane: int, pos: float, behind: float = 100.0, ahead: float = 30.0
+) -> list[Vehicle]:
+    """``vehicles`` without those departing on ``lane`` from ``behind`` [m] before ``pos`` to
+    ``ahead`` [m] after it. SUMO refuses to insert a slow vehicle while a faster follower could not
+    brake for it, and would insert it later, anywhere."""
+    return [v for v in vehicles if v.lane != lane or not -behind < v.pos - pos < ahead]

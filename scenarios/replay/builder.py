@@ -24,6 +24,10 @@ from sim.trajectories import Trajectory, write_trajectories
 EXPERT_FILE = "expert.csv"
 GOAL_RADIUS = 2.5  # [m]
 MAX_PATH_S = 70.0  # [s] a removed vehicle's path must fit well inside 800 steps
+TAIL_S = 3.0  # [s]
+# Scenes stop inserting traffic this long before their end (scenes.py): removed vehicles must be
+# done before, so that recorded traffic still surrounds them.
+FLOWS_STOP_BEFORE_END_S = 60.0
 NEARBY_M = 150.0  # [m] recorded vehicles farther than this from every mission vehicle are dropped
 
 # kind -> scene it is cut from
@@ -59,7 +63,7 @@ def _complete(rec: Recording, vid: str, duration_s: float) -> bool:
     tr = rec.trajectories[vid]
     return (
         tr.time[0] > 1.0
-        and tr.time[-1] < duration_s - 1.0
+        and tr.time[-1] < duration_s - FLOWS_STOP_BEFORE_END_S - 5.0
         and tr.time[-1] - tr.time[0] <= MAX_PATH_S
         and len(rec.edges[vid]) >= 2
     )
@@ -226,8 +230,12 @@ def write_replay(
     for vid, tr in rec.trajectories.items():
         if vid in candidate.vehicle_ids:
             continue
-        cropped = _crop(tr, t0, t1)
-        if cropped is not None and _near_any(cropped, egos):
+        # Recorded traffic outlasts the mission vehicles' paths a little, so the scene does not
+        # empty the moment the expert arrives.
+        cropped = _crop(tr, t0, t1 + TAIL_S)
+        if cropped is None:
+            continue
+        if _near_any(cropped, egos) or cropped.time[-1] >= t1 - t0 + TAIL_S - 0.05:
             others.append(cropped)
     missions = []
     for i, (vid, ego) in enumerate(zip(candidate.vehicle_ids, egos, strict=True)):

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from scenarios.generators import MapLibrary
+from scenarios.replay.builder import FLOWS_STOP_BEFORE_END_S
 from scenarios.replay.recorder import Recording, record_scene
 from scenarios.traffic import Flow, Routes, driver_types
 
@@ -35,7 +36,7 @@ def scene_routes(scene: Scene, rng: np.random.Generator, maps: MapLibrary) -> Ro
     info = maps.info(scene.template)
     routes = Routes()
     routes.vtypes = driver_types(rng, 8)
-    end = scene.duration_s - 60.0
+    end = scene.duration_s - FLOWS_STOP_BEFORE_END_S
     if scene.name == "highway":
         routes.flows.append(
             Flow("main", routes.route(("in", "merge", "out")), rng.uniform(2600, 3200), end=end)

@@ -1,0 +1,34 @@
+"""Suites built once per test session (maps and recordings cached in a session folder)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from arena.config import get_settings
+from scenarios.suites import PUBLIC_SEED, build_suite
+
+
+@pytest.fixture(scope="session")
+def cache_dir(tmp_path_factory) -> Path:
+    return tmp_path_factory.mktemp("scenario-cache")
+
+
+@pytest.fixture(scope="session")
+def hidden_dev(tmp_path_factory, cache_dir) -> Path:
+    out = tmp_path_factory.mktemp("hidden") / "suite"
+    build_suite("hidden", get_settings().development_seed, out, cache_dir)
+    return out
+
+
+@pytest.fixture(scope="session")
+def public_fresh(tmp_path_factory, cache_dir) -> Path:
+    out = tmp_path_factory.mktemp("public") / "suite"
+    build_suite("public", PUBLIC_SEED, out, cache_dir)
+    return out
+
+
+def manifest(folder: Path) -> dict:
+    return json.loads((folder / "manifest.json").read_text())

@@ -1,0 +1,75 @@
+from __future__ import annotations
+
+import json
+import shutil
+
+from typer.testing import CliRunner
+
+from arena.cli import app
+from scenarios.suites import public_suite_dir
+
+runner = CliRunner()
+
+
+def test_build_hidden_refuses_without_a_seed(tmp_path, monkeypatch):
+    monkeypatch.delenv("ARENA_HIDDEN_SEED", raising=False)
+    from arena.config import get_settings
+
+    get_settings.cache_clear()
+    result = runner.invoke(
+        app, ["scenarios", "build", "--suite", "hidden", "--out", str(tmp_path / "h")]
+    )
+    assert result.exit_code != 0
+    assert "--dev" in result.output
+    assert not (tmp_path / "h").exists()
+
+
+def test_public_build_refuses_a_seed(tmp_path):
+    result = runner.invoke(
+        app,
+        ["scenarios", "build", "--suite", "public", "--seed", "3", "--out", str(tmp_path / "p")],
+    )
+    assert result.exit_code != 0
+
+
+def test_list_show_and_verify_on_a_copy_of_the_public_set(tmp_path):
+    suite = tmp_path / "public"
+    shutil.copytree(public_suite_dir(), suite)
+    listed = runner.invoke(app, ["scenarios", "list", str(suite)])
+    assert listed.exit_code == 0, listed.output
+    assert "p000" in listed.output
+
+    replay = next(p.name for p in sorted(suite.iterdir()) if "replay_cut_off" in p.name)
+    svg = tmp_path / "replay.svg"
+    shown = runner.invoke(
+        app,
+        ["scenarios", "show", replay, "--suite-dir", str(suite), "--step", "30", "--out", str(svg)],
+    )
+    assert shown.exit_code == 0, shown.output
+    text = svg.read_text()
+    assert text.startswith("<svg") and text.count("<polygon") > 20 and "goal Agent_0" in text
+
+    verified = runner.invoke(app, ["scenarios", "verify", str(suite), "--only", replay])
+    assert verified.exit_code == 0, verified.output
+    assert verified.output.strip().splitlines()[-1] == "solved=1/1"
+    entry = next(
+        e
+        for e in json.loads((suite / "manifest.json").read_text())["scenarios"]
+        if e["id"] == replay
+    )
+    assert entry["unsolvable_reason"] is None
+
+
+def test_list_of_a_folder_without_manifest_is_a_clear_error(tmp_path):
+    result = runner.invoke(app, ["scenarios", "list", str(tmp_path)])
+    assert result.exit_code != 0
+    assert "manifest.json" in result.output
+
+
+def test_show_reactive_scenario_simulates_to_the_step(tmp_path):
+    suite = public_suite_dir()
+    sid = next(p.name for p in sorted(suite.iterdir()) if "left_turn_t" in p.name)
+    svg = tmp_path / "t.svg"
+    result = runner.invoke(app, ["scenarios", "show", sid, "--step", "60", "--out", str(svg)])
+    assert result.exit_code == 0, result.output
+    assert "step 60" in svg.read_text()

@@ -1,0 +1,52 @@
+from __future__ import annotations
+
+import pytest
+
+from scenarios.maps import TEMPLATES, build_map
+from scenarios.netinfo import net_info
+
+
+def test_netconvert_output_is_deterministic(tmp_path):
+    a = build_map("cross_upside_rotated", tmp_path / "a")
+    b = build_map("cross_upside_rotated", tmp_path / "b")
+    assert a.read_bytes() == b.read_bytes()
+    assert b"generated on" not in a.read_bytes()
+
+
+def test_unknown_template_is_a_clear_error(tmp_path):
+    with pytest.raises(KeyError, match="unknown map template"):
+        build_map("moon_base", tmp_path)
+
+
+@pytest.mark.parametrize("name", sorted(TEMPLATES))
+def test_template_builds_with_speed_limits(name, cache_dir):
+    info = net_info(build_map(name, cache_dir))
+    lanes = [lane for edge in info.net.getEdges() for lane in edge.getLanes()]
+    assert lanes and all(lane.getSpeed() > 0 for lane in lanes)
+
+
+@pytest.mark.parametrize("name", ["t_intersection", "t_intersection_rotated"])
+def test_t_intersection_minor_road_has_a_stop_sign(name, cache_dir):
+    info = net_info(build_map(name, cache_dir))
+    minor = info.net.getEdge("s_in").getLanes()[0]
+    assert {c.getState() for c in minor.getOutgoing()} == {"s"}
+    major = info.net.getEdge("w_in").getLanes()[0]
+    assert "s" not in {c.getState() for c in major.getOutgoing()}
+
+
+def test_cross_variants_turn_the_same_way_from_different_headings(cache_dir):
+    headings = set()
+    for name in ("cross", "cross_rotated", "cross_upside", "cross_upside_rotated"):
+        info = net_info(build_map(name, cache_dir))
+        assert info.turn("s_in", "l") is not None and info.turn("s_in", "r") is not None
+        headings.add(round(info.pose("s_in", 0, 10.0)[2], 2))
+    assert len(headings) == 4
+
+
+def test_merge_acceleration_lane_ends_or_becomes_shoulder(cache_dir):
+    plain = net_info(build_map("merge_2lane", cache_dir))
+    assert not plain.net.getEdge("merge").getLanes()[0].getOutgoing()
+    shoulder = net_info(build_map("merge_2lane_shoulder", cache_dir))
+    assert shoulder.driving_lanes("out") == [1, 2]
+    short = net_info(build_map("merge_2lane_shoulder_short", cache_dir))
+    assert short.length("merge") < shoulder.length("merge") - 50.0
