@@ -59,7 +59,6 @@ def main() -> None:
     args = parser.parse_args()
 
     base = Path(tempfile.mkdtemp(prefix="arena-bench-"))
-    base.chmod(0o755)  # bubblewrap binds as uid 65534
     settings = Settings(data_dir=base / "data")
     source = base / "src"
     source.mkdir()

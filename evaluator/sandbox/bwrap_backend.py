@@ -3,17 +3,21 @@
 The agent gets empty namespaces of every kind (no network, its own pids), a root made of the host's
 ``/usr`` bound read-only (Debian's ``python3`` with ``python3-numpy``: the same runtime as the
 agent image), a size-capped tmpfs ``/tmp``, and only its submission and dependency folders, bound
-read-only through file descriptors. Memory and process counts are capped with rlimits; bubblewrap
-itself runs as the unprivileged uid 65534 when the evaluator is root, so the process limit counts
-against that user and not against root (which the kernel exempts).
+read-only. Memory and process counts are capped with rlimits.
+
+When the evaluator is root, bubblewrap runs as the unprivileged uid 65534, so that the process
+limit holds (the kernel exempts root from it) and the agent is nobody on the host too. That uid
+may not be able to reach the submission (pytest's or ``mkdtemp``'s private folders), so the
+folders are first bound onto an open staging folder inside a private mount namespace
+(``unshare --mount``), which vanishes with the sandbox and never shows on the host.
 """
 
 from __future__ import annotations
 
 import os
 import shutil
-import stat
 import subprocess
+import tempfile
 from pathlib import Path
 
 from arena.config import SandboxKind, Settings
@@ -55,18 +59,27 @@ def root_layout() -> list[str]:
     return arguments
 
 
-def require_reachable(path: Path) -> None:
-    """bubblewrap binds as uid 65534: every folder above ``path`` must let others enter it."""
-    if os.geteuid() != 0:
-        return
-    for folder in [*reversed(path.parents), path]:
-        mode = folder.stat().st_mode
-        if not mode & stat.S_IXOTH or (folder == path and not mode & stat.S_IROTH):
-            raise SandboxUnavailable(
-                f"the bubblewrap sandbox runs as uid {UNPRIVILEGED_ID}, which cannot enter "
-                f"{folder} (mode {stat.S_IMODE(mode):o}): keep submissions and the data dir "
-                f"under folders others may enter (chmod o+rx)"
-            )
+# Runs as root in the sandbox's private mount namespace: bind each folder onto its staging point,
+# then become uid/gid 65534 for good and start bubblewrap.
+STAGE_SCRIPT = f"""set -e
+while [ "$1" != -- ]; do mount --bind "$1" "$2"; shift 2; done
+shift
+exec setpriv --reuid={UNPRIVILEGED_ID} --regid={UNPRIVILEGED_ID} --clear-groups "$@"
+"""
+
+
+def staged(binds: dict[str, Path]) -> tuple[Path, dict[str, Path], list[str]]:
+    """A staging folder, the staged sources, and the command prefix that binds them there."""
+    stage = Path(tempfile.mkdtemp(prefix="arena-bwrap-"))
+    stage.chmod(0o755)
+    sources, pairs = {}, []
+    for target, source in binds.items():
+        point = stage / target.strip("/")
+        point.mkdir(mode=0o755)
+        sources[target] = point
+        pairs += [str(source), str(point)]
+    prefix = ["unshare", "--mount", "--propagation", "private", "--", "sh", "-c", STAGE_SCRIPT]
+    return stage, sources, [*prefix, "stage", *pairs, "--"]
 
 
 class BubblewrapBackend:
@@ -75,6 +88,8 @@ class BubblewrapBackend:
     def unavailable_reason(self, settings: Settings) -> str | None:
         if shutil.which("bwrap") is None:
             return "bubblewrap is not installed (apt-get install bubblewrap)"
+        if os.geteuid() == 0 and not all(map(shutil.which, ("unshare", "setpriv", "mount"))):
+            return "unshare, setpriv and mount are needed to drop to uid 65534 (util-linux)"
         if not RUNTIME_PYTHON.is_file():
             return f"{RUNTIME_PYTHON} is missing (apt-get install python3 python3-numpy)"
         probe = subprocess.run(
@@ -89,15 +104,15 @@ class BubblewrapBackend:
         binds = {SUBMISSION_MOUNT: spec.submission}
         if spec.deps:
             binds[DEPS_MOUNT] = spec.deps
-        for source in binds.values():
-            require_reachable(source)
+        stage, prefix = None, []
+        if os.geteuid() == 0:
+            stage, binds, prefix = staged(binds)
         # The runner goes in as data read from a descriptor: it may live under a root-only
         # prefix (a virtualenv in /root) that uid 65534 cannot enter.
         runner_fd = os.open(RUNNER_PATH, os.O_RDONLY | os.O_CLOEXEC)
-        dropping = os.geteuid() == 0
         try:
             process = subprocess.Popen(
-                self.command(spec, binds, runner_fd),
+                [*prefix, *self.command(spec, binds, runner_fd)],
                 stdin=subprocess.PIPE,
                 stdout=subprocess.PIPE,
                 stderr=subprocess.PIPE,
@@ -106,15 +121,16 @@ class BubblewrapBackend:
                 pass_fds=(runner_fd,),
                 start_new_session=True,
                 preexec_fn=rlimit_setter(settings.agent_memory_bytes, settings.agent_pids),
-                user=UNPRIVILEGED_ID if dropping else None,
-                group=UNPRIVILEGED_ID if dropping else None,
-                extra_groups=[] if dropping else None,
             )
         except OSError as error:
+            if stage:
+                shutil.rmtree(stage, ignore_errors=True)
             raise SandboxUnavailable(f"cannot start bubblewrap: {error}") from error
         finally:
             os.close(runner_fd)
-        return PopenSandbox(process, settings.agent_log_tail_bytes, spec.instance_labels)
+        return PopenSandbox(
+            process, settings.agent_log_tail_bytes, spec.instance_labels, cleanup=stage
+        )
 
     @staticmethod
     def command(spec: LaunchSpec, binds: dict[str, Path], runner_fd: int) -> list[str]:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import os
 import resource
+import shutil
 import signal
 import subprocess
 import threading
@@ -61,10 +62,17 @@ def rlimit_setter(memory_bytes: int, processes: int | None) -> Callable[[], None
 
 
 class PopenSandbox:
-    def __init__(self, process: subprocess.Popen, log_limit: int, labels: dict[str, str]) -> None:
+    def __init__(
+        self,
+        process: subprocess.Popen,
+        log_limit: int,
+        labels: dict[str, str],
+        cleanup: Path | None = None,
+    ) -> None:
         self.process = process
         self._stderr = LogTail(process.stderr, log_limit)
         self._labels = labels
+        self._cleanup = cleanup  # a folder of ours to delete once the sandbox is gone
 
     def connect(self, deadline: float) -> Channel:
         return Channel(self.process.stdout.fileno(), self.process.stdin.fileno())
@@ -89,6 +97,8 @@ class PopenSandbox:
                 stream.close()
         self._stderr.text(wait=1.0)
         self.process.stderr.close()
+        if self._cleanup is not None:
+            shutil.rmtree(self._cleanup, ignore_errors=True)
 
     def logs(self) -> str:
         return self._stderr.text(wait=0.0 if self.process.poll() is None else 0.5)

@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-import tempfile
 import uuid
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -13,7 +11,6 @@ from arena.config import SandboxKind, Settings
 from evaluator.sandbox import backend, start
 from evaluator.sandbox.backend import SANDBOX_LABEL
 from evaluator.sandbox.subprocess_sandbox import labelled_pids
-from submissions.intake.archive import remove_tree
 from tests.sandbox.agents import agent, observation
 
 ISOLATING = [
@@ -24,17 +21,10 @@ ALL_KINDS = [*ISOLATING, pytest.param(SandboxKind.process, id="process")]
 
 
 @pytest.fixture(scope="session")
-def sandbox_base() -> Iterator[Path]:
-    """A folder the sandbox uid may enter (pytest's own tmp is private to root)."""
-    base = Path(tempfile.mkdtemp(prefix="arena-sandbox-tests-"))
-    base.chmod(0o755)
-    yield base
-    remove_tree(base)
-
-
-@pytest.fixture(scope="session")
-def settings(sandbox_base: Path) -> Settings:
-    return Settings(data_dir=sandbox_base / "data", init_timeout_s=20.0, step_timeout_s=1.0)
+def settings(tmp_path_factory: pytest.TempPathFactory) -> Settings:
+    return Settings(
+        data_dir=tmp_path_factory.mktemp("data"), init_timeout_s=20.0, step_timeout_s=1.0
+    )
 
 
 def usable(kind: SandboxKind, settings: Settings) -> SandboxKind:
@@ -60,8 +50,8 @@ def labels() -> dict[str, str]:
 
 
 @pytest.fixture(scope="session")
-def good_agent(sandbox_base: Path, settings: Settings):
-    return agent(sandbox_base / "good", settings)
+def good_agent(tmp_path_factory: pytest.TempPathFactory, settings: Settings):
+    return agent(tmp_path_factory.mktemp("good"), settings)
 
 
 def leftovers(kind: SandboxKind, labels: dict[str, str]) -> list:
@@ -84,7 +74,6 @@ def assert_clean_and_healthy(kind: SandboxKind, labels, settings: Settings, good
 
 
 @pytest.fixture
-def tmp(sandbox_base: Path) -> Path:
-    folder = Path(tempfile.mkdtemp(dir=sandbox_base))
-    folder.chmod(0o755)
-    return folder
+def tmp(tmp_path: Path) -> Path:
+    """pytest's folders are private to root: the sandboxes must cope with that."""
+    return tmp_path

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -13,7 +14,7 @@ from evaluator.sandbox import check_service_kind, cleanup, resolve_kind, start
 from sim.agent import DoneReason
 from submissions.intake import pack_folder, prepare_submission
 from tests.sandbox.agents import agent, observation
-from tests.sandbox.conftest import leftovers
+from tests.sandbox.conftest import leftovers, usable
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "submissions" / "examples"
 
@@ -124,12 +125,16 @@ def test_auto_prefers_docker_and_the_service_refuses_process(settings) -> None:
     assert check_service_kind("auto", settings) is expected
 
 
-def test_bubblewrap_explains_an_unreachable_submission(settings, tmp_path) -> None:
-    """pytest's tmp is private to root: the sandbox uid could not bind it."""
-    import os
-
+def test_bubblewrap_agent_is_nobody_on_the_host(settings, labels, tmp) -> None:
     if os.geteuid() != 0:
-        pytest.skip("only root evaluators drop bubblewrap to uid 65534")
-    hidden = agent(tmp_path, settings)
-    with pytest.raises(SandboxUnavailable, match="cannot enter"):
-        start(hidden, kind=SandboxKind.bubblewrap, settings=settings)
+        pytest.skip("only a root evaluator drops bubblewrap to uid 65534")
+    usable(SandboxKind.bubblewrap, settings)
+    submission = agent(tmp, settings, act="return {k: [float(os.getuid()), 0.0] for k in obs}")
+    with start(submission, kind="bubblewrap", labels=labels, settings=settings) as handle:
+        assert handle.act(observation()) == {"Agent_0": [65534.0, 0.0]}
+        pids = leftovers(SandboxKind.bubblewrap, labels)
+        assert pids
+        for pid in pids:
+            status = Path(f"/proc/{pid}/status").read_text()
+            real_uid = next(line for line in status.splitlines() if line.startswith("Uid:"))
+            assert real_uid.split()[1:] == ["65534"] * 4, (pid, real_uid)
