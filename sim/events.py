@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.geometry import box_corners, boxes_overlap
+from sim.geometry import box_overlaps_box
 from sim.road import LanePosition, angle_between
 from sim.vehicles import VehicleStates
 
@@ -51,16 +51,22 @@ def collisions(
     near = np.flatnonzero(np.hypot(others.x - x, others.y - y) <= reach)
     if len(near) == 0:
         return ()
-    ego = box_corners(x, y, heading, length, width)
-    theirs = box_corners(
-        others.x[near],
-        others.y[near],
-        others.heading[near],
-        others.length[near],
-        others.width[near],
-    )
-    hit = boxes_overlap(ego, theirs)
-    return tuple(sorted(others.ids[i] for i in near[hit]))
+    ego = (x, y, heading, length, width)
+    hit = [
+        others.ids[i]
+        for i in near.tolist()
+        if box_overlaps_box(
+            ego,
+            (
+                float(others.x[i]),
+                float(others.y[i]),
+                float(others.heading[i]),
+                float(others.length[i]),
+                float(others.width[i]),
+            ),
+        )
+    ]
+    return tuple(sorted(hit))
 
 
 def is_wrong_way(heading: float, lane: LanePosition, in_junction: bool) -> bool:

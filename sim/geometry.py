@@ -48,3 +48,24 @@ def boxes_overlap(ego: np.ndarray, others: np.ndarray) -> np.ndarray:
     other_proj = np.einsum("nak,nck->nac", axes, others)
     separated = (ego_proj.max(-1) < other_proj.min(-1)) | (other_proj.max(-1) < ego_proj.min(-1))
     return ~separated.any(-1)
+
+
+def box_overlaps_box(
+    a: tuple[float, float, float, float, float], b: tuple[float, float, float, float, float]
+) -> bool:
+    """Whether two oriented rectangles (x, y, heading, length, width) overlap (touching counts).
+
+    Separating axis theorem on the rectangles' four edge directions, in scalar Python: for the
+    one to three candidates per step this is much cheaper than array code.
+    """
+    ax, ay, ah, al, aw = a
+    bx, by, bh, bl, bw = b
+    dx, dy = bx - ax, by - ay
+    ca, sa, cb, sb = math.cos(ah), math.sin(ah), math.cos(bh), math.sin(bh)
+    for ux, uy in ((ca, sa), (-sa, ca), (cb, sb), (-sb, cb)):
+        # Projected half extents of both boxes on the axis, against the projected centre distance.
+        ra = 0.5 * (al * abs(ca * ux + sa * uy) + aw * abs(-sa * ux + ca * uy))
+        rb = 0.5 * (bl * abs(cb * ux + sb * uy) + bw * abs(-sb * ux + cb * uy))
+        if abs(dx * ux + dy * uy) > ra + rb:
+            return False
+    return True

@@ -72,20 +72,18 @@ def build_observation(
 
 def neighbour_states(neighbours: VehicleStates, road: RoadNetwork) -> list[dict]:
     """Neighbour dicts; lanes SUMO did not report come from our nearest-lane query."""
-    unknown = [i for i, lane_id in enumerate(neighbours.lane_id) if lane_id not in road.lanes]
-    guessed = dict(
-        zip(
-            unknown,
-            road.nearest_lanes(np.stack([neighbours.x[unknown], neighbours.y[unknown]], 1)),
-            strict=True,
-        )
-    )
+    lanes = road.lanes
+    unknown = [i for i, lane_id in enumerate(neighbours.lane_id) if lane_id not in lanes]
+    guessed = {}
+    if unknown:
+        xy = np.stack([neighbours.x[unknown], neighbours.y[unknown]], 1)
+        guessed = dict(zip(unknown, road.nearest_lanes(xy), strict=True))
     out = []
     xs, ys = neighbours.x.tolist(), neighbours.y.tolist()
     hs, vs = neighbours.heading.tolist(), neighbours.speed.tolist()
     ls, ws = neighbours.length.tolist(), neighbours.width.tolist()
     for i, vid in enumerate(neighbours.ids):
-        lane = guessed.get(i) or road.lanes[neighbours.lane_id[i]]
+        lane = guessed[i] if unknown and i in guessed else lanes[neighbours.lane_id[i]]
         out.append(
             {
                 "id": vid,

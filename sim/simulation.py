@@ -257,16 +257,18 @@ class Simulation:
         ours = {o.id for o in self.vehicles}
         sumo = self._traffic.vehicles_around(v.id).without(ours)
         others = [o for o in self.live if o is not v]
-        egos = VehicleStates(
-            [o.id for o in others],
-            np.array([o.pose.x for o in others]),
-            np.array([o.pose.y for o in others]),
-            np.array([o.pose.heading for o in others]),
-            np.array([o.pose.speed for o in others]),
-            np.array([o.mission.vehicle.length for o in others]),
-            np.array([o.mission.vehicle.width for o in others]),
-            [self._lanes[o.id].lane.id if o.id in self._lanes else "" for o in others],
-        )
+        egos = VehicleStates.empty()
+        if others:
+            egos = VehicleStates(
+                [o.id for o in others],
+                np.array([o.pose.x for o in others]),
+                np.array([o.pose.y for o in others]),
+                np.array([o.pose.heading for o in others]),
+                np.array([o.pose.speed for o in others]),
+                np.array([o.mission.vehicle.length for o in others]),
+                np.array([o.mission.vehicle.width for o in others]),
+                [self._lanes[o.id].lane.id if o.id in self._lanes else "" for o in others],
+            )
         near = VehicleStates.concat([sumo, self._replay_states(self.step_count), egos])
         if not len(near):
             return near

@@ -42,25 +42,30 @@ class Lane:
         self.segment_headings = np.arctan2(seg[:, 1], seg[:, 0])  # (n-1,) [rad]
         self.cumulative_s = np.concatenate([[0.0], np.cumsum(self.segment_lengths)])  # (n,) [m]
         self.length = float(self.cumulative_s[-1])  # [m]
+        self._points = pts.tolist()
 
     def project(self, x: float, y: float) -> tuple[float, float, float]:
         """Lane coordinates of a point: (s [m] along the lane, t [m] signed lateral offset, left
         positive, heading [rad] of the lane at s)."""
-        p0 = self.centreline[:-1]
-        d = self.centreline[1:] - p0
-        rel = np.array([x, y]) - p0
-        u = np.clip((rel * d).sum(1) / np.maximum(self.segment_lengths**2, 1e-12), 0.0, 1.0)
-        closest = p0 + d * u[:, None]
-        dist2 = ((closest - [x, y]) ** 2).sum(1)
-        i = int(np.argmin(dist2))
-        return self._frame(i, float(u[i]), x, y)
+        # Scalar Python: lanes have few segments, and numpy's per-call overhead would dominate.
+        best = (math.inf, 0, 0.0)
+        pts = self._points
+        for i in range(len(pts) - 1):
+            (x0, y0), (x1, y1) = pts[i], pts[i + 1]
+            dx, dy = x1 - x0, y1 - y0
+            rx, ry = x - x0, y - y0
+            u = min(max((rx * dx + ry * dy) / max(dx * dx + dy * dy, 1e-12), 0.0), 1.0)
+            d2 = (rx - dx * u) ** 2 + (ry - dy * u) ** 2
+            if d2 < best[0]:
+                best = (d2, i, u)
+        return self._frame(best[1], best[2], x, y)
 
     def _frame(self, i: int, u: float, x: float, y: float) -> tuple[float, float, float]:
-        d = self.centreline[i + 1] - self.centreline[i]
-        rel_x, rel_y = x - self.centreline[i][0], y - self.centreline[i][1]
-        t = (d[0] * rel_y - d[1] * rel_x) / max(self.segment_lengths[i], 1e-12)
-        s = float(self.cumulative_s[i] + u * self.segment_lengths[i])
-        return s, float(t), float(self.segment_headings[i])
+        (x0, y0), (x1, y1) = self._points[i], self._points[i + 1]
+        seg_len = max(math.hypot(x1 - x0, y1 - y0), 1e-12)
+        t = ((x1 - x0) * (y - y0) - (y1 - y0) * (x - x0)) / seg_len
+        s = float(self.cumulative_s[i]) + u * seg_len
+        return s, t, float(self.segment_headings[i])
 
     def position_at(self, s: float | np.ndarray) -> np.ndarray:
         """Centreline point(s) at distance ``s`` [m] along the lane, (2,) or (m, 2)."""

@@ -3,7 +3,7 @@ import math
 import numpy as np
 from shapely.geometry import Polygon
 
-from sim.geometry import box_corners, boxes_overlap, wrap
+from sim.geometry import box_corners, box_overlaps_box, boxes_overlap, wrap
 
 
 def box(x, y, heading, length=4.5, width=1.8):
@@ -34,3 +34,13 @@ def test_wrap_is_half_open_interval():
     assert wrap(math.pi) == math.pi
     assert wrap(-math.pi) == math.pi
     assert wrap(3 * math.pi / 2) == -math.pi / 2
+
+
+def test_scalar_pair_test_agrees_with_the_array_test():
+    rng = np.random.default_rng(11)
+    ego = (0.0, 0.0, 0.3, 4.5, 1.8)
+    corners = box_corners(*[np.array([v]) for v in ego])[0]
+    for _ in range(300):
+        other = (*rng.uniform(-6, 6, 2), rng.uniform(-math.pi, math.pi), 4.5, 1.8)
+        theirs = box_corners(*[np.array([v]) for v in other])
+        assert box_overlaps_box(ego, other) == bool(boxes_overlap(corners, theirs)[0])

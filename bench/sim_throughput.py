@@ -1,0 +1,166 @@
+"""Simulator throughput: raw libsumo stepping vs our full step, side by side in one run.
+
+A 3-lane, 3 km straight road with 100 background vehicles, 1,000 steps of 0.1 s. The raw side
+starts SUMO with the same network, traffic and options and only calls ``simulationStep``. Our side
+runs :class:`sim.simulation.Simulation` with one ego driven by a simple gap-keeping policy
+(TargetPose): ego moved into SUMO, neighbours read, events detected, observation built, record
+row kept, and the ``.npz`` record written at the end. The policy's own time is not counted.
+Each side runs in its own process (libsumo: one simulation per process); best of three each.
+
+Usage: ``python bench/sim_throughput.py [--steps 1000] [--vehicles 100] [--repeat 3]``.
+The last line printed is ``ratio=<ours_time/raw_time>`` (target: at most 1.5).
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import io
+import multiprocessing as mp
+import pstats
+import sys
+import tempfile
+import time
+from pathlib import Path
+from queue import Empty
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from tests.sim.builders import (
+    ScenarioSpec,
+    lane_y,
+    make_scenario,
+    mission,
+    straight_road,
+    vehicle_xml,
+)
+
+LANES = 3
+ROAD_LENGTH = 3000.0  # [m]
+
+
+def build(folder: Path, n_vehicles: int, steps: int) -> Path:
+    vehicles = [
+        vehicle_xml(f"bg{i}", 60.0 + (i // LANES) * 30.0, i % LANES, 15.0 + i % 7)
+        for i in range(n_vehicles)
+    ]
+    spec = ScenarioSpec(
+        missions=(
+            mission(
+                start=(20.0, lane_y(1, LANES), 0.0),
+                goal=(ROAD_LENGTH - 5.0, lane_y(1, LANES)),
+                speed=15.0,
+            ),
+        ),
+        vehicles=vehicles,
+        max_episode_steps=steps + 1,
+        net=lambda f: straight_road(f, length=ROAD_LENGTH, lanes=LANES, speed=25.0),
+    )
+    return make_scenario(folder, spec)
+
+
+def raw_side(folder: str, steps: int, queue) -> None:
+    import libsumo
+
+    from scenarios.schema import load_scenario
+    from sim.traffic import sumo_command
+
+    sc = load_scenario(Path(folder))
+    libsumo.start(
+        sumo_command(Path(folder) / sc.map, Path(folder) / sc.traffic.routes, sc.seed, 0.1)
+    )
+    start = time.perf_counter()
+    for _ in range(steps):
+        libsumo.simulationStep()
+    elapsed = time.perf_counter() - start
+    libsumo.close()
+    queue.put((elapsed, ""))
+
+
+def follow_gap(obs: dict) -> list[float]:
+    """Drive along the lane, slowing for the nearest vehicle ahead on it."""
+    ego = obs["ego_vehicle_state"]
+    x, y, _ = ego["position"]
+    gap = min(
+        (
+            n["position"][0] - x
+            for n in obs["neighborhood_vehicle_states"]
+            if n["position"][0] > x and abs(n["position"][1] - y) < 1.6
+        ),
+        default=100.0,
+    )
+    speed = min(25.0, max(0.0, (gap - 10.0) / 1.5))
+    return [x + speed * 0.1, y, 0.0, 0.1]
+
+
+def our_side(folder: str, steps: int, profile: bool, queue) -> None:
+    from scenarios.schema import load_scenario
+    from sim.interface import AgentInterface
+    from sim.simulation import Simulation
+
+    sim = Simulation(load_scenario(Path(folder)), Path(folder), AgentInterface())
+    obs = sim.reset()
+    profiler = cProfile.Profile() if profile else None
+    policy_time = 0.0
+    start = time.perf_counter()
+    if profiler:
+        profiler.enable()
+    for _ in range(steps):
+        t0 = time.perf_counter()
+        actions = {a: follow_gap(o) for a, o in obs.items()}
+        policy_time += time.perf_counter() - t0
+        obs = sim.step(actions)
+    sim.write_record(Path(folder).parent / "bench-record.npz")
+    if profiler:
+        profiler.disable()
+    elapsed = time.perf_counter() - start - policy_time
+    assert sim.step_count == steps and sim.live, "the ego must drive the whole run"
+    sim.close()
+    text = ""
+    if profiler:
+        out = io.StringIO()
+        pstats.Stats(profiler, stream=out).sort_stats("tottime").print_stats(25)
+        text = out.getvalue()
+    queue.put((elapsed, text))
+
+
+def in_child(target, *args) -> tuple[float, str]:
+    ctx = mp.get_context("spawn")
+    queue = ctx.Queue()
+    proc = ctx.Process(target=target, args=(*args, queue))
+    proc.start()
+    try:
+        result = queue.get(timeout=600)
+    except Empty:
+        raise SystemExit(f"{target.__name__} failed (exit code {proc.exitcode})") from None
+    proc.join()
+    return result
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=1000)
+    parser.add_argument("--vehicles", type=int, default=100)
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--profile", action="store_true", help="print where our side spends time")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = str(build(Path(tmp) / "bench", args.vehicles, args.steps))
+        raw, ours = [], []
+        for _ in range(args.repeat):
+            raw.append(in_child(raw_side, folder, args.steps)[0])
+            ours.append(in_child(our_side, folder, args.steps, False)[0])
+        if args.profile:
+            print(in_child(our_side, folder, args.steps, True)[1])
+    raw_t, ours_t = min(raw), min(ours)
+    print(
+        f"raw libsumo: {args.steps / raw_t:,.0f} steps/s ({raw_t * 1e3 / args.steps:.3f} ms/step)"
+    )
+    print(
+        f"ours:        {args.steps / ours_t:,.0f} steps/s ({ours_t * 1e3 / args.steps:.3f} ms/step)"
+    )
+    print(f"ratio={ours_t / raw_t:.2f}")
+
+
+if __name__ == "__main__":
+    main()
