@@ -110,7 +110,10 @@ def load_policy(submission: str, deps: str | None) -> object:
     module = importlib.util.module_from_spec(spec)
     sys.modules["policy"] = module
     spec.loader.exec_module(module)
-    return module.Policy()
+    policy = module.Policy()
+    if not callable(getattr(policy, "act", None)):
+        raise TypeError("Policy has no act(self, obs) method")
+    return policy
 
 
 def serve(stream: Stream, policy: object) -> None:

@@ -33,9 +33,12 @@ from evaluator.sandbox.channel import Channel, ChannelClosed, ChannelTimeout
 
 SOCKET_MOUNT = "/run/arena"
 SOCKET_NAME = "agent.sock"
-UNPRIVILEGED_USER = "65534:65534"
+UNPRIVILEGED_ID = 65534
+UNPRIVILEGED_USER = f"{UNPRIVILEGED_ID}:{UNPRIVILEGED_ID}"
 # The log driver keeps this much per container; we show the last agent_log_tail_bytes of it.
 LOG_MAX_SIZE = "1m"
+# How long a killed container may take to be reported dead [s].
+KILL_WAIT_S = 10.0
 # How often a starting container is checked for having died before it connected [s].
 START_POLL_S = 0.1
 
@@ -90,6 +93,18 @@ def container_options(spec: LaunchSpec, socket_dir: Path) -> dict[str, Any]:
     }
 
 
+def share_with_agent(socket_dir: Path, path: Path) -> None:
+    """Let the container's group 65534 (and, when we cannot chown, everyone) reach the socket."""
+    if os.geteuid() == 0:
+        os.chown(socket_dir, -1, UNPRIVILEGED_ID)
+        os.chown(path, -1, UNPRIVILEGED_ID)
+        socket_dir.chmod(0o750)
+        path.chmod(0o660)
+    else:
+        socket_dir.chmod(0o755)
+        path.chmod(0o777)
+
+
 class DockerSandbox:
     def __init__(self, container, listener: socket.socket, socket_dir: Path, log_limit: int):
         self.container = container
@@ -130,30 +145,41 @@ class DockerSandbox:
             state = docker_client().api.inspect_container(self.container.id)["State"]
         except docker.errors.NotFound:
             return ExitStatus(None)
+        except docker.errors.DockerException as error:
+            raise SandboxUnavailable(f"cannot inspect the agent container: {error}") from error
         if state["Running"] and not state["OOMKilled"]:
             return None
         return ExitStatus(state["ExitCode"], oom_killed=state["OOMKilled"])
 
     def kill(self) -> None:
         import docker.errors
+        import requests.exceptions
 
-        if self._final_logs is None:
-            self._final_logs = self.logs()
         try:
+            if self._final_logs is None:
+                # The daemon drains the agent's output before it reports the exit, so the log
+                # read after the wait is complete.
+                with contextlib.suppress(docker.errors.APIError):
+                    self.container.kill()
+                with contextlib.suppress(requests.exceptions.RequestException):
+                    self.container.wait(timeout=KILL_WAIT_S)
+                self._final_logs = self.logs()
             self.container.remove(force=True)
         except docker.errors.NotFound:
             pass
-        except docker.errors.APIError as error:
-            # Removal already in progress is fine; anything else is for cleanup() to catch.
+        except (docker.errors.DockerException, requests.exceptions.RequestException) as error:
+            # Removal already in progress is fine; a daemon gone away is ours to retry.
             if "in progress" not in str(error):
-                raise
-        for closable in (self._connection, self._listener):
-            if closable is not None:
-                closable.close()
-        shutil.rmtree(self._socket_dir, ignore_errors=True)
+                raise SandboxUnavailable(f"cannot remove the agent container: {error}") from error
+        finally:
+            for closable in (self._connection, self._listener):
+                if closable is not None:
+                    closable.close()
+            shutil.rmtree(self._socket_dir, ignore_errors=True)
 
     def logs(self) -> str:
         import docker.errors
+        import requests.exceptions
 
         if self._final_logs is not None:
             return self._final_logs
@@ -161,6 +187,8 @@ class DockerSandbox:
             data = self.container.logs(stdout=True, stderr=True)
         except docker.errors.NotFound:
             return ""
+        except (docker.errors.DockerException, requests.exceptions.RequestException) as error:
+            raise SandboxUnavailable(f"cannot read the agent's log: {error}") from error
         return data[-self._log_limit :].decode("utf-8", errors="replace")
 
 
@@ -185,13 +213,11 @@ class DockerBackend:
         import docker.errors
 
         socket_dir = Path(tempfile.mkdtemp(prefix="arena-agent-"))
-        socket_dir.chmod(0o755)
         listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         try:
             path = socket_dir / SOCKET_NAME
             listener.bind(str(path))
-            # The runner connects as uid 65534; the folder holds nothing else.
-            os.chmod(path, 0o777)
+            share_with_agent(socket_dir, path)
             listener.listen(1)
             container = docker_client().containers.run(**container_options(spec, socket_dir))
         except (OSError, docker.errors.DockerException) as error:

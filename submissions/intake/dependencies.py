@@ -8,7 +8,6 @@ Folders are shared by every submission with the same requirements, keyed by thei
 from __future__ import annotations
 
 import hashlib
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -18,7 +17,7 @@ from packaging.requirements import InvalidRequirement, Requirement
 
 from arena.config import Settings
 from evaluator.errors import IntakeError
-from submissions.intake.archive import make_read_only, remove_tree
+from submissions.intake.archive import make_read_only
 from submissions.intake.contents import REQUIREMENTS
 
 PIP_TIMEOUT_S = 600
@@ -89,8 +88,12 @@ def install_requirements(text: str, settings: Settings) -> Path | None:
         )
         (installed / COMPLETE_MARKER).write_text("\n".join(requirements) + "\n")
         make_read_only(installed)
-        remove_tree(target)
-        shutil.move(str(installed), target)
+        try:
+            installed.rename(target)
+        except OSError:
+            # Another intake finished the same requirements first; theirs is as good as ours.
+            if not (target / COMPLETE_MARKER).is_file():
+                raise
     return target
 
 
