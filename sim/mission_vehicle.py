@@ -6,8 +6,6 @@ import math
 from dataclasses import dataclass, field
 from enum import StrEnum
 
-import numpy as np
-
 from scenarios.schema import Mission
 from sim.agent import DoneReason
 from sim.geometry import wrap
@@ -24,9 +22,10 @@ class Status(StrEnum):
 class Kinematics:
     """Derivatives of the motion, from pose differences over the step [SI units]."""
 
-    velocity: np.ndarray = field(default_factory=lambda: np.zeros(2))  # (2,) [m/s]
-    acceleration: np.ndarray = field(default_factory=lambda: np.zeros(2))  # (2,) [m/s^2]
-    jerk: np.ndarray = field(default_factory=lambda: np.zeros(2))  # (2,) [m/s^3]
+    # Plain float pairs: per-step scalar maths is cheaper without numpy.
+    velocity: tuple[float, float] = (0.0, 0.0)  # [m/s]
+    acceleration: tuple[float, float] = (0.0, 0.0)  # [m/s^2]
+    jerk: tuple[float, float] = (0.0, 0.0)  # [m/s^3]
     yaw_rate: float = 0.0  # [rad/s]
     angular_acceleration: float = 0.0  # [rad/s^2]
     angular_jerk: float = 0.0  # [rad/s^3]
@@ -50,9 +49,8 @@ class MissionVehicle:
         x, y, heading = mission.start
         pose = Pose(x, y, wrap(heading), mission.start_speed, 0.0)
         vehicle = cls(mission, pose)
-        vehicle.kinematics.velocity = mission.start_speed * np.array(
-            [math.cos(heading), math.sin(heading)]
-        )
+        speed = mission.start_speed
+        vehicle.kinematics.velocity = (speed * math.cos(heading), speed * math.sin(heading))
         return vehicle
 
     @property
@@ -62,16 +60,18 @@ class MissionVehicle:
     def advance(self, new: Pose, dt: float) -> None:
         """Move to ``new`` and update the motion derivatives (finite differences over ``dt``)."""
         k = self.kinematics
-        velocity = np.array([new.x - self.pose.x, new.y - self.pose.y]) / dt
-        acceleration = (velocity - k.velocity) / dt
+        vx, vy = (new.x - self.pose.x) / dt, (new.y - self.pose.y) / dt
+        ax, ay = (vx - k.velocity[0]) / dt, (vy - k.velocity[1]) / dt
         yaw_rate = wrap(new.heading - self.pose.heading) / dt
         angular_acceleration = (yaw_rate - k.yaw_rate) / dt
-        first = self.steps == 0  # no previous acceleration to difference against
-        k.jerk = np.zeros(2) if first else (acceleration - k.acceleration) / dt
-        k.angular_jerk = 0.0 if first else (angular_acceleration - k.angular_acceleration) / dt
-        k.velocity, k.acceleration = velocity, acceleration
+        if self.steps == 0:  # no previous acceleration to difference against
+            k.jerk, k.angular_jerk = (0.0, 0.0), 0.0
+        else:
+            k.jerk = ((ax - k.acceleration[0]) / dt, (ay - k.acceleration[1]) / dt)
+            k.angular_jerk = (angular_acceleration - k.angular_acceleration) / dt
+        k.velocity, k.acceleration = (vx, vy), (ax, ay)
         k.yaw_rate, k.angular_acceleration = yaw_rate, angular_acceleration
-        self.distance_travelled += float(np.hypot(*velocity)) * dt
+        self.distance_travelled += math.hypot(vx, vy) * dt
         self.pose = new
         self.steps += 1
 

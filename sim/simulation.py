@@ -74,6 +74,7 @@ class Simulation:
         self.vehicles = [MissionVehicle.from_mission(m) for m in self._missions]
         self._lanes: dict[str, LanePosition] = {}
         self.step_count = 0
+        self._mission_ids = {m.agent_id for m in self._missions}
         self.recorder = EpisodeRecorder([m.agent_id for m in self._missions])
 
     # --- lifecycle ---------------------------------------------------------------------------
@@ -201,8 +202,9 @@ class Simulation:
         """Every vehicle that is not a mission vehicle, as of the last step (SUMO and replay)."""
         assert self._traffic is not None, "reset() first"
         sumo = self._traffic.all_vehicles()
-        ours = {v.id for v in self.vehicles}
-        return VehicleStates.concat([sumo.without(ours), self._replay_states(self.step_count)])
+        return VehicleStates.concat(
+            [sumo.without(self._mission_ids), self._replay_states(self.step_count)]
+        )
 
     def write_record(self, path: Path) -> None:
         meta = {
@@ -254,8 +256,7 @@ class Simulation:
     def _surroundings(self, v: MissionVehicle) -> VehicleStates:
         """Other vehicles within the observation radius of ``v``'s centre, nearest first."""
         assert self._traffic is not None
-        ours = {o.id for o in self.vehicles}
-        sumo = self._traffic.vehicles_around(v.id).without(ours)
+        sumo = self._traffic.vehicles_around(v.id).without(self._mission_ids)
         others = [o for o in self.live if o is not v]
         egos = VehicleStates.empty()
         if others:

@@ -170,22 +170,20 @@ class SumoTraffic:
         return self._states(results)
 
     def _states(self, results: dict[str, dict]) -> VehicleStates:
-        n = len(results)
-        if n == 0:
+        if not results:
             return VehicleStates.empty()
         tc = self._tc
         ids = sorted(results)  # sorted: the order must not depend on SUMO's internal containers
-        rows = np.empty((n, 6))
-        for k, v in enumerate(ids):
-            r = results[v]
-            dims = self._dims.get(v)
-            if dims is None:
-                dims = self._dims[v] = (
-                    self._ls.vehicle.getLength(v),
-                    self._ls.vehicle.getWidth(v),
-                )
-            fx, fy = r[tc.VAR_POSITION]
-            rows[k] = (fx, fy, r[tc.VAR_ANGLE], r[tc.VAR_SPEED], dims[0], dims[1])
+        for v in ids:
+            if v not in self._dims:
+                self._dims[v] = (self._ls.vehicle.getLength(v), self._ls.vehicle.getWidth(v))
+        dims = self._dims
+        rows = np.array(
+            [
+                (*r[tc.VAR_POSITION], r[tc.VAR_ANGLE], r[tc.VAR_SPEED], *dims[v])
+                for v, r in ((v, results[v]) for v in ids)
+            ]
+        )
         heading = np.radians(90.0 - rows[:, 2])
         heading = np.pi - np.mod(np.pi - heading, 2 * np.pi)
         half = rows[:, 4] / 2

@@ -18,9 +18,9 @@ from sim.road.lane import Lane, angle_between
 # Lanes whose centreline is within this much of the nearest one [m] compete on heading, so that
 # overlapping junction connections resolve to the one the vehicle follows.
 _TIE_DISTANCE = 0.5
-_GRID_CELL = 10.0  # [m] side of a nearest-lane index cell
-_GRID_REACH = 6.0  # [m] segments this close to a cell are listed in it
-_MAX_SEGMENT = 10.0  # [m] longer centreline segments are split in the index
+_GRID_CELL = 5.0  # [m] side of a nearest-lane index cell
+_GRID_REACH = 4.0  # [m] segments this close to a cell are listed in it
+_MAX_SEGMENT = 5.0  # [m] longer centreline segments are split in the index
 
 
 @dataclass(frozen=True)
