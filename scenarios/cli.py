@@ -167,8 +167,10 @@ def verify(
             directory, ids, jobs, lambda r: progress.update(task, advance=1, current=r.scenario_id)
         )
     table = Table(title="expert runs")
-    for column in ("id", "expert", "solved", "steps", "reason"):
+    table.add_column("id", no_wrap=True)
+    for column in ("expert", "solved", "steps"):
         table.add_column(column)
+    table.add_column("reason", overflow="fold")
     for r in results:
         table.add_row(
             r.scenario_id,

@@ -71,7 +71,11 @@ class PlannerAgent:
 
 
 def uses_log_replay(scenario_dir: Path) -> bool:
-    return (Path(scenario_dir) / EXPERT_FILE).exists()
+    """Non-reactive replays are verified by log replay; everything reactive (the replay with a
+    reactive bubble included: its traffic no longer follows the recording) by the planner."""
+    from scenarios.schema import load_scenario
+
+    return (Path(scenario_dir) / EXPERT_FILE).exists() and not load_scenario(scenario_dir).reactive
 
 
 def expert_factory(scenario_dir: Path):

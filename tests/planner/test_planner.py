@@ -127,7 +127,9 @@ def test_path_projection_and_goal_offset_on_an_arc():
     far = 120.0  # beyond the path's end, on the same circle
     gx, gy = radius * math.sin(far / radius), radius * (1 - math.cos(far / radius))
     assert path.goal_offset(gx, gy) < 0.5
-    assert path.goal_offset(gx * 0.97, gy * 0.97) > 2.0
+    inward = np.array([0.0, radius]) - [gx, gy]  # towards the centre: the lane on the left
+    ix, iy = np.array([gx, gy]) + 3.2 * inward / np.hypot(*inward)
+    assert path.goal_offset(ix, iy) == pytest.approx(3.2, abs=0.3)
 
 
 def test_planner_agent_uses_the_interface_of_its_agent_yaml():

@@ -25,8 +25,9 @@ def test_recorder_saves_every_vehicle_in_our_conventions(cache_dir):
         moved = np.diff(tr.x)
         assert np.allclose(moved, 0.5 * (tr.speed[1:] + tr.speed[:-1]) * 0.1, atol=0.35)
         assert rec.edges[vid][0] == "in"
-        # Centre, not front bumper: the first frame sits half a length behind the lane start.
-        assert tr.x[0] < 0.5
+        # SUMO inserts a vehicle with its back at the lane start: its centre is half a length in
+        # (FCD reports the front bumper, a full length in).
+        assert tr.x[0] == pytest.approx(tr.length / 2, abs=0.3)
 
 
 def _boxes(tr, frames):
