@@ -42,17 +42,20 @@ class Stream:
     def __init__(self, read_fd: int, write_fd: int) -> None:
         self.read_fd = read_fd
         self.write_fd = write_fd
+        # Observations are read into one reused buffer, grown when a bigger one comes.
+        self.buffer = bytearray(1 << 16)
 
-    def read_exact(self, size: int) -> bytearray:
-        buffer = bytearray(size)
-        view = memoryview(buffer)
+    def read_exact(self, size: int) -> memoryview:
+        if size > len(self.buffer):
+            self.buffer = bytearray(size)
+        view = memoryview(self.buffer)[:size]
         received = 0
         while received < size:
             chunk = os.readv(self.read_fd, [view[received:]])
             if chunk == 0:
                 raise Closed
             received += chunk
-        return buffer
+        return view
 
     def receive(self) -> tuple[str, object]:
         (size,) = HEADER.unpack(self.read_exact(HEADER.size))

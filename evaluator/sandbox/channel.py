@@ -23,7 +23,7 @@ import numpy as np
 HEADER = struct.Struct(">I")
 # Replies carry a handful of actions; anything near this size is an agent writing garbage.
 MAX_REPLY_BYTES = 16 * 1024**2
-READ_CHUNK = 256 * 1024
+INBOX_BYTES = 64 * 1024
 
 
 class ChannelClosed(Exception):
@@ -63,7 +63,9 @@ class Channel:
         self._readable.register(read_fd, select.POLLIN)
         self._writable = select.poll()
         self._writable.register(write_fd, select.POLLOUT)
-        self._received = bytearray()
+        # Replies are read into one reused buffer: no allocation per step but the payload's.
+        self._inbox = bytearray(INBOX_BYTES)
+        self._filled = 0
         self._buffer = io.BytesIO()
         self._pickler = ObservationPickler(self._buffer, protocol=5)
 
@@ -95,25 +97,29 @@ class Channel:
     def receive(self, deadline: float) -> dict[str, Any]:
         """Read one message; ``deadline`` is a ``time.monotonic()`` value."""
         while True:
-            if len(self._received) >= HEADER.size:
-                (size,) = HEADER.unpack_from(self._received)
+            if self._filled >= HEADER.size:
+                (size,) = HEADER.unpack_from(self._inbox)
                 if size > MAX_REPLY_BYTES:
                     raise ChannelViolation(f"a reply of {size} bytes (limit {MAX_REPLY_BYTES})")
                 end = HEADER.size + size
-                if len(self._received) >= end:
-                    payload = bytes(self._received[HEADER.size : end])
-                    del self._received[:end]
+                if end > len(self._inbox):
+                    self._inbox.extend(bytes(end - len(self._inbox)))
+                if self._filled >= end:
+                    payload = bytes(self._inbox[HEADER.size : end])
+                    left = self._filled - end
+                    self._inbox[:left] = self._inbox[end : self._filled]
+                    self._filled = left
                     return decode_reply(payload)
+            self._wait(self._readable, deadline)
             try:
-                chunk = os.read(self.read_fd, READ_CHUNK)
+                received = os.readv(self.read_fd, [memoryview(self._inbox)[self._filled :]])
             except BlockingIOError:
-                self._wait(self._readable, deadline)
                 continue
             except ConnectionResetError as error:
                 raise ChannelClosed from error
-            if not chunk:
+            if not received:
                 raise ChannelClosed
-            self._received += chunk
+            self._filled += received
 
     @staticmethod
     def _wait(poller: select.poll, deadline: float) -> None:
