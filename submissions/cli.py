@@ -91,7 +91,11 @@ def cleanup(
         list[str] | None, typer.Option(help="Only sandboxes with this KEY=VALUE label.")
     ] = None,
 ) -> None:
-    """Kill and remove leftover agent containers and processes."""
+    """Kill and remove leftover agent containers and processes.
+
+    Without --label this removes every agent sandbox on this host: run it when no worker is
+    evaluating, or pass the labels of the evaluation to clean up after.
+    """
     from evaluator.sandbox import cleanup as remove
 
     labels = dict(item.split("=", 1) for item in label or [])

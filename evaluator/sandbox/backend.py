@@ -20,9 +20,8 @@ DEPS_MOUNT = "/deps"
 RUNNER_MOUNT = "/opt/arena/runner.py"
 RUNNER_PATH = Path(__file__).resolve().parents[2] / "submissions" / "runner.py"
 # One thread for BLAS/OpenMP: the agent has one CPU, and a thread each counts against its pids.
+# (No PYTHON* variables: the runner starts with -I, which ignores them; -B keeps bytecode away.)
 RUNTIME_ENV = {
-    "PYTHONUNBUFFERED": "1",
-    "PYTHONDONTWRITEBYTECODE": "1",
     "OPENBLAS_NUM_THREADS": "1",
     "OMP_NUM_THREADS": "1",
     "MKL_NUM_THREADS": "1",
