@@ -74,6 +74,7 @@ REJECTIONS = [
     ("too many entries", with_policy(**{f"f{i}.txt": "x" for i in range(6)}), "f4.txt", "max-entries", {"max_zip_entries": 5}),
     ("too large unzipped", with_policy(**{n: noise(900_000) for n in "abc"}), "c", "max-unzipped-bytes", SMALL),
     ("nested zip bomb", with_policy(**{"inner.zip": zip_bytes({f"{i}.bin": bytes(MIB) for i in range(3)})}), "inner.zip!2.bin", "max-unzipped-bytes", SMALL),
+    ("archives nested too deep", with_policy(**{"a.zip": zip_bytes({"b.zip": zip_bytes({"c.zip": zip_bytes({"d.txt": "x"})})})}), "a.zip!b.zip!c.zip", "nested-archive", {}),
     ("nested gzip bomb", with_policy(**{"data.gz": gzip_bytes(bytes(5 * MIB))}), "data.gz (inflated)", "max-unzipped-bytes", SMALL),
     ("too large zip", with_policy(**{"noise.bin": noise(MIB + 1000)}), "<zip>", "max-zip-bytes", {"max_zip_bytes": MIB}),
 ]  # fmt: skip
