@@ -7,11 +7,11 @@ tail of its stderr, after the sandbox has been killed: a failing agent never out
 from __future__ import annotations
 
 import time
-from typing import Any
+from typing import Any, NoReturn
 
 from arena.config import Settings
 from evaluator.errors import AgentFailure
-from evaluator.sandbox.backend import Sandbox
+from evaluator.sandbox.backend import ExitStatus, Sandbox
 from evaluator.sandbox.channel import Channel, ChannelClosed, ChannelTimeout, ChannelViolation
 from sim.agent import DoneReason, Observation
 
@@ -52,7 +52,10 @@ class AgentHandle:
     def act(self, obs: dict[str, Observation]) -> dict[str, Any]:
         deadline = time.monotonic() + self._step_timeout_s
         self._send("act", obs, deadline, DoneReason.step_timeout)
-        return self._expect("actions", deadline, DoneReason.step_timeout)["actions"]
+        actions = self._expect("actions", deadline, DoneReason.step_timeout).get("actions")
+        if not isinstance(actions, dict):
+            self._fail(DoneReason.agent_error, "protocol violation: actions are not a dict")
+        return actions
 
     def close(self) -> None:
         if self._closed:
@@ -118,18 +121,18 @@ class AgentHandle:
             )
         return message
 
-    def _died(self) -> None:
+    def _died(self) -> NoReturn:
         status = self._sandbox.exit_status(EXIT_STATUS_WAIT_S)
         if status is not None and status.oom_killed:
             self._fail(DoneReason.memory_limit, "the agent was " + status.describe())
         self._fail(DoneReason.agent_exited, self._ended_detail("unexpectedly", status))
 
-    def _ended_detail(self, when: str, status=None) -> str:
+    def _ended_detail(self, when: str, status: ExitStatus | None = None) -> str:
         status = status or self._sandbox.exit_status(EXIT_STATUS_WAIT_S)
         how = status.describe() if status is not None else "stopped answering"
         return f"the agent {how} {when}"
 
-    def _fail(self, reason: DoneReason, detail: str) -> None:
+    def _fail(self, reason: DoneReason, detail: str) -> NoReturn:
         self._closed = True
         self._sandbox.kill()
         tail = self._sandbox.logs()

@@ -113,6 +113,18 @@ CASES = [
         fails_at="start",
         evidence=("ModuleNotFoundError",),
     ),
+    Hostile(
+        "writing garbage into the protocol",
+        act="""
+        for fd in range(3, 16):
+            try:
+                os.write(fd, b'\\x00\\x00\\x00\\x05hello')
+            except OSError:
+                pass
+        return {k: [1.0, 0.0] for k in obs}
+        """,
+        evidence=("protocol violation",),
+    ),
     Hostile("raising in act", act="raise KeyError('lost')", evidence=("KeyError: 'lost'",)),
     Hostile(
         "returning a list, not a dict",
