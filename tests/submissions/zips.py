@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import gzip
 import io
+import warnings
 import zipfile
 from pathlib import Path
 
@@ -23,7 +24,11 @@ def entry(name: str, mode: int = 0o100644) -> zipfile.ZipInfo:
 
 def zip_bytes(files: dict[str | zipfile.ZipInfo, bytes | str]) -> bytes:
     buffer = io.BytesIO()
-    with zipfile.ZipFile(buffer, "w", compression=zipfile.ZIP_DEFLATED) as archive:
+    with (
+        zipfile.ZipFile(buffer, "w", compression=zipfile.ZIP_DEFLATED) as archive,
+        warnings.catch_warnings(),
+    ):
+        warnings.simplefilter("ignore", UserWarning)  # duplicate names are a hostile case
         for name, data in files.items():
             archive.writestr(name if isinstance(name, zipfile.ZipInfo) else entry(name), data)
     return buffer.getvalue()
