@@ -38,12 +38,6 @@ from sim.triggers import CutInTriggers
 from sim.vehicle import DECODERS, ControlContext, parse_action
 from sim.vehicles import VehicleStates
 
-# SUMO reports vehicles around an ego by front-bumper distance; ask a little wider, filter by
-# centre distance ourselves.
-_CONTEXT_MARGIN = 10.0  # [m]
-# Done for these reasons, the vehicle leaves the road network at once.
-_REMOVED_REASONS = {DoneReason.collision, DoneReason.off_road, DoneReason.reached_goal}
-
 
 class Simulation:
     """An episode of ``scenario``. Not reusable across processes: libsumo allows one running
@@ -144,6 +138,7 @@ class Simulation:
         if self._triggers is not None:
             self._triggers.apply(traffic, self._lanes, self.road)
         traffic.step()
+        self._keep_egos_in_sumo()
 
         surroundings = {v.id: self._surroundings(v) for v in driven + entering}
         events = {}
@@ -201,7 +196,7 @@ class Simulation:
     def background_states(self) -> VehicleStates:
         """Every vehicle that is not a mission vehicle, as of the last step (SUMO and replay)."""
         assert self._traffic is not None, "reset() first"
-        sumo = self._traffic.all_vehicles()
+        sumo = self._traffic.vehicle_states()
         return VehicleStates.concat(
             [sumo.without(self._mission_ids), self._replay_states(self.step_count)]
         )
@@ -240,12 +235,23 @@ class Simulation:
             v.id, list(m.route), m.vehicle.length, m.vehicle.width, m.vehicle.height
         )
         self._traffic.move(v.id, v.pose.x, v.pose.y, v.pose.heading, v.pose.speed)
-        self._traffic.watch_around(v.id, self.interface.observation_radius + _CONTEXT_MARGIN)
         v.status = Status.live
+
+    def _keep_egos_in_sumo(self) -> None:
+        """SUMO retires a vehicle that reaches the end of its route, but a live ego goes where
+        its agent drives it: put it back, routed onward from where it is."""
+        traffic = self._traffic
+        assert traffic is not None
+        for v in self.live:
+            if not traffic.is_in_network(v.id):
+                m = v.mission
+                route = self._route_from(v.pose.x, v.pose.y, v.pose.heading)
+                traffic.add_vehicle(v.id, route, m.vehicle.length, m.vehicle.width)
+                traffic.move(v.id, v.pose.x, v.pose.y, v.pose.heading, v.pose.speed)
 
     def _finish(self, v: MissionVehicle, reason: DoneReason) -> None:
         v.finish(reason, self.step_count)
-        if self._traffic is not None and reason in _REMOVED_REASONS:
+        if self._traffic is not None:  # a done vehicle leaves the road at once
             self._traffic.remove(v.id)
 
     def _replay_states(self, step: int) -> VehicleStates:
@@ -256,7 +262,7 @@ class Simulation:
     def _surroundings(self, v: MissionVehicle) -> VehicleStates:
         """Other vehicles within the observation radius of ``v``'s centre, nearest first."""
         assert self._traffic is not None
-        sumo = self._traffic.vehicles_around(v.id).without(self._mission_ids)
+        sumo = self._traffic.vehicle_states().without(self._mission_ids)
         others = [o for o in self.live if o is not v]
         egos = VehicleStates.empty()
         if others:

@@ -59,7 +59,8 @@ class SumoTraffic:
             raise SumoError(f"SUMO failed to start: {exc}") from exc
         _open_instance = self
         self._dims: dict[str, tuple[float, float]] = {}  # vehicle id -> (length, width) [m]
-        self._context_radius: dict[str, float] = {}
+        self._routes = 0
+        self._states_cache: VehicleStates | None = None
         self._vars = [
             self._tc.VAR_POSITION,
             self._tc.VAR_ANGLE,
@@ -73,10 +74,15 @@ class SumoTraffic:
         return self._ls
 
     def step(self) -> None:
+        ls = self._ls
         try:
-            self._ls.simulationStep()
-        except self._ls.TraCIException as exc:
+            ls.simulationStep()
+            # Every vehicle reports its state once per step through one batched call.
+            for vid in ls.simulation.getDepartedIDList():
+                ls.vehicle.subscribe(vid, self._vars)
+        except ls.TraCIException as exc:
             raise SumoError(f"SUMO step failed: {exc}") from exc
+        self._states_cache = None
 
     @property
     def time(self) -> float:
@@ -97,16 +103,21 @@ class SumoTraffic:
         at the next step, where the next :meth:`move` puts it."""
         ls = self._ls
         type_id = f"__type_{vid}"
-        ls.vehicletype.copy("DEFAULT_VEHTYPE", type_id)
-        ls.vehicletype.setLength(type_id, length)
-        ls.vehicletype.setWidth(type_id, width)
-        ls.vehicletype.setHeight(type_id, height)
-        ls.vehicletype.setMinGap(type_id, 0.0)
-        route_id = f"__route_{vid}"
-        ls.route.add(route_id, edges)
-        ls.vehicle.add(vid, route_id, typeID=type_id, depart="now", departLane="best")
-        ls.vehicle.setSpeedMode(vid, 0)
-        ls.vehicle.setLaneChangeMode(vid, 0)
+        if vid not in self._dims:
+            ls.vehicletype.copy("DEFAULT_VEHTYPE", type_id)
+            ls.vehicletype.setLength(type_id, length)
+            ls.vehicletype.setWidth(type_id, width)
+            ls.vehicletype.setHeight(type_id, height)
+            ls.vehicletype.setMinGap(type_id, 0.0)
+        self._routes += 1
+        route_id = f"__route_{vid}_{self._routes}"
+        try:
+            ls.route.add(route_id, edges)
+            ls.vehicle.add(vid, route_id, typeID=type_id, depart="now", departLane="best")
+            ls.vehicle.setSpeedMode(vid, 0)
+            ls.vehicle.setLaneChangeMode(vid, 0)
+        except ls.TraCIException as exc:
+            raise SumoError(f"cannot add vehicle {vid} on route {edges}: {exc}") from exc
         self._dims[vid] = (length, width)
 
     def move(self, vid: str, x: float, y: float, heading: float, speed: float) -> None:
@@ -132,8 +143,9 @@ class SumoTraffic:
 
     def remove(self, vid: str) -> None:
         with contextlib.suppress(self._ls.TraCIException):  # already left the network
+            # A subscription outliving its vehicle makes SUMO's next step fail.
+            self._ls.vehicle.unsubscribe(vid)
             self._ls.vehicle.remove(vid)
-        self._context_radius.pop(vid, None)
 
     def force_lane_change(self, vid: str, lane_index: int, duration: float) -> None:
         """Make a SUMO vehicle change to ``lane_index`` now, ignoring safety (cut-in)."""
@@ -142,32 +154,19 @@ class SumoTraffic:
 
     # --- reading states ---------------------------------------------------------------------
 
-    def watch_around(self, vid: str, radius: float) -> None:
-        """Report, from the next step on, the vehicles within ``radius`` [m] of ``vid``."""
-        self._ls.vehicle.subscribeContext(
-            vid, self._tc.CMD_GET_VEHICLE_VARIABLE, radius, self._vars
+    def vehicle_states(self) -> VehicleStates:
+        """Every vehicle in the network after the last step, sorted by id."""
+        if self._states_cache is None:
+            self._states_cache = self._states(self._ls.vehicle.getAllSubscriptionResults())
+        return self._states_cache
+
+    def is_in_network(self, vid: str) -> bool:
+        """Whether ``vid`` is driving, or waiting to be inserted at the next step."""
+        ls = self._ls
+        return (
+            vid in ls.vehicle.getAllSubscriptionResults()
+            or vid in ls.simulation.getPendingVehicles()
         )
-        self._context_radius[vid] = radius
-
-    def vehicles_around(self, vid: str) -> VehicleStates:
-        """Vehicles SUMO found near ``vid`` at the last step (``vid`` itself excluded)."""
-        results = self._ls.vehicle.getContextSubscriptionResults(vid)
-        results.pop(vid, None)
-        return self._states(results)
-
-    def all_vehicles(self) -> VehicleStates:
-        """Every vehicle in the network (slower; for recording whole scenes)."""
-        ls, tc = self._ls, self._tc
-        results = {
-            v: {
-                tc.VAR_POSITION: ls.vehicle.getPosition(v),
-                tc.VAR_ANGLE: ls.vehicle.getAngle(v),
-                tc.VAR_SPEED: ls.vehicle.getSpeed(v),
-                tc.VAR_LANE_ID: ls.vehicle.getLaneID(v),
-            }
-            for v in ls.vehicle.getIDList()
-        }
-        return self._states(results)
 
     def _states(self, results: dict[str, dict]) -> VehicleStates:
         if not results:

@@ -227,3 +227,29 @@ def test_cut_in_trigger_forces_the_lane_change(tmp_path, run):
 
     lanes = [cutter_lane(o) for o in r.agent.seen]
     assert lanes[0] == 0 and 1 in lanes
+
+
+def test_the_others_drive_on_after_one_agent_is_removed(tmp_path, run):
+    folder = make_scenario(
+        tmp_path,
+        ScenarioSpec(
+            missions=(
+                mission("Agent_0", start=(20.0, lane_y(0), 0.0)),
+                mission("Agent_1", start=(20.0, lane_y(1), 0.0), goal=(120.0, lane_y(1))),
+            ),
+            vehicles=[FLOW],
+        ),
+    )
+
+    def policy(obs):
+        x, y, _ = obs["ego_vehicle_state"]["position"]
+        if obs["ego_vehicle_state"]["id"] == "Agent_0":
+            return [x + 1.0, y - 0.5, -0.5, 0.1]  # off the right edge within a few steps
+        return [x + 1.0, y, 0.0, 0.1]
+
+    r = run(folder, policy)
+    by_id = {o.id: o for o in r.result.agents}
+    assert by_id["Agent_0"].reason is DoneReason.off_road and by_id["Agent_0"].steps < 10
+    assert by_id["Agent_1"].reason is DoneReason.reached_goal
+    late = r.agent.seen[-1]["Agent_1"]["neighborhood_vehicle_states"]
+    assert "Agent_0" not in [n["id"] for n in late]
