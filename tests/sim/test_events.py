@@ -157,3 +157,29 @@ def test_reaching_the_goal(tmp_path, run):
     np.testing.assert_allclose(rec["vx"][0, :38], 10.0)
     np.testing.assert_allclose(rec["lane_offset"][0, :38], 0.0, atol=1e-9)
     assert rec["speed_limit"][0, 0] == np.float64(13.89)
+
+
+def test_replay_vehicles_near_the_ego_turn_reactive_inside_the_bubble(tmp_path, run):
+    # The same recorded vehicle as above, now with a reactive bubble: once within 30 m of the
+    # stopped ego it is handed to SUMO, which brakes instead of driving through.
+    y = lane_y(0, 1)  # one lane: the reactive vehicle cannot pass, it must brake
+    rows = ["vehicle_id,time,x,y,heading,speed,length,width"]
+    rows += [f"rec,{k / 10:.1f},{100 + k:.3f},{y:.3f},0.00000,10.000,4.50,1.80" for k in range(200)]
+    folder = make_scenario(
+        tmp_path,
+        ScenarioSpec(
+            missions=(mission(start=(160.0, y, 0.0), goal=(380.0, y)),),
+            trajectories="\n".join(rows) + "\n",
+            bubble_radius=30.0,
+            net=one_lane,
+            max_episode_steps=150,
+        ),
+    )
+    r = run(folder, stand_still)
+    assert r.outcome.reason is DoneReason.max_episode_steps
+    rec = r.record
+    slot = list(rec["nbr_id"][0, -1]).index("rec")
+    assert 150.0 < rec["nbr_x"][0, -1, slot] < 160.0 - 4.5  # stopped behind the ego
+    assert rec["nbr_speed"][0, -1, slot] < 0.5
+    first = list(rec["nbr_id"][0, 0]).index("rec")
+    assert rec["nbr_x"][0, 0, first] == 101.0  # replayed exactly while outside the bubble
