@@ -8,7 +8,12 @@ into a :class:`evaluator.summary.Summary`.
 from evaluator.runner.evaluate import Progress, ResultsDirError, evaluate
 from evaluator.runner.manifest import Manifest, SuiteError, load_manifest, resolve_suite
 from evaluator.runner.results import score_results_dir, summarize
-from evaluator.runner.scenario import SandboxedAgentFactory, ScenarioOutcome, run_scenario
+from evaluator.runner.scenario import (
+    SandboxedAgentFactory,
+    ScenarioOutcome,
+    run_scenario,
+    sandbox_labels,
+)
 
 __all__ = [
     "Manifest",
@@ -21,6 +26,7 @@ __all__ = [
     "load_manifest",
     "resolve_suite",
     "run_scenario",
+    "sandbox_labels",
     "score_results_dir",
     "summarize",
 ]

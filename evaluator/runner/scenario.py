@@ -13,10 +13,9 @@ from evaluator.summary import ScenarioStatus
 from scenarios.schema import load_scenario
 
 if TYPE_CHECKING:
-    from submissions.intake import PreparedSubmission
-
     from sim.agent import Agent
     from sim.result import EpisodeResult
+    from submissions.intake import PreparedSubmission
 
 # SUMO failures are usually transient (a crashed or stuck libsumo); one more try, then it is
 # reported as ours and not charged.
@@ -50,6 +49,12 @@ class ScenarioOutcome:
     wall_time_s: float = 0.0
 
 
+def sandbox_labels(scenario_id: str, submission_sha256: str) -> dict[str, str]:
+    """The labels on the sandbox of one scenario's agent; ``evaluator.sandbox.cleanup(labels)``
+    removes whatever a dead episode left behind."""
+    return {"arena.scenario": scenario_id, "arena.submission": submission_sha256[:16]}
+
+
 def run_scenario(
     submission: PreparedSubmission,
     scenario_dir: Path,
@@ -63,14 +68,13 @@ def run_scenario(
     Agent failures come back as a ``done`` outcome whose agents carry the reason. Infrastructure
     errors (sandbox unavailable) are raised so the caller can retry the job.
     """
-    from sim.isolation import run_episode_isolated
-
     from evaluator import sandbox as sandboxes
+    from sim.isolation import run_episode_isolated
 
     scenario = load_scenario(scenario_dir)
     record_path = Path(records_dir) / f"{scenario.id}.npz"
     record_path.parent.mkdir(parents=True, exist_ok=True)
-    labels = {"arena.scenario": scenario.id, "arena.submission": submission.sha256[:16]}
+    labels = sandbox_labels(scenario.id, submission.sha256)
     factory = SandboxedAgentFactory(submission, sandbox, labels)
     started = time.monotonic()
     logs = []
