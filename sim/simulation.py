@@ -38,6 +38,10 @@ from sim.triggers import CutInTriggers
 from sim.vehicle import DECODERS, ControlContext, parse_action
 from sim.vehicles import VehicleStates
 
+# SUMO reports the vehicles around an ego by front-bumper distance: ask a little wider, then
+# filter by centre distance ourselves.
+_CONTEXT_MARGIN = 10.0  # [m]
+
 
 class Simulation:
     """An episode of ``scenario``. Not reusable across processes: libsumo allows one running
@@ -196,7 +200,7 @@ class Simulation:
     def background_states(self) -> VehicleStates:
         """Every vehicle that is not a mission vehicle, as of the last step (SUMO and replay)."""
         assert self._traffic is not None, "reset() first"
-        sumo = self._traffic.vehicle_states()
+        sumo = self._traffic.all_vehicles()
         return VehicleStates.concat(
             [sumo.without(self._mission_ids), self._replay_states(self.step_count)]
         )
@@ -235,6 +239,7 @@ class Simulation:
             v.id, list(m.route), m.vehicle.length, m.vehicle.width, m.vehicle.height
         )
         self._traffic.move(v.id, v.pose.x, v.pose.y, v.pose.heading, v.pose.speed)
+        self._traffic.watch_around(v.id, self.interface.observation_radius + _CONTEXT_MARGIN)
         v.status = Status.live
 
     def _keep_egos_in_sumo(self) -> None:
@@ -248,6 +253,7 @@ class Simulation:
                 route = self._route_from(v.pose.x, v.pose.y, v.pose.heading)
                 traffic.add_vehicle(v.id, route, m.vehicle.length, m.vehicle.width)
                 traffic.move(v.id, v.pose.x, v.pose.y, v.pose.heading, v.pose.speed)
+                traffic.watch_around(v.id, self.interface.observation_radius + _CONTEXT_MARGIN)
 
     def _finish(self, v: MissionVehicle, reason: DoneReason) -> None:
         v.finish(reason, self.step_count)
@@ -262,7 +268,7 @@ class Simulation:
     def _surroundings(self, v: MissionVehicle) -> VehicleStates:
         """Other vehicles within the observation radius of ``v``'s centre, nearest first."""
         assert self._traffic is not None
-        sumo = self._traffic.vehicle_states().without(self._mission_ids)
+        sumo = self._traffic.vehicles_around(v.id).without(self._mission_ids)
         others = [o for o in self.live if o is not v]
         egos = VehicleStates.empty()
         if others:

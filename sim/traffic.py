@@ -60,7 +60,7 @@ class SumoTraffic:
         _open_instance = self
         self._dims: dict[str, tuple[float, float]] = {}  # vehicle id -> (length, width) [m]
         self._routes = 0
-        self._states_cache: VehicleStates | None = None
+        self._around: dict[str, dict] = {}  # vehicle id -> SUMO's report of its surroundings
         self._vars = [
             self._tc.VAR_POSITION,
             self._tc.VAR_ANGLE,
@@ -74,15 +74,11 @@ class SumoTraffic:
         return self._ls
 
     def step(self) -> None:
-        ls = self._ls
         try:
-            ls.simulationStep()
-            # Every vehicle reports its state once per step through one batched call.
-            for vid in ls.simulation.getDepartedIDList():
-                ls.vehicle.subscribe(vid, self._vars)
-        except ls.TraCIException as exc:
+            self._ls.simulationStep()
+        except self._ls.TraCIException as exc:
             raise SumoError(f"SUMO step failed: {exc}") from exc
-        self._states_cache = None
+        self._around.clear()
 
     @property
     def time(self) -> float:
@@ -142,10 +138,11 @@ class SumoTraffic:
         ls.vehicle.setPreviousSpeed(vid, speed)
 
     def remove(self, vid: str) -> None:
-        with contextlib.suppress(self._ls.TraCIException):  # already left the network
+        ls = self._ls
+        with contextlib.suppress(ls.TraCIException):  # already left the network
             # A subscription outliving its vehicle makes SUMO's next step fail.
-            self._ls.vehicle.unsubscribe(vid)
-            self._ls.vehicle.remove(vid)
+            ls.vehicle.unsubscribeContext(vid, self._tc.CMD_GET_VEHICLE_VARIABLE, 0.0)
+            ls.vehicle.remove(vid)
 
     def force_lane_change(self, vid: str, lane_index: int, duration: float) -> None:
         """Make a SUMO vehicle change to ``lane_index`` now, ignoring safety (cut-in)."""
@@ -154,19 +151,43 @@ class SumoTraffic:
 
     # --- reading states ---------------------------------------------------------------------
 
-    def vehicle_states(self) -> VehicleStates:
-        """Every vehicle in the network after the last step, sorted by id."""
-        if self._states_cache is None:
-            self._states_cache = self._states(self._ls.vehicle.getAllSubscriptionResults())
-        return self._states_cache
+    def watch_around(self, vid: str, radius: float) -> None:
+        """Have SUMO report, after every step, the vehicles within ``radius`` [m] of ``vid``
+        (SUMO measures between front bumpers: ask a little wider than needed)."""
+        self._ls.vehicle.subscribeContext(
+            vid, self._tc.CMD_GET_VEHICLE_VARIABLE, radius, self._vars
+        )
+
+    def _context(self, vid: str) -> dict:
+        if vid not in self._around:
+            self._around[vid] = self._ls.vehicle.getContextSubscriptionResults(vid)
+        return self._around[vid]
+
+    def vehicles_around(self, vid: str) -> VehicleStates:
+        """Vehicles SUMO found near watched vehicle ``vid`` at the last step (``vid`` excluded)."""
+        results = dict(self._context(vid))
+        results.pop(vid, None)
+        return self._states(results)
 
     def is_in_network(self, vid: str) -> bool:
-        """Whether ``vid`` is driving, or waiting to be inserted at the next step."""
+        """Whether vehicle ``vid`` is driving, or waiting to enter at the next step."""
         ls = self._ls
-        return (
-            vid in ls.vehicle.getAllSubscriptionResults()
-            or vid in ls.simulation.getPendingVehicles()
-        )
+        return vid in ls.vehicle.getIDList() or vid in ls.simulation.getPendingVehicles()
+
+    def all_vehicles(self) -> VehicleStates:
+        """Every vehicle in the network (one call per vehicle: for recording scenes, not per
+        ego step)."""
+        ls, tc = self._ls, self._tc
+        results = {
+            v: {
+                tc.VAR_POSITION: ls.vehicle.getPosition(v),
+                tc.VAR_ANGLE: ls.vehicle.getAngle(v),
+                tc.VAR_SPEED: ls.vehicle.getSpeed(v),
+                tc.VAR_LANE_ID: ls.vehicle.getLaneID(v),
+            }
+            for v in ls.vehicle.getIDList()
+        }
+        return self._states(results)
 
     def _states(self, results: dict[str, dict]) -> VehicleStates:
         if not results:
