@@ -38,6 +38,11 @@ def celery_config(settings: Settings) -> dict[str, Any]:
         # One message at a time per process: a scenario takes minutes, prefetching would starve
         # other workers and strand messages in a process that might die.
         "worker_prefetch_multiplier": 1,
+        # Threads, not prefork: a scenario's real work happens in the simulator process the
+        # runner starts for each episode (one libsumo per process), and multiprocessing cannot
+        # start those from prefork's daemonic children. The runner enforces the episode time
+        # limits itself; the task time limits below need prefork and are a backstop only there.
+        "worker_pool": "threads",
         "worker_concurrency": settings.jobs,
         "worker_hijack_root_logger": False,
         "broker_connection_retry_on_startup": True,

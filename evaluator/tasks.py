@@ -118,7 +118,9 @@ def _simulate(job: evaluation.ScenarioJob) -> evaluation.ScenarioOutcomeIn:
     outcome = run_one(
         _prepared(job.storage_dir), Path(job.scenario_dir), records, sandbox=_sandbox_kind()
     )
-    tail = outcome.log.encode()[-settings.agent_log_tail_bytes :].decode("utf-8", "replace")
+    # The team sees this text: the hidden scenario's id must not appear in it.
+    log_text = outcome.log.replace(job.scenario_id, "<scenario>")
+    tail = log_text.encode()[-settings.agent_log_tail_bytes :].decode("utf-8", "replace")
     detail = {
         "agents": [asdict(agent) for agent in outcome.agents],
         "attempts": outcome.attempts,
@@ -148,16 +150,25 @@ def _simulate(job: evaluation.ScenarioJob) -> evaluation.ScenarioOutcomeIn:
     )
 
 
-@lru_cache(maxsize=4)
-def _prepared(storage_dir: str):
-    """The submission ready to run, prepared once per worker process from the stored zip (so a
-    worker on another machine needs only the shared data volume)."""
-    import tempfile
+_prepare_lock = threading.Lock()
 
+
+def _prepared(storage_dir: str):
+    """One preparation per submission and worker process, even with several threads asking."""
+    with _prepare_lock:
+        return _prepare(storage_dir)
+
+
+@lru_cache(maxsize=4)
+def _prepare(storage_dir: str):
+    """The submission ready to run, prepared once per worker process from the stored zip (so a
+    worker on another machine needs only the shared data volume). Under the data dir, not a
+    private temporary folder: the sandbox user must be able to enter it."""
     from submissions.intake import prepare_submission
 
-    dest = Path(tempfile.mkdtemp(prefix="arena-submission-")) / "submission"
-    return prepare_submission(Path(storage_dir) / "upload.zip", dest)
+    settings = get_settings()
+    dest = settings.resolved_data_dir / "prepared" / f"{Path(storage_dir).name}-{worker_name()}"
+    return prepare_submission(Path(storage_dir) / "upload.zip", dest, settings)
 
 
 @lru_cache(maxsize=1)

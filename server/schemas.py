@@ -88,7 +88,7 @@ class PublicScenario(Schema):
     id: str
     family: str
     variant: str
-    volume: str
+    volume: str | None
     agents: int
     reactive: bool
 

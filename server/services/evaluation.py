@@ -348,9 +348,14 @@ def reap(session: Session, settings: Settings, *, queue_empty: bool) -> Reaped:
         .with_for_update()
     )
     for run in expired:
-        stale_claims = any(result.status == scoring.RUNNING for result in run.results)
+        stale_claims = [result for result in run.results if result.status == scoring.RUNNING]
         if not (stale_claims or queue_empty):
             continue
+        # Release the claims of the worker that went silent, so the re-sent tasks can take them.
+        for claim in stale_claims:
+            session.delete(claim)
+        session.flush()
+        session.expire(run, ["results"])
         pending = pending_scenarios(run)
         run.lease_expires_at = lease_until(settings)
         plans.append(RunPlan(run_id=run.id, scenario_ids=pending, aggregate=not pending))

@@ -54,7 +54,9 @@ class TaskQueue:
     def depth(self) -> int:
         """Messages waiting in the evaluation queue."""
         with self.celery.connection_for_read() as connection:
-            declared = connection.default_channel.queue_declare(QUEUE, durable=True, auto_delete=False)
+            declared = connection.default_channel.queue_declare(
+                QUEUE, durable=True, auto_delete=False
+            )
             return declared.message_count
 
     def workers(self) -> list[str] | None:

@@ -19,7 +19,7 @@ class ManifestEntry(BaseModel):
     id: str
     family: str
     variant: str = ""
-    volume: str = ""
+    volume: str | None = None
     agents: int = 1
     reactive: bool = True
     hash: str = ""

@@ -115,7 +115,9 @@ def test_a_team_never_sees_another_teams_submission(client, db, keep_lane_zip):
         response = client.get(path, headers=bearer(token_b))
         assert response.status_code == 404
         assert "alpha" not in response.text
-    assert client.post(f"/api/v1/submissions/{sid}/cancel", headers=bearer(token_b)).status_code == 404
+    assert (
+        client.post(f"/api/v1/submissions/{sid}/cancel", headers=bearer(token_b)).status_code == 404
+    )
     assert client.get("/api/v1/submissions", headers=bearer(token_b)).json() == []
 
 
@@ -128,7 +130,10 @@ def test_daily_quota_per_team_and_track(client, db, settings, keep_lane_zip):
     # Another track has its own quota.
     assert upload(client, token, keep_lane_zip, track="offline").status_code == 201
     # Cancelled before it started: does not count.
-    assert client.post(f"/api/v1/submissions/{ids[0]}/cancel", headers=bearer(token)).status_code == 200
+    assert (
+        client.post(f"/api/v1/submissions/{ids[0]}/cancel", headers=bearer(token)).status_code
+        == 200
+    )
     assert upload(client, token, keep_lane_zip).status_code == 201
     assert upload(client, token, keep_lane_zip).status_code == 429
     # Failed: does not count either.

@@ -77,9 +77,7 @@ def test_fan_out_results_and_aggregation(db, settings, submission_id):
     assert finish(db, plan.run_id, ids[2]) is True  # the last one: send the aggregation
     assert finish(db, plan.run_id, ids[2]) is False
     with db.session() as session:
-        rows = session.scalar(
-            select(func.count()).where(ScenarioResult.run_id == plan.run_id)
-        )
+        rows = session.scalar(select(func.count()).where(ScenarioResult.run_id == plan.run_id))
         assert rows == 3
     assert aggregate(db, plan.run_id) == RunStatus.scored
     assert aggregate(db, plan.run_id) is None  # a redelivered aggregation
@@ -112,8 +110,10 @@ def test_reaper_resends_stale_claims_and_lost_messages(db, settings, submission_
     expire_lease(db, plan.run_id)
     with db.session() as session:
         reaped = evaluation.reap(session, settings, queue_empty=False)
-    # A stale claim is re-sent even while the queue is busy, with everything still pending.
+    # A stale claim is re-sent even while the queue is busy, with everything still pending,
+    # and released so that the re-sent task can claim it although the lease was renewed.
     assert [p.scenario_ids for p in reaped.plans] == [plan.scenario_ids]
+    assert claim(db, settings, plan.run_id, first, "w2") is not None
     with db.session() as session:  # the lease was renewed: not re-sent again at once
         assert evaluation.reap(session, settings, queue_empty=True).plans == ()
     finish(db, plan.run_id, first)
@@ -128,9 +128,7 @@ def test_reaper_resends_stale_claims_and_lost_messages(db, settings, submission_
 
 def test_reaper_resends_a_submission_whose_first_task_was_lost(db, settings, submission_id):
     with db.session() as session:
-        session.execute(
-            update(Submission).values(queued_at=utcnow() - timedelta(hours=1))
-        )
+        session.execute(update(Submission).values(queued_at=utcnow() - timedelta(hours=1)))
     with db.session() as session:
         assert evaluation.reap(session, settings, queue_empty=False).submission_ids == ()
     with db.session() as session:
@@ -179,9 +177,7 @@ def test_rerun_is_a_new_attempt_and_the_old_score_stands_meanwhile(db, settings,
         admin.rerun(db, settings, queue, submission_id)  # one attempt at a time
     assert status_of(db, submission_id) == SubmissionStatus.scored
     with db.session() as session:
-        second = session.scalar(
-            select(EvaluationRun).where(EvaluationRun.attempt == 2)
-        )
+        second = session.scalar(select(EvaluationRun).where(EvaluationRun.attempt == 2))
         plan = evaluation.RunPlan(
             run_id=second.id, scenario_ids=evaluation.pending_scenarios(second)
         )

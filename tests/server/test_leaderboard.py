@@ -48,8 +48,9 @@ def test_lexicographic_order_best_per_team_ties_to_the_earlier(client, db):
 
 def test_leaderboard_shows_per_family_metrics(client, db):
     team, _ = make_team(db, "a")
-    families = {"merge": {"completion": 0.5, "time": 500.0, "humanness": 0.2, "rules": 0.0,
-                          "scenarios": 2}}
+    families = {
+        "merge": {"completion": 0.5, "time": 500.0, "humanness": 0.2, "rules": 0.0, "scenarios": 2}
+    }
     seed_scored(db, team, (0.5, 500.0, 0.2, 0.0), families=families)
     assert board(client)[0]["families"] == families
 

@@ -1,0 +1,186 @@
+"""End to end with real processes: an API, Celery workers on Redis, PostgreSQL, the bubblewrap
+sandbox and the simulator. Uploads over HTTP, a worker killed with SIGKILL mid-evaluation, and a
+Redis restart that loses every queued message."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import time
+import uuid
+
+import httpx
+import pytest
+import redis
+from sqlalchemy import func, select
+
+from arena.config import Settings
+from server.core.db import Database
+from server.core.migrate import upgrade_database
+from server.models import ScenarioResult
+from tests.server.builders import bearer, make_team
+from tests.server.conftest import REDIS_URL, _create_pg_database, _drop_pg_database
+from tests.server.live import api_server, free_port, stop
+from tests.server.service_stack import (
+    SCENARIOS,
+    build_small_suite,
+    shared_dir,
+    start_worker,
+    upload_example,
+    wait_finished,
+)
+
+pytestmark = [pytest.mark.slow, pytest.mark.bwrap]
+
+
+@pytest.fixture(scope="module")
+def suite(tmp_path_factory):
+    root = shared_dir("arena-e2e-suite-")
+    yield build_small_suite(root)
+    subprocess.run(["rm", "-rf", str(root)], check=False)
+
+
+@pytest.fixture
+def stack_settings(suite, broker_prefix):
+    """PostgreSQL + Redis, as in production; a fresh database and key prefix per test."""
+    name, url = _create_pg_database()
+    upgrade_database(url)
+    data = shared_dir("arena-e2e-data-")
+    settings = Settings(
+        _env_file=None,
+        data_dir=data,
+        database_url=url,
+        broker_url=REDIS_URL,
+        broker_key_prefix=f"{broker_prefix}{uuid.uuid4().hex[:6]}:",
+        hidden_suite_dir=suite,
+        public_suite_dir=suite,
+        sandbox="bubblewrap",
+        lease_seconds=8,
+        reaper_interval_s=2,
+        daily_quota=10,
+        jobs=2,
+    )
+    yield settings
+    _drop_pg_database(name)
+    subprocess.run(["rm", "-rf", str(data)], check=False)
+
+
+def results_per_scenario(db: Database) -> dict[str, int]:
+    with db.session() as session:
+        rows = session.execute(
+            select(ScenarioResult.scenario_id, func.count()).group_by(ScenarioResult.scenario_id)
+        )
+        return dict(rows.all())
+
+
+def test_three_examples_are_scored_and_ranked(stack_settings, tmp_path):
+    db = Database(stack_settings.database_url)
+    tokens = {name: make_team(db, f"team-{name}")[1] for name in ("random", "keep_lane", "planner")}
+    worker = start_worker(stack_settings, tmp_path / "worker.log")
+    try:
+        with api_server(stack_settings, tmp_path / "api.log") as (url, _):
+            ids = {
+                name: upload_example(url, token, name, tmp_path) for name, token in tokens.items()
+            }
+            final = {name: wait_finished(url, tokens[name], ids[name]) for name in ids}
+            for name, body in final.items():
+                assert body["status"] == "scored", (name, body)
+                assert body["progress"] == {"done": len(SCENARIOS), "total": len(SCENARIOS)}
+            assert final["planner"]["metrics"]["completion"] == 0.0
+            time.sleep(1.1)  # the API re-checks the leaderboard generation once a second
+            board = httpx.get(f"{url}/api/v1/leaderboard").json()["entries"]
+            assert [e["method_name"] for e in board] == ["planner", "keep_lane", "random"]
+            # Failure reasons per family, for the owner; never a hidden scenario id.
+            detail = httpx.get(
+                f"{url}/api/v1/submissions/{ids['random']}", headers=bearer(tokens["random"])
+            )
+            assert detail.json()["failure_reasons"]
+            logs = httpx.get(
+                f"{url}/api/v1/submissions/{ids['random']}/logs", headers=bearer(tokens["random"])
+            )
+            assert not any(sid in detail.text + logs.text for sid in SCENARIOS)
+    finally:
+        stop(worker)
+    assert set(results_per_scenario(db).values()) == {3}  # one row per submission and scenario
+    db.dispose()
+
+
+def test_worker_killed_mid_evaluation_finishes_after_restart(stack_settings, tmp_path):
+    db = Database(stack_settings.database_url)
+    _, token = make_team(db, "planner-team")
+    worker = start_worker(stack_settings, tmp_path / "worker1.log", concurrency=1)
+    try:
+        with api_server(stack_settings, tmp_path / "api.log") as (url, _):
+            sid = upload_example(url, token, "planner", tmp_path)
+            # Wait until the worker holds a scenario (claimed, not finished), then kill it.
+            deadline = time.monotonic() + 120
+            while True:
+                with db.session() as session:
+                    running = session.scalar(
+                        select(func.count()).where(ScenarioResult.status == "running")
+                    )
+                if running:
+                    break
+                assert time.monotonic() < deadline, "no scenario was ever claimed"
+                time.sleep(0.2)
+            stop(worker, signal.SIGKILL)
+            worker = start_worker(stack_settings, tmp_path / "worker2.log", concurrency=2)
+            body = wait_finished(url, token, sid)
+            assert body["status"] == "scored"
+            assert body["progress"]["done"] == len(SCENARIOS)
+    finally:
+        stop(worker)
+    assert results_per_scenario(db) == dict.fromkeys(SCENARIOS, 1)
+    db.dispose()
+
+
+def test_redis_restart_with_queued_submissions_loses_nothing(stack_settings, tmp_path):
+    port = free_port()
+    command = [
+        "redis-server",
+        "--port",
+        str(port),
+        "--bind",
+        "127.0.0.1",
+        "--save",
+        "",
+        "--appendonly",
+        "no",
+    ]
+    redis_server = subprocess.Popen(command, stdout=subprocess.DEVNULL, start_new_session=True)
+    settings = stack_settings.model_copy(
+        update={"broker_url": f"redis://127.0.0.1:{port}/0", "broker_key_prefix": ""}
+    )
+    db = Database(settings.database_url)
+    _, token = make_team(db, "restart-team")
+    worker = None
+    try:
+        _wait_redis(port)
+        with api_server(settings, tmp_path / "api.log") as (url, _):
+            ids = [upload_example(url, token, name, tmp_path) for name in ("keep_lane", "random")]
+            assert redis.Redis(port=port).llen("arena") == 2  # queued, not yet taken
+            # Restart Redis without persistence: the queued messages are gone.
+            stop(redis_server)
+            redis_server = subprocess.Popen(
+                command, stdout=subprocess.DEVNULL, start_new_session=True
+            )
+            _wait_redis(port)
+            assert redis.Redis(port=port).llen("arena") == 0
+            worker = start_worker(settings, tmp_path / "worker.log")
+            for sid in ids:
+                assert wait_finished(url, token, sid)["status"] == "scored"
+    finally:
+        if worker is not None:
+            stop(worker)
+        stop(redis_server)
+    db.dispose()
+
+
+def _wait_redis(port: int) -> None:
+    for _ in range(100):
+        try:
+            if redis.Redis(port=port).ping():
+                return
+        except redis.ConnectionError:
+            time.sleep(0.1)
+    raise RuntimeError("redis-server did not start")
