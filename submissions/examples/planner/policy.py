@@ -34,7 +34,9 @@ A_LAT = 2.5  # [m/s^2] lateral acceleration allowed in curves
 LAT_SPEED = 1.2  # [m/s] lateral speed of a lane change
 GOAL_LANE_DISTANCE = 150.0  # [m] within this distance only the goal lane counts
 STOP_SPEED = 0.3  # [m/s] counts as stopped at a stop line
-CONFLICT_RADIUS = 2.8  # [m] another vehicle this near a path point blocks it
+# [m] another vehicle's centre this near a point of our path blocks it (less than a lane width:
+# traffic on a parallel lane does not)
+CONFLICT_RADIUS = 2.4
 SHOULDER_WIDTH = 3.0  # [m] narrower lanes are shoulders
 
 
@@ -59,6 +61,13 @@ class Path:
         tail = max(0, len(h) - 20)
         span = self.s[-1] - self.s[tail]
         self.end_curvature = float((h[-1] - h[tail]) / span) if span > 1.0 else 0.0
+
+    def direction(self, i: int) -> float:
+        """Heading [rad] of the chord from waypoint ``i`` to ``i + 2`` (clamped to the path)."""
+        i = min(max(i, 0), len(self.xy) - 3) if len(self.xy) >= 3 else 0
+        j = min(i + 2, len(self.xy) - 1)
+        dx, dy = self.xy[j] - self.xy[i]
+        return math.atan2(dy, dx) if (dx or dy) else float(self.heading[i])
 
     def on_route(self, route: set[str]) -> bool:
         edges = {lane.rsplit("_", 1)[0] for lane in self.lane_ids if not lane.startswith(":")}
@@ -92,7 +101,7 @@ class Path:
         if i == 0 and t[0] <= 0.0:
             return self._extend(p, 0)
         if i == len(ab) - 1 and t[-1] >= 1.0:
-            return self._extend(p, len(self.xy) - 1)
+            return self._extend_arc(p)
         seg = ab[i] / max(np.hypot(*ab[i]), 1e-9)
         rel = p - a[i]
         return float(self.s[i] + t[i] * np.hypot(*ab[i])), float(seg[0] * rel[1] - seg[1] * rel[0])
@@ -103,22 +112,22 @@ class Path:
         c, s = math.cos(h), math.sin(h)
         return float(self.s[k] + c * rel[0] + s * rel[1]), float(c * rel[1] - s * rel[0])
 
-    def goal_offset(self, gx: float, gy: float) -> float:
-        """Lateral distance [m] of the goal from this lane, extrapolated along a constant-curvature
-        arc beyond the path's end."""
-        s, lat = self.project(gx, gy)
-        if s <= self.length:
-            return abs(lat)
-        x, y, h = self.point(self.length)
+    def _extend_arc(self, p: np.ndarray) -> tuple[float, float]:
+        """Beyond the end the lane is assumed to keep its end curvature (roads are arcs and
+        straights): a straight extension would put cars of the next lane into ours on curves."""
         k = self.end_curvature
-        d = np.arange(0.0, 800.0, 1.0)
-        a = h + k * d
-        if abs(k) > 1e-6:
-            px = x + (np.sin(a) - math.sin(h)) / k
-            py = y - (np.cos(a) - math.cos(h)) / k
-        else:
-            px, py = x + d * math.cos(h), y + d * math.sin(h)
-        return float(np.hypot(gx - px, gy - py).min())
+        if abs(k) < 1e-4:
+            return self._extend(p, len(self.xy) - 1)
+        x, y, h = self.point(self.length)
+        cx, cy = x - math.sin(h) / k, y + math.cos(h) / k
+        sweep = wrap(math.atan2(p[1] - cy, p[0] - cx) - math.atan2(y - cy, x - cx))
+        radius = 1.0 / abs(k)
+        lateral = math.copysign(radius - math.hypot(p[0] - cx, p[1] - cy), k)
+        return self.length + sweep / k, lateral
+
+    def goal_offset(self, gx: float, gy: float) -> float:
+        """Lateral distance [m] of the goal from this lane (extended as an arc past the end)."""
+        return abs(self.project(gx, gy)[1])
 
     def junction_span(self) -> tuple[int, int] | None:
         """Waypoint indices (first internal, first after) of the next junction, if any."""
@@ -143,7 +152,7 @@ class AgentPlanner:
         # The last target path that followed the route: inside a junction the observed path can
         # be a different connection (overlapping internal lanes), so we keep to this one.
         self.memory: Path | None = None
-        self.blocked = False  # a needed lane change waits for a gap
+        self.slow_for: float | None = None  # [m/s] dropping back to find a gap
 
     def act(self, obs: dict) -> list[float]:
         ego = obs["ego_vehicle_state"]
@@ -172,8 +181,8 @@ class AgentPlanner:
 
         # Speed: IDM on the corridors of the current and target lanes.
         v_desired = self._desired_speed(current, target, x, y)
-        if self.blocked:
-            v_desired = min(v_desired, max(0.7 * speed, 4.0))
+        if self.slow_for is not None:
+            v_desired = min(v_desired, self.slow_for)
         gap, lead_speed = self._lead(current, x, y, length, width, others)
         if target is not current:
             g2, v2 = self._lead(target, x, y, length, width, others)
@@ -193,7 +202,7 @@ class AgentPlanner:
     # --- lanes -----------------------------------------------------------------------------
 
     def _choose_lane(self, paths, current, x, y, gx, gy, speed, length, others) -> Path:
-        self.blocked = False
+        self.slow_for = None
         usable = [p for p in paths if p.width >= SHOULDER_WIDTH] or paths
         goal_dist = math.hypot(gx - x, gy - y)
         offsets = {id(p): p.goal_offset(gx, gy) for p in usable}
@@ -217,14 +226,23 @@ class AgentPlanner:
         nxt = next((p for p in paths if p.lane_index == current.lane_index + step), None)
         if nxt is None:
             return current
-        if self.target_lane == nxt.lane_index or self._gap_ok(nxt, x, y, speed, length, others):
+        blocker = None
+        if self.target_lane != nxt.lane_index:
+            blocker = self._blocker(nxt, x, y, speed, length, others)
+        if blocker is None:
             self.target_lane = nxt.lane_index
             return nxt
-        # A lane change we must make is blocked: drop back to find a gap.
-        self.blocked = wanted is goal_path and (goal_dist < GOAL_LANE_DISTANCE or current in ending)
+        # A lane change we must make is blocked: drop back behind a vehicle level with or ahead
+        # of us, keep going past one behind (two agents wanting to swap lanes then split).
+        if wanted is goal_path and (goal_dist < GOAL_LANE_DISTANCE or current in ending):
+            offset, blocker_speed = blocker
+            if offset > -2.0:
+                self.slow_for = max(blocker_speed - 3.0, 2.0)
         return current
 
-    def _gap_ok(self, path: Path, x, y, speed, length, others) -> bool:
+    def _blocker(self, path: Path, x, y, speed, length, others) -> tuple[float, float] | None:
+        """(longitudinal offset [m], speed [m/s]) of a vehicle in ``path``'s lane that leaves too
+        small a gap ahead of or behind us for a lane change, or None when the change is safe."""
         s0, _ = path.project(x, y)
         for o in others:
             ox, oy = o["position"][0], o["position"][1]
@@ -235,10 +253,10 @@ class AgentPlanner:
             v = o["speed"]
             if s >= s0:
                 if s - s0 - half < max(4.0, 0.5 * speed + (speed - v) * 1.5):
-                    return False
+                    return s - s0, v
             elif s0 - s - half < max(5.0, 0.6 * v + (v - speed) * 2.5):
-                return False
-        return True
+                return s - s0, v
+        return None
 
     # --- speed -----------------------------------------------------------------------------
 
@@ -246,12 +264,16 @@ class AgentPlanner:
         s0, _ = target.project(x, y)
         ahead = (target.s >= s0) & (target.s <= s0 + 40.0)
         limit = float(target.limits[ahead].min()) if ahead.any() else float(target.limits[0])
-        h = np.unwrap(target.heading)
         v = limit
-        if len(h) > 3:
-            ds = np.maximum(np.diff(target.s), 1e-6)
-            kappa = np.abs(np.diff(h)) / ds
-            for k, s in zip(kappa, target.s[1:], strict=True):
+        # Curvature from chord directions 5 m apart (waypoint headings step at shape corners and
+        # are unreliable on tiny junction lanes).
+        xy, n = target.xy, len(target.xy)
+        if n > 12:
+            chord = xy[5:] - xy[:-5]
+            direction = np.unwrap(np.arctan2(chord[:, 1], chord[:, 0]))
+            ds = np.maximum(target.s[10:] - target.s[:-10], 1e-6)
+            kappa = np.abs(direction[5:] - direction[:-5]) / ds
+            for k, s in zip(kappa, target.s[5:-5], strict=True):
                 if s < s0 or k < 1e-3:
                     continue
                 # Slow enough now to reach the curve's speed with comfortable braking.
@@ -299,7 +321,7 @@ class AgentPlanner:
         dist = s_line - s0 - 0.5 * length
         if dist > 60.0:
             return None
-        turn = abs(wrap(path.heading[after] - path.heading[first])) > 0.5
+        turn = abs(wrap(path.direction(after + 4) - path.direction(first - 6))) > 0.5
         minor = path.limits[after] > path.limits[max(first - 1, 0)] + 0.5
         if not (turn or minor):
             return None
@@ -340,7 +362,7 @@ class AgentPlanner:
             px = ox + ov * math.cos(oh) * times
             py = oy + ov * math.sin(oh) * times
             dist = np.hypot(px[:, None] - zone[None, :, 0], py[:, None] - zone[None, :, 1])
-            near = dist < CONFLICT_RADIUS + 0.5 * o["bounding_box"][0] * (ov > 0.5)
+            near = dist < CONFLICT_RADIUS
             ti, zi = np.nonzero(near)
             if len(ti) and np.any((times[ti] >= t_in[zi]) & (times[ti] <= t_out[zi])):
                 return True
