@@ -13,6 +13,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from arena.config import get_settings
 from scenarios.schema import load_scenario
 from sim.agent import Agent, AgentFailed, DoneReason
 from sim.interface import AgentInterface
@@ -39,7 +40,9 @@ def run_episode_isolated(
     ``agent_factory`` must be picklable (a module-level function or ``functools.partial``); it is
     called in the child. If it raises :class:`AgentFailed`, every agent fails with that reason
     after 0 steps (the record is still written). The child closes the agent and, when the agent
-    has a ``logs()`` method, returns its text in ``extra["agent_log"]``.
+    has a ``logs()`` method, returns its text in ``extra["agent_log"]``. The episode itself
+    stops at the organisers' ``episode_timeout_s`` (reason ``episode_timeout``, record kept);
+    ``timeout_s`` is the hard limit after which the child is killed (``simulator_error``).
     """
     started = time.monotonic()
     ctx = mp.get_context("forkserver")
@@ -93,7 +96,9 @@ def _child_main(scenario_dir, agent_factory, interface, record_path, seed, timeo
                 interface,
                 record_path=record_path,
                 seed=seed,
-                wall_timeout_s=max(timeout_s - _GRACE_S, 0.8 * timeout_s),
+                wall_timeout_s=min(
+                    get_settings().episode_timeout_s, max(timeout_s - _GRACE_S, 0.8 * timeout_s)
+                ),
             )
             log = _close_agent(agent)
             if log is not None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import signal
+import time
 from collections.abc import Callable
 
 from sim.agent import AgentFailed, DoneReason
@@ -64,3 +65,20 @@ def crashing_agent() -> ScriptedAgent:
 
 def agent_that_times_out_at_init() -> ScriptedAgent:
     raise AgentFailed(DoneReason.init_timeout, "Policy() took more than 60 s")
+
+
+class _Hanging(ScriptedAgent):
+    def act(self, obs):
+        time.sleep(3600)
+
+
+def hanging_agent() -> ScriptedAgent:
+    return _Hanging(stand_still)
+
+
+def slow_agent() -> ScriptedAgent:
+    def policy(obs):
+        time.sleep(0.05)
+        return drive_straight(5.0)(obs)
+
+    return ScriptedAgent(policy)

@@ -5,6 +5,7 @@ from functools import partial
 import numpy as np
 
 from sim.agent import DoneReason
+from sim.episode import run_episode
 from sim.interface import AgentInterface
 from sim.isolation import run_episode_isolated
 from tests.sim.agents import (
@@ -12,6 +13,8 @@ from tests.sim.agents import (
     agent_that_times_out_at_init,
     crashing_agent,
     cruising_agent,
+    hanging_agent,
+    slow_agent,
     stand_still,
 )
 from tests.sim.builders import ScenarioSpec, make_scenario
@@ -71,3 +74,24 @@ def test_agent_failing_at_init_fails_every_agent_and_still_writes_the_record(tmp
     with np.load(record) as data:
         assert list(data["done_reason"]) == ["init_timeout"]
         assert data["x"].shape == (1, 0)
+
+
+def test_a_hung_episode_is_killed_at_the_hard_timeout(tmp_path):
+    folder = make_scenario(tmp_path / "sc", ScenarioSpec())
+    result = run_episode_isolated(
+        folder, hanging_agent, AgentInterface(), record_path=tmp_path / "r.npz", timeout_s=3
+    )
+    assert result.simulator_error and "exceeded 3 s" in result.simulator_error
+    assert [a.reason for a in result.agents] == [DoneReason.simulator_error]
+
+
+def test_wall_time_limit_ends_the_episode_keeping_the_record(tmp_path):
+    folder = make_scenario(tmp_path / "sc", ScenarioSpec())
+    record = tmp_path / "r.npz"
+    result = run_episode(
+        folder, slow_agent(), AgentInterface(), record_path=record, wall_timeout_s=0.5
+    )
+    assert [a.reason for a in result.agents] == [DoneReason.episode_timeout]
+    assert 0 < result.agents[0].steps < 20
+    with np.load(record) as data:
+        assert int(data["steps"][0]) == result.agents[0].steps
