@@ -1,5 +1,7 @@
 """Episodes end to end in this process: determinism, failures, observations."""
 
+import json
+
 import numpy as np
 import pytest
 
@@ -253,3 +255,23 @@ def test_the_others_drive_on_after_one_agent_is_removed(tmp_path, run):
     assert by_id["Agent_1"].reason is DoneReason.reached_goal
     late = r.agent.seen[-1]["Agent_1"]["neighborhood_vehicle_states"]
     assert "Agent_0" not in [n["id"] for n in late]
+
+
+FORWARD = {
+    ActionSpace.TargetPose: lambda o: drive_straight(8.0)(o),
+    ActionSpace.RelativeTargetPose: lambda o: [0.8, 0.0, 0.0],
+    ActionSpace.Continuous: lambda o: [0.5, 0.0, 0.0],
+    ActionSpace.LaneWithContinuousSpeed: lambda o: [8.0, 0.0],
+}
+
+
+@pytest.mark.parametrize("space", list(ActionSpace))
+def test_every_action_space_drives_forward_with_serialisable_observations(tmp_path, run, space):
+    assert set(FORWARD) == set(ActionSpace)
+    folder = make_scenario(tmp_path, ScenarioSpec(max_episode_steps=30))
+    r = run(folder, FORWARD[space], space)
+    assert r.outcome.reason is DoneReason.max_episode_steps and r.outcome.steps == 30
+    rec = r.record
+    assert rec["x"][0, -1] > 20.0 + 5.0
+    assert abs(rec["lane_offset"][0, -1]) < 0.3 and not rec["ev_wrong_way"].any()
+    json.dumps(r.agent.seen[-1])  # crosses a process boundary as JSON
