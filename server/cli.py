@@ -220,6 +220,8 @@ def rescore(
     if (submission_id is None) == (not all_):
         raise typer.BadParameter("give one submission id or --all")
     ctx = _Context()
+    if profile is not None:
+        _run(lambda: admin.scoring_profile(profile))
     runs = admin.rescore_targets(ctx.db, None if all_ else submission_id)
     if not runs:
         raise _fail(ValueError("no scored evaluation to re-score"))

@@ -8,11 +8,11 @@ from datetime import datetime
 from sqlalchemy import func, select
 
 from arena.config import Settings
-from evaluator.scoring import load_profile
+from evaluator.scoring import ProfileError, ScoringProfile, load_profile
 from server.core.db import Database
 from server.models import EvaluationRun, Submission, utcnow
 from server.services import evaluation, scoring
-from server.services.errors import Conflict
+from server.services.errors import Conflict, InvalidInput
 from server.services.evaluation import RunPlan, lock
 from server.services.queue import TaskQueue
 from server.status import ACTIVE_RUN, SUBMISSION_MOVES, RunStatus, SubmissionStatus, advance
@@ -65,6 +65,13 @@ def rerun(db: Database, settings: Settings, queue: TaskQueue, submission_id: int
     return attempt
 
 
+def scoring_profile(name: str) -> ScoringProfile:
+    try:
+        return load_profile(name)
+    except ProfileError as exc:
+        raise InvalidInput(str(exc)) from exc
+
+
 def rescore_targets(db: Database, submission_id: int | None) -> list[int]:
     """Run ids to re-score: the given submission's scored runs, or every scored run."""
     with db.read_session() as session:
@@ -80,7 +87,7 @@ def rescore_run(db: Database, run_id: int, profile_name: str | None) -> dict[str
         run = lock(session, EvaluationRun, run_id)
         if run.status != RunStatus.scored:
             raise Conflict(f"run {run_id} is {run.status}; only scored runs can be re-scored")
-        profile = load_profile(profile_name or run.scoring_profile)
+        profile = scoring_profile(profile_name or run.scoring_profile)
         run_score = scoring.score_results(run.results, profile)
         if run_score is None:
             raise Conflict(f"run {run_id} has no charged scenario to score")

@@ -1,0 +1,101 @@
+"""`arena admin ...` against a real database (both backends), configured like a deployment:
+through ARENA_* environment variables."""
+
+from __future__ import annotations
+
+import csv
+import io
+import re
+
+import pytest
+from typer.testing import CliRunner
+
+from arena.cli import app
+from arena.config import get_settings
+from server.models import Submission
+from server.status import SubmissionStatus
+from tests.server.builders import make_team, queued_submission, seed_scored
+from tests.server.test_evaluation_flow import run_everything, start
+
+runner = CliRunner()
+
+
+@pytest.fixture
+def arena(settings, db, monkeypatch):
+    for name, value in {
+        "DATA_DIR": settings.data_dir,
+        "DATABASE_URL": settings.database_url,
+        "BROKER_URL": settings.broker_url,
+        "BROKER_KEY_PREFIX": settings.broker_key_prefix,
+        "HIDDEN_SUITE_DIR": settings.hidden_suite_dir,
+    }.items():
+        monkeypatch.setenv(f"ARENA_{name}", str(value))
+    get_settings.cache_clear()
+
+    def invoke(*args: str, ok: bool = True) -> str:
+        result = runner.invoke(app, ["admin", *args])
+        assert (result.exit_code == 0) == ok, result.output
+        return result.output
+
+    yield invoke
+    get_settings.cache_clear()
+
+
+def test_db_upgrade_is_idempotent(arena):
+    assert "revision 0001" in arena("db", "upgrade")
+
+
+def test_teams_create_list_rotate(arena, client):
+    output = arena("teams", "create", "gamma")
+    token = re.search(r"token: (arena_\S+)", output).group(1)
+    assert (
+        client.get("/api/v1/submissions", headers={"Authorization": f"Bearer {token}"}).status_code
+        == 200
+    )
+    assert "already exists" in arena("teams", "create", "gamma", ok=False)
+    assert "gamma" in arena("teams", "list")
+    new = re.search(r"(arena_\S+)", arena("teams", "rotate-token", "gamma")).group(1)
+    assert (
+        client.get("/api/v1/submissions", headers={"Authorization": f"Bearer {token}"}).status_code
+        == 401
+    )
+    assert (
+        client.get("/api/v1/submissions", headers={"Authorization": f"Bearer {new}"}).status_code
+        == 200
+    )
+
+
+def test_submissions_list_show_cancel_disqualify_requeue(arena, db):
+    team, _ = make_team(db, "alpha")
+    queued = queued_submission(db, team)
+    scored = seed_scored(db, team, (0.5, 400.0, 0.1, 0.0))
+    listing = arena("submissions", "list")
+    assert "queued" in listing and "scored" in listing
+    assert '"status": "queued"' in arena("submissions", "show", str(queued))
+    assert "evaluation queued" in arena("submissions", "requeue", str(queued))
+    arena("submissions", "cancel", str(queued))
+    assert "cannot cancel" in arena("submissions", "cancel", str(queued), ok=False)
+    arena("submissions", "disqualify", str(scored), "--reason", "copied code")
+    with db.session() as session:
+        assert session.get(Submission, queued).status == SubmissionStatus.cancelled
+        assert session.get(Submission, scored).status == SubmissionStatus.disqualified
+        assert session.get(Submission, scored).status_reason == "copied code"
+    assert "no submission 999" in arena("submissions", "show", "999", ok=False)
+
+
+def test_rescore_rerun_and_export(arena, db, settings):
+    team, _ = make_team(db, "alpha")
+    sid = queued_submission(db, team)
+    run_everything(db, settings, start(db, settings, sid))
+    output = arena("rescore", str(sid), "--profile", "driving-smarts-2022")
+    assert "100.0000" in output  # time of three successes at step 100
+    arena("rescore", "--all")
+    assert "unknown scoring profile" in arena("rescore", "--all", "--profile", "nope", ok=False)
+    assert "attempt 2 queued" in arena("rerun", str(sid))
+    rows = list(csv.DictReader(io.StringIO(arena("leaderboard", "export", "--csv"))))
+    assert [(row["team"], float(row["completion"])) for row in rows] == [("alpha", 0.0)]
+
+
+def test_status_reports_queue_and_stuck_runs(arena, db):
+    output = arena("status")
+    assert "queue depth:" in output and "stuck runs: none" in output

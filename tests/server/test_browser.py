@@ -1,0 +1,103 @@
+"""The web pages in a real browser (Playwright driving Debian's Chromium) against the embedded
+service (SQLite, SQLAlchemy broker): upload an example agent through the form, watch it get
+scored on its submission page, find it on the leaderboard."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+
+from arena.config import Settings
+from server.core.db import Database
+from server.core.migrate import upgrade_database
+from tests.server.builders import make_team, pack_example
+from tests.server.live import api_server, stop
+from tests.server.service_stack import SCENARIOS, build_small_suite, shared_dir, start_worker
+
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMIUM_ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+]
+
+pytestmark = [
+    pytest.mark.slow,
+    pytest.mark.bwrap,
+    pytest.mark.skipif(
+        not CHROMIUM.exists(), reason="needs Debian's chromium (apt-get install chromium)"
+    ),
+]
+
+
+@pytest.fixture
+def embedded_settings():
+    root = shared_dir("arena-browser-")
+    data = root / "data"
+    data.mkdir()
+    settings = Settings(
+        _env_file=None,
+        data_dir=data,
+        hidden_suite_dir=build_small_suite(root),
+        sandbox="bubblewrap",
+        lease_seconds=30,
+        reaper_interval_s=5,
+    )
+    upgrade_database(settings.resolved_database_url)
+    yield settings
+    shutil.rmtree(root, ignore_errors=True)
+
+
+def test_upload_through_the_form_and_read_the_result(embedded_settings, tmp_path):
+    from playwright.sync_api import expect, sync_playwright
+
+    db = Database(embedded_settings.resolved_database_url)
+    _, token = make_team(db, "browser-team")
+    db.dispose()
+    bad_zip = tmp_path / "bad.zip"
+    bad_zip.write_bytes(b"not a zip at all")
+    agent_zip = pack_example("keep_lane", tmp_path)
+    worker = start_worker(embedded_settings, tmp_path / "worker.log")
+    try:
+        with (
+            api_server(embedded_settings, tmp_path / "api.log") as (url, _),
+            sync_playwright() as playwright,
+        ):
+            browser = playwright.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+            page = browser.new_page()
+            page.goto(f"{url}/submit")
+            page.fill("#token", token)
+            page.select_option("#track", "freestyle")
+            page.fill("#method_name", "lane keeper")
+            page.fill("#description", "stays in its lane")
+            # A broken zip: the intake's message is shown and nothing is submitted.
+            page.set_input_files("#file", str(bad_zip))
+            page.click("#submit-button")
+            expect(page.locator("#submit-error")).to_contain_text("rule:", timeout=30_000)
+            assert page.url.endswith("/submit")
+
+            page.set_input_files("#file", str(agent_zip))
+            page.click("#submit-button")
+            page.wait_for_url("**/submissions/*", timeout=60_000)
+            expect(page.locator("#status")).to_have_text("scored", timeout=180_000)
+            expect(page.locator("#progress-text")).to_have_text(
+                f"{len(SCENARIOS)} / {len(SCENARIOS)} scenarios"
+            )
+            completion = float(page.locator("#metric-completion").inner_text())
+            assert 0.0 <= completion <= 1.0
+            assert page.locator("#chart svg rect.bar").count() >= 1
+
+            page.goto(f"{url}/?track=freestyle")
+            row = page.locator("#leaderboard tr.entry").first
+            expect(row.locator(".method")).to_have_text("lane keeper", timeout=10_000)
+            expect(row.locator(".team")).to_have_text("browser-team")
+            assert float(row.locator(".completion").inner_text()) == pytest.approx(completion)
+            browser.close()
+    finally:
+        stop(worker)
