@@ -129,7 +129,8 @@ class RoadNetwork:
             (math.floor(x / _GRID_CELL), math.floor(y / _GRID_CELL)), ()
         ):
             rx, ry = x - px, y - py
-            u = min(max((rx * dx + ry * dy) / len2, 0.0), 1.0)
+            u = (rx * dx + ry * dy) / len2
+            u = 0.0 if u < 0.0 else 1.0 if u > 1.0 else u
             found.append((math.hypot(rx - dx * u, ry - dy * u), u, k))
         if not found or min(found)[0] + _TIE_DISTANCE > _GRID_REACH:
             found = self._search_tree(x, y)
