@@ -2,6 +2,8 @@
 
 Plain Python values (lists, floats, ints, bools, strings) so it can cross a process boundary as
 JSON. Optional rasters have their keys reserved: they are None until raster rendering exists.
+Waypoint dicts are built once per lane and shared between observations (cheap per step): an
+in-process policy must treat observations as read-only.
 """
 
 from __future__ import annotations
