@@ -80,15 +80,15 @@ def run_scenario(
     logs = []
     for attempt in range(1, SIMULATOR_ATTEMPTS + 1):
         record_path.unlink(missing_ok=True)
-        try:
-            result = run_episode_isolated(
-                scenario_dir, factory, submission.interface, record_path=record_path
-            )
-        finally:
-            sandboxes.cleanup(labels)  # the episode's child may have died holding a container
+        result = run_episode_isolated(
+            scenario_dir, factory, submission.interface, record_path=record_path
+        )
         logs.append(_log_text(result, attempt))
         if result.simulator_error is None:
             return _outcome(result, record_path, "\n".join(logs), attempt, started)
+        # The episode's process died or SUMO failed: its agent's sandbox may never have been
+        # closed. (A clean episode closes its own agent.)
+        sandboxes.cleanup(labels)
     record_path.unlink(missing_ok=True)
     return ScenarioOutcome(
         scenario_id=scenario.id,
