@@ -55,11 +55,10 @@ def evaluate(
     profile: str = DEFAULT_PROFILE,
     progress: Progress | None = None,
 ) -> Summary:
-    from evaluator.sandbox import resolve_kind
     from submissions.intake import prepare_submission
 
     scoring_profile = load_profile(profile)
-    sandbox = resolve_kind(sandbox)  # once, so a missing sandbox fails before any scenario
+    sandbox = _usable_sandbox(sandbox)
     manifest = load_manifest(suite_dir).select(scenario_ids)
     out_dir = Path(out_dir)
     with tempfile.TemporaryDirectory(prefix="arena-submission-") as tmp:
@@ -92,6 +91,20 @@ def evaluate(
                     if progress:
                         progress.finished(outcome)
     return run.summary()
+
+
+def _usable_sandbox(kind: SandboxKind | None) -> SandboxKind:
+    """The concrete sandbox, checked once: a missing daemon or tool fails the evaluation before
+    any scenario, instead of every scenario failing on it."""
+    from arena.config import get_settings
+    from evaluator.errors import SandboxUnavailable
+    from evaluator.sandbox import backend, resolve_kind
+
+    kind = resolve_kind(kind)
+    reason = backend(kind).unavailable_reason(get_settings())
+    if reason is not None:
+        raise SandboxUnavailable(f"sandbox {kind.value} cannot run here: {reason}")
+    return kind
 
 
 def _outcome_of(future: Future, scenario: SuiteScenario) -> ScenarioOutcome:
