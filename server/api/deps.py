@@ -33,7 +33,7 @@ def get_queue(request: Request) -> TaskQueue:
     return request.app.state.queue
 
 
-def get_leaderboard_cache(request: Request) -> LeaderboardCache:
+async def get_leaderboard_cache(request: Request) -> LeaderboardCache:
     return request.app.state.leaderboard
 
 

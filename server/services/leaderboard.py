@@ -125,11 +125,18 @@ class LeaderboardCache:
         self._cached: dict[Track, _Cached] = {}
         self._lock = threading.Lock()
 
-    def get(self, track: Track) -> _Cached:
+    def fresh(self, track: Track) -> _Cached | None:
+        """The cached board if it needs no database look (cheap enough for the event loop)."""
         cached = self._cached.get(track)
-        moment = time.monotonic()
-        if cached is not None and moment - cached.checked_at < self.recheck_s:
+        if cached is not None and time.monotonic() - cached.checked_at < self.recheck_s:
             return cached
+        return None
+
+    def get(self, track: Track) -> _Cached:
+        cached = self.fresh(track)
+        if cached is not None:
+            return cached
+        moment = time.monotonic()
         with self._lock:
             cached = self._cached.get(track)
             if cached is not None and time.monotonic() - cached.checked_at < self.recheck_s:

@@ -1,0 +1,202 @@
+"""Load benchmark of ``GET /api/v1/leaderboard`` on loopback.
+
+Seeds 1,000 scored submissions (200 teams, per-family metrics) into a fresh embedded database,
+starts the API as a real uvicorn process, then drives it for a bounded time from a separate
+client process holding several keep-alive connections, and prints requests/s and latency
+percentiles next to the targets (1,000 requests/s, p99 under 50 ms).
+
+    python bench/api_load.py [--seconds 10] [--connections 16] [--database-url URL]
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import multiprocessing as mp
+import os
+import random
+import shutil
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from datetime import timedelta
+from pathlib import Path
+
+SUBMISSIONS = 1000
+TEAMS = 200
+FAMILIES = ("cruise", "cut_in", "left_turn_t", "merge", "overtake", "replay", "turn_c")
+TARGET_RPS = 1000.0
+TARGET_P99_MS = 50.0
+
+
+def seed(database_url: str, rng: random.Random) -> None:
+    from server.core.db import Database
+    from server.core.migrate import upgrade_database
+    from server.models import EvaluationRun, Score, Submission, Team, Track, utcnow
+    from server.services.evaluation import bump_leaderboard
+    from server.status import RunStatus, SubmissionStatus
+
+    upgrade_database(database_url)
+    db = Database(database_url)
+    start = utcnow() - timedelta(days=10)
+    with db.session() as session:
+        teams = [Team(name=f"team-{k:03d}") for k in range(TEAMS)]
+        session.add_all(teams)
+        session.flush()
+        for k in range(SUBMISSIONS):
+            submission = Submission(
+                team_id=teams[k % TEAMS].id,
+                track=Track.freestyle,
+                method_name=f"method {k}",
+                file_sha256="0" * 64,
+                file_size=1,
+                storage_dir="-",
+                status=SubmissionStatus.scored,
+                created_at=start + timedelta(minutes=k),
+            )
+            session.add(submission)
+            session.flush()
+            run = EvaluationRun(
+                submission_id=submission.id,
+                attempt=1,
+                status=RunStatus.scored,
+                suite_dir="-",
+                manifest_sha256="0" * 64,
+                scenario_count=128,
+                scoring_profile="driving-smarts-2022",
+            )
+            session.add(run)
+            session.flush()
+            metrics = {
+                "completion": rng.randint(0, 128) / 128,
+                "time": rng.uniform(200, 800),
+                "humanness": rng.uniform(0, 2),
+                "rules": rng.uniform(0, 0.2),
+            }
+            families = {
+                family: {name: rng.uniform(0, 1) for name in metrics} | {"scenarios": 18}
+                for family in FAMILIES
+            }
+            session.add(
+                Score(run_id=run.id, profile="driving-smarts-2022", families=families, **metrics)
+            )
+        bump_leaderboard(session)
+    db.dispose()
+
+
+async def _connection(host: str, port: int, until: float, latencies: list[float]) -> int:
+    reader, writer = await asyncio.open_connection(host, port)
+    request = (f"GET /api/v1/leaderboard?track=freestyle HTTP/1.1\r\nHost: {host}\r\n\r\n").encode()
+    done = 0
+    while time.perf_counter() < until:
+        sent = time.perf_counter()
+        writer.write(request)
+        head = await reader.readuntil(b"\r\n\r\n")
+        status = head[9:12]
+        length = 0
+        for line in head.split(b"\r\n"):
+            if line.lower().startswith(b"content-length:"):
+                length = int(line.split(b":")[1])
+        await reader.readexactly(length)
+        if status != b"200":
+            raise RuntimeError(f"HTTP {status.decode()}")
+        latencies.append(time.perf_counter() - sent)
+        done += 1
+    writer.close()
+    return done
+
+
+def _client(host: str, port: int, connections: int, seconds: float, out) -> None:
+    async def main() -> tuple[int, list[float]]:
+        latencies: list[float] = []
+        # Warm-up (not measured): the first request computes and caches the board.
+        await _connection(host, port, time.perf_counter() + 1.0, [])
+        until = time.perf_counter() + seconds
+        counts = await asyncio.gather(
+            *(_connection(host, port, until, latencies) for _ in range(connections))
+        )
+        return sum(counts), latencies
+
+    started = time.perf_counter()
+    total, latencies = asyncio.run(main())
+    out.send((total, time.perf_counter() - started - 1.0, latencies))
+
+
+def _free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+def _start_api(settings, host: str, port: int, log: Path) -> subprocess.Popen:
+    """``arena serve`` (one uvicorn process), configured through the environment."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("ARENA_")}
+    env |= {"ARENA_DATA_DIR": str(settings.data_dir), "ARENA_DATABASE_URL": settings.database_url}
+    command = [sys.executable, "-c", "from arena.cli import app; app()", "serve"]
+    server = subprocess.Popen(
+        [*command, "--host", host, "--port", str(port)],
+        env=env,
+        stdout=log.open("wb"),
+        stderr=subprocess.STDOUT,
+    )
+    deadline = time.monotonic() + 30
+    while True:
+        try:
+            with socket.create_connection((host, port), timeout=1):
+                return server
+        except OSError:
+            if server.poll() is not None or time.monotonic() > deadline:
+                raise RuntimeError(f"the API did not start: {log.read_text()}") from None
+            time.sleep(0.1)
+
+
+def percentile(values: list[float], q: float) -> float:
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, int(q * len(ordered)))]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=10.0, help="measured time (<= 15)")
+    parser.add_argument("--connections", type=int, default=16)
+    parser.add_argument("--database-url", default="", help="default: a fresh SQLite file")
+    args = parser.parse_args()
+    seconds = min(args.seconds, 15.0)  # with seeding, start-up and warm-up: under 20 s
+
+    from arena.config import Settings
+
+    workdir = Path(tempfile.mkdtemp(prefix="arena-bench-"))
+    try:
+        settings = Settings(
+            _env_file=None, data_dir=workdir, database_url=args.database_url, admin_token="bench"
+        )
+        seed(settings.resolved_database_url, random.Random(7))
+        host, port = "127.0.0.1", _free_port()
+        server = _start_api(settings, host, port, workdir / "api.log")
+        try:
+            receiver, sender = mp.Pipe(duplex=False)
+            client = mp.Process(
+                target=_client, args=(host, port, args.connections, seconds, sender)
+            )
+            client.start()
+            total, elapsed, latencies = receiver.recv()
+            client.join()
+        finally:
+            server.terminate()
+            server.wait(timeout=20)
+    finally:
+        shutil.rmtree(workdir, ignore_errors=True)
+    rps = total / elapsed
+    p50 = percentile(latencies, 0.50) * 1000
+    p99 = percentile(latencies, 0.99) * 1000
+    print(f"submissions={SUBMISSIONS} teams={TEAMS} connections={args.connections}")
+    print(f"requests={total} in {elapsed:.1f} s")
+    print(f"requests_per_s={rps:.0f} (target {TARGET_RPS:.0f}, ratio {rps / TARGET_RPS:.2f})")
+    print(f"p50_ms={p50:.2f} p99_ms={p99:.2f} (target p99 < {TARGET_P99_MS:.0f} ms)")
+    print(f"rps={rps:.0f} p99_ms={p99:.2f}")
+
+
+if __name__ == "__main__":
+    main()
