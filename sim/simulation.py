@@ -15,7 +15,6 @@ A scene with no mission agents (the scenario recorder) uses :func:`scene_states`
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -23,6 +22,7 @@ import numpy as np
 
 from scenarios.schema import ReplayTraffic, Scenario, content_hash
 from sim.agent import DoneReason
+from sim.bubble import ReactiveBubble
 from sim.events import NOT_MOVING_SPEED, NOT_MOVING_STEPS, Events, collisions, is_wrong_way
 from sim.events import reached_goal as within_goal
 from sim.interface import AgentInterface
@@ -32,7 +32,7 @@ from sim.record import AgentSummary, EpisodeRecorder, RecordRow, write_npz
 from sim.replay import ReplayTable
 from sim.result import AgentOutcome
 from sim.road import LanePosition, RoadNetwork
-from sim.road.waypoints import preferred_successor, waypoint_paths
+from sim.road.waypoints import route_ahead, waypoint_paths
 from sim.traffic import SumoTraffic
 from sim.triggers import CutInTriggers
 from sim.vehicle import DECODERS, ControlContext, parse_action
@@ -64,9 +64,8 @@ class Simulation:
         self.road = RoadNetwork.load(self.scenario_dir / scenario.map)
         self._missions = scenario.missions if with_missions else ()
         self._traffic: SumoTraffic | None = None
-        self._replay: ReplayTable | None = None
-        self._bubble_radius: float | None = None
-        self._in_sumo_replay: set[str] = set()
+        self._replay: ReplayTable | None = None  # replayed traffic outside SUMO
+        self._bubble: ReactiveBubble | None = None  # replayed traffic inside SUMO
         self._triggers: CutInTriggers | None = None
         # Present before reset() so that an agent failing at start-up still has outcomes.
         self.vehicles = [MissionVehicle.from_mission(m) for m in self._missions]
@@ -84,8 +83,11 @@ class Simulation:
         routes = folder / sc.traffic.routes if sc.traffic.kind == "sumo" else None
         self._traffic = SumoTraffic(folder / sc.map, routes, self.seed, self.dt)
         if isinstance(sc.traffic, ReplayTraffic):
-            self._replay = ReplayTable(folder / sc.traffic.trajectories, self.dt)
-            self._bubble_radius = sc.traffic.bubble_radius
+            table = ReplayTable(folder / sc.traffic.trajectories, self.dt)
+            if sc.traffic.bubble_radius is None:
+                self._replay = table
+            else:
+                self._bubble = ReactiveBubble(table, sc.traffic.bubble_radius, self.road)
         else:
             self._triggers = CutInTriggers(sc.traffic.triggers)
         self.vehicles = [MissionVehicle.from_mission(m) for m in self._missions]
@@ -95,7 +97,8 @@ class Simulation:
         entering = [v for v in self.vehicles if v.mission.start_step <= 0]
         for v in entering:
             self._enter(v)
-        self._place_replay_in_sumo(0)
+        if self._bubble is not None:
+            self._bubble.update(self._traffic, 0, [(v.pose.x, v.pose.y) for v in self.live])
         self._traffic.step()
         return {
             v.id: self._observe(v, self._surroundings(v), self._events_at_rest(v)) for v in entering
@@ -138,7 +141,8 @@ class Simulation:
         ]
         for v in entering:
             self._enter(v)
-        self._place_replay_in_sumo(step)
+        if self._bubble is not None:
+            self._bubble.update(traffic, step, [(v.pose.x, v.pose.y) for v in self.live])
         if self._triggers is not None:
             self._triggers.apply(traffic, self._lanes, self.road)
         traffic.step()
@@ -250,7 +254,7 @@ class Simulation:
         for v in self.live:
             if not traffic.is_in_network(v.id):
                 m = v.mission
-                route = self._route_from(v.pose.x, v.pose.y, v.pose.heading)
+                route = route_ahead(self.road, v.pose.x, v.pose.y, v.pose.heading)
                 traffic.add_vehicle(v.id, route, m.vehicle.length, m.vehicle.width)
                 traffic.move(v.id, v.pose.x, v.pose.y, v.pose.heading, v.pose.speed)
                 traffic.watch_around(v.id, self.interface.observation_radius + _CONTEXT_MARGIN)
@@ -261,7 +265,7 @@ class Simulation:
             self._traffic.remove(v.id)
 
     def _replay_states(self, step: int) -> VehicleStates:
-        if self._replay is None or self._bubble_radius is not None:
+        if self._replay is None:
             return VehicleStates.empty()
         return self._replay.states(step)
 
@@ -370,53 +374,6 @@ class Simulation:
             waypoint_paths=paths,
             interface=self.interface,
         )
-
-    def _place_replay_in_sumo(self, step: int) -> None:
-        """Replay with a reactive bubble: recorded vehicles live in SUMO (so that vehicles handed
-        over react to them), moved to their recorded states until an ego comes within the
-        bubble radius, then driven by SUMO for the rest of the episode."""
-        if self._replay is None or self._bubble_radius is None:
-            return
-        table, traffic = self._replay, self._traffic
-        assert traffic is not None
-        present = table.present(step)
-        for k in set(self._in_sumo_replay_rows()) - set(present.tolist()):
-            vid = table.ids[k]
-            if table.active[k]:
-                traffic.remove(vid)
-                self._in_sumo_replay.discard(vid)
-        egos = [(v.pose.x, v.pose.y) for v in self.live]
-        for k in present:
-            vid = table.ids[k]
-            x, y, h, s = (
-                table.x[k, step],
-                table.y[k, step],
-                table.heading[k, step],
-                table.speed[k, step],
-            )
-            if vid not in self._in_sumo_replay:
-                traffic.add_vehicle(vid, self._route_from(x, y, h), table.length[k], table.width[k])
-                self._in_sumo_replay.add(vid)
-            traffic.move(vid, x, y, h, s)
-            if any(math.hypot(x - ex, y - ey) <= self._bubble_radius for ex, ey in egos):
-                table.active[k] = False
-                traffic.release(vid, s)
-
-    def _in_sumo_replay_rows(self) -> list[int]:
-        assert self._replay is not None
-        return [k for k, vid in enumerate(self._replay.ids) if vid in self._in_sumo_replay]
-
-    def _route_from(self, x: float, y: float, heading: float) -> list[str]:
-        """Edges ahead of a point, following the road for a vehicle SUMO will drive."""
-        lane = self.road.nearest_lane(x, y, heading).lane
-        edges: list[str] = []
-        while lane is not None and len(edges) < 64:
-            if not lane.is_internal and lane.edge_id not in edges:
-                edges.append(lane.edge_id)
-            elif not lane.is_internal:
-                break
-            lane = preferred_successor(self.road, lane, ())
-        return edges
 
 
 def scene_states(

@@ -52,3 +52,17 @@ def _path_from(road: RoadNetwork, lane: Lane, s: float, route: tuple[str, ...], 
         lane = preferred_successor(road, lane, route)
         start = 0
     return path
+
+
+def route_ahead(road: RoadNetwork, x: float, y: float, heading: float) -> list[str]:
+    """Edge ids from the lane at (x, y) onwards, following preferred successors until a dead end
+    or a loop: a route for a vehicle that SUMO will drive from there."""
+    lane: Lane | None = road.nearest_lane(x, y, heading).lane
+    edges: list[str] = []
+    while lane is not None and len(edges) < 64:
+        if not lane.is_internal:
+            if lane.edge_id in edges:
+                break
+            edges.append(lane.edge_id)
+        lane = preferred_successor(road, lane, ())
+    return edges
