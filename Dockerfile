@@ -1,0 +1,41 @@
+# The Driving Arena service image: API (`arena serve`), worker (`arena worker`) and admin CLI.
+#   docker build -t driving-arena:latest .
+# Agents never run in this image: the worker starts them in the agent runtime image
+# (Dockerfile.agent) through the host's Docker daemon. See docs/deployment.md.
+FROM python:3.11-slim
+
+ENV PYTHONDONTWRITEBYTECODE=1 \
+    PYTHONUNBUFFERED=1 \
+    PIP_DISABLE_PIP_VERSION_CHECK=1 \
+    ARENA_DATA_DIR=/srv/arena
+
+# libsumo and SUMO's binaries (from the eclipse-sumo wheel) link these system libraries.
+RUN apt-get update \
+    && DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends \
+        libgl1 libx11-6 libxext6 libxrender1 libatomic1 libexpat1 zlib1g \
+    && rm -rf /var/lib/apt/lists/*
+
+WORKDIR /app
+# Only what the service needs (no tests, benchmarks or local data); dependencies first so code
+# changes do not re-download them.
+COPY pyproject.toml README.md alembic.ini ./
+COPY migrations ./migrations
+COPY arena ./arena
+COPY sim ./sim
+COPY scenarios ./scenarios
+COPY submissions ./submissions
+COPY evaluator ./evaluator
+COPY server ./server
+# Editable, so `arena admin db upgrade` finds alembic.ini and migrations/ next to the code.
+RUN pip install --no-cache-dir -e . && rm -rf /root/.cache
+
+RUN useradd --system --uid 1000 --home-dir /srv/arena arena \
+    && mkdir -p /srv/arena && chown arena /srv/arena
+VOLUME ["/srv/arena"]
+EXPOSE 8000
+
+# The API runs unprivileged; the worker service overrides the user (it needs the Docker socket).
+USER arena
+HEALTHCHECK --interval=15s --timeout=5s --start-period=20s --retries=3 \
+    CMD ["python", "-c", "import httpx,sys; sys.exit(httpx.get('http://127.0.0.1:8000/api/v1/healthz').status_code != 200)"]
+CMD ["arena", "serve", "--host", "0.0.0.0", "--port", "8000", "--workers", "2"]
