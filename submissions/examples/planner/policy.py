@@ -38,6 +38,18 @@ STOP_SPEED = 0.3  # [m/s] counts as stopped at a stop line
 # traffic on a parallel lane does not)
 CONFLICT_RADIUS = 2.4
 SHOULDER_WIDTH = 3.0  # [m] narrower lanes are shoulders
+FULL_PATH_WAYPOINTS = 50  # waypoints_per_path of agent.yaml
+
+
+def menger_curvature(points: np.ndarray) -> float:
+    """Signed curvature [1/m] (left positive) of the circle through the first, middle and last
+    of ``points`` (n, 2): positions are exact lane points, waypoint headings step at corners."""
+    if len(points) < 3:
+        return 0.0
+    a, b, c = points[0], points[len(points) // 2], points[-1]
+    cross = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+    sides = np.hypot(*(b - a)) * np.hypot(*(c - b)) * np.hypot(*(c - a))
+    return float(2.0 * cross / sides) if sides > 1e-6 else 0.0
 
 
 def wrap(a: float) -> float:
@@ -57,10 +69,18 @@ class Path:
         self.width = float(waypoints[0].get("lane_width") or 3.2)
         self.limits = np.array([w.get("speed_limit") or 13.9 for w in waypoints], dtype=float)
         self.length = float(self.s[-1])
-        h = np.unwrap(self.heading)
-        tail = max(0, len(h) - 20)
-        span = self.s[-1] - self.s[tail]
-        self.end_curvature = float((h[-1] - h[tail]) / span) if span > 1.0 else 0.0
+        # Paths are cut at the observation's waypoint count: a shorter one is a lane that ends.
+        self.ends = len(waypoints) < FULL_PATH_WAYPOINTS
+        # Edge shapes are arcs and straights; junction connections are not: take the curvature
+        # of the longest stretch of one lane (normal, not internal) on the path.
+        runs, start = [], 0
+        for i in range(1, len(self.lane_ids) + 1):
+            if i == len(self.lane_ids) or self.lane_ids[i] != self.lane_ids[start]:
+                if not self.lane_ids[start].startswith(":"):
+                    runs.append((i - start, start, i))
+                start = i
+        _, a, b = max(runs) if runs else (0, 0, len(self.xy))
+        self.end_curvature = menger_curvature(self.xy[a:b])
 
     def direction(self, i: int) -> float:
         """Heading [rad] of the chord from waypoint ``i`` to ``i + 2`` (clamped to the path)."""
@@ -153,6 +173,10 @@ class AgentPlanner:
         # be a different connection (overlapping internal lanes), so we keep to this one.
         self.memory: Path | None = None
         self.slow_for: float | None = None  # [m/s] dropping back to find a gap
+        self.leaving_ending_lane = False  # change lanes briskly: the current one ends
+        self.must_merge = False  # on an on-ramp's acceleration lane
+        self.merge_road: str | None = None
+        self.last_limit: float | None = None  # [m/s] speed limit of the last normal road
 
     def act(self, obs: dict) -> list[float]:
         ego = obs["ego_vehicle_state"]
@@ -177,7 +201,9 @@ class AgentPlanner:
                 self.stopped_at_line = False
                 self.committed_junction = False
         current = min(paths, key=lambda p: abs(p.project(x, y)[1]))
+        self._track_merge(str(road), current, paths)
         target = self._choose_lane(paths, current, x, y, gx, gy, speed, length, others)
+        self.leaving_ending_lane = target is not current and current.ends
 
         # Speed: IDM on the corridors of the current and target lanes.
         v_desired = self._desired_speed(current, target, x, y)
@@ -201,6 +227,20 @@ class AgentPlanner:
 
     # --- lanes -----------------------------------------------------------------------------
 
+    def _track_merge(self, road: str, current: Path, paths: list[Path]) -> None:
+        """Entering the rightmost lane of a faster multi-lane road from a slower road is an
+        on-ramp: that lane (acceleration lane, or shoulder further on) is left for the next one."""
+        if road.startswith(":"):
+            return
+        limit = float(current.limits[0])
+        if road != self.merge_road:
+            entered_faster = self.last_limit is not None and limit > self.last_limit + 0.5
+            self.must_merge = entered_faster and current.lane_index == 0 and len(paths) > 1
+            self.merge_road = road
+        if current.lane_index > 0:
+            self.must_merge = False
+        self.last_limit = limit
+
     def _choose_lane(self, paths, current, x, y, gx, gy, speed, length, others) -> Path:
         self.slow_for = None
         usable = [p for p in paths if p.width >= SHOULDER_WIDTH] or paths
@@ -208,17 +248,19 @@ class AgentPlanner:
         offsets = {id(p): p.goal_offset(gx, gy) for p in usable}
         goal_path = min(usable, key=lambda p: offsets[id(p)])
         wanted = goal_path
-        ending = [p for p in usable if p.length < 45.0 and goal_dist > p.length + 5.0]
+        ending = [p for p in usable if p.ends and goal_dist > p.length + 5.0]
         if goal_dist > GOAL_LANE_DISTANCE and current in usable and current not in ending:
             # Overtaking: prefer an adjacent lane whose traffic ahead is faster.
             def score(p: Path) -> float:
                 gap, v = self._lead(p, x, y, length, 1.8, others)
                 value = min(v if gap < 60.0 else 99.0, 30.0)
-                return value + (2.0 if p is current else 0.0) + (0.5 if p is goal_path else 0.0)
+                return value + (2.0 if p is current else 0.0) + (2.5 if p is goal_path else 0.0)
 
             near = [p for p in usable if abs(p.lane_index - current.lane_index) <= 1]
             near = [p for p in near if p not in ending]
             wanted = max(near, key=score) if near else goal_path
+        if self.must_merge and goal_dist > current.length:
+            wanted = next((p for p in usable if p.lane_index == current.lane_index + 1), wanted)
         if wanted.lane_index == current.lane_index:
             self.target_lane = current.lane_index
             return current
@@ -232,12 +274,12 @@ class AgentPlanner:
         if blocker is None:
             self.target_lane = nxt.lane_index
             return nxt
-        # A lane change we must make is blocked: drop back behind a vehicle level with or ahead
-        # of us, keep going past one behind (two agents wanting to swap lanes then split).
-        if wanted is goal_path and (goal_dist < GOAL_LANE_DISTANCE or current in ending):
-            offset, blocker_speed = blocker
-            if offset > -2.0:
-                self.slow_for = max(blocker_speed - 3.0, 2.0)
+        # A lane change we want is blocked: drop back behind a vehicle level with or ahead
+        # of us or faster from behind, keep going past a slower one behind (two agents wanting
+        # to swap lanes then split instead of pacing each other).
+        offset, blocker_speed = blocker
+        if offset > -2.0 or blocker_speed > speed + 0.5:
+            self.slow_for = max(min(blocker_speed, speed) - 2.0, 2.0)
         return current
 
     def _blocker(self, path: Path, x, y, speed, length, others) -> tuple[float, float] | None:
@@ -301,7 +343,7 @@ class AgentPlanner:
         """Distance to the end of a lane that stops short of the goal (acceleration lane)."""
         s0, _ = current.project(x, y)
         goal_s, _ = current.project(gx, gy)
-        if current.length < 45.0 and goal_s > current.length + 2.0 and target is current:
+        if current.ends and goal_s > current.length + 2.0 and target is current:
             return current.length - s0 - 0.5 * length - 1.0
         return 1e9
 
@@ -376,7 +418,8 @@ class AgentPlanner:
         ds = 0.5 * (speed + v) * DT
         if ds < 1e-3:
             return [x, y, heading, DT]
-        new_lat = lat - math.copysign(min(abs(lat), LAT_SPEED * DT * max(1.0, v / 10.0)), lat)
+        lateral_speed = LAT_SPEED * max(1.0, v / 10.0) * (2.0 if self.leaving_ending_lane else 1.0)
+        new_lat = lat - math.copysign(min(abs(lat), lateral_speed * DT), lat)
         px, py, ph = target.point(s0 + ds)
         nx, ny = -math.sin(ph), math.cos(ph)
         tx, ty = px + nx * new_lat, py + ny * new_lat
