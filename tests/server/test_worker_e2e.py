@@ -184,3 +184,37 @@ def _wait_redis(port: int) -> None:
         except redis.ConnectionError:
             time.sleep(0.1)
     raise RuntimeError("redis-server did not start")
+
+
+def test_cancel_while_running_stops_the_evaluation_and_the_worker_goes_on(stack_settings, tmp_path):
+    db = Database(stack_settings.database_url)
+    _, token = make_team(db, "cancel-team")
+    worker = start_worker(stack_settings, tmp_path / "worker.log", concurrency=1)
+    try:
+        with api_server(stack_settings, tmp_path / "api.log") as (url, _):
+            sid = upload_example(url, token, "planner", tmp_path)
+            deadline = time.monotonic() + 120
+            while (
+                httpx.get(f"{url}/api/v1/submissions/{sid}", headers=bearer(token)).json()["status"]
+                != "running"
+            ):
+                assert time.monotonic() < deadline
+                time.sleep(0.2)
+            cancelled = httpx.post(f"{url}/api/v1/submissions/{sid}/cancel", headers=bearer(token))
+            assert cancelled.status_code == 200 and cancelled.json()["status"] == "cancelled"
+            # The same worker evaluates the next submission to the end...
+            other = upload_example(url, token, "keep_lane", tmp_path)
+            assert wait_finished(url, token, other)["status"] == "scored"
+            # ...and the cancelled one stayed cancelled, short of its scenarios.
+            body = httpx.get(f"{url}/api/v1/submissions/{sid}", headers=bearer(token)).json()
+            assert body["status"] == "cancelled"
+            assert body["progress"]["done"] < len(SCENARIOS)
+            assert body["metrics"] is None
+    finally:
+        stop(worker)
+    # Sandboxes of this test mount its data folder; none may outlive the worker.
+    leftovers = subprocess.run(
+        ["pgrep", "-f", str(stack_settings.data_dir)], capture_output=True, text=True
+    )
+    assert leftovers.stdout.strip() == "", "a sandbox outlived the cancelled evaluation"
+    db.dispose()
