@@ -15,6 +15,7 @@ import logging
 import os
 import socket
 import threading
+import traceback
 from contextlib import contextmanager
 from dataclasses import asdict
 from functools import lru_cache
@@ -38,6 +39,8 @@ log = logging.getLogger(__name__)
 SCENARIO_TIME_LIMIT_S = 1800
 BOOKKEEPING_TIME_LIMIT_S = 300
 INFRASTRUCTURE_RETRIES = 2
+# Claims of one scenario (a worker dying mid-scenario releases its claim) before giving up.
+MAX_SCENARIO_ATTEMPTS = 3
 
 
 def arena_task(name: str, *, time_limit: int, **options: Any):
@@ -85,18 +88,22 @@ def run_scenario(self, *, run_id: int, scenario_id: str) -> None:
         job = evaluation.claim_scenario(session, settings, run_id, scenario_id, me)
     if job is None:
         return
-    try:
-        with _heartbeat(run_id, me, labels=_sandbox_labels(job)):
-            outcome = _simulate(job)
-    except InfrastructureError as exc:
-        if self.request.retries < INFRASTRUCTURE_RETRIES:
-            raise self.retry(exc=exc, countdown=10 * (self.request.retries + 1)) from exc
-        outcome = evaluation.ScenarioOutcomeIn(
-            scenario_id=scenario_id,
-            status=scoring.INFRASTRUCTURE_ERROR,
-            reason=type(exc).__name__,
-            detail={"error": str(exc)},
-        )
+    if job.attempt > MAX_SCENARIO_ATTEMPTS:
+        # Every worker that took this scenario died with it (or was killed): stop handing it out.
+        outcome = _our_failure(job, "worker_lost", f"{job.attempt - 1} workers died running it")
+    else:
+        try:
+            with _heartbeat(run_id, me, labels=_sandbox_labels(job)):
+                outcome = _simulate(job)
+        except InfrastructureError as exc:
+            if self.request.retries < INFRASTRUCTURE_RETRIES:
+                raise self.retry(exc=exc, countdown=10 * (self.request.retries + 1)) from exc
+            outcome = _our_failure(job, type(exc).__name__, str(exc))
+        except Exception as exc:
+            # A bug on our side: recorded (the run then fails visibly and can be re-run) rather
+            # than left for the reaper to hand out again and again.
+            log.exception("scenario %s of run %s crashed the task", scenario_id, run_id)
+            outcome = _our_failure(job, type(exc).__name__, traceback.format_exc())
     with db.session() as session:
         last = evaluation.record_scenario(session, run_id, outcome)
     if last:
@@ -107,6 +114,18 @@ def run_scenario(self, *, run_id: int, scenario_id: str) -> None:
 def aggregate_run(*, run_id: int) -> None:
     with get_database().session() as session:
         evaluation.finish_run(session, run_id)
+
+
+def _our_failure(
+    job: evaluation.ScenarioJob, reason: str, error: str
+) -> evaluation.ScenarioOutcomeIn:
+    """A scenario that could not be evaluated through no fault of the submission."""
+    return evaluation.ScenarioOutcomeIn(
+        scenario_id=job.scenario_id,
+        status=scoring.INFRASTRUCTURE_ERROR,
+        reason=reason,
+        detail={"error": error, "attempt": job.attempt},
+    )
 
 
 def _simulate(job: evaluation.ScenarioJob) -> evaluation.ScenarioOutcomeIn:

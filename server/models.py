@@ -172,7 +172,9 @@ class ScenarioResult(Base):
     record_path: Mapped[str | None] = mapped_column(String(512))
     log_tail: Mapped[str] = mapped_column(Text, default="")
     detail: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    # The worker holding the claim while "running"; empty once the reaper released it.
     worker: Mapped[str] = mapped_column(String(255), default="")
+    attempts: Mapped[int] = mapped_column(Integer, default=0)  # claims so far
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
 
     run: Mapped[EvaluationRun] = relationship(back_populates="results")

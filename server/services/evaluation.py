@@ -51,6 +51,7 @@ class ScenarioJob:
     scenario_id: str
     scenario_dir: str
     storage_dir: str
+    attempt: int  # 1 for the first claim; more after workers died holding it
 
 
 @dataclass(frozen=True)
@@ -154,25 +155,27 @@ def claim_scenario(
             ScenarioResult.run_id == run_id, ScenarioResult.scenario_id == scenario_id
         )
     )
+    if existing is not None and existing.status != scoring.RUNNING:
+        return None
     lease_valid = run.lease_expires_at is not None and run.lease_expires_at > now()
-    if existing is not None and (existing.status != scoring.RUNNING or lease_valid):
+    if existing is not None and existing.worker and lease_valid:
         return None
     suite = load_suite(Path(run.suite_dir))
     family = suite.family_of().get(scenario_id)
     if family is None:
         raise NotFound(f"scenario {scenario_id} is not in the suite of run {run_id}")
     if existing is None:
-        session.add(
-            ScenarioResult(
-                run_id=run_id,
-                scenario_id=scenario_id,
-                family=family,
-                status=scoring.RUNNING,
-                worker=worker,
-            )
+        existing = ScenarioResult(
+            run_id=run_id,
+            scenario_id=scenario_id,
+            family=family,
+            status=scoring.RUNNING,
+            worker=worker,
+            attempts=0,
         )
-    else:
-        existing.worker = worker
+        session.add(existing)
+    existing.worker = worker
+    existing.attempts += 1
     if run.status == RunStatus.queued:
         run.status = advance(run.status, RunStatus.running, RUN_MOVES)
         run.started_at = now()
@@ -184,6 +187,7 @@ def claim_scenario(
         scenario_id=scenario_id,
         scenario_dir=str(suite.scenario_dir(scenario_id)),
         storage_dir=run.submission.storage_dir,
+        attempt=existing.attempts,
     )
 
 
@@ -238,6 +242,8 @@ def _insert_if_absent(session: Session, run_id: int, scenario_id: str, family: s
             family=family,
             status=scoring.RUNNING,
             detail={},
+            worker="",
+            attempts=1,
             created_at=now(),
         )
         .on_conflict_do_nothing(index_elements=["run_id", "scenario_id"])
@@ -353,9 +359,7 @@ def reap(session: Session, settings: Settings, *, queue_empty: bool) -> Reaped:
             continue
         # Release the claims of the worker that went silent, so the re-sent tasks can take them.
         for claim in stale_claims:
-            session.delete(claim)
-        session.flush()
-        session.expire(run, ["results"])
+            claim.worker = ""
         pending = pending_scenarios(run)
         run.lease_expires_at = lease_until(settings)
         plans.append(RunPlan(run_id=run.id, scenario_ids=pending, aggregate=not pending))

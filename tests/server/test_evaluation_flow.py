@@ -113,7 +113,9 @@ def test_reaper_resends_stale_claims_and_lost_messages(db, settings, submission_
     # A stale claim is re-sent even while the queue is busy, with everything still pending,
     # and released so that the re-sent task can claim it although the lease was renewed.
     assert [p.scenario_ids for p in reaped.plans] == [plan.scenario_ids]
-    assert claim(db, settings, plan.run_id, first, "w2") is not None
+    retaken = claim(db, settings, plan.run_id, first, "w2")
+    assert retaken is not None and retaken.attempt == 2  # the task gives up after too many
+    assert claim(db, settings, plan.run_id, first, "w3") is None  # w2 holds it now
     with db.session() as session:  # the lease was renewed: not re-sent again at once
         assert evaluation.reap(session, settings, queue_empty=True).plans == ()
     finish(db, plan.run_id, first)
