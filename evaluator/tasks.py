@@ -186,7 +186,9 @@ def _prepare(storage_dir: str):
     from submissions.intake import prepare_submission
 
     settings = get_settings()
-    dest = settings.resolved_data_dir / "prepared" / f"{Path(storage_dir).name}-{worker_name()}"
+    # No ':' in the name: Docker's volume syntax would split the path there.
+    folder = f"{Path(storage_dir).name}-{socket.gethostname()}-{os.getpid()}"
+    dest = settings.resolved_data_dir / "prepared" / folder
     return prepare_submission(Path(storage_dir) / "upload.zip", dest, settings)
 
 

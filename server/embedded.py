@@ -53,6 +53,7 @@ def run_embedded(console: Console, *, host: str, port: int, demo_team: str) -> N
         ),
     ]
     url = f"http://{host}:{port}"
+    signal.signal(signal.SIGTERM, _interrupt)  # `kill` stops it as cleanly as Ctrl-C
     try:
         _wait_healthy(f"{url}/api/v1/healthz", children)
         console.print(
@@ -71,6 +72,10 @@ def run_embedded(console: Console, *, host: str, port: int, demo_team: str) -> N
         console.print("stopping…")
     finally:
         _stop(children)
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
 
 
 def _stored_admin_token(data: Path) -> str:
