@@ -104,7 +104,7 @@ def _highway_traffic(
     info: NetInfo,
     rng: np.random.Generator,
     per_lane: float,
-    keep_clear: list[tuple[int, float]],
+    keep_clear: list[tuple[int | None, float, float]],
     flow_begin: float,
 ) -> None:
     routes = draft.routes
@@ -147,7 +147,12 @@ def cruise(spec: Spec, rng: np.random.Generator, maps: MapLibrary) -> Draft:
                 delay,
             )
         )
-    keep = [(int(lane), 40.0) for lane in lanes]
+    # An agent entering later must not appear in front of traffic already closing in on its
+    # start: every lane is kept free far enough behind that nothing arrives before it does.
+    keep = [
+        (None if delay else int(lane), 40.0, 70.0 if delay else 25.0)
+        for lane, delay in zip(lanes, delays, strict=True)
+    ]
     _highway_traffic(draft, info, rng, _volume(spec), keep, flow_begin=max(delays) * 0.1 + 3.0)
     return draft
 
@@ -161,7 +166,7 @@ def overtake(spec: Spec, rng: np.random.Generator, maps: MapLibrary) -> Draft:
         make_mission(info, 0, ("in", lane, 30.0), ("in", "out"), lane, rng.uniform(10, 14))
     )
     # Other lanes carry the volume's traffic; the ego lane ahead is blocked by slow leaders.
-    _highway_traffic(draft, info, rng, _volume(spec, 0.6), [(lane, 30.0)], flow_begin=3.0)
+    _highway_traffic(draft, info, rng, _volume(spec, 0.6), [(lane, 30.0, 25.0)], flow_begin=3.0)
     slow_speed = rng.uniform(5.0, 7.0) if spec.variant.endswith("slow") else rng.uniform(9.0, 12.0)
     draft.routes.special_types.append(slow_type("slow", slow_speed))
     through = draft.routes.route(("in", "out"))
@@ -183,7 +188,7 @@ def cut_in(spec: Spec, rng: np.random.Generator, maps: MapLibrary) -> Draft:
     draft.missions.append(
         make_mission(info, 0, ("in", lane, 30.0), ("in", "out"), lane, rng.uniform(12, 15))
     )
-    keep = [(lane, 30.0), (cutter_lane, 30.0)]
+    keep: list[tuple[int | None, float, float]] = [(lane, 30.0, 25.0), (cutter_lane, 30.0, 25.0)]
     _highway_traffic(draft, info, rng, _volume(spec, 0.7), keep, flow_begin=3.0)
     through = draft.routes.route(("in", "out"))
     draft.routes.special_types.append(slow_type("cutter", rng.uniform(14.0, 17.0)))
@@ -208,7 +213,7 @@ def merge(spec: Spec, rng: np.random.Generator, maps: MapLibrary) -> Draft:
             info, 0, ("ramp", 0, 20.0), route, info.driving_lanes("out")[0], rng.uniform(8, 12)
         )
     )
-    keep: list[tuple[int, float]] = []
+    keep: list[tuple[int | None, float, float]] = []
     if spec.agents > 1:
         main = ("in", "merge", "out")
         delay = int(rng.integers(0, 30))
@@ -216,7 +221,7 @@ def merge(spec: Spec, rng: np.random.Generator, maps: MapLibrary) -> Draft:
         draft.missions.append(
             make_mission(info, 1, ("in", 0, 60.0), main, goal_lane, rng.uniform(10, 14), delay)
         )
-        keep.append((0, 60.0))
+        keep.append((None if delay else 0, 60.0, 70.0 if delay else 25.0))
     routes = draft.routes
     routes.vtypes = driver_types(rng)
     lanes = info.lanes("in")

@@ -149,12 +149,13 @@ def initial_vehicles(
     span: tuple[float, float],
     per_lane_hour: float,
     speed: float,
-    keep_clear: list[tuple[int, float]],
+    keep_clear: list[tuple[int | None, float, float]],
 ) -> list[Vehicle]:
     """Vehicles already on the road at step 0 so traffic is established from the start.
 
     Gaps are exponential with the mean spacing of a flow of ``per_lane_hour`` at ``speed``;
-    ``keep_clear`` lists (lane, position [m]) spots (mission starts) left free by 25 m."""
+    ``keep_clear`` lists (lane or None for every lane, position [m], distance behind [m]) spots
+    (mission starts) left free from that distance behind to 25 m ahead."""
     mean_gap = max(speed * 3600.0 / per_lane_hour, 20.0)
     # SUMO inserts a vehicle only with a safe gap to the one ahead; one that cannot enter at step
     # 0 would pop in later wherever there is room, possibly beside a mission vehicle.
@@ -163,7 +164,10 @@ def initial_vehicles(
     for lane in range(lanes):
         pos = span[0] + rng.uniform(0.0, mean_gap)
         while pos < span[1]:
-            if all(abs(pos - p) > 25.0 or lane != ln for ln, p in keep_clear):
+            if not any(
+                (ln is None or ln == lane) and -behind < pos - p < 25.0
+                for ln, p, behind in keep_clear
+            ):
                 out.append(
                     Vehicle(f"{prefix}{lane}_{len(out)}", route, 0.0, lane, pos, speed * 0.9)
                 )

@@ -32,7 +32,7 @@ HEADWAY = 1.2  # [s] IDM time headway
 S0 = 3.0  # [m] IDM standstill gap
 A_LAT = 2.5  # [m/s^2] lateral acceleration allowed in curves
 LAT_SPEED = 1.2  # [m/s] lateral speed of a lane change
-GOAL_LANE_DISTANCE = 150.0  # [m] within this distance only the goal lane counts
+GOAL_LANE_DISTANCE = 250.0  # [m] within this distance only the goal lane counts
 STOP_SPEED = 0.3  # [m/s] counts as stopped at a stop line
 # [m] another vehicle's centre this near a point of our path blocks it (less than a lane width:
 # traffic on a parallel lane does not)
@@ -207,8 +207,6 @@ class AgentPlanner:
 
         # Speed: IDM on the corridors of the current and target lanes.
         v_desired = self._desired_speed(current, target, x, y)
-        if self.slow_for is not None:
-            v_desired = min(v_desired, self.slow_for)
         gap, lead_speed = self._lead(current, x, y, length, width, others)
         if target is not current:
             g2, v2 = self._lead(target, x, y, length, width, others)
@@ -221,6 +219,8 @@ class AgentPlanner:
         if stop_gap is not None and stop_gap < gap:
             gap, lead_speed = stop_gap, 0.0
         accel = idm(speed, v_desired, gap, lead_speed)
+        if self.slow_for is not None:
+            accel = min(accel, max((self.slow_for - speed) / 1.5, -B_COMF))
         if target is not self.memory:
             self.memory = target
         return self._pose(target, x, y, heading, speed, accel)
@@ -278,8 +278,14 @@ class AgentPlanner:
         # of us or faster from behind, keep going past a slower one behind (two agents wanting
         # to swap lanes then split instead of pacing each other).
         offset, blocker_speed = blocker
-        if offset > -2.0 or blocker_speed > speed + 0.5:
-            self.slow_for = max(min(blocker_speed, speed) - 2.0, 2.0)
+        drop_back = offset > -2.0 or blocker_speed > speed + 0.5
+        if not drop_back and wanted is goal_path:
+            # Pulling ahead of a slower vehicle takes too long if the goal comes first.
+            to_clear = rear_gap_needed(blocker_speed, speed) + length - offset
+            gain = max(float(nxt.limits[0]) - blocker_speed, 0.1)
+            drop_back = to_clear / gain > goal_dist / max(speed, 1.0)
+        if drop_back:
+            self.slow_for = max(min(blocker_speed, speed) - 4.0, 2.0)
         return current
 
     def _blocker(self, path: Path, x, y, speed, length, others) -> tuple[float, float] | None:
@@ -294,9 +300,9 @@ class AgentPlanner:
             half = 0.5 * (length + o["bounding_box"][0])
             v = o["speed"]
             if s >= s0:
-                if s - s0 - half < max(4.0, 0.5 * speed + (speed - v) * 1.5):
+                if s - s0 - half < max(4.0, 0.4 * speed + (speed - v) * 1.5):
                     return s - s0, v
-            elif s0 - s - half < max(5.0, 0.6 * v + (v - speed) * 2.5):
+            elif s0 - s - half < rear_gap_needed(v, speed):
                 return s - s0, v
         return None
 
@@ -429,6 +435,11 @@ class AgentPlanner:
     def _brake(self, x, y, heading, speed) -> list[float]:
         ds = max(0.0, speed - B_MAX * DT) * DT
         return [x + ds * math.cos(heading), y + ds * math.sin(heading), heading, DT]
+
+
+def rear_gap_needed(v_rear: float, v: float) -> float:
+    """Gap [m] a lane change must leave to a vehicle at ``v_rear`` [m/s] behind us at ``v``."""
+    return max(4.0, 0.4 * v_rear + (v_rear - v) * 2.5)
 
 
 def idm(v: float, v0: float, gap: float, v_lead: float) -> float:
