@@ -116,16 +116,19 @@ def test_killed_evaluation_resumes_only_the_missing_scenarios(public_suite, tmp_
         command += ["--scenario", scenario_id]
     runner = subprocess.Popen(command, start_new_session=True, stdout=subprocess.DEVNULL)
     deadline = time.monotonic() + 240
-    finished = []
-    while time.monotonic() < deadline and not finished:
-        time.sleep(0.2)
+    statuses: dict[str, str] = {}
+    while time.monotonic() < deadline and not {"done", "running"} <= set(statuses.values()):
+        time.sleep(0.1)
         if (out / "summary.json").exists():
-            finished = [e.id for e in read_summary(out).scenarios if e.status == "done"]
+            statuses = {e.id: e.status for e in read_summary(out).scenarios}
     os.killpg(runner.pid, signal.SIGKILL)  # the runner and its episode processes
     runner.wait()
-    assert finished, "the first scenario never finished"
     killed = read_summary(out)
     assert not killed.complete
+    # the scenario in flight left a trace
+    assert "running" in {e.status for e in killed.scenarios}, statuses
+    finished = [e.id for e in killed.scenarios if e.status == "done"]
+    assert finished, "the first scenario never finished"
     kept = {
         scenario_id: (out / "records" / f"{scenario_id}.npz").stat().st_mtime_ns
         for scenario_id in finished
