@@ -48,6 +48,9 @@ def evaluate(
     as_json: Annotated[
         bool, typer.Option("--json", help="Print summary.json to stdout (progress to stderr).")
     ] = False,
+    per_scenario: Annotated[
+        bool, typer.Option("--per-scenario", help="Also a table row per scenario.")
+    ] = False,
 ) -> None:
     """Evaluate a submission on a scenario set and print its four metrics."""
     from arena.config import get_settings
@@ -76,7 +79,7 @@ def evaluate(
         raise typer.Exit(2) from None
     finally:
         progress.stop()
-    _report(summary, out, console, as_json)
+    _report(summary, out, console, as_json, per_scenario)
 
 
 @app.command()
@@ -84,6 +87,9 @@ def score(
     results_dir: Annotated[Path, typer.Argument(help="A results folder of `arena evaluate`.")],
     profile: Annotated[str | None, typer.Option(help="Scoring profile.")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print summary.json to stdout.")] = False,
+    per_scenario: Annotated[
+        bool, typer.Option("--per-scenario", help="Also a table row per scenario.")
+    ] = False,
 ) -> None:
     """Re-score stored episode records (no simulation) and rewrite summary.json."""
     from arena.config import get_settings
@@ -103,7 +109,7 @@ def score(
         console.print(f"[bold red]error:[/] {escape(str(exc))}")
         raise typer.Exit(2) from None
     write_summary(summary, results_dir)
-    _report(summary, results_dir, console, as_json)
+    _report(summary, results_dir, console, as_json, per_scenario)
 
 
 @app.command()
@@ -176,21 +182,31 @@ class _RichProgress:
         self.bar.stop()
 
 
-def _report(summary: Summary, results_dir: Path, console: Console, as_json: bool) -> None:
+def _report(
+    summary: Summary, results_dir: Path, console: Console, as_json: bool, per_scenario: bool
+) -> None:
     if as_json:
         sys.stdout.write(json.dumps(summary.model_dump(mode="json"), indent=2) + "\n")
         return
     profile = summary.profile
     table = Table(title=f"{summary.suite} - scoring profile {profile.name} v{profile.version}")
     for column in ("set", "scenarios", "completion", "time", "humanness", "rules"):
-        table.add_column(column, justify="left" if column == "set" else "right")
+        if column == "set":
+            table.add_column(column, overflow="fold")
+        else:
+            table.add_column(column, justify="right", no_wrap=True)
     counts: dict[str, int] = {}
     for entry in summary.scenarios:
         if entry.metrics is not None:
             counts[entry.family] = counts.get(entry.family, 0) + 1
     rows = [("all", sum(counts.values()), summary.metrics)]
     rows += [(family, counts[family], m) for family, m in summary.families.items()]
-    for name, n, metrics in rows:
+    if per_scenario:
+        rows += [
+            (entry.id if entry.metrics else f"{entry.id} ({entry.status})", 1, entry.metrics)
+            for entry in summary.scenarios
+        ]
+    for i, (name, n, metrics) in enumerate(rows):
         if metrics is None:
             table.add_row(name, str(n), "-", "-", "-", "-")
             continue
@@ -202,7 +218,7 @@ def _report(summary: Summary, results_dir: Path, console: Console, as_json: bool
             f"{metrics.humanness:.4f}",
             f"{metrics.rules:.4f}",
         )
-        if name == "all":
+        if i in (0, len(summary.families)):
             table.add_section()
     console.print(table)
     console.print("All four are errors: smaller is better.", style="dim")

@@ -62,3 +62,11 @@ def test_replay_writes_a_picture(results, tmp_path):
     )
     assert result.exit_code == 0, result.output
     assert "collision at step 120" in out.read_text()
+
+
+def test_score_per_scenario_adds_a_row_per_scenario(results):
+    plain = CliRunner().invoke(app, ["score", str(results)])
+    detailed = CliRunner().invoke(app, ["score", str(results), "--per-scenario"])
+    rows = [line for line in detailed.output.splitlines() if line.startswith("│ b ")]
+    assert len(rows) == 1 and "1.000" in rows[0] and "800.0" in rows[0]
+    assert not [line for line in plain.output.splitlines() if line.startswith("│ b ")]
