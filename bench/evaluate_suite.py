@@ -11,6 +11,8 @@ Targets: wall_s < 120 on a 2-core machine, speedup >= 1.8.
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import subprocess
 import sys
 import tempfile
@@ -19,6 +21,7 @@ from pathlib import Path
 
 from arena.config import SandboxKind, get_settings
 from evaluator.runner import evaluate
+from evaluator.runner.evaluate import TIMINGS_FILE
 
 REPO = Path(__file__).resolve().parents[1]
 PLANNER = REPO / "submissions" / "examples" / "planner"
@@ -38,9 +41,12 @@ def timed_evaluation(suite: Path, out: Path, jobs: int, sandbox: SandboxKind) ->
         print(f"  warning: uncharged scenarios {', '.join(summary.uncharged)}", file=sys.stderr)
     steps = sum(entry.steps for entry in summary.scenarios)
     completion = summary.metrics.completion if summary.metrics else float("nan")
+    # Sum of per-scenario wall times: above jobs x wall means episodes slowed each other down.
+    busy = sum(json.loads((out / TIMINGS_FILE).read_text()).values())
     print(
         f"jobs={jobs}: {len(summary.scenarios)} scenarios in {wall:.1f} s, {steps} episode steps, "
-        f"{steps / wall:.0f} steps/s, completion={completion:.3f}"
+        f"{steps / wall:.0f} steps/s, scenario time sum {busy:.0f} s, "
+        f"completion={completion:.3f}, load average {os.getloadavg()[0]:.1f}"
     )
     return wall, steps
 
