@@ -14,6 +14,7 @@ import threading
 import traceback
 from collections.abc import Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
+from dataclasses import replace
 from pathlib import Path
 from typing import Protocol
 
@@ -24,11 +25,12 @@ from evaluator.runner.results import (
     LOGS_DIR,
     RECORDS_DIR,
     is_finished,
+    score_outcome,
     stored_outcome,
     summarize,
 )
 from evaluator.runner.scenario import ScenarioOutcome, run_scenario
-from evaluator.scoring import DEFAULT_PROFILE, ScoringProfile, load_profile
+from evaluator.scoring import DEFAULT_PROFILE, RecordError, ScoringProfile, load_profile
 from evaluator.summary import SUMMARY_FILE, ScenarioStatus, Summary, read_summary, write_summary
 
 TIMINGS_FILE = "timings.json"  # wall times: kept out of summary.json, which is deterministic
@@ -66,7 +68,7 @@ def evaluate(
         submission = prepare_submission(Path(source), Path(tmp) / "submission")
         (out_dir / RECORDS_DIR).mkdir(parents=True, exist_ok=True)
         (out_dir / LOGS_DIR).mkdir(exist_ok=True)
-        run = _Run(out_dir, manifest, scoring_profile, submission.sha256)
+        run = ResultsFolder(out_dir, manifest, scoring_profile, submission.sha256)
         todo = run.resume()
         if progress:
             progress.started(len(manifest.scenarios), len(manifest.scenarios) - len(todo))
@@ -124,7 +126,7 @@ def _outcome_of(future: Future, scenario: SuiteScenario) -> ScenarioOutcome:
         )
 
 
-class _Run:
+class ResultsFolder:
     """The results folder of one evaluation, written from the main thread and workers alike."""
 
     def __init__(
@@ -170,8 +172,19 @@ class _Run:
     def record(self, outcome: ScenarioOutcome) -> None:
         with self.lock:
             self.running.discard(outcome.scenario_id)
+            scenario = next(s for s in self.manifest.scenarios if s.id == outcome.scenario_id)
+            try:
+                scored = score_outcome(scenario, outcome, self.profile)
+            except RecordError as exc:  # the simulator wrote a broken record: ours, not charged
+                outcome = replace(
+                    outcome,
+                    status=ScenarioStatus.evaluator_error,
+                    record_path=None,
+                    error=f"unusable episode record: {exc}",
+                )
+                scored = score_outcome(scenario, outcome, self.profile)
             self.outcomes[outcome.scenario_id] = outcome
-            self.cache.pop(outcome.scenario_id, None)
+            self.cache[outcome.scenario_id] = scored
             self.timings[outcome.scenario_id] = round(outcome.wall_time_s, 3)
             (self.out_dir / LOGS_DIR / f"{outcome.scenario_id}.txt").write_text(outcome.log)
             self._write()

@@ -63,7 +63,7 @@ def summarize(
             entries.append(ScenarioEntry(id=scenario.id, family=scenario.family, status=status))
             continue
         if scenario.id not in cache:
-            cache[scenario.id] = _entry(scenario, outcome, profile)
+            cache[scenario.id] = score_outcome(scenario, outcome, profile)
         entry, score = cache[scenario.id]
         entries.append(entry)
         if score is not None:
@@ -119,9 +119,11 @@ def is_finished(entry: ScenarioEntry, results_dir: Path) -> bool:
     return record_path(results_dir, entry.id).exists() or not drove
 
 
-def _entry(
+def score_outcome(
     scenario: SuiteScenario, outcome: ScenarioOutcome, profile: ScoringProfile
 ) -> tuple[ScenarioEntry, EpisodeScore | None]:
+    """The summary entry of a finished scenario and, when charged, its score (from the record).
+    Raises :class:`RecordError` on a record that does not follow docs/records.md."""
     if outcome.status != ScenarioStatus.done:
         entry = ScenarioEntry(
             id=scenario.id,

@@ -145,3 +145,22 @@ def test_manifest_selection_keeps_manifest_order_and_refuses_unknown_ids(tmp_pat
 def test_folder_without_manifest_is_a_clear_error(tmp_path):
     with pytest.raises(SuiteError, match=r"no manifest\.json"):
         load_manifest(tmp_path)
+
+
+def test_broken_record_is_reported_uncharged_not_scored(tmp_path):
+    from evaluator.runner.evaluate import ResultsFolder
+
+    folder = ResultsFolder(tmp_path, MANIFEST.select(["cruise_a", "merge_a"]), PROFILE, "s")
+    (tmp_path / "logs").mkdir()
+    folder.resume()
+    good = done(tmp_path, "cruise_a", [AgentSpec(weaving(50), done_step=50)])
+    broken = record_path(tmp_path, "merge_a")
+    broken.write_bytes(b"not an npz")
+    folder.record(good)
+    folder.record(ScenarioOutcome("merge_a", ScenarioStatus.done, 10, (), broken))
+
+    summary = read_summary(tmp_path)
+    assert summary.uncharged == ("merge_a",)
+    assert summary.scenarios[1].status == "evaluator_error"
+    assert "unusable episode record" in summary.scenarios[1].error
+    assert summary.metrics.time == 50
