@@ -67,11 +67,12 @@ const Arena = (() => {
         `<text x="${156 + value * 220}" y="${row * i + 15}" class="value">${value.toFixed(2)}</text>`;
     }).join("");
     const h = row * names.length;
-    return `<svg class="chart" role="img" aria-label="completion error per scenario family" ` +
+    return `<figure class="chart"><figcaption>Completion error per family ` +
+      `(0: every agent reached its goal)</figcaption><svg class="chart" role="img" aria-label="completion error per scenario family" ` +
       `viewBox="0 0 420 ${h + 24}" width="420">${bars}` +
       `<line x1="150" x2="370" y1="${h + 4}" y2="${h + 4}" class="axis"/>` +
       `<text x="150" y="${h + 18}" class="value">0</text>` +
-      `<text x="362" y="${h + 18}" class="value">1</text></svg>`;
+      `<text x="362" y="${h + 18}" class="value">1</text></svg></figure>`;
   }
 
   function escape(text) {
