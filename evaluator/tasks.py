@@ -24,6 +24,7 @@ from typing import Any
 
 from celery import shared_task
 from celery.signals import worker_process_init, worker_ready, worker_shutdown
+from sqlalchemy.exc import SQLAlchemyError
 
 from arena.config import get_settings
 from evaluator.celery_app import QUEUE, TASK_AGGREGATE, TASK_EVALUATE, TASK_SCENARIO
@@ -31,7 +32,7 @@ from evaluator.errors import InfrastructureError
 from server.core.db import get_database
 from server.services import evaluation, scoring
 from server.services.admin import send_plan
-from server.services.queue import TaskQueue
+from server.services.queue import BROKER_ERRORS, TaskQueue
 
 log = logging.getLogger(__name__)
 
@@ -219,7 +220,7 @@ def _heartbeat(run_id: int, worker: str, labels: dict[str, str]):
             try:
                 with get_database().session() as session:
                     active = evaluation.heartbeat(session, settings, run_id, worker)
-            except Exception as exc:
+            except SQLAlchemyError as exc:
                 log.warning("lease heartbeat of run %s failed: %s", run_id, exc)
                 continue
             if not active:
@@ -242,7 +243,7 @@ def reap_once() -> evaluation.Reaped:
     queue = _queue()
     try:
         queue_empty = queue.depth() == 0
-    except Exception as exc:
+    except BROKER_ERRORS as exc:
         log.warning("reaper cannot read the queue: %s", exc)
         return evaluation.Reaped()
     with get_database().session() as session:

@@ -14,7 +14,7 @@ from server.models import EvaluationRun, Submission, utcnow
 from server.services import evaluation, scoring
 from server.services.errors import Conflict, InvalidInput
 from server.services.evaluation import RunPlan, lock
-from server.services.queue import TaskQueue
+from server.services.queue import BROKER_ERRORS, TaskQueue
 from server.status import ACTIVE_RUN, SUBMISSION_MOVES, RunStatus, SubmissionStatus, advance
 
 
@@ -133,12 +133,9 @@ def service_status(db: Database, queue: TaskQueue) -> ServiceStatus:
         running = sum(run.status == RunStatus.running for run in active)
     try:
         depth = queue.depth()
-    except Exception:
-        depth = None
-    try:
         workers = queue.workers()
-    except Exception:
-        workers = None
+    except BROKER_ERRORS:  # reported as unreachable, not a crash
+        depth = workers = None
     return ServiceStatus(
         queue_depth=depth,
         workers=workers,

@@ -5,6 +5,7 @@ from __future__ import annotations
 from functools import cached_property
 
 from celery import Celery
+from kombu.exceptions import OperationalError
 
 from arena.config import Settings
 from evaluator.celery_app import (
@@ -15,6 +16,10 @@ from evaluator.celery_app import (
     create_celery_app,
     is_embedded_broker,
 )
+
+# What sending to or reading from an unreachable broker raises (kombu wraps most as
+# OperationalError; a refused socket can surface as OSError).
+BROKER_ERRORS = (OperationalError, OSError)
 
 
 def scenario_task_id(run_id: int, scenario_id: str) -> str:
@@ -54,6 +59,7 @@ class TaskQueue:
     def depth(self) -> int:
         """Messages waiting in the evaluation queue."""
         with self.celery.connection_for_read() as connection:
+            connection.ensure_connection(max_retries=1)  # fail fast: health checks call this
             declared = connection.default_channel.queue_declare(
                 QUEUE, durable=True, auto_delete=False
             )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import shutil
 import uuid
 from dataclasses import dataclass
@@ -26,10 +27,11 @@ from server.schemas import (
 from server.services import scoring
 from server.services.errors import Conflict, InvalidUpload, NotFound, QuotaExceeded
 from server.services.evaluation import bump_leaderboard, cancel_run, lock
-from server.services.queue import TaskQueue, scenario_task_id
+from server.services.queue import BROKER_ERRORS, TaskQueue, scenario_task_id
 from server.status import ACTIVE_RUN, SUBMISSION_MOVES, RunStatus, SubmissionStatus, advance
 
 S = SubmissionStatus
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -118,10 +120,8 @@ def accept_upload(
     # reaper sends it later.
     try:
         queue.evaluate(submission.id)
-    except Exception as exc:
-        import logging
-
-        logging.getLogger(__name__).warning("queueing submission %s failed: %s", submission.id, exc)
+    except BROKER_ERRORS as exc:
+        log.warning("queueing submission %s failed: %s", submission.id, exc)
     return submission
 
 

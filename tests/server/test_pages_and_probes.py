@@ -69,3 +69,27 @@ def test_admin_routes_need_the_admin_token(client, db):
     assert again.status_code == 409
     listing = client.get("/api/v1/admin/submissions", headers=bearer(ADMIN_TOKEN)).json()
     assert [item["id"] for item in listing] == [sid]
+
+
+def test_healthz_degrades_and_uploads_still_land_when_the_broker_is_down(settings, db, tmp_path):
+    from fastapi.testclient import TestClient
+
+    from server.app import create_app
+    from tests.server.builders import pack_example
+    from tests.server.live import free_port
+
+    down = settings.model_copy(update={"broker_url": f"redis://127.0.0.1:{free_port()}/0"})
+    _, token = make_team(db, "alpha")
+    with TestClient(create_app(down)) as client:
+        response = client.get("/api/v1/healthz")
+        assert response.status_code == 503
+        assert response.json() == {"status": "degraded", "database": True, "broker": False}
+        # The upload is stored and queued; the workers' reaper sends it once the broker is back.
+        zip_path = pack_example("random", tmp_path)
+        created = client.post(
+            "/api/v1/submissions",
+            headers=bearer(token),
+            data={"method_name": "random"},
+            files={"file": ("a.zip", zip_path.read_bytes(), "application/zip")},
+        )
+        assert created.status_code == 201 and created.json()["status"] == "queued"

@@ -4,9 +4,11 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Response, status
 from sqlalchemy import text
+from sqlalchemy.exc import SQLAlchemyError
 
 from server.api.deps import DatabaseDep, QueueDep
 from server.schemas import Health
+from server.services.queue import BROKER_ERRORS
 
 router = APIRouter(tags=["health"])
 
@@ -17,12 +19,12 @@ def healthz(db: DatabaseDep, queue: QueueDep, response: Response) -> Health:
         with db.read_session() as session:
             session.execute(text("SELECT 1"))
         database = True
-    except Exception:
+    except SQLAlchemyError:
         database = False
     try:
         queue.depth()
         broker = True
-    except Exception:
+    except BROKER_ERRORS:
         broker = False
     healthy = database and broker
     if not healthy:

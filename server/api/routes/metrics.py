@@ -10,7 +10,7 @@ from sqlalchemy import func, select
 from server.api.deps import DatabaseDep, QueueDep
 from server.core.db import Database
 from server.models import EvaluationRun, ScenarioResult, Submission
-from server.services.queue import TaskQueue
+from server.services.queue import BROKER_ERRORS, TaskQueue
 from server.status import RunStatus
 
 router = APIRouter(tags=["metrics"])
@@ -28,7 +28,7 @@ class ArenaCollector:
         depth = GaugeMetricFamily("arena_queue_depth", "Tasks waiting in the evaluation queue")
         try:
             depth.add_metric([], self.queue.depth())
-        except Exception:
+        except BROKER_ERRORS:  # an unreachable broker must not break the scrape
             depth.add_metric([], float("nan"))
         yield depth
         with self.db.read_session() as session:
