@@ -274,9 +274,13 @@ def finish_run(session: Session, run_id: int) -> RunStatus | None:
     if any(result.status == scoring.INFRASTRUCTURE_ERROR for result in results):
         run.error = "the evaluation infrastructure failed on some scenarios; re-run it"
     else:
-        run_score = scoring.score_results(results, load_profile(run.scoring_profile))
-        if run_score is None:
-            run.error = "no scenario could be simulated (simulator errors only)"
+        try:
+            run_score = scoring.score_results(results, load_profile(run.scoring_profile))
+        except scoring.UnscorableRecord as exc:
+            run.error = exc.message
+        else:
+            if run_score is None:
+                run.error = "no scenario could be simulated (simulator errors only)"
     run.finished_at = now()
     if run_score is None:
         run.status = advance(run.status, RunStatus.failed, RUN_MOVES)

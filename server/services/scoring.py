@@ -10,6 +10,7 @@ from typing import Any
 from evaluator.scoring import (
     AgentSummary,
     EpisodeScore,
+    RecordError,
     ScoringProfile,
     aggregate,
     by_family,
@@ -18,6 +19,7 @@ from evaluator.scoring import (
     score_without_record,
 )
 from server.models import ScenarioResult
+from server.services.errors import Conflict
 
 # Scenario result statuses. Only success and failure are charged to the submission.
 SUCCESS = "success"
@@ -29,6 +31,10 @@ CHARGED = frozenset({SUCCESS, FAILURE})
 FINISHED = frozenset({SUCCESS, FAILURE, SIMULATOR_ERROR, INFRASTRUCTURE_ERROR})
 
 
+class UnscorableRecord(Conflict):
+    """A stored record that scoring cannot read (ours to investigate; the run is not scored)."""
+
+
 @dataclass(frozen=True)
 class RunScore:
     metrics: dict[str, float]
@@ -38,7 +44,10 @@ class RunScore:
 def score_results(results: Iterable[ScenarioResult], profile: ScoringProfile) -> RunScore | None:
     """The four metrics over the charged results, or None if no scenario was charged."""
     charged = [result for result in results if result.status in CHARGED]
-    scores = [_episode_score(result, profile) for result in charged]
+    try:
+        scores = [_episode_score(result, profile) for result in charged]
+    except RecordError as exc:
+        raise UnscorableRecord(f"an episode record cannot be scored: {exc}") from exc
     metrics = aggregate(scores)
     if metrics is None:
         return None

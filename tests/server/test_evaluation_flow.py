@@ -199,3 +199,26 @@ def test_rescore_recomputes_from_stored_results(db, settings, submission_id):
     assert metrics["completion"] == 0.0 and metrics["time"] == 100.0
     with db.session() as session:
         assert session.get(EvaluationRun, plan.run_id).score.profile == "driving-smarts-2022"
+
+
+def test_an_unreadable_record_fails_the_run_instead_of_wedging_it(
+    db, settings, submission_id, tmp_path
+):
+    plan = start(db, settings, submission_id)
+    broken = tmp_path / "broken.npz"
+    broken.write_bytes(b"not an npz")
+    for sid in plan.scenario_ids:
+        claim(db, settings, plan.run_id, sid)
+        outcome = ScenarioOutcomeIn(
+            scenario_id=sid,
+            status=scoring.SUCCESS,
+            reason="reached_goal",
+            record_path=str(broken),
+            detail={"agents": [agent(True)]},
+        )
+        with db.session() as session:
+            evaluation.record_scenario(session, plan.run_id, outcome)
+    assert aggregate(db, plan.run_id) == RunStatus.failed
+    assert status_of(db, submission_id) == SubmissionStatus.failed
+    with db.session() as session:
+        assert "cannot be scored" in session.get(EvaluationRun, plan.run_id).error
