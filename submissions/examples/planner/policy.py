@@ -268,9 +268,13 @@ class AgentPlanner:
         nxt = next((p for p in paths if p.lane_index == current.lane_index + step), None)
         if nxt is None:
             return current
-        blocker = None
-        if self.target_lane != nxt.lane_index:
-            blocker = self._blocker(nxt, x, y, speed, length, others)
+        blocker = self._blocker(nxt, x, y, speed, length, others)
+        if blocker is not None and self.target_lane == nxt.lane_index:
+            # A change under way goes on once we are across the line; before that, a vehicle
+            # that appeared in the gap (or closed it) makes us return to our lane.
+            across = abs(nxt.project(x, y)[1]) < 0.5 * nxt.width
+            if (across and blocker[0] < 0.0) or abs(blocker[0]) > length + 2.0:
+                blocker = None
         if blocker is None:
             self.target_lane = nxt.lane_index
             return nxt
