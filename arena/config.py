@@ -18,7 +18,7 @@ from pydantic_settings import BaseSettings, SettingsConfigDict
 class SandboxKind(StrEnum):
     docker = "docker"
     bubblewrap = "bubblewrap"
-    # Unsandboxed subprocess with rlimits only: for participants' local runs, refused by the service.
+    # Unsandboxed subprocess with rlimits only: participants' local runs; the service refuses it.
     process = "process"
     auto = "auto"
 

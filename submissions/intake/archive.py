@@ -93,13 +93,20 @@ def entry_path(info: zipfile.ZipInfo) -> PurePosixPath:
     return PurePosixPath(*parts)
 
 
+UNIX_CREATE_SYSTEM = 3
+
+
 def check_kind(info: zipfile.ZipInfo) -> None:
-    mode = info.external_attr >> 16
     if info.flag_bits & 0x1:
         raise IntakeError(info.filename, "encrypted", "encrypted entries cannot be read")
-    if stat.S_ISLNK(mode):
+    # Only Unix-made zips carry a file type in the high attribute bits, and many tools (Python's
+    # own ZipFile.writestr among them) write permission bits with no type: that is a plain file.
+    if info.create_system != UNIX_CREATE_SYSTEM:
+        return
+    kind = stat.S_IFMT(info.external_attr >> 16)
+    if kind == stat.S_IFLNK:
         raise IntakeError(info.filename, "symlink", "symbolic links are not allowed")
-    if mode and not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
+    if kind not in (0, stat.S_IFREG, stat.S_IFDIR):
         raise IntakeError(
             info.filename, "special-file", "device files, fifos and sockets are not allowed"
         )

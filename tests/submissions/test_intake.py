@@ -33,6 +33,23 @@ def test_examples_pass_intake_and_extract_read_only(name: str, tmp_path: Path, s
         assert stat.S_IMODE(path.stat().st_mode) & 0o222 == 0, path
 
 
+@pytest.mark.parametrize(
+    ("create_system", "mode"),
+    [
+        pytest.param(3, 0o600, id="permissions without a file type (ZipFile.writestr)"),
+        pytest.param(0, 0o020644, id="made on MS-DOS/Windows: high bits carry no type"),
+    ],
+)
+def test_zips_without_unix_file_types_are_plain_files(
+    create_system: int, mode: int, tmp_path: Path, settings
+) -> None:
+    policy = entry("policy.py", mode)
+    policy.create_system = create_system
+    upload = write_zip(tmp_path / "upload.zip", {policy: GOOD_POLICY})
+    prepared = prepare_submission(upload, tmp_path / "sub", settings)
+    assert (prepared.root / "policy.py").read_text() == GOOD_POLICY
+
+
 def test_agent_yaml_is_validated_into_the_interface(tmp_path: Path, settings) -> None:
     prepared = prepare_submission(EXAMPLES / "keep_lane", tmp_path / "sub", settings)
     assert prepared.interface.action_space is ActionSpace.LaneWithContinuousSpeed
