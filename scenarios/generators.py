@@ -244,7 +244,8 @@ def _intersection_traffic(
     draft: Draft, info: NetInfo, rng: np.random.Generator, per_lane: float, arms: list[str]
 ) -> None:
     """Flows from every incoming arm to every reachable outgoing arm; main-road arms (more
-    lanes) carry ``per_lane`` per lane, minor arms a quarter of it; turns are a minority."""
+    lanes) carry ``per_lane`` per lane, minor arms a quarter of it; turns are a minority. Main
+    arms start populated."""
     routes = draft.routes
     routes.vtypes = driver_types(rng)
     for src in arms:
@@ -261,6 +262,19 @@ def _intersection_traffic(
                     rate * share * rng.uniform(0.8, 1.2),
                     lane="best",
                 )
+            )
+        straight = info.turn(src, "s")
+        if lanes > 1 and straight is not None:
+            # The main road carries traffic from step 0, not only after the first arrivals.
+            routes.vehicles += initial_vehicles(
+                rng,
+                f"init_{src}",
+                routes.route((src, straight)),
+                lanes,
+                (5.0, info.length(src) - 40.0),
+                per_lane * 0.7,
+                info.speed(src),
+                [],
             )
 
 
