@@ -31,11 +31,19 @@ def run_50_steps(folder: Path) -> tuple[str, int, int]:
 
 def test_every_public_scenario_runs_50_steps():
     folder = public_suite_dir()
-    ids = [e["id"] for e in manifest(folder)["scenarios"]]
+    entries = manifest(folder)["scenarios"]
+    ids = [e["id"] for e in entries]
+    # Low-volume intersections may see their first arrival after 5 s; every other scenario has
+    # traffic around from the start.
+    quiet_allowed = {
+        e["id"]
+        for e in entries
+        if e["family"] in ("left_turn_t", "turn_c") and e["volume"] == "low"
+    }
     ctx = mp.get_context("forkserver")
     with ProcessPoolExecutor(max_workers=2, mp_context=ctx, max_tasks_per_child=1) as pool:
         results = list(pool.map(run_50_steps, [folder / i for i in ids]))
     assert [r[0] for r in results] == ids
     for sid, steps, seen in results:
         assert steps == 50, sid
-        assert seen > 0, f"{sid}: no background traffic"
+        assert seen > 0 or sid in quiet_allowed, f"{sid}: no background traffic"
