@@ -28,7 +28,7 @@ from scenarios.traffic import (
 
 GOAL_RADIUS = 2.5  # [m]
 GOAL_BEFORE_END = 40.0  # [m] goals sit this far before the end of the route's final edge
-INTERSECTION_VOLUME_SCALE = 0.5  # crossing flows of both directions add up: keep gaps usable
+INTERSECTION_VOLUME_SCALE = 0.4  # crossing flows of both directions add up: keep gaps usable
 
 
 @dataclass(frozen=True)

@@ -344,9 +344,10 @@ class AgentPlanner:
             if abs(lat) > 0.5 * (width + o["bounding_box"][1]) + 0.3:
                 continue
             gap = s - s0 - 0.5 * (length + o["bounding_box"][0])
+            # Oncoming (crossing in a junction) traffic has a negative speed along our path.
             along = o["speed"] * math.cos(wrap(o["heading"] - path.point(s)[2]))
             if gap < best[0]:
-                best = (gap, max(along, 0.0))
+                best = (gap, max(along, -15.0))
         return best
 
     def _lane_end_gap(self, current: Path, target: Path, x, y, length, gx, gy) -> float:
@@ -402,8 +403,8 @@ class AgentPlanner:
             0.0,
         )
         t_reach = np.minimum(t_reach, d / v_top + v_top / (2 * A_MAX))
-        t_in = t_reach - 1.2
-        t_out = t_reach + (length + 2.0) / max(speed, 2.0) + 1.2
+        t_in = t_reach - 1.0
+        t_out = t_reach + (length + 2.0) / max(speed, 2.0) + 1.0
         times = np.arange(0.0, 9.0, 0.25)
         ego_h = path.heading[0]
         for o in others:
@@ -411,8 +412,14 @@ class AgentPlanner:
             rel = math.cos(ego_h) * (ox - path.xy[0, 0]) + math.sin(ego_h) * (oy - path.xy[0, 1])
             if abs(wrap(oh - ego_h)) < 0.5 and rel < 0:
                 continue  # following us
-            px = ox + ov * math.cos(oh) * times
-            py = oy + ov * math.sin(oh) * times
+            if ov >= 1.0:
+                travel = ov * times
+            elif str(o.get("lane_id", "")).startswith(":"):
+                travel = 0.5 * 2.0 * times**2  # waiting inside the junction: about to go
+            else:
+                travel = 0.0 * times  # standing at its line or queued: it gives way
+            px = ox + math.cos(oh) * travel
+            py = oy + math.sin(oh) * travel
             dist = np.hypot(px[:, None] - zone[None, :, 0], py[:, None] - zone[None, :, 1])
             near = dist < CONFLICT_RADIUS
             ti, zi = np.nonzero(near)
