@@ -41,6 +41,9 @@ class ReplayTable:
 
     def states(self, step: int) -> VehicleStates:
         rows = self.present(step)
+        if not len(rows):
+            # Past the end of the recording there is no column to index, not even with no rows.
+            return VehicleStates.empty()
         return VehicleStates(
             [self.ids[k] for k in rows],
             self.x[rows, step],
