@@ -228,13 +228,15 @@ class DockerBackend:
 
     def cleanup(self, labels: dict[str, str]) -> int:
         import docker.errors
+        import requests.exceptions
 
         selector = [f"{key}={value}" for key, value in labels.items()]
         try:
             containers = docker_client().containers.list(all=True, filters={"label": selector})
-        except docker.errors.DockerException:
+            for container in containers:
+                with contextlib.suppress(docker.errors.NotFound):
+                    container.remove(force=True)
+        except (docker.errors.DockerException, requests.exceptions.RequestException):
+            # No daemon, no containers: cleaning up must not break the other backends' runs.
             return 0
-        for container in containers:
-            with contextlib.suppress(docker.errors.NotFound):
-                container.remove(force=True)
         return len(containers)

@@ -99,6 +99,17 @@ def test_cleanup_removes_what_a_crashed_worker_left(kind, settings, labels, good
     handle.close()
 
 
+def test_cleanup_without_a_docker_daemon_still_cleans_bubblewrap(
+    settings, labels, good_agent, monkeypatch: pytest.MonkeyPatch, tmp: Path
+) -> None:
+    kind = usable(SandboxKind.bubblewrap, settings)
+    handle = start(good_agent, kind=kind, labels=labels, settings=settings)
+    monkeypatch.setenv("DOCKER_HOST", f"unix://{tmp / 'no-daemon.sock'}")
+    assert cleanup(labels, settings) >= 1
+    assert leftovers(kind, labels) == []
+    handle.close()
+
+
 @pytest.mark.slow
 def test_requirements_are_importable_inside(any_kind, settings, labels, tmp) -> None:
     folder = tmp / "src"
