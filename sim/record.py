@@ -27,7 +27,8 @@ EVENT_FLAGS = (
     "ev_not_moving",
     "ev_reached_goal",
 )
-_FLOAT_ROW = (
+# Per agent-step float arrays; scoring reads these same names (a valid row has them finite).
+STEP_FLOATS = (
     "x",
     "y",
     "heading",
@@ -121,7 +122,7 @@ class EpisodeRecorder:
         out["step"] = np.zeros(shape, dtype=np.int64)
         out["lane_index"] = np.full(shape, -1, dtype=np.int64)
         out["in_junction"] = np.zeros(shape, dtype=bool)
-        for name in _FLOAT_ROW:
+        for name in STEP_FLOATS:
             out[name] = np.full(shape, np.nan)
         for name in EVENT_FLAGS:
             out[name] = np.zeros(shape, dtype=bool)
@@ -140,7 +141,7 @@ class EpisodeRecorder:
             out["step"][a, :n] = [r.step for r in rows]
             out["lane_index"][a, :n] = [r.lane_index for r in rows]
             out["in_junction"][a, :n] = [r.in_junction for r in rows]
-            for name in _FLOAT_ROW:
+            for name in STEP_FLOATS:
                 out[name][a, :n] = [getattr(r, name) for r in rows]
             flags = np.array([r.flags for r in rows], dtype=bool)
             for j, name in enumerate(EVENT_FLAGS):

@@ -7,21 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-FORMAT_VERSION = 1
-
-# Per agent-step fields the terms read; a valid row must have them finite.
-_TRACK_FLOATS = (
-    "x",
-    "y",
-    "heading",
-    "speed",
-    "vx",
-    "vy",
-    "lane_offset",
-    "lane_width",
-    "lane_heading",
-    "speed_limit",
-)
+from sim.record import FORMAT_VERSION, STEP_FLOATS
 
 
 class RecordError(ValueError):
@@ -121,7 +107,7 @@ def _track(arrays: dict[str, np.ndarray], agent: int, n: int) -> AgentTrack:
     valid = arrays["valid"][agent]
     if n > valid.shape[0] or not valid[:n].all() or valid[n:].any():
         raise RecordError(f"agent {agent}: `valid` does not match steps={n}")
-    fields = {name: arrays[name][agent, :n].astype(float) for name in _TRACK_FLOATS}
+    fields = {name: arrays[name][agent, :n].astype(float) for name in STEP_FLOATS}
     for name, values in fields.items():
         if not np.isfinite(values).all():
             raise RecordError(f"agent {agent}: non-finite `{name}` on a driven row")
