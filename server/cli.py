@@ -83,6 +83,7 @@ def teams_create(name: str) -> None:
 
 @teams_app.command("list")
 def teams_list() -> None:
+    """Every team with its number of submissions."""
     from server.services import teams
 
     ctx = _Context()
@@ -117,6 +118,7 @@ def _metric(value: float | None, digits: int = 4) -> str:
 
 @submissions_app.command("list")
 def submissions_list(limit: int = 50) -> None:
+    """The latest submissions with status, progress and metrics."""
     from server.services import submissions
 
     ctx = _Context()
@@ -175,6 +177,7 @@ def submissions_show(submission_id: SubmissionId) -> None:
 
 @submissions_app.command("cancel")
 def submissions_cancel(submission_id: SubmissionId) -> None:
+    """Stop a submission: queued work is revoked, running sandboxes are killed."""
     from server.services import submissions
 
     ctx = _Context()
@@ -187,6 +190,7 @@ def submissions_disqualify(
     submission_id: SubmissionId,
     reason: Annotated[str, typer.Option(help="Shown to the team.")] = "",
 ) -> None:
+    """Take a submission off the leaderboard for good."""
     from server.services import submissions
 
     ctx = _Context()
