@@ -7,6 +7,8 @@ the caller unchanged), nothing of the agent is left running, and the next agent 
 from __future__ import annotations
 
 import math
+import shutil
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -21,6 +23,16 @@ from tests.sandbox.conftest import assert_clean_and_healthy
 
 REPO = Path(__file__).resolve().parents[2]
 SCENARIO_SECRET = "/tmp/driving-arena-hidden-scenario/scenario.json"
+
+
+@pytest.fixture(scope="module", autouse=True)
+def hidden_scenario_on_the_host() -> Iterator[None]:
+    """A scenario file on the host at a fixed path the hostile agents try to read."""
+    secret = Path(SCENARIO_SECRET)
+    secret.parent.mkdir(exist_ok=True)
+    secret.write_text('{"hidden": true}')
+    yield
+    shutil.rmtree(secret.parent, ignore_errors=True)
 
 
 @dataclass(frozen=True)
@@ -143,9 +155,6 @@ CASES = [
 def test_hostile_agent_fails_with_its_reason(
     case: Hostile, kind: SandboxKind, settings: Settings, labels, good_agent, tmp: Path
 ) -> None:
-    secret = Path(SCENARIO_SECRET)
-    secret.parent.mkdir(exist_ok=True)
-    secret.write_text('{"hidden": true}')
     run_settings = settings.model_copy(update=case.overrides)
     submission = agent(tmp, run_settings, act=case.act, init=case.init)
     with pytest.raises(AgentFailure) as caught:
