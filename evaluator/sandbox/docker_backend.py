@@ -22,9 +22,11 @@ from arena.config import SandboxKind, Settings
 from evaluator.errors import SandboxUnavailable
 from evaluator.sandbox.backend import (
     DEPS_MOUNT,
+    INSTANCE_LABEL,
     RUNNER_MOUNT,
     RUNNER_PATH,
     RUNTIME_ENV,
+    SANDBOX_LABEL,
     SUBMISSION_MOUNT,
     ExitStatus,
     LaunchSpec,
@@ -41,6 +43,23 @@ LOG_MAX_SIZE = "1m"
 KILL_WAIT_S = 10.0
 # How often a starting container is checked for having died before it connected [s].
 START_POLL_S = 0.1
+# Socket folders are named after their container's instance label, so that cleanup can remove
+# those a killed worker left behind; a younger one may belong to a container still being created.
+SOCKET_DIR_PREFIX = "arena-agent-"
+ORPHAN_SOCKET_DIR_AGE_S = 60.0
+
+
+def socket_dir_for(instance: str) -> Path:
+    return Path(tempfile.gettempdir()) / f"{SOCKET_DIR_PREFIX}{instance}"
+
+
+def remove_orphan_socket_dirs(live_instances: set[str]) -> None:
+    cutoff = time.time() - ORPHAN_SOCKET_DIR_AGE_S
+    for path in socket_dir_for("").parent.glob(f"{SOCKET_DIR_PREFIX}*"):
+        orphan = path.name.removeprefix(SOCKET_DIR_PREFIX) not in live_instances
+        with contextlib.suppress(FileNotFoundError):
+            if orphan and path.stat().st_mtime < cutoff:
+                shutil.rmtree(path, ignore_errors=True)
 
 
 @lru_cache
@@ -212,9 +231,10 @@ class DockerBackend:
     def launch(self, spec: LaunchSpec) -> DockerSandbox:
         import docker.errors
 
-        socket_dir = Path(tempfile.mkdtemp(prefix="arena-agent-"))
+        socket_dir = socket_dir_for(spec.instance)
         listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         try:
+            socket_dir.mkdir(mode=0o700)
             path = socket_dir / SOCKET_NAME
             listener.bind(str(path))
             share_with_agent(socket_dir, path)
@@ -232,11 +252,14 @@ class DockerBackend:
 
         selector = [f"{key}={value}" for key, value in labels.items()]
         try:
-            containers = docker_client().containers.list(all=True, filters={"label": selector})
+            client = docker_client()
+            containers = client.containers.list(all=True, filters={"label": selector})
             for container in containers:
                 with contextlib.suppress(docker.errors.NotFound):
                     container.remove(force=True)
+            ours = client.containers.list(all=True, filters={"label": f"{SANDBOX_LABEL}=1"})
         except (docker.errors.DockerException, requests.exceptions.RequestException):
             # No daemon, no containers: cleaning up must not break the other backends' runs.
             return 0
+        remove_orphan_socket_dirs({c.labels.get(INSTANCE_LABEL, "") for c in ours})
         return len(containers)

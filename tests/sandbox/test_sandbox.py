@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import os
+import shutil
+import time
+import uuid
 from pathlib import Path
 
 import numpy as np
@@ -97,6 +100,28 @@ def test_cleanup_removes_what_a_crashed_worker_left(kind, settings, labels, good
         handle.act(observation())
     assert caught.value.reason is DoneReason.agent_exited
     handle.close()
+
+
+def test_cleanup_removes_socket_folders_of_killed_workers(settings, labels, good_agent) -> None:
+    from evaluator.sandbox.backend import INSTANCE_LABEL
+    from evaluator.sandbox.docker_backend import ORPHAN_SOCKET_DIR_AGE_S, socket_dir_for
+
+    kind = usable(SandboxKind.docker, settings)
+    stale, fresh = socket_dir_for(uuid.uuid4().hex), socket_dir_for(uuid.uuid4().hex)
+    for folder in (stale, fresh):
+        folder.mkdir()
+    old = time.time() - 2 * ORPHAN_SOCKET_DIR_AGE_S
+    os.utime(stale, (old, old))
+    with start(good_agent, kind=kind, labels=labels, settings=settings) as handle:
+        (container,) = leftovers(kind, labels)
+        live = socket_dir_for(container.labels[INSTANCE_LABEL])
+        os.utime(live, (old, old))
+        cleanup({"driving-arena.test": "nothing-of-ours"}, settings)
+        assert not stale.exists()
+        assert fresh.exists() and live.exists()
+        assert handle.act(observation()) is not None
+    shutil.rmtree(fresh)
+    assert not live.exists()
 
 
 def test_cleanup_without_a_docker_daemon_still_cleans_bubblewrap(
