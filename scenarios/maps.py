@@ -30,6 +30,11 @@ RAMP_SPEED = 16.67  # [m/s] 60 km/h
 URBAN_SPEED = 13.89  # [m/s] 50 km/h
 MINOR_SPEED = 11.11  # [m/s] 40 km/h
 
+# [m] shape point spacing of curved roads: a polyline vertex turns the lane by spacing / radius,
+# and a vehicle following lane points feels each turn as a heading step (2 m on a 400 m radius:
+# 0.005 rad, less than one step's worth of smooth turning at highway speed).
+CURVE_SHAPE_SPACING = 2
+
 Point = tuple[float, float]
 
 
@@ -120,7 +125,9 @@ def highway(lanes: int, curved: bool = False) -> Template:
     """600 m two-edge highway (``in`` then ``out``); curved variants bend left on a 400 m radius."""
     at = _centreline(curved, 400.0)
     nodes = {"a": at(0.0), "b": at(300.0), "c": at(600.0)}
-    shape = (lambda s0, s1: _inner(at, s0, s1, 20)) if curved else (lambda s0, s1: ())
+    shape = (
+        (lambda s0, s1: _inner(at, s0, s1, CURVE_SHAPE_SPACING)) if curved else (lambda s0, s1: ())
+    )
     edges = (
         Edge("in", "a", "b", lanes, HIGHWAY_SPEED, 3, shape(0, 300)),
         Edge("out", "b", "c", lanes, HIGHWAY_SPEED, 3, shape(300, 600)),
@@ -136,7 +143,9 @@ def merge(main_lanes: int, accel: float, shoulder: bool, curved: bool = False) -
     at = _centreline(curved, 700.0)
     b, c, d = 250.0, 250.0 + accel, 250.0 + accel + 300.0
     nodes = {"a": at(0.0), "b": at(b), "c": at(c), "d": at(d), "r": at(40.0, -70.0)}
-    shape = (lambda s0, s1: _inner(at, s0, s1, 25)) if curved else (lambda s0, s1: ())
+    shape = (
+        (lambda s0, s1: _inner(at, s0, s1, CURVE_SHAPE_SPACING)) if curved else (lambda s0, s1: ())
+    )
     ramp_shape = (at(120.0, -45.0), at(190.0, -14.0), at(225.0, -4.5))
     out_lanes = main_lanes + (1 if shoulder else 0)
     edges = (
@@ -275,6 +284,9 @@ NETCONVERT_OPTIONS = (
     "5",
     "--default.lanewidth",
     str(LANE_WIDTH),
+    # Centimetre coordinates (the default) make 2 m curve segments zig-zag by 0.005 rad.
+    "--precision",
+    "4",
 )
 
 

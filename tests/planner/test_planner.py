@@ -158,3 +158,33 @@ def test_planner_solves_at_least_90_percent_of_public_reactive_scenarios():
         (r.scenario_id, r.reason) for r in results if not r.solved
     ]
     assert np.mean([r.steps for r in results if r.solved]) < 600
+
+
+@pytest.mark.parametrize(
+    "scenario", ["p017_cruise_3lane_curve_high", "p026_overtake_3lane_curve_slow_mid"]
+)
+def test_planner_drives_a_curved_highway_without_jerk_spikes(scenario, tmp_path):
+    """Jerk of the humanness metric, from the episode record: a TargetPose vehicle moves exactly
+    to its pose, so kinks in the lanes or in the planner's target show up in full."""
+    from evaluator.scoring.profile import load_profile
+    from evaluator.scoring.record import load_record
+    from evaluator.scoring.terms import jerk
+    from scenarios.schema import load_scenario
+    from sim.simulation import Simulation
+
+    folder = public_suite_dir() / scenario
+    sim = Simulation(load_scenario(folder), folder, planner_interface())
+    agent = PlannerAgent()
+    agent.reset()
+    obs = sim.reset()
+    while not sim.done:
+        obs = sim.step(agent.act(obs))
+    sim.write_record(tmp_path / "record.npz")
+    sim.close()
+    record = load_record(tmp_path / "record.npz")
+    assert all(a.reached_goal for a in record.agents), record.agents
+    profile = load_profile()
+    for track in record.tracks:
+        per_step = jerk(track, profile)[2:]  # [m/s^3]
+        assert per_step.mean() < 5.0
+        assert np.percentile(per_step, 95) < 20.0

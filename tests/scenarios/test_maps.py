@@ -1,9 +1,12 @@
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from scenarios.maps import TEMPLATES, build_map
 from scenarios.netinfo import net_info
+from sim.road import RoadNetwork
+from sim.road.waypoints import waypoint_paths
 
 
 def test_netconvert_output_is_deterministic(tmp_path):
@@ -50,3 +53,23 @@ def test_merge_acceleration_lane_ends_or_becomes_shoulder(cache_dir):
     assert shoulder.driving_lanes("out") == [1, 2]
     short = net_info(build_map("merge_2lane_shoulder_short", cache_dir))
     assert short.length("merge") < shoulder.length("merge") - 50.0
+
+
+@pytest.mark.parametrize("lanes", [2, 3, 4])
+def test_curved_highway_lanes_turn_smoothly_across_the_whole_route(lanes, cache_dir):
+    """A vehicle following the waypoints of a 400 m radius curve should turn about 0.0025 rad
+    per metre; a coarse shape (or centimetre coordinates) turns in kinks, steps a TargetPose
+    vehicle feels as jerk spikes. The path crosses the junction between the two edges."""
+    road = RoadNetwork.load(build_map(f"highway_{lanes}lane_curve", cache_dir))
+    start = road.edges["in"][-1]
+    route = ("in", "out")
+    x, y = start.position_at(5.0)
+    pos = road.nearest_lane(float(x), float(y), start.heading_at(5.0))
+    (path,) = waypoint_paths(road, pos, float(x), float(y), route, 1, 2000)
+    assert {w["lane_id"].rsplit("_", 1)[0] for w in path} >= {"in", "out"}
+    xy = np.array([w["pos"] for w in path])
+    step = np.diff(xy, axis=0)
+    turn = np.abs(np.diff(np.unwrap(np.arctan2(step[:, 1], step[:, 0]))))
+    assert turn.max() < 0.01, turn.argmax()
+    headings = np.unwrap([w["heading"] for w in path])
+    assert np.abs(np.diff(headings)).max() < 0.01

@@ -32,6 +32,9 @@ HEADWAY = 1.2  # [s] IDM time headway
 S0 = 3.0  # [m] IDM standstill gap
 A_LAT = 2.5  # [m/s^2] lateral acceleration allowed in curves
 LAT_SPEED = 1.2  # [m/s] lateral speed of a lane change
+# [m/s^2] lateral acceleration ramping a lane change's lateral speed up and down: a TargetPose
+# vehicle moves exactly to the pose, so a lateral speed switched on at once is a jerk spike.
+LAT_ACCEL = 3.0
 GOAL_LANE_DISTANCE = 250.0  # [m] within this distance only the goal lane counts
 STOP_SPEED = 0.3  # [m/s] counts as stopped at a stop line
 # [m] another vehicle's centre this near a point of our path blocks it (less than a lane width:
@@ -138,12 +141,23 @@ class Path:
         k = self.end_curvature
         if abs(k) < 1e-4:
             return self._extend(p, len(self.xy) - 1)
-        x, y, h = self.point(self.length)
+        x, y = self.xy[-1]
+        h = self._end_heading(k)
         cx, cy = x - math.sin(h) / k, y + math.cos(h) / k
         sweep = wrap(math.atan2(p[1] - cy, p[0] - cx) - math.atan2(y - cy, x - cx))
         radius = 1.0 / abs(k)
         lateral = math.copysign(radius - math.hypot(p[0] - cx, p[1] - cy), k)
         return self.length + sweep / k, lateral
+
+    def _end_heading(self, k: float) -> float:
+        """Tangent [rad] at the path's end on an arc of curvature ``k``: the direction of the last
+        ~10 m chord turned by half its arc. Waypoint headings are those of the polyline segment
+        they lie on, off by up to half a vertex turn, which grows to metres over the 200 m the
+        goal may lie beyond the end."""
+        i = int(np.searchsorted(self.s, self.length - 10.0))
+        i = min(i, len(self.xy) - 2)
+        dx, dy = self.xy[-1] - self.xy[i]
+        return math.atan2(dy, dx) + 0.5 * k * (self.length - self.s[i])
 
     def goal_offset(self, gx: float, gy: float) -> float:
         """Lateral distance [m] of the goal from this lane (extended as an arc past the end)."""
@@ -177,6 +191,7 @@ class AgentPlanner:
         self.must_merge = False  # on an on-ramp's acceleration lane
         self.merge_road: str | None = None
         self.last_limit: float | None = None  # [m/s] speed limit of the last normal road
+        self.lat_rate = 0.0  # [m/s] lateral speed (left positive) of the last pose
 
     def act(self, obs: dict) -> list[float]:
         ego = obs["ego_vehicle_state"]
@@ -436,7 +451,13 @@ class AgentPlanner:
         if ds < 1e-3:
             return [x, y, heading, DT]
         lateral_speed = LAT_SPEED * max(1.0, v / 10.0) * (2.0 if self.leaving_ending_lane else 1.0)
-        new_lat = lat - math.copysign(min(abs(lat), lateral_speed * DT), lat)
+        # Towards the target lane's centre, slowing down to arrive with no lateral speed; lanes
+        # are parallel, so the rate carries over when the target lane changes.
+        wanted = -math.copysign(min(lateral_speed, math.sqrt(2.0 * LAT_ACCEL * abs(lat))), lat)
+        self.lat_rate += float(np.clip(wanted - self.lat_rate, -LAT_ACCEL * DT, LAT_ACCEL * DT))
+        new_lat = lat + self.lat_rate * DT
+        if new_lat * lat <= 0.0:  # reached the centre
+            new_lat, self.lat_rate = 0.0, 0.0
         px, py, ph = target.point(s0 + ds)
         nx, ny = -math.sin(ph), math.cos(ph)
         tx, ty = px + nx * new_lat, py + ny * new_lat
