@@ -48,6 +48,9 @@ class Edge:
     priority: int = 1
     shape: tuple[Point, ...] = ()  # inner points only; the node positions are added
     shoulder: bool = False  # lane 0 is a shoulder
+    # The shape's last point is the edge's end, beside its node: a ramp ends level with the
+    # lane it joins instead of bending across the main road's lanes to the node.
+    ends_beside_node: bool = False
 
 
 @dataclass(frozen=True)
@@ -80,7 +83,8 @@ class Template:
         for e in self.edges:
             shape = ""
             if e.shape:
-                pts = [self.nodes[e.start], *e.shape, self.nodes[e.end]]
+                end = [] if e.ends_beside_node else [self.nodes[e.end]]
+                pts = [self.nodes[e.start], *e.shape, *end]
                 shape = ' shape="' + " ".join(f"{x:.3f},{y:.3f}" for x, y in pts) + '"'
             edges.append(
                 f'  <edge id="{e.id}" from="{e.start}" to="{e.end}" numLanes="{e.lanes}" '
@@ -121,6 +125,19 @@ def _inner(at: Callable[..., Point], s0: float, s1: float, step: int) -> tuple[P
     return tuple(at(float(s)) for s in range(int(s0) + step, int(s1), step))
 
 
+def _ramp(at: Callable[..., Point], start: Point, end: Point) -> tuple[Point, ...]:
+    """Shape points after ``start`` up to ``end``, both (arc length, left offset) [m] along the
+    road of ``at``: a smootherstep in offset, so the ramp leaves and joins parallel to the road
+    with no step in curvature (a kinked ramp is a jerk spike for a vehicle following it)."""
+    (s0, off0), (s1, off1) = start, end
+    points = []
+    for s in range(int(s0) + CURVE_SHAPE_SPACING, int(s1) + 1, CURVE_SHAPE_SPACING):
+        u = (s - s0) / (s1 - s0)
+        blend = u**3 * (10.0 - 15.0 * u + 6.0 * u * u)
+        points.append(at(float(s), off0 + (off1 - off0) * blend))
+    return tuple(points)
+
+
 def highway(lanes: int, curved: bool = False) -> Template:
     """600 m two-edge highway (``in`` then ``out``); curved variants bend left on a 400 m radius."""
     at = _centreline(curved, 400.0)
@@ -146,11 +163,13 @@ def merge(main_lanes: int, accel: float, shoulder: bool, curved: bool = False) -
     shape = (
         (lambda s0, s1: _inner(at, s0, s1, CURVE_SHAPE_SPACING)) if curved else (lambda s0, s1: ())
     )
-    ramp_shape = (at(120.0, -45.0), at(190.0, -14.0), at(225.0, -4.5))
+    # Lanes lie right of their edge's line: the ramp's line ends where its lane is the
+    # acceleration lane, right of the main road's lanes.
+    ramp_shape = _ramp(at, (40.0, -70.0), (b, -main_lanes * LANE_WIDTH))
     out_lanes = main_lanes + (1 if shoulder else 0)
     edges = (
         Edge("in", "a", "b", main_lanes, HIGHWAY_SPEED, 3, shape(0, b)),
-        Edge("ramp", "r", "b", 1, RAMP_SPEED, 1, ramp_shape),
+        Edge("ramp", "r", "b", 1, RAMP_SPEED, 1, ramp_shape, ends_beside_node=True),
         Edge("merge", "b", "c", main_lanes + 1, HIGHWAY_SPEED, 3, shape(b, c)),
         Edge("out", "c", "d", out_lanes, HIGHWAY_SPEED, 3, shape(c, d), shoulder=shoulder),
     )

@@ -73,3 +73,20 @@ def test_curved_highway_lanes_turn_smoothly_across_the_whole_route(lanes, cache_
     assert turn.max() < 0.01, turn.argmax()
     headings = np.unwrap([w["heading"] for w in path])
     assert np.abs(np.diff(headings)).max() < 0.01
+
+
+@pytest.mark.parametrize("name", ["merge_2lane", "merge_3lane_curve", "merge_4lane"])
+def test_on_ramp_joins_the_acceleration_lane_without_kinks(name, cache_dir):
+    """The ramp leaves and joins parallel to the road, level with the acceleration lane: a
+    vehicle's path from the ramp's start to the main road's end never turns more than a
+    110 m radius bend would per metre."""
+    road = RoadNetwork.load(build_map(name, cache_dir))
+    ramp = road.lanes["ramp_0"]
+    x, y = ramp.position_at(1.0)
+    pos = road.nearest_lane(float(x), float(y), ramp.heading_at(1.0))
+    (path,) = waypoint_paths(road, pos, float(x), float(y), ("ramp", "merge"), 1, 2000)
+    assert {w["lane_id"] for w in path} >= {"ramp_0", "merge_0"}
+    xy = np.array([w["pos"] for w in path])
+    step = np.diff(xy, axis=0)
+    turn = np.abs(np.diff(np.unwrap(np.arctan2(step[:, 1], step[:, 0]))))
+    assert turn.max() < 0.02, turn.argmax()
