@@ -94,6 +94,20 @@ def test_planner_slows_behind_a_slow_leader_when_the_gap_is_closed():
     assert x < 1.0  # braking: less than 10 m/s x 0.1 s
 
 
+@pytest.mark.parametrize("offset", [-0.5, 0.5])
+def test_two_vehicles_level_in_each_others_target_lane_split(offset):
+    """Two agents side by side, each wanting the other's lane, must not both drop back (they
+    would pace each other down to a crawl): the one behind yields, the one ahead keeps going."""
+    module = _policy_module()
+    beside = [car(offset, 3.2, 10.0)]
+    obs = observation(10.0, beside, goal=(60.0, 3.2))
+    x, _, _, _ = module.Policy().act({"Agent_0": obs})["Agent_0"]
+    if offset > 0.0:
+        assert x < 1.0  # the other is ahead: drop back
+    else:
+        assert x >= 1.0  # the other is behind: keep going
+
+
 def test_planner_changes_lane_to_reach_a_goal_on_the_left():
     module = _policy_module()
     planner = module.Policy()

@@ -293,11 +293,11 @@ class AgentPlanner:
         if blocker is None:
             self.target_lane = nxt.lane_index
             return nxt
-        # A lane change we want is blocked: drop back behind a vehicle level with or ahead
-        # of us or faster from behind, keep going past a slower one behind (two agents wanting
-        # to swap lanes then split instead of pacing each other).
+        # A lane change we want is blocked: drop back behind a vehicle ahead of us or faster
+        # from behind, keep going past one behind us (two agents level with each other and
+        # wanting to swap lanes then split instead of both dropping back side by side).
         offset, blocker_speed = blocker
-        drop_back = offset > -2.0 or blocker_speed > speed + 0.5
+        drop_back = offset > 0.0 or blocker_speed > speed + 0.5
         if not drop_back and wanted is goal_path:
             # Pulling ahead of a slower vehicle takes too long if the goal comes first.
             to_clear = rear_gap_needed(blocker_speed, speed) + length - offset
