@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import signal
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -65,10 +66,26 @@ class ExitStatus:
         if self.code is None:
             return "ended for an unknown reason"
         if self.code < 0:
-            return f"killed by signal {-self.code}"
+            return f"killed by {signal_name(-self.code)}"
         if self.code > 128:
-            return f"exited with status {self.code} (signal {self.code - 128})"
+            return f"exited with status {self.code} ({signal_name(self.code - 128)})"
         return f"exited with status {self.code}"
+
+
+# Signals a participant can act on when told what they mean.
+SIGNAL_MEANINGS = {
+    signal.SIGXCPU: "the CPU time limit of one episode was used up",
+    signal.SIGSEGV: "a segmentation fault",
+}
+
+
+def signal_name(number: int) -> str:
+    try:
+        sig = signal.Signals(number)
+    except ValueError:
+        return f"signal {number}"
+    meaning = SIGNAL_MEANINGS.get(sig)
+    return f"{sig.name}: {meaning}" if meaning else sig.name
 
 
 class Sandbox(Protocol):

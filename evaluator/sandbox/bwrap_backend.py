@@ -120,7 +120,11 @@ class BubblewrapBackend:
                 env={"PATH": os.defpath, LABELS_ENV: encode_labels(spec.all_labels)},
                 pass_fds=(runner_fd,),
                 start_new_session=True,
-                preexec_fn=rlimit_setter(settings.agent_memory_bytes, settings.agent_pids),
+                preexec_fn=rlimit_setter(
+                    settings.agent_memory_bytes,
+                    settings.agent_pids,
+                    cpu_seconds=settings.init_timeout_s + settings.episode_timeout_s,
+                ),
             )
         except OSError as error:
             if stage:

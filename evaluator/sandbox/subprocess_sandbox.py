@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import resource
 import shutil
@@ -49,12 +50,21 @@ class LogTail:
             return bytes(self._data[-self._limit :]).decode("utf-8", errors="replace")
 
 
-def rlimit_setter(memory_bytes: int, processes: int | None) -> Callable[[], None]:
-    """A preexec function that caps address space, processes and core dumps."""
+def rlimit_setter(
+    memory_bytes: int, processes: int | None, cpu_seconds: float | None = None
+) -> Callable[[], None]:
+    """A preexec function that caps address space, processes, CPU time and core dumps.
+
+    Without cgroups there is no CPU share to cap, so the CPU time an agent may burn is bounded
+    instead: start-up plus one episode's wall time on one CPU (SIGXCPU, then SIGKILL 5 s later).
+    """
 
     def apply() -> None:
         resource.setrlimit(resource.RLIMIT_AS, (memory_bytes, memory_bytes))
         resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
+        if cpu_seconds is not None:
+            soft = math.ceil(cpu_seconds)
+            resource.setrlimit(resource.RLIMIT_CPU, (soft, soft + 5))
         if processes is not None:
             resource.setrlimit(resource.RLIMIT_NPROC, (processes, processes))
 
