@@ -24,8 +24,12 @@ import time
 from datetime import timedelta
 from pathlib import Path
 
+# The benchmark seeds its database with the service tests' builders.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 SUBMISSIONS = 1000
 TEAMS = 200
+METRIC_NAMES = ("completion", "time", "humanness", "rules")
 FAMILIES = ("cruise", "cut_in", "left_turn_t", "merge", "overtake", "replay", "turn_c")
 TARGET_RPS = 1000.0
 TARGET_P99_MS = 50.0
@@ -34,55 +38,33 @@ TARGET_P99_MS = 50.0
 def seed(database_url: str, rng: random.Random) -> None:
     from server.core.db import Database
     from server.core.migrate import upgrade_database
-    from server.models import EvaluationRun, Score, Submission, Team, Track, utcnow
-    from server.services.evaluation import bump_leaderboard
-    from server.status import RunStatus, SubmissionStatus
+    from server.models import utcnow
+    from tests.server.builders import make_team, seed_scored
 
     upgrade_database(database_url)
     db = Database(database_url)
     start = utcnow() - timedelta(days=10)
-    with db.session() as session:
-        teams = [Team(name=f"team-{k:03d}") for k in range(TEAMS)]
-        session.add_all(teams)
-        session.flush()
-        for k in range(SUBMISSIONS):
-            submission = Submission(
-                team_id=teams[k % TEAMS].id,
-                track=Track.freestyle,
-                method_name=f"method {k}",
-                file_sha256="0" * 64,
-                file_size=1,
-                storage_dir="-",
-                status=SubmissionStatus.scored,
-                created_at=start + timedelta(minutes=k),
-            )
-            session.add(submission)
-            session.flush()
-            run = EvaluationRun(
-                submission_id=submission.id,
-                attempt=1,
-                status=RunStatus.scored,
-                suite_dir="-",
-                manifest_sha256="0" * 64,
-                scenario_count=128,
-                scoring_profile="driving-smarts-2022",
-            )
-            session.add(run)
-            session.flush()
-            metrics = {
-                "completion": rng.randint(0, 128) / 128,
-                "time": rng.uniform(200, 800),
-                "humanness": rng.uniform(0, 2),
-                "rules": rng.uniform(0, 0.2),
-            }
-            families = {
-                family: {name: rng.uniform(0, 1) for name in metrics} | {"scenarios": 18}
-                for family in FAMILIES
-            }
-            session.add(
-                Score(run_id=run.id, profile="driving-smarts-2022", families=families, **metrics)
-            )
-        bump_leaderboard(session)
+    team_ids = [make_team(db, f"team-{k:03d}")[0] for k in range(TEAMS)]
+    for k in range(SUBMISSIONS):
+        metrics = (
+            rng.randint(0, 128) / 128,
+            rng.uniform(200, 800),
+            rng.uniform(0, 2),
+            rng.uniform(0, 0.2),
+        )
+        families = {
+            family: dict(zip(METRIC_NAMES, (rng.uniform(0, 1) for _ in METRIC_NAMES), strict=True))
+            | {"scenarios": 18}
+            for family in FAMILIES
+        }
+        seed_scored(
+            db,
+            team_ids[k % TEAMS],
+            metrics,
+            created_at=start + timedelta(minutes=k),
+            method_name=f"method {k}",
+            families=families,
+        )
     db.dispose()
 
 
