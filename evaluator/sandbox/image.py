@@ -88,13 +88,30 @@ def build_rootfs_tarball(target: Path, mirror: str, log: Callable[[str], None]) 
         done = subprocess.run(command, capture_output=True, text=True)
         if done.returncode != 0:
             raise SandboxUnavailable(f"debootstrap failed:\n{done.stdout[-4000:]}{done.stderr}")
+        # debootstrap can leave /proc (and /sys) of the chroot mounted; a tar of a live /proc
+        # fails, and the temporary folder could not be removed.
+        _unmount_below(root)
         for relative in TRIMMED:
             shutil.rmtree(root / relative, ignore_errors=True)
             (root / relative).mkdir(parents=True, exist_ok=True)
         partial = target.with_suffix(".partial")
-        subprocess.run(["tar", "-C", str(root), "-cf", str(partial), "."], check=True)
+        subprocess.run(
+            ["tar", "--one-file-system", "-C", str(root), "-cf", str(partial), "."], check=True
+        )
         partial.replace(target)
     log(f"cached runtime root at {target}")
+
+
+def _unmount_below(root: Path) -> None:
+    """Unmount every mount point inside ``root``, deepest first."""
+    prefix = str(root.resolve()) + "/"
+    mounts = [
+        line.split()[1]
+        for line in Path("/proc/self/mounts").read_text().splitlines()
+        if line.split()[1].startswith(prefix)
+    ]
+    for mount in sorted(mounts, key=len, reverse=True):
+        subprocess.run(["umount", "--lazy", mount], check=False)
 
 
 def build_image(
