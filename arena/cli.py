@@ -9,9 +9,10 @@ from __future__ import annotations
 import typer
 
 from evaluator.cli import app as evaluator_app
+from evaluator.sandbox.cli import sandbox_app
 from scenarios.cli import app as scenarios_app
 from server.cli import admin_app, service_app
-from submissions.cli import sandbox_app, submission_app
+from submissions.cli import submission_app
 
 app = typer.Typer(
     name="arena",

@@ -62,7 +62,7 @@ def build(folder: Path, n_vehicles: int, steps: int) -> Path:
 def raw_side(folder: str, steps: int, queue) -> None:
     import libsumo
 
-    from scenarios.schema import load_scenario
+    from arena.scenario import load_scenario
     from sim.traffic import sumo_command
 
     sc = load_scenario(Path(folder))
@@ -94,7 +94,7 @@ def follow_gap(obs: dict) -> list[float]:
 
 
 def our_side(folder: str, steps: int, profile: bool, queue) -> None:
-    from scenarios.schema import load_scenario
+    from arena.scenario import load_scenario
     from sim.interface import AgentInterface
     from sim.simulation import Simulation
 

@@ -54,9 +54,9 @@ def evaluate(
 ) -> None:
     """Evaluate a submission on a scenario set and print its four metrics."""
     from arena.config import get_settings
-    from evaluator.errors import ArenaError
+    from arena.errors import ArenaError
+    from arena.suite import resolve_suite
     from evaluator.runner import evaluate as run_evaluation
-    from evaluator.runner import resolve_suite
     from evaluator.scoring import ProfileError
 
     settings = get_settings()
@@ -66,7 +66,7 @@ def evaluate(
     try:
         summary = run_evaluation(
             path,
-            resolve_suite(suite),
+            resolve_suite(suite, settings),
             out_dir=out,
             scenario_ids=scenario,
             jobs=jobs or settings.jobs,
@@ -93,8 +93,9 @@ def score(
 ) -> None:
     """Re-score stored episode records (no simulation) and rewrite summary.json."""
     from arena.config import get_settings
+    from arena.errors import RecordError
     from evaluator.runner import score_results_dir
-    from evaluator.scoring import ProfileError, RecordError, load_profile
+    from evaluator.scoring import ProfileError, load_profile
     from evaluator.summary import SUMMARY_FILE, write_summary
 
     console = Console(stderr=as_json)
@@ -123,13 +124,14 @@ def replay(
 ) -> None:
     """Draw one episode as SVG: map, ego path coloured by speed, other vehicles' trails, goal,
     collision and off-road markers."""
+    from arena.config import get_settings
+    from arena.errors import SuiteError
+    from arena.suite import resolve_suite
     from evaluator.replay_picture import ReplayError, draw_episode
-    from evaluator.runner import resolve_suite
-    from evaluator.runner.manifest import SuiteError
 
     console = Console()
     try:
-        draw_episode(results_dir, scenario_id, out, suite_dir=resolve_suite(suite))
+        draw_episode(results_dir, scenario_id, out, suite_dir=resolve_suite(suite, get_settings()))
     except (ReplayError, SuiteError) as exc:
         console.print(f"[bold red]error:[/] {escape(str(exc))}")
         raise typer.Exit(2) from None
@@ -170,7 +172,7 @@ class _RichProgress:
         )
 
     def finished(self, outcome: ScenarioOutcome) -> None:
-        from evaluator.summary import ScenarioStatus
+        from arena.outcome import ScenarioStatus
 
         if outcome.status != ScenarioStatus.done:
             self.uncharged += 1

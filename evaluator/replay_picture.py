@@ -67,8 +67,8 @@ def _canvas_with_map(rec: dict[str, np.ndarray], scenario_dir: Path | None) -> S
     scale = min(6.0, max(0.5, PICTURE_WIDTH_PX / extent))  # [px/m]
     canvas = SvgCanvas((xs.min(), ys.min(), xs.max(), ys.max()), scale, margin=MARGIN_M)
     if scenario_dir is not None:
+        from arena.scenario import load_scenario
         from scenarios.picture import stop_lanes
-        from scenarios.schema import load_scenario
         from sim.render import draw_road
         from sim.road import RoadNetwork
 

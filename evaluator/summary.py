@@ -8,37 +8,18 @@ from __future__ import annotations
 
 import json
 import os
-from enum import StrEnum
 from pathlib import Path
 
 from pydantic import BaseModel, ConfigDict
 
+from arena.outcome import AgentOutcome, ScenarioStatus
 from evaluator.scoring import Metrics
 
 SUMMARY_FILE = "summary.json"
 
 
-class ScenarioStatus(StrEnum):
-    pending = "pending"  # selected, not started
-    running = "running"  # started; left so if the runner died mid-way
-    done = "done"  # simulated and scored (agent failures included: they are charged)
-    simulator_error = "simulator_error"  # SUMO failed twice: ours, not charged
-    evaluator_error = "evaluator_error"  # the sandbox or runner failed: ours, not charged
-
-
-UNCHARGED = frozenset({ScenarioStatus.simulator_error, ScenarioStatus.evaluator_error})
-
-
 class Frozen(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
-
-
-class AgentEntry(Frozen):
-    id: str
-    reached_goal: bool
-    reason: str  # a sim.agent.DoneReason value
-    steps: int  # agent-steps driven
-    done_step: int  # episode step (1-based) at which the agent was done
 
 
 class ScenarioEntry(Frozen):
@@ -46,7 +27,7 @@ class ScenarioEntry(Frozen):
     family: str
     status: ScenarioStatus
     steps: int = 0  # episode steps simulated
-    agents: tuple[AgentEntry, ...] = ()
+    agents: tuple[AgentOutcome, ...] = ()
     metrics: Metrics | None = None  # this scenario alone
     terms: dict[str, float] | None = None  # mean of each metric term over its agent-steps
     error: str | None = None  # why a scenario was not charged

@@ -84,42 +84,46 @@ def build(
             _cache_dir(),
             lambda sid: progress.update(task, advance=1, current=sid),
         )
-    _console().print(f"wrote {len(manifest['scenarios'])} scenarios and manifest.json to {out}")
+    _console().print(f"wrote {len(manifest.scenarios)} scenarios and manifest.json to {out}")
 
 
 @app.command("list")
 def list_(
-    directory: Annotated[Path, typer.Argument(help="A built suite folder.")],
+    directory: Annotated[
+        str, typer.Argument(help="A built suite folder, or `public` / `hidden`.")
+    ],
 ) -> None:
     """Table of the scenarios of a built suite."""
     from rich.table import Table
 
-    from scenarios.suites import read_manifest
-
-    manifest = _read(directory, read_manifest)
-    table = Table(title=f"{manifest['suite']} suite: {len(manifest['scenarios'])} scenarios")
+    manifest = _suite(directory).manifest
+    table = Table(title=f"{manifest.suite} suite: {len(manifest.scenarios)} scenarios")
     for column in ("id", "family", "variant", "volume", "agents", "reactive", "label", "hash"):
         table.add_column(column)
     table.add_column("unsolvable reason", style="red")
-    for s in manifest["scenarios"]:
+    for s in manifest.scenarios:
         table.add_row(
-            s["id"],
-            s["family"],
-            s["variant"],
-            s["volume"] or "-",
-            str(s["agents"]),
-            "yes" if s["reactive"] else "no",
-            s["label"],
-            s["hash"][:12],
-            s.get("unsolvable_reason") or "",
+            s.id,
+            s.family,
+            s.variant,
+            s.volume or "-",
+            str(s.agents),
+            "yes" if s.reactive else "no",
+            s.label,
+            s.hash[:12],
+            s.unsolvable_reason or "",
         )
     _console().print(table)
 
 
-def _read(directory: Path, reader):
+def _suite(directory: str | Path):
+    from arena.config import get_settings
+    from arena.errors import SuiteError
+    from arena.suite import load_suite, resolve_suite
+
     try:
-        return reader(directory)
-    except FileNotFoundError as exc:
+        return load_suite(resolve_suite(directory, get_settings()))
+    except SuiteError as exc:
         raise typer.BadParameter(str(exc)) from exc
 
 
@@ -134,12 +138,13 @@ def show(
     step: Annotated[int, typer.Option(help="Draw the traffic at this step.", min=0)] = 0,
 ) -> None:
     """Draw a scenario: map, lanes, traffic at STEP, mission starts, routes and goals."""
+    from arena.config import get_settings
+    from arena.suite import public_suite_dir
     from scenarios.picture import draw_scenario
-    from scenarios.suites import public_suite_dir
 
     folder = Path(scenario)
     if not (folder / "scenario.json").exists():
-        folder = (suite_dir or public_suite_dir()) / scenario
+        folder = (suite_dir or public_suite_dir(get_settings())) / scenario
     if not (folder / "scenario.json").exists():
         raise typer.BadParameter(f"no scenario {scenario!r} in {folder.parent}")
     out.write_text(draw_scenario(folder, step))
@@ -148,7 +153,9 @@ def show(
 
 @app.command()
 def verify(
-    directory: Annotated[Path, typer.Argument(help="A built suite folder.")],
+    directory: Annotated[
+        str, typer.Argument(help="A built suite folder, or `public` / `hidden`.")
+    ],
     jobs: Annotated[int, typer.Option(help="Episodes run in parallel.", min=1)] = 1,
     only: Annotated[list[str] | None, typer.Option(help="Verify just these ids.")] = None,
 ) -> None:
@@ -156,15 +163,14 @@ def verify(
     reactive ones); record unsolved reasons in the manifest; print `solved=<k>/<n>`."""
     from rich.table import Table
 
-    from scenarios.suites import read_manifest
     from scenarios.verify import verify_suite
 
-    manifest = _read(directory, read_manifest)
-    ids = [s["id"] for s in manifest["scenarios"] if not only or s["id"] in only]
+    suite = _suite(directory)
+    ids = [s.id for s in suite.scenarios if not only or s.id in only]
     with _progress() as progress:
         task = progress.add_task("verifying", total=len(ids), current="")
         results = verify_suite(
-            directory, ids, jobs, lambda r: progress.update(task, advance=1, current=r.scenario_id)
+            suite.root, ids, jobs, lambda r: progress.update(task, advance=1, current=r.scenario_id)
         )
     table = Table(title="expert runs")
     table.add_column("id", no_wrap=True)

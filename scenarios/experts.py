@@ -19,7 +19,7 @@ class LogReplayExpert:
     """Moves every agent to its recorded pose of the next step."""
 
     def __init__(self, scenario_dir: Path) -> None:
-        from scenarios.schema import load_scenario
+        from arena.scenario import load_scenario
 
         scenario = load_scenario(scenario_dir)
         self.start_step = {m.agent_id: m.start_step for m in scenario.missions}
@@ -73,7 +73,7 @@ class PlannerAgent:
 def uses_log_replay(scenario_dir: Path) -> bool:
     """Non-reactive replays are verified by log replay; everything reactive (the replay with a
     reactive bubble included: its traffic no longer follows the recording) by the planner."""
-    from scenarios.schema import load_scenario
+    from arena.scenario import load_scenario
 
     return (Path(scenario_dir) / EXPERT_FILE).exists() and not load_scenario(scenario_dir).reactive
 

@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
+from arena.scenario import Family, Goal, LaneChangeTrigger, Mission
 from scenarios.maps import build_map
 from scenarios.netinfo import NetInfo, net_info
-from scenarios.schema import Family, Goal, LaneChangeTrigger, Mission
 from scenarios.traffic import (
     VOLUME_PER_LANE,
     Flow,
@@ -26,7 +26,6 @@ from scenarios.traffic import (
     slow_type,
 )
 
-GOAL_RADIUS = 2.5  # [m]
 GOAL_BEFORE_END = 40.0  # [m] goals sit this far before the end of the route's final edge
 INTERSECTION_VOLUME_SCALE = 0.4  # crossing flows of both directions add up: keep gaps usable
 
@@ -91,7 +90,7 @@ def make_mission(
         start_speed=round(start_speed, 2),
         start_step=start_step,
         route=route,
-        goal=Goal(position=(gx, gy), radius=GOAL_RADIUS),
+        goal=Goal(position=(gx, gy)),
     )
 
 

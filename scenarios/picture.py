@@ -7,9 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
+from arena.scenario import ReplayTraffic, load_scenario
 from scenarios.netinfo import net_info
 from scenarios.replay.builder import EXPERT_FILE
-from scenarios.schema import ReplayTraffic, load_scenario
 from sim.render import EGO_COLOUR, GOAL_COLOUR, SvgCanvas, draw_road
 from sim.trajectories import read_trajectories
 from sim.vehicles import VehicleStates

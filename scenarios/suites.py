@@ -9,7 +9,6 @@ The hidden seed itself is never written anywhere: the manifest carries its finge
 from __future__ import annotations
 
 import hashlib
-import json
 import shutil
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -17,15 +16,15 @@ from pathlib import Path
 
 import numpy as np
 
+from arena.scenario import Family, Scenario, content_hash
+from arena.suite import ManifestEntry, SuiteManifest, write_manifest
 from scenarios.generators import GENERATORS, MapLibrary, Spec
 from scenarios.maps import netconvert_version
 from scenarios.replay.builder import KIND_SCENE, Candidate, candidates, write_replay
 from scenarios.replay.recorder import Recording
 from scenarios.replay.scenes import SCENES, recorded
-from scenarios.schema import Family, Scenario, content_hash
 from scenarios.writer import write_reactive
 
-MANIFEST = "manifest.json"
 PUBLIC_SEED = 2022
 BUBBLE_RADIUS = 40.0  # [m]
 
@@ -189,7 +188,7 @@ def build_suite(
     out: Path,
     cache_dir: Path,
     progress: Callable[[str], None] = lambda _: None,
-) -> dict:
+) -> SuiteManifest:
     """Write every scenario of ``suite`` under ``out`` plus ``manifest.json``; returns the
     manifest. ``out`` is replaced."""
     specs = SUITES[suite]()
@@ -223,43 +222,26 @@ def build_suite(
             )
         entries.append(manifest_entry(scenario, folder))
         progress(sid)
-    manifest = {"suite": suite, "netconvert": netconvert_version(), "scenarios": entries}
-    if suite == "public":
-        manifest["seed"] = seed
-    else:
-        manifest["seed_fingerprint"] = seed_fingerprint(seed)
+    manifest = SuiteManifest(
+        suite=suite,
+        netconvert=netconvert_version(),
+        scenarios=tuple(entries),
+        seed=seed if suite == "public" else None,
+        seed_fingerprint=None if suite == "public" else seed_fingerprint(seed),
+    )
     write_manifest(out, manifest)
     return manifest
 
 
-def manifest_entry(scenario: Scenario, folder: Path) -> dict:
-    return {
-        "id": scenario.id,
-        "family": scenario.family.value,
-        "variant": scenario.variant,
-        "volume": scenario.volume,
-        "agents": scenario.agents,
-        "reactive": scenario.reactive,
-        "hash": content_hash(folder),
-        "label": scenario.label.value,
-        "unsolvable_reason": scenario.unsolvable_reason,
-    }
-
-
-def write_manifest(out: Path, manifest: dict) -> None:
-    (Path(out) / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
-
-
-def read_manifest(out: Path) -> dict:
-    path = Path(out) / MANIFEST
-    if not path.exists():
-        raise FileNotFoundError(f"{out} is not a built suite: no {MANIFEST}")
-    return json.loads(path.read_text())
-
-
-def public_suite_dir() -> Path:
-    """The shipped public set (built from :data:`PUBLIC_SEED`, committed in the repository)."""
-    from arena.config import get_settings
-
-    configured = get_settings().public_suite_dir
-    return configured if configured is not None else Path(__file__).parent / "public"
+def manifest_entry(scenario: Scenario, folder: Path) -> ManifestEntry:
+    return ManifestEntry(
+        id=scenario.id,
+        family=scenario.family,
+        variant=scenario.variant,
+        volume=scenario.volume,
+        agents=scenario.agents,
+        reactive=scenario.reactive,
+        hash=content_hash(folder),
+        label=scenario.label,
+        unsolvable_reason=scenario.unsolvable_reason,
+    )

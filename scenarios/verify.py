@@ -13,8 +13,8 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
+from arena.suite import load_suite, write_manifest
 from scenarios.experts import expert_factory, expert_interface, uses_log_replay
-from scenarios.suites import read_manifest, write_manifest
 
 EPISODE_TIMEOUT_S = 600.0
 
@@ -69,9 +69,12 @@ def verify_suite(
         with ThreadPoolExecutor(max_workers=jobs) as pool:
             for r in pool.map(run, ids):
                 results[r.scenario_id] = r
-    manifest = read_manifest(suite_dir)
-    for entry in manifest["scenarios"]:
-        if entry["id"] in results:
-            entry["unsolvable_reason"] = results[entry["id"]].reason
-    write_manifest(suite_dir, manifest)
+    manifest = load_suite(suite_dir).manifest
+    entries = tuple(
+        entry.model_copy(update={"unsolvable_reason": results[entry.id].reason})
+        if entry.id in results
+        else entry
+        for entry in manifest.scenarios
+    )
+    write_manifest(suite_dir, manifest.model_copy(update={"scenarios": entries}))
     return [results[sid] for sid in ids]

@@ -5,8 +5,8 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
+from arena.scenario import SCENARIO_FILE, DataLabel, ReplayTraffic, Scenario, SumoTraffic
 from scenarios.generators import Draft, Spec
-from scenarios.schema import SCENARIO_FILE, DataLabel, ReplayTraffic, Scenario, SumoTraffic
 
 MAP_FILE = "map.net.xml"
 ROUTES_FILE = "traffic.rou.xml"

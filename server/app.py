@@ -14,9 +14,9 @@ from arena.config import Settings, get_settings
 from server.api.main import api_router
 from server.api.routes import pages
 from server.core.db import Database
+from server.core.queue import TaskQueue
 from server.services.errors import ServiceError
 from server.services.leaderboard import LeaderboardCache
-from server.services.queue import TaskQueue
 from server.status import IllegalTransition
 
 STATIC_DIR = Path(__file__).resolve().parent / "static"

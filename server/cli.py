@@ -31,7 +31,7 @@ class _Context:
     def __init__(self) -> None:
         from arena.config import get_settings
         from server.core.db import Database
-        from server.services.queue import TaskQueue
+        from server.core.queue import TaskQueue
 
         self.settings = get_settings()
         self.db = Database(self.settings.resolved_database_url)
@@ -319,7 +319,7 @@ def worker(
     loglevel: str = "INFO",
 ) -> None:
     """Run a Celery worker that evaluates submissions."""
-    from evaluator.celery_app import create_celery_app
+    from server.core.celery_app import create_celery_app
 
     app = create_celery_app()
     argv = [

@@ -96,7 +96,7 @@ def _build_suite(console: Console, env: dict, suite: str, out: Path, seed: int |
 
 
 def _public_suite(console: Console, settings: Settings, env: dict) -> Path:
-    from server.services.suites import public_suite_dir
+    from arena.suite import public_suite_dir
 
     folder = public_suite_dir(settings)
     if not (folder / "manifest.json").exists():
@@ -108,9 +108,9 @@ def _public_suite(console: Console, settings: Settings, env: dict) -> Path:
 
 
 def _hidden_suite(console: Console, settings: Settings, env: dict) -> Path:
-    from server.services.suites import evaluation_suite_dir
+    from arena.suite import hidden_suite_dir
 
-    folder = evaluation_suite_dir(settings)
+    folder = hidden_suite_dir(settings)
     if (folder / "manifest.json").exists():
         console.print(f"hidden suite: {folder}")
         return folder

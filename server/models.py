@@ -26,6 +26,7 @@ from sqlalchemy import (
 )
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
+from arena.outcome import ScenarioStatus
 from server.status import RunStatus, SubmissionStatus
 
 
@@ -165,8 +166,10 @@ class ScenarioResult(Base):
     run_id: Mapped[int] = mapped_column(ForeignKey("evaluation_runs.id"))
     scenario_id: Mapped[str] = mapped_column(String(128))
     family: Mapped[str] = mapped_column(String(64))
-    # "success", "failure" (charged to the agent) or "simulator_error" (not charged).
-    status: Mapped[str] = mapped_column(String(32))
+    # The core's vocabulary (arena.outcome); only `done` is charged to the submission.
+    status: Mapped[ScenarioStatus] = mapped_column(
+        Enum(ScenarioStatus, native_enum=False, length=32, validate_strings=True)
+    )
     reason: Mapped[str] = mapped_column(String(64), default="")
     steps: Mapped[int] = mapped_column(Integer, default=0)
     record_path: Mapped[str | None] = mapped_column(String(512))

@@ -6,8 +6,10 @@ import time
 import traceback
 from pathlib import Path
 
-from scenarios.schema import load_scenario
-from sim.agent import Agent, AgentFailed, DoneReason
+from arena.errors import AgentFailed
+from arena.outcome import DoneReason
+from arena.scenario import load_scenario
+from sim.agent import Agent
 from sim.interface import AgentInterface
 from sim.result import EpisodeResult
 from sim.simulation import Simulation

@@ -13,11 +13,12 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from arena.config import get_settings
-from scenarios.schema import load_scenario
-from sim.agent import Agent, AgentFailed, DoneReason
+from arena.errors import AgentFailed
+from arena.outcome import AgentOutcome, DoneReason
+from arena.scenario import load_scenario
+from sim.agent import Agent
 from sim.interface import AgentInterface
-from sim.result import AgentOutcome, EpisodeResult
+from sim.result import EpisodeResult
 
 # Modules the fork server loads once, so each episode's child starts warm. Importing libsumo
 # starts nothing: only the child's own Simulation does.
@@ -34,6 +35,7 @@ def run_episode_isolated(
     record_path: Path,
     seed: int | None = None,
     timeout_s: float = 900,
+    episode_timeout_s: float | None = None,
 ) -> EpisodeResult:
     """:func:`sim.episode.run_episode` in a child process.
 
@@ -41,7 +43,7 @@ def run_episode_isolated(
     called in the child. If it raises :class:`AgentFailed`, every agent fails with that reason
     after 0 steps (the record is still written). The child closes the agent and, when the agent
     has a ``logs()`` method, returns its text in ``extra["agent_log"]``. The episode itself
-    stops at the organisers' ``episode_timeout_s`` (reason ``episode_timeout``, record kept);
+    stops at ``episode_timeout_s``, the organisers' limit (reason ``episode_timeout``, record kept);
     ``timeout_s`` is the hard limit after which the child is killed (``simulator_error``).
     """
     started = time.monotonic()
@@ -50,8 +52,8 @@ def run_episode_isolated(
     receiver, sender = ctx.Pipe(duplex=False)
     child = ctx.Process(
         target=_child_main,
-        args=(Path(scenario_dir), agent_factory, interface, Path(record_path), seed, timeout_s),
-        kwargs={"conn": sender},
+        args=(Path(scenario_dir), agent_factory, interface, Path(record_path), seed),
+        kwargs={"wall_timeout_s": _wall_timeout(timeout_s, episode_timeout_s), "conn": sender},
         name=f"episode-{Path(scenario_dir).name}",
     )
     child.start()
@@ -81,7 +83,15 @@ def run_episode_isolated(
     return _failed_result(scenario_dir, error, detail, time.monotonic() - started)
 
 
-def _child_main(scenario_dir, agent_factory, interface, record_path, seed, timeout_s, *, conn):
+def _wall_timeout(timeout_s: float, episode_timeout_s: float | None) -> float:
+    """The episode's own wall limit: inside the hard limit, leaving time to write the record."""
+    inside_hard_limit = max(timeout_s - _GRACE_S, 0.8 * timeout_s)
+    if episode_timeout_s is None:
+        return inside_hard_limit
+    return min(episode_timeout_s, inside_hard_limit)
+
+
+def _child_main(scenario_dir, agent_factory, interface, record_path, seed, *, wall_timeout_s, conn):
     from sim.episode import describe_exception, run_episode
 
     try:
@@ -96,9 +106,7 @@ def _child_main(scenario_dir, agent_factory, interface, record_path, seed, timeo
                 interface,
                 record_path=record_path,
                 seed=seed,
-                wall_timeout_s=min(
-                    get_settings().episode_timeout_s, max(timeout_s - _GRACE_S, 0.8 * timeout_s)
-                ),
+                wall_timeout_s=wall_timeout_s,
             )
             log = _close_agent(agent)
             if log is not None:
@@ -143,7 +151,12 @@ def _failed_result(scenario_dir: Path, error: str, detail: str, elapsed: float) 
     return EpisodeResult(
         scenario_id=scenario_id,
         steps=0,
-        agents=tuple(AgentOutcome(a, False, DoneReason.simulator_error, 0, 0) for a in agent_ids),
+        agents=tuple(
+            AgentOutcome(
+                id=a, reached_goal=False, reason=DoneReason.simulator_error, steps=0, done_step=0
+            )
+            for a in agent_ids
+        ),
         record_path=None,
         simulator_error=error,
         detail=detail,

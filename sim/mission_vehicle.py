@@ -6,8 +6,8 @@ import math
 from dataclasses import dataclass, field
 from enum import StrEnum
 
-from scenarios.schema import Mission
-from sim.agent import DoneReason
+from arena.outcome import DoneReason
+from arena.scenario import Mission
 from sim.geometry import wrap
 from sim.vehicle import Pose
 

@@ -14,33 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
+from arena.outcome import AgentOutcome
+from arena.record_format import EVENT_FLAGS, FORMAT_VERSION, NEIGHBOUR_FLOATS, STEP_FLOATS
+from arena.scenario import Mission
 from sim.vehicles import VehicleStates
-
-FORMAT_VERSION = 1
-
-EVENT_FLAGS = (
-    "ev_collision",
-    "ev_off_road",
-    "ev_off_route",
-    "ev_on_shoulder",
-    "ev_wrong_way",
-    "ev_not_moving",
-    "ev_reached_goal",
-)
-# Per agent-step float arrays; scoring reads these same names (a valid row has them finite).
-STEP_FLOATS = (
-    "x",
-    "y",
-    "heading",
-    "speed",
-    "vx",
-    "vy",
-    "lane_offset",
-    "lane_width",
-    "lane_heading",
-    "speed_limit",
-)
-_NBR_FLOATS = ("x", "y", "heading", "speed", "length", "width")
 
 
 @dataclass(frozen=True)
@@ -65,19 +42,6 @@ class RecordRow:
     neighbours: VehicleStates  # within the observation radius, nearest first
 
 
-@dataclass(frozen=True)
-class AgentSummary:
-    agent_id: str
-    start_step: int
-    steps: int
-    done_step: int
-    done_reason: str
-    length: float
-    width: float
-    goal: tuple[float, float]
-    goal_radius: float
-
-
 class EpisodeRecorder:
     """Collects rows during an episode and writes the archive at the end."""
 
@@ -89,9 +53,13 @@ class EpisodeRecorder:
         self.rows[agent_id].append(row)
 
     def arrays(
-        self, meta: dict[str, object], summaries: list[AgentSummary]
+        self,
+        meta: dict[str, object],
+        outcomes: tuple[AgentOutcome, ...],
+        missions: tuple[Mission, ...],
     ) -> dict[str, np.ndarray]:
-        """Every record array by name (see docs/records.md)."""
+        """Every record array by name (see docs/records.md); ``outcomes`` and ``missions`` in
+        the order of the recorder's agent ids."""
         n_agents = len(self.agent_ids)
         n_rows = max((len(r) for r in self.rows.values()), default=0)
         n_slots = max([1] + [len(row.neighbours) for rows in self.rows.values() for row in rows])
@@ -103,19 +71,17 @@ class EpisodeRecorder:
             "dt": np.array(float(meta["dt"])),
             "max_episode_steps": np.array(int(meta["max_episode_steps"])),
             "episode_steps": np.array(int(meta["episode_steps"])),
-            "agent_ids": _str_array([s.agent_id for s in summaries]),
-            "start_step": np.array([s.start_step for s in summaries], dtype=np.int64),
-            "steps": np.array([s.steps for s in summaries], dtype=np.int64),
-            "done_step": np.array([s.done_step for s in summaries], dtype=np.int64),
-            "done_reason": _str_array([s.done_reason for s in summaries]),
-            "reached_goal": np.array(
-                [s.done_reason == "reached_goal" for s in summaries], dtype=bool
-            ),
-            "length": np.array([s.length for s in summaries], dtype=np.float64),
-            "width": np.array([s.width for s in summaries], dtype=np.float64),
-            "goal_x": np.array([s.goal[0] for s in summaries], dtype=np.float64),
-            "goal_y": np.array([s.goal[1] for s in summaries], dtype=np.float64),
-            "goal_radius": np.array([s.goal_radius for s in summaries], dtype=np.float64),
+            "agent_ids": _str_array([o.id for o in outcomes]),
+            "start_step": np.array([m.start_step for m in missions], dtype=np.int64),
+            "steps": np.array([o.steps for o in outcomes], dtype=np.int64),
+            "done_step": np.array([o.done_step for o in outcomes], dtype=np.int64),
+            "done_reason": _str_array([str(o.reason) for o in outcomes]),
+            "reached_goal": np.array([o.reached_goal for o in outcomes], dtype=bool),
+            "length": np.array([m.vehicle.length for m in missions], dtype=np.float64),
+            "width": np.array([m.vehicle.width for m in missions], dtype=np.float64),
+            "goal_x": np.array([m.goal.position[0] for m in missions], dtype=np.float64),
+            "goal_y": np.array([m.goal.position[1] for m in missions], dtype=np.float64),
+            "goal_radius": np.array([m.goal.radius for m in missions], dtype=np.float64),
         }
         shape = (n_agents, n_rows)
         out["valid"] = np.zeros(shape, dtype=bool)
@@ -129,7 +95,7 @@ class EpisodeRecorder:
         lane_ids = [[""] * n_rows for _ in range(n_agents)]
         nbr_shape = (n_agents, n_rows, n_slots)
         out["nbr_valid"] = np.zeros(nbr_shape, dtype=bool)
-        for name in _NBR_FLOATS:
+        for name in NEIGHBOUR_FLOATS:
             out[f"nbr_{name}"] = np.full(nbr_shape, np.nan)
         nbr_ids = [[[""] * n_slots for _ in range(n_rows)] for _ in range(n_agents)]
         for a, agent_id in enumerate(self.agent_ids):
@@ -152,7 +118,7 @@ class EpisodeRecorder:
                 if k == 0:
                     continue
                 out["nbr_valid"][a, t, :k] = True
-                for name in _NBR_FLOATS:
+                for name in NEIGHBOUR_FLOATS:
                     out[f"nbr_{name}"][a, t, :k] = getattr(r.neighbours, name)
                 nbr_ids[a][t][:k] = r.neighbours.ids
         out["lane_id"] = _str_array(lane_ids)

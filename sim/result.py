@@ -2,18 +2,9 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 
-from sim.agent import DoneReason
-
-
-@dataclass(frozen=True)
-class AgentOutcome:
-    id: str
-    reached_goal: bool
-    reason: DoneReason
-    steps: int  # agent-steps driven (rows in the record)
-    done_step: int  # episode step at which the agent was done (1-based)
+from arena.outcome import AgentOutcome
 
 
 @dataclass(frozen=True)
@@ -26,6 +17,3 @@ class EpisodeResult:
     detail: str = ""  # human-readable failure detail (traceback, agent stderr tail)
     wall_time_s: float = 0.0
     extra: dict = field(default_factory=dict)
-
-    def to_dict(self) -> dict:
-        return asdict(self)

@@ -20,17 +20,16 @@ from pathlib import Path
 
 import numpy as np
 
-from scenarios.schema import ReplayTraffic, Scenario, content_hash
-from sim.agent import DoneReason
+from arena.outcome import AgentOutcome, DoneReason
+from arena.scenario import ReplayTraffic, Scenario, content_hash
 from sim.bubble import ReactiveBubble
 from sim.events import NOT_MOVING_SPEED, NOT_MOVING_STEPS, Events, collisions, is_wrong_way
 from sim.events import reached_goal as within_goal
 from sim.interface import AgentInterface
 from sim.mission_vehicle import MissionVehicle, Status
 from sim.observation import build_observation
-from sim.record import AgentSummary, EpisodeRecorder, RecordRow, write_npz
+from sim.record import EpisodeRecorder, RecordRow, write_npz
 from sim.replay import ReplayTable
-from sim.result import AgentOutcome
 from sim.road import LanePosition, RoadNetwork
 from sim.road.waypoints import route_ahead, waypoint_paths
 from sim.traffic import SumoTraffic
@@ -218,21 +217,8 @@ class Simulation:
             "max_episode_steps": self.scenario.max_episode_steps,
             "episode_steps": self.step_count,
         }
-        summaries = [
-            AgentSummary(
-                agent_id=v.id,
-                start_step=v.mission.start_step,
-                steps=v.steps,
-                done_step=v.done_step,
-                done_reason=str(v.reason or DoneReason.max_episode_steps),
-                length=v.mission.vehicle.length,
-                width=v.mission.vehicle.width,
-                goal=v.mission.goal.position,
-                goal_radius=v.mission.goal.radius,
-            )
-            for v in self.vehicles
-        ]
-        write_npz(path, self.recorder.arrays(meta, summaries))
+        missions = tuple(v.mission for v in self.vehicles)
+        write_npz(path, self.recorder.arrays(meta, self.outcomes, missions))
 
     # --- internals ---------------------------------------------------------------------------
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from scenarios.schema import LaneChangeTrigger
+from arena.scenario import LaneChangeTrigger
 from sim.road import LanePosition, RoadNetwork
 from sim.traffic import SumoTraffic
 

@@ -1,4 +1,4 @@
-"""`arena submission` and `arena sandbox` commands."""
+"""`arena submission` commands: pack and check a submission zip."""
 
 from __future__ import annotations
 
@@ -9,7 +9,6 @@ import typer
 from rich.console import Console
 
 submission_app = typer.Typer(no_args_is_help=True)
-sandbox_app = typer.Typer(no_args_is_help=True)
 console = Console()
 errors = Console(stderr=True)
 
@@ -18,7 +17,7 @@ def report_checked(zip_path: Path, install: bool) -> None:
     """Run intake on ``zip_path`` and print the verdict; exit 1 on a rejection."""
     import tempfile
 
-    from evaluator.errors import IntakeError
+    from arena.errors import IntakeError
     from submissions.intake import check_zip, prepare_submission
 
     try:
@@ -46,7 +45,7 @@ def pack(
     ] = True,
 ) -> None:
     """Zip a submission folder (deterministically, without caches) and run the intake checks."""
-    from evaluator.errors import IntakeError
+    from arena.errors import IntakeError
     from submissions.intake import pack_folder
 
     try:
@@ -66,57 +65,3 @@ def check(
 ) -> None:
     """Run the service's intake checks on a zip without uploading it."""
     report_checked(zip_path, install)
-
-
-@sandbox_app.command("build-image")
-def build_image(
-    force: Annotated[bool, typer.Option(help="Rebuild even if the image exists.")] = False,
-) -> None:
-    """Build the agent runtime image offline (debootstrap + docker import)."""
-    from evaluator.errors import SandboxUnavailable
-    from evaluator.sandbox.image import build_image as build
-
-    try:
-        with console.status("building the agent runtime image"):
-            image_id = build(force=force, log=console.print)
-    except SandboxUnavailable as error:
-        errors.print(f"[bold red]cannot build the image[/]: {error}")
-        raise typer.Exit(1) from error
-    console.print(f"[green]ready[/] {image_id}")
-
-
-@sandbox_app.command("cleanup")
-def cleanup(
-    label: Annotated[
-        list[str] | None, typer.Option(help="Only sandboxes with this KEY=VALUE label.")
-    ] = None,
-) -> None:
-    """Kill and remove leftover agent containers and processes.
-
-    Without --label this removes every agent sandbox on this host: run it when no worker is
-    evaluating, or pass the labels of the evaluation to clean up after.
-    """
-    from evaluator.sandbox import cleanup as remove
-
-    labels = dict(item.split("=", 1) for item in label or [])
-    console.print(f"removed {remove(labels)} leftover sandbox(es)")
-
-
-@sandbox_app.command("status")
-def status() -> None:
-    """Which sandbox backends can run here, and which one `auto` picks."""
-    from arena.config import SandboxKind, get_settings
-    from evaluator.errors import SandboxUnavailable
-    from evaluator.sandbox import backend, resolve_kind
-
-    settings = get_settings()
-    for kind in (SandboxKind.docker, SandboxKind.bubblewrap, SandboxKind.process):
-        reason = backend(kind).unavailable_reason(settings)
-        note = " (no isolation: local use only)" if kind is SandboxKind.process else ""
-        shown = "[green]available[/]" if reason is None else f"[red]unavailable[/]: {reason}"
-        console.print(f"{kind.value:>10}: {shown}{note}")
-    try:
-        console.print(f"setting {settings.sandbox.value!r} -> {resolve_kind().value}")
-    except SandboxUnavailable as error:
-        errors.print(f"setting {settings.sandbox.value!r}: {error}")
-        raise typer.Exit(1) from error

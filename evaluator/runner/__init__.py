@@ -1,13 +1,12 @@
-"""The evaluation runner: one submission through a scenario set, scenario by scenario.
+"""The evaluation core: one submission through a scenario suite, scenario by scenario.
 
-``run_scenario`` is the unit of work (the service's tasks call it too); ``evaluate`` runs a whole
-set locally with resume; ``summarize`` and ``score_results_dir`` turn outcomes and stored records
-into a :class:`evaluator.summary.Summary`.
+``run_scenario`` is the unit of work (the service's workers call it too) and ``score_outcomes``
+turns outcomes into a :class:`evaluator.summary.Summary` (the service stores what it returns);
+``evaluate`` runs a whole suite locally with resume.
 """
 
 from evaluator.runner.evaluate import Progress, ResultsDirError, evaluate
-from evaluator.runner.manifest import Manifest, SuiteError, load_manifest, resolve_suite
-from evaluator.runner.results import score_results_dir, summarize
+from evaluator.runner.results import score_outcome, score_outcomes, score_results_dir
 from evaluator.runner.scenario import (
     SandboxedAgentFactory,
     ScenarioOutcome,
@@ -16,17 +15,14 @@ from evaluator.runner.scenario import (
 )
 
 __all__ = [
-    "Manifest",
     "Progress",
     "ResultsDirError",
     "SandboxedAgentFactory",
     "ScenarioOutcome",
-    "SuiteError",
     "evaluate",
-    "load_manifest",
-    "resolve_suite",
     "run_scenario",
     "sandbox_labels",
+    "score_outcome",
+    "score_outcomes",
     "score_results_dir",
-    "summarize",
 ]

@@ -14,24 +14,25 @@ import threading
 import traceback
 from collections.abc import Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
-from dataclasses import replace
 from pathlib import Path
 from typing import Protocol
 
 from arena.config import SandboxKind
-from evaluator.errors import ArenaError
-from evaluator.runner.manifest import Manifest, SuiteScenario, load_manifest
+from arena.errors import ArenaError
+from arena.outcome import ScenarioStatus
+from arena.suite import ManifestEntry, Suite, load_suite
 from evaluator.runner.results import (
     LOGS_DIR,
     RECORDS_DIR,
+    ScoredEntry,
     is_finished,
     score_outcome,
+    score_outcomes,
     stored_outcome,
-    summarize,
 )
 from evaluator.runner.scenario import ScenarioOutcome, run_scenario
-from evaluator.scoring import DEFAULT_PROFILE, RecordError, ScoringProfile, load_profile
-from evaluator.summary import SUMMARY_FILE, ScenarioStatus, Summary, read_summary, write_summary
+from evaluator.scoring import DEFAULT_PROFILE, ScoringProfile, load_profile
+from evaluator.summary import SUMMARY_FILE, Summary, read_summary, write_summary
 
 TIMINGS_FILE = "timings.json"  # wall times: kept out of summary.json, which is deterministic
 
@@ -61,26 +62,26 @@ def evaluate(
 
     scoring_profile = load_profile(profile)
     sandbox = _usable_sandbox(sandbox)
-    manifest = load_manifest(suite_dir).select(scenario_ids)
+    suite = load_suite(suite_dir).select(scenario_ids)
     out_dir = Path(out_dir)
     with tempfile.TemporaryDirectory(prefix="arena-submission-") as tmp:
         Path(tmp).chmod(0o755)  # sandboxes run the agent as another user, who must enter it
         submission = prepare_submission(Path(source), Path(tmp) / "submission")
         (out_dir / RECORDS_DIR).mkdir(parents=True, exist_ok=True)
         (out_dir / LOGS_DIR).mkdir(exist_ok=True)
-        run = ResultsFolder(out_dir, manifest, scoring_profile, submission.sha256)
+        run = ResultsFolder(out_dir, suite, scoring_profile, submission.sha256)
         todo = run.resume()
         if progress:
-            progress.started(len(manifest.scenarios), len(manifest.scenarios) - len(todo))
+            progress.started(len(suite.scenarios), len(suite.scenarios) - len(todo))
 
-        def play(scenario: SuiteScenario) -> ScenarioOutcome:
+        def play(scenario: ManifestEntry) -> ScenarioOutcome:
             run.mark_running(scenario.id)
             return run_scenario(
-                submission, Path(suite_dir) / scenario.id, out_dir / RECORDS_DIR, sandbox=sandbox
+                submission, suite.scenario_dir(scenario.id), out_dir / RECORDS_DIR, sandbox=sandbox
             )
 
         with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
-            pending: dict[Future, SuiteScenario] = {}
+            pending: dict[Future, ManifestEntry] = {}
             queue = list(todo)
             while queue or pending:
                 while queue and len(pending) < jobs:
@@ -99,7 +100,7 @@ def _usable_sandbox(kind: SandboxKind | None) -> SandboxKind:
     """The concrete sandbox, checked once: a missing daemon or tool fails the evaluation before
     any scenario, instead of every scenario failing on it."""
     from arena.config import get_settings
-    from evaluator.errors import SandboxUnavailable
+    from arena.errors import SandboxUnavailable
     from evaluator.sandbox import backend, resolve_kind
 
     kind = resolve_kind(kind)
@@ -109,7 +110,7 @@ def _usable_sandbox(kind: SandboxKind | None) -> SandboxKind:
     return kind
 
 
-def _outcome_of(future: Future, scenario: SuiteScenario) -> ScenarioOutcome:
+def _outcome_of(future: Future, scenario: ManifestEntry) -> ScenarioOutcome:
     """An exception from the runner itself (sandbox unavailable, a bug) is ours: the scenario is
     reported uncharged with the traceback rather than ending the whole evaluation."""
     try:
@@ -130,25 +131,25 @@ class ResultsFolder:
     """The results folder of one evaluation, written from the main thread and workers alike."""
 
     def __init__(
-        self, out_dir: Path, manifest: Manifest, profile: ScoringProfile, submission: str
+        self, out_dir: Path, suite: Suite, profile: ScoringProfile, submission: str
     ) -> None:
         self.out_dir = out_dir
-        self.manifest = manifest
+        self.suite = suite
         self.profile = profile
         self.submission = submission
         self.outcomes: dict[str, ScenarioOutcome] = {}
         self.running: set[str] = set()
-        self.cache: dict = {}
+        self.cache: dict[str, ScoredEntry] = {}
         self.timings: dict[str, float] = {}
         self.lock = threading.Lock()
 
-    def resume(self) -> list[SuiteScenario]:
+    def resume(self) -> list[ManifestEntry]:
         """Keep the scenarios a previous run finished; return the ones still to run."""
         if (self.out_dir / SUMMARY_FILE).exists():
             previous = read_summary(self.out_dir)
             if (previous.submission, previous.manifest_hash) != (
                 self.submission,
-                self.manifest.hash,
+                self.suite.sha256,
             ):
                 raise ResultsDirError(
                     f"{self.out_dir} holds results of another submission or suite "
@@ -162,7 +163,7 @@ class ResultsFolder:
             if timings.exists():
                 self.timings = json.loads(timings.read_text())
         self._write()
-        return [s for s in self.manifest.scenarios if s.id not in self.outcomes]
+        return [s for s in self.suite.scenarios if s.id not in self.outcomes]
 
     def mark_running(self, scenario_id: str) -> None:
         with self.lock:
@@ -172,17 +173,8 @@ class ResultsFolder:
     def record(self, outcome: ScenarioOutcome) -> None:
         with self.lock:
             self.running.discard(outcome.scenario_id)
-            scenario = next(s for s in self.manifest.scenarios if s.id == outcome.scenario_id)
-            try:
-                scored = score_outcome(scenario, outcome, self.profile)
-            except RecordError as exc:  # the simulator wrote a broken record: ours, not charged
-                outcome = replace(
-                    outcome,
-                    status=ScenarioStatus.evaluator_error,
-                    record_path=None,
-                    error=f"unusable episode record: {exc}",
-                )
-                scored = score_outcome(scenario, outcome, self.profile)
+            scenario = next(s for s in self.suite.scenarios if s.id == outcome.scenario_id)
+            scored = score_outcome(scenario, outcome, self.profile)
             self.outcomes[outcome.scenario_id] = outcome
             self.cache[outcome.scenario_id] = scored
             self.timings[outcome.scenario_id] = round(outcome.wall_time_s, 3)
@@ -194,9 +186,9 @@ class ResultsFolder:
             return self._write()
 
     def _write(self) -> Summary:
-        summary = summarize(
+        summary = score_outcomes(
             self.outcomes.values(),
-            self.manifest,
+            self.suite,
             self.profile,
             submission=self.submission,
             running=self.running,

@@ -7,10 +7,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from arena.config import SandboxKind
-from evaluator.scoring import AgentSummary
-from evaluator.summary import ScenarioStatus
-from scenarios.schema import load_scenario
+from arena.config import SandboxKind, get_settings
+from arena.outcome import AgentOutcome, ScenarioStatus
+from arena.record_format import RECORD_SUFFIX
+from arena.scenario import load_scenario
 
 if TYPE_CHECKING:
     from sim.agent import Agent
@@ -41,7 +41,7 @@ class ScenarioOutcome:
     scenario_id: str
     status: ScenarioStatus  # done, simulator_error or evaluator_error
     steps: int  # episode steps simulated
-    agents: tuple[AgentSummary, ...]
+    agents: tuple[AgentOutcome, ...]
     record_path: Path | None  # None when no agent drove a step, or on an uncharged error
     error: str | None = None  # why an uncharged scenario failed
     log: str = ""  # agent stderr tail and failure detail, for the participant
@@ -72,7 +72,7 @@ def run_scenario(
     from sim.isolation import run_episode_isolated
 
     scenario = load_scenario(scenario_dir)
-    record_path = Path(records_dir) / f"{scenario.id}.npz"
+    record_path = Path(records_dir) / f"{scenario.id}{RECORD_SUFFIX}"
     record_path.parent.mkdir(parents=True, exist_ok=True)
     labels = sandbox_labels(scenario.id, submission.sha256)
     factory = SandboxedAgentFactory(submission, sandbox, labels)
@@ -81,7 +81,11 @@ def run_scenario(
     for attempt in range(1, SIMULATOR_ATTEMPTS + 1):
         record_path.unlink(missing_ok=True)
         result = run_episode_isolated(
-            scenario_dir, factory, submission.interface, record_path=record_path
+            scenario_dir,
+            factory,
+            submission.interface,
+            record_path=record_path,
+            episode_timeout_s=get_settings().episode_timeout_s,
         )
         logs.append(_log_text(result, attempt))
         if result.simulator_error is None:
@@ -106,21 +110,11 @@ def run_scenario(
 def _outcome(
     result: EpisodeResult, record_path: Path, log: str, attempts: int, started: float
 ) -> ScenarioOutcome:
-    agents = tuple(
-        AgentSummary(
-            id=a.id,
-            reached_goal=a.reached_goal,
-            reason=str(a.reason),
-            steps=a.steps,
-            done_step=a.done_step,
-        )
-        for a in result.agents
-    )
     return ScenarioOutcome(
         scenario_id=result.scenario_id,
         status=ScenarioStatus.done,
         steps=result.steps,
-        agents=agents,
+        agents=result.agents,
         record_path=record_path if record_path.exists() else None,
         log=log,
         attempts=attempts,

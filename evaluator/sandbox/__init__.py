@@ -8,7 +8,7 @@ isolation; participants' local runs only, refused by the service through
 from __future__ import annotations
 
 from arena.config import SandboxKind, Settings, get_settings
-from evaluator.errors import SandboxUnavailable
+from arena.errors import SandboxUnavailable
 from evaluator.sandbox.backend import Backend, LaunchSpec
 from evaluator.sandbox.handle import AgentHandle
 
@@ -80,8 +80,8 @@ def start(
 ) -> AgentHandle:
     """Start ``submission`` (a PreparedSubmission) and wait until its Policy is built.
 
-    Raises :class:`~evaluator.errors.AgentFailure` when the policy fails to import or construct
-    in ``init_timeout_s``, :class:`~evaluator.errors.SandboxUnavailable` when the sandbox itself
+    Raises :class:`~arena.errors.AgentFailed` when the policy fails to import or construct
+    in ``init_timeout_s``, :class:`~arena.errors.SandboxUnavailable` when the sandbox itself
     cannot start.
     """
     settings = settings or get_settings()

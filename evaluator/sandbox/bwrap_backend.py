@@ -21,7 +21,7 @@ import tempfile
 from pathlib import Path
 
 from arena.config import SandboxKind, Settings
-from evaluator.errors import SandboxUnavailable
+from arena.errors import SandboxUnavailable
 from evaluator.sandbox.backend import (
     DEPS_MOUNT,
     RUNNER_MOUNT,

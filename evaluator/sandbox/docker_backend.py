@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from arena.config import SandboxKind, Settings
-from evaluator.errors import SandboxUnavailable
+from arena.errors import SandboxUnavailable
 from evaluator.sandbox.backend import (
     DEPS_MOUNT,
     INSTANCE_LABEL,

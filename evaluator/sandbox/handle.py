@@ -1,6 +1,6 @@
 """The evaluator's handle on one running agent: the :class:`sim.agent.Agent` the simulator drives.
 
-Every way an agent can fail is turned into one :class:`AgentFailure` with a named reason and the
+Every way an agent can fail is turned into one :class:`AgentFailed` with a named reason and the
 tail of its stderr, after the sandbox has been killed: a failing agent never outlives its failure.
 """
 
@@ -10,10 +10,11 @@ import time
 from typing import Any, NoReturn
 
 from arena.config import Settings
-from evaluator.errors import AgentFailure
+from arena.errors import AgentFailed
+from arena.outcome import DoneReason
 from evaluator.sandbox.backend import ExitStatus, Sandbox
 from evaluator.sandbox.channel import Channel, ChannelClosed, ChannelTimeout, ChannelViolation
-from sim.agent import DoneReason, Observation
+from sim.agent import Observation
 
 # How long a closing agent may take to say goodbye before it is killed [s].
 CLOSE_GRACE_S = 1.0
@@ -81,7 +82,7 @@ class AgentHandle:
 
     def _send(self, kind: str, body: Any, deadline: float, late: DoneReason) -> None:
         if self._closed or self._channel is None:
-            raise AgentFailure(DoneReason.sandbox_error, "the agent was already closed")
+            raise AgentFailed(DoneReason.sandbox_error, "the agent was already closed")
         try:
             self._channel.send(kind, body, deadline)
         except ChannelTimeout:
@@ -136,4 +137,4 @@ class AgentHandle:
         self._closed = True
         self._sandbox.kill()
         tail = self._sandbox.logs()
-        raise AgentFailure(reason, detail, tail)
+        raise AgentFailed(reason, detail, tail)

@@ -16,7 +16,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from arena.config import Settings, get_settings
-from evaluator.errors import SandboxUnavailable
+from arena.errors import SandboxUnavailable
 
 DEBIAN_SUITE = "bookworm"
 DEFAULT_MIRROR = "http://deb.debian.org/debian"

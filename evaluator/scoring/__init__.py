@@ -6,17 +6,15 @@ Everything here is a pure function of records and a :class:`ScoringProfile`.
 from evaluator.scoring.episode import EpisodeScore, score_episode, score_without_record
 from evaluator.scoring.profile import DEFAULT_PROFILE, ProfileError, ScoringProfile, load_profile
 from evaluator.scoring.ranking import rank, rank_key
-from evaluator.scoring.record import AgentSummary, EpisodeRecord, RecordError, load_record
+from evaluator.scoring.record import EpisodeRecord, load_record
 from evaluator.scoring.suite import Metrics, aggregate, by_family, scenario_metrics
 
 __all__ = [
     "DEFAULT_PROFILE",
-    "AgentSummary",
     "EpisodeRecord",
     "EpisodeScore",
     "Metrics",
     "ProfileError",
-    "RecordError",
     "ScoringProfile",
     "aggregate",
     "by_family",

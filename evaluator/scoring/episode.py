@@ -7,8 +7,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from arena.errors import RecordError
+from arena.outcome import AgentOutcome
 from evaluator.scoring.profile import ScoringProfile
-from evaluator.scoring.record import AgentSummary, EpisodeRecord, RecordError
+from evaluator.scoring.record import EpisodeRecord
 from evaluator.scoring.registry import get_term
 
 
@@ -52,7 +54,7 @@ def score_episode(record: EpisodeRecord, profile: ScoringProfile) -> EpisodeScor
 
 
 def score_without_record(
-    scenario_id: str, agents: Sequence[AgentSummary], profile: ScoringProfile
+    scenario_id: str, agents: Sequence[AgentOutcome], profile: ScoringProfile
 ) -> EpisodeScore:
     """A scenario whose agent failed before driving a step (no record was written): charged as
     failed, contributing no agent-steps."""
@@ -64,7 +66,7 @@ def score_without_record(
 
 def _score(
     scenario_id: str,
-    agents: Sequence[AgentSummary],
+    agents: Sequence[AgentOutcome],
     term_sums: dict[str, float],
     profile: ScoringProfile,
 ) -> EpisodeScore:

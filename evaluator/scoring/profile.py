@@ -29,9 +29,6 @@ class ScoringProfile(BaseModel):
 
     dt_s: float = Field(gt=0)  # step length the records must have [s]
     max_episode_steps: int = Field(gt=0)  # time charged to a scenario with a failed agent
-    # The goal radius scenarios get unless they set one [m]; the simulator applies it, and the
-    # record's `reached_goal` is what scoring reads.
-    default_goal_radius_m: float = Field(gt=0)
 
     humanness_terms: tuple[str, ...]
     rules_terms: tuple[str, ...]

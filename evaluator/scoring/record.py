@@ -7,11 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
-from sim.record import FORMAT_VERSION, STEP_FLOATS
-
-
-class RecordError(ValueError):
-    """A record that does not follow ``docs/records.md``."""
+from arena.errors import RecordError
+from arena.outcome import AgentOutcome
+from arena.record_format import FORMAT_VERSION, STEP_FLOATS
 
 
 @dataclass(frozen=True)
@@ -35,22 +33,13 @@ class AgentTrack:
 
 
 @dataclass(frozen=True)
-class AgentSummary:
-    id: str
-    reached_goal: bool
-    reason: str
-    steps: int  # agent-steps driven
-    done_step: int  # episode step (1-based) at which the agent was done
-
-
-@dataclass(frozen=True)
 class EpisodeRecord:
     scenario_id: str
     scenario_hash: str
     dt: float  # [s]
     max_episode_steps: int
     episode_steps: int
-    agents: tuple[AgentSummary, ...]
+    agents: tuple[AgentOutcome, ...]
     tracks: tuple[AgentTrack, ...]
 
 
@@ -82,7 +71,7 @@ def _parse(arrays: dict[str, np.ndarray]) -> EpisodeRecord:
         raise RecordError(f"format_version {version}, expected {FORMAT_VERSION}")
     steps = arrays["steps"].astype(int)
     agents = tuple(
-        AgentSummary(
+        AgentOutcome(
             id=str(arrays["agent_ids"][a]),
             reached_goal=bool(arrays["reached_goal"][a]),
             reason=str(arrays["done_reason"][a]),

@@ -14,15 +14,14 @@ from pathlib import Path
 
 import numpy as np
 
+from arena.scenario import DataLabel, Family, Goal, Mission, Scenario, VehicleDims
 from scenarios.netinfo import NetInfo
 from scenarios.replay.geometry import boxes_overlap
 from scenarios.replay.recorder import Recording
-from scenarios.schema import DataLabel, Family, Goal, Mission, Scenario, VehicleDims
 from scenarios.writer import TRAJECTORIES_FILE, replay_traffic, write_scenario
 from sim.trajectories import Trajectory, write_trajectories
 
 EXPERT_FILE = "expert.csv"
-GOAL_RADIUS = 2.5  # [m]
 MAX_PATH_S = 70.0  # [s] a removed vehicle's path must fit well inside 800 steps
 TAIL_S = 3.0  # [s]
 # Scenes stop inserting traffic this long before their end (scenes.py): removed vehicles must be
@@ -246,7 +245,7 @@ def write_replay(
                 start_speed=round(float(ego.speed[0]), 3),
                 start_step=round(float(ego.time[0]) / 0.1),
                 route=rec.edges[vid],
-                goal=Goal(position=(round(ego.x[-1], 3), round(ego.y[-1], 3)), radius=GOAL_RADIUS),
+                goal=Goal(position=(round(ego.x[-1], 3), round(ego.y[-1], 3))),
                 vehicle=VehicleDims(length=ego.length, width=ego.width),
             )
         )

@@ -12,10 +12,10 @@ from sqlalchemy.orm import Session
 
 from arena.config import Settings
 from server.core.db import Database
+from server.core.queue import TaskQueue
 from server.models import Submission, Team
 from server.security import same_secret
 from server.services.leaderboard import LeaderboardCache
-from server.services.queue import TaskQueue
 from server.services.teams import team_for_token
 
 bearer = HTTPBearer(auto_error=False)

@@ -10,19 +10,12 @@ from sqlalchemy import func, select
 from arena.config import Settings
 from evaluator.scoring import ProfileError, ScoringProfile, load_profile
 from server.core.db import Database
+from server.core.queue import BROKER_ERRORS, TaskQueue
 from server.models import EvaluationRun, Submission, utcnow
 from server.services import evaluation, scoring
 from server.services.errors import Conflict, InvalidInput
 from server.services.evaluation import RunPlan, lock
-from server.services.queue import BROKER_ERRORS, TaskQueue
 from server.status import ACTIVE_RUN, SUBMISSION_MOVES, RunStatus, SubmissionStatus, advance
-
-
-def send_plan(queue: TaskQueue, plan: RunPlan) -> None:
-    for scenario_id in plan.scenario_ids:
-        queue.run_scenario(plan.run_id, scenario_id)
-    if plan.aggregate:
-        queue.aggregate(plan.run_id)
 
 
 def requeue(db: Database, settings: Settings, queue: TaskQueue, submission_id: int) -> str:
@@ -50,7 +43,7 @@ def requeue(db: Database, settings: Settings, queue: TaskQueue, submission_id: i
     if plan is None:
         queue.evaluate(submission_id)
         return "evaluation queued"
-    send_plan(queue, plan)
+    queue.send(plan)
     if plan.scenario_ids:
         return f"{len(plan.scenario_ids)} scenario(s) re-sent"
     return "aggregation re-sent"
@@ -61,7 +54,7 @@ def rerun(db: Database, settings: Settings, queue: TaskQueue, submission_id: int
     with db.session() as session:
         plan = evaluation.rerun(session, settings, submission_id)
         attempt = session.get(EvaluationRun, plan.run_id).attempt
-    send_plan(queue, plan)
+    queue.send(plan)
     return attempt
 
 
@@ -88,7 +81,12 @@ def rescore_run(db: Database, run_id: int, profile_name: str | None) -> dict[str
         if run.status != RunStatus.scored:
             raise Conflict(f"run {run_id} is {run.status}; only scored runs can be re-scored")
         profile = scoring_profile(profile_name or run.scoring_profile)
-        run_score = scoring.score_results(run.results, profile)
+        summary = scoring.run_summary(run, profile)
+        if summary.uncharged:
+            raise Conflict(
+                f"run {run_id}: the records of {', '.join(summary.uncharged)} cannot be scored"
+            )
+        run_score = scoring.run_score(summary)
         if run_score is None:
             raise Conflict(f"run {run_id} has no charged scenario to score")
         run.scoring_profile = profile.name

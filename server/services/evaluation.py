@@ -7,22 +7,25 @@ Callers send the tasks these functions ask for only after the function's transac
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from datetime import timedelta
 from pathlib import Path
-from typing import Any
 
 from sqlalchemy import delete, func, select, update
 from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.orm import Session
 
 from arena.config import Settings
+from arena.errors import SuiteError
+from arena.outcome import FINISHED, ScenarioStatus
+from arena.suite import Suite, hidden_suite_dir, load_suite
+from evaluator.runner import ScenarioOutcome
 from evaluator.scoring import load_profile
+from server.core.queue import RunPlan
 from server.models import EvaluationRun, LeaderboardGeneration, ScenarioResult, Score, Submission
 from server.models import utcnow as now
 from server.services import scoring
 from server.services.errors import Conflict, NotFound
-from server.services.suites import evaluation_suite_dir, load_suite
 from server.status import (
     ACTIVE_RUN,
     RUN_MOVES,
@@ -31,15 +34,6 @@ from server.status import (
     SubmissionStatus,
     advance,
 )
-
-
-@dataclass(frozen=True)
-class RunPlan:
-    """Scenario tasks to send for a run (and whether its aggregation is due)."""
-
-    run_id: int
-    scenario_ids: tuple[str, ...] = ()
-    aggregate: bool = False
 
 
 @dataclass(frozen=True)
@@ -52,19 +46,6 @@ class ScenarioJob:
     scenario_dir: str
     storage_dir: str
     attempt: int  # 1 for the first claim; more after workers died holding it
-
-
-@dataclass(frozen=True)
-class ScenarioOutcomeIn:
-    """A finished scenario, as the worker reports it."""
-
-    scenario_id: str
-    status: str  # one of scoring.FINISHED
-    reason: str = ""
-    steps: int = 0
-    record_path: str | None = None
-    log_tail: str = ""
-    detail: dict[str, Any] = field(default_factory=dict)
 
 
 def lock(session: Session, model, row_id: int):
@@ -88,9 +69,16 @@ def lease_until(settings: Settings):
     return now() + timedelta(seconds=settings.lease_seconds)
 
 
+def _suite(folder: Path) -> Suite:
+    try:
+        return load_suite(folder)
+    except SuiteError as exc:
+        raise NotFound(str(exc)) from exc
+
+
 def create_run(session: Session, settings: Settings, submission: Submission) -> RunPlan:
     """A new attempt on the evaluation suite; every scenario of it still to run."""
-    suite = load_suite(evaluation_suite_dir(settings))
+    suite = _suite(hidden_suite_dir(settings))
     profile = load_profile(settings.scoring_profile)
     attempt = 1 + (
         session.scalar(
@@ -105,15 +93,15 @@ def create_run(session: Session, settings: Settings, submission: Submission) -> 
         attempt=attempt,
         status=RunStatus.queued,
         suite_dir=str(suite.root),
-        manifest_sha256=suite.manifest_sha256,
-        scenario_count=len(suite.manifest.scenarios),
+        manifest_sha256=suite.sha256,
+        scenario_count=len(suite.scenarios),
         scoring_profile=profile.name,
         scoring_version=str(profile.version),
         lease_expires_at=lease_until(settings),
     )
     session.add(run)
     session.flush()
-    ids = tuple(entry.id for entry in suite.manifest.scenarios)
+    ids = tuple(entry.id for entry in suite.scenarios)
     return RunPlan(run_id=run.id, scenario_ids=ids, aggregate=not ids)
 
 
@@ -155,12 +143,12 @@ def claim_scenario(
             ScenarioResult.run_id == run_id, ScenarioResult.scenario_id == scenario_id
         )
     )
-    if existing is not None and existing.status != scoring.RUNNING:
+    if existing is not None and existing.status != ScenarioStatus.running:
         return None
     lease_valid = run.lease_expires_at is not None and run.lease_expires_at > now()
     if existing is not None and existing.worker and lease_valid:
         return None
-    suite = load_suite(Path(run.suite_dir))
+    suite = _suite(Path(run.suite_dir))
     family = suite.family_of().get(scenario_id)
     if family is None:
         raise NotFound(f"scenario {scenario_id} is not in the suite of run {run_id}")
@@ -169,7 +157,7 @@ def claim_scenario(
             run_id=run_id,
             scenario_id=scenario_id,
             family=family,
-            status=scoring.RUNNING,
+            status=ScenarioStatus.running,
             worker=worker,
             attempts=0,
         )
@@ -201,28 +189,23 @@ def heartbeat(session: Session, settings: Settings, run_id: int, worker: str) ->
     return renewed.rowcount == 1
 
 
-def record_scenario(session: Session, run_id: int, outcome: ScenarioOutcomeIn) -> bool:
-    """Store a finished scenario. Returns True exactly once per run: when this call finished its
-    last scenario (the caller then sends the aggregation)."""
+def record_scenario(
+    session: Session, run_id: int, outcome: ScenarioOutcome, log_tail: str
+) -> bool:
+    """Store a finished scenario as the core reported it. Returns True exactly once per run:
+    when this call finished its last scenario (the caller then sends the aggregation)."""
     run = lock(session, EvaluationRun, run_id)
     if run.status not in ACTIVE_RUN:
         return False
-    values = {
-        "status": outcome.status,
-        "reason": outcome.reason,
-        "steps": outcome.steps,
-        "record_path": outcome.record_path,
-        "log_tail": outcome.log_tail,
-        "detail": outcome.detail,
-    }
-    family = load_suite(Path(run.suite_dir)).family_of()
+    values = scoring.result_values(outcome, log_tail)
+    family = _suite(Path(run.suite_dir)).family_of()
     _insert_if_absent(session, run_id, outcome.scenario_id, family[outcome.scenario_id])
     finished = session.execute(
         update(ScenarioResult)
         .where(
             ScenarioResult.run_id == run_id,
             ScenarioResult.scenario_id == outcome.scenario_id,
-            ScenarioResult.status == scoring.RUNNING,
+            ScenarioResult.status == ScenarioStatus.running,
         )
         .values(**values)
     )
@@ -240,7 +223,7 @@ def _insert_if_absent(session: Session, run_id: int, scenario_id: str, family: s
             run_id=run_id,
             scenario_id=scenario_id,
             family=family,
-            status=scoring.RUNNING,
+            status=ScenarioStatus.running,
             detail={},
             worker="",
             attempts=1,
@@ -256,7 +239,7 @@ def finished_count(session: Session, run_id: int) -> int:
         .select_from(ScenarioResult)
         .where(
             ScenarioResult.run_id == run_id,
-            ScenarioResult.status.in_(list(scoring.FINISHED)),
+            ScenarioResult.status.in_(list(FINISHED)),
         )
     )
 
@@ -269,18 +252,18 @@ def finish_run(session: Session, run_id: int) -> RunStatus | None:
     if finished_count(session, run_id) < run.scenario_count:
         raise Conflict(f"run {run_id} still has scenarios to run")
     submission = lock(session, Submission, run.submission_id)
-    results = list(run.results)
+    summary = scoring.run_summary(run, load_profile(run.scoring_profile))
     run_score = None
-    if any(result.status == scoring.INFRASTRUCTURE_ERROR for result in results):
-        run.error = "the evaluation infrastructure failed on some scenarios; re-run it"
+    if summary.uncharged:
+        # A score always covers the whole suite: what failed on our side waits for an organiser.
+        run.error = (
+            f"{len(summary.uncharged)} scenario(s) failed on our side (not the submission's "
+            "fault); an organiser re-runs the evaluation"
+        )
     else:
-        try:
-            run_score = scoring.score_results(results, load_profile(run.scoring_profile))
-        except scoring.UnscorableRecord as exc:
-            run.error = exc.message
-        else:
-            if run_score is None:
-                run.error = "no scenario could be simulated (simulator errors only)"
+        run_score = scoring.run_score(summary)
+        if run_score is None:
+            run.error = "no scenario could be scored"
     run.finished_at = now()
     if run_score is None:
         run.status = advance(run.status, RunStatus.failed, RUN_MOVES)
@@ -318,16 +301,23 @@ def write_score(
 
 def pending_scenarios(run: EvaluationRun) -> tuple[str, ...]:
     """Scenario ids of the run's suite that have no finished result yet, in manifest order."""
-    done = {result.scenario_id for result in run.results if result.status in scoring.FINISHED}
-    suite = load_suite(Path(run.suite_dir))
-    return tuple(entry.id for entry in suite.manifest.scenarios if entry.id not in done)
+    done = {result.scenario_id for result in run.results if result.status in FINISHED}
+    suite = _suite(Path(run.suite_dir))
+    return tuple(entry.id for entry in suite.scenarios if entry.id not in done)
 
 
 def cancel_run(session: Session, run: EvaluationRun) -> tuple[str, ...]:
-    """Cancel an active run; returns the ids of its scenarios that have not finished."""
+    """Cancel an active run; returns the ids of its scenarios that have not finished. Their
+    claims go too: a cancelled run shows no scenario as running."""
     run.status = advance(run.status, RunStatus.cancelled, RUN_MOVES)
     run.finished_at = now()
-    return pending_scenarios(run)
+    pending = pending_scenarios(run)
+    session.execute(
+        delete(ScenarioResult).where(
+            ScenarioResult.run_id == run.id, ScenarioResult.status == ScenarioStatus.running
+        )
+    )
+    return pending
 
 
 @dataclass(frozen=True)
@@ -358,7 +348,9 @@ def reap(session: Session, settings: Settings, *, queue_empty: bool) -> Reaped:
         .with_for_update()
     )
     for run in expired:
-        stale_claims = [result for result in run.results if result.status == scoring.RUNNING]
+        stale_claims = [
+            result for result in run.results if result.status == ScenarioStatus.running
+        ]
         if not (stale_claims or queue_empty):
             continue
         # Release the claims of the worker that went silent, so the re-sent tasks can take them.

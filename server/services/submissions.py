@@ -10,10 +10,12 @@ from datetime import datetime, time
 from pathlib import Path
 
 from sqlalchemy import func, or_, select
-from sqlalchemy.orm import Session
+from sqlalchemy.orm import Session, selectinload
 
 from arena.config import Settings
+from arena.outcome import FINISHED, ScenarioStatus
 from server.core.db import Database
+from server.core.queue import BROKER_ERRORS, TaskQueue, scenario_task_id
 from server.models import EvaluationRun, ScenarioResult, Submission, Team, Track, utcnow
 from server.schemas import (
     FamilyMetrics,
@@ -24,10 +26,8 @@ from server.schemas import (
     SubmissionLogs,
     SubmissionSummary,
 )
-from server.services import scoring
 from server.services.errors import Conflict, InvalidUpload, NotFound, QuotaExceeded
 from server.services.evaluation import bump_leaderboard, cancel_run, lock
-from server.services.queue import BROKER_ERRORS, TaskQueue, scenario_task_id
 from server.status import ACTIVE_RUN, SUBMISSION_MOVES, RunStatus, SubmissionStatus, advance
 
 S = SubmissionStatus
@@ -78,7 +78,7 @@ def accept_upload(
 
     The intake runs before anything is recorded, so a rejected zip leaves no trace and does not
     count towards the quota."""
-    from evaluator.errors import IntakeError
+    from arena.errors import IntakeError
     from submissions.intake import prepare_submission
     from submissions.intake.archive import remove_tree
 
@@ -135,10 +135,36 @@ def get_submission(session: Session, submission_id: int) -> Submission:
 def list_submissions(
     session: Session, team_id: int | None = None, limit: int = 100
 ) -> list[SubmissionSummary]:
-    query = select(Submission).order_by(Submission.id.desc()).limit(limit)
+    query = (
+        select(Submission)
+        .options(
+            selectinload(Submission.team),
+            selectinload(Submission.runs).selectinload(EvaluationRun.score),
+        )
+        .order_by(Submission.id.desc())
+        .limit(limit)
+    )
     if team_id is not None:
         query = query.where(Submission.team_id == team_id)
-    return [summary(session, submission) for submission in session.scalars(query)]
+    rows = list(session.scalars(query))
+    runs = [shown_run(submission) for submission in rows]
+    done = finished_counts(session, [run.id for run in runs if run is not None])
+    return [
+        SubmissionSummary(**_summary_fields(submission, run, done.get(run.id, 0) if run else 0))
+        for submission, run in zip(rows, runs, strict=True)
+    ]
+
+
+def finished_counts(session: Session, run_ids: list[int]) -> dict[int, int]:
+    """Finished scenarios per run, in one query."""
+    if not run_ids:
+        return {}
+    rows = session.execute(
+        select(ScenarioResult.run_id, func.count())
+        .where(ScenarioResult.run_id.in_(run_ids), ScenarioResult.status.in_(list(FINISHED)))
+        .group_by(ScenarioResult.run_id)
+    ).all()
+    return dict(rows)
 
 
 def current_run(submission: Submission) -> EvaluationRun | None:
@@ -152,22 +178,22 @@ def active_run(submission: Submission) -> EvaluationRun | None:
     return active[-1] if active else None
 
 
+def shown_run(submission: Submission) -> EvaluationRun | None:
+    """The run whose progress is shown: the one in progress, else the one whose score stands."""
+    return active_run(submission) or current_run(submission)
+
+
 def summary(session: Session, submission: Submission) -> SubmissionSummary:
-    return SubmissionSummary(**_summary_fields(session, submission))
+    return SubmissionSummary(**_fields(session, submission))
 
 
-def _summary_fields(session: Session, submission: Submission) -> dict:
-    run = active_run(submission) or current_run(submission)
-    done = 0
-    if run is not None:
-        done = session.scalar(
-            select(func.count())
-            .select_from(ScenarioResult)
-            .where(
-                ScenarioResult.run_id == run.id,
-                ScenarioResult.status.in_(list(scoring.FINISHED)),
-            )
-        )
+def _fields(session: Session, submission: Submission) -> dict:
+    run = shown_run(submission)
+    done = finished_counts(session, [run.id]).get(run.id, 0) if run is not None else 0
+    return _summary_fields(submission, run, done)
+
+
+def _summary_fields(submission: Submission, run: EvaluationRun | None, done: int) -> dict:
     scored = current_run(submission)
     score = scored.score if scored is not None else None
     return {
@@ -188,12 +214,12 @@ def detail(session: Session, submission: Submission) -> SubmissionDetail:
     score = run.score if run is not None else None
     reasons: dict[str, dict[str, int]] = {}
     for result in run.results if run is not None else []:
-        if result.status not in (scoring.SUCCESS, scoring.RUNNING):
+        if result.status != ScenarioStatus.running and result.reason != "reached_goal":
             by_reason = reasons.setdefault(result.family, {})
             reason = result.reason or result.status
             by_reason[reason] = by_reason.get(reason, 0) + 1
     return SubmissionDetail(
-        **_summary_fields(session, submission),
+        **_fields(session, submission),
         description=submission.description,
         status_reason=submission.status_reason,
         file_sha256=submission.file_sha256,
@@ -216,7 +242,7 @@ def logs(submission: Submission) -> SubmissionLogs:
     results = sorted(run.results, key=lambda r: (r.family, r.id)) if run is not None else []
     for result in results:
         ordinal[result.family] = ordinal.get(result.family, 0) + 1
-        if result.status == scoring.RUNNING:
+        if result.status == ScenarioStatus.running:
             continue
         entries.append(
             ScenarioLog(

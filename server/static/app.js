@@ -114,7 +114,7 @@ const Arena = (() => {
     const response = await fetch(`${API}/submissions/${id}/logs`, { headers: headers(token) });
     if (!response.ok) return;
     const logs = await response.json();
-    $("logs").innerHTML = logs.scenarios.filter((e) => e.status !== "success" || e.log_tail)
+    $("logs").innerHTML = logs.scenarios.filter((e) => e.reason !== "reached_goal" || e.log_tail)
       .map((e) => `<h3>${escape(e.label)} · ${escape(e.reason || e.status)}</h3>` +
         `<pre>${escape(e.log_tail || "(no output)")}</pre>`).join("");
   }

@@ -1,7 +1,7 @@
 """Submission intake: a zip (or folder) in, a checked, extracted, read-only submission out.
 
 :func:`prepare_submission` is the only way a submission reaches a sandbox. Each rule it enforces
-has a short name, carried by the :class:`~evaluator.errors.IntakeError` it raises together with
+has a short name, carried by the :class:`~arena.errors.IntakeError` it raises together with
 the entry at fault; ``docs/submissions.md`` lists them all.
 """
 
@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from arena.config import Settings, get_settings
-from evaluator.errors import IntakeError
+from arena.errors import IntakeError
 from sim.interface import AgentInterface
 from submissions.intake.archive import Budget, check_members, extract, open_zip, remove_tree
 from submissions.intake.contents import (
@@ -72,7 +72,7 @@ def prepare_submission(
     """Check ``source`` (a zip, or a folder zipped the same way), extract it into ``dest``
     (replacing what was there) and install its requirements.
 
-    Raises :class:`~evaluator.errors.IntakeError` naming the entry and the rule at fault.
+    Raises :class:`~arena.errors.IntakeError` naming the entry and the rule at fault.
     """
     settings = settings or get_settings()
     source = Path(source)

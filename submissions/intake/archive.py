@@ -19,7 +19,7 @@ import zlib
 from pathlib import Path, PurePosixPath
 
 from arena.config import Settings
-from evaluator.errors import IntakeError
+from arena.errors import IntakeError
 
 ARCHIVE = "<zip>"
 # Ratios are judged only above this size: small files of padding compress absurdly well.

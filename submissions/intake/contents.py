@@ -12,7 +12,7 @@ import zipfile
 import yaml
 from pydantic import ValidationError
 
-from evaluator.errors import IntakeError
+from arena.errors import IntakeError
 from sim.interface import AgentInterface
 
 POLICY = "policy.py"

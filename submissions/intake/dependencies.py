@@ -16,7 +16,7 @@ from pathlib import Path
 from packaging.requirements import InvalidRequirement, Requirement
 
 from arena.config import Settings
-from evaluator.errors import IntakeError
+from arena.errors import IntakeError
 from submissions.intake.archive import make_read_only
 from submissions.intake.contents import REQUIREMENTS
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import zipfile
 from pathlib import Path
 
-from evaluator.errors import IntakeError
+from arena.errors import IntakeError
 
 SKIPPED_DIRS = {
     "__pycache__",

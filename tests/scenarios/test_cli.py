@@ -6,7 +6,7 @@ import shutil
 from typer.testing import CliRunner
 
 from arena.cli import app
-from scenarios.suites import public_suite_dir
+from arena.suite import SHIPPED_PUBLIC_DIR
 
 runner = CliRunner()
 
@@ -34,7 +34,7 @@ def test_public_build_refuses_a_seed(tmp_path):
 
 def test_list_show_and_verify_on_a_copy_of_the_public_set(tmp_path):
     suite = tmp_path / "public"
-    shutil.copytree(public_suite_dir(), suite)
+    shutil.copytree(SHIPPED_PUBLIC_DIR, suite)
     listed = runner.invoke(app, ["scenarios", "list", str(suite)])
     assert listed.exit_code == 0, listed.output
     assert "p000" in listed.output
@@ -67,7 +67,7 @@ def test_list_of_a_folder_without_manifest_is_a_clear_error(tmp_path):
 
 
 def test_show_reactive_scenario_simulates_to_the_step(tmp_path):
-    suite = public_suite_dir()
+    suite = SHIPPED_PUBLIC_DIR
     sid = next(p.name for p in sorted(suite.iterdir()) if "left_turn_t" in p.name)
     svg = tmp_path / "t.svg"
     result = runner.invoke(app, ["scenarios", "show", sid, "--step", "60", "--out", str(svg)])

@@ -3,8 +3,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from arena.scenario import Family
 from scenarios.generators import GENERATORS, MapLibrary, Spec
-from scenarios.schema import Family
 from scenarios.suites import REACTIVE
 
 ONE_PER_FAMILY = {family: (variants[0], volumes[0]) for family, variants, volumes, _ in REACTIVE}

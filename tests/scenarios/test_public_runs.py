@@ -6,12 +6,12 @@ import multiprocessing as mp
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
-from scenarios.suites import public_suite_dir
+from arena.suite import SHIPPED_PUBLIC_DIR
 from tests.scenarios.conftest import manifest
 
 
 def run_50_steps(folder: Path) -> tuple[str, int, int]:
-    from scenarios.schema import load_scenario
+    from arena.scenario import load_scenario
     from sim.interface import ActionSpace, AgentInterface
     from sim.simulation import Simulation
 
@@ -30,7 +30,7 @@ def run_50_steps(folder: Path) -> tuple[str, int, int]:
 
 
 def test_every_public_scenario_runs_50_steps():
-    folder = public_suite_dir()
+    folder = SHIPPED_PUBLIC_DIR
     entries = manifest(folder)["scenarios"]
     ids = [e["id"] for e in entries]
     # Low-volume intersections may see their first arrival after 5 s; every other scenario has

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import math
 
+from arena.scenario import load_scenario
 from scenarios.netinfo import net_info
-from scenarios.schema import load_scenario
 from tests.scenarios.conftest import manifest
 
 

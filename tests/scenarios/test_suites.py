@@ -5,7 +5,7 @@ from collections import Counter
 
 import pytest
 
-from scenarios.schema import Family, content_hash, load_scenario
+from arena.scenario import Family, content_hash, load_scenario
 from scenarios.suites import (
     REACTIVE,
     REPLAYS,
@@ -124,10 +124,10 @@ def test_public_set_covers_every_family_and_variant(public_fresh):
 
 
 def test_shipped_public_set_is_the_committed_seed_build(public_fresh):
+    from arena.suite import SHIPPED_PUBLIC_DIR
     from scenarios.maps import netconvert_version
-    from scenarios.suites import public_suite_dir
 
-    shipped = manifest(public_suite_dir())
+    shipped = manifest(SHIPPED_PUBLIC_DIR)
     # SUMO is pinned in pyproject.toml: another netconvert means a broken install or a pin bumped
     # without rebuilding the shipped set (`arena scenarios build --suite public`).
     assert shipped.get("netconvert") == netconvert_version(), "rebuild the public set"

@@ -8,11 +8,12 @@ from datetime import timedelta
 import pytest
 from sqlalchemy import func, select, update
 
+from arena.outcome import AgentOutcome, ScenarioStatus
+from evaluator.runner import ScenarioOutcome
+from server.core.queue import RunPlan, TaskQueue
 from server.models import EvaluationRun, ScenarioResult, Submission, utcnow
-from server.services import admin, evaluation, scoring
+from server.services import admin, evaluation
 from server.services.errors import Conflict
-from server.services.evaluation import ScenarioOutcomeIn
-from server.services.queue import TaskQueue
 from server.status import RunStatus, SubmissionStatus
 from tests.server.builders import agent, make_team, queued_submission
 
@@ -27,15 +28,18 @@ def claim(db, settings, run_id, scenario_id, worker="w1"):
         return evaluation.claim_scenario(session, settings, run_id, scenario_id, worker)
 
 
-def finish(db, run_id, scenario_id, *, success=True, status=None, reason=""):
-    outcome = ScenarioOutcomeIn(
+def finish(db, run_id, scenario_id, *, success=True, status=ScenarioStatus.done, record=None):
+    charged = status == ScenarioStatus.done
+    outcome = ScenarioOutcome(
         scenario_id=scenario_id,
-        status=status or (scoring.SUCCESS if success else scoring.FAILURE),
-        reason=reason or ("reached_goal" if success else "collision"),
-        detail={"agents": [agent(success)]},
+        status=status,
+        steps=0,
+        agents=(AgentOutcome(**agent(success)),) if charged else (),
+        record_path=record,
+        error=None if charged else "SUMO crashed",
     )
     with db.session() as session:
-        return evaluation.record_scenario(session, run_id, outcome)
+        return evaluation.record_scenario(session, run_id, outcome, "agent output")
 
 
 def aggregate(db, run_id):
@@ -158,9 +162,24 @@ def test_simulator_errors_only_fail_the_run(db, settings, submission_id):
     plan = start(db, settings, submission_id)
     for sid in plan.scenario_ids:
         claim(db, settings, plan.run_id, sid)
-        finish(db, plan.run_id, sid, status=scoring.SIMULATOR_ERROR, reason="simulator_error")
+        finish(db, plan.run_id, sid, status=ScenarioStatus.simulator_error)
     assert aggregate(db, plan.run_id) == RunStatus.failed
     assert status_of(db, submission_id) == SubmissionStatus.failed
+
+
+def test_a_score_covers_the_whole_suite_or_waits_for_an_organiser(db, settings, submission_id):
+    plan = start(db, settings, submission_id)
+    first, *rest = plan.scenario_ids
+    claim(db, settings, plan.run_id, first)
+    finish(db, plan.run_id, first, status=ScenarioStatus.simulator_error)
+    for sid in rest:
+        claim(db, settings, plan.run_id, sid)
+        finish(db, plan.run_id, sid)
+    assert aggregate(db, plan.run_id) == RunStatus.failed
+    with db.session() as session:
+        run = session.get(EvaluationRun, plan.run_id)
+        assert run.score is None
+        assert "1 scenario(s) failed on our side" in run.error
 
 
 def run_everything(db, settings, plan, success=True):
@@ -180,7 +199,7 @@ def test_rerun_is_a_new_attempt_and_the_old_score_stands_meanwhile(db, settings,
     assert status_of(db, submission_id) == SubmissionStatus.scored
     with db.session() as session:
         second = session.scalar(select(EvaluationRun).where(EvaluationRun.attempt == 2))
-        plan = evaluation.RunPlan(
+        plan = RunPlan(
             run_id=second.id, scenario_ids=evaluation.pending_scenarios(second)
         )
     run_everything(db, settings, plan, success=True)
@@ -209,16 +228,8 @@ def test_an_unreadable_record_fails_the_run_instead_of_wedging_it(
     broken.write_bytes(b"not an npz")
     for sid in plan.scenario_ids:
         claim(db, settings, plan.run_id, sid)
-        outcome = ScenarioOutcomeIn(
-            scenario_id=sid,
-            status=scoring.SUCCESS,
-            reason="reached_goal",
-            record_path=str(broken),
-            detail={"agents": [agent(True)]},
-        )
-        with db.session() as session:
-            evaluation.record_scenario(session, plan.run_id, outcome)
+        finish(db, plan.run_id, sid, record=broken)
     assert aggregate(db, plan.run_id) == RunStatus.failed
     assert status_of(db, submission_id) == SubmissionStatus.failed
     with db.session() as session:
-        assert "cannot be scored" in session.get(EvaluationRun, plan.run_id).error
+        assert "failed on our side" in session.get(EvaluationRun, plan.run_id).error

@@ -7,10 +7,10 @@ import csv
 import io
 from datetime import timedelta
 
+from server.core.queue import TaskQueue
 from server.models import Track, utcnow
 from server.services import submissions
 from server.services.leaderboard import LeaderboardCache
-from server.services.queue import TaskQueue
 from server.status import SubmissionStatus
 from tests.server.builders import make_team, seed_scored
 

@@ -7,7 +7,8 @@ import signal
 import time
 from collections.abc import Callable
 
-from sim.agent import AgentFailed, DoneReason
+from arena.errors import AgentFailed
+from arena.outcome import DoneReason
 
 Policy = Callable[[dict], list[float]]  # one agent's observation -> its action
 

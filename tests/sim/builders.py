@@ -8,7 +8,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from scenarios.schema import (
+from arena.scenario import (
     SCENARIO_FILE,
     Family,
     Goal,

@@ -5,8 +5,9 @@ import json
 import numpy as np
 import pytest
 
-from scenarios.schema import LaneChangeTrigger
-from sim.agent import AgentFailed, DoneReason
+from arena.errors import AgentFailed
+from arena.outcome import DoneReason
+from arena.scenario import LaneChangeTrigger
 from sim.interface import ActionSpace
 from tests.sim.agents import drive_straight
 from tests.sim.builders import ScenarioSpec, lane_y, make_scenario, mission, straight_road

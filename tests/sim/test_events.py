@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 
-from sim.agent import DoneReason
+from arena.outcome import DoneReason
 from tests.sim.agents import drive_straight, stand_still
 from tests.sim.builders import (
     ScenarioSpec,

@@ -4,7 +4,7 @@ from functools import partial
 
 import numpy as np
 
-from sim.agent import DoneReason
+from arena.outcome import DoneReason
 from sim.episode import run_episode
 from sim.interface import AgentInterface
 from sim.isolation import run_episode_isolated

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from arena.config import Settings
-from evaluator.errors import IntakeError
+from arena.errors import IntakeError
 from submissions.intake import prepare_submission
 from submissions.intake.dependencies import parse_requirements
 from tests.submissions.zips import with_policy, write_zip

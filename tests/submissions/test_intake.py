@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from arena.config import Settings
-from evaluator.errors import IntakeError, ParticipantError
+from arena.errors import IntakeError, ParticipantError
 from sim.interface import ActionSpace
 from submissions.intake import prepare_submission
 from tests.submissions.zips import GOOD_POLICY, entry, gzip_bytes, with_policy, write_zip, zip_bytes

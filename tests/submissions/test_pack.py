@@ -7,7 +7,7 @@ import pytest
 from typer.testing import CliRunner
 
 from arena.cli import app
-from evaluator.errors import IntakeError
+from arena.errors import IntakeError
 from submissions.intake import pack_folder
 from tests.submissions.zips import GOOD_POLICY
 

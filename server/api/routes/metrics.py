@@ -5,60 +5,41 @@ from __future__ import annotations
 from fastapi import APIRouter, Response
 from prometheus_client import CONTENT_TYPE_LATEST, CollectorRegistry, generate_latest
 from prometheus_client.core import GaugeMetricFamily
-from sqlalchemy import func, select
 
 from server.api.deps import DatabaseDep, QueueDep
 from server.core.db import Database
-from server.models import EvaluationRun, ScenarioResult, Submission
-from server.services.queue import BROKER_ERRORS, TaskQueue
-from server.status import RunStatus
+from server.core.queue import TaskQueue
+from server.services.monitoring import service_figures
 
 router = APIRouter(tags=["metrics"])
 
 
 class ArenaCollector:
-    """Reads the figures from the database and broker at scrape time (any API replica answers the
-    same), rather than counting events in one process's memory."""
-
     def __init__(self, db: Database, queue: TaskQueue) -> None:
         self.db = db
         self.queue = queue
 
     def collect(self):
+        figures = service_figures(self.db, self.queue)
         depth = GaugeMetricFamily("arena_queue_depth", "Tasks waiting in the evaluation queue")
-        try:
-            depth.add_metric([], self.queue.depth())
-        except BROKER_ERRORS:  # an unreachable broker must not break the scrape
-            depth.add_metric([], float("nan"))
+        depth.add_metric([], figures.queue_depth)
         yield depth
-        with self.db.read_session() as session:
-            running = session.scalar(
-                select(func.count())
-                .select_from(EvaluationRun)
-                .where(EvaluationRun.status == RunStatus.running)
-            )
-            submissions = session.execute(
-                select(Submission.status, func.count()).group_by(Submission.status)
-            ).all()
-            outcomes = session.execute(
-                select(ScenarioResult.status, ScenarioResult.reason, func.count()).group_by(
-                    ScenarioResult.status, ScenarioResult.reason
-                )
-            ).all()
         yield GaugeMetricFamily(
-            "arena_running_evaluations", "Evaluation runs in progress", value=running
+            "arena_running_evaluations",
+            "Evaluation runs in progress",
+            value=figures.running_evaluations,
         )
         by_status = GaugeMetricFamily(
             "arena_submissions", "Submissions by status", labels=["status"]
         )
-        for status, count in submissions:
-            by_status.add_metric([str(status)], count)
+        for status, count in figures.submissions:
+            by_status.add_metric([status], count)
         yield by_status
         episodes = GaugeMetricFamily(
             "arena_episodes", "Scenario episodes by outcome and reason", labels=["status", "reason"]
         )
-        for status, reason, count in outcomes:
-            episodes.add_metric([status, reason or ""], count)
+        for status, reason, count in figures.episodes:
+            episodes.add_metric([status, reason], count)
         yield episodes
 
 

@@ -6,12 +6,13 @@ from fastapi import APIRouter
 
 from server.api.deps import SettingsDep
 from server.schemas import PublicScenario
-from server.services.suites import load_suite, public_suite_dir
+from server.services import scenarios
 
 router = APIRouter(tags=["scenarios"])
 
 
 @router.get("/scenarios/public", response_model=list[PublicScenario])
 def public_scenarios(settings: SettingsDep) -> list[PublicScenario]:
-    suite = load_suite(public_suite_dir(settings))
-    return [PublicScenario.model_validate(entry) for entry in suite.manifest.scenarios]
+    return [
+        PublicScenario.model_validate(e.model_dump()) for e in scenarios.public_scenarios(settings)
+    ]

@@ -1,7 +1,7 @@
 """The Celery app, made by a factory from the settings.
 
 Importing this module creates nothing but an unconfigured ``app`` object (what ``celery -A
-evaluator.celery_app`` needs); it reads the settings only when Celery first configures it. Every
+server.core.celery_app`` needs); it reads the settings only when Celery first configures it. Every
 other caller builds its own with :func:`create_celery_app`. Task names and the queue are constants
 so the API can enqueue by name without importing the tasks (and their heavy imports).
 """
@@ -30,7 +30,7 @@ def celery_config(settings: Settings) -> dict[str, Any]:
     broker = settings.resolved_broker_url
     config: dict[str, Any] = {
         "broker_url": broker,
-        "imports": ["evaluator.tasks"],
+        "imports": ["server.worker.tasks"],
         "task_default_queue": QUEUE,
         "task_ignore_result": True,
         "task_serializer": "json",

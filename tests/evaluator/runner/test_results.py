@@ -1,27 +1,35 @@
 """Summaries from outcomes and stored records, without the simulator."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from evaluator.runner.manifest import Manifest, SuiteError, SuiteScenario, load_manifest
-from evaluator.runner.results import record_path, score_results_dir, summarize
+from arena.outcome import AgentOutcome, ScenarioStatus
+from arena.suite import ManifestEntry, Suite, SuiteManifest
+from evaluator.runner.results import record_path, score_outcomes, score_results_dir
 from evaluator.runner.scenario import ScenarioOutcome
-from evaluator.scoring import AgentSummary, ScoringProfile, load_profile
-from evaluator.summary import ScenarioStatus, read_summary, write_summary
-from tests.scoring.builders import AgentSpec, drive, write_record
+from evaluator.scoring import ScoringProfile, load_profile
+from evaluator.summary import read_summary, write_summary
+from tests.evaluator.scoring.builders import AgentSpec, drive, write_record
 
 PROFILE = load_profile()
-MANIFEST = Manifest(
-    suite="unit",
-    hash="f" * 64,
-    scenarios=(
-        SuiteScenario("cruise_a", "cruise"),
-        SuiteScenario("merge_a", "merge"),
-        SuiteScenario("merge_b", "merge"),
-        SuiteScenario("cruise_b", "cruise"),
+SUITE = Suite(
+    root=Path("unit"),
+    manifest=SuiteManifest(
+        suite="unit",
+        scenarios=tuple(
+            ManifestEntry(id=i, family=f)
+            for i, f in [
+                ("cruise_a", "cruise"),
+                ("merge_a", "merge"),
+                ("merge_b", "merge"),
+                ("cruise_b", "cruise"),
+            ]
+        ),
     ),
+    sha256="f" * 64,
 )
 
 
@@ -57,7 +65,7 @@ def outcomes(tmp_path):
 
 
 def test_simulator_error_is_listed_and_not_charged(tmp_path, outcomes):
-    summary = summarize(outcomes, MANIFEST, PROFILE, submission="s" * 64)
+    summary = score_outcomes(outcomes, SUITE, PROFILE, submission="s" * 64)
 
     assert summary.uncharged == ("cruise_b",)
     assert summary.complete
@@ -70,8 +78,8 @@ def test_simulator_error_is_listed_and_not_charged(tmp_path, outcomes):
 
 
 def test_scenario_entries_follow_the_manifest_and_carry_agent_outcomes(tmp_path, outcomes):
-    summary = summarize(reversed(outcomes), MANIFEST, PROFILE, submission="s" * 64)
-    assert [e.id for e in summary.scenarios] == [s.id for s in MANIFEST.scenarios]
+    summary = score_outcomes(reversed(outcomes), SUITE, PROFILE, submission="s" * 64)
+    assert [e.id for e in summary.scenarios] == [s.id for s in SUITE.scenarios]
     merge_b = summary.scenarios[2]
     assert [(a.id, a.reached_goal, a.reason, a.steps) for a in merge_b.agents] == [
         ("Agent_0", True, "reached_goal", 200),
@@ -82,21 +90,21 @@ def test_scenario_entries_follow_the_manifest_and_carry_agent_outcomes(tmp_path,
 
 
 def test_unfinished_scenarios_are_pending_or_running(tmp_path, outcomes):
-    summary = summarize(outcomes[:1], MANIFEST, PROFILE, submission="s", running=["merge_b"])
+    summary = score_outcomes(outcomes[:1], SUITE, PROFILE, submission="s", running=["merge_b"])
     assert [e.status for e in summary.scenarios] == ["done", "pending", "running", "pending"]
     assert not summary.complete
     assert summary.metrics.completion == 0.0
 
 
 def test_rescoring_stored_records_gives_the_same_summary(tmp_path, outcomes):
-    original = summarize(outcomes, MANIFEST, PROFILE, submission="s" * 64)
+    original = score_outcomes(outcomes, SUITE, PROFILE, submission="s" * 64)
     write_summary(original, tmp_path)
     assert score_results_dir(tmp_path, PROFILE) == original
     assert read_summary(tmp_path) == original
 
 
 def test_rescoring_with_another_profile_changes_only_what_it_should(tmp_path, outcomes):
-    write_summary(summarize(outcomes, MANIFEST, PROFILE, submission="s"), tmp_path)
+    write_summary(score_outcomes(outcomes, SUITE, PROFILE, submission="s"), tmp_path)
     lenient = ScoringProfile.model_validate(
         PROFILE.model_dump() | {"name": "lenient", "humanness_terms": ["distance_obs", "jerk"]}
     )
@@ -108,16 +116,18 @@ def test_rescoring_with_another_profile_changes_only_what_it_should(tmp_path, ou
 
 
 def test_agent_that_never_drove_is_charged_without_a_record(tmp_path):
-    never = AgentSummary("Agent_0", False, "init_timeout", 0, 0)
+    never = AgentOutcome(
+        id="Agent_0", reached_goal=False, reason="init_timeout", steps=0, done_step=0
+    )
     outcome = ScenarioOutcome("cruise_a", ScenarioStatus.done, 0, (never,), None)
-    summary = summarize([outcome], MANIFEST.select(["cruise_a"]), PROFILE, submission="s")
+    summary = score_outcomes([outcome], SUITE.select(["cruise_a"]), PROFILE, submission="s")
     assert (summary.metrics.completion, summary.metrics.time) == (1.0, 800)
     write_summary(summary, tmp_path)
     assert score_results_dir(tmp_path, PROFILE) == summary
 
 
 def test_summary_json_has_the_documented_shape(tmp_path, outcomes):
-    write_summary(summarize(outcomes, MANIFEST, PROFILE, submission="s"), tmp_path)
+    write_summary(score_outcomes(outcomes, SUITE, PROFILE, submission="s"), tmp_path)
     data = json.loads((tmp_path / "summary.json").read_text())
     assert {"submission", "suite", "manifest_hash", "profile", "metrics", "families"} <= set(data)
     assert set(data["metrics"]) == {"completion", "time", "humanness", "rules"}
@@ -126,31 +136,10 @@ def test_summary_json_has_the_documented_shape(tmp_path, outcomes):
     assert {"id", "reached_goal", "reason", "steps"} <= set(scenario["agents"][0])
 
 
-def write_suite(folder, ids_families, suite="unit"):
-    folder.mkdir(parents=True, exist_ok=True)
-    scenarios = [{"id": i, "family": f, "variant": "v", "hash": "0"} for i, f in ids_families]
-    (folder / "manifest.json").write_text(json.dumps({"suite": suite, "scenarios": scenarios}))
-    for scenario_id, _ in ids_families:
-        (folder / scenario_id).mkdir(exist_ok=True)
-    return folder
-
-
-def test_manifest_selection_keeps_manifest_order_and_refuses_unknown_ids(tmp_path):
-    manifest = load_manifest(write_suite(tmp_path, [("a", "cruise"), ("b", "merge")]))
-    assert [s.id for s in manifest.select(["b", "a"]).scenarios] == ["a", "b"]
-    with pytest.raises(SuiteError, match="no scenario c"):
-        manifest.select(["c"])
-
-
-def test_folder_without_manifest_is_a_clear_error(tmp_path):
-    with pytest.raises(SuiteError, match=r"no manifest\.json"):
-        load_manifest(tmp_path)
-
-
 def test_broken_record_is_reported_uncharged_not_scored(tmp_path):
     from evaluator.runner.evaluate import ResultsFolder
 
-    folder = ResultsFolder(tmp_path, MANIFEST.select(["cruise_a", "merge_a"]), PROFILE, "s")
+    folder = ResultsFolder(tmp_path, SUITE.select(["cruise_a", "merge_a"]), PROFILE, "s")
     (tmp_path / "logs").mkdir()
     folder.resume()
     good = done(tmp_path, "cruise_a", [AgentSpec(weaving(50), done_step=50)])

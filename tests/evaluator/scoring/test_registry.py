@@ -34,11 +34,7 @@ def test_default_profile_holds_the_spec_constants():
     )
     assert profile.speeding_tolerance_fraction == 0.5
     assert profile.wrong_way_angle_deg == 90.0
-    assert (profile.max_episode_steps, profile.dt_s, profile.default_goal_radius_m) == (
-        800,
-        0.1,
-        2.0,
-    )
+    assert (profile.max_episode_steps, profile.dt_s) == (800, 0.1)
     assert profile.humanness_terms == ("distance_obs", "jerk", "lc_off")
     assert profile.rules_terms == ("speeding", "wrong_way")
 

@@ -6,7 +6,7 @@ import pytest
 from evaluator.replay_picture import TRAIL_COLOUR, ReplayError, draw_episode
 from evaluator.runner.results import record_path
 from sim.render import ROAD_COLOUR
-from tests.scoring.builders import AgentSpec, drive, write_record
+from tests.evaluator.scoring.builders import AgentSpec, drive, write_record
 from tests.sim.builders import make_scenario
 
 SVG = "{http://www.w3.org/2000/svg}"

@@ -17,7 +17,6 @@ import socket
 import threading
 import traceback
 from contextlib import contextmanager
-from dataclasses import asdict
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
@@ -27,12 +26,13 @@ from celery.signals import worker_process_init, worker_ready, worker_shutdown
 from sqlalchemy.exc import SQLAlchemyError
 
 from arena.config import get_settings
-from evaluator.celery_app import QUEUE, TASK_AGGREGATE, TASK_EVALUATE, TASK_SCENARIO
-from evaluator.errors import InfrastructureError
+from arena.errors import InfrastructureError
+from arena.outcome import ScenarioStatus
+from evaluator.runner.scenario import ScenarioOutcome
+from server.core.celery_app import QUEUE, TASK_AGGREGATE, TASK_EVALUATE, TASK_SCENARIO
 from server.core.db import get_database
-from server.services import evaluation, scoring
-from server.services.admin import send_plan
-from server.services.queue import BROKER_ERRORS, TaskQueue
+from server.core.queue import BROKER_ERRORS, TaskQueue
+from server.services import evaluation
 
 log = logging.getLogger(__name__)
 
@@ -72,7 +72,7 @@ def evaluate_submission(*, submission_id: int) -> None:
     with get_database().session() as session:
         plan = evaluation.start_evaluation(session, get_settings(), submission_id)
     if plan is not None:
-        send_plan(_queue(), plan)
+        _queue().send(plan)
 
 
 @arena_task(
@@ -106,7 +106,7 @@ def run_scenario(self, *, run_id: int, scenario_id: str) -> None:
             log.exception("scenario %s of run %s crashed the task", scenario_id, run_id)
             outcome = _our_failure(job, type(exc).__name__, traceback.format_exc())
     with db.session() as session:
-        last = evaluation.record_scenario(session, run_id, outcome)
+        last = evaluation.record_scenario(session, run_id, outcome, _log_tail(job, outcome))
     if last:
         _queue().aggregate(run_id)
 
@@ -117,57 +117,34 @@ def aggregate_run(*, run_id: int) -> None:
         evaluation.finish_run(session, run_id)
 
 
-def _our_failure(
-    job: evaluation.ScenarioJob, reason: str, error: str
-) -> evaluation.ScenarioOutcomeIn:
+def _our_failure(job: evaluation.ScenarioJob, reason: str, error: str) -> ScenarioOutcome:
     """A scenario that could not be evaluated through no fault of the submission."""
-    return evaluation.ScenarioOutcomeIn(
+    return ScenarioOutcome(
         scenario_id=job.scenario_id,
-        status=scoring.INFRASTRUCTURE_ERROR,
-        reason=reason,
-        detail={"error": error, "attempt": job.attempt},
+        status=ScenarioStatus.evaluator_error,
+        steps=0,
+        agents=(),
+        record_path=None,
+        error=f"{reason}: {error} (claim {job.attempt})",
+        attempts=job.attempt,
     )
 
 
-def _simulate(job: evaluation.ScenarioJob) -> evaluation.ScenarioOutcomeIn:
+def _simulate(job: evaluation.ScenarioJob) -> ScenarioOutcome:
     from evaluator.runner import run_scenario as run_one
-    from evaluator.summary import ScenarioStatus
 
     settings = get_settings()
     records = settings.resolved_data_dir / "runs" / str(job.run_id) / "records"
-    outcome = run_one(
+    return run_one(
         _prepared(job.storage_dir), Path(job.scenario_dir), records, sandbox=_sandbox_kind()
     )
-    # The team sees this text: the hidden scenario's id must not appear in it.
-    log_text = outcome.log.replace(job.scenario_id, "<scenario>")
-    tail = log_text.encode()[-settings.agent_log_tail_bytes :].decode("utf-8", "replace")
-    detail = {
-        "agents": [asdict(agent) for agent in outcome.agents],
-        "attempts": outcome.attempts,
-        "wall_time_s": outcome.wall_time_s,
-        "error": outcome.error,
-    }
-    common = {
-        "scenario_id": job.scenario_id,
-        "steps": outcome.steps,
-        "log_tail": tail,
-        "detail": detail,
-    }
-    if outcome.status == ScenarioStatus.simulator_error:
-        return evaluation.ScenarioOutcomeIn(
-            status=scoring.SIMULATOR_ERROR, reason="simulator_error", **common
-        )
-    if outcome.status != ScenarioStatus.done:
-        return evaluation.ScenarioOutcomeIn(
-            status=scoring.INFRASTRUCTURE_ERROR, reason=str(outcome.status), **common
-        )
-    failed = [agent for agent in outcome.agents if not agent.reached_goal]
-    return evaluation.ScenarioOutcomeIn(
-        status=scoring.FAILURE if failed else scoring.SUCCESS,
-        reason=failed[0].reason if failed else "reached_goal",
-        record_path=str(outcome.record_path) if outcome.record_path else None,
-        **common,
-    )
+
+
+def _log_tail(job: evaluation.ScenarioJob, outcome: ScenarioOutcome) -> str:
+    """The tail of the scenario's log the team may see: without the hidden scenario's id."""
+    text = outcome.log.replace(job.scenario_id, "<scenario>")
+    tail_bytes = get_settings().agent_log_tail_bytes
+    return text.encode()[-tail_bytes:].decode("utf-8", "replace")
 
 
 _prepare_lock = threading.Lock()
@@ -249,7 +226,7 @@ def reap_once() -> evaluation.Reaped:
     with get_database().session() as session:
         reaped = evaluation.reap(session, get_settings(), queue_empty=queue_empty)
     for plan in reaped.plans:
-        send_plan(queue, plan)
+        queue.send(plan)
     for submission_id in reaped.submission_ids:
         queue.evaluate(submission_id)
     if reaped.plans or reaped.submission_ids:

@@ -1,19 +1,28 @@
 """`arena score` and `arena replay` on a results folder built from synthetic records."""
 
 import json
+from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
 
 from arena.cli import app
-from evaluator.runner.manifest import Manifest, SuiteScenario
-from evaluator.runner.results import record_path, summarize
+from arena.outcome import ScenarioStatus
+from arena.suite import ManifestEntry, Suite, SuiteManifest
+from evaluator.runner.results import record_path, score_outcomes
 from evaluator.runner.scenario import ScenarioOutcome
 from evaluator.scoring import load_profile
-from evaluator.summary import ScenarioStatus, read_summary, write_summary
-from tests.scoring.builders import AgentSpec, drive, write_record
+from evaluator.summary import read_summary, write_summary
+from tests.evaluator.scoring.builders import AgentSpec, drive, write_record
 
-MANIFEST = Manifest("unit", "f" * 64, (SuiteScenario("a", "cruise"), SuiteScenario("b", "merge")))
+SUITE = Suite(
+    root=Path("unit"),
+    manifest=SuiteManifest(
+        suite="unit",
+        scenarios=(ManifestEntry(id="a", family="cruise"), ManifestEntry(id="b", family="merge")),
+    ),
+    sha256="f" * 64,
+)
 
 
 @pytest.fixture
@@ -27,7 +36,7 @@ def results(tmp_path):
         path.parent.mkdir(parents=True, exist_ok=True)
         write_record(path, scenario_id, [spec])
         outcomes.append(ScenarioOutcome(scenario_id, ScenarioStatus.done, 0, (), path))
-    write_summary(summarize(outcomes, MANIFEST, load_profile(), submission="s" * 64), tmp_path)
+    write_summary(score_outcomes(outcomes, SUITE, load_profile(), submission="s" * 64), tmp_path)
     return tmp_path
 
 

@@ -41,9 +41,13 @@ class DataLabel(StrEnum):
     naturalistic = "naturalistic"
 
 
+# The one goal radius of generated and replayed scenarios; the record stores each mission's own.
+GOAL_RADIUS_M = 2.5
+
+
 class Goal(Frozen):
     position: tuple[float, float]  # [m]
-    radius: float = 2.0  # [m]
+    radius: float = GOAL_RADIUS_M  # [m]
 
 
 class VehicleDims(Frozen):

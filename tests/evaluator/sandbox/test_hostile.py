@@ -15,13 +15,13 @@ from pathlib import Path
 import pytest
 
 from arena.config import SandboxKind, Settings
-from evaluator.errors import AgentFailure
+from arena.errors import AgentFailed
+from arena.outcome import DoneReason
 from evaluator.sandbox import start
-from sim.agent import DoneReason
-from tests.sandbox.agents import agent, observation
-from tests.sandbox.conftest import assert_clean_and_healthy
+from tests.evaluator.sandbox.agents import agent, observation
+from tests.evaluator.sandbox.conftest import assert_clean_and_healthy
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 SCENARIO_SECRET = "/tmp/driving-arena-hidden-scenario/scenario.json"
 
 
@@ -157,7 +157,7 @@ def test_hostile_agent_fails_with_its_reason(
 ) -> None:
     run_settings = settings.model_copy(update=case.overrides)
     submission = agent(tmp, run_settings, act=case.act, init=case.init)
-    with pytest.raises(AgentFailure) as caught:
+    with pytest.raises(AgentFailed) as caught:
         handle = start(submission, kind=kind, labels=labels, settings=run_settings)
         assert case.fails_at == "act", "the agent should not have started"
         with handle:

@@ -7,9 +7,9 @@ from pathlib import Path
 
 import pytest
 
+from arena.outcome import ScenarioStatus
 from evaluator.runner import evaluate, run_scenario
-from evaluator.summary import ScenarioStatus
-from tests.runner.conftest import TEST_SANDBOX, write_policy
+from tests.evaluator.runner.conftest import TEST_SANDBOX, write_policy
 
 pytestmark = pytest.mark.slow
 

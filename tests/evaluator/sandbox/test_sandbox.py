@@ -12,14 +12,14 @@ import numpy as np
 import pytest
 
 from arena.config import SandboxKind, Settings
-from evaluator.errors import AgentFailure, SandboxUnavailable
+from arena.errors import AgentFailed, SandboxUnavailable
+from arena.outcome import DoneReason
 from evaluator.sandbox import check_service_kind, cleanup, resolve_kind, start
-from sim.agent import DoneReason
 from submissions.intake import pack_folder, prepare_submission
-from tests.sandbox.agents import agent, observation
-from tests.sandbox.conftest import leftovers, usable
+from tests.evaluator.sandbox.agents import agent, observation
+from tests.evaluator.sandbox.conftest import leftovers, usable
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "submissions" / "examples"
+EXAMPLES = Path(__file__).resolve().parents[3] / "submissions" / "examples"
 
 
 def packed_example(name: str, tmp: Path, settings: Settings):
@@ -80,14 +80,14 @@ def test_prints_go_to_the_log_not_the_protocol(any_kind, settings, labels, tmp) 
 def test_a_failure_carries_the_stderr_tail(any_kind, settings, labels, tmp) -> None:
     submission = agent(tmp, settings, act="print('about to fail'); 1 / 0")
     with (
-        pytest.raises(AgentFailure) as caught,
+        pytest.raises(AgentFailed) as caught,
         start(submission, kind=any_kind, labels=labels, settings=settings) as handle,
     ):
         handle.act(observation())
     assert caught.value.reason is DoneReason.agent_error
     assert "ZeroDivisionError" in caught.value.detail
     assert "about to fail" in caught.value.stderr_tail
-    with pytest.raises(AgentFailure):
+    with pytest.raises(AgentFailed):
         handle.act(observation())
 
 
@@ -96,7 +96,7 @@ def test_cleanup_removes_what_a_crashed_worker_left(kind, settings, labels, good
     assert leftovers(kind, labels) != []
     assert cleanup(labels, settings) >= 1
     assert leftovers(kind, labels) == []
-    with pytest.raises(AgentFailure) as caught:
+    with pytest.raises(AgentFailed) as caught:
         handle.act(observation())
     assert caught.value.reason is DoneReason.agent_exited
     handle.close()
@@ -169,7 +169,7 @@ def test_bubblewrap_bounds_the_cpu_time_an_agent_burns(settings, labels, tmp) ->
     spinner = agent(tmp, budget, act="while True: pass")
     handle = start(spinner, kind=kind, labels=labels, settings=budget)
     began = time.monotonic()
-    with pytest.raises(AgentFailure) as caught:
+    with pytest.raises(AgentFailed) as caught:
         handle.act(observation())
     assert caught.value.reason is DoneReason.agent_exited
     assert "CPU time limit" in caught.value.detail

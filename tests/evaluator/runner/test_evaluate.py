@@ -12,10 +12,11 @@ from pathlib import Path
 
 import pytest
 
+from arena.outcome import ScenarioStatus
 from evaluator.runner import evaluate, load_manifest, score_results_dir
 from evaluator.scoring import load_profile
-from evaluator.summary import ScenarioStatus, read_summary
-from tests.runner.conftest import TEST_SANDBOX, example, write_policy
+from evaluator.summary import read_summary
+from tests.evaluator.runner.conftest import TEST_SANDBOX, example, write_policy
 
 pytestmark = pytest.mark.slow
 
@@ -72,7 +73,7 @@ def test_same_submission_twice_gives_identical_summary_and_records(public_suite,
 
 
 def test_crash_in_one_scenario_still_scores_every_other(public_suite, tmp_path):
-    from scenarios.schema import load_scenario
+    from arena.scenario import load_scenario
 
     ids = few_scenarios(public_suite, 3)
     start = load_scenario(public_suite / ids[1]).missions[0].start

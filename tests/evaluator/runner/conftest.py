@@ -8,7 +8,7 @@ import pytest
 
 from arena.config import SandboxKind
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 EXAMPLES = REPO / "submissions" / "examples"
 # Independent of Docker; the docker-marked test covers the production sandbox.
 TEST_SANDBOX = SandboxKind.process
@@ -20,9 +20,9 @@ def example(name: str) -> Path:
 
 @pytest.fixture(scope="session")
 def public_suite() -> Path:
-    from evaluator.runner import resolve_suite
+    from arena.suite import SHIPPED_PUBLIC_DIR
 
-    return resolve_suite("public")
+    return SHIPPED_PUBLIC_DIR
 
 
 def write_policy(folder: Path, body: str, action_space: str = "LaneWithContinuousSpeed") -> Path:

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import cached_property
 
 from celery import Celery
 from kombu.exceptions import OperationalError
 
 from arena.config import Settings
-from evaluator.celery_app import (
+from server.core.celery_app import (
     QUEUE,
     TASK_AGGREGATE,
     TASK_EVALUATE,
@@ -20,6 +21,15 @@ from evaluator.celery_app import (
 # What sending to or reading from an unreachable broker raises (kombu wraps most as
 # OperationalError; a refused socket can surface as OSError).
 BROKER_ERRORS = (OperationalError, OSError)
+
+
+@dataclass(frozen=True)
+class RunPlan:
+    """Scenario tasks to send for a run (and whether its aggregation is due)."""
+
+    run_id: int
+    scenario_ids: tuple[str, ...] = ()
+    aggregate: bool = False
 
 
 def scenario_task_id(run_id: int, scenario_id: str) -> str:
@@ -50,6 +60,12 @@ class TaskQueue:
 
     def aggregate(self, run_id: int) -> None:
         self.celery.send_task(TASK_AGGREGATE, kwargs={"run_id": run_id}, queue=QUEUE)
+
+    def send(self, plan: RunPlan) -> None:
+        for scenario_id in plan.scenario_ids:
+            self.run_scenario(plan.run_id, scenario_id)
+        if plan.aggregate:
+            self.aggregate(plan.run_id)
 
     def revoke(self, task_ids: list[str]) -> None:
         """Best effort: tasks also check the run's status before doing anything."""

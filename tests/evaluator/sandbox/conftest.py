@@ -12,7 +12,7 @@ from arena.config import SandboxKind, Settings
 from evaluator.sandbox import backend, start
 from evaluator.sandbox.backend import SANDBOX_LABEL
 from evaluator.sandbox.subprocess_sandbox import labelled_pids
-from tests.sandbox.agents import agent, observation
+from tests.evaluator.sandbox.agents import agent, observation
 
 ISOLATING = [
     pytest.param(SandboxKind.bubblewrap, marks=pytest.mark.bwrap, id="bubblewrap"),

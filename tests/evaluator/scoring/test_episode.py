@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
 
+from arena.errors import RecordError
+from arena.outcome import AgentOutcome
 from evaluator.scoring import (
-    AgentSummary,
-    RecordError,
     aggregate,
     by_family,
     load_profile,
@@ -12,7 +12,7 @@ from evaluator.scoring import (
     score_without_record,
 )
 from evaluator.scoring.registry import get_term
-from tests.scoring.builders import AgentSpec, drive, track, write_record
+from tests.evaluator.scoring.builders import AgentSpec, drive, track, write_record
 
 PROFILE = load_profile()
 
@@ -97,7 +97,7 @@ def test_failure_charges_the_profile_step_limit(tmp_path):
 
 def test_agent_that_never_drove_is_a_failure_with_no_steps():
     agents = [
-        AgentSummary(id="Agent_0", reached_goal=False, reason="init_timeout", steps=0, done_step=0)
+        AgentOutcome(id="Agent_0", reached_goal=False, reason="init_timeout", steps=0, done_step=0)
     ]
     score = score_without_record("s", agents, PROFILE)
     assert (score.failure, score.time, score.agent_steps) == (1.0, 800, 0)

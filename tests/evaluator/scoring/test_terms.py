@@ -4,7 +4,7 @@ import pytest
 from evaluator.scoring import load_profile
 from evaluator.scoring.registry import get_term, term_names
 from evaluator.scoring.terms import distance_obs, jerk, lc_off, speeding, wrong_way
-from tests.scoring.builders import DT, drive, track
+from tests.evaluator.scoring.builders import DT, drive, track
 
 PROFILE = load_profile()
 

@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
+from arena.suite import SHIPPED_PUBLIC_DIR
 from scenarios.experts import PlannerAgent, planner_interface
-from scenarios.suites import public_suite_dir
 from scenarios.verify import verify_suite
 from sim.interface import ActionSpace
 from tests.scenarios.conftest import manifest
@@ -154,7 +154,7 @@ def test_planner_agent_uses_the_interface_of_its_agent_yaml():
 
 
 def test_planner_solves_at_least_90_percent_of_public_reactive_scenarios():
-    suite = public_suite_dir()
+    suite = SHIPPED_PUBLIC_DIR
     ids = [
         e["id"] for e in manifest(suite)["scenarios"] if e["reactive"] and e["family"] != "replay"
     ]
@@ -180,13 +180,13 @@ def test_planner_solves_at_least_90_percent_of_public_reactive_scenarios():
 def test_planner_drives_a_curved_highway_without_jerk_spikes(scenario, tmp_path):
     """Jerk of the humanness metric, from the episode record: a TargetPose vehicle moves exactly
     to its pose, so kinks in the lanes or in the planner's target show up in full."""
+    from arena.scenario import load_scenario
     from evaluator.scoring.profile import load_profile
     from evaluator.scoring.record import load_record
     from evaluator.scoring.terms import jerk
-    from scenarios.schema import load_scenario
     from sim.simulation import Simulation
 
-    folder = public_suite_dir() / scenario
+    folder = SHIPPED_PUBLIC_DIR / scenario
     sim = Simulation(load_scenario(folder), folder, planner_interface())
     agent = PlannerAgent()
     agent.reset()

@@ -1,4 +1,4 @@
-"""The one error hierarchy of the evaluator.
+"""The one error hierarchy of Driving Arena.
 
 Errors are split by whose fault they are. A :class:`ParticipantError` is shown to the team and
 never retried: their zip was malformed, their agent crashed or exceeded a limit. An
@@ -9,7 +9,7 @@ boundary where they happen, so callers only ever catch ``ArenaError`` subclasses
 
 from __future__ import annotations
 
-from sim.agent import AgentFailed, DoneReason
+from arena.outcome import DoneReason
 
 
 class ArenaError(Exception):
@@ -38,13 +38,24 @@ class IntakeError(ParticipantError):
         self.message = message
 
 
-class AgentFailure(ParticipantError, AgentFailed):
-    """The sandboxed agent as a whole failed; carries the reason and its last stderr."""
+class AgentFailed(ParticipantError):
+    """The agent as a whole failed (crashed, timed out, died), not one bad action; the episode
+    then ends for every mission vehicle with ``reason``, keeping the steps already driven."""
 
     def __init__(self, reason: DoneReason, detail: str = "", stderr_tail: str = "") -> None:
-        AgentFailed.__init__(self, reason, detail)
+        super().__init__(f"{reason}: {detail}" if detail else str(reason))
+        self.reason = reason
+        self.detail = detail
         self.stderr_tail = stderr_tail
 
 
 class SandboxUnavailable(InfrastructureError):
     """The requested sandbox cannot run here (no daemon, no image, no bubblewrap)."""
+
+
+class SuiteError(ArenaError):
+    """A scenario suite folder, its manifest or a scenario selection is unusable."""
+
+
+class RecordError(ArenaError, ValueError):
+    """An episode record that does not follow ``docs/records.md`` (ours: never charged)."""
