@@ -25,6 +25,7 @@ from scenarios.traffic import (
     initial_vehicles,
     slow_type,
 )
+from scenarios.variants import Variant, check_variant, variant_of
 
 GOAL_BEFORE_END = 40.0  # [m] goals sit this far before the end of the route's final edge
 INTERSECTION_VOLUME_SCALE = 0.4  # crossing flows of both directions add up: keep gaps usable
@@ -39,6 +40,14 @@ class Spec:
     volume: str | None
     agents: int = 1
     reactive: bool = True
+
+    def __post_init__(self) -> None:
+        check_variant(self.family, self.variant)
+
+    @property
+    def shape(self) -> Variant:
+        """The variant's row in the table (reactive families)."""
+        return variant_of(self.family, self.variant)
 
 
 @dataclass
@@ -122,13 +131,8 @@ def _highway_traffic(
     )
 
 
-def _highway_template(variant: str) -> str:
-    lanes = variant.split("_")[0]  # "2lane", "3lane", "4lane"
-    return f"highway_{lanes}" + ("_curve" if "curve" in variant else "")
-
-
 def cruise(spec: Spec, rng: np.random.Generator, maps: MapLibrary) -> Draft:
-    template = _highway_template(spec.variant)
+    template = spec.shape.template
     info = maps.info(template)
     draft = Draft(template, [])
     lanes = rng.permutation(info.lanes("in"))[: spec.agents]
@@ -157,7 +161,7 @@ def cruise(spec: Spec, rng: np.random.Generator, maps: MapLibrary) -> Draft:
 
 
 def overtake(spec: Spec, rng: np.random.Generator, maps: MapLibrary) -> Draft:
-    template = _highway_template(spec.variant)
+    template = spec.shape.template
     info = maps.info(template)
     lane = 0
     draft = Draft(template, [])
@@ -166,7 +170,7 @@ def overtake(spec: Spec, rng: np.random.Generator, maps: MapLibrary) -> Draft:
     )
     # Other lanes carry the volume's traffic; the ego lane ahead is blocked by slow leaders.
     _highway_traffic(draft, info, rng, _volume(spec, 0.6), [(lane, 30.0, 25.0)], flow_begin=3.0)
-    slow_speed = rng.uniform(5.0, 7.0) if spec.variant.endswith("slow") else rng.uniform(9.0, 12.0)
+    slow_speed = rng.uniform(5.0, 7.0) if spec.shape.slow_leaders else rng.uniform(9.0, 12.0)
     draft.routes.special_types.append(slow_type("slow", slow_speed))
     through = draft.routes.route(("in", "out"))
     lead = 30.0 + rng.uniform(35.0, 55.0)
@@ -180,7 +184,7 @@ def overtake(spec: Spec, rng: np.random.Generator, maps: MapLibrary) -> Draft:
 
 
 def cut_in(spec: Spec, rng: np.random.Generator, maps: MapLibrary) -> Draft:
-    template = _highway_template(spec.variant)
+    template = spec.shape.template
     info = maps.info(template)
     lane, cutter_lane = 1, 2
     draft = Draft(template, [])
@@ -203,7 +207,7 @@ def cut_in(spec: Spec, rng: np.random.Generator, maps: MapLibrary) -> Draft:
 
 
 def merge(spec: Spec, rng: np.random.Generator, maps: MapLibrary) -> Draft:
-    template = f"merge_{spec.variant}"
+    template = spec.shape.template
     info = maps.info(template)
     route = ("ramp", "merge", "out")
     draft = Draft(template, [])
@@ -278,28 +282,15 @@ def _intersection_traffic(
 
 
 def left_turn_t(spec: Spec, rng: np.random.Generator, maps: MapLibrary) -> Draft:
-    template = "t_intersection_rotated" if spec.variant.endswith("rotated") else "t_intersection"
-    return _turn(spec, rng, maps, template, "l", None, ["w_in", "e_in", "s_in"])
+    return _turn(spec, rng, maps, ["w_in", "e_in", "s_in"])
 
 
 def turn_c(spec: Spec, rng: np.random.Generator, maps: MapLibrary) -> Draft:
-    template = "cross_upside" if "upside" in spec.variant else "cross"
-    if spec.variant.endswith("rotated"):
-        template += "_rotated"
-    direction = "l" if spec.variant.startswith("left") else "r"
-    goal_lane = 1 if "middle_lane" in spec.variant else (2 if direction == "l" else 0)
-    return _turn(spec, rng, maps, template, direction, goal_lane, ["w_in", "e_in", "s_in", "n_in"])
+    return _turn(spec, rng, maps, ["w_in", "e_in", "s_in", "n_in"])
 
 
-def _turn(
-    spec: Spec,
-    rng: np.random.Generator,
-    maps: MapLibrary,
-    template: str,
-    direction: str,
-    goal_lane: int | None,
-    arms: list[str],
-) -> Draft:
+def _turn(spec: Spec, rng: np.random.Generator, maps: MapLibrary, arms: list[str]) -> Draft:
+    template, direction, goal_lane = spec.shape.template, spec.shape.turn, spec.shape.goal_lane
     info = maps.info(template)
     target = info.turn("s_in", direction)
     assert target is not None, f"{template}: no {direction} turn from s_in"

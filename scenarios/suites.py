@@ -20,9 +20,10 @@ from arena.scenario import Family, Scenario, content_hash
 from arena.suite import ManifestEntry, SuiteManifest, write_manifest
 from scenarios.generators import GENERATORS, MapLibrary, Spec
 from scenarios.maps import netconvert_version
-from scenarios.replay.builder import KIND_SCENE, Candidate, candidates, write_replay
+from scenarios.replay.builder import Candidate, candidates, write_replay
 from scenarios.replay.recorder import Recording
 from scenarios.replay.scenes import SCENES, recorded
+from scenarios.variants import KIND_SCENE
 from scenarios.writer import write_reactive
 
 PUBLIC_SEED = 2022

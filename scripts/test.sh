@@ -4,4 +4,5 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh --dev
 ruff check .
+lint-imports
 python3 -m pytest "$@"

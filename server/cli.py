@@ -10,6 +10,8 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
+from server.tracks import Track
+
 admin_app = typer.Typer(no_args_is_help=True)
 service_app = typer.Typer(no_args_is_help=True)
 teams_app = typer.Typer(no_args_is_help=True, help="Teams and their API tokens.")
@@ -283,16 +285,15 @@ def status() -> None:
 
 @leaderboard_app.command("export")
 def leaderboard_export(
-    track: str = "freestyle",
-    csv: Annotated[bool, typer.Option("--csv", help="CSV (the only format for now).")] = True,
+    track: Annotated[Track, typer.Option(help="Which track's leaderboard.")] = Track.freestyle,
     out: Annotated[Path | None, typer.Option(help="File to write (default: stdout).")] = None,
 ) -> None:
-    from server.models import Track
+    """The leaderboard as CSV."""
     from server.services import leaderboard
 
     ctx = _Context()
     with ctx.db.read_session() as session:
-        text = leaderboard.to_csv(leaderboard.compute(session, Track(track)))
+        text = leaderboard.to_csv(leaderboard.compute(session, track))
     if out is None:
         typer.echo(text, nl=False)
     else:

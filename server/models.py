@@ -28,17 +28,11 @@ from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
 from arena.outcome import ScenarioStatus
 from server.status import RunStatus, SubmissionStatus
+from server.tracks import Track
 
 
 def utcnow() -> datetime:
     return datetime.now(UTC)
-
-
-class Track(StrEnum):
-    """Driving SMARTS tracks: any method, or offline learning from recorded data only."""
-
-    freestyle = "freestyle"
-    offline = "offline"
 
 
 # Stable constraint names so Alembic migrations are identical on SQLite and PostgreSQL.

@@ -6,8 +6,8 @@ from datetime import datetime
 
 from pydantic import BaseModel, ConfigDict
 
-from server.models import Track
 from server.status import SubmissionStatus
+from server.tracks import Track
 
 
 class Schema(BaseModel):

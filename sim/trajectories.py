@@ -33,11 +33,6 @@ class Trajectory:
     length: float  # [m]
     width: float  # [m]
 
-    def frame_at(self, t: float, dt: float = 0.1) -> int | None:
-        """Index of the frame at time ``t`` [s], or None when the vehicle does not exist then."""
-        i = round((t - float(self.time[0])) / dt)
-        return i if 0 <= i < len(self.time) else None
-
 
 def read_trajectories(path: Path) -> dict[str, Trajectory]:
     rows: dict[str, list[list[float]]] = {}

@@ -101,11 +101,10 @@ def start(
     return handle
 
 
-def cleanup(labels: dict[str, str] | None = None, settings: Settings | None = None) -> int:
+def cleanup(labels: dict[str, str] | None = None) -> int:
     """Remove leftover sandboxes of every backend carrying ``labels`` (default: all of ours)."""
     from evaluator.sandbox.backend import SANDBOX_LABEL
 
-    settings = settings or get_settings()
     wanted = {SANDBOX_LABEL: "1", **(labels or {})}
     removed = 0
     for kind in (SandboxKind.docker, SandboxKind.bubblewrap):

@@ -30,17 +30,6 @@ FLOWS_STOP_BEFORE_END_S = 60.0
 NEARBY_M = 150.0  # [m] recorded vehicles farther than this from every mission vehicle are dropped
 
 # kind -> scene it is cut from
-KIND_SCENE = {
-    "cruise": "highway",
-    "lane_change": "highway",
-    "merge": "highway",
-    "overtake": "highway",
-    "cut_off": "highway",
-    "i80_bubble": "highway",
-    "right_turn": "cross",
-    "left_turn": "cross",
-    "urban": "urban",
-}
 
 
 @dataclass(frozen=True)

@@ -150,7 +150,3 @@ class LeaderboardCache:
                     cached.checked_at = moment
             self._cached[track] = cached
             return cached
-
-    def invalidate(self) -> None:
-        with self._lock:
-            self._cached.clear()

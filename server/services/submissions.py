@@ -16,7 +16,7 @@ from arena.config import Settings
 from arena.outcome import FINISHED, ScenarioStatus
 from server.core.db import Database
 from server.core.queue import BROKER_ERRORS, TaskQueue, scenario_task_id
-from server.models import EvaluationRun, ScenarioResult, Submission, Team, Track, utcnow
+from server.models import EvaluationRun, ScenarioResult, Submission, Team, utcnow
 from server.schemas import (
     FamilyMetrics,
     Metrics,
@@ -29,6 +29,7 @@ from server.schemas import (
 from server.services.errors import Conflict, InvalidUpload, NotFound, QuotaExceeded
 from server.services.evaluation import bump_leaderboard, cancel_run, lock
 from server.status import ACTIVE_RUN, SUBMISSION_MOVES, RunStatus, SubmissionStatus, advance
+from server.tracks import Track
 
 S = SubmissionStatus
 log = logging.getLogger(__name__)

@@ -203,7 +203,7 @@ def _heartbeat(run_id: int, worker: str, labels: dict[str, str]):
             if not active:
                 from evaluator import sandbox
 
-                sandbox.cleanup(labels, settings)
+                sandbox.cleanup(labels)
                 return
 
     thread = threading.Thread(target=beat, name=f"lease-run-{run_id}", daemon=True)

@@ -113,10 +113,6 @@ class Lane:
     def heading_start(self) -> float:
         return float(self.segment_headings[0])
 
-    @property
-    def heading_end(self) -> float:
-        return float(self.segment_headings[-1])
-
     def __repr__(self) -> str:
         return f"Lane({self.id!r}, length={self.length:.1f}, width={self.width:.2f})"
 

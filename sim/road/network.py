@@ -179,10 +179,6 @@ class RoadNetwork:
             shapely.contains_xy(self._junction_area, x, y)
         )
 
-    def lane_heading_difference(self, position: LanePosition, heading: float) -> float:
-        """Absolute angle [rad] between ``heading`` and the lane direction at ``position``."""
-        return angle_between(heading, position.heading)
-
     @property
     def bounds(self) -> tuple[float, float, float, float]:
         """(min_x, min_y, max_x, max_y) [m] of the drivable area."""

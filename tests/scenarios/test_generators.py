@@ -5,7 +5,9 @@ import pytest
 
 from arena.scenario import Family
 from scenarios.generators import GENERATORS, MapLibrary, Spec
+from scenarios.maps import TEMPLATES
 from scenarios.suites import REACTIVE
+from scenarios.variants import VARIANTS, UnknownVariant, variant_of
 
 ONE_PER_FAMILY = {family: (variants[0], volumes[0]) for family, variants, volumes, _ in REACTIVE}
 
@@ -69,3 +71,17 @@ def test_multi_agent_cruise_has_delayed_starts(variant, agents, cache_dir):
     assert [m.agent_id for m in draft.missions] == [f"Agent_{i}" for i in range(agents)]
     assert draft.missions[0].start_step == 0
     assert all(m.start_step > 0 for m in draft.missions[1:])
+
+
+def test_an_unknown_variant_fails_naming_the_known_ones():
+    with pytest.raises(UnknownVariant, match=r"unknown cruise variant '3lane_curvy'.*3lane_curve"):
+        Spec(Family.cruise, "3lane_curvy", "low")
+    with pytest.raises(UnknownVariant, match=r"known: .*lane_change"):
+        Spec(Family.replay, "lane_chnage", None, reactive=False)
+
+
+@pytest.mark.parametrize(
+    ("family", "variant"), [(f, v) for f, rows in VARIANTS.items() for v in rows]
+)
+def test_every_variant_names_a_map_template_that_exists(family, variant):
+    assert variant_of(family, variant).template in TEMPLATES

@@ -78,12 +78,12 @@ def test_same_seed_same_bytes_other_seed_other_hashes(hidden_dev, tmp_path, cach
     from arena.config import get_settings
 
     again = build_suite("hidden", get_settings().development_seed, tmp_path / "again", cache_dir)
-    assert [e["hash"] for e in again["scenarios"]] == [
+    assert [e.hash for e in again.scenarios] == [
         e["hash"] for e in manifest(hidden_dev)["scenarios"]
     ]
     other = build_suite("hidden", 1, tmp_path / "other", cache_dir)
     ours = {e["hash"] for e in manifest(hidden_dev)["scenarios"]}
-    assert not ours & {e["hash"] for e in other["scenarios"]}
+    assert not ours & {e.hash for e in other.scenarios}
 
 
 def _traffic_bytes(folder):

@@ -7,9 +7,10 @@ from datetime import datetime, timedelta
 from pathlib import Path
 
 from server.core.db import Database
-from server.models import EvaluationRun, Score, Submission, Track, utcnow
+from server.models import EvaluationRun, Score, Submission, utcnow
 from server.services import evaluation, teams
 from server.status import RunStatus, SubmissionStatus
+from server.tracks import Track
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "submissions" / "examples"
 METRICS = ("completion", "time", "humanness", "rules")

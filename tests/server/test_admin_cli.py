@@ -92,7 +92,7 @@ def test_rescore_rerun_and_export(arena, db, settings):
     arena("rescore", "--all")
     assert "unknown scoring profile" in arena("rescore", "--all", "--profile", "nope", ok=False)
     assert "attempt 2 queued" in arena("rerun", str(sid))
-    rows = list(csv.DictReader(io.StringIO(arena("leaderboard", "export", "--csv"))))
+    rows = list(csv.DictReader(io.StringIO(arena("leaderboard", "export"))))
     assert [(row["team"], float(row["completion"])) for row in rows] == [("alpha", 0.0)]
 
 

@@ -8,10 +8,11 @@ import io
 from datetime import timedelta
 
 from server.core.queue import TaskQueue
-from server.models import Track, utcnow
+from server.models import utcnow
 from server.services import submissions
 from server.services.leaderboard import LeaderboardCache
 from server.status import SubmissionStatus
+from server.tracks import Track
 from tests.server.builders import make_team, seed_scored
 
 

@@ -218,3 +218,41 @@ def test_cancel_while_running_stops_the_evaluation_and_the_worker_goes_on(stack_
     )
     assert leftovers.stdout.strip() == "", "a sandbox outlived the cancelled evaluation"
     db.dispose()
+
+
+def test_local_evaluation_and_the_service_agree(stack_settings, suite, tmp_path):
+    """One evaluation core: `arena evaluate` and the worker + database give the same metrics,
+    per-family figures and scenario statuses for the same submission and scenarios."""
+    from evaluator.runner import evaluate
+    from server.core.db import Database
+    from tests.server.builders import pack_example
+
+    local = evaluate(
+        pack_example("keep_lane", tmp_path),
+        suite,
+        out_dir=tmp_path / "local",
+        jobs=2,
+        sandbox="bubblewrap",
+    )
+    db = Database(stack_settings.database_url)
+    _, token = make_team(db, "keep-lane-team")
+    worker = start_worker(stack_settings, tmp_path / "worker.log")
+    try:
+        with api_server(stack_settings, tmp_path / "api.log") as (url, _):
+            sid = upload_example(url, token, "keep_lane", tmp_path)
+            body = wait_finished(url, token, sid)
+    finally:
+        stop(worker)
+    assert body["status"] == "scored", body
+    assert body["metrics"] == local.metrics.model_dump()
+    for family, metrics in local.families.items():
+        assert {k: v for k, v in body["families"][family].items() if k != "scenarios"} == (
+            metrics.model_dump()
+        )
+    with db.session() as session:
+        stored = dict(
+            session.execute(select(ScenarioResult.scenario_id, ScenarioResult.status)).all()
+        )
+    assert stored == {entry.id: entry.status for entry in local.scenarios}
+    assert any(entry.agents[0].reason != "reached_goal" for entry in local.scenarios)
+    db.dispose()

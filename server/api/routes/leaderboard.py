@@ -6,8 +6,8 @@ from fastapi import APIRouter, Response
 from starlette.concurrency import run_in_threadpool
 
 from server.api.deps import LeaderboardDep
-from server.models import Track
 from server.services.leaderboard import to_csv
+from server.tracks import Track
 
 router = APIRouter(tags=["leaderboard"])
 

@@ -14,10 +14,10 @@ from server.api.deps import (
     SettingsDep,
 )
 from server.api.upload import receive_form
-from server.models import Track
 from server.schemas import SubmissionDetail, SubmissionLogs, SubmissionSummary
 from server.services import submissions
 from server.services.errors import InvalidUpload
+from server.tracks import Track
 
 router = APIRouter(prefix="/submissions", tags=["submissions"])
 
