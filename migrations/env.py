@@ -39,6 +39,10 @@ def run_migrations_offline() -> None:
 def run_migrations_online() -> None:
     engine = make_engine(_url())
     with engine.connect() as connection:
+        if connection.dialect.name == "sqlite":
+            # Batch mode rebuilds a table by dropping it, which the foreign keys of the rows
+            # pointing at it would refuse (SQLite ignores this pragma inside a transaction).
+            connection.connection.driver_connection.execute("PRAGMA foreign_keys=OFF")
         # Batch mode so ALTERs work on SQLite too (it rebuilds the table).
         context.configure(
             connection=connection,

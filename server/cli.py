@@ -18,10 +18,12 @@ teams_app = typer.Typer(no_args_is_help=True, help="Teams and their API tokens."
 submissions_app = typer.Typer(no_args_is_help=True, help="Inspect and act on submissions.")
 leaderboard_app = typer.Typer(no_args_is_help=True, help="Export the leaderboard.")
 db_app = typer.Typer(no_args_is_help=True, help="The database schema.")
+phases_app = typer.Typer(no_args_is_help=True, help="Competition phases: suites, dates, quotas.")
 admin_app.add_typer(teams_app, name="teams")
 admin_app.add_typer(submissions_app, name="submissions")
 admin_app.add_typer(leaderboard_app, name="leaderboard")
 admin_app.add_typer(db_app, name="db")
+admin_app.add_typer(phases_app, name="phases")
 
 console = Console()
 SubmissionId = Annotated[int, typer.Argument(help="Submission id.")]
@@ -177,6 +179,21 @@ def submissions_show(submission_id: SubmissionId) -> None:
         console.print(table)
 
 
+@submissions_app.command("logs")
+def submissions_logs(submission_id: SubmissionId) -> None:
+    """The agent's output per scenario, with scenario ids, in every phase (organisers only: in a
+    hidden phase the team never sees it)."""
+    from server.services import submissions
+
+    ctx = _Context()
+    with ctx.db.read_session() as session:
+        submission = _run(lambda: submissions.get_submission(session, submission_id))
+        view = submissions.logs(session, submission, organiser=True)
+    for entry in view.scenarios:
+        typer.echo(f"=== {entry.scenario_id} ({entry.family}): {entry.status} {entry.reason}")
+        typer.echo(entry.log_tail)
+
+
 @submissions_app.command("cancel")
 def submissions_cancel(submission_id: SubmissionId) -> None:
     """Stop a submission: queued work is revoked, running sandboxes are killed."""
@@ -286,14 +303,16 @@ def status() -> None:
 @leaderboard_app.command("export")
 def leaderboard_export(
     track: Annotated[Track, typer.Option(help="Which track's leaderboard.")] = Track.freestyle,
+    phase: Annotated[str, typer.Option(help="Which phase's leaderboard.")] = "final",
     out: Annotated[Path | None, typer.Option(help="File to write (default: stdout).")] = None,
 ) -> None:
-    """The leaderboard as CSV."""
-    from server.services import leaderboard
+    """The leaderboard of one phase and track as CSV."""
+    from server.services import leaderboard, phases
 
     ctx = _Context()
     with ctx.db.read_session() as session:
-        text = leaderboard.to_csv(leaderboard.compute(session, track))
+        _run(lambda: phases.get_phase(session, phase))
+        text = leaderboard.to_csv(leaderboard.compute(session, track, phase))
     if out is None:
         typer.echo(text, nl=False)
     else:
@@ -346,3 +365,79 @@ def up(
     from server.embedded import run_embedded
 
     run_embedded(console, host=host, port=port, demo_team=demo_team)
+
+
+# --- phases -----------------------------------------------------------------------------------
+
+
+def _moment(text: str | None, option: str):
+    from datetime import UTC, datetime
+
+    if text is None:
+        return None
+    try:
+        moment = datetime.fromisoformat(text)
+    except ValueError:
+        raise typer.BadParameter(
+            f"{text!r} is not a date: use ISO 8601, e.g. 2026-12-01T00:00", param_hint=option
+        ) from None
+    return moment if moment.tzinfo else moment.replace(tzinfo=UTC)
+
+
+@phases_app.command("list")
+def phases_list() -> None:
+    """Every phase: its suite, visibility, dates (UTC), daily quota and whether it is open."""
+    from server.models import utcnow
+    from server.services import phases
+
+    ctx = _Context()
+    with ctx.db.read_session() as session:
+        rows = phases.list_phases(session)
+    moment = utcnow()
+    table = Table("phase", "suite", "visibility", "starts", "ends", "daily quota", "open")
+    for phase in rows:
+        table.add_row(
+            phase.name,
+            phase.suite,
+            phase.visibility,
+            f"{phase.starts_at:%Y-%m-%d %H:%M}" if phase.starts_at else "-",
+            f"{phase.ends_at:%Y-%m-%d %H:%M}" if phase.ends_at else "-",
+            str(phases.daily_quota(phase, ctx.settings)),
+            "yes" if phases.is_open(phase, moment) else "no",
+        )
+    console.print(table)
+
+
+@phases_app.command("set")
+def phases_set(
+    name: Annotated[str, typer.Argument(help="The phase (created if new).")],
+    suite: Annotated[str | None, typer.Option(help="`public`, `hidden` or a suite folder.")] = None,
+    visibility: Annotated[
+        str | None, typer.Option(help="`full` (validation) or `hidden` (final).")
+    ] = None,
+    starts: Annotated[str | None, typer.Option(help="Opens at (ISO 8601, UTC).")] = None,
+    ends: Annotated[str | None, typer.Option(help="Closes at (ISO 8601, UTC).")] = None,
+    quota: Annotated[int | None, typer.Option(help="Submissions per team, track and day.")] = None,
+    profile: Annotated[str | None, typer.Option(help="Scoring profile of the phase.")] = None,
+    open_ended: Annotated[
+        bool, typer.Option("--open-ended", help="No start and no end date.")
+    ] = False,
+) -> None:
+    """Create a phase or change some of its settings."""
+    from server.models import Visibility
+    from server.services import phases
+
+    if visibility is not None and visibility not in set(Visibility):
+        raise typer.BadParameter("use `full` or `hidden`", param_hint="--visibility")
+    changes = phases.PhaseChanges(
+        suite=suite,
+        visibility=Visibility(visibility) if visibility else None,
+        starts_at=_moment(starts, "--starts"),
+        ends_at=_moment(ends, "--ends"),
+        daily_quota=quota,
+        scoring_profile=profile,
+        clear_dates=open_ended,
+    )
+    ctx = _Context()
+    phase = _run(lambda: phases.set_phase(ctx.db, name, changes))
+    console.print(f"phase [bold]{phase.name}[/bold] saved")

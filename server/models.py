@@ -94,12 +94,44 @@ class ApiToken(Base):
     team: Mapped[Team] = relationship(back_populates="tokens")
 
 
+class Visibility(StrEnum):
+    """What a team sees of its own evaluation in a phase."""
+
+    # Validation on the public scenarios: per-scenario results, the agent's output, records.
+    full = "full"
+    # The hidden suite: the four metrics, per-family figures and per-family failure counts only;
+    # no byte the agent wrote reaches the team (the organisers see it).
+    hidden = "hidden"
+
+
+class Phase(Base):
+    """A phase of the competition: which suite, when uploads are open, the daily quota per team
+    and track, what teams may see. Migration 0003 creates the default two, open-ended."""
+
+    __tablename__ = "phases"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    name: Mapped[str] = mapped_column(String(32), unique=True)
+    # `public`, `hidden` (the configured suites) or a suite folder.
+    suite: Mapped[str] = mapped_column(String(512))
+    visibility: Mapped[Visibility] = mapped_column(_enum(Visibility))
+    starts_at: Mapped[datetime | None]  # None: open from the start
+    ends_at: Mapped[datetime | None]  # None: never closes
+    daily_quota: Mapped[int | None] = mapped_column(Integer)  # None: the setting's daily_quota
+    scoring_profile: Mapped[str | None] = mapped_column(String(64))  # None: the setting's
+
+
 class Submission(Base):
     __tablename__ = "submissions"
-    __table_args__ = (Index("ix_submissions_team_track_created", "team_id", "track", "created_at"),)
+    __table_args__ = (
+        Index("ix_submissions_team_track_created", "team_id", "track", "created_at"),
+    )
 
     id: Mapped[int] = mapped_column(primary_key=True)
     team_id: Mapped[int] = mapped_column(ForeignKey("teams.id"))
+    phase: Mapped[str] = mapped_column(
+        String(32), ForeignKey("phases.name"), default="final", server_default="final", index=True
+    )
     track: Mapped[Track] = mapped_column(_enum(Track))
     method_name: Mapped[str] = mapped_column(String(128))
     description: Mapped[str] = mapped_column(Text, default="")

@@ -35,6 +35,7 @@ class Progress(Schema):
 class SubmissionSummary(Schema):
     id: int
     team: str
+    phase: str
     track: Track
     method_name: str
     status: SubmissionStatus
@@ -57,7 +58,8 @@ class SubmissionDetail(SubmissionSummary):
 
 
 class ScenarioLog(Schema):
-    label: str  # "<family> #<k>": stands in for the hidden scenario id
+    label: str  # "<family> #<k>"
+    scenario_id: str  # only ever shown where the suite is public to the reader
     family: str
     status: str
     reason: str
@@ -80,6 +82,7 @@ class LeaderboardEntry(Schema):
 
 
 class Leaderboard(Schema):
+    phase: str
     track: Track
     entries: list[LeaderboardEntry]
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from typing import Annotated
 
-from fastapi import Depends, HTTPException, Path, Request, status
+from fastapi import Depends, HTTPException, Path, Query, Request, status
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from sqlalchemy.orm import Session
 
@@ -96,3 +96,6 @@ def get_owned_submission(
 
 
 OwnedSubmission = Annotated[Submission, Depends(get_owned_submission)]
+
+
+PhaseQuery = Annotated[str, Query(max_length=32, description="The competition phase.")]

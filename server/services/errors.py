@@ -35,3 +35,9 @@ class InvalidUpload(InvalidInput):
 
 class QuotaExceeded(ServiceError):
     status_code = 429
+
+
+class Forbidden(ServiceError):
+    """The caller may not have this: a phase closed for uploads, agent output of a hidden phase."""
+
+    status_code = 403

@@ -18,13 +18,13 @@ from sqlalchemy.orm import Session
 from arena.config import Settings
 from arena.errors import SuiteError
 from arena.outcome import FINISHED, ScenarioStatus
-from arena.suite import Suite, hidden_suite_dir, load_suite
+from arena.suite import Suite, load_suite
 from evaluator.runner import ScenarioOutcome
 from evaluator.scoring import load_profile
 from server.core.queue import RunPlan
 from server.models import EvaluationRun, LeaderboardGeneration, ScenarioResult, Score, Submission
 from server.models import utcnow as now
-from server.services import scoring
+from server.services import phases, scoring
 from server.services.errors import Conflict, NotFound
 from server.status import (
     ACTIVE_RUN,
@@ -77,9 +77,10 @@ def _suite(folder: Path) -> Suite:
 
 
 def create_run(session: Session, settings: Settings, submission: Submission) -> RunPlan:
-    """A new attempt on the evaluation suite; every scenario of it still to run."""
-    suite = _suite(hidden_suite_dir(settings))
-    profile = load_profile(settings.scoring_profile)
+    """A new attempt on the suite of the submission's phase; every scenario of it still to run."""
+    phase = phases.get_phase(session, submission.phase)
+    suite = _suite(phases.suite_dir(phase, settings))
+    profile = load_profile(phases.scoring_profile(phase, settings))
     attempt = 1 + (
         session.scalar(
             select(func.max(EvaluationRun.attempt)).where(

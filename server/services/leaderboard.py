@@ -1,4 +1,5 @@
-"""The leaderboard: each team's best scored submission per track, ranked by the scoring spec.
+"""The leaderboards: each team's best scored submission per phase and track, ranked by the
+scoring spec.
 
 The ordering rule lives in :func:`evaluator.scoring.rank` (lexicographic on the four errors, full
 ties to the earlier submission); this module only chooses the candidates and caches the result.
@@ -27,18 +28,20 @@ from server.models import (
     Track,
 )
 from server.schemas import FamilyMetrics, Leaderboard, LeaderboardEntry, Metrics
+from server.services.phases import DEFAULT_PHASE
 from server.status import RunStatus, SubmissionStatus
 
 METRICS = ("completion", "time", "humanness", "rules")
 
 
-def compute(session: Session, track: Track) -> Leaderboard:
+def compute(session: Session, track: Track, phase: str = DEFAULT_PHASE) -> Leaderboard:
     rows = session.execute(
         select(Submission, Team.name, EvaluationRun.attempt, Score)
         .join(Team, Team.id == Submission.team_id)
         .join(EvaluationRun, EvaluationRun.submission_id == Submission.id)
         .join(Score, Score.run_id == EvaluationRun.id)
         .where(
+            Submission.phase == phase,
             Submission.track == track,
             Submission.status == SubmissionStatus.scored,
             EvaluationRun.status == RunStatus.scored,
@@ -75,7 +78,7 @@ def compute(session: Session, track: Track) -> Leaderboard:
         )
         for position, (submission, team, _, score) in enumerate(best_per_team.values(), start=1)
     ]
-    return Leaderboard(track=track, entries=entries)
+    return Leaderboard(phase=phase, track=track, entries=entries)
 
 
 def generation(session: Session) -> int:
@@ -112,7 +115,7 @@ class _Cached:
 
 
 class LeaderboardCache:
-    """Computed leaderboards per track, kept until the generation counter changes.
+    """Computed leaderboards per phase and track, kept until the generation counter changes.
 
     Workers in other processes bump the counter when they write a score; this process looks at it
     at most every ``recheck_s`` seconds, so a new score shows within that delay and a burst of
@@ -122,31 +125,31 @@ class LeaderboardCache:
     def __init__(self, db: Database, recheck_s: float = 1.0) -> None:
         self.db = db
         self.recheck_s = recheck_s
-        self._cached: dict[Track, _Cached] = {}
+        self._cached: dict[tuple[str, Track], _Cached] = {}
         self._lock = threading.Lock()
 
-    def fresh(self, track: Track) -> _Cached | None:
+    def fresh(self, track: Track, phase: str = DEFAULT_PHASE) -> _Cached | None:
         """The cached board if it needs no database look (cheap enough for the event loop)."""
-        cached = self._cached.get(track)
+        cached = self._cached.get((phase, track))
         if cached is not None and time.monotonic() - cached.checked_at < self.recheck_s:
             return cached
         return None
 
-    def get(self, track: Track) -> _Cached:
-        cached = self.fresh(track)
+    def get(self, track: Track, phase: str = DEFAULT_PHASE) -> _Cached:
+        cached = self.fresh(track, phase)
         if cached is not None:
             return cached
         moment = time.monotonic()
         with self._lock:
-            cached = self._cached.get(track)
+            cached = self._cached.get((phase, track))
             if cached is not None and time.monotonic() - cached.checked_at < self.recheck_s:
                 return cached
             with self.db.read_session() as session:
                 current = generation(session)
                 if cached is None or cached.generation != current:
-                    board = compute(session, track)
+                    board = compute(session, track, phase)
                     cached = _Cached(current, moment, board, board.model_dump_json().encode())
                 else:
                     cached.checked_at = moment
-            self._cached[track] = cached
+            self._cached[(phase, track)] = cached
             return cached

@@ -28,6 +28,13 @@ from server.schemas import (
 )
 from server.services.errors import Conflict, InvalidUpload, NotFound, QuotaExceeded
 from server.services.evaluation import bump_leaderboard, cancel_run, lock
+from server.services.phases import (
+    DEFAULT_PHASE,
+    check_open,
+    check_team_may_see_output,
+    daily_quota,
+    get_phase,
+)
 from server.status import ACTIVE_RUN, SUBMISSION_MOVES, RunStatus, SubmissionStatus, advance
 from server.tracks import Track
 
@@ -40,17 +47,21 @@ class NewSubmission:
     track: Track
     method_name: str
     description: str = ""
+    phase: str = DEFAULT_PHASE
 
 
-def quota_used(session: Session, team_id: int, track: Track, moment: datetime) -> int:
-    """Submissions of the UTC day so far that count: failed ones and ones cancelled before
-    their evaluation started do not."""
+def quota_used(
+    session: Session, team_id: int, phase: str, track: Track, moment: datetime
+) -> int:
+    """Submissions of the phase and the UTC day so far that count: failed ones and ones cancelled
+    before their evaluation started do not."""
     day_start = datetime.combine(moment.date(), time.min, tzinfo=moment.tzinfo)
     return session.scalar(
         select(func.count())
         .select_from(Submission)
         .where(
             Submission.team_id == team_id,
+            Submission.phase == phase,
             Submission.track == track,
             Submission.created_at >= day_start,
             Submission.status != S.failed,
@@ -59,11 +70,18 @@ def quota_used(session: Session, team_id: int, track: Track, moment: datetime) -
     )
 
 
-def check_quota(session: Session, settings: Settings, team_id: int, track: Track) -> None:
-    if quota_used(session, team_id, track, utcnow()) >= settings.daily_quota:
+def check_quota(
+    session: Session, settings: Settings, team_id: int, phase: str, track: Track
+) -> None:
+    """Refuse an upload outside the phase's dates or beyond its daily quota."""
+    moment = utcnow()
+    definition = get_phase(session, phase)
+    check_open(definition, moment)
+    limit = daily_quota(definition, settings)
+    if quota_used(session, team_id, phase, track, moment) >= limit:
         raise QuotaExceeded(
-            f"daily quota reached: {settings.daily_quota} submissions per team and track per "
-            "UTC day (failed and cancelled-before-start ones do not count)"
+            f"daily quota of the {phase!r} phase reached: {limit} submissions per team and "
+            "track per UTC day (failed and cancelled-before-start ones do not count)"
         )
 
 
@@ -87,7 +105,7 @@ def accept_upload(
     if not method_name or len(method_name) > 128:
         raise InvalidUpload("method_name: give the method a name of 1 to 128 characters")
     with db.read_session() as session:
-        check_quota(session, settings, team_id, new.track)
+        check_quota(session, settings, team_id, new.phase, new.track)
     storage = settings.resolved_data_dir / "submissions" / uuid.uuid4().hex
     storage.mkdir(parents=True)
     try:
@@ -99,9 +117,10 @@ def accept_upload(
             raise InvalidUpload(str(exc)) from exc
         with db.session() as session:
             lock(session, Team, team_id)  # serialises concurrent uploads of one team (quota)
-            check_quota(session, settings, team_id, new.track)
+            check_quota(session, settings, team_id, new.phase, new.track)
             submission = Submission(
                 team_id=team_id,
+                phase=new.phase,
                 track=new.track,
                 method_name=method_name,
                 description=new.description.strip() or (prepared.explanation or "").strip(),
@@ -200,6 +219,7 @@ def _summary_fields(submission: Submission, run: EvaluationRun | None, done: int
     return {
         "id": submission.id,
         "team": submission.team.name,
+        "phase": submission.phase,
         "track": submission.track,
         "method_name": submission.method_name,
         "status": submission.status,
@@ -235,8 +255,13 @@ def detail(session: Session, submission: Submission) -> SubmissionDetail:
     )
 
 
-def logs(submission: Submission) -> SubmissionLogs:
-    """The agent's output tail per finished scenario, labelled by family and ordinal."""
+def logs(session: Session, submission: Submission, *, organiser: bool = False) -> SubmissionLogs:
+    """The agent's output tail per finished scenario. Its team sees it only in a phase of full
+    visibility; in a hidden phase it goes to the organisers only. Scenario ids are shown where
+    the suite is public to the reader."""
+    phase = get_phase(session, submission.phase)
+    if not organiser:
+        check_team_may_see_output(phase)
     run = current_run(submission)
     entries = []
     ordinal: dict[str, int] = {}
@@ -248,6 +273,7 @@ def logs(submission: Submission) -> SubmissionLogs:
         entries.append(
             ScenarioLog(
                 label=f"{result.family} #{ordinal[result.family]}",
+                scenario_id=result.scenario_id,
                 family=result.family,
                 status=result.status,
                 reason=result.reason,

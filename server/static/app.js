@@ -22,6 +22,7 @@ const Arena = (() => {
       event.preventDefault();
       const token = $("token").value.trim();
       const data = new FormData();
+      data.append("phase", $("phase").value);
       data.append("track", $("track").value);
       data.append("method_name", $("method_name").value);
       data.append("description", $("description").value);

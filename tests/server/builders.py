@@ -7,7 +7,7 @@ from datetime import datetime, timedelta
 from pathlib import Path
 
 from server.core.db import Database
-from server.models import EvaluationRun, Score, Submission, utcnow
+from server.models import EvaluationRun, Phase, Score, Submission, Visibility, utcnow
 from server.services import evaluation, teams
 from server.status import RunStatus, SubmissionStatus
 from server.tracks import Track
@@ -55,12 +55,14 @@ def seed_scored(
     method_name: str = "method",
     families: dict | None = None,
     status: SubmissionStatus = SubmissionStatus.scored,
+    phase: str = "final",
 ) -> int:
     """A submission with one scored run and its score, as if a worker had evaluated it."""
     created_at = created_at or utcnow()
     with db.session() as session:
         submission = Submission(
             team_id=team_id,
+            phase=phase,
             track=track,
             method_name=method_name,
             file_sha256="0" * 64,
@@ -95,10 +97,13 @@ def seed_scored(
         return submission.id
 
 
-def queued_submission(db: Database, team_id: int, track: Track = Track.freestyle) -> int:
+def queued_submission(
+    db: Database, team_id: int, track: Track = Track.freestyle, phase: str = "final"
+) -> int:
     with db.session() as session:
         submission = Submission(
             team_id=team_id,
+            phase=phase,
             track=track,
             method_name="m",
             file_sha256="0" * 64,
@@ -121,3 +126,11 @@ def agent(reached_goal: bool, done_step: int = 100, reason: str | None = None) -
         "steps": 0,
         "done_step": done_step,
     }
+
+
+def default_phases() -> list[Phase]:
+    """The phases migration 0003 creates: validation on the public suite, the hidden final."""
+    return [
+        Phase(name="validation", suite="public", visibility=Visibility.full),
+        Phase(name="final", suite="hidden", visibility=Visibility.hidden),
+    ]

@@ -19,7 +19,7 @@ from server.app import create_app
 from server.core.db import Database
 from server.core.migrate import upgrade_database
 from server.models import Base
-from tests.server.builders import write_suite
+from tests.server.builders import default_phases, write_suite
 
 POSTGRES_ADMIN = "postgresql://postgres@127.0.0.1:5432/test"
 REDIS_URL = "redis://127.0.0.1:6379/0"
@@ -88,10 +88,12 @@ def settings(tmp_path, database_url, broker_prefix, suite_dir) -> Settings:
 def db(settings) -> Iterator[Database]:
     database = Database(settings.database_url)
     yield database
-    # Empty every table (children first) so the next test starts clean on the shared database.
+    # Empty every table (children first) so the next test starts clean on the shared database,
+    # then put back the default phases the migrations create.
     with database.session() as session:
         for table in reversed(Base.metadata.sorted_tables):
             session.execute(text(f"DELETE FROM {table.name}"))
+        session.add_all(default_phases())
     database.dispose()
 
 

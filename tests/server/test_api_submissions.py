@@ -15,11 +15,13 @@ from server.status import SubmissionStatus
 from tests.server.builders import bearer, make_team, pack_example
 
 
-def upload(client, token, payload: bytes, *, track="freestyle", method="keep lane"):
+def upload(
+    client, token, payload: bytes, *, track="freestyle", method="keep lane", phase="final"
+):
     return client.post(
         "/api/v1/submissions",
         headers=bearer(token),
-        data={"track": track, "method_name": method, "description": "test"},
+        data={"track": track, "method_name": method, "description": "test", "phase": phase},
         files={"file": ("agent.zip", payload, "application/zip")},
     )
 
@@ -109,7 +111,7 @@ def test_rotated_token_stops_working(client, db):
 def test_a_team_never_sees_another_teams_submission(client, db, keep_lane_zip):
     _, token_a = make_team(db, "alpha")
     _, token_b = make_team(db, "bravo")
-    sid = upload(client, token_a, keep_lane_zip).json()["id"]
+    sid = upload(client, token_a, keep_lane_zip, phase="validation").json()["id"]
     for path in (f"/api/v1/submissions/{sid}", f"/api/v1/submissions/{sid}/logs"):
         assert client.get(path, headers=bearer(token_a)).status_code == 200
         response = client.get(path, headers=bearer(token_b))

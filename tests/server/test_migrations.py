@@ -5,17 +5,66 @@ from __future__ import annotations
 from alembic.autogenerate import compare_metadata
 from alembic.migration import MigrationContext
 
-from server.core.migrate import current_revision, upgrade_database
+from server.core.migrate import current_revision, head_revision, upgrade_database
 from server.models import Base
 
 
 def test_migrated_schema_matches_the_models(database_url):
     upgrade_database(database_url)  # idempotent on an up-to-date database
-    assert current_revision(database_url) == "0002"
+    assert current_revision(database_url) == head_revision()
     from server.core.db import make_engine
 
     engine = make_engine(database_url)
     with engine.connect() as connection:
         context = MigrationContext.configure(connection, opts={"compare_type": True})
         assert compare_metadata(context, Base.metadata) == []
+    engine.dispose()
+
+
+def test_old_scenario_statuses_move_to_the_core_vocabulary(tmp_path):
+    """Migration 0002: rows written with the service's old statuses read as the core's."""
+    from sqlalchemy import text
+
+    from server.core.db import make_engine
+
+    url = f"sqlite:///{tmp_path / 'old.db'}"
+    upgrade_database(url, "0001")
+    engine = make_engine(url)
+    with engine.begin() as connection:
+        connection.execute(
+            text(
+                "INSERT INTO teams (id, name, created_at) VALUES (1, 't', '2026-01-01');"
+            )
+        )
+        connection.execute(
+            text(
+                "INSERT INTO submissions (id, team_id, track, method_name, description,"
+                " file_sha256, file_size, storage_dir, status, status_reason, created_at)"
+                " VALUES (1, 1, 'freestyle', 'm', '', 'x', 1, 'd', 'scored', '', '2026-01-01')"
+            )
+        )
+        connection.execute(
+            text(
+                "INSERT INTO evaluation_runs (id, submission_id, attempt, status, suite_dir,"
+                " manifest_sha256, scenario_count, scoring_profile, scoring_version, worker,"
+                " created_at, error) VALUES (1, 1, 1, 'scored', 's', 'h', 3, 'p', '1', '',"
+                " '2026-01-01', '')"
+            )
+        )
+        for i, status in enumerate(("success", "failure", "infrastructure_error")):
+            connection.execute(
+                text(
+                    "INSERT INTO scenario_results (run_id, scenario_id, family, status, reason,"
+                    " steps, log_tail, detail, worker, attempts, created_at) VALUES"
+                    f" (1, 's{i}', 'cruise', '{status}', '', 0, '', '{{}}', '', 1, '2026-01-01')"
+                )
+            )
+    upgrade_database(url)
+    with engine.connect() as connection:
+        statuses = connection.execute(
+            text("SELECT status FROM scenario_results ORDER BY scenario_id")
+        ).scalars()
+        assert list(statuses) == ["done", "done", "evaluator_error"]
+        phase = connection.execute(text("SELECT phase FROM submissions")).scalar_one()
+        assert phase == "final"
     engine.dispose()

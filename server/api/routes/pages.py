@@ -12,8 +12,10 @@ from fastapi import Path as PathParam
 from fastapi.responses import HTMLResponse
 from fastapi.templating import Jinja2Templates
 
-from server.api.deps import LeaderboardDep
+from server.api.deps import LeaderboardDep, PhaseQuery, SessionDep
+from server.services import phases
 from server.services.leaderboard import METRICS
+from server.services.phases import DEFAULT_PHASE
 from server.tracks import Track
 
 templates = Jinja2Templates(directory=Path(__file__).resolve().parents[2] / "templates")
@@ -22,20 +24,41 @@ router = APIRouter(include_in_schema=False)
 
 @router.get("/", response_class=HTMLResponse)
 def leaderboard_page(
-    request: Request, cache: LeaderboardDep, track: Track = Track.freestyle
+    request: Request,
+    cache: LeaderboardDep,
+    session: SessionDep,
+    track: Track = Track.freestyle,
+    phase: PhaseQuery = DEFAULT_PHASE,
 ) -> HTMLResponse:
-    board = cache.get(track).board
+    known = phases.list_phases(session)
+    if phase not in {p.name for p in known}:
+        phase = DEFAULT_PHASE
+    board = cache.get(track, phase).board
     families = sorted({family for entry in board.entries for family in entry.families})
     return templates.TemplateResponse(
         request,
         "leaderboard.html",
-        {"board": board, "tracks": list(Track), "metrics": METRICS, "families": families},
+        {
+            "board": board,
+            "phases": known,
+            "tracks": list(Track),
+            "metrics": METRICS,
+            "families": families,
+        },
     )
 
 
 @router.get("/submit", response_class=HTMLResponse)
-def submit_page(request: Request) -> HTMLResponse:
-    return templates.TemplateResponse(request, "submit.html", {"tracks": list(Track)})
+def submit_page(request: Request, session: SessionDep) -> HTMLResponse:
+    return templates.TemplateResponse(
+        request,
+        "submit.html",
+        {
+            "tracks": list(Track),
+            "phases": phases.open_phases(session),
+            "default_phase": DEFAULT_PHASE,
+        },
+    )
 
 
 @router.get("/submissions/{submission_id}", response_class=HTMLResponse)

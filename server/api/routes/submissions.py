@@ -17,6 +17,7 @@ from server.api.upload import receive_form
 from server.schemas import SubmissionDetail, SubmissionLogs, SubmissionSummary
 from server.services import submissions
 from server.services.errors import InvalidUpload
+from server.services.phases import DEFAULT_PHASE
 from server.tracks import Track
 
 router = APIRouter(prefix="/submissions", tags=["submissions"])
@@ -26,8 +27,9 @@ router = APIRouter(prefix="/submissions", tags=["submissions"])
 async def create_submission(
     request: Request, team: CurrentTeam, db: DatabaseDep, settings: SettingsDep, queue: QueueDep
 ) -> SubmissionDetail:
-    """Multipart form: ``file`` (the zip), ``track`` (freestyle|offline), ``method_name``,
-    ``description``. The zip is checked before the response: a bad one gets 422 with the reason."""
+    """Multipart form: ``file`` (the zip), ``phase`` (default ``final``), ``track``
+    (freestyle|offline), ``method_name``, ``description``. The zip is checked before the
+    response: a bad one gets 422 with the reason."""
     form = await receive_form(
         request, settings.resolved_data_dir / "uploads", settings.max_zip_bytes
     )
@@ -40,6 +42,7 @@ async def create_submission(
         track=track,
         method_name=form.fields.get("method_name", ""),
         description=form.fields.get("description", ""),
+        phase=form.fields.get("phase") or DEFAULT_PHASE,
     )
     try:
         created = await run_in_threadpool(
@@ -63,9 +66,10 @@ def get_submission(session: SessionDep, submission: OwnedSubmission) -> Submissi
 
 
 @router.get("/{submission_id}/logs", response_model=SubmissionLogs)
-def get_logs(submission: OwnedSubmission) -> SubmissionLogs:
-    """The agent's stdout/stderr tail per scenario (labelled by family, never by hidden id)."""
-    return submissions.logs(submission)
+def get_logs(session: SessionDep, submission: OwnedSubmission) -> SubmissionLogs:
+    """The agent's stdout/stderr tail per scenario, in a phase of full visibility (validation);
+    403 in a hidden phase, whose agent output goes to the organisers only."""
+    return submissions.logs(session, submission)
 
 
 @router.post("/{submission_id}/cancel", response_model=SubmissionSummary)

@@ -13,7 +13,8 @@ from pathlib import Path
 import pytest
 
 from arena.outcome import ScenarioStatus
-from evaluator.runner import evaluate, load_manifest, score_results_dir
+from arena.suite import load_suite
+from evaluator.runner import evaluate, score_results_dir
 from evaluator.scoring import load_profile
 from evaluator.summary import read_summary
 from tests.evaluator.runner.conftest import TEST_SANDBOX, example, write_policy
@@ -148,7 +149,7 @@ def test_planner_beats_keep_lane_beats_random_on_the_public_set(public_suite, tm
         name: run(example(name), public_suite, tmp_path / name)
         for name in ("planner", "keep_lane", "random")
     }
-    n = len(load_manifest(public_suite).scenarios)
+    n = len(load_suite(public_suite).scenarios)
     for summary in results.values():
         assert summary.complete and summary.uncharged == ()
         assert len(summary.scenarios) == n

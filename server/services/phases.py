@@ -1,0 +1,122 @@
+"""Competition phases: which suite a submission is evaluated on, when uploads are open, the daily
+quota, and what its team may see."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from datetime import datetime
+from pathlib import Path
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from arena.config import Settings
+from arena.suite import resolve_suite
+from evaluator.scoring import ProfileError, load_profile
+from server.core.db import Database
+from server.models import Phase, Visibility, utcnow
+from server.services.errors import Forbidden, InvalidInput, NotFound
+
+DEFAULT_PHASE = "final"
+
+
+def get_phase(session: Session, name: str) -> Phase:
+    phase = session.scalar(select(Phase).where(Phase.name == name))
+    if phase is None:
+        known = ", ".join(p.name for p in list_phases(session)) or "none"
+        raise NotFound(f"no phase {name!r} (phases: {known})")
+    return phase
+
+
+def list_phases(session: Session) -> list[Phase]:
+    return list(session.scalars(select(Phase).order_by(Phase.id)))
+
+
+def is_open(phase: Phase, moment: datetime) -> bool:
+    started = phase.starts_at is None or phase.starts_at <= moment
+    return started and (phase.ends_at is None or moment < phase.ends_at)
+
+
+def open_phases(session: Session, moment: datetime | None = None) -> list[Phase]:
+    moment = moment or utcnow()
+    return [phase for phase in list_phases(session) if is_open(phase, moment)]
+
+
+def check_open(phase: Phase, moment: datetime) -> None:
+    """Refuse an upload outside the phase's dates, saying when it opens or that it closed."""
+    if phase.starts_at is not None and moment < phase.starts_at:
+        raise Forbidden(
+            f"phase {phase.name!r} opens for submissions at {_when(phase.starts_at)}"
+        )
+    if phase.ends_at is not None and moment >= phase.ends_at:
+        raise Forbidden(f"phase {phase.name!r} closed for submissions at {_when(phase.ends_at)}")
+
+
+def _when(moment: datetime) -> str:
+    return moment.strftime("%Y-%m-%d %H:%M UTC")
+
+
+def daily_quota(phase: Phase, settings: Settings) -> int:
+    return phase.daily_quota if phase.daily_quota is not None else settings.daily_quota
+
+
+def suite_dir(phase: Phase, settings: Settings) -> Path:
+    return resolve_suite(phase.suite, settings)
+
+
+def scoring_profile(phase: Phase, settings: Settings) -> str:
+    return phase.scoring_profile or settings.scoring_profile
+
+
+def team_sees_everything(phase: Phase) -> bool:
+    return phase.visibility is Visibility.full
+
+
+def check_team_may_see_output(phase: Phase) -> None:
+    if not team_sees_everything(phase):
+        raise Forbidden(
+            f"in the {phase.name!r} phase the agent's output and per-scenario results go to the "
+            "organisers only; evaluate in the validation phase (or locally) to see them"
+        )
+
+
+@dataclass(frozen=True)
+class PhaseChanges:
+    suite: str | None = None
+    visibility: Visibility | None = None
+    starts_at: datetime | None = None
+    ends_at: datetime | None = None
+    daily_quota: int | None = None
+    scoring_profile: str | None = None
+    clear_dates: bool = False  # open-ended again: no start and no end
+
+
+def set_phase(db: Database, name: str, changes: PhaseChanges) -> Phase:
+    """Create the phase ``name`` or change the given fields of it."""
+    if changes.daily_quota is not None and changes.daily_quota < 0:
+        raise InvalidInput("daily quota: a number of submissions, 0 or more")
+    if changes.scoring_profile is not None:
+        try:
+            load_profile(changes.scoring_profile)
+        except ProfileError as exc:
+            raise InvalidInput(str(exc)) from exc
+    with db.session() as session:
+        phase = session.scalar(select(Phase).where(Phase.name == name).with_for_update())
+        if phase is None:
+            if changes.suite is None:
+                raise InvalidInput(f"a new phase {name!r} needs --suite (public, hidden or DIR)")
+            phase = Phase(name=name, suite=changes.suite, visibility=Visibility.hidden)
+            session.add(phase)
+        if changes.clear_dates:
+            phase.starts_at = phase.ends_at = None
+        for field in ("suite", "visibility", "starts_at", "ends_at", "daily_quota"):
+            value = getattr(changes, field)
+            if value is not None:
+                setattr(phase, field, value)
+        if changes.scoring_profile is not None:
+            phase.scoring_profile = changes.scoring_profile
+        if phase.starts_at and phase.ends_at and phase.ends_at <= phase.starts_at:
+            raise InvalidInput("the phase must end after it starts")
+        session.flush()
+        session.expunge(phase)
+        return phase

@@ -1,0 +1,200 @@
+"""Competition phases: dates, quotas and leaderboards per phase, and what a team may see of its
+own evaluation in a hidden phase (nothing its agent wrote, no per-scenario detail)."""
+
+from __future__ import annotations
+
+from datetime import timedelta
+
+import pytest
+
+from arena.outcome import AgentOutcome, ScenarioStatus
+from evaluator.runner import ScenarioOutcome
+from server.models import utcnow
+from server.services import evaluation, phases
+from server.services.leaderboard import LeaderboardCache
+from server.tracks import Track
+from tests.server.builders import (
+    agent,
+    bearer,
+    make_team,
+    pack_example,
+    queued_submission,
+    seed_scored,
+)
+
+SECRET = "obs: start=(12.5, -3.2) goal=(310.0, 4.8) agent printed this"
+
+
+@pytest.fixture
+def keep_lane_zip(tmp_path) -> bytes:
+    return pack_example("keep_lane", tmp_path).read_bytes()
+
+
+def upload(client, token, payload: bytes, **fields):
+    return client.post(
+        "/api/v1/submissions",
+        headers=bearer(token),
+        data={"track": "freestyle", "method_name": "m", **fields},
+        files={"file": ("agent.zip", payload, "application/zip")},
+    )
+
+
+def set_phase(db, name, **changes):
+    phases.set_phase(db, name, phases.PhaseChanges(**changes))
+
+
+def test_upload_names_its_phase_and_defaults_to_final(client, db, keep_lane_zip):
+    _, token = make_team(db, "alpha")
+    assert upload(client, token, keep_lane_zip).json()["phase"] == "final"
+    body = upload(client, token, keep_lane_zip, phase="validation").json()
+    assert body["phase"] == "validation"
+
+
+def test_unknown_phase_is_refused_naming_the_phases(client, db, keep_lane_zip):
+    _, token = make_team(db, "alpha")
+    response = upload(client, token, keep_lane_zip, phase="finale")
+    assert response.status_code == 404
+    assert "validation, final" in response.json()["detail"]
+
+
+def test_uploads_outside_a_phase_are_refused_saying_when(client, db, keep_lane_zip):
+    _, token = make_team(db, "alpha")
+    later = (utcnow() + timedelta(days=2)).replace(second=0, microsecond=0)
+    set_phase(db, "final", starts_at=later)
+    response = upload(client, token, keep_lane_zip)
+    assert response.status_code == 403
+    assert f"opens for submissions at {later:%Y-%m-%d %H:%M} UTC" in response.json()["detail"]
+    set_phase(db, "validation", ends_at=utcnow() - timedelta(hours=1))
+    response = upload(client, token, keep_lane_zip, phase="validation")
+    assert response.status_code == 403
+    assert "closed for submissions" in response.json()["detail"]
+    set_phase(db, "final", clear_dates=True)
+    assert upload(client, token, keep_lane_zip).status_code == 201
+
+
+def test_the_daily_quota_is_per_phase(client, db, keep_lane_zip):
+    _, token = make_team(db, "alpha")
+    set_phase(db, "final", daily_quota=1)
+    assert upload(client, token, keep_lane_zip).status_code == 201
+    refused = upload(client, token, keep_lane_zip)
+    assert refused.status_code == 429
+    assert "'final' phase" in refused.json()["detail"]
+    assert upload(client, token, keep_lane_zip, phase="validation").status_code == 201
+
+
+def test_submit_page_offers_the_open_phases(client, db):
+    set_phase(db, "validation", ends_at=utcnow() - timedelta(hours=1))
+    page = client.get("/submit").text
+    assert 'value="final"' in page and 'value="validation"' not in page
+
+
+def finished_submission(db, settings, phase: str) -> int:
+    team_id, _ = make_team(db, f"team-{phase}")
+    submission_id = queued_submission(db, team_id, phase=phase)
+    with db.session() as session:
+        plan = evaluation.start_evaluation(session, settings, submission_id)
+    for scenario_id in plan.scenario_ids:
+        with db.session() as session:
+            evaluation.claim_scenario(session, settings, plan.run_id, scenario_id, "w1")
+        outcome = ScenarioOutcome(
+            scenario_id=scenario_id,
+            status=ScenarioStatus.done,
+            steps=0,
+            agents=(AgentOutcome(**agent(False)),),
+            record_path=None,
+            log=SECRET,
+        )
+        with db.session() as session:
+            evaluation.record_scenario(session, plan.run_id, outcome, SECRET)
+    with db.session() as session:
+        evaluation.finish_run(session, plan.run_id)
+    return submission_id
+
+
+def token_of(db, submission_id) -> str:
+    from server.models import Submission
+    from server.services import teams
+
+    with db.session() as session:
+        team = session.get(Submission, submission_id).team
+        return teams.rotate_token(session, team)
+
+
+def test_a_hidden_phase_gives_the_team_no_agent_output_and_no_scenario_detail(
+    client, db, settings
+):
+    submission_id = finished_submission(db, settings, "final")
+    headers = bearer(token_of(db, submission_id))
+    logs = client.get(f"/api/v1/submissions/{submission_id}/logs", headers=headers)
+    assert logs.status_code == 403
+    assert "organisers only" in logs.json()["detail"]
+    seen = ""
+    for path in (
+        f"/api/v1/submissions/{submission_id}",
+        "/api/v1/submissions",
+        f"/submissions/{submission_id}",
+        "/api/v1/leaderboard?phase=final",
+        "/api/v1/leaderboard.csv?phase=final",
+        "/?phase=final",
+    ):
+        response = client.get(path, headers=headers)
+        assert response.status_code == 200, path
+        seen += response.text
+    assert SECRET not in seen and "obs:" not in seen
+    assert not any(sid in seen for sid in phases_suite_ids(settings))
+    detail = client.get(f"/api/v1/submissions/{submission_id}", headers=headers).json()
+    assert detail["metrics"]["completion"] == 1.0
+    assert detail["failure_reasons"] == {"cruise": {"collision": 2}, "merge": {"collision": 1}}
+
+
+def phases_suite_ids(settings) -> list[str]:
+    from arena.suite import load_suite
+
+    return [entry.id for entry in load_suite(settings.hidden_suite_dir).scenarios]
+
+
+def test_organisers_read_the_agent_output_of_a_hidden_phase(db, settings):
+    from server.models import Submission
+    from server.services import submissions
+
+    submission_id = finished_submission(db, settings, "final")
+    with db.session() as session:
+        view = submissions.logs(session, session.get(Submission, submission_id), organiser=True)
+    assert {entry.log_tail for entry in view.scenarios} == {SECRET}
+    assert {entry.scenario_id for entry in view.scenarios} == set(phases_suite_ids(settings))
+
+
+def test_a_validation_phase_shows_the_team_everything(client, db, settings):
+    submission_id = finished_submission(db, settings, "validation")
+    headers = bearer(token_of(db, submission_id))
+    logs = client.get(f"/api/v1/submissions/{submission_id}/logs", headers=headers)
+    assert logs.status_code == 200
+    entries = logs.json()["scenarios"]
+    assert {e["log_tail"] for e in entries} == {SECRET}
+    assert {e["scenario_id"] for e in entries} == set(phases_suite_ids(settings))
+
+
+def test_leaderboards_are_per_phase(client, db):
+    alpha, _ = make_team(db, "alpha")
+    beta, _ = make_team(db, "beta")
+    seed_scored(db, alpha, (0.0, 100.0, 1.0, 0.0), phase="final")
+    seed_scored(db, beta, (0.5, 300.0, 1.0, 0.0), phase="validation")
+    cache = LeaderboardCache(db, recheck_s=0)
+    assert [e.team for e in cache.get(Track.freestyle, "final").board.entries] == ["alpha"]
+    assert [e.team for e in cache.get(Track.freestyle, "validation").board.entries] == ["beta"]
+    body = client.get("/api/v1/leaderboard?phase=validation").json()
+    assert (body["phase"], [e["team"] for e in body["entries"]]) == ("validation", ["beta"])
+
+
+def test_admin_phase_changes_are_checked(db):
+    from server.services.errors import InvalidInput
+
+    with pytest.raises(InvalidInput, match="end after it starts"):
+        set_phase(db, "final", starts_at=utcnow(), ends_at=utcnow() - timedelta(days=1))
+    with pytest.raises(InvalidInput, match="unknown scoring profile"):
+        set_phase(db, "final", scoring_profile="no-such-profile")
+    with pytest.raises(InvalidInput, match="needs --suite"):
+        set_phase(db, "warmup")
+    set_phase(db, "warmup", suite="public", daily_quota=2)
+    with db.session() as session:
+        assert [p.name for p in phases.list_phases(session)] == ["validation", "final", "warmup"]
