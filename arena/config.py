@@ -63,13 +63,15 @@ class Settings(BaseSettings):
     # Service.
     daily_quota: int = 5
     admin_token: str | None = None
-    lease_seconds: int = 120
+    # A claim's lease [s]: renewed every third of it; a dead worker's scenario is re-sent after
+    # at most this plus one reaper interval.
+    lease_seconds: int = 30
     scoring_profile: str = "driving-smarts-2022"
     jobs: int = Field(default=2, ge=1)
     # Prefix on every broker key, so several deployments (or test sessions) can share one Redis.
     broker_key_prefix: str = ""
     # How often a worker looks for evaluations whose lease expired [s].
-    reaper_interval_s: float = 30.0
+    reaper_interval_s: float = 10.0
 
     @property
     def resolved_data_dir(self) -> Path:

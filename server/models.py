@@ -203,7 +203,9 @@ class ScenarioResult(Base):
     detail: Mapped[dict[str, Any]] = mapped_column(default=dict)
     # The worker holding the claim while "running"; empty once the reaper released it.
     worker: Mapped[str] = mapped_column(String(255), default="")
-    attempts: Mapped[int] = mapped_column(Integer, default=0)  # claims so far
+    attempts: Mapped[int] = mapped_column(Integer, default=0)  # claims so far: the fence token
+    # The claim's own lease, renewed by its worker's heartbeat while the episode runs.
+    lease_expires_at: Mapped[datetime | None]
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
 
     run: Mapped[EvaluationRun] = relationship(back_populates="results")

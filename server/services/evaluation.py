@@ -12,7 +12,6 @@ from datetime import timedelta
 from pathlib import Path
 
 from sqlalchemy import delete, func, select, update
-from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.orm import Session
 
 from arena.config import Settings
@@ -146,7 +145,9 @@ def claim_scenario(
     )
     if existing is not None and existing.status != ScenarioStatus.running:
         return None
-    lease_valid = run.lease_expires_at is not None and run.lease_expires_at > now()
+    # Each claim has its own lease: the other scenarios of the run renewing theirs does not keep
+    # a dead worker's scenario from being taken over.
+    lease_valid = existing is not None and _alive(existing.lease_expires_at)
     if existing is not None and existing.worker and lease_valid:
         return None
     suite = _suite(Path(run.suite_dir))
@@ -165,6 +166,7 @@ def claim_scenario(
         session.add(existing)
     existing.worker = worker
     existing.attempts += 1
+    existing.lease_expires_at = lease_until(settings)
     if run.status == RunStatus.queued:
         run.status = advance(run.status, RunStatus.running, RUN_MOVES)
         run.started_at = now()
@@ -180,58 +182,57 @@ def claim_scenario(
     )
 
 
-def heartbeat(session: Session, settings: Settings, run_id: int, worker: str) -> bool:
-    """Extend the run's lease; False when the run is no longer active (cancelled: stop)."""
-    renewed = session.execute(
+def _alive(lease_expires_at) -> bool:
+    return lease_expires_at is not None and lease_expires_at > now()
+
+
+def heartbeat(session: Session, settings: Settings, job: ScenarioJob, worker: str) -> bool:
+    """Extend the lease of ``worker``'s claim on the job's scenario (and the run's); False when
+    the claim is no longer this worker's (the run was cancelled, or the reaper gave the
+    scenario to another worker): the episode must stop, its result would be refused."""
+    claim = session.execute(
+        update(ScenarioResult)
+        .where(*_claim_of(job, worker))
+        .values(lease_expires_at=lease_until(settings))
+    )
+    run = session.execute(
         update(EvaluationRun)
-        .where(EvaluationRun.id == run_id, EvaluationRun.status.in_(list(ACTIVE_RUN)))
+        .where(EvaluationRun.id == job.run_id, EvaluationRun.status.in_(list(ACTIVE_RUN)))
         .values(lease_expires_at=lease_until(settings), worker=worker)
     )
-    return renewed.rowcount == 1
+    return claim.rowcount == 1 and run.rowcount == 1
+
+
+def _claim_of(job: ScenarioJob, worker: str) -> tuple:
+    """The row of ``worker``'s claim number ``job.attempt``: the fence every write goes through,
+    so a superseded episode (its worker presumed dead) can never write into the live run."""
+    return (
+        ScenarioResult.run_id == job.run_id,
+        ScenarioResult.scenario_id == job.scenario_id,
+        ScenarioResult.status == ScenarioStatus.running,
+        ScenarioResult.worker == worker,
+        ScenarioResult.attempts == job.attempt,
+    )
 
 
 def record_scenario(
-    session: Session, run_id: int, outcome: ScenarioOutcome, log_tail: str
+    session: Session, job: ScenarioJob, worker: str, outcome: ScenarioOutcome, log_tail: str
 ) -> bool:
-    """Store a finished scenario as the core reported it. Returns True exactly once per run:
-    when this call finished its last scenario (the caller then sends the aggregation)."""
-    run = lock(session, EvaluationRun, run_id)
+    """Store a finished scenario as the core reported it, if ``worker`` still holds the claim.
+    Returns True exactly once per run: when this call finished its last scenario (the caller
+    then sends the aggregation)."""
+    run = lock(session, EvaluationRun, job.run_id)
     if run.status not in ACTIVE_RUN:
         return False
     values = scoring.result_values(outcome, log_tail)
-    family = _suite(Path(run.suite_dir)).family_of()
-    _insert_if_absent(session, run_id, outcome.scenario_id, family[outcome.scenario_id])
     finished = session.execute(
         update(ScenarioResult)
-        .where(
-            ScenarioResult.run_id == run_id,
-            ScenarioResult.scenario_id == outcome.scenario_id,
-            ScenarioResult.status == ScenarioStatus.running,
-        )
-        .values(**values)
+        .where(*_claim_of(job, worker))
+        .values(**values, worker="", lease_expires_at=None)
     )
     if finished.rowcount == 0:
-        return False  # a duplicate delivery: the first one already recorded this scenario
-    return finished_count(session, run_id) == run.scenario_count
-
-
-def _insert_if_absent(session: Session, run_id: int, scenario_id: str, family: str) -> None:
-    dialect = session.get_bind().dialect.name
-    insert = postgresql.insert if dialect == "postgresql" else sqlite.insert
-    session.execute(
-        insert(ScenarioResult)
-        .values(
-            run_id=run_id,
-            scenario_id=scenario_id,
-            family=family,
-            status=ScenarioStatus.running,
-            detail={},
-            worker="",
-            attempts=1,
-            created_at=now(),
-        )
-        .on_conflict_do_nothing(index_elements=["run_id", "scenario_id"])
-    )
+        return False  # a duplicate delivery, or a superseded claim: the result is not ours
+    return finished_count(session, job.run_id) == run.scenario_count
 
 
 def finished_count(session: Session, run_id: int) -> int:
@@ -331,35 +332,49 @@ class Reaped:
 
 
 def reap(session: Session, settings: Settings, *, queue_empty: bool) -> Reaped:
-    """Find evaluations whose lease expired and renew it for the work this returns.
+    """Find work whose lease expired and return it to be sent again.
 
-    A scenario claimed by a worker that stopped renewing the lease is re-sent at once. Work never
-    claimed at all is re-sent only when the queue is empty: until then it may just be waiting its
-    turn (and a lost message is found as soon as the queue drains, e.g. after a broker restart
-    without persistence).
+    A scenario whose worker stopped renewing its claim's lease is released and re-sent at once,
+    whatever the rest of its run does. Work never claimed at all (a run whose own lease expired)
+    is re-sent only when the queue is empty: until then it may just be waiting its turn (and a
+    lost message is found as soon as the queue drains, e.g. after a broker restart without
+    persistence).
     """
     moment = now()
-    plans = []
-    expired = session.scalars(
-        select(EvaluationRun)
+    resend: dict[int, set[str]] = {}
+    stale_claims = session.scalars(
+        select(ScenarioResult)
+        .join(EvaluationRun, EvaluationRun.id == ScenarioResult.run_id)
         .where(
             EvaluationRun.status.in_(list(ACTIVE_RUN)),
-            EvaluationRun.lease_expires_at < moment,
+            ScenarioResult.status == ScenarioStatus.running,
+            ScenarioResult.worker != "",
+            ScenarioResult.lease_expires_at < moment,
         )
         .with_for_update()
     )
-    for run in expired:
-        stale_claims = [
-            result for result in run.results if result.status == ScenarioStatus.running
-        ]
-        if not (stale_claims or queue_empty):
-            continue
-        # Release the claims of the worker that went silent, so the re-sent tasks can take them.
-        for claim in stale_claims:
-            claim.worker = ""
-        pending = pending_scenarios(run)
-        run.lease_expires_at = lease_until(settings)
-        plans.append(RunPlan(run_id=run.id, scenario_ids=pending, aggregate=not pending))
+    for claim in stale_claims:
+        # Released, so the re-sent task can claim it; the old claim's writes are fenced off.
+        claim.worker = ""
+        claim.lease_expires_at = None
+        resend.setdefault(claim.run_id, set()).add(claim.scenario_id)
+    plans = [
+        RunPlan(run_id=run_id, scenario_ids=tuple(sorted(ids))) for run_id, ids in resend.items()
+    ]
+    if queue_empty:
+        idle = session.scalars(
+            select(EvaluationRun)
+            .where(
+                EvaluationRun.status.in_(list(ACTIVE_RUN)),
+                EvaluationRun.lease_expires_at < moment,
+                EvaluationRun.id.not_in(list(resend)),
+            )
+            .with_for_update()
+        )
+        for run in idle:
+            pending = pending_scenarios(run)
+            run.lease_expires_at = lease_until(settings)
+            plans.append(RunPlan(run_id=run.id, scenario_ids=pending, aggregate=not pending))
     submission_ids: list[int] = []
     if queue_empty:
         waiting = session.scalars(

@@ -94,7 +94,7 @@ def run_scenario(self, *, run_id: int, scenario_id: str) -> None:
         outcome = _our_failure(job, "worker_lost", f"{job.attempt - 1} workers died running it")
     else:
         try:
-            with _heartbeat(run_id, me, labels=_sandbox_labels(job)):
+            with _heartbeat(job, me, labels=_sandbox_labels(job)):
                 outcome = _simulate(job)
         except InfrastructureError as exc:
             if self.request.retries < INFRASTRUCTURE_RETRIES:
@@ -106,7 +106,7 @@ def run_scenario(self, *, run_id: int, scenario_id: str) -> None:
             log.exception("scenario %s of run %s crashed the task", scenario_id, run_id)
             outcome = _our_failure(job, type(exc).__name__, traceback.format_exc())
     with db.session() as session:
-        last = evaluation.record_scenario(session, run_id, outcome, _log_tail(job, outcome))
+        last = evaluation.record_scenario(session, job, me, outcome, _log_tail(job, outcome))
     if last:
         _queue().aggregate(run_id)
 
@@ -134,7 +134,10 @@ def _simulate(job: evaluation.ScenarioJob) -> ScenarioOutcome:
     from evaluator.runner import run_scenario as run_one
 
     settings = get_settings()
-    records = settings.resolved_data_dir / "runs" / str(job.run_id) / "records"
+    # One folder per claim: an episode whose claim was superseded never touches the live one's.
+    records = (
+        settings.resolved_data_dir / "runs" / str(job.run_id) / "records" / f"claim-{job.attempt}"
+    )
     return run_one(
         _prepared(job.storage_dir), Path(job.scenario_dir), records, sandbox=_sandbox_kind()
     )
@@ -186,9 +189,10 @@ def _sandbox_labels(job: evaluation.ScenarioJob) -> dict[str, str]:
 
 
 @contextmanager
-def _heartbeat(run_id: int, worker: str, labels: dict[str, str]):
-    """Renew the run's lease while the scenario runs; when the run is cancelled, kill the
-    scenario's sandbox (the runner then returns, and its result is discarded)."""
+def _heartbeat(job: evaluation.ScenarioJob, worker: str, labels: dict[str, str]):
+    """Renew the claim's lease while the scenario runs; when the claim is lost (the run was
+    cancelled, or the scenario was handed to another worker), kill the scenario's sandbox: the
+    runner then returns, and its result is refused by the fence."""
     settings = get_settings()
     stop = threading.Event()
 
@@ -196,9 +200,9 @@ def _heartbeat(run_id: int, worker: str, labels: dict[str, str]):
         while not stop.wait(max(settings.lease_seconds / 3, 0.5)):
             try:
                 with get_database().session() as session:
-                    active = evaluation.heartbeat(session, settings, run_id, worker)
+                    active = evaluation.heartbeat(session, settings, job, worker)
             except SQLAlchemyError as exc:
-                log.warning("lease heartbeat of run %s failed: %s", run_id, exc)
+                log.warning("lease heartbeat of run %s failed: %s", job.run_id, exc)
                 continue
             if not active:
                 from evaluator import sandbox
@@ -206,7 +210,7 @@ def _heartbeat(run_id: int, worker: str, labels: dict[str, str]):
                 sandbox.cleanup(labels)
                 return
 
-    thread = threading.Thread(target=beat, name=f"lease-run-{run_id}", daemon=True)
+    thread = threading.Thread(target=beat, name=f"lease-{job.run_id}-{job.scenario_id}", daemon=True)
     thread.start()
     try:
         yield

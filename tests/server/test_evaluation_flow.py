@@ -28,7 +28,30 @@ def claim(db, settings, run_id, scenario_id, worker="w1"):
         return evaluation.claim_scenario(session, settings, run_id, scenario_id, worker)
 
 
-def finish(db, run_id, scenario_id, *, success=True, status=ScenarioStatus.done, record=None):
+def job_of(db, run_id, scenario_id) -> tuple[evaluation.ScenarioJob, str]:
+    """The current claim on a scenario and its holder (as the worker holding it knows them)."""
+    with db.session() as session:
+        row = session.scalar(
+            select(ScenarioResult).where(
+                ScenarioResult.run_id == run_id, ScenarioResult.scenario_id == scenario_id
+            )
+        )
+    job = evaluation.ScenarioJob(
+        run_id=run_id,
+        submission_id=0,
+        scenario_id=scenario_id,
+        scenario_dir="",
+        storage_dir="",
+        attempt=row.attempts if row else 0,
+    )
+    return job, row.worker if row else ""
+
+
+def finish(
+    db, run_id, scenario_id, *, success=True, status=ScenarioStatus.done, record=None, claim=None
+):
+    """Report a result as the worker holding the scenario does (or as ``claim`` = (job, worker))."""
+    job, worker = claim or job_of(db, run_id, scenario_id)
     charged = status == ScenarioStatus.done
     outcome = ScenarioOutcome(
         scenario_id=scenario_id,
@@ -39,7 +62,7 @@ def finish(db, run_id, scenario_id, *, success=True, status=ScenarioStatus.done,
         error=None if charged else "SUMO crashed",
     )
     with db.session() as session:
-        return evaluation.record_scenario(session, run_id, outcome, "agent output")
+        return evaluation.record_scenario(session, job, worker, outcome, "agent output")
 
 
 def aggregate(db, run_id):
@@ -52,13 +75,17 @@ def status_of(db, submission_id):
         return session.get(Submission, submission_id).status
 
 
-def expire_lease(db, run_id):
+def expire_lease(db, run_id, scenario_id=None):
+    """Let the run's lease lapse, and the claim's of ``scenario_id`` (all claims when None)."""
+    past = utcnow() - timedelta(seconds=1)
     with db.session() as session:
         session.execute(
-            update(EvaluationRun)
-            .where(EvaluationRun.id == run_id)
-            .values(lease_expires_at=utcnow() - timedelta(seconds=1))
+            update(EvaluationRun).where(EvaluationRun.id == run_id).values(lease_expires_at=past)
         )
+        claims = update(ScenarioResult).where(ScenarioResult.run_id == run_id)
+        if scenario_id is not None:
+            claims = claims.where(ScenarioResult.scenario_id == scenario_id)
+        session.execute(claims.values(lease_expires_at=past))
 
 
 @pytest.fixture
@@ -98,7 +125,7 @@ def test_a_claim_is_exclusive_while_the_lease_lives(db, settings, submission_id)
     sid = plan.scenario_ids[0]
     assert claim(db, settings, plan.run_id, sid, "w1") is not None
     assert claim(db, settings, plan.run_id, sid, "w2") is None
-    expire_lease(db, plan.run_id)
+    expire_lease(db, plan.run_id, sid)
     # The first worker stopped renewing the lease: another may take the scenario over.
     assert claim(db, settings, plan.run_id, sid, "w2") is not None
     assert finish(db, plan.run_id, sid) is False
@@ -108,21 +135,30 @@ def test_a_claim_is_exclusive_while_the_lease_lives(db, settings, submission_id)
 def test_reaper_resends_stale_claims_and_lost_messages(db, settings, submission_id):
     plan = start(db, settings, submission_id)
     first, *rest = plan.scenario_ids
-    claim(db, settings, plan.run_id, first)
+    w1 = claim(db, settings, plan.run_id, first, "w1")
     with db.session() as session:
         assert evaluation.reap(session, settings, queue_empty=True).plans == ()  # lease valid
-    expire_lease(db, plan.run_id)
+    # w1 died: its claim's lease lapses while the rest of the run's stays fresh (other workers
+    # renew theirs). The claim alone is released and re-sent at once, even with a busy queue.
+    expire_lease(db, plan.run_id, first)
     with db.session() as session:
         reaped = evaluation.reap(session, settings, queue_empty=False)
-    # A stale claim is re-sent even while the queue is busy, with everything still pending,
-    # and released so that the re-sent task can claim it although the lease was renewed.
-    assert [p.scenario_ids for p in reaped.plans] == [plan.scenario_ids]
+    assert [p.scenario_ids for p in reaped.plans] == [(first,)]
     retaken = claim(db, settings, plan.run_id, first, "w2")
     assert retaken is not None and retaken.attempt == 2  # the task gives up after too many
     assert claim(db, settings, plan.run_id, first, "w3") is None  # w2 holds it now
-    with db.session() as session:  # the lease was renewed: not re-sent again at once
+    # w1's episode was still running after all: its heartbeat learns it lost the claim, and its
+    # result is fenced off.
+    with db.session() as session:
+        assert not evaluation.heartbeat(session, settings, w1, "w1")
+        assert evaluation.heartbeat(session, settings, retaken, "w2")
+    assert finish(db, plan.run_id, first, success=False, claim=(w1, "w1")) is False
+    with db.session() as session:  # w2's lease is fresh: not re-sent again
         assert evaluation.reap(session, settings, queue_empty=True).plans == ()
-    finish(db, plan.run_id, first)
+    finish(db, plan.run_id, first, claim=(retaken, "w2"))
+    with db.session() as session:
+        row = session.scalar(select(ScenarioResult).where(ScenarioResult.scenario_id == first))
+        assert (row.status, row.reason, row.worker) == ("done", "reached_goal", "")
     expire_lease(db, plan.run_id)
     with db.session() as session:
         # Never claimed, queue busy: the tasks may still be waiting their turn.
@@ -147,12 +183,15 @@ def test_cancel_stops_a_running_evaluation(db, settings, submission_id):
     from server.services import submissions
 
     plan = start(db, settings, submission_id)
-    claim(db, settings, plan.run_id, plan.scenario_ids[0])
+    job = claim(db, settings, plan.run_id, plan.scenario_ids[0])
     submissions.cancel(db, TaskQueue(settings), submission_id)
     assert status_of(db, submission_id) == SubmissionStatus.cancelled
     with db.session() as session:
-        assert not evaluation.heartbeat(session, settings, plan.run_id, "w1")
-    assert finish(db, plan.run_id, plan.scenario_ids[0]) is False
+        assert not evaluation.heartbeat(session, settings, job, "w1")
+        # A cancelled run shows no scenario as running.
+        running = select(func.count()).where(ScenarioResult.status == "running")
+        assert session.scalar(running) == 0
+    assert finish(db, plan.run_id, plan.scenario_ids[0], claim=(job, "w1")) is False
     assert claim(db, settings, plan.run_id, plan.scenario_ids[1]) is None
     with pytest.raises(Conflict):
         submissions.cancel(db, TaskQueue(settings), submission_id)

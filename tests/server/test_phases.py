@@ -95,7 +95,7 @@ def finished_submission(db, settings, phase: str) -> int:
         plan = evaluation.start_evaluation(session, settings, submission_id)
     for scenario_id in plan.scenario_ids:
         with db.session() as session:
-            evaluation.claim_scenario(session, settings, plan.run_id, scenario_id, "w1")
+            job = evaluation.claim_scenario(session, settings, plan.run_id, scenario_id, "w1")
         outcome = ScenarioOutcome(
             scenario_id=scenario_id,
             status=ScenarioStatus.done,
@@ -105,7 +105,7 @@ def finished_submission(db, settings, phase: str) -> int:
             log=SECRET,
         )
         with db.session() as session:
-            evaluation.record_scenario(session, plan.run_id, outcome, SECRET)
+            evaluation.record_scenario(session, job, "w1", outcome, SECRET)
     with db.session() as session:
         evaluation.finish_run(session, plan.run_id)
     return submission_id
