@@ -362,9 +362,12 @@ def up(
     demo_team: str = "demo",
 ) -> None:
     """Everything on this machine: database, scenario suites, API and a worker (Ctrl-C stops)."""
-    from server.embedded import run_embedded
+    from server.embedded import AlreadyServed, run_embedded
 
-    run_embedded(console, host=host, port=port, demo_team=demo_team)
+    try:
+        run_embedded(console, host=host, port=port, demo_team=demo_team)
+    except AlreadyServed as exc:
+        raise _fail(exc) from None
 
 
 # --- phases -----------------------------------------------------------------------------------

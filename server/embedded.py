@@ -1,11 +1,20 @@
 """`arena up`: the whole service on one machine with the embedded defaults (SQLite database,
-SQLAlchemy broker), API and worker as child processes stopped together on Ctrl-C."""
+SQLAlchemy broker), API and worker as child processes it owns.
+
+The children die with it whatever ends it (Ctrl-C, SIGTERM, even SIGKILL: the kernel sends them
+SIGTERM when their parent dies), one instance serves a data folder and a port at a time, and the
+demo team's token stays the same across restarts.
+"""
 
 from __future__ import annotations
 
+import ctypes
+import errno
+import fcntl
 import os
 import secrets
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -20,10 +29,16 @@ from arena.config import Settings, get_settings
 ARENA = [sys.executable, "-c", "from arena.cli import app; app()"]
 
 
+class AlreadyServed(RuntimeError):
+    """Another instance serves this data folder, or something else listens on the port."""
+
+
 def run_embedded(console: Console, *, host: str, port: int, demo_team: str) -> None:
     settings = get_settings()
     data = settings.resolved_data_dir
     data.mkdir(parents=True, exist_ok=True)
+    lock = _lock_data_folder(data)  # held until this process ends, however it ends
+    _check_port_free(host, port)
     env = dict(os.environ)
     env["ARENA_DATA_DIR"] = str(data)
 
@@ -47,10 +62,8 @@ def run_embedded(console: Console, *, host: str, port: int, demo_team: str) -> N
     token = _demo_team_token(settings, demo_team)
 
     children = [
-        subprocess.Popen([*ARENA, "worker"], env=env, start_new_session=True),
-        subprocess.Popen(
-            [*ARENA, "serve", "--host", host, "--port", str(port)], env=env, start_new_session=True
-        ),
+        _start_child([*ARENA, "worker"], env),
+        _start_child([*ARENA, "serve", "--host", host, "--port", str(port)], env),
     ]
     url = f"http://{host}:{port}"
     signal.signal(signal.SIGTERM, _interrupt)  # `kill` stops it as cleanly as Ctrl-C
@@ -72,10 +85,74 @@ def run_embedded(console: Console, *, host: str, port: int, demo_team: str) -> N
         console.print("stopping…")
     finally:
         _stop(children)
+        _remove_leftover_sandboxes(console)
+        lock.close()
 
 
 def _interrupt(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
+
+
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent() -> None:
+    """In the child, before exec: the kernel sends it SIGTERM when `arena up` dies."""
+    libc = ctypes.CDLL(None, use_errno=True)
+    libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
+
+
+def _start_child(command: list[str], env: dict) -> subprocess.Popen:
+    # A session of its own, so stopping it reaches its children (simulators, agents) too.
+    return subprocess.Popen(
+        command, env=env, start_new_session=True, preexec_fn=_die_with_parent
+    )
+
+
+def _lock_data_folder(data: Path):
+    """An exclusive lock on the data folder for as long as this process lives."""
+    handle = (data / "arena-up.lock").open("a+")
+    try:
+        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        handle.seek(0)
+        owner = handle.read().strip() or "another process"
+        handle.close()
+        raise AlreadyServed(
+            f"{data} is already served by `arena up` ({owner}); stop it first, or use another "
+            "ARENA_DATA_DIR"
+        ) from None
+    handle.truncate(0)
+    handle.write(f"pid {os.getpid()}\n")
+    handle.flush()
+    return handle
+
+
+def _check_port_free(host: str, port: int) -> None:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        try:
+            probe.bind((host, port))
+        except OSError as exc:
+            if exc.errno != errno.EADDRINUSE:
+                raise
+            raise AlreadyServed(
+                f"port {port} on {host} is already in use (another `arena up`?); stop it or "
+                "pass --port"
+            ) from None
+
+
+def _remove_leftover_sandboxes(console: Console) -> None:
+    """Agents of episodes the stopped worker left behind (it was the only worker here)."""
+    from arena.errors import ArenaError
+    from evaluator import sandbox
+
+    try:
+        removed = sandbox.cleanup()
+    except ArenaError as exc:
+        console.print(f"[yellow]could not look for leftover sandboxes: {exc}[/yellow]")
+        return
+    if removed:
+        console.print(f"removed {removed} leftover sandbox(es)")
 
 
 def _stored_admin_token(data: Path) -> str:
@@ -131,21 +208,31 @@ def _hidden_suite(console: Console, settings: Settings, env: dict) -> Path:
 
 
 def _demo_team_token(settings: Settings, name: str) -> str:
-    """A fresh token for the demo team (created on first run; tokens are stored hashed, so a
-    restart issues a new one)."""
+    """The demo team's token, the same across restarts: kept for the local organiser in the data
+    folder (owner-readable only; the database stores tokens hashed). A token that no longer
+    works (revoked with `teams rotate-token`) is replaced."""
     from server.core.db import Database
     from server.services import teams
     from server.services.errors import NotFound
 
+    stored = settings.resolved_data_dir / "demo_token"
     db = Database(settings.resolved_database_url)
     try:
         with db.session() as session:
+            if stored.exists():
+                token = stored.read_text().strip()
+                team = teams.team_for_token(session, token)
+                if team is not None and team.name == name:
+                    return token
             try:
-                return teams.rotate_token(session, teams.get_team(session, name))
+                token = teams.rotate_token(session, teams.get_team(session, name))
             except NotFound:
-                return teams.create_team(session, name)[1]
+                token = teams.create_team(session, name)[1]
     finally:
         db.dispose()
+    stored.write_text(token + "\n")
+    stored.chmod(0o600)
+    return token
 
 
 def _wait_healthy(url: str, children: list[subprocess.Popen], timeout_s: float = 60.0) -> None:

@@ -203,6 +203,17 @@ def heartbeat(session: Session, settings: Settings, job: ScenarioJob, worker: st
     return claim.rowcount == 1 and run.rowcount == 1
 
 
+def release_claim(session: Session, job: ScenarioJob, worker: str) -> bool:
+    """Hand a scenario back (its worker is shutting down): another worker may claim it at once.
+    False when the claim was no longer ``worker``'s."""
+    released = session.execute(
+        update(ScenarioResult)
+        .where(*_claim_of(job, worker))
+        .values(worker="", lease_expires_at=None)
+    )
+    return released.rowcount == 1
+
+
 def _claim_of(job: ScenarioJob, worker: str) -> tuple:
     """The row of ``worker``'s claim number ``job.attempt``: the fence every write goes through,
     so a superseded episode (its worker presumed dead) can never write into the live run."""

@@ -15,6 +15,7 @@ import logging
 import os
 import socket
 import threading
+import time
 import traceback
 from contextlib import contextmanager
 from functools import lru_cache
@@ -22,7 +23,12 @@ from pathlib import Path
 from typing import Any
 
 from celery import shared_task
-from celery.signals import worker_process_init, worker_ready, worker_shutdown
+from celery.signals import (
+    worker_process_init,
+    worker_ready,
+    worker_shutdown,
+    worker_shutting_down,
+)
 from sqlalchemy.exc import SQLAlchemyError
 
 from arena.config import get_settings
@@ -94,8 +100,11 @@ def run_scenario(self, *, run_id: int, scenario_id: str) -> None:
         outcome = _our_failure(job, "worker_lost", f"{job.attempt - 1} workers died running it")
     else:
         try:
-            with _heartbeat(job, me, labels=_sandbox_labels(job)):
+            with _heartbeat(job, me, labels=_sandbox_labels(job)) as handed_back:
                 outcome = _simulate(job)
+            if handed_back.is_set():
+                _hand_back(job, me)
+                return
         except InfrastructureError as exc:
             if self.request.retries < INFRASTRUCTURE_RETRIES:
                 raise self.retry(exc=exc, countdown=10 * (self.request.retries + 1)) from exc
@@ -115,6 +124,16 @@ def run_scenario(self, *, run_id: int, scenario_id: str) -> None:
 def aggregate_run(*, run_id: int) -> None:
     with get_database().session() as session:
         evaluation.finish_run(session, run_id)
+
+
+def _hand_back(job: evaluation.ScenarioJob, worker: str) -> None:
+    """This worker is stopping: the episode was cut short on purpose, so its outcome is not
+    the agent's. Release the claim and send the scenario again for another worker."""
+    with get_database().session() as session:
+        released = evaluation.release_claim(session, job, worker)
+    if released:
+        _queue().run_scenario(job.run_id, job.scenario_id)
+        log.warning("handed scenario %s of run %s back", job.scenario_id, job.run_id)
 
 
 def _our_failure(job: evaluation.ScenarioJob, reason: str, error: str) -> ScenarioOutcome:
@@ -195,9 +214,21 @@ def _heartbeat(job: evaluation.ScenarioJob, worker: str, labels: dict[str, str])
     runner then returns, and its result is refused by the fence."""
     settings = get_settings()
     stop = threading.Event()
+    handed_back = threading.Event()
+    interval = max(settings.lease_seconds / 3, 0.5)
 
     def beat() -> None:
-        while not stop.wait(max(settings.lease_seconds / 3, 0.5)):
+        next_beat = time.monotonic() + interval
+        while not stop.wait(0.2):
+            if _shutting_down.is_set():
+                from evaluator import sandbox
+
+                handed_back.set()
+                sandbox.cleanup(labels)
+                return
+            if time.monotonic() < next_beat:
+                continue
+            next_beat += interval
             try:
                 with get_database().session() as session:
                     active = evaluation.heartbeat(session, settings, job, worker)
@@ -210,10 +241,11 @@ def _heartbeat(job: evaluation.ScenarioJob, worker: str, labels: dict[str, str])
                 sandbox.cleanup(labels)
                 return
 
-    thread = threading.Thread(target=beat, name=f"lease-{job.run_id}-{job.scenario_id}", daemon=True)
+    name = f"lease-{job.run_id}-{job.scenario_id}"
+    thread = threading.Thread(target=beat, name=name, daemon=True)
     thread.start()
     try:
-        yield
+        yield handed_back
     finally:
         stop.set()
         thread.join()
@@ -243,6 +275,13 @@ def reap_once() -> evaluation.Reaped:
 
 
 _reaper_stop = threading.Event()
+# Set when the worker begins a warm shutdown (SIGTERM): running scenarios are handed back.
+_shutting_down = threading.Event()
+
+
+@worker_shutting_down.connect
+def _hand_back_running_scenarios(**_: Any) -> None:
+    _shutting_down.set()
 
 
 @worker_ready.connect

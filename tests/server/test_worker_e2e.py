@@ -134,6 +134,49 @@ def test_worker_killed_mid_evaluation_finishes_after_restart(stack_settings, tmp
     db.dispose()
 
 
+def test_a_worker_stopped_with_sigterm_hands_its_scenario_back(stack_settings, tmp_path):
+    """SIGTERM mid-scenario: the episode is cut short, its claim released at once (no waiting
+    for the lease) and its scenario re-sent; nothing is charged for the cut, no sandbox stays."""
+    from evaluator import sandbox
+
+    db = Database(stack_settings.database_url)
+    _, token = make_team(db, "planner-team")
+    worker = start_worker(stack_settings, tmp_path / "worker1.log", concurrency=1)
+    try:
+        with api_server(stack_settings, tmp_path / "api.log") as (url, _):
+            sid = upload_example(url, token, "planner", tmp_path)
+            deadline = time.monotonic() + 120
+            while True:
+                with db.session() as session:
+                    claimed = session.scalar(
+                        select(ScenarioResult.scenario_id).where(
+                            ScenarioResult.status == "running", ScenarioResult.worker != ""
+                        )
+                    )
+                if claimed:
+                    break
+                assert time.monotonic() < deadline, "no scenario was ever claimed"
+                time.sleep(0.2)
+            stopped_at = time.monotonic()
+            worker.send_signal(signal.SIGTERM)  # the worker alone, as `arena up` dying does
+            worker.wait(timeout=90)
+            assert time.monotonic() - stopped_at < stack_settings.lease_seconds * 3
+            with db.session() as session:
+                row = session.scalar(
+                    select(ScenarioResult).where(ScenarioResult.scenario_id == claimed)
+                )
+                assert row.status == "running" and row.worker == ""  # handed back, not charged
+            assert sandbox.cleanup() == 0  # the stopping worker removed its agent
+            worker = start_worker(stack_settings, tmp_path / "worker2.log", concurrency=2)
+            body = wait_finished(url, token, sid)
+            assert body["status"] == "scored"
+            assert body["metrics"]["completion"] == 0.0
+    finally:
+        stop(worker)
+    assert results_per_scenario(db) == dict.fromkeys(SCENARIOS, 1)
+    db.dispose()
+
+
 def test_redis_restart_with_queued_submissions_loses_nothing(stack_settings, tmp_path):
     port = free_port()
     command = [

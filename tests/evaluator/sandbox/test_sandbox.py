@@ -94,7 +94,7 @@ def test_a_failure_carries_the_stderr_tail(any_kind, settings, labels, tmp) -> N
 def test_cleanup_removes_what_a_crashed_worker_left(kind, settings, labels, good_agent) -> None:
     handle = start(good_agent, kind=kind, labels=labels, settings=settings)
     assert leftovers(kind, labels) != []
-    assert cleanup(labels, settings) >= 1
+    assert cleanup(labels) >= 1
     assert leftovers(kind, labels) == []
     with pytest.raises(AgentFailed) as caught:
         handle.act(observation())
@@ -116,7 +116,7 @@ def test_cleanup_removes_socket_folders_of_killed_workers(settings, labels, good
         (container,) = leftovers(kind, labels)
         live = socket_dir_for(container.labels[INSTANCE_LABEL])
         os.utime(live, (old, old))
-        cleanup({"driving-arena.test": "nothing-of-ours"}, settings)
+        cleanup({"driving-arena.test": "nothing-of-ours"})
         assert not stale.exists()
         assert fresh.exists() and live.exists()
         assert handle.act(observation()) is not None
@@ -130,7 +130,7 @@ def test_cleanup_without_a_docker_daemon_still_cleans_bubblewrap(
     kind = usable(SandboxKind.bubblewrap, settings)
     handle = start(good_agent, kind=kind, labels=labels, settings=settings)
     monkeypatch.setenv("DOCKER_HOST", f"unix://{tmp / 'no-daemon.sock'}")
-    assert cleanup(labels, settings) >= 1
+    assert cleanup(labels) >= 1
     assert leftovers(kind, labels) == []
     handle.close()
 
