@@ -23,6 +23,13 @@ class SandboxKind(StrEnum):
     auto = "auto"
 
 
+class ArtifactBackend(StrEnum):
+    # The data folder: one machine (or a shared volume).
+    folder = "folder"
+    # The database: workers on several machines share nothing but it and the broker.
+    database = "database"
+
+
 class Settings(BaseSettings):
     model_config = SettingsConfigDict(
         env_prefix="ARENA_", env_file=".env", extra="ignore", frozen=True
@@ -34,6 +41,8 @@ class Settings(BaseSettings):
     # Service backends. Empty: the embedded default under data_dir (SQLite + SQLAlchemy broker).
     database_url: str = ""
     broker_url: str = ""
+    # Where uploads and episode records live between processes (server/core/artifacts.py).
+    artifact_store: ArtifactBackend = ArtifactBackend.folder
 
     # Scenario suites.
     development_seed: int = 20221128

@@ -34,12 +34,14 @@ class _Context:
 
     def __init__(self) -> None:
         from arena.config import get_settings
+        from server.core.artifacts import artifact_store
         from server.core.db import Database
         from server.core.queue import TaskQueue
 
         self.settings = get_settings()
         self.db = Database(self.settings.resolved_database_url)
         self.queue = TaskQueue(self.settings)
+        self.store = artifact_store(self.settings, self.db)
 
 
 def _fail(exc: Exception) -> typer.Exit:
@@ -252,7 +254,9 @@ def rescore(
     with Progress(console=console) as progress:
         task = progress.add_task("re-scoring", total=len(runs))
         for run_id in runs:
-            metrics = _run(lambda run_id=run_id: admin.rescore_run(ctx.db, run_id, profile))
+            metrics = _run(
+                lambda run_id=run_id: admin.rescore_run(ctx.db, ctx.store, run_id, profile)
+            )
             table.add_row(
                 str(run_id),
                 *(f"{metrics[k]:.4f}" for k in ("completion", "time", "humanness", "rules")),

@@ -18,6 +18,7 @@ from sqlalchemy import (
     ForeignKey,
     Index,
     Integer,
+    LargeBinary,
     MetaData,
     String,
     Text,
@@ -137,8 +138,8 @@ class Submission(Base):
     description: Mapped[str] = mapped_column(Text, default="")
     file_sha256: Mapped[str] = mapped_column(String(64))
     file_size: Mapped[int] = mapped_column(BigInteger)
-    # Folder under data_dir holding upload.zip and the prepared (extracted) submission.
-    storage_dir: Mapped[str] = mapped_column(String(512))
+    # The zip in the artifact store (server/core/artifacts.py).
+    upload_key: Mapped[str] = mapped_column(String(512))
     status: Mapped[SubmissionStatus] = mapped_column(_enum(SubmissionStatus), index=True)
     status_reason: Mapped[str] = mapped_column(Text, default="")
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
@@ -198,7 +199,8 @@ class ScenarioResult(Base):
     )
     reason: Mapped[str] = mapped_column(String(64), default="")
     steps: Mapped[int] = mapped_column(Integer, default=0)
-    record_path: Mapped[str | None] = mapped_column(String(512))
+    # The episode record in the artifact store; None when no agent drove a step.
+    record_key: Mapped[str | None] = mapped_column(String(512))
     log_tail: Mapped[str] = mapped_column(Text, default="")
     detail: Mapped[dict[str, Any]] = mapped_column(default=dict)
     # The worker holding the claim while "running"; empty once the reaper released it.
@@ -238,3 +240,15 @@ class LeaderboardGeneration(Base):
 
     id: Mapped[int] = mapped_column(primary_key=True)
     value: Mapped[int] = mapped_column(BigInteger, default=0)
+
+
+class Artifact(Base):
+    """A stored file of the database artifact store (``ARENA_ARTIFACT_STORE=database``)."""
+
+    __tablename__ = "artifacts"
+
+    key: Mapped[str] = mapped_column(String(512), primary_key=True)
+    sha256: Mapped[str] = mapped_column(String(64))
+    size: Mapped[int] = mapped_column(BigInteger)
+    data: Mapped[bytes] = mapped_column(LargeBinary)
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)

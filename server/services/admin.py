@@ -9,6 +9,7 @@ from sqlalchemy import func, select
 
 from arena.config import Settings
 from evaluator.scoring import ProfileError, ScoringProfile, load_profile
+from server.core.artifacts import ArtifactStore
 from server.core.db import Database
 from server.core.queue import BROKER_ERRORS, TaskQueue
 from server.models import EvaluationRun, Submission, utcnow
@@ -74,14 +75,16 @@ def rescore_targets(db: Database, submission_id: int | None) -> list[int]:
         return list(session.scalars(query.order_by(EvaluationRun.id)))
 
 
-def rescore_run(db: Database, run_id: int, profile_name: str | None) -> dict[str, float]:
+def rescore_run(
+    db: Database, store: ArtifactStore, run_id: int, profile_name: str | None
+) -> dict[str, float]:
     """Recompute a scored run from its stored records (no simulation)."""
     with db.session() as session:
         run = lock(session, EvaluationRun, run_id)
         if run.status != RunStatus.scored:
             raise Conflict(f"run {run_id} is {run.status}; only scored runs can be re-scored")
         profile = scoring_profile(profile_name or run.scoring_profile)
-        summary = scoring.run_summary(run, profile)
+        summary = scoring.run_summary(run, profile, store)
         if summary.uncharged:
             raise Conflict(
                 f"run {run_id}: the records of {', '.join(summary.uncharged)} cannot be scored"

@@ -20,6 +20,7 @@ from arena.outcome import FINISHED, ScenarioStatus
 from arena.suite import Suite, load_suite
 from evaluator.runner import ScenarioOutcome
 from evaluator.scoring import load_profile
+from server.core.artifacts import ArtifactStore
 from server.core.queue import RunPlan
 from server.models import EvaluationRun, LeaderboardGeneration, ScenarioResult, Score, Submission
 from server.models import utcnow as now
@@ -43,7 +44,7 @@ class ScenarioJob:
     submission_id: int
     scenario_id: str
     scenario_dir: str
-    storage_dir: str
+    upload_key: str  # the submission's zip in the artifact store
     attempt: int  # 1 for the first claim; more after workers died holding it
 
 
@@ -177,7 +178,7 @@ def claim_scenario(
         submission_id=run.submission_id,
         scenario_id=scenario_id,
         scenario_dir=str(suite.scenario_dir(scenario_id)),
-        storage_dir=run.submission.storage_dir,
+        upload_key=run.submission.upload_key,
         attempt=existing.attempts,
     )
 
@@ -227,7 +228,12 @@ def _claim_of(job: ScenarioJob, worker: str) -> tuple:
 
 
 def record_scenario(
-    session: Session, job: ScenarioJob, worker: str, outcome: ScenarioOutcome, log_tail: str
+    session: Session,
+    job: ScenarioJob,
+    worker: str,
+    outcome: ScenarioOutcome,
+    log_tail: str,
+    record_key: str | None = None,
 ) -> bool:
     """Store a finished scenario as the core reported it, if ``worker`` still holds the claim.
     Returns True exactly once per run: when this call finished its last scenario (the caller
@@ -235,7 +241,7 @@ def record_scenario(
     run = lock(session, EvaluationRun, job.run_id)
     if run.status not in ACTIVE_RUN:
         return False
-    values = scoring.result_values(outcome, log_tail)
+    values = scoring.result_values(outcome, log_tail, record_key)
     finished = session.execute(
         update(ScenarioResult)
         .where(*_claim_of(job, worker))
@@ -257,7 +263,7 @@ def finished_count(session: Session, run_id: int) -> int:
     )
 
 
-def finish_run(session: Session, run_id: int) -> RunStatus | None:
+def finish_run(session: Session, store: ArtifactStore, run_id: int) -> RunStatus | None:
     """Score a run whose scenarios are all finished; None if it was finished already."""
     run = lock(session, EvaluationRun, run_id)
     if run.status not in ACTIVE_RUN:
@@ -265,7 +271,7 @@ def finish_run(session: Session, run_id: int) -> RunStatus | None:
     if finished_count(session, run_id) < run.scenario_count:
         raise Conflict(f"run {run_id} still has scenarios to run")
     submission = lock(session, Submission, run.submission_id)
-    summary = scoring.run_summary(run, load_profile(run.scoring_profile))
+    summary = scoring.run_summary(run, load_profile(run.scoring_profile), store)
     run_score = None
     if summary.uncharged:
         # A score always covers the whole suite: what failed on our side waits for an organiser.

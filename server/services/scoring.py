@@ -7,6 +7,8 @@ evaluate`` does with a results folder. A finished run and a re-score take the sa
 
 from __future__ import annotations
 
+import contextlib
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -16,6 +18,7 @@ from arena.suite import load_suite
 from evaluator.runner import ScenarioOutcome, score_outcomes
 from evaluator.scoring import ScoringProfile
 from evaluator.summary import Summary
+from server.core.artifacts import ArtifactStore, MissingArtifact
 from server.models import EvaluationRun, ScenarioResult
 
 
@@ -25,8 +28,11 @@ class RunScore:
     families: dict[str, dict[str, Any]]  # family -> the four metrics and "scenarios" (count)
 
 
-def result_values(outcome: ScenarioOutcome, log_tail: str) -> dict[str, Any]:
-    """The columns of a :class:`ScenarioResult` row that stores ``outcome``."""
+def result_values(
+    outcome: ScenarioOutcome, log_tail: str, record_key: str | None
+) -> dict[str, Any]:
+    """The columns of a :class:`ScenarioResult` row that stores ``outcome`` (whose record the
+    worker put in the artifact store under ``record_key``)."""
     failed = [agent for agent in outcome.agents if not agent.reached_goal]
     if outcome.status != ScenarioStatus.done:
         reason = str(outcome.status)
@@ -36,7 +42,7 @@ def result_values(outcome: ScenarioOutcome, log_tail: str) -> dict[str, Any]:
         "status": outcome.status,
         "reason": reason,
         "steps": outcome.steps,
-        "record_path": str(outcome.record_path) if outcome.record_path else None,
+        "record_key": record_key,
         "log_tail": log_tail,
         "detail": {
             "agents": [agent.model_dump(mode="json") for agent in outcome.agents],
@@ -47,27 +53,35 @@ def result_values(outcome: ScenarioOutcome, log_tail: str) -> dict[str, Any]:
     }
 
 
-def stored_outcome(result: ScenarioResult) -> ScenarioOutcome:
-    """The core's outcome back from a finished row."""
-    path = Path(result.record_path) if result.record_path else None
+def stored_outcome(result: ScenarioResult, store: ArtifactStore, scratch: Path) -> ScenarioOutcome:
+    """The core's outcome back from a finished row, its record fetched into ``scratch``. A
+    record missing from the store leaves the outcome without one (the core then refuses to
+    charge a scenario whose agents drove steps)."""
+    path = None
+    if result.record_key:
+        with contextlib.suppress(MissingArtifact):
+            path = store.fetch(result.record_key, scratch / f"{result.scenario_id}.npz")
     return ScenarioOutcome(
         scenario_id=result.scenario_id,
         status=ScenarioStatus(result.status),
         steps=result.steps,
         agents=tuple(AgentOutcome(**agent) for agent in result.detail.get("agents", [])),
-        record_path=path if path is not None and path.is_file() else None,
+        record_path=path,
         error=result.detail.get("error"),
     )
 
 
-def run_summary(run: EvaluationRun, profile: ScoringProfile) -> Summary:
-    """The core's summary of a run from its stored outcomes."""
+def run_summary(run: EvaluationRun, profile: ScoringProfile, store: ArtifactStore) -> Summary:
+    """The core's summary of a run from its stored outcomes and records."""
     suite = load_suite(Path(run.suite_dir))
-    outcomes = [stored_outcome(r) for r in run.results if r.status in FINISHED]
     running = [r.scenario_id for r in run.results if r.status == ScenarioStatus.running]
-    return score_outcomes(
-        outcomes, suite, profile, submission=run.submission.file_sha256, running=running
-    )
+    with tempfile.TemporaryDirectory(prefix="arena-score-") as scratch:
+        outcomes = [
+            stored_outcome(r, store, Path(scratch)) for r in run.results if r.status in FINISHED
+        ]
+        return score_outcomes(
+            outcomes, suite, profile, submission=run.submission.file_sha256, running=running
+        )
 
 
 def run_score(summary: Summary) -> RunScore | None:

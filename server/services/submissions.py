@@ -14,6 +14,7 @@ from sqlalchemy.orm import Session, selectinload
 
 from arena.config import Settings
 from arena.outcome import FINISHED, ScenarioStatus
+from server.core.artifacts import artifact_store
 from server.core.db import Database
 from server.core.queue import BROKER_ERRORS, TaskQueue, scenario_task_id
 from server.models import EvaluationRun, ScenarioResult, Submission, Team, utcnow
@@ -106,15 +107,19 @@ def accept_upload(
         raise InvalidUpload("method_name: give the method a name of 1 to 128 characters")
     with db.read_session() as session:
         check_quota(session, settings, team_id, new.phase, new.track)
-    storage = settings.resolved_data_dir / "submissions" / uuid.uuid4().hex
-    storage.mkdir(parents=True)
+    prefix = f"submissions/{uuid.uuid4().hex}"
+    store = artifact_store(settings, db)
+    # The intake runs in a scratch folder of this process; only the zip is kept, in the store.
+    scratch = settings.resolved_data_dir / "scratch" / prefix
+    scratch.mkdir(parents=True)
     try:
-        zip_path = storage / "upload.zip"
+        zip_path = scratch / "upload.zip"
         shutil.move(upload, zip_path)
         try:
-            prepared = prepare_submission(zip_path, storage / "prepared", settings)
+            prepared = prepare_submission(zip_path, scratch / "prepared", settings)
         except IntakeError as exc:
             raise InvalidUpload(str(exc)) from exc
+        store.put(f"{prefix}/upload.zip", zip_path)
         with db.session() as session:
             lock(session, Team, team_id)  # serialises concurrent uploads of one team (quota)
             check_quota(session, settings, team_id, new.phase, new.track)
@@ -126,7 +131,7 @@ def accept_upload(
                 description=new.description.strip() or (prepared.explanation or "").strip(),
                 file_sha256=prepared.sha256,
                 file_size=prepared.size,
-                storage_dir=str(storage),
+                upload_key=f"{prefix}/upload.zip",
                 status=S.received,
             )
             session.add(submission)
@@ -134,8 +139,10 @@ def accept_upload(
             submission.status = advance(submission.status, S.queued, SUBMISSION_MOVES)
             submission.queued_at = utcnow()
     except BaseException:
-        remove_tree(storage)
+        store.delete_prefix(prefix)
         raise
+    finally:
+        remove_tree(scratch)
     # After the commit: a worker that picks the task up finds the row. If the broker is down the
     # reaper sends it later.
     try:

@@ -35,6 +35,7 @@ from arena.config import get_settings
 from arena.errors import InfrastructureError
 from arena.outcome import ScenarioStatus
 from evaluator.runner.scenario import ScenarioOutcome
+from server.core.artifacts import ArtifactStore, artifact_store
 from server.core.celery_app import QUEUE, TASK_AGGREGATE, TASK_EVALUATE, TASK_SCENARIO
 from server.core.db import get_database
 from server.core.queue import BROKER_ERRORS, TaskQueue
@@ -114,8 +115,11 @@ def run_scenario(self, *, run_id: int, scenario_id: str) -> None:
             # than left for the reaper to hand out again and again.
             log.exception("scenario %s of run %s crashed the task", scenario_id, run_id)
             outcome = _our_failure(job, type(exc).__name__, traceback.format_exc())
+    record_key = _record_key(job, outcome)
     with db.session() as session:
-        last = evaluation.record_scenario(session, job, me, outcome, _log_tail(job, outcome))
+        last = evaluation.record_scenario(
+            session, job, me, outcome, _log_tail(job, outcome), record_key
+        )
     if last:
         _queue().aggregate(run_id)
 
@@ -123,7 +127,7 @@ def run_scenario(self, *, run_id: int, scenario_id: str) -> None:
 @arena_task(TASK_AGGREGATE, time_limit=BOOKKEEPING_TIME_LIMIT_S)
 def aggregate_run(*, run_id: int) -> None:
     with get_database().session() as session:
-        evaluation.finish_run(session, run_id)
+        evaluation.finish_run(session, _store(), run_id)
 
 
 def _hand_back(job: evaluation.ScenarioJob, worker: str) -> None:
@@ -152,14 +156,34 @@ def _our_failure(job: evaluation.ScenarioJob, reason: str, error: str) -> Scenar
 def _simulate(job: evaluation.ScenarioJob) -> ScenarioOutcome:
     from evaluator.runner import run_scenario as run_one
 
-    settings = get_settings()
-    # One folder per claim: an episode whose claim was superseded never touches the live one's.
-    records = (
-        settings.resolved_data_dir / "runs" / str(job.run_id) / "records" / f"claim-{job.attempt}"
-    )
+    # This worker's own scratch folder, one per claim: an episode whose claim was superseded
+    # never touches the live one's files.
+    records = _scratch() / "records" / str(job.run_id) / f"claim-{job.attempt}"
     return run_one(
-        _prepared(job.storage_dir), Path(job.scenario_dir), records, sandbox=_sandbox_kind()
+        _prepared(job.upload_key), Path(job.scenario_dir), records, sandbox=_sandbox_kind()
     )
+
+
+def _record_key(job: evaluation.ScenarioJob, outcome: ScenarioOutcome) -> str | None:
+    """Put the episode record in the artifact store, where any worker can score it."""
+    if outcome.record_path is None:
+        return None
+    key = f"runs/{job.run_id}/claim-{job.attempt}/{job.scenario_id}.npz"
+    _store().put(key, outcome.record_path)
+    outcome.record_path.unlink(missing_ok=True)
+    return key
+
+
+def _scratch() -> Path:
+    """Files of this worker process alone (no ':' in the name: Docker's volume syntax would
+    split a path there). Under the data dir, not a private temporary folder: the sandbox user
+    must be able to enter a prepared submission."""
+    return get_settings().resolved_data_dir / "scratch" / f"{socket.gethostname()}-{os.getpid()}"
+
+
+@lru_cache(maxsize=1)
+def _store() -> ArtifactStore:
+    return artifact_store(get_settings(), get_database())
 
 
 def _log_tail(job: evaluation.ScenarioJob, outcome: ScenarioOutcome) -> str:
@@ -172,24 +196,21 @@ def _log_tail(job: evaluation.ScenarioJob, outcome: ScenarioOutcome) -> str:
 _prepare_lock = threading.Lock()
 
 
-def _prepared(storage_dir: str):
+def _prepared(upload_key: str):
     """One preparation per submission and worker process, even with several threads asking."""
     with _prepare_lock:
-        return _prepare(storage_dir)
+        return _prepare(upload_key)
 
 
 @lru_cache(maxsize=4)
-def _prepare(storage_dir: str):
-    """The submission ready to run, prepared once per worker process from the stored zip (so a
-    worker on another machine needs only the shared data volume). Under the data dir, not a
-    private temporary folder: the sandbox user must be able to enter it."""
+def _prepare(upload_key: str):
+    """The submission ready to run, prepared once per worker process from the zip in the
+    artifact store: a worker on another machine needs nothing but the database and broker."""
     from submissions.intake import prepare_submission
 
-    settings = get_settings()
-    # No ':' in the name: Docker's volume syntax would split the path there.
-    folder = f"{Path(storage_dir).name}-{socket.gethostname()}-{os.getpid()}"
-    dest = settings.resolved_data_dir / "prepared" / folder
-    return prepare_submission(Path(storage_dir) / "upload.zip", dest, settings)
+    folder = _scratch() / "submissions" / Path(upload_key).parent.name
+    zip_path = _store().fetch(upload_key, folder / "upload.zip")
+    return prepare_submission(zip_path, folder / "prepared", get_settings())
 
 
 @lru_cache(maxsize=1)
@@ -203,7 +224,7 @@ def _sandbox_labels(job: evaluation.ScenarioJob) -> dict[str, str]:
     # The labels evaluator.runner puts on the scenario's sandbox.
     return {
         "arena.scenario": job.scenario_id,
-        "arena.submission": _prepared(job.storage_dir).sha256[:16],
+        "arena.submission": _prepared(job.upload_key).sha256[:16],
     }
 
 
@@ -223,9 +244,11 @@ def _heartbeat(job: evaluation.ScenarioJob, worker: str, labels: dict[str, str])
             if _shutting_down.is_set():
                 from evaluator import sandbox
 
+                # Until the runner returns: an agent still starting up when the first look
+                # came, or a simulator retry, must not outlive the worker either.
                 handed_back.set()
                 sandbox.cleanup(labels)
-                return
+                continue
             if time.monotonic() < next_beat:
                 continue
             next_beat += interval
@@ -307,3 +330,4 @@ def _stop_reaper(**_: Any) -> None:
 def _after_fork(**_: Any) -> None:
     get_database().after_fork()
     _queue.cache_clear()
+    _store.cache_clear()

@@ -67,7 +67,7 @@ def seed_scored(
             method_name=method_name,
             file_sha256="0" * 64,
             file_size=1,
-            storage_dir="/nonexistent",
+            upload_key="submissions/none/upload.zip",
             status=status,
             created_at=created_at,
             started_at=created_at + timedelta(seconds=1),
@@ -108,7 +108,7 @@ def queued_submission(
             method_name="m",
             file_sha256="0" * 64,
             file_size=1,
-            storage_dir="/nonexistent",
+            upload_key="submissions/none/upload.zip",
             status=SubmissionStatus.queued,
             queued_at=utcnow(),
         )

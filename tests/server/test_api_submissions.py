@@ -59,7 +59,7 @@ def test_upload_is_checked_stored_and_queued(client, db, settings, keep_lane_zip
     assert [item["id"] for item in listed] == [body["id"]]
     with db.session() as session:
         stored = session.get(Submission, body["id"])
-        assert (settings.resolved_data_dir / stored.storage_dir / "upload.zip").is_file()
+        assert (settings.resolved_data_dir / stored.upload_key).is_file()
 
 
 @pytest.mark.parametrize(

@@ -10,6 +10,7 @@ from sqlalchemy import func, select, update
 
 from arena.outcome import AgentOutcome, ScenarioStatus
 from evaluator.runner import ScenarioOutcome
+from server.core.artifacts import DatabaseStore
 from server.core.queue import RunPlan, TaskQueue
 from server.models import EvaluationRun, ScenarioResult, Submission, utcnow
 from server.services import admin, evaluation
@@ -41,14 +42,21 @@ def job_of(db, run_id, scenario_id) -> tuple[evaluation.ScenarioJob, str]:
         submission_id=0,
         scenario_id=scenario_id,
         scenario_dir="",
-        storage_dir="",
+        upload_key="",
         attempt=row.attempts if row else 0,
     )
     return job, row.worker if row else ""
 
 
 def finish(
-    db, run_id, scenario_id, *, success=True, status=ScenarioStatus.done, record=None, claim=None
+    db,
+    run_id,
+    scenario_id,
+    *,
+    success=True,
+    status=ScenarioStatus.done,
+    record_key=None,
+    claim=None,
 ):
     """Report a result as the worker holding the scenario does (or as ``claim`` = (job, worker))."""
     job, worker = claim or job_of(db, run_id, scenario_id)
@@ -58,16 +66,18 @@ def finish(
         status=status,
         steps=0,
         agents=(AgentOutcome(**agent(success)),) if charged else (),
-        record_path=record,
+        record_path=None,
         error=None if charged else "SUMO crashed",
     )
     with db.session() as session:
-        return evaluation.record_scenario(session, job, worker, outcome, "agent output")
+        return evaluation.record_scenario(
+            session, job, worker, outcome, "agent output", record_key=record_key
+        )
 
 
 def aggregate(db, run_id):
     with db.session() as session:
-        return evaluation.finish_run(session, run_id)
+        return evaluation.finish_run(session, DatabaseStore(db), run_id)
 
 
 def status_of(db, submission_id):
@@ -238,9 +248,7 @@ def test_rerun_is_a_new_attempt_and_the_old_score_stands_meanwhile(db, settings,
     assert status_of(db, submission_id) == SubmissionStatus.scored
     with db.session() as session:
         second = session.scalar(select(EvaluationRun).where(EvaluationRun.attempt == 2))
-        plan = RunPlan(
-            run_id=second.id, scenario_ids=evaluation.pending_scenarios(second)
-        )
+        plan = RunPlan(run_id=second.id, scenario_ids=evaluation.pending_scenarios(second))
     run_everything(db, settings, plan, success=True)
     with db.session() as session:
         from server.services import submissions
@@ -253,7 +261,7 @@ def test_rescore_recomputes_from_stored_results(db, settings, submission_id):
     plan = start(db, settings, submission_id)
     run_everything(db, settings, plan)
     assert admin.rescore_targets(db, submission_id) == [plan.run_id]
-    metrics = admin.rescore_run(db, plan.run_id, "driving-smarts-2022")
+    metrics = admin.rescore_run(db, DatabaseStore(db), plan.run_id, "driving-smarts-2022")
     assert metrics["completion"] == 0.0 and metrics["time"] == 100.0
     with db.session() as session:
         assert session.get(EvaluationRun, plan.run_id).score.profile == "driving-smarts-2022"
@@ -265,9 +273,10 @@ def test_an_unreadable_record_fails_the_run_instead_of_wedging_it(
     plan = start(db, settings, submission_id)
     broken = tmp_path / "broken.npz"
     broken.write_bytes(b"not an npz")
+    DatabaseStore(db).put("runs/broken.npz", broken)
     for sid in plan.scenario_ids:
         claim(db, settings, plan.run_id, sid)
-        finish(db, plan.run_id, sid, record=broken)
+        finish(db, plan.run_id, sid, record_key="runs/broken.npz")
     assert aggregate(db, plan.run_id) == RunStatus.failed
     assert status_of(db, submission_id) == SubmissionStatus.failed
     with db.session() as session:

@@ -40,7 +40,8 @@ def test_old_scenario_statuses_move_to_the_core_vocabulary(tmp_path):
             text(
                 "INSERT INTO submissions (id, team_id, track, method_name, description,"
                 " file_sha256, file_size, storage_dir, status, status_reason, created_at)"
-                " VALUES (1, 1, 'freestyle', 'm', '', 'x', 1, 'd', 'scored', '', '2026-01-01')"
+                " VALUES (1, 1, 'freestyle', 'm', '', 'x', 1, '/data/submissions/d', 'scored', '',"
+                " '2026-01-01')"
             )
         )
         connection.execute(
@@ -65,6 +66,6 @@ def test_old_scenario_statuses_move_to_the_core_vocabulary(tmp_path):
             text("SELECT status FROM scenario_results ORDER BY scenario_id")
         ).scalars()
         assert list(statuses) == ["done", "done", "evaluator_error"]
-        phase = connection.execute(text("SELECT phase FROM submissions")).scalar_one()
-        assert phase == "final"
+        phase, upload = connection.execute(text("SELECT phase, upload_key FROM submissions")).one()
+        assert (phase, upload) == ("final", "submissions/d/upload.zip")
     engine.dispose()

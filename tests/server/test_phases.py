@@ -9,6 +9,7 @@ import pytest
 
 from arena.outcome import AgentOutcome, ScenarioStatus
 from evaluator.runner import ScenarioOutcome
+from server.core.artifacts import DatabaseStore
 from server.models import utcnow
 from server.services import evaluation, phases
 from server.services.leaderboard import LeaderboardCache
@@ -107,7 +108,7 @@ def finished_submission(db, settings, phase: str) -> int:
         with db.session() as session:
             evaluation.record_scenario(session, job, "w1", outcome, SECRET)
     with db.session() as session:
-        evaluation.finish_run(session, plan.run_id)
+        evaluation.finish_run(session, DatabaseStore(db), plan.run_id)
     return submission_id
 
 

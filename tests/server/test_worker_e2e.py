@@ -4,6 +4,7 @@ Redis restart that loses every queued message."""
 
 from __future__ import annotations
 
+import hashlib
 import signal
 import subprocess
 import time
@@ -166,7 +167,10 @@ def test_a_worker_stopped_with_sigterm_hands_its_scenario_back(stack_settings, t
                     select(ScenarioResult).where(ScenarioResult.scenario_id == claimed)
                 )
                 assert row.status == "running" and row.worker == ""  # handed back, not charged
-            assert sandbox.cleanup() == 0  # the stopping worker removed its agent
+            # The stopping worker removed its agent's sandbox (only ours are looked at: other
+            # evaluations may run on this machine).
+            sha = hashlib.sha256((tmp_path / "planner.zip").read_bytes()).hexdigest()
+            assert sandbox.cleanup({"arena.submission": sha[:16]}) == 0
             worker = start_worker(stack_settings, tmp_path / "worker2.log", concurrency=2)
             body = wait_finished(url, token, sid)
             assert body["status"] == "scored"
@@ -298,4 +302,56 @@ def test_local_evaluation_and_the_service_agree(stack_settings, suite, tmp_path)
         )
     assert stored == {entry.id: entry.status for entry in local.scenarios}
     assert any(entry.agents[0].reason != "reached_goal" for entry in local.scenarios)
+    db.dispose()
+
+
+def test_two_workers_with_separate_data_folders_share_nothing_but_broker_and_database(
+    stack_settings, tmp_path
+):
+    """Uploads and records go through the database artifact store: two workers on "two
+    machines" (separate data folders) evaluate one submission together; one is killed mid-run
+    and the other finishes it; no scenario is counted twice."""
+    from server.core.artifacts import DatabaseStore
+
+    def machine(name: str):
+        folder = shared_dir(f"arena-e2e-{name}-")
+        return stack_settings.model_copy(update={"data_dir": folder, "artifact_store": "database"})
+
+    api_settings, first, second = machine("api"), machine("w1"), machine("w2")
+    db = Database(stack_settings.database_url)
+    _, token = make_team(db, "planner-team")
+    workers = [
+        start_worker(first, tmp_path / "w1.log", concurrency=1),
+        start_worker(second, tmp_path / "w2.log", concurrency=1),
+    ]
+    try:
+        with api_server(api_settings, tmp_path / "api.log") as (url, _):
+            sid = upload_example(url, token, "planner", tmp_path)
+            deadline = time.monotonic() + 120
+            while True:  # both workers hold a scenario: the run is shared
+                with db.session() as session:
+                    holders = set(
+                        session.scalars(
+                            select(ScenarioResult.worker).where(ScenarioResult.worker != "")
+                        )
+                    )
+                if len(holders) == 2:
+                    break
+                assert time.monotonic() < deadline, f"workers holding scenarios: {holders}"
+                time.sleep(0.2)
+            stop(workers[0], signal.SIGKILL)
+            body = wait_finished(url, token, sid, timeout_s=300)
+            assert body["status"] == "scored", body
+            assert body["metrics"]["completion"] == 0.0
+    finally:
+        for worker in workers:
+            stop(worker)
+    assert results_per_scenario(db) == dict.fromkeys(SCENARIOS, 1)
+    store = DatabaseStore(db)
+    with db.session() as session:
+        keys = list(session.scalars(select(ScenarioResult.record_key)))
+    assert keys and all(store.exists(key) for key in keys if key)
+    for settings in (api_settings, first, second):  # nothing of the run on any machine's disk
+        assert not list(settings.data_dir.rglob("*.npz"))
+        subprocess.run(["rm", "-rf", str(settings.data_dir)], check=False)
     db.dispose()
