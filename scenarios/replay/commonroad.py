@@ -82,7 +82,9 @@ def read_scene(path: Path) -> CommonRoadScene:
     except (ET.ParseError, OSError) as exc:
         raise CommonRoadImportError(f"{path}: not a readable CommonRoad scenario: {exc}") from exc
     if root.tag != "commonRoad":
-        raise CommonRoadImportError(f"{path}: not a readable CommonRoad scenario: root <{root.tag}>")
+        raise CommonRoadImportError(
+            f"{path}: not a readable CommonRoad scenario: root <{root.tag}>"
+        )
     version = root.get("commonRoadVersion", "")
     if version not in FORMATS:
         raise CommonRoadImportError(
@@ -95,7 +97,8 @@ def read_scene(path: Path) -> CommonRoadScene:
         obstacles = [
             el
             for el in root
-            if el.tag == "dynamicObstacle" or (el.tag == "obstacle" and el.findtext("role") == "dynamic")
+            if el.tag == "dynamicObstacle"
+            or (el.tag == "obstacle" and el.findtext("role") == "dynamic")
         ]
         trajectories = tuple(t for t in (_trajectory(el, dt) for el in obstacles) if t is not None)
     except (ValueError, TypeError, AttributeError) as exc:

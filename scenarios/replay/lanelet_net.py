@@ -59,7 +59,9 @@ def _lanes_right_to_left(lanelets: dict[int, Lanelet]) -> list[list[Lanelet]]:
         if lid in seen:
             continue
         right = lanelets[lid]
-        while right.adjacent_right in lanelets and _side_by_side(lanelets[right.adjacent_right], right):
+        while right.adjacent_right in lanelets and _side_by_side(
+            lanelets[right.adjacent_right], right
+        ):
             right = lanelets[right.adjacent_right]
         group = [right]
         while group[-1].adjacent_left in lanelets and lanelets[group[-1].adjacent_left].id not in {
@@ -136,9 +138,7 @@ def plain_xml(lanelets: Sequence[Lanelet]) -> tuple[str, str, str]:
         for succ in ln.successors:
             if succ in by_id:
                 (fe, fl), (te, tl) = lane_of[ln.id], lane_of[succ]
-                con.append(
-                    f'  <connection from="{fe}" to="{te}" fromLane="{fl}" toLane="{tl}"/>'
-                )
+                con.append(f'  <connection from="{fe}" to="{te}" fromLane="{fl}" toLane="{tl}"/>')
     con.append("</connections>")
     return "\n".join(nod) + "\n", "\n".join(edg) + "\n", "\n".join(con) + "\n"
 

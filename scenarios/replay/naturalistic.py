@@ -143,12 +143,22 @@ def _collides(ego: Trajectory, others: list[Trajectory]) -> bool:
             continue
         ia, ib = ia[near], ib[near]
         a = np.column_stack(
-            [ego.x[ia], ego.y[ia], ego.heading[ia], np.full(len(ia), ego.length),
-             np.full(len(ia), ego.width)]
+            [
+                ego.x[ia],
+                ego.y[ia],
+                ego.heading[ia],
+                np.full(len(ia), ego.length),
+                np.full(len(ia), ego.width),
+            ]
         )
         b = np.column_stack(
-            [other.x[ib], other.y[ib], other.heading[ib], np.full(len(ib), other.length),
-             np.full(len(ib), other.width)]
+            [
+                other.x[ib],
+                other.y[ib],
+                other.heading[ib],
+                np.full(len(ib), other.length),
+                np.full(len(ib), other.width),
+            ]
         )
         if boxes_overlap(a, b).any():
             return True
