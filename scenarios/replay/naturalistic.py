@@ -252,3 +252,15 @@ def write_naturalistic(
         label=DataLabel.naturalistic,
     )
     return write_scenario(folder, scenario, net_path)
+
+
+def shipped_scenes_dir() -> Path:
+    """The naturalistic scenes shipped beside the repository (setting ``ARENA_NATURALISTIC_DIR``
+    overrides): ``../shared/data/naturalistic/commonroad-ngsim`` from the repository root."""
+    from arena.config import get_settings
+
+    configured = get_settings().naturalistic_dir
+    if configured is not None:
+        return configured
+    repo = Path(__file__).resolve().parents[2]
+    return repo.parent / "shared" / "data" / "naturalistic" / "commonroad-ngsim"
