@@ -20,9 +20,11 @@ import numpy as np
 from scenarios.generators import GENERATORS, MapLibrary, Spec
 from scenarios.maps import netconvert_version
 from scenarios.replay.builder import KIND_SCENE, Candidate, candidates, write_replay
+from scenarios.replay.naturalistic import SOURCE as NATURALISTIC_SOURCE
+from scenarios.replay.naturalistic_pool import NaturalisticPool
 from scenarios.replay.recorder import Recording
 from scenarios.replay.scenes import SCENES, recorded
-from scenarios.schema import Family, Scenario, content_hash
+from scenarios.schema import DataLabel, Family, Scenario, content_hash
 from scenarios.writer import write_reactive
 
 MANIFEST = "manifest.json"
@@ -189,10 +191,18 @@ def build_suite(
     out: Path,
     cache_dir: Path,
     progress: Callable[[str], None] = lambda _: None,
+    naturalistic_dir: Path | None = None,
 ) -> dict:
     """Write every scenario of ``suite`` under ``out`` plus ``manifest.json``; returns the
-    manifest. ``out`` is replaced."""
+    manifest. ``out`` is replaced. With ``naturalistic_dir`` (a folder of CommonRoad / NGSIM CSV
+    scenes) the one-agent non-reactive replays are naturalistic while its ego choices last."""
     specs = SUITES[suite]()
+    # Read every scene before touching ``out``: a malformed file fails the build up front.
+    natural = (
+        NaturalisticPool.load(naturalistic_dir, suite, seed, cache_dir)
+        if naturalistic_dir
+        else None
+    )
     if out.exists():
         shutil.rmtree(out)
     out.mkdir(parents=True)
@@ -204,6 +214,11 @@ def build_suite(
         scenario_seed = derive_seed(suite, seed, index, spec.family, spec.variant, spec.volume)
         rng = np.random.default_rng(scenario_seed)
         folder = out / sid
+        if natural is not None and natural.takes(spec):
+            scenario = natural.write(out, suite, index, scenario_seed)
+            entries.append(manifest_entry(scenario, out / scenario.id))
+            progress(scenario.id)
+            continue
         if spec.family is F.replay:
             scene, recording, chosen = replays.take(spec.variant, spec.agents, rng)
             scenario = write_replay(
@@ -224,6 +239,8 @@ def build_suite(
         entries.append(manifest_entry(scenario, folder))
         progress(sid)
     manifest = {"suite": suite, "netconvert": netconvert_version(), "scenarios": entries}
+    if natural is not None:
+        manifest["naturalistic_scenes"] = natural.scene_list()
     if suite == "public":
         manifest["seed"] = seed
     else:
@@ -243,7 +260,7 @@ def manifest_entry(scenario: Scenario, folder: Path) -> dict:
         "hash": content_hash(folder),
         "label": scenario.label.value,
         "unsolvable_reason": scenario.unsolvable_reason,
-    }
+    } | ({"source": NATURALISTIC_SOURCE} if scenario.label is DataLabel.naturalistic else {})
 
 
 def write_manifest(out: Path, manifest: dict) -> None:

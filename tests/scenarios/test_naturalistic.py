@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import itertools
 import math
-import os
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +23,6 @@ from scenarios.replay.naturalistic import (
     load_scene,
     load_scenes,
     scene_net,
-    shipped_scenes_dir,
     write_naturalistic,
 )
 from scenarios.schema import DataLabel, load_scenario
@@ -42,17 +40,6 @@ SHIPPED = {
 }
 # Outside junction areas the simulator's own nearest lane must point the recorded way.
 MAX_ANGLE_OUTSIDE_JUNCTIONS = math.radians(20.0)
-
-
-@pytest.fixture(scope="module")
-def scenes_dir() -> Path:
-    folder = shipped_scenes_dir()
-    if not (folder / "PROVENANCE.md").exists():
-        reason = f"naturalistic scenes not found at {folder} (set ARENA_NATURALISTIC_DIR)"
-        if os.environ.get("CI"):
-            pytest.fail(reason)
-        pytest.skip(reason)
-    return folder
 
 
 @pytest.fixture(scope="module")
