@@ -209,3 +209,30 @@ def test_log_replay_expert_solves_every_naturalistic_scenario(naturalistic_scena
         if not (r := verify_scenario(folder, tmp_path)).solved
     ]
     assert not unsolved
+
+
+def test_ngsim_csv_scene_gets_straight_lanes_and_solvable_scenarios(tmp_path):
+    """An NGSIM CSV scene (no road in the file): one straight 12 ft lane per Lane_ID; vehicles
+    40 ft apart in lanes 1-3 at 40 ft/s, one drifting from lane 2 into lane 3."""
+    header = "Vehicle_ID,Frame_ID,Total_Frames,Local_X,Local_Y,v_Length,v_Width,v_Vel,Lane_ID\n"
+    rows = []
+    for vid, lane in ((1, 1), (2, 2), (3, 3), (4, 2)):
+        for f in range(40):
+            local_x = (lane - 0.5) * 12 + (0.3 * max(0, f - 10) if vid == 4 else 0.0)
+            local_x = min(local_x, 2.5 * 12)
+            local_y = 60 * vid + 4 * f
+            rows.append(f"{vid},{100 + f},40,{local_x},{local_y},15,6,40,{lane}\n")
+    (tmp_path / "us101-sample.csv").write_text(header + "".join(rows))
+    scene = load_scene(tmp_path / "us101-sample.csv")
+    assert len(scene.lanelets) == 3 and len(scene.trajectories) == 4
+    net_path = scene_net(scene, tmp_path / "cache")
+    net = sumolib.net.readNet(str(net_path))
+    (edge,) = net.getEdges()
+    assert [round(lane.getWidth(), 3) for lane in edge.getLanes()] == [3.658] * 3
+    egos = ego_choices(scene, net_path)
+    assert {e.vehicle_id for e in egos} == {"1", "2", "3", "4"}
+    assert next(e for e in egos if e.vehicle_id == "4").kind == "lane_change"
+    for ego in egos:
+        folder = tmp_path / f"ngsim_{ego.vehicle_id}"
+        write_naturalistic(folder, folder.name, scene, ego, net_path, seed=1)
+        assert verify_scenario(folder, tmp_path).solved
