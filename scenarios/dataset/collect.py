@@ -78,8 +78,8 @@ def collect(scenario_dir: Path) -> list[Episode]:
 
     The simulator gives no observation after an agent is done, so an episode ends at the last
     observation the agent received: its final transition is *truncated* (or *terminated* when it
-    ended in a collision or off the road), and the goal bonus goes to the transition that reached
-    the goal radius, if observed."""
+    ended in a collision or off the road); the goal bonus applies only to an observed arrival,
+    which the expert's episodes (ending at arrival) never contain."""
     from scenarios.experts import expert_interface
     from scenarios.schema import load_scenario
     from sim.isolation import run_episode_isolated
