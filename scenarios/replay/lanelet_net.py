@@ -58,11 +58,14 @@ def _lanes_right_to_left(lanelets: dict[int, Lanelet]) -> list[list[Lanelet]]:
     for lid in sorted(lanelets):
         if lid in seen:
             continue
-        right = lanelets[lid]
-        while right.adjacent_right in lanelets and _side_by_side(
-            lanelets[right.adjacent_right], right
+        right, walked = lanelets[lid], {lid}
+        while (
+            right.adjacent_right in lanelets
+            and right.adjacent_right not in walked  # a file whose neighbours form a loop
+            and _side_by_side(lanelets[right.adjacent_right], right)
         ):
             right = lanelets[right.adjacent_right]
+            walked.add(right.id)
         group = [right]
         while group[-1].adjacent_left in lanelets and lanelets[group[-1].adjacent_left].id not in {
             g.id for g in group
@@ -71,7 +74,9 @@ def _lanes_right_to_left(lanelets: dict[int, Lanelet]) -> list[list[Lanelet]]:
             if not _side_by_side(group[-1], left):
                 break
             group.append(left)
-        if any(g.id in seen for g in group):  # neighbours that disagree: keep lanelets apart
+        # Neighbour references that disagree (A's right is B but B's left is not A, or a group
+        # overlapping one already made): keep the lanelet an edge of its own.
+        if lid not in {g.id for g in group} or any(g.id in seen for g in group):
             group = [lanelets[lid]]
         seen.update(g.id for g in group)
         groups.append(group)

@@ -93,8 +93,13 @@ def ngsim_lanelets(path: Path) -> tuple[Lanelet, ...]:
     spanning the recorded x range."""
     import csv
 
-    with open(path, newline="") as f:
-        lane_ids = {int(float(row["Lane_ID"])) for row in csv.DictReader(f)}
+    try:
+        with open(path, newline="") as f:
+            lane_ids = {int(float(row["Lane_ID"])) for row in csv.DictReader(f)}
+    except ValueError as exc:
+        raise NaturalisticImportError(f"{path}: Lane_ID is not a lane number: {exc}") from exc
+    if min(lane_ids) < 1:
+        raise NaturalisticImportError(f"{path}: Lane_ID {min(lane_ids)} (NGSIM lanes count from 1)")
     trajectories = read_ngsim(path)
     x0 = min(float(t.x.min()) for t in trajectories) - 20.0
     x1 = max(float(t.x.max()) for t in trajectories) + 20.0

@@ -14,7 +14,7 @@ import sumolib
 
 from scenarios.replay.builder import EXPERT_FILE
 from scenarios.replay.commonroad import CommonRoadImportError, read_scene
-from scenarios.replay.lanelet_net import lanelet_edges
+from scenarios.replay.lanelet_net import build_lanelet_net, lanelet_edges
 from scenarios.replay.map_match import MAX_ANGLE_RAD, REACH_M, fit_trajectory
 from scenarios.replay.naturalistic import (
     ATTRIBUTION_FILE,
@@ -236,3 +236,29 @@ def test_ngsim_csv_scene_gets_straight_lanes_and_solvable_scenarios(tmp_path):
         folder = tmp_path / f"ngsim_{ego.vehicle_id}"
         write_naturalistic(folder, folder.name, scene, ego, net_path, seed=1)
         assert verify_scenario(folder, tmp_path).solved
+
+
+def _straight(lid, y_right, *, left=None, right=None):
+    from scenarios.replay.commonroad import Lanelet
+
+    return Lanelet(
+        lid,
+        np.array([[0.0, y_right + 3.5], [80.0, y_right + 3.5]]),
+        np.array([[0.0, y_right], [80.0, y_right]]),
+        (),
+        (),
+        left,
+        right,
+        20.0,
+    )
+
+
+def test_side_by_side_lanelets_are_one_edge_and_bad_neighbour_loops_are_not(tmp_path):
+    pair = [_straight(1, 0.0, left=2), _straight(2, 3.5, right=1)]
+    assert lanelet_edges(pair) == {1: ("cr1_2", 0), 2: ("cr1_2", 1)}
+    net = sumolib.net.readNet(str(build_lanelet_net("pair", pair, tmp_path)))
+    lanes = net.getEdge("cr1_2").getLanes()
+    assert [round(np.mean([p[1] for p in ln.getShape()]), 2) for ln in lanes] == [1.75, 5.25]
+    # Each names the other as its right neighbour (only 4 is): every lanelet kept, no loop.
+    looped = [_straight(3, 0.0, right=4), _straight(4, -3.5, right=3)]
+    assert set(lanelet_edges(looped)) == {3, 4}
