@@ -7,8 +7,8 @@ import hashlib
 import json
 import shutil
 
+import minari  # the dev extra installs it: no silent skip in CI
 import numpy as np
-import pytest
 from typer.testing import CliRunner
 
 from arena.cli import app
@@ -20,7 +20,6 @@ from scenarios.replay.naturalistic import ego_choices, load_scene, scene_net, wr
 from scenarios.suites import public_suite_dir
 from sim.trajectories import read_trajectories
 
-minari = pytest.importorskip("minari")  # the dev extra installs it
 runner = CliRunner()
 KEPT, HIDDEN = "USA_US101-3_3_T-1.xml", "USA_Peach-4_8_T-1.xml"
 RECORDED = "p033_replay_merge_2agents"
