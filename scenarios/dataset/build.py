@@ -12,6 +12,7 @@ import hashlib
 import json
 import os
 import tempfile
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 
@@ -97,19 +98,10 @@ def build_dataset(
     if DATASET_ID in minari.list_local_datasets():
         minari.delete_dataset(DATASET_ID)
     space = gym.spaces.Box(-np.inf, np.inf, (OBS_SIZE,), np.float32)
-    minari.create_dataset_from_buffers(
-        DATASET_ID,
-        buffers,
-        observation_space=space,
-        action_space=gym.spaces.Box(-np.inf, np.inf, (ACTION_SIZE,), np.float32),
-        algorithm_name="log replay expert",
-        author="Driving Arena",
-        description=(
-            "Driving Arena replays: NGSIM (via CommonRoad, TU Munich, BSD 3-Clause; roads partly "
-            "(c) OpenStreetMap contributors, ODbL) and SUMO-recorded traffic. See docs/dataset.md."
-        ),
-        data_format="hdf5",
-    )
+    with warnings.catch_warnings():
+        # minari warns about optional metadata we have none of (permalink, e-mail, eval env).
+        warnings.filterwarnings("ignore", category=UserWarning, module="minari")
+        _create(minari, buffers, space)
     manifest = {
         "dataset_id": DATASET_ID,
         "episodes": rows,
@@ -130,4 +122,22 @@ def _buffer(cls, index: int, episode: Episode):
         terminations=episode.terminations.tolist(),
         truncations=episode.truncations.tolist(),
         infos={},
+    )
+
+
+def _create(minari, buffers: list, space) -> None:
+    import gymnasium as gym
+
+    minari.create_dataset_from_buffers(
+        DATASET_ID,
+        buffers,
+        observation_space=space,
+        action_space=gym.spaces.Box(-np.inf, np.inf, (ACTION_SIZE,), np.float32),
+        algorithm_name="log replay expert",
+        author="Driving Arena",
+        description=(
+            "Driving Arena replays: NGSIM (via CommonRoad, TU Munich, BSD 3-Clause; roads partly "
+            "(c) OpenStreetMap contributors, ODbL) and SUMO-recorded traffic. See docs/dataset.md."
+        ),
+        data_format="hdf5",
     )

@@ -209,6 +209,10 @@ def test_log_replay_expert_solves_every_naturalistic_scenario(naturalistic_scena
         if not (r := verify_scenario(folder, tmp_path)).solved
     ]
     assert not unsolved
+    # Driving the recorded path on the built map is neither off route nor the wrong way.
+    for folder in naturalistic_scenarios:
+        record = np.load(tmp_path / f"{folder.name}.npz")
+        assert record["ev_off_route"].sum() == 0 and record["ev_wrong_way"].sum() == 0, folder.name
 
 
 def test_ngsim_csv_scene_gets_straight_lanes_and_solvable_scenarios(tmp_path):
