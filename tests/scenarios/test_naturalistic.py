@@ -266,3 +266,22 @@ def test_side_by_side_lanelets_are_one_edge_and_bad_neighbour_loops_are_not(tmp_
     # Each names the other as its right neighbour (only 4 is): every lanelet kept, no loop.
     looped = [_straight(3, 0.0, right=4), _straight(4, -3.5, right=3)]
     assert set(lanelet_edges(looped)) == {3, 4}
+
+
+def test_a_track1_agent_drives_the_imported_maps(naturalistic_scenarios, tmp_path):
+    """The reference planner (waypoints, observations, events on the imported lanes) runs one
+    scenario of every scene without a simulator error and reaches some goals."""
+    from scenarios.experts import PlannerAgent, planner_interface
+    from sim.isolation import run_episode_isolated
+
+    first = {}
+    for folder in naturalistic_scenarios:
+        first.setdefault(folder.name.rsplit("_cr", 1)[0], folder)
+    reached = 0
+    for folder in first.values():
+        result = run_episode_isolated(
+            folder, PlannerAgent, planner_interface(), record_path=tmp_path / f"{folder.name}.npz"
+        )
+        assert not result.simulator_error, (folder.name, result.simulator_error)
+        reached += result.agents[0].reached_goal
+    assert reached >= 1
