@@ -11,6 +11,7 @@ import typer
 from evaluator.cli import app as evaluator_app
 from evaluator.sandbox.cli import sandbox_app
 from scenarios.cli import app as scenarios_app
+from scenarios.dataset.cli import app as dataset_app
 from server.cli import admin_app, service_app
 from submissions.cli import submission_app
 
@@ -21,6 +22,7 @@ app = typer.Typer(
     pretty_exceptions_show_locals=False,
 )
 app.add_typer(scenarios_app, name="scenarios", help="Build, list, draw and verify scenario suites.")
+app.add_typer(dataset_app, name="dataset", help="Build the offline-learning dataset (Minari).")
 app.add_typer(submission_app, name="submission", help="Pack and check a submission zip.")
 app.add_typer(sandbox_app, name="sandbox", help="The agent sandbox: runtime image, leftovers.")
 app.add_typer(admin_app, name="admin", help="Organiser administration of the service.")

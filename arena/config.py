@@ -50,6 +50,9 @@ class Settings(BaseSettings):
     hidden_seed: int | None = None
     hidden_suite_dir: Path | None = None
     public_suite_dir: Path | None = None
+    # The shipped naturalistic scenes (CommonRoad NGSIM); None: ../shared/data/naturalistic/
+    # commonroad-ngsim beside the repository.
+    naturalistic_dir: Path | None = None
 
     # Sandbox.
     sandbox: SandboxKind = SandboxKind.auto

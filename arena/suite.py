@@ -39,6 +39,7 @@ class ManifestEntry(BaseModel):
     label: DataLabel = DataLabel.synthetic
     # The solvability rule: the expert completes the scenario, or this says why not.
     unsolvable_reason: str | None = None
+    source: str | None = None  # naturalistic replays: the recording's origin, e.g. NGSIM
 
 
 class SuiteManifest(BaseModel):
@@ -47,11 +48,21 @@ class SuiteManifest(BaseModel):
     suite: str
     netconvert: str | None = None  # the netconvert that built the maps (builds are byte-exact)
     scenarios: tuple[ManifestEntry, ...]
+    # Scene files a build with --naturalistic-dir read: name, file and sha256 of each.
+    naturalistic_scenes: tuple[dict[str, str], ...] | None = None
     seed: int | None = None  # public suites only
     seed_fingerprint: str | None = None  # hidden suites: the seed itself is never written
 
     def to_json(self) -> str:
-        data = self.model_dump(mode="json", exclude={"seed", "seed_fingerprint"})
+        """The manifest as the builds write it: optional fields only where they are set."""
+        data = self.model_dump(
+            mode="json", exclude={"naturalistic_scenes", "seed", "seed_fingerprint"}
+        )
+        for entry in data["scenarios"]:
+            if entry["source"] is None:
+                del entry["source"]
+        if self.naturalistic_scenes is not None:
+            data["naturalistic_scenes"] = list(self.naturalistic_scenes)
         if self.seed is not None:
             data["seed"] = self.seed
         if self.seed_fingerprint is not None:

@@ -64,8 +64,16 @@ def build(
     suite: Annotated[SuiteName, typer.Option(help="Which suite.")] = SuiteName.hidden,
     seed: Annotated[int | None, typer.Option(help="Hidden suite seed (secret).")] = None,
     dev: Annotated[bool, typer.Option(help="Hidden suite from the development seed.")] = False,
+    naturalistic_dir: Annotated[
+        Path | None,
+        typer.Option(
+            "--naturalistic-dir",
+            help="Folder of CommonRoad .xml / NGSIM .csv scenes to cut one-agent replays from.",
+        ),
+    ] = None,
 ) -> None:
     """Build the hidden suite (128 scenarios) or the public set into OUT with a manifest.json."""
+    from scenarios.replay.naturalistic import NaturalisticImportError
     from scenarios.suites import PUBLIC_SEED, SUITES, build_suite
 
     if suite is SuiteName.public:
@@ -77,14 +85,21 @@ def build(
     total = len(SUITES[suite.value]())
     with _progress() as progress:
         task = progress.add_task(f"building {suite.value}", total=total, current="")
-        manifest = build_suite(
-            suite.value,
-            suite_seed,
-            out,
-            _cache_dir(),
-            lambda sid: progress.update(task, advance=1, current=sid),
-        )
+        try:
+            manifest = build_suite(
+                suite.value,
+                suite_seed,
+                out,
+                _cache_dir(),
+                lambda sid: progress.update(task, advance=1, current=sid),
+                naturalistic_dir=naturalistic_dir,
+            )
+        except NaturalisticImportError as exc:
+            raise typer.BadParameter(str(exc), param_hint="--naturalistic-dir") from exc
     _console().print(f"wrote {len(manifest.scenarios)} scenarios and manifest.json to {out}")
+    if naturalistic_dir is not None:
+        natural = sum(e.label == "naturalistic" for e in manifest.scenarios)
+        _console().print(f"{natural} of them naturalistic, from {naturalistic_dir}")
 
 
 @app.command("list")

@@ -16,11 +16,13 @@ from pathlib import Path
 
 import numpy as np
 
-from arena.scenario import Family, Scenario, content_hash
+from arena.scenario import DataLabel, Family, Scenario, content_hash
 from arena.suite import ManifestEntry, SuiteManifest, write_manifest
 from scenarios.generators import GENERATORS, MapLibrary, Spec
 from scenarios.maps import netconvert_version
 from scenarios.replay.builder import Candidate, candidates, write_replay
+from scenarios.replay.naturalistic import SOURCE as NATURALISTIC_SOURCE
+from scenarios.replay.naturalistic_pool import NaturalisticPool
 from scenarios.replay.recorder import Recording
 from scenarios.replay.scenes import SCENES, recorded
 from scenarios.variants import KIND_SCENE
@@ -189,10 +191,18 @@ def build_suite(
     out: Path,
     cache_dir: Path,
     progress: Callable[[str], None] = lambda _: None,
+    naturalistic_dir: Path | None = None,
 ) -> SuiteManifest:
     """Write every scenario of ``suite`` under ``out`` plus ``manifest.json``; returns the
-    manifest. ``out`` is replaced."""
+    manifest. ``out`` is replaced. With ``naturalistic_dir`` (a folder of CommonRoad / NGSIM CSV
+    scenes) the one-agent non-reactive replays are naturalistic while its ego choices last."""
     specs = SUITES[suite]()
+    # Read every scene before touching ``out``: a malformed file fails the build up front.
+    natural = (
+        NaturalisticPool.load(naturalistic_dir, suite, seed, cache_dir)
+        if naturalistic_dir
+        else None
+    )
     if out.exists():
         shutil.rmtree(out)
     out.mkdir(parents=True)
@@ -204,6 +214,11 @@ def build_suite(
         scenario_seed = derive_seed(suite, seed, index, spec.family, spec.variant, spec.volume)
         rng = np.random.default_rng(scenario_seed)
         folder = out / sid
+        if natural is not None and natural.takes(spec):
+            scenario = natural.write(out, suite, index, scenario_seed)
+            entries.append(manifest_entry(scenario, out / scenario.id))
+            progress(scenario.id)
+            continue
         if spec.family is F.replay:
             scene, recording, chosen = replays.take(spec.variant, spec.agents, rng)
             scenario = write_replay(
@@ -227,6 +242,7 @@ def build_suite(
         suite=suite,
         netconvert=netconvert_version(),
         scenarios=tuple(entries),
+        naturalistic_scenes=natural.scene_list() if natural is not None else None,
         seed=seed if suite == "public" else None,
         seed_fingerprint=None if suite == "public" else seed_fingerprint(seed),
     )
@@ -245,4 +261,5 @@ def manifest_entry(scenario: Scenario, folder: Path) -> ManifestEntry:
         hash=content_hash(folder),
         label=scenario.label,
         unsolvable_reason=scenario.unsolvable_reason,
+        source=NATURALISTIC_SOURCE if scenario.label is DataLabel.naturalistic else None,
     )

@@ -35,6 +35,10 @@ KIND_SCENE = {
     "left_turn": "cross",
     "urban": "urban",
 }
+# Naturalistic replays (scenarios/replay/naturalistic.py): the manoeuvre of the removed vehicle.
+NATURALISTIC_KINDS = tuple(
+    f"ngsim_{kind}" for kind in ("cruise", "lane_change", "left_turn", "right_turn")
+)
 
 
 def _turn_c(template: str, turn: str, goal_lane: int) -> Variant:
@@ -89,7 +93,7 @@ VARIANTS: dict[Family, dict[str, Variant]] = {
 
 def known_variants(family: Family) -> tuple[str, ...]:
     if family is Family.replay:
-        return tuple(KIND_SCENE)
+        return tuple(KIND_SCENE) + NATURALISTIC_KINDS
     return tuple(VARIANTS[family])
 
 

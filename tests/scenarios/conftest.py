@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import pytest
@@ -14,6 +15,20 @@ from scenarios.suites import PUBLIC_SEED, build_suite
 @pytest.fixture(scope="session")
 def cache_dir(tmp_path_factory) -> Path:
     return tmp_path_factory.mktemp("scenario-cache")
+
+
+@pytest.fixture(scope="session")
+def scenes_dir() -> Path:
+    """The shipped naturalistic scenes (../shared/data/naturalistic/commonroad-ngsim)."""
+    from scenarios.replay.naturalistic import shipped_scenes_dir
+
+    folder = shipped_scenes_dir()
+    if not (folder / "PROVENANCE.md").exists():
+        reason = f"naturalistic scenes not found at {folder} (set ARENA_NATURALISTIC_DIR)"
+        if os.environ.get("CI"):  # CI has shared/ beside the clone: missing data is a failure
+            pytest.fail(reason)
+        pytest.skip(reason)
+    return folder
 
 
 @pytest.fixture(scope="session")

@@ -1,5 +1,5 @@
 """Small scenario folders for simulator tests: plain node/edge XML through netconvert, a routes
-file and a ``scenario.json`` per ``scenarios/schema.py``."""
+file and a ``scenario.json`` per ``arena/scenario.py``."""
 
 from __future__ import annotations
 
