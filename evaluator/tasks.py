@@ -94,8 +94,9 @@ def run_scenario(self, *, run_id: int, scenario_id: str) -> None:
         outcome = _our_failure(job, "worker_lost", f"{job.attempt - 1} workers died running it")
     else:
         try:
-            with _heartbeat(run_id, me, labels=_sandbox_labels(job)):
-                outcome = _simulate(job)
+            run_key = _run_key(job)
+            with _heartbeat(run_id, me, labels=_sandbox_labels(run_key)):
+                outcome = _simulate(job, run_key)
         except InfrastructureError as exc:
             if self.request.retries < INFRASTRUCTURE_RETRIES:
                 raise self.retry(exc=exc, countdown=10 * (self.request.retries + 1)) from exc
@@ -129,14 +130,18 @@ def _our_failure(
     )
 
 
-def _simulate(job: evaluation.ScenarioJob) -> evaluation.ScenarioOutcomeIn:
+def _simulate(job: evaluation.ScenarioJob, run_key: str) -> evaluation.ScenarioOutcomeIn:
     from evaluator.runner import run_scenario as run_one
     from evaluator.summary import ScenarioStatus
 
     settings = get_settings()
     records = settings.resolved_data_dir / "runs" / str(job.run_id) / "records"
     outcome = run_one(
-        _prepared(job.storage_dir), Path(job.scenario_dir), records, sandbox=_sandbox_kind()
+        _prepared(job.storage_dir),
+        Path(job.scenario_dir),
+        records,
+        sandbox=_sandbox_kind(),
+        run_key=run_key,
     )
     # The team sees this text: the hidden scenario's id must not appear in it.
     log_text = outcome.log.replace(job.scenario_id, "<scenario>")
@@ -200,12 +205,19 @@ def _sandbox_kind():
     return sandbox.check_service_kind(settings=get_settings())
 
 
-def _sandbox_labels(job: evaluation.ScenarioJob) -> dict[str, str]:
-    # The labels evaluator.runner puts on the scenario's sandbox.
-    return {
-        "arena.scenario": job.scenario_id,
-        "arena.submission": _prepared(job.storage_dir).sha256[:16],
-    }
+def _run_key(job: evaluation.ScenarioJob) -> str:
+    # Per run, scenario claim and a random part: two submissions of the same zip (or two claims
+    # of one scenario) never share sandbox labels, and nothing in it names the scenario.
+    from evaluator.runner import new_run_key
+
+    return f"r{job.run_id}a{job.attempt}-{new_run_key()}"
+
+
+def _sandbox_labels(run_key: str) -> dict[str, str]:
+    # The labels every attempt of the runner's sandboxes carries (evaluator.runner.scenario).
+    from evaluator.runner import sandbox_labels
+
+    return sandbox_labels(run_key)
 
 
 @contextmanager

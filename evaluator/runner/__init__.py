@@ -11,6 +11,7 @@ from evaluator.runner.results import score_results_dir, summarize
 from evaluator.runner.scenario import (
     SandboxedAgentFactory,
     ScenarioOutcome,
+    new_run_key,
     run_scenario,
     sandbox_labels,
 )
@@ -24,6 +25,7 @@ __all__ = [
     "SuiteError",
     "evaluate",
     "load_manifest",
+    "new_run_key",
     "resolve_suite",
     "run_scenario",
     "sandbox_labels",
