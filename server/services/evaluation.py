@@ -22,6 +22,7 @@ from server.models import EvaluationRun, LeaderboardGeneration, ScenarioResult, 
 from server.models import utcnow as now
 from server.services import scoring
 from server.services.errors import Conflict, NotFound
+from server.services.storable import storable_json, storable_text
 from server.services.suites import evaluation_suite_dir, load_suite
 from server.status import (
     ACTIVE_RUN,
@@ -209,11 +210,12 @@ def record_scenario(session: Session, run_id: int, outcome: ScenarioOutcomeIn) -
         return False
     values = {
         "status": outcome.status,
-        "reason": outcome.reason,
+        "reason": storable_text(outcome.reason),
         "steps": outcome.steps,
         "record_path": outcome.record_path,
-        "log_tail": outcome.log_tail,
-        "detail": outcome.detail,
+        # Agent output: any byte value must record on every database.
+        "log_tail": storable_text(outcome.log_tail),
+        "detail": storable_json(outcome.detail),
     }
     family = load_suite(Path(run.suite_dir)).family_of()
     _insert_if_absent(session, run_id, outcome.scenario_id, family[outcome.scenario_id])
