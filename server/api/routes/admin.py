@@ -7,11 +7,17 @@ from typing import Annotated
 from fastapi import APIRouter, Body, Query
 from starlette.concurrency import run_in_threadpool
 
+from server.api.contract import errors
 from server.api.deps import AdminDep, DatabaseDep, QueueDep, RowId, SessionDep, SettingsDep
 from server.schemas import SubmissionSummary
 from server.services import admin, submissions
 
-router = APIRouter(prefix="/admin", tags=["admin"], dependencies=[AdminDep])
+router = APIRouter(
+    prefix="/admin",
+    tags=["admin"],
+    dependencies=[AdminDep],
+    responses=errors(400, 401, 403, 404, 409, 422),
+)
 SubmissionId = RowId
 
 

@@ -6,11 +6,12 @@ from fastapi import APIRouter, Response, status
 from sqlalchemy import text
 from sqlalchemy.exc import SQLAlchemyError
 
+from server.api.contract import errors
 from server.api.deps import DatabaseDep, QueueDep
 from server.schemas import Health
 from server.services.queue import BROKER_ERRORS
 
-router = APIRouter(tags=["health"])
+router = APIRouter(tags=["health"], responses=errors(503))
 
 
 @router.get("/healthz", response_model=Health)

@@ -5,11 +5,12 @@ from __future__ import annotations
 from fastapi import APIRouter, Response
 from starlette.concurrency import run_in_threadpool
 
+from server.api.contract import errors
 from server.api.deps import LeaderboardDep
 from server.models import Track
 from server.services.leaderboard import to_csv
 
-router = APIRouter(tags=["leaderboard"])
+router = APIRouter(tags=["leaderboard"], responses=errors(422))
 
 
 @router.get(

@@ -5,6 +5,7 @@ from __future__ import annotations
 from fastapi import APIRouter, Request, status
 from starlette.concurrency import run_in_threadpool
 
+from server.api.contract import UPLOAD_FORM, errors
 from server.api.deps import (
     CurrentTeam,
     DatabaseDep,
@@ -19,10 +20,16 @@ from server.schemas import SubmissionDetail, SubmissionLogs, SubmissionSummary
 from server.services import submissions
 from server.services.errors import InvalidUpload
 
-router = APIRouter(prefix="/submissions", tags=["submissions"])
+router = APIRouter(prefix="/submissions", tags=["submissions"], responses=errors(401, 404, 422))
 
 
-@router.post("", status_code=status.HTTP_201_CREATED, response_model=SubmissionDetail)
+@router.post(
+    "",
+    status_code=status.HTTP_201_CREATED,
+    response_model=SubmissionDetail,
+    responses=errors(409, 413, 429),
+    openapi_extra=UPLOAD_FORM,
+)
 async def create_submission(
     request: Request, team: CurrentTeam, db: DatabaseDep, settings: SettingsDep, queue: QueueDep
 ) -> SubmissionDetail:
@@ -68,7 +75,7 @@ def get_logs(submission: OwnedSubmission) -> SubmissionLogs:
     return submissions.logs(submission)
 
 
-@router.post("/{submission_id}/cancel", response_model=SubmissionSummary)
+@router.post("/{submission_id}/cancel", response_model=SubmissionSummary, responses=errors(409))
 def cancel_submission(
     submission: OwnedSubmission, db: DatabaseDep, queue: QueueDep
 ) -> SubmissionSummary:
