@@ -57,6 +57,8 @@ class Settings(BaseSettings):
     # Sandbox.
     sandbox: SandboxKind = SandboxKind.auto
     agent_image: str = "driving-arena-agent:latest"
+    # Debian mirror the offline agent image is bootstrapped from; empty: the host's apt sources.
+    debian_mirror: str = ""
     init_timeout_s: float = 60.0
     step_timeout_s: float = 1.0
     episode_timeout_s: float = 600.0

@@ -26,7 +26,10 @@ admin_app.add_typer(db_app, name="db")
 admin_app.add_typer(phases_app, name="phases")
 
 console = Console()
-SubmissionId = Annotated[int, typer.Argument(help="Submission id.")]
+# The API's bound (server.api.deps.MAX_ROW_ID): a larger id is a usage error, not a driver's
+# overflow traceback.
+MAX_ID = 2**31 - 1
+SubmissionId = Annotated[int, typer.Argument(help="Submission id.", min=1, max=MAX_ID)]
 
 
 class _Context:
@@ -123,7 +126,7 @@ def _metric(value: float | None, digits: int = 4) -> str:
 
 
 @submissions_app.command("list")
-def submissions_list(limit: int = 50) -> None:
+def submissions_list(limit: Annotated[int, typer.Option(min=1, max=10_000)] = 50) -> None:
     """The latest submissions with status, progress and metrics."""
     from server.services import submissions
 
@@ -233,7 +236,9 @@ def submissions_requeue(submission_id: SubmissionId) -> None:
 
 @admin_app.command("rescore")
 def rescore(
-    submission_id: Annotated[int | None, typer.Argument(help="Submission id.")] = None,
+    submission_id: Annotated[
+        int | None, typer.Argument(help="Submission id.", min=1, max=MAX_ID)
+    ] = None,
     all_: Annotated[bool, typer.Option("--all", help="Every scored submission.")] = False,
     profile: Annotated[str | None, typer.Option(help="Scoring profile name.")] = None,
 ) -> None:
@@ -319,9 +324,12 @@ def leaderboard_export(
         text = leaderboard.to_csv(leaderboard.compute(session, track, phase))
     if out is None:
         typer.echo(text, nl=False)
-    else:
+        return
+    try:
         out.write_text(text)
-        console.print(f"wrote {out}")
+    except OSError as exc:
+        raise _fail(ValueError(f"cannot write {out}: {exc.strerror or exc}")) from None
+    console.print(f"wrote {out}")
 
 
 # --- service ----------------------------------------------------------------------------------

@@ -60,6 +60,8 @@ def run_episode(
                 detail = f"act() returned {type(actions).__name__}, expected a dict"
                 break
             obs = sim.step(actions)
+        if not detail and sim.violations:
+            detail = "; ".join(sim.violations.values())
         sim.write_record(record_path)
     finally:
         sim.close()

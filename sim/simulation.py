@@ -34,7 +34,8 @@ from sim.road import LanePosition, RoadNetwork
 from sim.road.waypoints import route_ahead, waypoint_paths
 from sim.traffic import SumoTraffic
 from sim.triggers import CutInTriggers
-from sim.vehicle import DECODERS, ControlContext, parse_action
+from sim.vehicle import DECODERS, ControlContext, InvalidAction, check_action
+from sim.vehicle.actions import quote
 from sim.vehicles import VehicleStates
 
 # SUMO reports the vehicles around an ego by front-bumper distance: ask a little wider, then
@@ -71,6 +72,8 @@ class Simulation:
         self._lanes: dict[str, LanePosition] = {}
         self.step_count = 0
         self._mission_ids = {m.agent_id for m in self._missions}
+        # Why each agent that sent an invalid action was stopped (agent id -> message).
+        self.violations: dict[str, str] = {}
         self.recorder = EpisodeRecorder([m.agent_id for m in self._missions])
 
     # --- lifecycle ---------------------------------------------------------------------------
@@ -92,6 +95,7 @@ class Simulation:
         self.vehicles = [MissionVehicle.from_mission(m) for m in self._missions]
         self.recorder = EpisodeRecorder([m.agent_id for m in self._missions])
         self.step_count = 0
+        self.violations = {}
         self._lanes = {}
         entering = [v for v in self.vehicles if v.mission.start_step <= 0]
         for v in entering:
@@ -113,7 +117,9 @@ class Simulation:
     def step(self, actions: dict[str, object]) -> dict[str, dict]:
         """Apply one action per live agent, advance every vehicle by dt, detect events, record.
 
-        A missing, wrongly shaped or non-finite action ends that agent with ``invalid_action``.
+        A missing, wrongly shaped, non-finite or out-of-range action ends that agent with
+        ``invalid_action``, and so does an action for an agent id the scenario does not have (for
+        every live agent: it cannot be told which one was meant); :attr:`violations` keeps why.
         Returns the observations of the agents still live afterwards.
         """
         traffic = self._traffic
@@ -122,9 +128,18 @@ class Simulation:
         step = self.step_count
         space = self.interface.action_space
         driven = []
+        unknown = sorted(str(k) for k in actions if k not in self._mission_ids)
         for v in self.live:
-            action = parse_action(actions[v.id], space) if v.id in actions else None
-            if action is None:
+            try:
+                if unknown:
+                    raise InvalidAction(
+                        "unknown-agent-id", f"an action for unknown agent id {quote(unknown[0])}"
+                    )
+                if v.id not in actions:
+                    raise InvalidAction("missing-agent-id", f"no action for agent id {v.id!r}")
+                action = check_action(actions[v.id], space)
+            except InvalidAction as error:
+                self.violations[v.id] = f"{v.id}: {error}"
                 self._finish(v, DoneReason.invalid_action)
                 continue
             ctx = ControlContext(

@@ -10,6 +10,7 @@ from evaluator.runner.results import score_outcome, score_outcomes, score_result
 from evaluator.runner.scenario import (
     SandboxedAgentFactory,
     ScenarioOutcome,
+    new_run_key,
     run_scenario,
     sandbox_labels,
 )
@@ -20,6 +21,7 @@ __all__ = [
     "SandboxedAgentFactory",
     "ScenarioOutcome",
     "evaluate",
+    "new_run_key",
     "run_scenario",
     "sandbox_labels",
     "score_outcome",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+import uuid
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -49,10 +50,21 @@ class ScenarioOutcome:
     wall_time_s: float = 0.0
 
 
-def sandbox_labels(scenario_id: str, submission_sha256: str) -> dict[str, str]:
-    """The labels on the sandbox of one scenario's agent; ``evaluator.sandbox.cleanup(labels)``
-    removes whatever a dead episode left behind."""
-    return {"arena.scenario": scenario_id, "arena.submission": submission_sha256[:16]}
+def new_run_key() -> str:
+    """An opaque key for one run of one scenario: unique, and identifying no scenario (labels
+    reach the sandbox's environment under bubblewrap, and hidden scenario ids must not)."""
+    return uuid.uuid4().hex
+
+
+def sandbox_labels(run_key: str, attempt: int | None = None) -> dict[str, str]:
+    """The labels on the sandbox of one attempt (``attempt``) of one scenario run (``run_key``,
+    from :func:`new_run_key`); without ``attempt``, those every attempt of the run carries.
+    ``evaluator.sandbox.cleanup(labels)`` removes what a dead episode left behind, and only that:
+    labels never depend on the zip's content, which two teams can share."""
+    labels = {"arena.run": run_key}
+    if attempt is not None:
+        labels["arena.attempt"] = str(attempt)
+    return labels
 
 
 def run_scenario(
@@ -61,12 +73,14 @@ def run_scenario(
     records_dir: Path,
     *,
     sandbox: SandboxKind | None = None,
+    run_key: str | None = None,
 ) -> ScenarioOutcome:
     """Simulate ``scenario_dir`` with the submission's agent, writing
     ``records_dir/<scenario_id>.npz``; a simulator error is retried once.
 
     Agent failures come back as a ``done`` outcome whose agents carry the reason. Infrastructure
-    errors (sandbox unavailable) are raised so the caller can retry the job.
+    errors (sandbox unavailable) are raised so the caller can retry the job. ``run_key`` labels
+    the sandboxes (:func:`sandbox_labels`); a fresh one is made when not given.
     """
     from evaluator import sandbox as sandboxes
     from sim.isolation import run_episode_isolated
@@ -74,11 +88,12 @@ def run_scenario(
     scenario = load_scenario(scenario_dir)
     record_path = Path(records_dir) / f"{scenario.id}{RECORD_SUFFIX}"
     record_path.parent.mkdir(parents=True, exist_ok=True)
-    labels = sandbox_labels(scenario.id, submission.sha256)
-    factory = SandboxedAgentFactory(submission, sandbox, labels)
+    run_key = run_key or new_run_key()
     started = time.monotonic()
     logs = []
     for attempt in range(1, SIMULATOR_ATTEMPTS + 1):
+        labels = sandbox_labels(run_key, attempt)
+        factory = SandboxedAgentFactory(submission, sandbox, labels)
         record_path.unlink(missing_ok=True)
         result = run_episode_isolated(
             scenario_dir,

@@ -24,6 +24,10 @@ HEADER = struct.Struct(">I")
 # Replies carry a handful of actions; anything near this size is an agent writing garbage.
 MAX_REPLY_BYTES = 16 * 1024**2
 INBOX_BYTES = 64 * 1024
+# A reply is an object holding a dict of short lists: nothing legitimate nests deeper. Checked on
+# the raw bytes before parsing, since json's recursive decoder overflows the stack on a frame of
+# a few thousand brackets.
+MAX_REPLY_DEPTH = 32
 
 
 class ChannelClosed(Exception):
@@ -128,11 +132,46 @@ class Channel:
             raise ChannelTimeout
 
 
+_STRUCTURAL = b'[]{}"\\'
+_NOT_STRUCTURAL = bytes(b for b in range(256) if b not in _STRUCTURAL)
+
+
+def exceeds_depth(payload: bytes, limit: int) -> bool:
+    """Whether a JSON text nests brackets deeper than ``limit`` (brackets in strings ignored)."""
+    if payload.count(b"[") + payload.count(b"{") <= limit:
+        return False
+    depth = 0
+    in_string = escaped = False
+    # Only brackets, quotes and backslashes matter: drop the rest before the byte loop.
+    for byte in payload.translate(None, _NOT_STRUCTURAL):
+        if in_string:
+            if escaped:
+                escaped = False
+            elif byte == 0x5C:  # backslash
+                escaped = True
+            elif byte == 0x22:  # quote
+                in_string = False
+        elif byte == 0x22:
+            in_string = True
+        elif byte in (0x5B, 0x7B):  # [ {
+            depth += 1
+            if depth > limit:
+                return True
+        else:
+            depth -= 1
+    return False
+
+
 def decode_reply(payload: bytes) -> dict[str, Any]:
+    """The agent's JSON message. Every way a payload can be bad is a :class:`ChannelViolation`
+    (the agent's ``agent_error``), never an exception of ours."""
+    if exceeds_depth(payload, MAX_REPLY_DEPTH):
+        raise ChannelViolation(f"a reply nested more than {MAX_REPLY_DEPTH} deep")
     try:
         message = json.loads(payload)
-    except (UnicodeDecodeError, json.JSONDecodeError) as error:
-        raise ChannelViolation(f"a reply that is not JSON: {error}") from error
+    except (UnicodeDecodeError, ValueError, RecursionError) as error:
+        # ValueError covers JSONDecodeError and an integer of more than 4300 digits.
+        raise ChannelViolation(f"a reply that is not JSON: {error}"[:300]) from error
     if not isinstance(message, dict) or not isinstance(message.get("type"), str):
         raise ChannelViolation("a reply without a message type")
     return message

@@ -44,7 +44,11 @@ class AgentHandle:
             self._fail(DoneReason.sandbox_error, self._ended_detail("before the runner started"))
         self.hello = self._expect("hello", deadline, DoneReason.init_timeout, startup=True)
         ready = self._expect("ready", deadline, DoneReason.init_timeout)
-        self.init_s = ready.get("init_s")
+        init_s = ready.get("init_s")
+        # The agent's own figure: kept only when it is a plain, sane number.
+        self.init_s = (
+            float(init_s) if isinstance(init_s, int | float) and 0 <= init_s < 1e9 else None
+        )
 
     def reset(self) -> None:
         self._send("reset", None, time.monotonic() + self._init_timeout_s, DoneReason.init_timeout)

@@ -19,7 +19,7 @@ from arena.config import Settings, get_settings
 from arena.errors import SandboxUnavailable
 
 DEBIAN_SUITE = "bookworm"
-DEFAULT_MIRROR = "http://deb.debian.org/debian"
+APT_SOURCES = (Path("/etc/apt/sources.list"), Path("/etc/apt/sources.list.d"))
 PACKAGES = ("python3", "python3-numpy")
 # Documentation, locales, package caches: nothing an agent needs, a third of the root's size.
 TRIMMED = (
@@ -45,10 +45,16 @@ def rootfs_cache(settings: Settings) -> Path:
     return settings.resolved_data_dir / "sandbox" / f"agent-rootfs-{DEBIAN_SUITE}.tar"
 
 
-def debian_mirror() -> str:
-    """The Debian mirror apt is configured with, so debootstrap goes where apt is allowed to."""
-    sources = [Path("/etc/apt/sources.list"), *Path("/etc/apt/sources.list.d").glob("*")]
-    for source in sources:
+def debian_mirror(settings: Settings, apt_sources: tuple[Path, ...] = APT_SOURCES) -> str:
+    """The mirror to bootstrap from: the ``debian_mirror`` setting, else the Debian mirror the
+    host's apt is configured with (one-line or deb822 sources), so debootstrap goes where apt is
+    allowed to. No host name is built in: without either, a clear error."""
+    if settings.debian_mirror:
+        return settings.debian_mirror.rstrip("/")
+    files = []
+    for source in apt_sources:
+        files += sorted(source.glob("*")) if source.is_dir() else [source]
+    for source in files:
         if not source.is_file():
             continue
         for line in source.read_text(errors="replace").splitlines():
@@ -56,7 +62,10 @@ def debian_mirror() -> str:
             urls = [w for w in words if w.startswith(("http://", "https://"))]
             if urls and "/debian" in urls[0] and "security" not in urls[0]:
                 return urls[0].rstrip("/")
-    return DEFAULT_MIRROR
+    raise SandboxUnavailable(
+        "no Debian mirror to build the agent image from: set ARENA_DEBIAN_MIRROR, or configure "
+        f"a Debian mirror in apt's sources ({', '.join(str(p) for p in apt_sources)})"
+    )
 
 
 def image_exists(client, image: str) -> bool:
@@ -136,7 +145,7 @@ def build_image(
         return client.images.get(image).id
     tarball = rootfs_cache(settings)
     if force or not tarball.is_file():
-        build_rootfs_tarball(tarball, debian_mirror(), log)
+        build_rootfs_tarball(tarball, debian_mirror(settings), log)
     repository, _, tag = image.rpartition(":") if ":" in image else (image, "", "latest")
     log(f"docker import {tarball.name} as {image}")
     client.api.import_image_from_file(

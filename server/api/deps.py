@@ -19,6 +19,10 @@ from server.services.leaderboard import LeaderboardCache
 from server.services.teams import team_for_token
 
 bearer = HTTPBearer(auto_error=False)
+# Row ids are 32-bit integers on PostgreSQL (64-bit on SQLite): a larger id in a path or query
+# is refused (422) before it reaches a driver that cannot bind it (which answered 500).
+MAX_ROW_ID = 2**31 - 1
+RowId = Annotated[int, Path(ge=1, le=MAX_ROW_ID)]
 
 
 def get_settings_dep(request: Request) -> Settings:
@@ -85,7 +89,7 @@ AdminDep = Depends(require_admin)
 
 
 def get_owned_submission(
-    session: SessionDep, team: CurrentTeam, submission_id: Annotated[int, Path(ge=1)]
+    session: SessionDep, team: CurrentTeam, submission_id: RowId
 ) -> Submission:
     """The submission, if it belongs to the caller's team. Another team's submission is reported
     as missing (404), so ids reveal nothing."""

@@ -20,6 +20,7 @@ from evaluator.scoring import ScoringProfile
 from evaluator.summary import Summary
 from server.core.artifacts import ArtifactStore, MissingArtifact
 from server.models import EvaluationRun, ScenarioResult
+from server.services.storable import storable_json, storable_text
 
 
 @dataclass(frozen=True)
@@ -43,13 +44,16 @@ def result_values(
         "reason": reason,
         "steps": outcome.steps,
         "record_key": record_key,
-        "log_tail": log_tail,
-        "detail": {
-            "agents": [agent.model_dump(mode="json") for agent in outcome.agents],
-            "attempts": outcome.attempts,
-            "wall_time_s": outcome.wall_time_s,
-            "error": outcome.error,
-        },
+        # Agent output: any byte value must record on every database.
+        "log_tail": storable_text(log_tail),
+        "detail": storable_json(
+            {
+                "agents": [agent.model_dump(mode="json") for agent in outcome.agents],
+                "attempts": outcome.attempts,
+                "wall_time_s": outcome.wall_time_s,
+                "error": outcome.error,
+            }
+        ),
     }
 
 

@@ -105,6 +105,11 @@ def accept_upload(
     method_name = new.method_name.strip()
     if not method_name or len(method_name) > 128:
         raise InvalidUpload("method_name: give the method a name of 1 to 128 characters")
+    for field_name, value in (("method_name", method_name), ("description", new.description)):
+        # PostgreSQL cannot store a NUL; no other control character belongs in these either.
+        bad = next((c for c in value if ord(c) < 32 and c not in "\t\n\r"), None)
+        if bad is not None:
+            raise InvalidUpload(f"{field_name}: control character {bad!r} is not allowed")
     with db.read_session() as session:
         check_quota(session, settings, team_id, new.phase, new.track)
     prefix = f"submissions/{uuid.uuid4().hex}"

@@ -101,8 +101,9 @@ def run_scenario(self, *, run_id: int, scenario_id: str) -> None:
         outcome = _our_failure(job, "worker_lost", f"{job.attempt - 1} workers died running it")
     else:
         try:
-            with _heartbeat(job, me, labels=_sandbox_labels(job)) as handed_back:
-                outcome = _simulate(job)
+            run_key = _run_key(job)
+            with _heartbeat(job, me, labels=_sandbox_labels(run_key)) as handed_back:
+                outcome = _simulate(job, run_key)
             if handed_back.is_set():
                 _hand_back(job, me)
                 return
@@ -153,14 +154,18 @@ def _our_failure(job: evaluation.ScenarioJob, reason: str, error: str) -> Scenar
     )
 
 
-def _simulate(job: evaluation.ScenarioJob) -> ScenarioOutcome:
+def _simulate(job: evaluation.ScenarioJob, run_key: str) -> ScenarioOutcome:
     from evaluator.runner import run_scenario as run_one
 
     # This worker's own scratch folder, one per claim: an episode whose claim was superseded
     # never touches the live one's files.
     records = _scratch() / "records" / str(job.run_id) / f"claim-{job.attempt}"
     return run_one(
-        _prepared(job.upload_key), Path(job.scenario_dir), records, sandbox=_sandbox_kind()
+        _prepared(job.upload_key),
+        Path(job.scenario_dir),
+        records,
+        sandbox=_sandbox_kind(),
+        run_key=run_key,
     )
 
 
@@ -220,12 +225,19 @@ def _sandbox_kind():
     return sandbox.check_service_kind(settings=get_settings())
 
 
-def _sandbox_labels(job: evaluation.ScenarioJob) -> dict[str, str]:
-    # The labels evaluator.runner puts on the scenario's sandbox.
-    return {
-        "arena.scenario": job.scenario_id,
-        "arena.submission": _prepared(job.upload_key).sha256[:16],
-    }
+def _run_key(job: evaluation.ScenarioJob) -> str:
+    # Per run, scenario claim and a random part: two submissions of the same zip (or two claims
+    # of one scenario) never share sandbox labels, and nothing in it names the scenario.
+    from evaluator.runner import new_run_key
+
+    return f"r{job.run_id}a{job.attempt}-{new_run_key()}"
+
+
+def _sandbox_labels(run_key: str) -> dict[str, str]:
+    # The labels every attempt of the runner's sandboxes carries (evaluator.runner.scenario).
+    from evaluator.runner import sandbox_labels
+
+    return sandbox_labels(run_key)
 
 
 @contextmanager

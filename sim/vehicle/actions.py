@@ -1,8 +1,9 @@
 """The four action spaces of the agent interface: validation and decoding into the next pose.
 
 Each decoder takes a validated, clipped action and the vehicle's current pose and returns the
-pose after one step. Out-of-range values are clipped; a non-finite value or a wrong length is an
-invalid action (:func:`parse_action` returns None).
+pose after one step. Values beyond a space's physical range are clipped; a wrong shape, a
+non-finite value or a magnitude past :data:`MAX_ACTION_MAGNITUDE` is an invalid action
+(:func:`check_action` raises :class:`InvalidAction` naming the rule and the value).
 """
 
 from __future__ import annotations
@@ -36,15 +37,59 @@ class ControlContext:
     target_lane: str | None = None
 
 
+# Bound on every action element. Finite but huge values (1e300) overflow the geometry (hypot ->
+# inf, inf/inf -> NaN) and would reach SUMO as a NaN position, i.e. a simulator error the
+# participant is not charged for: they are the agent's invalid action instead. No map is larger
+# than this [m], and no sane heading, speed or control value comes near it.
+MAX_ACTION_MAGNITUDE = 1.0e6
+# How much of an offending value a message quotes.
+_QUOTE_CHARS = 80
+
+
+class InvalidAction(ValueError):
+    """An action broke a rule; ``rule`` is its short name, the message quotes the value."""
+
+    def __init__(self, rule: str, message: str) -> None:
+        super().__init__(f"{message} [rule: {rule}]")
+        self.rule = rule
+
+
+def quote(value: object) -> str:
+    """``repr`` cut short: an agent's value may be arbitrarily large."""
+    text = repr(value)
+    return text if len(text) <= _QUOTE_CHARS else text[: _QUOTE_CHARS - 3] + "..."
+
+
+def check_action(raw: object, space: ActionSpace) -> np.ndarray:
+    """The action as a float array of the space's length; :class:`InvalidAction` otherwise."""
+    length = ACTION_LENGTH[space]
+    try:
+        arr = np.asarray(raw, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError) as error:
+        # OverflowError: a JSON integer beyond float range (10**400) is not a number we can use.
+        raise InvalidAction(
+            "not-numbers", f"{space} action {quote(raw)} is not {length} numbers ({error})"
+        ) from None
+    if arr.shape != (length,):
+        raise InvalidAction(
+            "shape", f"{space} action {quote(raw)} has shape {arr.shape}, expected ({length},)"
+        )
+    if not np.isfinite(arr).all():
+        raise InvalidAction("finite", f"{space} action {quote(raw)} holds NaN or infinity")
+    if (np.abs(arr) > MAX_ACTION_MAGNITUDE).any():
+        raise InvalidAction(
+            "range",
+            f"{space} action {quote(raw)} has a value beyond +-{MAX_ACTION_MAGNITUDE:g}",
+        )
+    return arr
+
+
 def parse_action(raw: object, space: ActionSpace) -> np.ndarray | None:
     """The action as a float array of the space's length, or None when it is invalid."""
     try:
-        arr = np.asarray(raw, dtype=np.float64)
-    except (TypeError, ValueError):
+        return check_action(raw, space)
+    except InvalidAction:
         return None
-    if arr.shape != (ACTION_LENGTH[space],) or not np.isfinite(arr).all():
-        return None
-    return arr
 
 
 def _limit_displacement(pose: Pose, x: float, y: float, heading: float, dt: float) -> Pose:

@@ -83,14 +83,16 @@ def prepare_submission(
     if not source.is_file():
         raise IntakeError(str(source), "not-found", "no such file")
     checked = check_zip(source, settings)
-    deps_dir = install_requirements(checked.requirements or "", settings)
     remove_tree(dest)
-    with open_zip(source, settings) as archive:
-        try:
+    # Extract first: a zip that fails extraction must not leave installed requirements behind
+    # (repeated rejected uploads would fill the disk at no cost to their quota).
+    try:
+        with open_zip(source, settings) as archive:
             extract(archive, dest, settings)
-        except BaseException:
-            remove_tree(dest)
-            raise
+        deps_dir = install_requirements(checked.requirements or "", settings)
+    except BaseException:
+        remove_tree(dest)
+        raise
     return PreparedSubmission(
         root=dest.resolve(),
         deps_dir=deps_dir,

@@ -33,6 +33,18 @@ STREAM_MAGIC = {
     b"\xfd7zXZ\x00": "xz",
 }
 ZIP_MAGIC = b"PK\x03\x04"
+# Linux's limits: a longer name cannot be written, so it is refused before extraction.
+MAX_NAME_PART_BYTES = 255
+MAX_NAME_BYTES = 1024
+# What reading a damaged entry raises: a bad CRC, a truncated or corrupt deflate stream, a
+# compression method Python lacks.
+CORRUPT_ENTRY_ERRORS = (
+    zipfile.BadZipFile,
+    zlib.error,
+    lzma.LZMAError,
+    EOFError,
+    NotImplementedError,
+)
 
 
 class Budget:
@@ -90,7 +102,25 @@ def entry_path(info: zipfile.ZipInfo) -> PurePosixPath:
         raise IntakeError(name, "zip-slip", "'..' in an entry name would write outside the folder")
     if not parts or parts == (".",):
         raise IntakeError(name, "bad-name", "an entry name points at the folder itself")
+    longest = max(len(part.encode()) for part in parts)
+    if longest > MAX_NAME_PART_BYTES or len(name.encode()) > MAX_NAME_BYTES:
+        raise IntakeError(
+            name[:80] + ("..." if len(name) > 80 else ""),
+            "name-too-long",
+            f"a file or folder name is over {MAX_NAME_PART_BYTES} bytes, or the path over "
+            f"{MAX_NAME_BYTES}",
+        )
     return PurePosixPath(*parts)
+
+
+def read_entry(archive: zipfile.ZipFile, info: zipfile.ZipInfo | str, limit: int = -1) -> bytes:
+    """An entry's bytes (at most ``limit``); a damaged entry is the zip's fault, named as such."""
+    name = info if isinstance(info, str) else info.filename
+    try:
+        with archive.open(info) as handle:
+            return handle.read(limit)
+    except CORRUPT_ENTRY_ERRORS as error:
+        raise IntakeError(name, "corrupt-entry", f"cannot be read: {error}") from error
 
 
 UNIX_CREATE_SYSTEM = 3
@@ -127,6 +157,8 @@ def check_ratio(info: zipfile.ZipInfo, settings: Settings) -> None:
 def check_members(archive: zipfile.ZipFile, budget: Budget, depth: int, prefix: str = "") -> None:
     """Check every entry of ``archive`` (and of archives nested in it) against the limits."""
     seen: set[PurePosixPath] = set()
+    files: set[PurePosixPath] = set()
+    folders: set[PurePosixPath] = set()
     for info in archive.infolist():
         shown = f"{prefix}{info.filename}"
         budget.take_entry(shown)
@@ -135,8 +167,14 @@ def check_members(archive: zipfile.ZipFile, budget: Budget, depth: int, prefix: 
             raise IntakeError(shown, "duplicate-entry", "the same name appears twice")
         seen.add(path)
         check_kind(info)
+        # A file `a` beside a folder `a/` (or an entry `a/b`) cannot both be written.
+        parents = set(path.parents) - {PurePosixPath(".")}
+        if parents & files or (not info.is_dir() and path in folders):
+            raise IntakeError(shown, "file-folder-clash", "a name is both a file and a folder")
+        folders |= parents | ({path} if info.is_dir() else set())
         if info.is_dir():
             continue
+        files.add(path)
         check_ratio(info, budget.settings)
         budget.take_bytes(shown, info.file_size)
         check_nested(archive, info, budget, depth, shown)
@@ -146,8 +184,7 @@ def check_nested(
     archive: zipfile.ZipFile, info: zipfile.ZipInfo, budget: Budget, depth: int, shown: str
 ) -> None:
     """A nested archive's contents count against the budget, whatever its name says."""
-    with archive.open(info) as handle:
-        head = handle.read(8)
+    head = read_entry(archive, info, 8)
     kind = "zip" if head.startswith(ZIP_MAGIC) else None
     kind = kind or next((k for magic, k in STREAM_MAGIC.items() if head.startswith(magic)), None)
     if kind is None:
@@ -175,7 +212,7 @@ def inflated_size(archive: zipfile.ZipFile, info: zipfile.ZipInfo, kind: str, ca
     }[kind]()
     produced = 0
     with archive.open(info) as handle:
-        while (chunk := handle.read(COPY_CHUNK)) and not decompressor.eof:
+        while (chunk := _read_chunk(handle, info)) and not decompressor.eof:
             pending = chunk
             while True:
                 try:
@@ -195,9 +232,15 @@ def inflated_size(archive: zipfile.ZipFile, info: zipfile.ZipInfo, kind: str, ca
     return produced
 
 
+def _read_chunk(handle, info: zipfile.ZipInfo) -> bytes:
+    try:
+        return handle.read(COPY_CHUNK)
+    except CORRUPT_ENTRY_ERRORS as error:
+        raise IntakeError(info.filename, "corrupt-entry", f"cannot be read: {error}") from error
+
+
 def read_bounded(archive: zipfile.ZipFile, info: zipfile.ZipInfo, shown: str) -> bytes:
-    with archive.open(info) as handle:
-        data = handle.read(info.file_size + 1)
+    data = read_entry(archive, info, info.file_size + 1)
     if len(data) > info.file_size:
         raise IntakeError(shown, "size-mismatch", "the entry holds more than it declares")
     return data
@@ -215,7 +258,7 @@ def extract(archive: zipfile.ZipFile, dest: Path, settings: Settings) -> None:
         target.parent.mkdir(parents=True, exist_ok=True)
         with archive.open(info) as source, target.open("xb") as sink:
             written = 0
-            while chunk := source.read(COPY_CHUNK):
+            while chunk := _read_chunk(source, info):
                 written += len(chunk)
                 left -= len(chunk)
                 if written > info.file_size or left < 0:

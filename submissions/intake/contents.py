@@ -14,6 +14,7 @@ from pydantic import ValidationError
 
 from arena.errors import IntakeError
 from sim.interface import AgentInterface
+from submissions.intake.archive import read_entry
 
 POLICY = "policy.py"
 AGENT_YAML = "agent.yaml"
@@ -26,9 +27,10 @@ MAX_EXPLANATION_CHARS = 20_000
 def read_text(archive: zipfile.ZipFile, name: str) -> str | None:
     """A root-level text file of the zip, or None when it is absent."""
     try:
-        data = archive.read(name)
+        archive.getinfo(name)
     except KeyError:
         return None
+    data = read_entry(archive, name)
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as error:
@@ -49,6 +51,11 @@ def check_policy(archive: zipfile.ZipFile) -> None:
         raise IntakeError(POLICY, "policy-syntax", f"{error.msg} ({where})") from error
     except ValueError as error:
         raise IntakeError(POLICY, "policy-syntax", str(error)) from error
+    except (RecursionError, MemoryError) as error:
+        # A deeply nested expression overflows the compiler's stack: not a program we can check.
+        raise IntakeError(
+            POLICY, "policy-too-deep", f"nests expressions too deeply to compile ({error})"
+        ) from error
     if not defines_policy(tree):
         raise IntakeError(POLICY, "policy-class", "defines no top-level class Policy")
 
@@ -76,6 +83,8 @@ def load_interface(archive: zipfile.ZipFile) -> AgentInterface:
         data = yaml.safe_load(text)
     except yaml.YAMLError as error:
         raise IntakeError(AGENT_YAML, "agent-yaml", f"is not valid YAML: {error}") from error
+    except RecursionError as error:
+        raise IntakeError(AGENT_YAML, "agent-yaml", "nests too deeply") from error
     if data is None:
         return AgentInterface()
     if not isinstance(data, dict):

@@ -101,3 +101,34 @@ def test_rescore_rerun_and_export(arena, db, settings):
 def test_status_reports_queue_and_stuck_runs(arena, db):
     output = arena("status")
     assert "queue depth:" in output and "stuck runs: none" in output
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ("submissions", "show", str(2**63)),
+        ("submissions", "show", str(2**31)),
+        ("submissions", "cancel", str(2**64)),
+        ("submissions", "disqualify", "0"),
+        ("submissions", "requeue", str(2**63)),
+        ("rerun", str(2**63)),
+        ("rescore", str(2**63)),
+        ("submissions", "list", "--limit", "-1"),
+        ("leaderboard", "export", "--track", "bogus"),
+        ("leaderboard", "export", "--out", "/proc/no/such/folder/board.csv"),
+        ("leaderboard", "export", "--out", "/"),
+    ],
+)
+def test_bad_input_gets_a_message_not_a_traceback(arena, args):
+    output = arena(*args, ok=False)
+    assert "Traceback" not in output
+    assert any(word in output for word in ("error", "Invalid value", "not in the range")), output
+
+
+def test_leaderboard_export_names_the_tracks_and_the_unwritable_file(arena):
+    refused = arena("leaderboard", "export", "--track", "bogus", ok=False)
+    assert "'bogus' is not one of" in refused and "freestyle" in refused
+    assert "Traceback" not in refused
+    assert "no phase 'finale'" in arena("leaderboard", "export", "--phase", "finale", ok=False)
+    unwritable = arena("leaderboard", "export", "--out", "/", ok=False)
+    assert "cannot write /: Is a directory" in unwritable

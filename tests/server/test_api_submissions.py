@@ -13,6 +13,7 @@ from server.models import Submission
 from server.services import evaluation
 from server.status import SubmissionStatus
 from tests.server.builders import bearer, make_team, pack_example
+from tests.submissions.zips import bad_crc_zip
 
 
 def upload(
@@ -69,8 +70,25 @@ def test_upload_is_checked_stored_and_queued(client, db, settings, keep_lane_zip
         (zip_bytes({"agent.yaml": b"action_space: TargetPose\n"}), "policy.py"),
         (zip_bytes({"policy.py": b"class Policy(:\n"}), "policy.py"),
         (zip_bytes({"../evil.py": b"x = 1\n", "policy.py": b"class Policy: pass\n"}), "evil"),
+        # These four gave 500s.
+        (
+            zip_bytes({"policy.py": b"x = " + b"1+" * 100_000 + b"1\nclass Policy: pass\n"}),
+            "policy-too-deep",
+        ),
+        (zip_bytes({"policy.py": b"class Policy: pass\n", "a": b"", "a/b": b""}), "file-folder"),
+        (zip_bytes({"policy.py": b"class Policy: pass\n", "n" * 300: b""}), "name-too-long"),
+        (bad_crc_zip({"policy.py": "class Policy: pass\n", "w.txt": "x" * 100}), "corrupt-entry"),
     ],
-    ids=["not-a-zip", "no-policy", "syntax-error", "zip-slip"],
+    ids=[
+        "not-a-zip",
+        "no-policy",
+        "syntax-error",
+        "zip-slip",
+        "deep-expression",
+        "file-beside-folder",
+        "300-character-name",
+        "bad-crc",
+    ],
 )
 def test_malformed_upload_gets_422_with_the_intake_message(client, db, payload, needle):
     _, token = make_team(db, "alpha")

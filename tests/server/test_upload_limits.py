@@ -51,3 +51,41 @@ def test_150_mib_upload_is_refused_without_filling_memory(settings, db, tmp_path
         uploads = settings.resolved_data_dir / "uploads"
         assert not any(uploads.iterdir()) if uploads.exists() else True
         assert httpx.get(f"{url}/api/v1/submissions", headers=bearer(token)).json() == []
+
+
+def many_fields_body(boundary: str, fields: int, size: int):
+    """8,000 form fields of almost 64 KiB each: under the per-field limit, 500 MiB in all."""
+    value = b"v" * size
+    for i in range(fields):
+        yield (
+            f'--{boundary}\r\nContent-Disposition: form-data; name="f{i}"\r\n\r\n'.encode()
+            + value
+            + b"\r\n"
+        )
+    yield f"--{boundary}--\r\n".encode()
+
+
+@pytest.mark.slow
+def test_8000_form_fields_are_refused_without_filling_memory(settings, db, tmp_path):
+    """Fields were capped only one by one: 8,000 of them pushed the API from 115 to 588 MiB."""
+    _, token = make_team(db, "alpha")
+    with api_server(settings, tmp_path / "api.log") as (url, process):
+        before = peak_rss_bytes(process.pid)
+        boundary = "arena-boundary"
+        try:
+            response = httpx.post(
+                f"{url}/api/v1/submissions",
+                headers={
+                    **bearer(token),
+                    "Content-Type": f"multipart/form-data; boundary={boundary}",
+                },
+                content=many_fields_body(boundary, 8000, 60_000),
+                timeout=120,
+            )
+            assert response.status_code == 413
+            assert "fields" in response.json()["detail"]
+        except (httpx.WriteError, httpx.RemoteProtocolError, httpx.ReadError):
+            pass  # the server answered and closed the connection while we were still sending
+        growth = peak_rss_bytes(process.pid) - before
+        assert growth < 40 * 2**20, f"server memory grew by {growth / 2**20:.0f} MiB"
+        assert httpx.get(f"{url}/api/v1/healthz").status_code == 200

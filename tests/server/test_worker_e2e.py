@@ -4,11 +4,11 @@ Redis restart that loses every queued message."""
 
 from __future__ import annotations
 
-import hashlib
 import signal
 import subprocess
 import time
 import uuid
+from pathlib import Path
 
 import httpx
 import pytest
@@ -135,11 +135,29 @@ def test_worker_killed_mid_evaluation_finishes_after_restart(stack_settings, tmp
     db.dispose()
 
 
+def sandboxes_of_run(run_id: int) -> list[int]:
+    """Processes of bubblewrap sandboxes labelled with any claim of the run (server/worker
+    labels them ``arena.run=r<run>a<claim>-<random>``)."""
+    from evaluator.sandbox.subprocess_sandbox import LABELS_ENV, is_alive
+
+    marker = f"arena.run=r{run_id}a".encode()
+    found = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            environ = (entry / "environ").read_bytes().split(b"\0")
+        except OSError:
+            continue
+        labels = [v for v in environ if v.startswith(LABELS_ENV.encode() + b"=")]
+        if labels and marker in labels[0] and is_alive(int(entry.name)):
+            found.append(int(entry.name))
+    return found
+
+
 def test_a_worker_stopped_with_sigterm_hands_its_scenario_back(stack_settings, tmp_path):
     """SIGTERM mid-scenario: the episode is cut short, its claim released at once (no waiting
     for the lease) and its scenario re-sent; nothing is charged for the cut, no sandbox stays."""
-    from evaluator import sandbox
-
     db = Database(stack_settings.database_url)
     _, token = make_team(db, "planner-team")
     worker = start_worker(stack_settings, tmp_path / "worker1.log", concurrency=1)
@@ -167,10 +185,9 @@ def test_a_worker_stopped_with_sigterm_hands_its_scenario_back(stack_settings, t
                     select(ScenarioResult).where(ScenarioResult.scenario_id == claimed)
                 )
                 assert row.status == "running" and row.worker == ""  # handed back, not charged
-            # The stopping worker removed its agent's sandbox (only ours are looked at: other
-            # evaluations may run on this machine).
-            sha = hashlib.sha256((tmp_path / "planner.zip").read_bytes()).hexdigest()
-            assert sandbox.cleanup({"arena.submission": sha[:16]}) == 0
+            # The stopping worker removed its agent's sandbox (only this run's are looked at:
+            # other evaluations may run on this machine).
+            assert not sandboxes_of_run(row.run_id)
             worker = start_worker(stack_settings, tmp_path / "worker2.log", concurrency=2)
             body = wait_finished(url, token, sid)
             assert body["status"] == "scored"

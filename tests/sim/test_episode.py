@@ -9,7 +9,7 @@ from arena.errors import AgentFailed
 from arena.outcome import DoneReason
 from arena.scenario import LaneChangeTrigger
 from sim.interface import ActionSpace
-from tests.sim.agents import drive_straight
+from tests.sim.agents import ScriptedAgent, drive_straight
 from tests.sim.builders import ScenarioSpec, lane_y, make_scenario, mission, straight_road
 
 FLOW = (
@@ -276,3 +276,59 @@ def test_every_action_space_drives_forward_with_serialisable_observations(tmp_pa
     assert rec["x"][0, -1] > 20.0 + 5.0
     assert abs(rec["lane_offset"][0, -1]) < 0.3 and not rec["ev_wrong_way"].any()
     json.dumps(r.agent.seen[-1])  # crosses a process boundary as JSON
+
+
+@pytest.mark.parametrize(
+    ("bad", "rule"),
+    [
+        # Finite but huge: became a NaN pose inside the simulator, i.e. an uncharged
+        # simulator_error the agent could choose.
+        ([1.7e308, 1.7e308, 0.0, 0.1], "range"),
+        # A JSON integer beyond float range: an uncaught OverflowError.
+        ([10**400, 0.0, 0.0, 0.1], "not-numbers"),
+        ([float("inf"), 0.0, 0.0, 0.1], "finite"),
+        ([1.0, 2.0, 3.0], "shape"),
+    ],
+)
+def test_a_bad_action_is_the_agents_invalid_action_naming_the_rule(tmp_path, run, bad, rule):
+    folder = make_scenario(tmp_path, ScenarioSpec())
+
+    def policy(obs):
+        return bad if obs["step_count"] == 4 else drive_straight(10.0)(obs)
+
+    r = run(folder, policy)
+    assert r.outcome.reason is DoneReason.invalid_action and r.outcome.steps == 4
+    assert f"[rule: {rule}]" in r.result.detail and "Agent_0" in r.result.detail
+    assert list(r.record["done_reason"]) == ["invalid_action"]
+
+
+def test_an_action_for_an_unknown_or_missing_agent_id_is_named(tmp_path, run):
+    folder = make_scenario(tmp_path, ScenarioSpec())
+
+    class Extra(ScriptedAgent):
+        def act(self, obs):
+            return {**super().act(obs), "Agent_9": [0.0, 0.0, 0.0, 0.1]}
+
+    from sim.episode import run_episode
+    from sim.interface import AgentInterface
+
+    result = run_episode(
+        folder, Extra(drive_straight(10.0)), AgentInterface(), record_path=tmp_path / "r.npz"
+    )
+    assert result.agents[0].reason is DoneReason.invalid_action
+    assert "unknown agent id 'Agent_9'" in result.detail and "unknown-agent-id" in result.detail
+
+    honest = ScriptedAgent(drive_straight(10.0))
+    missing = run_episode(folder, honest, AgentInterface(), record_path=tmp_path / "m.npz")
+    assert missing.agents[0].reason is DoneReason.reached_goal  # the honest run is unaffected
+
+    class Silent(ScriptedAgent):
+        def act(self, obs):
+            super().act(obs)
+            return {}
+
+    silent = run_episode(
+        folder, Silent(drive_straight(10.0)), AgentInterface(), record_path=tmp_path / "s.npz"
+    )
+    assert silent.agents[0].reason is DoneReason.invalid_action
+    assert "no action for agent id 'Agent_0' [rule: missing-agent-id]" in silent.detail

@@ -4,7 +4,17 @@ import numpy as np
 import pytest
 
 from sim.interface import ACTION_LENGTH, ActionSpace
-from sim.vehicle import DECODERS, LIMITS, ControlContext, Pose, bicycle_step, parse_action
+from sim.vehicle import (
+    DECODERS,
+    LIMITS,
+    MAX_ACTION_MAGNITUDE,
+    ControlContext,
+    InvalidAction,
+    Pose,
+    bicycle_step,
+    check_action,
+    parse_action,
+)
 
 
 def ctx(road=None) -> ControlContext:
@@ -72,3 +82,37 @@ def test_invalid_actions_are_detected_for_every_space(space):
     assert parse_action([float("inf")] + [0.0] * (n - 1), space) is None
     assert parse_action("fast", space) is None
     assert parse_action(None, space) is None
+
+
+@pytest.mark.parametrize(
+    ("raw", "rule", "quoted"),
+    [
+        ([1.7e308, 1.7e308, 0.0, 0.1], "range", "1.7e+308"),
+        ([10**400, 0.0, 0.0, 0.1], "not-numbers", "1000000000"),
+        ([float("nan"), 0.0, 0.0, 0.1], "finite", "nan"),
+        ([0.0, float("-inf"), 0.0, 0.1], "finite", "-inf"),
+        ([1.0, 2.0], "shape", "[1.0, 2.0]"),
+        ([[1.0, 2.0, 3.0, 4.0]], "shape", "[[1.0"),
+        ("fast", "not-numbers", "'fast'"),
+    ],
+)
+def test_invalid_action_names_the_rule_and_the_value(raw, rule, quoted):
+    with pytest.raises(InvalidAction) as caught:
+        check_action(raw, ActionSpace.TargetPose)
+    assert caught.value.rule == rule
+    message = str(caught.value)
+    assert quoted in message and f"[rule: {rule}]" in message
+    assert len(message) < 300  # a huge value is quoted, not copied
+
+
+def test_every_finite_action_within_the_bound_decodes_to_a_finite_pose():
+    """The bound is what keeps huge-but-finite values from becoming NaN in the geometry."""
+    pose = Pose(10.0, 5.0, 0.3, 12.0)
+    edge = MAX_ACTION_MAGNITUDE
+    for space in (ActionSpace.TargetPose, ActionSpace.RelativeTargetPose, ActionSpace.Continuous):
+        for sign in (1.0, -1.0):
+            action = check_action([sign * edge] * ACTION_LENGTH[space], space)
+            after = DECODERS[space](action, pose, ctx())
+            assert all(math.isfinite(v) for v in (after.x, after.y, after.heading, after.speed))
+    with pytest.raises(InvalidAction):
+        check_action([edge * 1.0001, 0.0, 0.0, 0.1], ActionSpace.TargetPose)

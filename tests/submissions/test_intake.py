@@ -11,7 +11,15 @@ from arena.config import Settings
 from arena.errors import IntakeError, ParticipantError
 from sim.interface import ActionSpace
 from submissions.intake import prepare_submission
-from tests.submissions.zips import GOOD_POLICY, entry, gzip_bytes, with_policy, write_zip, zip_bytes
+from tests.submissions.zips import (
+    GOOD_POLICY,
+    bad_crc_zip,
+    entry,
+    gzip_bytes,
+    with_policy,
+    write_zip,
+    zip_bytes,
+)
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "submissions" / "examples"
 MIB = 1024**2
@@ -94,6 +102,14 @@ REJECTIONS = [
     ("archives nested too deep", with_policy(**{"a.zip": zip_bytes({"b.zip": zip_bytes({"c.zip": zip_bytes({"d.txt": "x"})})})}), "a.zip!b.zip!c.zip", "nested-archive", {}),
     ("nested gzip bomb", with_policy(**{"data.gz": gzip_bytes(bytes(5 * MIB))}), "data.gz (inflated)", "max-unzipped-bytes", SMALL),
     ("too large zip", with_policy(**{"noise.bin": noise(MIB + 1000)}), "<zip>", "max-zip-bytes", {"max_zip_bytes": MIB}),
+    # Each of these gave a 500 (an uncaught exception) instead of a rule.
+    ("deeply nested sum", {"policy.py": "x = " + "1+" * 100_000 + "1\nclass Policy: pass\n"}, "policy.py", "policy-too-deep", {}),
+    ("deeply nested unary", {"policy.py": "x = " + "-" * 100_000 + "1\nclass Policy: pass\n"}, "policy.py", "policy-too-deep", {}),
+    ("file beside a folder of its name", with_policy(**{"a": "x", "a/b.py": "y"}), "a/b.py", "file-folder-clash", {}),
+    ("folder then a file of its name", with_policy(**{"a/b.py": "y", "a": "x"}), "a", "file-folder-clash", {}),
+    ("300-character name", with_policy(**{"n" * 300: "x"}), "n" * 80 + "...", "name-too-long", {}),
+    ("bad CRC", bad_crc_zip(with_policy(**{"weights.txt": "some weights " * 20})), "weights.txt", "corrupt-entry", {}),
+    ("bad CRC in policy.py", bad_crc_zip({"policy.py": GOOD_POLICY}), "policy.py", "corrupt-entry", {}),
 ]  # fmt: skip
 
 
@@ -158,3 +174,18 @@ def test_policy_is_never_executed_on_the_host(tmp_path: Path, settings) -> None:
 def test_policy_name_may_be_imported_or_assigned(tmp_path: Path, settings) -> None:
     files = {"policy.py": "from agent import MyAgent as Policy\n", "agent.py": GOOD_POLICY}
     prepare_submission(write_zip(tmp_path / "a.zip", files), tmp_path / "sub", settings)
+
+
+def test_a_zip_failing_extraction_installs_no_requirements(tmp_path: Path) -> None:
+    """Requirements used to be installed before extraction: a zip with a damaged entry left
+    them behind on every rejected try, at no cost to the team's quota."""
+    settings = Settings(data_dir=tmp_path / "data")
+    files = with_policy(**{"requirements.txt": "six==1.16.0\n", "weights.txt": "w" * 400})
+    upload = tmp_path / "upload.zip"
+    upload.write_bytes(bad_crc_zip(files))
+    with pytest.raises(IntakeError) as caught:
+        prepare_submission(upload, tmp_path / "sub", settings)
+    assert (caught.value.entry, caught.value.rule) == ("weights.txt", "corrupt-entry")
+    assert not (tmp_path / "sub").exists()
+    deps = settings.resolved_data_dir / "deps"
+    assert not deps.exists() or not any(deps.iterdir())

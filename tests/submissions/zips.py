@@ -45,3 +45,18 @@ def with_policy(**extra: bytes | str) -> dict:
 
 def gzip_bytes(data: bytes) -> bytes:
     return gzip.compress(data, compresslevel=9)
+
+
+def bad_crc_zip(files: dict[str, bytes | str]) -> bytes:
+    """A zip whose last entry is stored uncompressed with one data byte flipped: the directory
+    is intact, reading the entry fails its CRC check."""
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w", compression=zipfile.ZIP_STORED) as archive:
+        for name, data in files.items():
+            archive.writestr(entry(name), data, compress_type=zipfile.ZIP_STORED)
+    raw = bytearray(buffer.getvalue())
+    last = list(files.values())[-1]
+    last = last.encode() if isinstance(last, str) else last
+    at = raw.rfind(last)
+    raw[at] ^= 0xFF
+    return bytes(raw)

@@ -4,19 +4,27 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Body, Path
+from fastapi import APIRouter, Body, Query
 from starlette.concurrency import run_in_threadpool
 
-from server.api.deps import AdminDep, DatabaseDep, QueueDep, SessionDep, SettingsDep
+from server.api.contract import errors
+from server.api.deps import AdminDep, DatabaseDep, QueueDep, RowId, SessionDep, SettingsDep
 from server.schemas import SubmissionSummary
 from server.services import admin, submissions
 
-router = APIRouter(prefix="/admin", tags=["admin"], dependencies=[AdminDep])
-SubmissionId = Annotated[int, Path(ge=1)]
+router = APIRouter(
+    prefix="/admin",
+    tags=["admin"],
+    dependencies=[AdminDep],
+    responses=errors(400, 401, 403, 404, 409, 422),
+)
+SubmissionId = RowId
 
 
 @router.get("/submissions", response_model=list[SubmissionSummary])
-def all_submissions(session: SessionDep, limit: int = 100) -> list[SubmissionSummary]:
+def all_submissions(
+    session: SessionDep, limit: Annotated[int, Query(ge=1, le=1000)] = 100
+) -> list[SubmissionSummary]:
     return submissions.list_submissions(session, limit=limit)
 
 

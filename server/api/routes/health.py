@@ -4,11 +4,12 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Response, status
 
+from server.api.contract import errors
 from server.api.deps import DatabaseDep, QueueDep
 from server.schemas import Health
 from server.services.monitoring import reachability
 
-router = APIRouter(tags=["health"])
+router = APIRouter(tags=["health"], responses=errors(503))
 
 
 @router.get("/healthz", response_model=Health)

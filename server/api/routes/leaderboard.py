@@ -5,12 +5,13 @@ from __future__ import annotations
 from fastapi import APIRouter, Response
 from starlette.concurrency import run_in_threadpool
 
+from server.api.contract import errors
 from server.api.deps import LeaderboardDep, PhaseQuery
 from server.services.leaderboard import to_csv
 from server.services.phases import DEFAULT_PHASE
 from server.tracks import Track
 
-router = APIRouter(tags=["leaderboard"])
+router = APIRouter(tags=["leaderboard"], responses=errors(422))
 
 @router.get(
     "/leaderboard", response_class=Response, responses={200: {"description": "Leaderboard JSON"}}

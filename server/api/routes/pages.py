@@ -12,7 +12,7 @@ from fastapi import Path as PathParam
 from fastapi.responses import HTMLResponse
 from fastapi.templating import Jinja2Templates
 
-from server.api.deps import LeaderboardDep, PhaseQuery, SessionDep
+from server.api.deps import MAX_ROW_ID, LeaderboardDep, PhaseQuery, SessionDep
 from server.services import phases
 from server.services.leaderboard import METRICS
 from server.services.phases import DEFAULT_PHASE
@@ -63,7 +63,7 @@ def submit_page(request: Request, session: SessionDep) -> HTMLResponse:
 
 @router.get("/submissions/{submission_id}", response_class=HTMLResponse)
 def submission_page(
-    request: Request, submission_id: Annotated[int, PathParam(ge=1)]
+    request: Request, submission_id: Annotated[int, PathParam(ge=1, le=MAX_ROW_ID)]
 ) -> HTMLResponse:
     return templates.TemplateResponse(
         request, "submission.html", {"submission_id": submission_id, "metrics": METRICS}

@@ -5,6 +5,7 @@ from __future__ import annotations
 from fastapi import APIRouter, Request, status
 from starlette.concurrency import run_in_threadpool
 
+from server.api.contract import UPLOAD_FORM, errors
 from server.api.deps import (
     CurrentTeam,
     DatabaseDep,
@@ -20,10 +21,16 @@ from server.services.errors import InvalidUpload
 from server.services.phases import DEFAULT_PHASE
 from server.tracks import Track
 
-router = APIRouter(prefix="/submissions", tags=["submissions"])
+router = APIRouter(prefix="/submissions", tags=["submissions"], responses=errors(401, 404, 422))
 
 
-@router.post("", status_code=status.HTTP_201_CREATED, response_model=SubmissionDetail)
+@router.post(
+    "",
+    status_code=status.HTTP_201_CREATED,
+    response_model=SubmissionDetail,
+    responses=errors(409, 413, 429),
+    openapi_extra=UPLOAD_FORM,
+)
 async def create_submission(
     request: Request, team: CurrentTeam, db: DatabaseDep, settings: SettingsDep, queue: QueueDep
 ) -> SubmissionDetail:
@@ -72,7 +79,7 @@ def get_logs(session: SessionDep, submission: OwnedSubmission) -> SubmissionLogs
     return submissions.logs(session, submission)
 
 
-@router.post("/{submission_id}/cancel", response_model=SubmissionSummary)
+@router.post("/{submission_id}/cancel", response_model=SubmissionSummary, responses=errors(409))
 def cancel_submission(
     submission: OwnedSubmission, db: DatabaseDep, queue: QueueDep
 ) -> SubmissionSummary:

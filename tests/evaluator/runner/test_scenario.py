@@ -80,3 +80,39 @@ def test_uncharged_scenario_leaves_n_and_is_listed(tmp_path):
     assert summary.complete
     assert (summary.metrics.completion, summary.families["cruise"].completion) == (0.0, 0.0)
     assert summary.metrics.time == summary.scenarios[0].metrics.time  # N = 1
+
+
+@pytest.mark.parametrize(
+    ("action", "rule"),
+    [
+        ("[1.7e308, 1.7e308, 0.0, 0.1]", "range"),  # was a NaN pose: simulator_error, uncharged
+        ("[10**400, 0.0, 0.0, 0.1]", "not-numbers"),  # was an uncaught OverflowError
+    ],
+)
+def test_an_agent_cannot_choose_an_uncharged_simulator_error(tmp_path, action, rule):
+    """Bailing out through a value that broke the simulator left the scenario out of N: a
+    planner doing so after 240 steps ranked first. Now it is the agent's invalid_action."""
+    from submissions.intake import prepare_submission
+
+    body = f"""
+class Policy:
+    def __init__(self):
+        self.steps = 0
+
+    def act(self, obs):
+        self.steps += 1
+        out = {{}}
+        for agent_id, o in obs.items():
+            x, y, _ = o["ego_vehicle_state"]["position"]
+            h = o["ego_vehicle_state"]["heading"]
+            out[agent_id] = {action} if self.steps > 3 else [x + 1.0, y, h, 0.1]
+        return out
+"""
+    source = write_policy(tmp_path / "bail", body, action_space="TargetPose")
+    submission = prepare_submission(source, tmp_path / "prepared")
+    outcome = run_scenario(
+        submission, scenario(tmp_path / "ok"), tmp_path / "records", sandbox=TEST_SANDBOX
+    )
+    assert outcome.status == ScenarioStatus.done and outcome.attempts == 1
+    assert [(a.reason, a.steps) for a in outcome.agents] == [("invalid_action", 3)]
+    assert f"[rule: {rule}]" in outcome.log

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import shutil
+import socket
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -49,11 +50,6 @@ class Hostile:
 
 
 CASES = [
-    Hostile(
-        "network connection",
-        act="socket.create_connection(('1.1.1.1', 53), timeout=3)",
-        evidence=("Network is unreachable", "Errno 101", "Errno 99"),
-    ),
     Hostile(
         "docker socket",
         act="socket.socket(socket.AF_UNIX).connect('/var/run/docker.sock')",
@@ -137,6 +133,34 @@ CASES = [
         """,
         evidence=("protocol violation",),
     ),
+    Hostile(
+        # json's recursive decoder raised an uncaught RecursionError: an uncharged error of ours.
+        "a deeply nested frame before ready",
+        init="""
+        frame = b'[' * 200_000
+        for fd in range(3, 16):
+            try:
+                os.write(fd, len(frame).to_bytes(4, 'big') + frame)
+            except OSError:
+                pass
+        """,
+        fails_at="start",
+        evidence=("nested more than",),
+    ),
+    Hostile(
+        # An integer of more than 4300 digits: json raised an uncaught ValueError.
+        "a 5000-digit integer in a frame",
+        act="""
+        frame = b'{"type": "actions", "actions": {"Agent_0": [' + b'9' * 5000 + b', 0]}}'
+        for fd in range(3, 16):
+            try:
+                os.write(fd, len(frame).to_bytes(4, 'big') + frame)
+            except OSError:
+                pass
+        time.sleep(5)
+        """,
+        evidence=("protocol violation", "not JSON"),
+    ),
     Hostile("raising in act", act="raise KeyError('lost')", evidence=("KeyError: 'lost'",)),
     Hostile(
         "returning a list, not a dict",
@@ -214,6 +238,7 @@ def test_killing_its_parent_changes_nothing(kind, settings, labels, good_agent, 
         ("wrong-length action", "return {k: [1.0] for k in obs}", {"Agent_0": [1.0]}),
         ("missing agent id", "return {}", {}),
         ("unknown agent id", "return {'Agent_9': [1.0, 0.0]}", {"Agent_9": [1.0, 0.0]}),
+        ("huge integer", "return {k: [10**400, 0.0] for k in obs}", {"Agent_0": [10**400, 0]}),
         ("numpy action", "return {k: np.array([2.0, 1.0], dtype=np.float32) for k in obs}",
          {"Agent_0": [2.0, 1.0]}),
     ],
@@ -231,4 +256,42 @@ def test_actions_the_simulator_judges_arrive_unchanged(
             assert actions == check
         # The agent is still fine after an action the simulator will refuse.
         assert handle.act(observation()) == actions or check == "nan"
+    assert_clean_and_healthy(kind, labels, settings, good_agent)
+
+
+@pytest.fixture
+def host_listener() -> Iterator[socket.socket]:
+    """A TCP listener on the host's loopback: a sandbox with any network would reach it."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as listener:
+        listener.bind(("127.0.0.1", 0))
+        listener.listen(8)
+        listener.setblocking(False)
+        yield listener
+
+
+def test_no_network_inside_the_sandbox(
+    host_listener, kind, settings, labels, good_agent, tmp
+) -> None:
+    """Proved by what the agent sees, without sending a packet off the machine: no interface but
+    ``lo``, and a listener on the host's 127.0.0.1 is not reachable from inside."""
+    port = host_listener.getsockname()[1]
+    act = f"""
+    names = sorted(name for _, name in socket.if_nameindex())
+    try:
+        socket.create_connection(('127.0.0.1', {port}), timeout=3).close()
+        reached = 'reached the host'
+    except OSError as error:
+        reached = f'unreachable ({{error.errno}})'
+    raise RuntimeError(f'interfaces={{names}} host-listener={{reached}}')
+    """
+    submission = agent(tmp, settings, act=act)
+    with (
+        pytest.raises(AgentFailed) as caught,
+        start(submission, kind=kind, labels=labels, settings=settings) as handle,
+    ):
+        handle.reset()
+        handle.act(observation())
+    assert "interfaces=['lo'] host-listener=unreachable" in caught.value.detail
+    with pytest.raises(BlockingIOError):
+        host_listener.accept()  # nothing ever connected
     assert_clean_and_healthy(kind, labels, settings, good_agent)

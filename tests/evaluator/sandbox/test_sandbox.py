@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import base64
+import json
 import os
 import shutil
 import time
@@ -190,3 +192,41 @@ def test_bubblewrap_agent_is_nobody_on_the_host(settings, labels, tmp) -> None:
             status = Path(f"/proc/{pid}/status").read_text()
             real_uid = next(line for line in status.splitlines() if line.startswith("Uid:"))
             assert real_uid.split()[1:] == ["65534"] * 4, (pid, real_uid)
+
+
+def test_cleanup_of_one_run_spares_another_of_the_same_zip(kind, settings, good_agent) -> None:
+    """Two teams uploading identical zips used to share labels (scenario id + zip hash), and
+    cancelling one killed the other's sandbox. Labels are per run and attempt now."""
+    from evaluator.runner import new_run_key, sandbox_labels
+
+    mine, theirs = new_run_key(), new_run_key()
+    first = start(good_agent, kind=kind, labels=sandbox_labels(mine, 1), settings=settings)
+    second = start(good_agent, kind=kind, labels=sandbox_labels(theirs, 1), settings=settings)
+    with first, second:
+        assert cleanup(sandbox_labels(mine)) >= 1  # every attempt of my run
+        assert leftovers(kind, sandbox_labels(mine)) == []
+        assert len(leftovers(kind, sandbox_labels(theirs, 1))) >= 1
+        assert second.act(observation()) == {"Agent_0": [1.0, 0.0]}
+    assert leftovers(kind, sandbox_labels(theirs)) == []
+
+
+def test_nothing_naming_the_scenario_enters_the_sandbox(any_kind, settings, tmp) -> None:
+    """The bubblewrap backend put the labels (then the hidden scenario id) in the agent's
+    environment; labels are opaque run keys now, and the scenario runner passes nothing else."""
+    from evaluator.runner import run_scenario
+    from tests.sim.builders import ScenarioSpec, make_scenario
+
+    scenario = make_scenario(tmp / "hidden-scenario-7f3a", ScenarioSpec(max_episode_steps=3))
+    scenario_id = json.loads((scenario / "scenario.json").read_text())["id"]
+    act = """
+    import base64
+    seen = repr(sorted(os.environ.items())) + repr(sys.argv) + os.getcwd()
+    sys.stderr.write('ENV ' + base64.b64encode(seen.encode()).decode() + ' END\\n')
+    return {k: [float('nan')] * 4 for k in obs}
+    """
+    submission = agent(tmp / "a", settings, act=act)
+    outcome = run_scenario(submission, scenario, tmp / "records", sandbox=any_kind)
+    encoded = outcome.log.split("ENV ", 1)[1].split(" END", 1)[0]
+    inside = base64.b64decode(encoded).decode()
+    assert "DRIVING_ARENA" in inside or any_kind is SandboxKind.docker
+    assert scenario_id not in inside and "hidden-scenario" not in inside

@@ -1,0 +1,47 @@
+"""Where the offline agent image is bootstrapped from: a setting or the host's apt sources only."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from arena.config import Settings
+from arena.errors import SandboxUnavailable
+from evaluator.sandbox import image
+
+ONE_LINE = "deb http://mirror.example.test/debian bookworm main\n"
+DEB822 = (
+    "Types: deb\n"
+    "URIs: http://security.example.test/debian-security\n"
+    "Suites: bookworm-security\n\n"
+    "Types: deb\n"
+    "# a comment naming http://elsewhere.example.test/debian\n"
+    "URIs: http://deb822.example.test/debian/\n"
+    "Suites: bookworm\n"
+)
+
+
+def sources(tmp_path: Path, **files: str) -> tuple[Path, ...]:
+    folder = tmp_path / "sources.list.d"
+    folder.mkdir()
+    for name, text in files.items():
+        (folder / name).write_text(text)
+    return (tmp_path / "sources.list", folder)
+
+
+def test_the_mirror_comes_from_apt_sources_one_line_or_deb822(tmp_path):
+    settings = Settings(data_dir=tmp_path)
+    assert image.debian_mirror(settings, sources(tmp_path, a="", b=DEB822)) == (
+        "http://deb822.example.test/debian"
+    )
+    (tmp_path / "sources.list").write_text(ONE_LINE)
+    only_list = (tmp_path / "sources.list",)
+    assert image.debian_mirror(settings, only_list) == "http://mirror.example.test/debian"
+
+
+def test_the_setting_wins_and_nothing_is_built_in(tmp_path):
+    configured = Settings(data_dir=tmp_path, debian_mirror="http://local.example.test/debian/")
+    assert image.debian_mirror(configured, ()) == "http://local.example.test/debian"
+    with pytest.raises(SandboxUnavailable, match="ARENA_DEBIAN_MIRROR"):
+        image.debian_mirror(Settings(data_dir=tmp_path), sources(tmp_path, a="# nothing\n"))
