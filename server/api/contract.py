@@ -24,7 +24,8 @@ class ErrorBody(BaseModel):
 DESCRIPTIONS = {
     400: "The JSON body could not be parsed",
     401: "No bearer token, or an unknown or revoked one",
-    403: "The service has no admin token configured",
+    403: "Not allowed: a phase closed for uploads, agent output of a hidden phase, or no admin "
+    "token configured",
     404: "No such object (or it belongs to another team)",
     409: "The object's state forbids the action",
     413: "The upload exceeds the size or form limits",
@@ -52,6 +53,12 @@ UPLOAD_FORM: dict[str, Any] = {
                             "type": "string",
                             "format": "binary",
                             "description": "The submission zip (see docs/submissions.md)",
+                        },
+                        "phase": {
+                            "type": "string",
+                            "default": "final",
+                            "maxLength": 32,
+                            "description": "The competition phase (docs/deployment.md)",
                         },
                         "track": {
                             "type": "string",

@@ -102,4 +102,7 @@ def get_owned_submission(
 OwnedSubmission = Annotated[Submission, Depends(get_owned_submission)]
 
 
-PhaseQuery = Annotated[str, Query(max_length=32, description="The competition phase.")]
+PhaseQuery = Annotated[
+    str,
+    Query(max_length=32, pattern=r"^[A-Za-z0-9_-]+$", description="The competition phase."),
+]

@@ -28,7 +28,7 @@ from server.models import (
     Track,
 )
 from server.schemas import FamilyMetrics, Leaderboard, LeaderboardEntry, Metrics
-from server.services.phases import DEFAULT_PHASE
+from server.services.phases import DEFAULT_PHASE, get_phase
 from server.status import RunStatus, SubmissionStatus
 
 METRICS = ("completion", "time", "humanness", "rules")
@@ -145,6 +145,7 @@ class LeaderboardCache:
             if cached is not None and time.monotonic() - cached.checked_at < self.recheck_s:
                 return cached
             with self.db.read_session() as session:
+                get_phase(session, phase)  # an unknown phase is a 404, never cached
                 current = generation(session)
                 if cached is None or cached.generation != current:
                     board = compute(session, track, phase)

@@ -76,7 +76,10 @@ def check_quota(
 ) -> None:
     """Refuse an upload outside the phase's dates or beyond its daily quota."""
     moment = utcnow()
-    definition = get_phase(session, phase)
+    try:
+        definition = get_phase(session, phase)
+    except NotFound as exc:
+        raise InvalidUpload(f"phase: {exc.message}") from None
     check_open(definition, moment)
     limit = daily_quota(definition, settings)
     if quota_used(session, team_id, phase, track, moment) >= limit:

@@ -54,7 +54,7 @@ def test_upload_names_its_phase_and_defaults_to_final(client, db, keep_lane_zip)
 def test_unknown_phase_is_refused_naming_the_phases(client, db, keep_lane_zip):
     _, token = make_team(db, "alpha")
     response = upload(client, token, keep_lane_zip, phase="finale")
-    assert response.status_code == 404
+    assert response.status_code == 422
     assert "validation, final" in response.json()["detail"]
 
 

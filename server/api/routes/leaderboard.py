@@ -11,7 +11,8 @@ from server.services.leaderboard import to_csv
 from server.services.phases import DEFAULT_PHASE
 from server.tracks import Track
 
-router = APIRouter(tags=["leaderboard"], responses=errors(422))
+router = APIRouter(tags=["leaderboard"], responses=errors(404, 422))
+
 
 @router.get(
     "/leaderboard", response_class=Response, responses={200: {"description": "Leaderboard JSON"}}

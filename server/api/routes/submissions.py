@@ -28,7 +28,7 @@ router = APIRouter(prefix="/submissions", tags=["submissions"], responses=errors
     "",
     status_code=status.HTTP_201_CREATED,
     response_model=SubmissionDetail,
-    responses=errors(409, 413, 429),
+    responses=errors(403, 409, 413, 429),
     openapi_extra=UPLOAD_FORM,
 )
 async def create_submission(
@@ -72,7 +72,7 @@ def get_submission(session: SessionDep, submission: OwnedSubmission) -> Submissi
     return submissions.detail(session, submission)
 
 
-@router.get("/{submission_id}/logs", response_model=SubmissionLogs)
+@router.get("/{submission_id}/logs", response_model=SubmissionLogs, responses=errors(403))
 def get_logs(session: SessionDep, submission: OwnedSubmission) -> SubmissionLogs:
     """The agent's stdout/stderr tail per scenario, in a phase of full visibility (validation);
     403 in a hidden phase, whose agent output goes to the organisers only."""
