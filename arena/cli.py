@@ -11,7 +11,7 @@ import typer
 from evaluator.cli import app as evaluator_app
 from scenarios.cli import app as scenarios_app
 from server.cli import admin_app, service_app
-from submissions.cli import sandbox_app, submission_app
+from submissions.cli import init_agent, sandbox_app, submission_app
 
 app = typer.Typer(
     name="arena",
@@ -26,3 +26,4 @@ app.add_typer(admin_app, name="admin", help="Organiser administration of the ser
 # `arena evaluate|score|replay` and `arena up|worker|serve` sit at the top level.
 app.add_typer(evaluator_app)
 app.add_typer(service_app)
+app.command("init")(init_agent)

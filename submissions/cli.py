@@ -120,3 +120,20 @@ def status() -> None:
     except SandboxUnavailable as error:
         errors.print(f"setting {settings.sandbox.value!r}: {error}")
         raise typer.Exit(1) from error
+
+
+def init_agent(
+    folder: Annotated[Path, typer.Argument(help="Folder to create (must be new or empty).")],
+) -> None:
+    """Write a runnable starting agent: policy.py, agent.yaml and a test to run with pytest."""
+    from submissions.starter import FolderNotEmpty, write_starter
+
+    try:
+        files = write_starter(folder)
+    except FolderNotEmpty as error:
+        errors.print(f"[bold red]error:[/] {error}; choose a new folder")
+        raise typer.Exit(1) from error
+    for file in files:
+        console.print(f"wrote {file}")
+    console.print(f"next: python -m pytest {folder}   then   arena evaluate {folder}")
+    console.print("observations and actions: docs/agent-interface.md")
