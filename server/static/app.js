@@ -159,5 +159,75 @@ const Arena = (() => {
     if (token) poll(); else $("token-form").hidden = false;
   }
 
-  return { submitForm, submissionPage };
+  function when(iso) {
+    // "2026-11-23 13:05" in UTC, like the leaderboard.
+    return iso.replace("T", " ").slice(0, 16);
+  }
+
+  async function download(id, token, link) {
+    // The zip needs the Authorization header, so it is fetched here and handed over as a blob.
+    const response = await fetch(`${API}/submissions/${id}/download`, { headers: headers(token) });
+    if (!response.ok) {
+      $("page-error").textContent = await errorText(response);
+      $("page-error").hidden = false;
+      return;
+    }
+    const url = URL.createObjectURL(await response.blob());
+    const a = document.createElement("a");
+    a.href = url;
+    a.download = `submission-${id}.zip`;
+    document.body.appendChild(a);
+    a.click();
+    a.remove();
+    setTimeout(() => URL.revokeObjectURL(url), 10000);
+    link.dataset.downloaded = "1";
+  }
+
+  function mySubmissions(metrics) {
+    let token = sessionStorage.getItem(TOKEN_KEY);
+    async function load() {
+      const response = await fetch(`${API}/submissions`, { headers: headers(token) });
+      if (!response.ok) {
+        $("page-error").textContent = await errorText(response);
+        $("page-error").hidden = false;
+        $("token-form").hidden = false;
+        return;
+      }
+      $("page-error").hidden = true;
+      $("token-form").hidden = true;
+      $("nav-mine").hidden = false;
+      const rows = await response.json();
+      $("none").hidden = rows.length > 0;
+      $("mine").hidden = rows.length === 0;
+      if (rows.length) {
+        $("team").textContent = `Team ${rows[0].team}: ${rows.length} submission(s), newest first.`;
+        $("team").hidden = false;
+      }
+      $("mine").querySelector("tbody").innerHTML = rows.map((s) => `<tr data-id="${s.id}">` +
+        `<td><a href="/submissions/${s.id}">${s.id}</a></td>` +
+        `<td>${escape(s.method_name)}</td><td>${escape(s.track)}</td>` +
+        `<td class="status-${s.status}">${escape(s.status)}` +
+        (["queued", "running"].includes(s.status) && s.progress.total
+          ? ` ${s.progress.done}/${s.progress.total}` : "") + `</td>` +
+        metrics.map((m) => `<td class="num">${s.metrics ? fmt(m, s.metrics[m]) : "–"}</td>`)
+          .join("") +
+        `<td>${when(s.created_at)}</td>` +
+        `<td><a href="#" class="download" data-id="${s.id}">zip</a></td></tr>`).join("");
+      for (const link of document.querySelectorAll("a.download")) {
+        link.addEventListener("click", (event) => {
+          event.preventDefault();
+          download(link.dataset.id, token, link);
+        });
+      }
+    }
+    $("token-form").addEventListener("submit", (event) => {
+      event.preventDefault();
+      token = $("token").value.trim();
+      sessionStorage.setItem(TOKEN_KEY, token);
+      load();
+    });
+    if (token) load(); else $("token-form").hidden = false;
+  }
+
+  return { submitForm, submissionPage, mySubmissions };
 })();

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter, Request, status
+from fastapi import APIRouter, Request, Response, status
 from starlette.concurrency import run_in_threadpool
 
 from server.api.deps import (
@@ -16,7 +16,7 @@ from server.api.deps import (
 from server.api.upload import receive_form
 from server.models import Track
 from server.schemas import SubmissionDetail, SubmissionLogs, SubmissionSummary
-from server.services import submissions
+from server.services import downloads, submissions
 from server.services.errors import InvalidUpload
 
 router = APIRouter(prefix="/submissions", tags=["submissions"])
@@ -66,6 +66,23 @@ def get_submission(session: SessionDep, submission: OwnedSubmission) -> Submissi
 def get_logs(submission: OwnedSubmission) -> SubmissionLogs:
     """The agent's stdout/stderr tail per scenario (labelled by family, never by hidden id)."""
     return submissions.logs(submission)
+
+
+@router.get(
+    "/{submission_id}/download",
+    response_class=Response,
+    responses={200: {"content": {"application/zip": {}}}},
+)
+def download_submission(session: SessionDep, submission: OwnedSubmission) -> Response:
+    """A zip of what the team may see: ``submission.json`` (status, scores, failure counts),
+    ``logs.json`` and ``logs/<family>-<k>.txt`` per finished scenario."""
+    return Response(
+        downloads.submission_zip(session, submission),
+        media_type="application/zip",
+        headers={
+            "Content-Disposition": f'attachment; filename="{downloads.download_name(submission)}"'
+        },
+    )
 
 
 @router.post("/{submission_id}/cancel", response_model=SubmissionSummary)
