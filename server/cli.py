@@ -3,12 +3,15 @@
 
 from __future__ import annotations
 
+import json
+import sys
 from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.console import Console
 from rich.table import Table
+
+from arena.terminal import make_console, print_rows
 
 admin_app = typer.Typer(no_args_is_help=True)
 service_app = typer.Typer(no_args_is_help=True)
@@ -21,7 +24,7 @@ admin_app.add_typer(submissions_app, name="submissions")
 admin_app.add_typer(leaderboard_app, name="leaderboard")
 admin_app.add_typer(db_app, name="db")
 
-console = Console()
+console = make_console()
 SubmissionId = Annotated[int, typer.Argument(help="Submission id.")]
 
 
@@ -78,23 +81,28 @@ def teams_create(name: str) -> None:
     ctx = _Context()
     with ctx.db.session() as session:
         team, token = _run(lambda: teams.create_team(session, name))
-    console.print(f"team [bold]{team.name}[/bold] (id {team.id}) token: [green]{token}[/green]")
+    console.print(f"team [bold]{team.name}[/bold] (id {team.id}) created; its token, shown once:")
+    # Alone on its line, never wrapped: copy it or take it with `tail -n 1`.
+    print(token)
 
 
 @teams_app.command("list")
-def teams_list() -> None:
+def teams_list(
+    as_json: Annotated[bool, typer.Option("--json", help="The rows as a JSON list.")] = False,
+) -> None:
     """Every team with its number of submissions."""
     from server.services import teams
 
     ctx = _Context()
     with ctx.db.read_session() as session:
         rows = teams.list_teams(session)
-    table = Table("id", "team", "submissions", "created")
-    for row in rows:
-        table.add_row(
-            str(row.id), row.name, str(row.submissions), f"{row.created_at:%Y-%m-%d %H:%M}"
-        )
-    console.print(table)
+    print_rows(
+        console,
+        ("id", "team", "submissions", "created"),
+        [(r.id, r.name, r.submissions, f"{r.created_at:%Y-%m-%d %H:%M}") for r in rows],
+        as_json=as_json,
+        numeric=("id", "submissions"),
+    )
 
 
 @teams_app.command("rotate-token")
@@ -106,7 +114,8 @@ def teams_rotate(name: str) -> None:
     with ctx.db.session() as session:
         team = _run(lambda: teams.get_team(session, name))
         token = teams.rotate_token(session, team)
-    console.print(f"new token for [bold]{name}[/bold]: [green]{token}[/green]")
+    console.print(f"new token for [bold]{name}[/bold] (the old ones are revoked):")
+    print(token)
 
 
 # --- submissions ------------------------------------------------------------------------------
@@ -117,31 +126,46 @@ def _metric(value: float | None, digits: int = 4) -> str:
 
 
 @submissions_app.command("list")
-def submissions_list(limit: int = 50) -> None:
+def submissions_list(
+    limit: int = 50,
+    as_json: Annotated[bool, typer.Option("--json", help="The rows as a JSON list.")] = False,
+) -> None:
     """The latest submissions with status, progress and metrics."""
     from server.services import submissions
 
     ctx = _Context()
     with ctx.db.read_session() as session:
         rows = submissions.list_submissions(session, limit=limit)
-    table = Table("id", "team", "track", "method", "status", "progress", "completion", "time")
-    for row in rows:
-        m = row.metrics
-        table.add_row(
-            str(row.id),
-            row.team,
-            row.track,
-            row.method_name,
-            row.status,
-            f"{row.progress.done}/{row.progress.total}",
-            _metric(m and m.completion),
-            _metric(m and m.time, 1),
-        )
-    console.print(table)
+    if as_json:
+        sys.stdout.write(json.dumps([r.model_dump(mode="json") for r in rows], indent=2) + "\n")
+        return
+    print_rows(
+        console,
+        ("id", "team", "track", "method", "status", "progress", "completion", "time"),
+        [
+            (
+                r.id,
+                r.team,
+                r.track,
+                r.method_name,
+                r.status,
+                f"{r.progress.done}/{r.progress.total}",
+                _metric(r.metrics and r.metrics.completion),
+                _metric(r.metrics and r.metrics.time, 1),
+            )
+            for r in rows
+        ],
+        numeric=("id", "completion", "time"),
+    )
 
 
 @submissions_app.command("show")
-def submissions_show(submission_id: SubmissionId) -> None:
+def submissions_show(
+    submission_id: SubmissionId,
+    as_json: Annotated[
+        bool, typer.Option("--json", help="One JSON document (detail and every attempt).")
+    ] = False,
+) -> None:
     """Everything about a submission, including per-scenario results (organisers only)."""
     from server.services import submissions
 
@@ -160,19 +184,39 @@ def submissions_show(submission_id: SubmissionId) -> None:
             )
             for run in submission.runs
         ]
-    console.print(view.model_dump_json(indent=2, exclude={"families"}))
+    columns = ("scenario", "family", "status", "reason", "steps")
+    if as_json:
+        document = view.model_dump(mode="json")
+        document["attempts"] = [
+            {
+                "attempt": attempt,
+                "status": status,
+                "worker": worker,
+                "scoring_profile": profile,
+                "error": error,
+                "results": [dict(zip(columns, row, strict=True)) for row in results],
+            }
+            for attempt, status, worker, profile, error, results in runs
+        ]
+        sys.stdout.write(json.dumps(document, indent=2) + "\n")
+        return
+    m = view.metrics
+    for name, value in (
+        ("submission", f"{view.id} by {view.team}: {view.method_name} ({view.track})"),
+        ("status", f"{view.status} {view.status_reason}".strip()),
+        ("progress", f"{view.progress.done}/{view.progress.total}"),
+        ("submitted", f"{view.created_at:%Y-%m-%d %H:%M:%S}"),
+        ("file", f"sha256 {view.file_sha256}, {view.file_size} bytes"),
+        (
+            "metrics",
+            "-" if m is None else f"completion {m.completion:.4f}, time {m.time:.1f}, "
+            f"humanness {m.humanness:.4f}, rules {m.rules:.4f}",
+        ),
+    ):
+        console.print(f"{name}: {value}", markup=False, highlight=False)
     for attempt, status, worker, profile, error, results in runs:
-        table = Table(
-            "scenario",
-            "family",
-            "status",
-            "reason",
-            "steps",
-            title=f"attempt {attempt}: {status} ({profile}) {worker} {error}",
-        )
-        for row in results:
-            table.add_row(*map(str, row))
-        console.print(table)
+        title = f"attempt {attempt}: {status} ({profile}) {worker or ''} {error or ''}".strip()
+        print_rows(console, columns, results, title=title, numeric=("steps",))
 
 
 @submissions_app.command("cancel")

@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from arena.config import SandboxKind
+from evaluator.failures import describe_end
 from evaluator.scoring import AgentSummary
 from evaluator.summary import ScenarioStatus
 from scenarios.schema import load_scenario
@@ -133,7 +134,7 @@ def _log_text(result: EpisodeResult, attempt: int) -> str:
     if result.simulator_error:
         parts.append(f"simulator error: {result.simulator_error}")
     for agent in result.agents:
-        parts.append(f"{agent.id}: {agent.reason} after {agent.steps} steps")
+        parts.append(describe_end(agent))
     if result.detail:
         parts.append(result.detail)
     agent_log = result.extra.get("agent_log")

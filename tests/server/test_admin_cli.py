@@ -4,6 +4,7 @@ through ARENA_* environment variables."""
 from __future__ import annotations
 
 import csv
+import json
 import io
 import re
 
@@ -47,7 +48,8 @@ def test_db_upgrade_is_idempotent(arena):
 
 def test_teams_create_list_rotate(arena, client):
     output = arena("teams", "create", "gamma")
-    token = re.search(r"token: (arena_\S+)", output).group(1)
+    token = output.splitlines()[-1]  # alone on the last line
+    assert re.fullmatch(r"arena_\S+", token)
     assert (
         client.get("/api/v1/submissions", headers={"Authorization": f"Bearer {token}"}).status_code
         == 200
@@ -70,8 +72,17 @@ def test_submissions_list_show_cancel_disqualify_requeue(arena, db):
     queued = queued_submission(db, team)
     scored = seed_scored(db, team, (0.5, 400.0, 0.1, 0.0))
     listing = arena("submissions", "list")
-    assert "queued" in listing and "scored" in listing
-    assert '"status": "queued"' in arena("submissions", "show", str(queued))
+    # Not a terminal: a header and one tab-separated line per submission, nothing wrapped.
+    lines = listing.splitlines()
+    assert lines[0].split("\t")[:5] == ["id", "team", "track", "method", "status"]
+    assert [line.split("\t")[4] for line in lines[1:]] == ["scored", "queued"]
+    listed = json.loads(arena("submissions", "list", "--json"))
+    assert [(row["id"], row["status"]) for row in listed] == [(scored, "scored"), (queued, "queued")]
+    assert json.loads(arena("teams", "list", "--json"))[0]["team"] == "alpha"
+    shown = json.loads(arena("submissions", "show", str(queued), "--json"))
+    assert shown["status"] == "queued" and shown["attempts"] == []
+    text = arena("submissions", "show", str(queued))
+    assert "status: queued" in text and "{" not in text  # lines, not JSON mixed with tables
     assert "evaluation queued" in arena("submissions", "requeue", str(queued))
     arena("submissions", "cancel", str(queued))
     assert "cannot cancel" in arena("submissions", "cancel", str(queued), ok=False)
