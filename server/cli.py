@@ -209,7 +209,9 @@ def submissions_show(
         ("file", f"sha256 {view.file_sha256}, {view.file_size} bytes"),
         (
             "metrics",
-            "-" if m is None else f"completion {m.completion:.4f}, time {m.time:.1f}, "
+            "-"
+            if m is None
+            else f"completion {m.completion:.4f}, time {m.time:.1f}, "
             f"humanness {m.humanness:.4f}, rules {m.rules:.4f}",
         ),
     ):

@@ -4,8 +4,8 @@ through ARENA_* environment variables."""
 from __future__ import annotations
 
 import csv
-import json
 import io
+import json
 import re
 
 import pytest
@@ -77,7 +77,10 @@ def test_submissions_list_show_cancel_disqualify_requeue(arena, db):
     assert lines[0].split("\t")[:5] == ["id", "team", "track", "method", "status"]
     assert [line.split("\t")[4] for line in lines[1:]] == ["scored", "queued"]
     listed = json.loads(arena("submissions", "list", "--json"))
-    assert [(row["id"], row["status"]) for row in listed] == [(scored, "scored"), (queued, "queued")]
+    assert [(row["id"], row["status"]) for row in listed] == [
+        (scored, "scored"),
+        (queued, "queued"),
+    ]
     assert json.loads(arena("teams", "list", "--json"))[0]["team"] == "alpha"
     shown = json.loads(arena("submissions", "show", str(queued), "--json"))
     assert shown["status"] == "queued" and shown["attempts"] == []
