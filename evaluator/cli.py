@@ -214,14 +214,15 @@ class _RichProgress:
 
 
 def format_metrics(metrics) -> tuple[str, str, str, str]:
-    """The four metrics as printed everywhere: completion 3 decimals, time 1, the rest 4."""
+    """The four metrics as printed everywhere (web pages too): time 1 decimal, the others 4."""
     if metrics is None:
         return ("-", "-", "-", "-")
+    undriven = "—"  # no agent drove a step: nothing measured (never 0, the best value)
     return (
-        f"{metrics.completion:.3f}",
+        f"{metrics.completion:.4f}",
         f"{metrics.time:.1f}",
-        f"{metrics.humanness:.4f}",
-        f"{metrics.rules:.4f}",
+        undriven if metrics.humanness is None else f"{metrics.humanness:.4f}",
+        undriven if metrics.rules is None else f"{metrics.rules:.4f}",
     )
 
 

@@ -122,6 +122,7 @@ def teams_rotate(name: str) -> None:
 
 
 def _metric(value: float | None, digits: int = 4) -> str:
+    """A metric as printed: ``-`` when there is none (``—``-style "not measured" included)."""
     return "-" if value is None else f"{value:.{digits}f}"
 
 
@@ -212,7 +213,7 @@ def submissions_show(
             "-"
             if m is None
             else f"completion {m.completion:.4f}, time {m.time:.1f}, "
-            f"humanness {m.humanness:.4f}, rules {m.rules:.4f}",
+            f"humanness {_metric(m.humanness)}, rules {_metric(m.rules)}",
         ),
     ):
         console.print(f"{name}: {value}", markup=False, highlight=False)
@@ -282,7 +283,7 @@ def rescore(
             metrics = _run(lambda run_id=run_id: admin.rescore_run(ctx.db, run_id, profile))
             table.add_row(
                 str(run_id),
-                *(f"{metrics[k]:.4f}" for k in ("completion", "time", "humanness", "rules")),
+                *(_metric(metrics[k]) for k in ("completion", "time", "humanness", "rules")),
             )
             progress.advance(task)
     console.print(table)

@@ -53,6 +53,8 @@ const Arena = (() => {
   }
 
   function fmt(metric, value) {
+    // As in the templates' _format.html: "—" when no agent drove a step (nothing measured).
+    if (value === null || value === undefined) return "—";
     return metric === "time" ? value.toFixed(1) : value.toFixed(4);
   }
 

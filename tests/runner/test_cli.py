@@ -69,5 +69,5 @@ def test_score_per_scenario_adds_a_row_per_scenario(results):
     detailed = CliRunner().invoke(app, ["score", str(results), "--per-scenario"])
     # Not a terminal: one tab-separated line per row.
     rows = [line.split("\t") for line in detailed.output.splitlines() if line.startswith("b\t")]
-    assert len(rows) == 1 and rows[0][2:4] == ["1.000", "800.0"]
+    assert len(rows) == 1 and rows[0][2:4] == ["1.0000", "800.0"]
     assert not [line for line in plain.output.splitlines() if line.startswith("b\t")]

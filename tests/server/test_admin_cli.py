@@ -43,7 +43,7 @@ def arena(settings, db, monkeypatch):
 
 
 def test_db_upgrade_is_idempotent(arena):
-    assert "revision 0001" in arena("db", "upgrade")
+    assert "revision 0002" in arena("db", "upgrade")
 
 
 def test_teams_create_list_rotate(arena, client):

@@ -11,7 +11,7 @@ from server.models import Base
 
 def test_migrated_schema_matches_the_models(database_url):
     upgrade_database(database_url)  # idempotent on an up-to-date database
-    assert current_revision(database_url) == "0001"
+    assert current_revision(database_url) == "0002"
     from server.core.db import make_engine
 
     engine = make_engine(database_url)
