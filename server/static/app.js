@@ -5,6 +5,7 @@ const Arena = (() => {
   const TOKEN_KEY = "arena-token";
   const $ = (id) => document.getElementById(id);
   const headers = (token) => ({ Authorization: `Bearer ${token}` });
+  const FINISHED = ["scored", "failed", "cancelled", "disqualified"];
 
   async function errorText(response) {
     try {
@@ -92,12 +93,15 @@ const Arena = (() => {
     $("status-reason").textContent = s.status_reason || "";
     const pct = s.progress.total ? (100 * s.progress.done) / s.progress.total : 0;
     $("progress-bar").style.width = `${pct}%`;
-    $("progress-text").textContent = `${s.progress.done} / ${s.progress.total} scenarios`;
+    const left = s.status === "running" ? timeLeft(s.progress) : "";
+    $("progress-text").textContent =
+      `${s.progress.done} / ${s.progress.total} scenarios${left ? ` · ${left}` : ""}`;
     $("cancel").hidden = !["received", "queued", "running"].includes(s.status);
     for (const metric of metrics) {
       $(`metric-${metric}`).textContent = s.metrics ? fmt(metric, s.metrics[metric]) : "–";
     }
     const families = Object.keys(s.families).sort();
+    $("families-box").hidden = families.length === 0;
     $("families").innerHTML = families.length ? `<table><thead><tr><th>family</th>` +
       `<th class="num">scenarios</th>${metrics.map((m) => `<th class="num">${m}</th>`).join("")}` +
       `</tr></thead><tbody>${families.map((f) => `<tr><td>${escape(f)}</td>` +
@@ -106,6 +110,8 @@ const Arena = (() => {
       `</tr>`).join("")}</tbody></table>` : "";
     $("chart").innerHTML = families.length ? chart(s.families) : "";
     const failures = Object.entries(s.failure_reasons);
+    // No heading over nothing: failures show once counted, "None." only when it has finished.
+    $("failures-box").hidden = failures.length === 0 && !FINISHED.includes(s.status);
     $("failures").innerHTML = failures.length ? `<ul>${failures.map(([family, reasons]) =>
       `<li><strong>${escape(family)}</strong>: ${Object.entries(reasons)
         .map(([r, n]) => `${escape(r)} × ${n}`).join(", ")}</li>`).join("")}</ul>`
@@ -116,14 +122,42 @@ const Arena = (() => {
     const response = await fetch(`${API}/submissions/${id}/logs`, { headers: headers(token) });
     if (!response.ok) return;
     const logs = await response.json();
-    $("logs").innerHTML = logs.scenarios.filter((e) => e.status !== "success" || e.log_tail)
-      .map((e) => `<h3>${escape(e.label)} · ${escape(e.reason || e.status)}</h3>` +
-        `<pre>${escape(e.log_tail || "(no output)")}</pre>`).join("");
+    // Identical output (the same traceback in 128 scenarios) is shown once, with its count.
+    const groups = new Map();
+    for (const e of logs.scenarios.filter((x) => x.status !== "success" || x.log_tail)) {
+      const key = `${e.reason || e.status}\u0000${e.log_tail}`;
+      if (!groups.has(key)) groups.set(key, { entry: e, labels: [] });
+      groups.get(key).labels.push(e.label);
+    }
+    $("logs").innerHTML = [...groups.values()].map(({ entry, labels }) => {
+      const shown = labels.slice(0, 6).map(escape).join(", ") +
+        (labels.length > 6 ? ` and ${labels.length - 6} more` : "");
+      const count = labels.length > 1 ? ` <span class="count">× ${labels.length}</span>` : "";
+      return `<h3 class="log-group">${shown} · ${escape(entry.reason || entry.status)}${count}</h3>` +
+        `<pre>${escape(entry.log_tail || "(no output)")}</pre>`;
+    }).join("");
+  }
+
+  // Time left, from the scenarios finished since this page started watching (a rate measured
+  // here, so it needs no clock agreement with the server).
+  const watch = { since: null, done: 0 };
+  function timeLeft(progress) {
+    const now = Date.now();
+    if (watch.since === null || progress.done < watch.done) {
+      watch.since = now;
+      watch.done = progress.done;
+    }
+    const finished = progress.done - watch.done;
+    if (finished <= 0) return "estimating time left…";
+    const seconds = ((progress.total - progress.done) * (now - watch.since)) / finished / 1000;
+    if (seconds < 90) return "under 2 min left";
+    if (seconds < 5400) return `about ${Math.round(seconds / 60)} min left`;
+    return `about ${(seconds / 3600).toFixed(1)} h left`;
   }
 
   function submissionPage(id, metrics) {
     let token = sessionStorage.getItem(TOKEN_KEY);
-    const finished = ["scored", "failed", "cancelled", "disqualified"];
+    const finished = FINISHED;
     async function poll() {
       const response = await fetch(`${API}/submissions/${id}`, { headers: headers(token) });
       if (!response.ok) {

@@ -18,6 +18,8 @@ import pytest
 from arena.config import Settings
 from server.core.db import Database
 from server.core.migrate import upgrade_database
+from server.models import EvaluationRun, ScenarioResult, Submission, Track, utcnow
+from server.status import RunStatus, SubmissionStatus
 from tests.server.builders import make_team, queued_submission, seed_scored
 from tests.server.live import api_server
 from tests.server.service_stack import shared_dir
@@ -168,3 +170,93 @@ def test_my_submissions_lists_the_team_and_downloads_results(served, browser, tm
     # Nothing spills sideways off a phone screen: wide tables scroll inside their box.
     assert phone.evaluate("document.documentElement.scrollWidth") <= PHONE["width"]
     shoot(phone, "mine-phone")
+
+
+TRACEBACK = "Traceback (most recent call last):\nModuleNotFoundError: No module named 'torch'"
+
+
+def add_results(db, submission_id: int, rows: list[tuple[str, str, str, str]]) -> None:
+    """(family, status, reason, log tail) results on the submission's latest run."""
+    with db.session() as session:
+        run = session.get(Submission, submission_id).runs[-1]
+        for k, (family, status, reason, log) in enumerate(rows):
+            session.add(
+                ScenarioResult(
+                    run_id=run.id,
+                    scenario_id=f"h{k:03d}",
+                    family=family,
+                    status=status,
+                    reason=reason,
+                    log_tail=log,
+                )
+            )
+
+
+def running_submission(db, team_id: int, total: int) -> int:
+    with db.session() as session:
+        submission = Submission(
+            team_id=team_id,
+            track=Track.freestyle,
+            method_name="in progress",
+            file_sha256="0" * 64,
+            file_size=1,
+            storage_dir="/nonexistent",
+            status=SubmissionStatus.running,
+            started_at=utcnow(),
+        )
+        session.add(submission)
+        session.flush()
+        session.add(
+            EvaluationRun(
+                submission_id=submission.id,
+                attempt=1,
+                status=RunStatus.running,
+                suite_dir="/nonexistent",
+                manifest_sha256="0" * 64,
+                scenario_count=total,
+                scoring_profile="driving-smarts-2022",
+            )
+        )
+        return submission.id
+
+
+def test_submission_page_groups_identical_output_and_hides_empty_sections(tmp_path, browser):
+    from playwright.sync_api import expect
+
+    root = shared_dir("arena-pages-")
+    settings = Settings(_env_file=None, data_dir=root / "data", hidden_suite_dir=root / "suite")
+    (root / "data").mkdir()
+    upgrade_database(settings.resolved_database_url)
+    db = Database(settings.resolved_database_url)
+    team_id, token = make_team(db, "logs-team")
+    failed = seed_scored(db, team_id, (1.0, 800.0, None, None), method_name="import torch")
+    add_results(db, failed, [("cruise", "failure", "agent_error", TRACEBACK)] * 5)
+    running = running_submission(db, team_id, total=10)
+    add_results(db, running, [("cruise", "success", "reached_goal", "")] * 3)
+    try:
+        with api_server(settings, tmp_path / "api.log") as (url, _):
+            for name, viewport in (("submission-desktop", DESKTOP), ("submission-phone", PHONE)):
+                page = offline_page(browser, url, viewport)
+                page.goto(f"{url}/my-submissions")
+                page.evaluate(f"sessionStorage.setItem('arena-token', {json.dumps(token)})")
+                page.goto(f"{url}/submissions/{failed}")
+                expect(page.locator("#status")).to_have_text("scored")
+                page.click("#logs-box summary")
+                # Five identical tracebacks: one block, with its count.
+                expect(page.locator("#logs pre")).to_have_count(1)
+                expect(page.locator("#logs h3")).to_contain_text("× 5")
+                expect(page.locator("#metric-humanness")).to_have_text("—")
+                expect(page.locator("#failures")).to_contain_text("agent_error × 5")
+                shoot(page, name)
+                page.goto(f"{url}/submissions/{running}")
+                expect(page.locator("#progress-text")).to_contain_text("3 / 10 scenarios")
+                expect(page.locator("#progress-text")).to_contain_text("estimating time left")
+                # Running, nothing per family yet and no failure counted: no empty headings.
+                expect(page.locator("h2", has_text="Per family")).to_be_hidden()
+                expect(page.locator("h2", has_text="Failures")).to_be_hidden()
+                shoot(page, name.replace("submission", "running"))
+                assert page.refused == []
+                page.close()
+    finally:
+        db.dispose()
+        shutil.rmtree(root, ignore_errors=True)
