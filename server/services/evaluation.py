@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from datetime import timedelta
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 from sqlalchemy import delete, func, select, update
@@ -17,6 +18,7 @@ from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.orm import Session
 
 from arena.config import Settings
+from evaluator import failures
 from evaluator.scoring import load_profile
 from server.models import EvaluationRun, LeaderboardGeneration, ScenarioResult, Score, Submission
 from server.models import utcnow as now
@@ -228,7 +230,44 @@ def record_scenario(session: Session, run_id: int, outcome: ScenarioOutcomeIn) -
     )
     if finished.rowcount == 0:
         return False  # a duplicate delivery: the first one already recorded this scenario
+    if _give_up_if_agent_cannot_start(session, run):
+        return False
     return finished_count(session, run_id) == run.scenario_count
+
+
+def _give_up_if_agent_cannot_start(session: Session, run: EvaluationRun) -> bool:
+    """Fail the run when its first finished scenarios all show the agent failing before its first
+    step (import or init error, init timeout): one error for the team instead of one per scenario.
+    The run's other scenario tasks find it inactive and do nothing."""
+    results = session.scalars(
+        select(ScenarioResult)
+        .where(
+            ScenarioResult.run_id == run.id,
+            ScenarioResult.status.in_(list(scoring.FINISHED)),
+        )
+        .order_by(ScenarioResult.id)
+    ).all()
+    if len(results) < failures.FAIL_FAST_AFTER or len(results) >= run.scenario_count:
+        return False
+    agents = [[SimpleNamespace(**a) for a in r.detail.get("agents", [])] for r in results]
+    if not all(
+        r.status == scoring.FAILURE and failures.never_started(a)
+        for r, a in zip(results, agents, strict=True)
+    ):
+        return False
+    error = failures.startup_error(results[0].log_tail).splitlines()
+    run.error = (
+        f"your agent could not start: {error[-1] if error else results[0].reason} "
+        f"(the same in the first {len(results)} scenarios; the others were not run)"
+    )
+    run.status = advance(run.status, RunStatus.failed, RUN_MOVES)
+    run.finished_at = now()
+    submission = lock(session, Submission, run.submission_id)
+    if submission.status == SubmissionStatus.running:
+        submission.status = advance(submission.status, SubmissionStatus.failed, SUBMISSION_MOVES)
+        submission.status_reason = run.error
+        submission.finished_at = now()
+    return True
 
 
 def _insert_if_absent(session: Session, run_id: int, scenario_id: str, family: str) -> None:
