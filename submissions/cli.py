@@ -6,12 +6,13 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.console import Console
+
+from arena.terminal import make_console
 
 submission_app = typer.Typer(no_args_is_help=True)
 sandbox_app = typer.Typer(no_args_is_help=True)
-console = Console()
-errors = Console(stderr=True)
+console = make_console()
+errors = make_console(stderr=True)
 
 
 def report_checked(zip_path: Path, install: bool) -> None:
@@ -23,7 +24,12 @@ def report_checked(zip_path: Path, install: bool) -> None:
 
     try:
         if install:
-            with tempfile.TemporaryDirectory(prefix="arena-check-") as tmp:
+            # Resolving requirements can take a minute (a torch wheel): say what is going on.
+            message = "checking the zip and resolving requirements.txt to wheels…"
+            with (
+                tempfile.TemporaryDirectory(prefix="arena-check-") as tmp,
+                errors.status(message, spinner="dots"),
+            ):
                 prepared = prepare_submission(zip_path, Path(tmp) / "submission")
                 interface, sha256, size = prepared.interface, prepared.sha256, prepared.size
         else:
