@@ -260,3 +260,18 @@ def test_submission_page_groups_identical_output_and_hides_empty_sections(tmp_pa
     finally:
         db.dispose()
         shutil.rmtree(root, ignore_errors=True)
+
+
+def test_leaderboard_fits_a_phone_and_formats_numbers_alike(served, browser):
+    from playwright.sync_api import expect
+
+    url, _, _ = served
+    for name, viewport in (("leaderboard-desktop", DESKTOP), ("leaderboard-phone", PHONE)):
+        page = offline_page(browser, url, viewport)
+        page.goto(f"{url}/")
+        expect(page.locator("tr.entry")).to_have_count(2)  # best per team
+        expect(page.locator("#nav-mine")).to_be_hidden()  # no token in this tab
+        expect(page.locator("tr.entry").first).to_contain_text("512.3")
+        assert page.evaluate("document.documentElement.scrollWidth") <= viewport["width"]
+        shoot(page, name)
+        page.close()
