@@ -126,6 +126,24 @@ def _metric(value: float | None, digits: int = 4) -> str:
     return "-" if value is None else f"{value:.{digits}f}"
 
 
+def _status_text(row, rerunning: set[int]) -> str:
+    """A scored submission with a new attempt under way keeps its old score meanwhile: say so,
+    instead of "scored" next to 10/128."""
+    if row.status == "scored" and row.id in rerunning:
+        return "scored (re-run running)"
+    return str(row.status)
+
+
+def _active_submissions(session) -> set[int]:
+    from sqlalchemy import select
+
+    from server.models import EvaluationRun
+    from server.status import ACTIVE_RUN
+
+    active = select(EvaluationRun.submission_id).where(EvaluationRun.status.in_(list(ACTIVE_RUN)))
+    return set(session.scalars(active))
+
+
 @submissions_app.command("list")
 def submissions_list(
     limit: int = 50,
@@ -137,6 +155,7 @@ def submissions_list(
     ctx = _Context()
     with ctx.db.read_session() as session:
         rows = submissions.list_submissions(session, limit=limit)
+        rerunning = _active_submissions(session)
     if as_json:
         sys.stdout.write(json.dumps([r.model_dump(mode="json") for r in rows], indent=2) + "\n")
         return
@@ -149,7 +168,7 @@ def submissions_list(
                 r.team,
                 r.track,
                 r.method_name,
-                r.status,
+                _status_text(r, rerunning),
                 f"{r.progress.done}/{r.progress.total}",
                 _metric(r.metrics and r.metrics.completion),
                 _metric(r.metrics and r.metrics.time, 1),
@@ -313,7 +332,7 @@ def status() -> None:
     else:
         console.print(f"workers ({len(state.workers)}): {', '.join(state.workers) or 'none'}")
     console.print(f"running evaluations: {state.running_runs}")
-    table = Table("status", "submissions")
+    table = Table("submission status", "submissions", title="submissions by status")
     for name, count in state.submissions.items():
         table.add_row(name, str(count))
     console.print(table)

@@ -106,6 +106,9 @@ def test_rescore_rerun_and_export(arena, db, settings):
     arena("rescore", "--all")
     assert "unknown scoring profile" in arena("rescore", "--all", "--profile", "nope", ok=False)
     assert "attempt 2 queued" in arena("rerun", str(sid))
+    # The old score stands meanwhile; the list says a re-run is going on, not just "scored".
+    row = arena("submissions", "list").splitlines()[1].split("\t")
+    assert (row[4], row[5]) == ("scored (re-run running)", "0/3")
     rows = list(csv.DictReader(io.StringIO(arena("leaderboard", "export", "--csv"))))
     assert [(row["team"], float(row["completion"])) for row in rows] == [("alpha", 0.0)]
 
