@@ -115,6 +115,7 @@ def test_agent_interface_guide_is_linked_from_submit(served, browser):
     for name, viewport in (("guide-desktop", DESKTOP), ("guide-phone", PHONE)):
         page = offline_page(browser, url, viewport)
         page.goto(f"{url}/submit")
+        shoot(page, name.replace("guide", "submit"))
         page.click("main a[href='/guide/agent-interface']")
         expect(page.locator("h2", has_text="Action spaces")).to_be_visible()
         expect(page.locator("td code", has_text="LaneWithContinuousSpeed").first).to_be_visible()
