@@ -26,6 +26,7 @@ COPY scenarios ./scenarios
 COPY submissions ./submissions
 COPY evaluator ./evaluator
 COPY server ./server
+COPY docs ./docs
 # Editable, so `arena admin db upgrade` finds alembic.ini and migrations/ next to the code.
 RUN pip install --no-cache-dir -e . && rm -rf /root/.cache
 

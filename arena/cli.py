@@ -13,7 +13,7 @@ from evaluator.sandbox.cli import sandbox_app
 from scenarios.cli import app as scenarios_app
 from scenarios.dataset.cli import app as dataset_app
 from server.cli import admin_app, service_app
-from submissions.cli import submission_app
+from submissions.cli import init_agent, submission_app
 
 app = typer.Typer(
     name="arena",
@@ -29,3 +29,4 @@ app.add_typer(admin_app, name="admin", help="Organiser administration of the ser
 # `arena evaluate|score|replay` and `arena up|worker|serve` sit at the top level.
 app.add_typer(evaluator_app)
 app.add_typer(service_app)
+app.command("init")(init_agent)

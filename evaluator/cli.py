@@ -11,9 +11,17 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 from rich.console import Console
 from rich.markup import escape
-from rich.table import Table
 
 from arena.config import SandboxKind
+from arena.terminal import make_console, print_rows
+from evaluator.failures import (
+    describe_end,
+    failure_texts,
+    group_identical,
+    is_agent_fault,
+    never_started,
+    startup_error,
+)
 
 if TYPE_CHECKING:
     from evaluator.runner import ScenarioOutcome
@@ -41,7 +49,7 @@ def evaluate(
         Path | None,
         typer.Option(
             help="Results folder; re-running with the same one resumes. "
-            "(default: arena-results/<submission name>)"
+            "(default: arena-results/<submission name>/<sha256 prefix>, one per version)"
         ),
     ] = None,
     profile: Annotated[str | None, typer.Option(help="Scoring profile.")] = None,
@@ -51,8 +59,18 @@ def evaluate(
     per_scenario: Annotated[
         bool, typer.Option("--per-scenario", help="Also a table row per scenario.")
     ] = False,
+    force: Annotated[
+        bool, typer.Option("--force", help="Replace the results already in the folder.")
+    ] = False,
+    verbose: Annotated[
+        bool,
+        typer.Option("--verbose", "-v", help="Every traceback of every failed scenario."),
+    ] = False,
 ) -> None:
-    """Evaluate a submission on a scenario set and print its four metrics."""
+    """Evaluate a submission on a scenario set and print its four metrics.
+
+    Exits 1 when a scenario failed for the agent's fault (an exception, a bad action, a timeout),
+    2 when the evaluation could not run."""
     from arena.config import get_settings
     from arena.errors import ArenaError
     from arena.suite import resolve_suite
@@ -60,7 +78,8 @@ def evaluate(
     from evaluator.scoring import ProfileError
 
     settings = get_settings()
-    console = Console(stderr=as_json)
+    console = make_console(stderr=as_json)
+    per_submission = out is None
     out = out or Path("arena-results") / path.stem
     progress = _RichProgress(console)
     try:
@@ -68,6 +87,8 @@ def evaluate(
             path,
             resolve_suite(suite, settings),
             out_dir=out,
+            per_submission=per_submission,
+            force=force,
             scenario_ids=scenario,
             jobs=jobs or settings.jobs,
             sandbox=sandbox or settings.sandbox,
@@ -79,7 +100,17 @@ def evaluate(
         raise typer.Exit(2) from None
     finally:
         progress.stop()
-    _report(summary, out, console, as_json, per_scenario)
+    if per_submission:
+        out = out / summary.submission[:12]
+    if as_json or not could_not_start(summary):
+        _report(summary, out, console, as_json, per_scenario)
+    else:  # no table of meaningless scores: the one error is the result
+        console.print(f"results in {out} (agent logs in {out / 'logs'})")
+    explain_failures(
+        summary, out, make_console(stderr=True) if as_json else console, verbose=verbose
+    )
+    if any(is_agent_fault(entry.agents) for entry in summary.scenarios):
+        raise typer.Exit(1)
 
 
 @app.command()
@@ -98,7 +129,7 @@ def score(
     from evaluator.scoring import ProfileError, load_profile
     from evaluator.summary import SUMMARY_FILE, write_summary
 
-    console = Console(stderr=as_json)
+    console = make_console(stderr=as_json)
     if not (results_dir / SUMMARY_FILE).exists():
         console.print(f"[bold red]error:[/] {escape(str(results_dir))} has no {SUMMARY_FILE}")
         raise typer.Exit(2)
@@ -184,6 +215,19 @@ class _RichProgress:
         self.bar.stop()
 
 
+def format_metrics(metrics) -> tuple[str, str, str, str]:
+    """The four metrics as printed everywhere (web pages too): time 1 decimal, the others 4."""
+    if metrics is None:
+        return ("-", "-", "-", "-")
+    undriven = "—"  # no agent drove a step: nothing measured (never 0, the best value)
+    return (
+        f"{metrics.completion:.4f}",
+        f"{metrics.time:.1f}",
+        undriven if metrics.humanness is None else f"{metrics.humanness:.4f}",
+        undriven if metrics.rules is None else f"{metrics.rules:.4f}",
+    )
+
+
 def _report(
     summary: Summary, results_dir: Path, console: Console, as_json: bool, per_scenario: bool
 ) -> None:
@@ -191,12 +235,6 @@ def _report(
         sys.stdout.write(json.dumps(summary.model_dump(mode="json"), indent=2) + "\n")
         return
     profile = summary.profile
-    table = Table(title=f"{summary.suite} - scoring profile {profile.name} v{profile.version}")
-    for column in ("set", "scenarios", "completion", "time", "humanness", "rules"):
-        if column == "set":
-            table.add_column(column, overflow="fold")
-        else:
-            table.add_column(column, justify="right", no_wrap=True)
     counts: dict[str, int] = {}
     for entry in summary.scenarios:
         if entry.metrics is not None:
@@ -208,31 +246,69 @@ def _report(
             (entry.id if entry.metrics else f"{entry.id} ({entry.status})", 1, entry.metrics)
             for entry in summary.scenarios
         ]
-    for i, (name, n, metrics) in enumerate(rows):
-        if metrics is None:
-            table.add_row(name, str(n), "-", "-", "-", "-")
-            continue
-        table.add_row(
-            name,
-            str(n),
-            f"{metrics.completion:.3f}",
-            f"{metrics.time:.1f}",
-            f"{metrics.humanness:.4f}",
-            f"{metrics.rules:.4f}",
-        )
-        if i in (0, len(summary.families)):
-            table.add_section()
-    console.print(table)
+    print_rows(
+        console,
+        ("set", "scenarios", "completion", "time", "humanness", "rules"),
+        [(name, n, *format_metrics(metrics)) for name, n, metrics in rows],
+        title=f"{summary.suite} - scoring profile {profile.name} v{profile.version}",
+        numeric=("scenarios", "completion", "time", "humanness", "rules"),
+    )
     console.print("All four are errors: smaller is better.", style="dim")
     for entry in summary.scenarios:
         failed = [a for a in entry.agents if not a.reached_goal]
         if failed:
-            reasons = ", ".join(f"{a.id} {a.reason} at step {a.done_step}" for a in failed)
+            reasons = ", ".join(describe_end(a) for a in failed)
             console.print(f"[yellow]failed[/] {entry.id}: {reasons}")
     for scenario_id in summary.uncharged:
         entry = next(e for e in summary.scenarios if e.id == scenario_id)
         error = escape(str(entry.error))
         console.print(f"[red]not charged[/] {scenario_id} ({entry.status}): {error}")
-    if not summary.complete:
+    if not summary.complete and not could_not_start(summary):
         console.print("[bold yellow]incomplete:[/] re-run with the same --out to finish")
     console.print(f"results in {results_dir} (agent logs in {results_dir / 'logs'})")
+
+
+def could_not_start(summary: Summary) -> bool:
+    """Every scenario that ran shows the agent failing before its first step, and the run
+    stopped early because of it."""
+    ran = [e for e in summary.scenarios if e.status == "done"]
+    return not summary.complete and bool(ran) and all(never_started(e.agents) for e in ran)
+
+
+def explain_failures(
+    summary: Summary, results_dir: Path, console: Console, *, verbose: bool
+) -> None:
+    """The tracebacks behind the failures, from the agent logs: the first of each failed
+    scenario (``verbose``: all of them), identical ones printed once with their scenarios."""
+    failed = [e for e in summary.scenarios if is_agent_fault(e.agents)]
+    logs = {e.id: _read_log(results_dir, e.id) for e in failed}
+    if could_not_start(summary):
+        ran = [e.id for e in summary.scenarios if e.status == "done"]
+        error = startup_error(logs.get(ran[0], ""))
+        console.print(
+            f"[bold red]your agent could not start[/] (stopped after {len(ran)} scenarios, "
+            "every one failed the same way before its first step):"
+        )
+        console.print(escape(error), highlight=False)
+        if "ModuleNotFoundError" in error:
+            console.print(
+                "a package your policy imports is missing: list it in requirements.txt "
+                "(docs/submissions.md)"
+            )
+        return
+    found = []
+    for entry in failed:
+        found += [(entry.id, text) for text in failure_texts(logs[entry.id], every=verbose)]
+    for group in group_identical(found):
+        n = len(group.scenarios)
+        where = ", ".join(group.scenarios[:5]) + (f" and {n - 5} more" if n > 5 else "")
+        times = f" ({n} scenarios)" if n > 1 else ""
+        console.print(f"[bold red]failure[/]{times} in {where}:")
+        console.print(escape(group.text), highlight=False)
+    if found and not verbose:
+        console.print("(--verbose for every traceback; full logs in the logs folder)", style="dim")
+
+
+def _read_log(results_dir: Path, scenario_id: str) -> str:
+    path = results_dir / "logs" / f"{scenario_id}.txt"
+    return path.read_text(errors="replace") if path.exists() else ""

@@ -107,28 +107,35 @@ def list_(
     directory: Annotated[
         str, typer.Argument(help="A built suite folder, or `public` / `hidden`.")
     ],
+    as_json: Annotated[bool, typer.Option("--json", help="The rows as a JSON list.")] = False,
 ) -> None:
-    """Table of the scenarios of a built suite."""
-    from rich.table import Table
+    """The scenarios of a built suite: a table on a terminal, tab-separated lines in a pipe."""
+    from arena.terminal import make_console, print_rows
 
     manifest = _suite(directory).manifest
-    table = Table(title=f"{manifest.suite} suite: {len(manifest.scenarios)} scenarios")
-    for column in ("id", "family", "variant", "volume", "agents", "reactive", "label", "hash"):
-        table.add_column(column)
-    table.add_column("unsolvable reason", style="red")
-    for s in manifest.scenarios:
-        table.add_row(
+    columns = ("id", "family", "variant", "volume", "agents", "reactive", "label", "hash")
+    rows = [
+        (
             s.id,
-            s.family,
+            s.family.value,
             s.variant,
-            s.volume or "-",
-            str(s.agents),
-            "yes" if s.reactive else "no",
-            s.label,
-            s.hash[:12],
+            s.volume,
+            s.agents,
+            s.reactive if as_json else ("yes" if s.reactive else "no"),
+            s.label.value,
+            s.hash if as_json else s.hash[:12],
             s.unsolvable_reason or "",
         )
-    _console().print(table)
+        for s in manifest.scenarios
+    ]
+    print_rows(
+        make_console(),
+        (*columns, "unsolvable_reason"),
+        rows,
+        title=f"{manifest.suite} suite: {len(manifest.scenarios)} scenarios",
+        as_json=as_json,
+        numeric=("agents",),
+    )
 
 
 def _suite(directory: str | Path):

@@ -15,7 +15,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from arena.config import Settings, get_settings
 from server.api.contract import allowed_methods
 from server.api.main import api_router
-from server.api.routes import pages
+from server.api.routes import docs_pages, pages
 from server.core.db import Database
 from server.core.queue import TaskQueue
 from server.services.errors import ServiceError
@@ -37,8 +37,15 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app = FastAPI(
         title="Driving Arena",
         version="1",
-        description="Evaluation service and leaderboard for autonomous-driving agents.",
+        description=(
+            "Evaluation service and leaderboard for autonomous-driving agents. "
+            "What an agent observes and sends: [agent interface](/guide/agent-interface); "
+            "the zip, limits and failure reasons: [submissions](/guide/submissions)."
+        ),
         lifespan=lifespan,
+        # Served by docs_pages from local assets (the defaults load Swagger UI from a CDN).
+        docs_url=None,
+        redoc_url=None,
     )
     app.state.settings = settings
     app.state.db = Database(settings.resolved_database_url)
@@ -62,5 +69,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     app.include_router(api_router)
     app.include_router(pages.router)
+    app.include_router(docs_pages.router)
+    docs_pages.mount_docs_assets(app)
     app.mount("/static", StaticFiles(directory=STATIC_DIR), name="static")
     return app

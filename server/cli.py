@@ -3,13 +3,15 @@
 
 from __future__ import annotations
 
+import json
+import sys
 from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.console import Console
 from rich.table import Table
 
+from arena.terminal import make_console, print_rows
 from server.tracks import Track
 
 admin_app = typer.Typer(no_args_is_help=True)
@@ -25,7 +27,7 @@ admin_app.add_typer(leaderboard_app, name="leaderboard")
 admin_app.add_typer(db_app, name="db")
 admin_app.add_typer(phases_app, name="phases")
 
-console = Console()
+console = make_console()
 # The API's bound (server.api.deps.MAX_ROW_ID): a larger id is a usage error, not a driver's
 # overflow traceback.
 MAX_ID = 2**31 - 1
@@ -87,23 +89,28 @@ def teams_create(name: str) -> None:
     ctx = _Context()
     with ctx.db.session() as session:
         team, token = _run(lambda: teams.create_team(session, name))
-    console.print(f"team [bold]{team.name}[/bold] (id {team.id}) token: [green]{token}[/green]")
+    console.print(f"team [bold]{team.name}[/bold] (id {team.id}) created; its token, shown once:")
+    # Alone on its line, never wrapped: copy it or take it with `tail -n 1`.
+    print(token)
 
 
 @teams_app.command("list")
-def teams_list() -> None:
+def teams_list(
+    as_json: Annotated[bool, typer.Option("--json", help="The rows as a JSON list.")] = False,
+) -> None:
     """Every team with its number of submissions."""
     from server.services import teams
 
     ctx = _Context()
     with ctx.db.read_session() as session:
         rows = teams.list_teams(session)
-    table = Table("id", "team", "submissions", "created")
-    for row in rows:
-        table.add_row(
-            str(row.id), row.name, str(row.submissions), f"{row.created_at:%Y-%m-%d %H:%M}"
-        )
-    console.print(table)
+    print_rows(
+        console,
+        ("id", "team", "submissions", "created"),
+        [(r.id, r.name, r.submissions, f"{r.created_at:%Y-%m-%d %H:%M}") for r in rows],
+        as_json=as_json,
+        numeric=("id", "submissions"),
+    )
 
 
 @teams_app.command("rotate-token")
@@ -115,42 +122,78 @@ def teams_rotate(name: str) -> None:
     with ctx.db.session() as session:
         team = _run(lambda: teams.get_team(session, name))
         token = teams.rotate_token(session, team)
-    console.print(f"new token for [bold]{name}[/bold]: [green]{token}[/green]")
+    console.print(f"new token for [bold]{name}[/bold] (the old ones are revoked):")
+    print(token)
 
 
 # --- submissions ------------------------------------------------------------------------------
 
 
 def _metric(value: float | None, digits: int = 4) -> str:
+    """A metric as printed: ``-`` when there is none (``—``-style "not measured" included)."""
     return "-" if value is None else f"{value:.{digits}f}"
 
 
+def _status_text(row, rerunning: set[int]) -> str:
+    """A scored submission with a new attempt under way keeps its old score meanwhile: say so,
+    instead of "scored" next to 10/128."""
+    if row.status == "scored" and row.id in rerunning:
+        return "scored (re-run running)"
+    return str(row.status)
+
+
+def _active_submissions(session) -> set[int]:
+    from sqlalchemy import select
+
+    from server.models import EvaluationRun
+    from server.status import ACTIVE_RUN
+
+    active = select(EvaluationRun.submission_id).where(EvaluationRun.status.in_(list(ACTIVE_RUN)))
+    return set(session.scalars(active))
+
+
 @submissions_app.command("list")
-def submissions_list(limit: Annotated[int, typer.Option(min=1, max=10_000)] = 50) -> None:
+def submissions_list(
+    limit: Annotated[int, typer.Option(min=1, max=10_000)] = 50,
+    as_json: Annotated[bool, typer.Option("--json", help="The rows as a JSON list.")] = False,
+) -> None:
     """The latest submissions with status, progress and metrics."""
     from server.services import submissions
 
     ctx = _Context()
     with ctx.db.read_session() as session:
         rows = submissions.list_submissions(session, limit=limit)
-    table = Table("id", "team", "track", "method", "status", "progress", "completion", "time")
-    for row in rows:
-        m = row.metrics
-        table.add_row(
-            str(row.id),
-            row.team,
-            row.track,
-            row.method_name,
-            row.status,
-            f"{row.progress.done}/{row.progress.total}",
-            _metric(m and m.completion),
-            _metric(m and m.time, 1),
-        )
-    console.print(table)
+        rerunning = _active_submissions(session)
+    if as_json:
+        sys.stdout.write(json.dumps([r.model_dump(mode="json") for r in rows], indent=2) + "\n")
+        return
+    print_rows(
+        console,
+        ("id", "team", "track", "method", "status", "progress", "completion", "time"),
+        [
+            (
+                r.id,
+                r.team,
+                r.track,
+                r.method_name,
+                _status_text(r, rerunning),
+                f"{r.progress.done}/{r.progress.total}",
+                _metric(r.metrics and r.metrics.completion),
+                _metric(r.metrics and r.metrics.time, 1),
+            )
+            for r in rows
+        ],
+        numeric=("id", "completion", "time"),
+    )
 
 
 @submissions_app.command("show")
-def submissions_show(submission_id: SubmissionId) -> None:
+def submissions_show(
+    submission_id: SubmissionId,
+    as_json: Annotated[
+        bool, typer.Option("--json", help="One JSON document (detail and every attempt).")
+    ] = False,
+) -> None:
     """Everything about a submission, including per-scenario results (organisers only)."""
     from server.services import submissions
 
@@ -169,19 +212,41 @@ def submissions_show(submission_id: SubmissionId) -> None:
             )
             for run in submission.runs
         ]
-    console.print(view.model_dump_json(indent=2, exclude={"families"}))
+    columns = ("scenario", "family", "status", "reason", "steps")
+    if as_json:
+        document = view.model_dump(mode="json")
+        document["attempts"] = [
+            {
+                "attempt": attempt,
+                "status": status,
+                "worker": worker,
+                "scoring_profile": profile,
+                "error": error,
+                "results": [dict(zip(columns, row, strict=True)) for row in results],
+            }
+            for attempt, status, worker, profile, error, results in runs
+        ]
+        sys.stdout.write(json.dumps(document, indent=2) + "\n")
+        return
+    m = view.metrics
+    for name, value in (
+        ("submission", f"{view.id} by {view.team}: {view.method_name} ({view.track})"),
+        ("status", f"{view.status} {view.status_reason}".strip()),
+        ("progress", f"{view.progress.done}/{view.progress.total}"),
+        ("submitted", f"{view.created_at:%Y-%m-%d %H:%M:%S}"),
+        ("file", f"sha256 {view.file_sha256}, {view.file_size} bytes"),
+        (
+            "metrics",
+            "-"
+            if m is None
+            else f"completion {m.completion:.4f}, time {m.time:.1f}, "
+            f"humanness {_metric(m.humanness)}, rules {_metric(m.rules)}",
+        ),
+    ):
+        console.print(f"{name}: {value}", markup=False, highlight=False)
     for attempt, status, worker, profile, error, results in runs:
-        table = Table(
-            "scenario",
-            "family",
-            "status",
-            "reason",
-            "steps",
-            title=f"attempt {attempt}: {status} ({profile}) {worker} {error}",
-        )
-        for row in results:
-            table.add_row(*map(str, row))
-        console.print(table)
+        title = f"attempt {attempt}: {status} ({profile}) {worker or ''} {error or ''}".strip()
+        print_rows(console, columns, results, title=title, numeric=("steps",))
 
 
 @submissions_app.command("logs")
@@ -264,7 +329,7 @@ def rescore(
             )
             table.add_row(
                 str(run_id),
-                *(f"{metrics[k]:.4f}" for k in ("completion", "time", "humanness", "rules")),
+                *(_metric(metrics[k]) for k in ("completion", "time", "humanness", "rules")),
             )
             progress.advance(task)
     console.print(table)
@@ -294,7 +359,7 @@ def status() -> None:
     else:
         console.print(f"workers ({len(state.workers)}): {', '.join(state.workers) or 'none'}")
     console.print(f"running evaluations: {state.running_runs}")
-    table = Table("status", "submissions")
+    table = Table("submission status", "submissions", title="submissions by status")
     for name, count in state.submissions.items():
         table.add_row(name, str(count))
     console.print(table)

@@ -222,8 +222,9 @@ class Score(Base):
     run_id: Mapped[int] = mapped_column(ForeignKey("evaluation_runs.id"), unique=True)
     completion: Mapped[float] = mapped_column(Float)
     time: Mapped[float] = mapped_column(Float)
-    humanness: Mapped[float] = mapped_column(Float)
-    rules: Mapped[float] = mapped_column(Float)
+    # NULL when no agent drove a step: nothing measured (0 would be the best value).
+    humanness: Mapped[float | None] = mapped_column(Float)
+    rules: Mapped[float | None] = mapped_column(Float)
     families: Mapped[dict[str, Any]] = mapped_column(default=dict)
     profile: Mapped[str] = mapped_column(String(64))
     profile_version: Mapped[str] = mapped_column(String(32), default="")

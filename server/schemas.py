@@ -19,8 +19,8 @@ class Metrics(Schema):
 
     completion: float
     time: float  # [steps]
-    humanness: float
-    rules: float
+    humanness: float | None  # None: no agent drove a step, nothing was measured
+    rules: float | None
 
 
 class FamilyMetrics(Metrics):

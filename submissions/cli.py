@@ -6,11 +6,12 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.console import Console
+
+from arena.terminal import make_console
 
 submission_app = typer.Typer(no_args_is_help=True)
-console = Console()
-errors = Console(stderr=True)
+console = make_console()
+errors = make_console(stderr=True)
 
 
 def report_checked(zip_path: Path, install: bool) -> None:
@@ -22,7 +23,12 @@ def report_checked(zip_path: Path, install: bool) -> None:
 
     try:
         if install:
-            with tempfile.TemporaryDirectory(prefix="arena-check-") as tmp:
+            # Resolving requirements can take a minute (a torch wheel): say what is going on.
+            message = "checking the zip and resolving requirements.txt to wheels…"
+            with (
+                tempfile.TemporaryDirectory(prefix="arena-check-") as tmp,
+                errors.status(message, spinner="dots"),
+            ):
                 prepared = prepare_submission(zip_path, Path(tmp) / "submission")
                 interface, sha256, size = prepared.interface, prepared.sha256, prepared.size
         else:
@@ -65,3 +71,20 @@ def check(
 ) -> None:
     """Run the service's intake checks on a zip without uploading it."""
     report_checked(zip_path, install)
+
+
+def init_agent(
+    folder: Annotated[Path, typer.Argument(help="Folder to create (must be new or empty).")],
+) -> None:
+    """Write a runnable starting agent: policy.py, agent.yaml and a test to run with pytest."""
+    from submissions.starter import FolderNotEmpty, write_starter
+
+    try:
+        files = write_starter(folder)
+    except FolderNotEmpty as error:
+        errors.print(f"[bold red]error:[/] {error}; choose a new folder")
+        raise typer.Exit(1) from error
+    for file in files:
+        console.print(f"wrote {file}")
+    console.print(f"next: python -m pytest {folder}   then   arena evaluate {folder}")
+    console.print("observations and actions: docs/agent-interface.md")

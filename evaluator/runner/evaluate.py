@@ -9,6 +9,7 @@ resumes where it stopped.
 from __future__ import annotations
 
 import json
+import shutil
 import tempfile
 import threading
 import traceback
@@ -21,6 +22,7 @@ from arena.config import SandboxKind
 from arena.errors import ArenaError
 from arena.outcome import ScenarioStatus
 from arena.suite import ManifestEntry, Suite, load_suite
+from evaluator.failures import FAIL_FAST_AFTER, never_started
 from evaluator.runner.results import (
     LOGS_DIR,
     RECORDS_DIR,
@@ -57,7 +59,17 @@ def evaluate(
     sandbox: SandboxKind | None = None,
     profile: str = DEFAULT_PROFILE,
     progress: Progress | None = None,
+    per_submission: bool = False,
+    force: bool = False,
+    fail_fast_after: int | None = FAIL_FAST_AFTER,
 ) -> Summary:
+    """Run the scenarios not yet finished in ``out_dir`` and return the summary.
+
+    ``per_submission`` puts the results in ``out_dir/<first 12 hex of the submission's sha256>``,
+    so an edited agent gets a folder of its own; ``force`` discards the results already there.
+    When the first ``fail_fast_after`` scenarios all end with the agent failing to start, the
+    rest are not run (the summary stays incomplete): one error, not one per scenario.
+    """
     from submissions.intake import prepare_submission
 
     scoring_profile = load_profile(profile)
@@ -67,6 +79,10 @@ def evaluate(
     with tempfile.TemporaryDirectory(prefix="arena-submission-") as tmp:
         Path(tmp).chmod(0o755)  # sandboxes run the agent as another user, who must enter it
         submission = prepare_submission(Path(source), Path(tmp) / "submission")
+        if per_submission:
+            out_dir = out_dir / submission.sha256[:12]
+        if force:
+            discard_results(out_dir)
         (out_dir / RECORDS_DIR).mkdir(parents=True, exist_ok=True)
         (out_dir / LOGS_DIR).mkdir(exist_ok=True)
         run = ResultsFolder(out_dir, suite, scoring_profile, submission.sha256)
@@ -83,17 +99,47 @@ def evaluate(
         with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
             pending: dict[Future, ManifestEntry] = {}
             queue = list(todo)
+            starts = _StartWatch(fail_fast_after)
             while queue or pending:
-                while queue and len(pending) < jobs:
+                while queue and len(pending) < jobs and not starts.gave_up:
                     scenario = queue.pop(0)
                     pending[pool.submit(play, scenario)] = scenario
+                if not pending:
+                    break
                 done, _ = wait(pending, return_when=FIRST_COMPLETED)
                 for future in done:
                     outcome = _outcome_of(future, pending.pop(future))
                     run.record(outcome)
+                    starts.saw(outcome)
                     if progress:
                         progress.finished(outcome)
     return run.summary()
+
+
+def discard_results(out_dir: Path) -> None:
+    """Remove what an evaluation wrote in ``out_dir`` (and nothing else a user keeps there)."""
+    for name in (SUMMARY_FILE, TIMINGS_FILE):
+        (out_dir / name).unlink(missing_ok=True)
+    for folder in (RECORDS_DIR, LOGS_DIR):
+        shutil.rmtree(out_dir / folder, ignore_errors=True)
+
+
+class _StartWatch:
+    """Gives up on a run whose first scenarios all show the agent unable to start."""
+
+    def __init__(self, after: int | None) -> None:
+        self.after = after
+        self.seen = 0
+        self.gave_up = False
+
+    def saw(self, outcome: ScenarioOutcome) -> None:
+        if self.after is None or self.seen < 0:
+            return
+        if outcome.status == ScenarioStatus.done and never_started(outcome.agents):
+            self.seen += 1
+            self.gave_up = self.seen >= self.after
+        elif outcome.status == ScenarioStatus.done:
+            self.seen = -1  # it started once: every scenario runs
 
 
 def _usable_sandbox(kind: SandboxKind | None) -> SandboxKind:
@@ -154,7 +200,7 @@ class ResultsFolder:
                 raise ResultsDirError(
                     f"{self.out_dir} holds results of another submission or suite "
                     f"(submission {previous.submission[:12]}, suite {previous.suite}); "
-                    "use a fresh --out"
+                    "use a fresh --out, or --force to replace them"
                 )
             for entry in previous.scenarios:
                 if is_finished(entry, self.out_dir):

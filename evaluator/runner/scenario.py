@@ -12,6 +12,7 @@ from arena.config import SandboxKind, get_settings
 from arena.outcome import AgentOutcome, ScenarioStatus
 from arena.record_format import RECORD_SUFFIX
 from arena.scenario import load_scenario
+from evaluator.failures import describe_end
 
 if TYPE_CHECKING:
     from sim.agent import Agent
@@ -142,7 +143,7 @@ def _log_text(result: EpisodeResult, attempt: int) -> str:
     if result.simulator_error:
         parts.append(f"simulator error: {result.simulator_error}")
     for agent in result.agents:
-        parts.append(f"{agent.id}: {agent.reason} after {agent.steps} steps")
+        parts.append(describe_end(agent))
     if result.detail:
         parts.append(result.detail)
     agent_log = result.extra.get("agent_log")

@@ -1,5 +1,6 @@
 """Hierarchical ranking (scoring spec): (completion, time, humanness, rules) ascending, full ties
-to the earlier submission, unscored entries after every scored one."""
+to the earlier submission, entries where no agent drove a step after every entry that drove, and
+unscored entries after every scored one."""
 
 from __future__ import annotations
 
@@ -14,7 +15,10 @@ T = TypeVar("T")
 def rank_key(metrics: Metrics | None, submitted_at: Any) -> tuple:
     if metrics is None:
         return (1, (), submitted_at)
-    return (0, (metrics.completion, metrics.time, metrics.humanness, metrics.rules), submitted_at)
+    if not metrics.drove:
+        return (0, (1, metrics.completion, metrics.time), submitted_at)
+    values = (metrics.completion, metrics.time, metrics.humanness, metrics.rules)
+    return (0, (0, *values), submitted_at)
 
 
 def rank(

@@ -16,8 +16,14 @@ class Metrics(BaseModel):
 
     completion: float  # failures / N
     time: float  # [steps] mean of T^i
-    humanness: float  # mean over all agent-steps of the humanness terms
-    rules: float  # mean over all agent-steps of the rules terms
+    # Means over all agent-steps of the humanness and rules terms; None when no agent drove a
+    # step (nothing was measured: never shown as 0, the best value).
+    humanness: float | None
+    rules: float | None
+
+    @property
+    def drove(self) -> bool:
+        return self.humanness is not None
 
 
 def aggregate(scores: Iterable[EpisodeScore]) -> Metrics | None:
@@ -26,13 +32,14 @@ def aggregate(scores: Iterable[EpisodeScore]) -> Metrics | None:
     if not scores:
         return None
     n = len(scores)
-    # A set where no agent drove a step (all failed at start) has no humanness/rules error.
-    agent_steps = sum(score.agent_steps for score in scores) or 1
+    agent_steps = sum(score.agent_steps for score in scores)
     return Metrics(
         completion=sum(score.failure for score in scores) / n,
         time=sum(score.time for score in scores) / n,
-        humanness=sum(score.humanness_sum for score in scores) / agent_steps,
-        rules=sum(score.rules_sum for score in scores) / agent_steps,
+        humanness=sum(score.humanness_sum for score in scores) / agent_steps
+        if agent_steps
+        else None,
+        rules=sum(score.rules_sum for score in scores) / agent_steps if agent_steps else None,
     )
 
 

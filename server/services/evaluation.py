@@ -16,8 +16,9 @@ from sqlalchemy.orm import Session
 
 from arena.config import Settings
 from arena.errors import SuiteError
-from arena.outcome import FINISHED, ScenarioStatus
+from arena.outcome import FINISHED, AgentOutcome, ScenarioStatus
 from arena.suite import Suite, load_suite
+from evaluator import failures
 from evaluator.runner import ScenarioOutcome
 from evaluator.scoring import load_profile
 from server.core.artifacts import ArtifactStore
@@ -249,7 +250,48 @@ def record_scenario(
     )
     if finished.rowcount == 0:
         return False  # a duplicate delivery, or a superseded claim: the result is not ours
+    if _give_up_if_agent_cannot_start(session, run):
+        return False
     return finished_count(session, job.run_id) == run.scenario_count
+
+
+def _give_up_if_agent_cannot_start(session: Session, run: EvaluationRun) -> bool:
+    """Fail the run when its first finished scenarios all show the agent failing before its first
+    step (import or init error, init timeout): one error for the team instead of one per scenario.
+    The run's other scenario tasks find it inactive and do nothing. In a hidden phase the error
+    names the failure, not the agent's own words (no byte the agent wrote reaches the team)."""
+    results = session.scalars(
+        select(ScenarioResult)
+        .where(ScenarioResult.run_id == run.id, ScenarioResult.status.in_(list(FINISHED)))
+        .order_by(ScenarioResult.id)
+    ).all()
+    if len(results) < failures.FAIL_FAST_AFTER or len(results) >= run.scenario_count:
+        return False
+    agents = [[AgentOutcome(**a) for a in r.detail.get("agents", [])] for r in results]
+    if not all(
+        r.status == ScenarioStatus.done and failures.never_started(a)
+        for r, a in zip(results, agents, strict=True)
+    ):
+        return False
+    shown = str(results[0].reason)
+    phase = phases.get_phase(session, run.submission.phase)
+    if phases.team_sees_everything(phase):
+        error = failures.startup_error(results[0].log_tail).splitlines()
+        shown = error[-1] if error else shown
+    else:
+        shown += " (evaluate in the validation phase or locally to see its output)"
+    run.error = (
+        f"your agent could not start: {shown} "
+        f"(the same in the first {len(results)} scenarios; the others were not run)"
+    )
+    run.status = advance(run.status, RunStatus.failed, RUN_MOVES)
+    run.finished_at = now()
+    submission = lock(session, Submission, run.submission_id)
+    if submission.status == SubmissionStatus.running:
+        submission.status = advance(submission.status, SubmissionStatus.failed, SUBMISSION_MOVES)
+        submission.status_reason = run.error
+        submission.finished_at = now()
+    return True
 
 
 def finished_count(session: Session, run_id: int) -> int:

@@ -88,6 +88,10 @@ def generation(session: Session) -> int:
     )
 
 
+def _csv_value(value: float | None) -> str:
+    return "" if value is None else repr(value)
+
+
 def to_csv(board: Leaderboard) -> str:
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
@@ -100,7 +104,7 @@ def to_csv(board: Leaderboard) -> str:
                 entry.submission_id,
                 entry.method_name,
                 entry.submitted_at.isoformat(),
-                *(repr(getattr(entry.metrics, name)) for name in METRICS),
+                *(_csv_value(getattr(entry.metrics, name)) for name in METRICS),
             ]
         )
     return out.getvalue()

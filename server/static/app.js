@@ -5,6 +5,7 @@ const Arena = (() => {
   const TOKEN_KEY = "arena-token";
   const $ = (id) => document.getElementById(id);
   const headers = (token) => ({ Authorization: `Bearer ${token}` });
+  const FINISHED = ["scored", "failed", "cancelled", "disqualified"];
 
   async function errorText(response) {
     try {
@@ -54,6 +55,8 @@ const Arena = (() => {
   }
 
   function fmt(metric, value) {
+    // As in the templates' _format.html: "—" when no agent drove a step (nothing measured).
+    if (value === null || value === undefined) return "—";
     return metric === "time" ? value.toFixed(1) : value.toFixed(4);
   }
 
@@ -91,12 +94,15 @@ const Arena = (() => {
     $("status-reason").textContent = s.status_reason || "";
     const pct = s.progress.total ? (100 * s.progress.done) / s.progress.total : 0;
     $("progress-bar").style.width = `${pct}%`;
-    $("progress-text").textContent = `${s.progress.done} / ${s.progress.total} scenarios`;
+    const left = s.status === "running" ? timeLeft(s.progress) : "";
+    $("progress-text").textContent =
+      `${s.progress.done} / ${s.progress.total} scenarios${left ? ` · ${left}` : ""}`;
     $("cancel").hidden = !["received", "queued", "running"].includes(s.status);
     for (const metric of metrics) {
       $(`metric-${metric}`).textContent = s.metrics ? fmt(metric, s.metrics[metric]) : "–";
     }
     const families = Object.keys(s.families).sort();
+    $("families-box").hidden = families.length === 0;
     $("families").innerHTML = families.length ? `<table><thead><tr><th>family</th>` +
       `<th class="num">scenarios</th>${metrics.map((m) => `<th class="num">${m}</th>`).join("")}` +
       `</tr></thead><tbody>${families.map((f) => `<tr><td>${escape(f)}</td>` +
@@ -105,6 +111,8 @@ const Arena = (() => {
       `</tr>`).join("")}</tbody></table>` : "";
     $("chart").innerHTML = families.length ? chart(s.families) : "";
     const failures = Object.entries(s.failure_reasons);
+    // No heading over nothing: failures show once counted, "None." only when it has finished.
+    $("failures-box").hidden = failures.length === 0 && !FINISHED.includes(s.status);
     $("failures").innerHTML = failures.length ? `<ul>${failures.map(([family, reasons]) =>
       `<li><strong>${escape(family)}</strong>: ${Object.entries(reasons)
         .map(([r, n]) => `${escape(r)} × ${n}`).join(", ")}</li>`).join("")}</ul>`
@@ -113,16 +121,48 @@ const Arena = (() => {
 
   async function loadLogs(id, token) {
     const response = await fetch(`${API}/submissions/${id}/logs`, { headers: headers(token) });
+    if (response.status === 403) {  // a hidden phase: the agent's output goes to the organisers
+      $("logs").innerHTML = `<p class="empty">${escape((await response.json()).detail)}</p>`;
+      return;
+    }
     if (!response.ok) return;
     const logs = await response.json();
-    $("logs").innerHTML = logs.scenarios.filter((e) => e.reason !== "reached_goal" || e.log_tail)
-      .map((e) => `<h3>${escape(e.label)} · ${escape(e.reason || e.status)}</h3>` +
-        `<pre>${escape(e.log_tail || "(no output)")}</pre>`).join("");
+    // Identical output (the same traceback in 128 scenarios) is shown once, with its count.
+    const groups = new Map();
+    for (const e of logs.scenarios.filter((x) => x.reason !== "reached_goal" || x.log_tail)) {
+      const key = `${e.reason || e.status}\u0000${e.log_tail}`;
+      if (!groups.has(key)) groups.set(key, { entry: e, labels: [] });
+      groups.get(key).labels.push(e.label);
+    }
+    $("logs").innerHTML = [...groups.values()].map(({ entry, labels }) => {
+      const shown = labels.slice(0, 6).map(escape).join(", ") +
+        (labels.length > 6 ? ` and ${labels.length - 6} more` : "");
+      const count = labels.length > 1 ? ` <span class="count">× ${labels.length}</span>` : "";
+      return `<h3 class="log-group">${shown} · ${escape(entry.reason || entry.status)}${count}</h3>` +
+        `<pre>${escape(entry.log_tail || "(no output)")}</pre>`;
+    }).join("");
+  }
+
+  // Time left, from the scenarios finished since this page started watching (a rate measured
+  // here, so it needs no clock agreement with the server).
+  const watch = { since: null, done: 0 };
+  function timeLeft(progress) {
+    const now = Date.now();
+    if (watch.since === null || progress.done < watch.done) {
+      watch.since = now;
+      watch.done = progress.done;
+    }
+    const finished = progress.done - watch.done;
+    if (finished <= 0) return "estimating time left…";
+    const seconds = ((progress.total - progress.done) * (now - watch.since)) / finished / 1000;
+    if (seconds < 90) return "under 2 min left";
+    if (seconds < 5400) return `about ${Math.round(seconds / 60)} min left`;
+    return `about ${(seconds / 3600).toFixed(1)} h left`;
   }
 
   function submissionPage(id, metrics) {
     let token = sessionStorage.getItem(TOKEN_KEY);
-    const finished = ["scored", "failed", "cancelled", "disqualified"];
+    const finished = FINISHED;
     async function poll() {
       const response = await fetch(`${API}/submissions/${id}`, { headers: headers(token) });
       if (!response.ok) {
@@ -160,5 +200,75 @@ const Arena = (() => {
     if (token) poll(); else $("token-form").hidden = false;
   }
 
-  return { submitForm, submissionPage };
+  function when(iso) {
+    // "2026-11-23 13:05" in UTC, like the leaderboard.
+    return iso.replace("T", " ").slice(0, 16);
+  }
+
+  async function download(id, token, link) {
+    // The zip needs the Authorization header, so it is fetched here and handed over as a blob.
+    const response = await fetch(`${API}/submissions/${id}/download`, { headers: headers(token) });
+    if (!response.ok) {
+      $("page-error").textContent = await errorText(response);
+      $("page-error").hidden = false;
+      return;
+    }
+    const url = URL.createObjectURL(await response.blob());
+    const a = document.createElement("a");
+    a.href = url;
+    a.download = `submission-${id}.zip`;
+    document.body.appendChild(a);
+    a.click();
+    a.remove();
+    setTimeout(() => URL.revokeObjectURL(url), 10000);
+    link.dataset.downloaded = "1";
+  }
+
+  function mySubmissions(metrics) {
+    let token = sessionStorage.getItem(TOKEN_KEY);
+    async function load() {
+      const response = await fetch(`${API}/submissions`, { headers: headers(token) });
+      if (!response.ok) {
+        $("page-error").textContent = await errorText(response);
+        $("page-error").hidden = false;
+        $("token-form").hidden = false;
+        return;
+      }
+      $("page-error").hidden = true;
+      $("token-form").hidden = true;
+      $("nav-mine").hidden = false;
+      const rows = await response.json();
+      $("none").hidden = rows.length > 0;
+      $("mine").hidden = rows.length === 0;
+      if (rows.length) {
+        $("team").textContent = `Team ${rows[0].team}: ${rows.length} submission(s), newest first.`;
+        $("team").hidden = false;
+      }
+      $("mine").querySelector("tbody").innerHTML = rows.map((s) => `<tr data-id="${s.id}">` +
+        `<td><a href="/submissions/${s.id}">${s.id}</a></td>` +
+        `<td>${escape(s.method_name)}</td><td>${escape(s.track)}</td>` +
+        `<td class="status-${s.status}">${escape(s.status)}` +
+        (["queued", "running"].includes(s.status) && s.progress.total
+          ? ` ${s.progress.done}/${s.progress.total}` : "") + `</td>` +
+        metrics.map((m) => `<td class="num">${s.metrics ? fmt(m, s.metrics[m]) : "–"}</td>`)
+          .join("") +
+        `<td>${when(s.created_at)}</td>` +
+        `<td><a href="#" class="download" data-id="${s.id}">zip</a></td></tr>`).join("");
+      for (const link of document.querySelectorAll("a.download")) {
+        link.addEventListener("click", (event) => {
+          event.preventDefault();
+          download(link.dataset.id, token, link);
+        });
+      }
+    }
+    $("token-form").addEventListener("submit", (event) => {
+      event.preventDefault();
+      token = $("token").value.trim();
+      sessionStorage.setItem(TOKEN_KEY, token);
+      load();
+    });
+    if (token) load(); else $("token-form").hidden = false;
+  }
+
+  return { submitForm, submissionPage, mySubmissions };
 })();

@@ -104,5 +104,16 @@ def pip(arguments: list[str], rule: str, failure: str) -> None:
     except subprocess.TimeoutExpired as error:
         raise IntakeError(REQUIREMENTS, rule, f"{failure}: pip timed out") from error
     if done.returncode != 0:
-        detail = (done.stderr or done.stdout).strip().splitlines()
-        raise IntakeError(REQUIREMENTS, rule, f"{failure}: {' / '.join(detail[-3:])}")
+        detail = pip_error_summary(done.stderr or done.stdout)
+        raise IntakeError(REQUIREMENTS, rule, f"{failure}: {detail}")
+
+
+def pip_error_summary(output: str) -> str:
+    """pip's own ERROR lines, without its warnings, notices and prefixes (what a participant
+    needs: which requirement has no wheel); its last lines when it printed no ERROR line."""
+    lines = [line.strip() for line in output.strip().splitlines() if line.strip()]
+    errors = [line.removeprefix("ERROR: ") for line in lines if line.startswith("ERROR:")]
+    if errors:
+        return " / ".join(dict.fromkeys(errors))
+    kept = [line for line in lines if not line.startswith(("WARNING:", "[notice]"))]
+    return " / ".join((kept or lines)[-3:])

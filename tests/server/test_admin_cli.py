@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 import re
 
 import pytest
@@ -49,7 +50,8 @@ def test_db_upgrade_is_idempotent(arena):
 
 def test_teams_create_list_rotate(arena, client):
     output = arena("teams", "create", "gamma")
-    token = re.search(r"token: (arena_\S+)", output).group(1)
+    token = output.splitlines()[-1]  # alone on the last line
+    assert re.fullmatch(r"arena_\S+", token)
     assert (
         client.get("/api/v1/submissions", headers={"Authorization": f"Bearer {token}"}).status_code
         == 200
@@ -72,8 +74,20 @@ def test_submissions_list_show_cancel_disqualify_requeue(arena, db):
     queued = queued_submission(db, team)
     scored = seed_scored(db, team, (0.5, 400.0, 0.1, 0.0))
     listing = arena("submissions", "list")
-    assert "queued" in listing and "scored" in listing
-    assert '"status": "queued"' in arena("submissions", "show", str(queued))
+    # Not a terminal: a header and one tab-separated line per submission, nothing wrapped.
+    lines = listing.splitlines()
+    assert lines[0].split("\t")[:5] == ["id", "team", "track", "method", "status"]
+    assert [line.split("\t")[4] for line in lines[1:]] == ["scored", "queued"]
+    listed = json.loads(arena("submissions", "list", "--json"))
+    assert [(row["id"], row["status"]) for row in listed] == [
+        (scored, "scored"),
+        (queued, "queued"),
+    ]
+    assert json.loads(arena("teams", "list", "--json"))[0]["team"] == "alpha"
+    shown = json.loads(arena("submissions", "show", str(queued), "--json"))
+    assert shown["status"] == "queued" and shown["attempts"] == []
+    text = arena("submissions", "show", str(queued))
+    assert "status: queued" in text and "{" not in text  # lines, not JSON mixed with tables
     assert "evaluation queued" in arena("submissions", "requeue", str(queued))
     arena("submissions", "cancel", str(queued))
     assert "cannot cancel" in arena("submissions", "cancel", str(queued), ok=False)
@@ -94,6 +108,9 @@ def test_rescore_rerun_and_export(arena, db, settings):
     arena("rescore", "--all")
     assert "unknown scoring profile" in arena("rescore", "--all", "--profile", "nope", ok=False)
     assert "attempt 2 queued" in arena("rerun", str(sid))
+    # The old score stands meanwhile; the list says a re-run is going on, not just "scored".
+    row = arena("submissions", "list").splitlines()[1].split("\t")
+    assert (row[4], row[5]) == ("scored (re-run running)", "0/3")
     rows = list(csv.DictReader(io.StringIO(arena("leaderboard", "export"))))
     assert [(row["team"], float(row["completion"])) for row in rows] == [("alpha", 0.0)]
 

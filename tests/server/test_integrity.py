@@ -39,7 +39,7 @@ def test_agent_output_with_any_byte_records_and_reads_back(client, db, settings)
             scenario_id=scenario_id,
             status=ScenarioStatus.done,
             steps=0,
-            agents=(AgentOutcome(**agent(False, reason="agent_error")),),
+            agents=(AgentOutcome(**agent(False, reason="collision")),),
             record_path=None,
             error=NASTY,
         )

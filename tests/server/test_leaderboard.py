@@ -87,3 +87,19 @@ def test_csv_export(client, db):
     assert rows[0]["team"] == "a b"
     assert rows[0]["method_name"] == 'lanes, "best"'
     assert float(rows[0]["time"]) == 412.5
+
+
+def test_an_entry_that_never_drove_shows_dashes_and_ranks_last(client, db):
+    never = make_team(db, "never")[0]
+    drove = make_team(db, "drove")[0]
+    t0 = utcnow() - timedelta(hours=1)
+    seed_scored(db, never, (1.0, 800.0, None, None), created_at=t0)
+    seed_scored(db, drove, (1.0, 800.0, 40.0, 2.5), created_at=t0 + timedelta(minutes=5))
+    entries = board(client)
+    assert [e["team"] for e in entries] == ["drove", "never"]
+    assert entries[1]["metrics"]["humanness"] is None and entries[1]["metrics"]["rules"] is None
+    page = client.get("/").text
+    row = page[page.index(">never<") :].split("</tr>")[0]
+    assert row.count("—") == 2 and "0.0000" not in row
+    rows = list(csv.DictReader(io.StringIO(client.get("/api/v1/leaderboard.csv").text)))
+    assert (rows[1]["team"], rows[1]["humanness"], rows[1]["rules"]) == ("never", "", "")

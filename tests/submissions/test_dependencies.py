@@ -39,3 +39,21 @@ def test_requirements_are_normalised_before_hashing() -> None:
         "numpy>=1.24",
         "six==1.16.0",
     ]
+
+
+def test_pip_noise_is_left_out_of_the_rejection():
+    from submissions.intake.dependencies import pip_error_summary
+
+    output = (
+        "WARNING: Location 'file:///somewhere/simple/nope/' is ignored: it is neither a file nor a"
+        " directory.\n"
+        "ERROR: Could not find a version that satisfies the requirement nope-pkg==9 (from "
+        "versions: none)\n"
+        "\n[notice] A new release of pip is available\n"
+        "ERROR: No matching distribution found for nope-pkg==9\n"
+    )
+    assert pip_error_summary(output) == (
+        "Could not find a version that satisfies the requirement nope-pkg==9 (from versions: "
+        "none) / No matching distribution found for nope-pkg==9"
+    )
+    assert pip_error_summary("WARNING: x\nsomething broke\n") == "something broke"

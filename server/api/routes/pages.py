@@ -68,3 +68,9 @@ def submission_page(
     return templates.TemplateResponse(
         request, "submission.html", {"submission_id": submission_id, "metrics": METRICS}
     )
+
+
+@router.get("/my-submissions", response_class=HTMLResponse)
+def my_submissions_page(request: Request) -> HTMLResponse:
+    """The team's submissions; the list comes from the API with the token held in the tab."""
+    return templates.TemplateResponse(request, "my_submissions.html", {"metrics": METRICS})

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter, Request, status
+from fastapi import APIRouter, Request, Response, status
 from starlette.concurrency import run_in_threadpool
 
 from server.api.contract import UPLOAD_FORM, errors
@@ -16,7 +16,7 @@ from server.api.deps import (
 )
 from server.api.upload import receive_form
 from server.schemas import SubmissionDetail, SubmissionLogs, SubmissionSummary
-from server.services import submissions
+from server.services import downloads, submissions
 from server.services.errors import InvalidUpload
 from server.services.phases import DEFAULT_PHASE
 from server.tracks import Track
@@ -77,6 +77,23 @@ def get_logs(session: SessionDep, submission: OwnedSubmission) -> SubmissionLogs
     """The agent's stdout/stderr tail per scenario, in a phase of full visibility (validation);
     403 in a hidden phase, whose agent output goes to the organisers only."""
     return submissions.logs(session, submission)
+
+
+@router.get(
+    "/{submission_id}/download",
+    response_class=Response,
+    responses={200: {"content": {"application/zip": {}}}},
+)
+def download_submission(session: SessionDep, submission: OwnedSubmission) -> Response:
+    """A zip of what the team may see: ``submission.json`` (status, scores, failure counts),
+    ``logs.json`` and ``logs/<family>-<k>.txt`` per finished scenario."""
+    return Response(
+        downloads.submission_zip(session, submission),
+        media_type="application/zip",
+        headers={
+            "Content-Disposition": f'attachment; filename="{downloads.download_name(submission)}"'
+        },
+    )
 
 
 @router.post("/{submission_id}/cancel", response_model=SubmissionSummary, responses=errors(409))

@@ -101,7 +101,24 @@ def test_agent_that_never_drove_is_a_failure_with_no_steps():
     ]
     score = score_without_record("s", agents, PROFILE)
     assert (score.failure, score.time, score.agent_steps) == (1.0, 800, 0)
-    assert aggregate([score]).humanness == 0.0
+    # Nothing was measured: not 0 (the best value) but None, shown as "—".
+    assert (aggregate([score]).humanness, aggregate([score]).rules) == (None, None)
+    assert not aggregate([score]).drove
+
+
+def test_a_set_with_one_driven_step_measures_humanness(tmp_path):
+    never = score_without_record(
+        "s",
+        [
+            AgentOutcome(
+                id="Agent_0", reached_goal=False, reason="agent_error", steps=0, done_step=0
+            )
+        ],
+        PROFILE,
+    )
+    drove = scored(tmp_path, "t", [AgentSpec(drive(50), reason="collision")])
+    both = aggregate([never, drove])
+    assert both.drove and both.humanness is not None and both.humanness >= 0
 
 
 def test_record_with_another_step_length_is_refused(tmp_path):

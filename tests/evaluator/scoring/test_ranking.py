@@ -40,3 +40,17 @@ def test_unscored_entries_come_after_every_scored_one():
         ("unscored_late", None, 10),
     ]
     assert ranked(entries) == ["worst", "unscored_early", "unscored_late"]
+
+
+def test_an_entry_that_never_drove_ranks_after_every_entry_that_drove():
+    never = Metrics(completion=1.0, time=800.0, humanness=None, rules=None)
+    entries = [
+        ("never_drove_early", never, 1),
+        (
+            "drove_and_failed_everything",
+            metrics(completion=1.0, time=800, humanness=50, rules=2),
+            9,
+        ),
+        ("unscored", None, 0),
+    ]
+    assert ranked(entries) == ["drove_and_failed_everything", "never_drove_early", "unscored"]

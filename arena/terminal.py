@@ -1,0 +1,57 @@
+"""Command output that survives pipes and logs.
+
+On a terminal a listing is a Rich table that folds long cells instead of cutting them; piped or
+redirected it is one plain tab-separated line per row (header first), never wrapped at 80
+columns, so ``grep``, ``cut`` and ``awk`` work on it. ``--json`` prints the rows as a JSON list.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from collections.abc import Sequence
+
+from rich.console import Console
+from rich.table import Table
+
+Cell = str | int | float | None
+
+
+def make_console(*, stderr: bool = False) -> Console:
+    """A console that does not wrap its lines when it is not a terminal."""
+    console = Console(stderr=stderr)
+    if not console.is_terminal:
+        console = Console(stderr=stderr, soft_wrap=True)
+    return console
+
+
+def _text(value: Cell) -> str:
+    return "-" if value is None else str(value)
+
+
+def print_rows(
+    console: Console,
+    columns: Sequence[str],
+    rows: Sequence[Sequence[Cell]],
+    *,
+    title: str | None = None,
+    as_json: bool = False,
+    numeric: Sequence[str] = (),
+) -> None:
+    if as_json:
+        records = [dict(zip(columns, row, strict=True)) for row in rows]
+        sys.stdout.write(json.dumps(records, indent=2, default=str) + "\n")
+        return
+    if not console.is_terminal:
+        # Written straight to the file: Rich would expand the tabs into spaces.
+        lines = [f"# {title}"] if title else []
+        lines += ["\t".join(_text(cell) for cell in line) for line in (columns, *rows)]
+        console.file.write("\n".join(lines) + "\n")
+        return
+    table = Table(title=title)
+    for column in columns:
+        justify = "right" if column in numeric else "left"
+        table.add_column(column, justify=justify, overflow="fold")
+    for row in rows:
+        table.add_row(*(_text(cell) for cell in row))
+    console.print(table)
