@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 
+from arena.config import SandboxKind
 from evaluator.runner import evaluate, run_scenario
 from evaluator.summary import ScenarioStatus
 from tests.runner.conftest import TEST_SANDBOX, write_policy
@@ -80,3 +81,16 @@ def test_uncharged_scenario_leaves_n_and_is_listed(tmp_path):
     assert summary.complete
     assert (summary.metrics.completion, summary.families["cruise"].completion) == (0.0, 0.0)
     assert summary.metrics.time == summary.scenarios[0].metrics.time  # N = 1
+
+
+@pytest.mark.parametrize("kind", [None, *(k for k in SandboxKind if k is not SandboxKind.auto)])
+def test_sandboxed_factory_preloads_only_modules_that_exist(submission, kind):
+    import importlib.util
+
+    from evaluator.runner.scenario import SandboxedAgentFactory
+
+    modules = SandboxedAgentFactory(submission, kind, {}).preload_modules
+    assert "evaluator.sandbox" in modules
+    assert all(importlib.util.find_spec(m) is not None for m in modules)
+    if kind is SandboxKind.docker:
+        assert "docker" in modules
