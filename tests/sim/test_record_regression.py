@@ -3,13 +3,16 @@
 Speed work (bulk SUMO reads, vectorised geometry, leaner observation building) must keep every
 record byte and every observation value. The digests below were taken with the per-vehicle
 implementation before that work; a deliberate change of records or observations (new fields,
-other waypoints, other terminal steps) updates them in the same commit, saying why.
+other waypoints, other terminal steps) updates them in the same commit, saying why:
+``python -m tests.sim.test_record_regression`` prints the current digests.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import tempfile
+from pathlib import Path
 
 import pytest
 
@@ -59,15 +62,19 @@ class _WatchedPlanner(PlannerAgent):
         return super().act(obs)
 
 
+def digests(scenario_id: str, folder: Path) -> tuple[str, str]:
+    agent = _WatchedPlanner()
+    record = folder / "record.npz"
+    run_episode(public_suite_dir() / scenario_id, agent, planner_interface(), record_path=record)
+    return hashlib.sha256(record.read_bytes()).hexdigest(), agent.digest.hexdigest()
+
+
 @pytest.mark.parametrize("scenario_id", sorted(EXPECTED))
 def test_public_scenario_record_and_observations_unchanged(scenario_id, tmp_path):
-    agent = _WatchedPlanner()
-    record = tmp_path / "record.npz"
-    run_episode(
-        public_suite_dir() / scenario_id,
-        agent,
-        planner_interface(),
-        record_path=record,
-    )
-    got = (hashlib.sha256(record.read_bytes()).hexdigest(), agent.digest.hexdigest())
-    assert got == EXPECTED[scenario_id]
+    assert digests(scenario_id, tmp_path) == EXPECTED[scenario_id]
+
+
+if __name__ == "__main__":
+    with tempfile.TemporaryDirectory() as tmp:
+        for sid in sorted(EXPECTED):
+            print(sid, *digests(sid, Path(tmp)))
