@@ -1,23 +1,38 @@
-"""Benchmark: the whole hidden suite (development seed), planner agent, Docker sandbox, with one
-and with two parallel jobs, measured side by side in one run.
+"""Benchmark: the whole hidden suite (development seed) in the Docker sandbox: the planner with one
+and with two parallel jobs, a trivial agent to split scenario time into a fixed and a per-step
+part, and raw libsumo stepping the same traffic for comparison.
 
-    python bench/evaluate_suite.py [--sandbox docker] [--keep DIR]
+    python bench/evaluate_suite.py [--sandbox docker] [--suite DIR] [--keep DIR]
 
-Prints wall times and simulated steps per second; the last line is
-``wall_s=<jobs 2 wall time> speedup=<jobs 1 wall / jobs 2 wall>``.
-Targets: wall_s < 120 on a 2-core machine, speedup >= 1.8.
+Prints, in order:
+
+- the planner with ``jobs=1`` and ``jobs=2`` (wall time, steps per second);
+- ``fixed_ms`` and ``step_ms``: a least-squares fit of each scenario's wall time against its
+  episode steps, with the trivial ``keep_lane`` example agent and one job (so the fit measures the
+  evaluator, not the planner's thinking or two episodes sharing the cores);
+- ``raw_step_ms``: libsumo alone, in one process, stepping each scenario's SUMO traffic (same
+  network, routes, seed and step length) for as many steps as the trivial agent's episode had.
+
+The last line is ``wall_s=<planner, jobs 2> speedup=<jobs1/jobs2> fixed_ms=<...>
+step_ratio=<step_ms/raw_step_ms>``. Targets (2-core machine): wall_s <= 50, speedup >= 1.8,
+fixed_ms <= 100, step_ratio <= 2.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing as mp
 import os
 import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
+
+import numpy as np
+from evaluator.runner.manifest import load_manifest
 
 from arena.config import SandboxKind, get_settings
 from evaluator.runner import evaluate
@@ -25,6 +40,14 @@ from evaluator.runner.evaluate import TIMINGS_FILE
 
 REPO = Path(__file__).resolve().parents[1]
 PLANNER = REPO / "submissions" / "examples" / "planner"
+TRIVIAL = REPO / "submissions" / "examples" / "keep_lane"
+
+
+@dataclass(frozen=True)
+class SuiteRun:
+    wall_s: float
+    steps: dict[str, int]  # scenario id -> episode steps
+    scenario_s: dict[str, float]  # scenario id -> its wall time (sandbox start included)
 
 
 def build_hidden_suite(out: Path, seed: int) -> None:
@@ -33,41 +56,102 @@ def build_hidden_suite(out: Path, seed: int) -> None:
     subprocess.run(command, check=True, stdout=subprocess.DEVNULL)
 
 
-def timed_evaluation(suite: Path, out: Path, jobs: int, sandbox: SandboxKind) -> tuple[float, int]:
+def timed_evaluation(
+    agent: Path, suite: Path, out: Path, jobs: int, sandbox: SandboxKind, ids: list[str] | None
+) -> SuiteRun:
     started = time.perf_counter()
-    summary = evaluate(PLANNER, suite, out_dir=out, jobs=jobs, sandbox=sandbox)
+    summary = evaluate(agent, suite, out_dir=out, scenario_ids=ids, jobs=jobs, sandbox=sandbox)
     wall = time.perf_counter() - started
     if summary.uncharged:
         print(f"  warning: uncharged scenarios {', '.join(summary.uncharged)}", file=sys.stderr)
-    steps = sum(entry.steps for entry in summary.scenarios)
+    steps = {entry.id: entry.steps for entry in summary.scenarios}
+    total = sum(steps.values())
     completion = summary.metrics.completion if summary.metrics else float("nan")
+    scenario_s = json.loads((out / TIMINGS_FILE).read_text())
     # Sum of per-scenario wall times: above jobs x wall means episodes slowed each other down.
-    busy = sum(json.loads((out / TIMINGS_FILE).read_text()).values())
     print(
-        f"jobs={jobs}: {len(summary.scenarios)} scenarios in {wall:.1f} s, {steps} episode steps, "
-        f"{steps / wall:.0f} steps/s, scenario time sum {busy:.0f} s, "
+        f"{agent.name} jobs={jobs}: {len(steps)} scenarios in {wall:.1f} s, {total} episode "
+        f"steps, {total / wall:.0f} steps/s, scenario time sum {sum(scenario_s.values()):.0f} s, "
         f"completion={completion:.3f}, load average {os.getloadavg()[0]:.1f}"
     )
-    return wall, steps
+    return SuiteRun(wall, steps, scenario_s)
+
+
+def fit_fixed_and_step(run: SuiteRun) -> tuple[float, float]:
+    """(fixed [ms per scenario], per step [ms]): least squares of scenario time on its steps."""
+    ids = sorted(run.steps)
+    steps = np.array([run.steps[i] for i in ids], dtype=float)
+    seconds = np.array([run.scenario_s[i] for i in ids])
+    per_step, fixed = np.polyfit(steps, seconds, 1)
+    return fixed * 1e3, per_step * 1e3
+
+
+def raw_stepping(suite: str, steps: dict[str, int], queue) -> None:
+    """In a child of its own (libsumo: one simulation at a time per process): start each
+    scenario's SUMO as :class:`sim.traffic.SumoTraffic` would and time only the stepping."""
+    import libsumo
+    from scenarios.schema import load_scenario
+
+    from sim.traffic import sumo_command
+
+    elapsed = 0.0
+    for scenario_id, n in sorted(steps.items()):
+        folder = Path(suite) / scenario_id
+        sc = load_scenario(folder)
+        routes = folder / sc.traffic.routes if sc.traffic.kind == "sumo" else None
+        libsumo.start(sumo_command(folder / sc.map, routes, sc.seed, sc.step_length))
+        started = time.perf_counter()
+        for _ in range(n):
+            libsumo.simulationStep()
+        elapsed += time.perf_counter() - started
+        libsumo.close()
+    queue.put(elapsed)
+
+
+def raw_step_ms(suite: Path, steps: dict[str, int]) -> float:
+    ctx = mp.get_context("spawn")
+    queue = ctx.Queue()
+    child = ctx.Process(target=raw_stepping, args=(str(suite), steps, queue))
+    child.start()
+    elapsed = queue.get(timeout=1800)
+    child.join()
+    return elapsed * 1e3 / max(1, sum(steps.values()))
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sandbox", type=SandboxKind, default=SandboxKind.docker)
+    parser.add_argument("--suite", type=Path, help="an already built hidden suite to use")
     parser.add_argument("--keep", type=Path, help="keep the suite and results here (new dir)")
+    parser.add_argument(
+        "--first", type=int, help="only the suite's first N scenarios (a quick check of the script)"
+    )
     args = parser.parse_args()
     if args.keep and args.keep.exists():
         parser.error(f"{args.keep} exists: results there would be resumed, not timed")
     seed = get_settings().development_seed
     with tempfile.TemporaryDirectory(prefix="arena-bench-") as tmp:
         work = args.keep or Path(tmp)
-        suite = work / "hidden-suite"
-        started = time.perf_counter()
-        build_hidden_suite(suite, seed)
-        print(f"built hidden suite (seed {seed}) in {time.perf_counter() - started:.1f} s")
-        wall_1, _ = timed_evaluation(suite, work / "jobs1", 1, args.sandbox)
-        wall_2, _ = timed_evaluation(suite, work / "jobs2", 2, args.sandbox)
-    print(f"wall_s={wall_2:.1f} speedup={wall_1 / wall_2:.2f}")
+        suite = args.suite
+        if suite is None:
+            suite = work / "hidden-suite"
+            started = time.perf_counter()
+            build_hidden_suite(suite, seed)
+            print(f"built hidden suite (seed {seed}) in {time.perf_counter() - started:.1f} s")
+        ids = None
+        if args.first:
+            ids = [s.id for s in load_manifest(suite).scenarios[: args.first]]
+        jobs_1 = timed_evaluation(PLANNER, suite, work / "planner-jobs1", 1, args.sandbox, ids)
+        jobs_2 = timed_evaluation(PLANNER, suite, work / "planner-jobs2", 2, args.sandbox, ids)
+        trivial = timed_evaluation(TRIVIAL, suite, work / "trivial-jobs1", 1, args.sandbox, ids)
+        fixed_ms, step_ms = fit_fixed_and_step(trivial)
+        raw_ms = raw_step_ms(suite, trivial.steps)
+    print(f"trivial agent: fixed_ms={fixed_ms:.0f} per scenario, step_ms={step_ms:.3f} per step")
+    print(f"raw libsumo, same traffic and steps: raw_step_ms={raw_ms:.3f}")
+    print(
+        f"wall_s={jobs_2.wall_s:.1f} speedup={jobs_1.wall_s / jobs_2.wall_s:.2f} "
+        f"fixed_ms={fixed_ms:.0f} step_ratio={step_ms / raw_ms:.2f}"
+    )
 
 
 if __name__ == "__main__":

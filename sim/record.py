@@ -97,7 +97,7 @@ class EpisodeRecorder:
         out["nbr_valid"] = np.zeros(nbr_shape, dtype=bool)
         for name in NEIGHBOUR_FLOATS:
             out[f"nbr_{name}"] = np.full(nbr_shape, np.nan)
-        nbr_ids = [[[""] * n_slots for _ in range(n_rows)] for _ in range(n_agents)]
+        nbr_ids = []  # (agent, rows, slots, ids) of each agent with neighbours
         for a, agent_id in enumerate(self.agent_ids):
             rows = self.rows[agent_id]
             if not rows:
@@ -113,16 +113,24 @@ class EpisodeRecorder:
             for j, name in enumerate(EVENT_FLAGS):
                 out[name][a, :n] = flags[:, j]
             lane_ids[a][:n] = [r.lane_id for r in rows]
-            for t, r in enumerate(rows):
-                k = len(r.neighbours)
-                if k == 0:
-                    continue
-                out["nbr_valid"][a, t, :k] = True
-                for name in NEIGHBOUR_FLOATS:
-                    out[f"nbr_{name}"][a, t, :k] = getattr(r.neighbours, name)
-                nbr_ids[a][t][:k] = r.neighbours.ids
+            # Every neighbour of every row at once: row t's k neighbours go to slots 0..k-1.
+            counts = np.array([len(r.neighbours) for r in rows], dtype=np.int64)
+            if counts.sum() == 0:
+                continue
+            row_of = np.repeat(np.arange(n), counts)
+            slot_of = np.arange(len(row_of)) - np.repeat(np.cumsum(counts) - counts, counts)
+            out["nbr_valid"][a, row_of, slot_of] = True
+            for name in NEIGHBOUR_FLOATS:
+                out[f"nbr_{name}"][a, row_of, slot_of] = np.concatenate(
+                    [getattr(r.neighbours, name) for r in rows]
+                )
+            nbr_ids.append((a, row_of, slot_of, [i for r in rows for i in r.neighbours.ids]))
         out["lane_id"] = _str_array(lane_ids)
-        out["nbr_id"] = _str_array(nbr_ids)
+        # As _str_array would make it from nested lists: fixed width of the longest id.
+        width = max([1] + [len(i) for *_, ids in nbr_ids for i in ids])
+        out["nbr_id"] = np.full(nbr_shape, "", dtype=f"<U{width}")
+        for a, row_of, slot_of, ids in nbr_ids:
+            out["nbr_id"][a, row_of, slot_of] = ids
         return out
 
 

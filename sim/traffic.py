@@ -171,6 +171,8 @@ class SumoTraffic:
 
     def is_in_network(self, vid: str) -> bool:
         """Whether vehicle ``vid`` is driving, or waiting to enter at the next step."""
+        if vid in self._context(vid):  # a watched vehicle driving is in its own report: no
+            return True  # need to list all vehicles (the common case, every ego every step)
         ls = self._ls
         return vid in ls.vehicle.getIDList() or vid in ls.simulation.getPendingVehicles()
 

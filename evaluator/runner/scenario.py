@@ -37,6 +37,14 @@ class SandboxedAgentFactory:
 
         return sandbox.start(self.submission, kind=self.kind, labels=self.labels)
 
+    @property
+    def preload_modules(self) -> tuple[str, ...]:
+        """Imported once by the simulator's fork server instead of in every episode's process
+        (see :func:`sim.isolation.preload_modules`)."""
+        from evaluator import sandbox
+
+        return ("evaluator.sandbox", *sandbox.client_modules(self.kind))
+
 
 @dataclass(frozen=True)
 class ScenarioOutcome:

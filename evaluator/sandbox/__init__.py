@@ -18,12 +18,30 @@ __all__ = [
     "backend",
     "check_service_kind",
     "cleanup",
+    "client_modules",
     "resolve_kind",
     "start",
 ]
 
 # Kinds that isolate the agent; the only ones the service may evaluate with.
 SERVICE_KINDS = frozenset({SandboxKind.docker, SandboxKind.bubblewrap})
+
+
+# What starting an agent with each backend imports (its module and client library): a warm
+# parent process imports them once instead of every episode's process.
+_CLIENT_MODULES: dict[SandboxKind, tuple[str, ...]] = {
+    SandboxKind.docker: ("evaluator.sandbox.docker_backend", "docker", "docker.types"),
+    SandboxKind.bubblewrap: ("evaluator.sandbox.bwrap_backend",),
+    SandboxKind.process: ("evaluator.sandbox.process_backend",),
+}
+
+
+def client_modules(kind: SandboxKind | str | None) -> tuple[str, ...]:
+    """The modules :func:`start` imports for ``kind``; every backend's when the kind is not yet
+    resolved (None or ``auto``), since resolving may probe the Docker daemon."""
+    if kind is None or SandboxKind(kind) is SandboxKind.auto:
+        return tuple(m for modules in _CLIENT_MODULES.values() for m in modules)
+    return _CLIENT_MODULES[SandboxKind(kind)]
 
 
 def backend(kind: SandboxKind) -> Backend:

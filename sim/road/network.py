@@ -114,10 +114,22 @@ class RoadNetwork:
             for ix in range(lo[k, 0], hi[k, 0] + 1):
                 for iy in range(lo[k, 1], hi[k, 1] + 1):
                     cells.setdefault((ix, iy), []).append(k)
-        rows = [
-            (k, *self._seg_p0[k], *self._seg_d[k], self._seg_len2[k], self._seg_len[k])
-            for k in range(len(lo))
-        ]
+        # Plain Python floats: per-point queries do scalar arithmetic on them, which is several
+        # times faster than on numpy scalars and gives the same IEEE results.
+        rows = list(
+            zip(
+                range(len(lo)),
+                *self._seg_p0.T.tolist(),
+                *self._seg_d.T.tolist(),
+                self._seg_len2.tolist(),
+                self._seg_len.tolist(),
+                strict=True,
+            )
+        )
+        self._seg_rows = rows
+        self._seg_lane_list = self._seg_lane.tolist()
+        self._seg_s0_list = self._seg_s0.tolist()
+        self._seg_heading_list = self._seg_heading.tolist()
         self._grid = {cell: [rows[k] for k in segs] for cell, segs in cells.items()}
 
     def nearest_lane(self, x: float, y: float, heading: float | None = None) -> LanePosition:
@@ -135,21 +147,22 @@ class RoadNetwork:
         if not found or min(found)[0] + _TIE_DISTANCE > _GRID_REACH:
             found = self._search_tree(x, y)
         best = min(found)
+        seg_lane = self._seg_lane_list
         if heading is not None:
             close = [f for f in found if f[0] <= best[0] + _TIE_DISTANCE]
             if len(close) > 1:
-                aligned = min(close, key=lambda f: angle_between(self._seg_heading[f[2]], heading))
-                lane_k = self._seg_lane[aligned[2]]
-                best = min(f for f in found if self._seg_lane[f[2]] == lane_k)
+                headings = self._seg_heading_list
+                aligned = min(close, key=lambda f: angle_between(headings[f[2]], heading))
+                lane_k = seg_lane[aligned[2]]
+                best = min(f for f in found if seg_lane[f[2]] == lane_k)
         distance, u, seg = best
-        dx, dy = self._seg_d[seg]
-        rx, ry = x - self._seg_p0[seg][0], y - self._seg_p0[seg][1]
-        seg_len = self._seg_len[seg]
+        _, px, py, dx, dy, _, seg_len = self._seg_rows[seg]
+        rx, ry = x - px, y - py
         return LanePosition(
-            lane=self._lane_list[self._seg_lane[seg]],
-            s=float(self._seg_s0[seg] + u * seg_len),
+            lane=self._lane_list[seg_lane[seg]],
+            s=float(self._seg_s0_list[seg] + u * seg_len),
             t=float((dx * ry - dy * rx) / seg_len),
-            heading=float(self._seg_heading[seg]),
+            heading=self._seg_heading_list[seg],
             distance=float(distance),
         )
 

@@ -83,3 +83,24 @@ def slow_agent() -> ScriptedAgent:
         return drive_straight(5.0)(obs)
 
     return ScriptedAgent(policy)
+
+
+class _PreloadReporter(ScriptedAgent):
+    def __init__(self, preloaded: bool) -> None:
+        super().__init__(stand_still)
+        self.preloaded = preloaded
+
+    def logs(self) -> str:
+        return f"preloaded={self.preloaded}"
+
+
+class PreloadProbe:
+    """An agent factory naming a module for the simulator's fork server to import once; its
+    agent's log says whether that module was already imported when the factory ran."""
+
+    preload_modules = ("wave",)  # stdlib, imported by nothing else here
+
+    def __call__(self) -> ScriptedAgent:
+        import sys
+
+        return _PreloadReporter("wave" in sys.modules)

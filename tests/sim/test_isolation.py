@@ -1,14 +1,18 @@
 """Episodes in a child process: results come back, crashes become simulator_error."""
 
+import subprocess
+import sys
 from functools import partial
+from pathlib import Path
 
 import numpy as np
 
 from arena.outcome import DoneReason
 from sim.episode import run_episode
 from sim.interface import AgentInterface
-from sim.isolation import run_episode_isolated
+from sim.isolation import preload_modules, run_episode_isolated
 from tests.sim.agents import (
+    PreloadProbe,
     ScriptedAgent,
     agent_that_times_out_at_init,
     crashing_agent,
@@ -95,3 +99,34 @@ def test_wall_time_limit_ends_the_episode_keeping_the_record(tmp_path):
     assert 0 < result.agents[0].steps < 20
     with np.load(record) as data:
         assert int(data["steps"][0]) == result.agents[0].steps
+
+
+def test_preload_names_the_simulator_the_factory_module_and_what_it_lists():
+    modules = preload_modules(PreloadProbe())
+    assert {"sim.simulation", "libsumo", "tests.sim.agents", "wave"} <= set(modules)
+    assert len(modules) == len(set(modules))
+
+
+def test_episode_children_start_with_the_factory_modules_already_imported(tmp_path):
+    """A fresh process (its own fork server): every episode child has the listed module before
+    the factory runs, because the server imported it once."""
+    folder = make_scenario(tmp_path / "sc", ScenarioSpec(max_episode_steps=5))
+    script = f"""
+from pathlib import Path
+from sim.interface import AgentInterface
+from sim.isolation import run_episode_isolated
+from tests.sim.agents import PreloadProbe
+
+for i in range(2):
+    result = run_episode_isolated(
+        Path({str(folder)!r}), PreloadProbe(), AgentInterface(),
+        record_path=Path({str(tmp_path)!r}) / f"{{i}}.npz",
+    )
+    print(result.simulator_error or result.extra["agent_log"])
+"""
+    repo = Path(__file__).resolve().parents[2]
+    done = subprocess.run(
+        [sys.executable, "-c", script], cwd=repo, capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["preloaded=True", "preloaded=True"]

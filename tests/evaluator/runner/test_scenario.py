@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 
+from arena.config import SandboxKind
 from arena.outcome import ScenarioStatus
 from evaluator.runner import evaluate, run_scenario
 from tests.evaluator.runner.conftest import TEST_SANDBOX, write_policy
@@ -116,3 +117,16 @@ class Policy:
     assert outcome.status == ScenarioStatus.done and outcome.attempts == 1
     assert [(a.reason, a.steps) for a in outcome.agents] == [("invalid_action", 3)]
     assert f"[rule: {rule}]" in outcome.log
+
+
+@pytest.mark.parametrize("kind", [None, *(k for k in SandboxKind if k is not SandboxKind.auto)])
+def test_sandboxed_factory_preloads_only_modules_that_exist(submission, kind):
+    import importlib.util
+
+    from evaluator.runner.scenario import SandboxedAgentFactory
+
+    modules = SandboxedAgentFactory(submission, kind, {}).preload_modules
+    assert "evaluator.sandbox" in modules
+    assert all(importlib.util.find_spec(m) is not None for m in modules)
+    if kind is SandboxKind.docker:
+        assert "docker" in modules
