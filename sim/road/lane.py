@@ -30,6 +30,8 @@ class Lane:
     is_internal: bool
     is_shoulder: bool
     successors: list[str] = field(default_factory=list)  # lane ids reachable at the lane's end
+    # first waypoint's s [m] (rounded) -> waypoint dicts; see waypoints_from()
+    _waypoint_cache: dict[float, list[dict]] = field(default_factory=dict, init=False, repr=False)
 
     def __post_init__(self) -> None:
         pts = np.asarray(self.centreline, dtype=np.float64)
@@ -87,15 +89,34 @@ class Lane:
         )
         return self.segment_headings[i]
 
-    @cached_property
+    @property
     def waypoints(self) -> list[dict]:
-        """Waypoint dicts every :data:`WAYPOINT_SPACING` along the lane, from s = 0.
+        """Waypoint dicts every :data:`WAYPOINT_SPACING` along the lane, from s = 0."""
+        return self.waypoints_from(0.0)
 
-        Built once per lane and shared by every observation: treat them as read-only.
+    def waypoints_from(self, first_s: float) -> list[dict]:
+        """Waypoint dicts at s = ``first_s`` + k * :data:`WAYPOINT_SPACING` [m], k >= 0, short of
+        the lane's end (empty when ``first_s`` is past it).
+
+        A path crossing into this lane starts at the offset left over from the previous lane, so
+        the spacing stays even across the join; the few offsets a lane is entered at are cached
+        and the dicts shared by every observation: treat them as read-only.
         """
-        s = np.arange(0.0, self.length, WAYPOINT_SPACING)
+        key = round(first_s, 4)
+        cached = self._waypoint_cache.get(key)
+        if cached is None:
+            cached = self._waypoint_dicts(np.arange(key, self.length, WAYPOINT_SPACING))
+            self._waypoint_cache[key] = cached
+        return cached
+
+    @cached_property
+    def end_waypoint(self) -> dict:
+        """The waypoint at the lane's very end: the last point of a path that ends here."""
+        return self._waypoint_dicts(np.array([self.length]))[0]
+
+    def _waypoint_dicts(self, s: np.ndarray) -> list[dict]:
         pos = self.position_at(s)
-        heading = self.heading_at(s)
+        heading = self.heading_at(np.minimum(s, self.length - 1e-9))
         return [
             {
                 "pos": [round(float(p[0]), 4), round(float(p[1]), 4)],
@@ -106,7 +127,7 @@ class Lane:
                 "speed_limit": self.speed_limit,
                 "lane_offset": float(si),
             }
-            for p, h, si in zip(pos, heading, s, strict=True)
+            for p, h, si in zip(pos, np.atleast_1d(heading), s, strict=True)
         ]
 
     @property
