@@ -40,6 +40,11 @@ class AgentEntry(Frozen):
     steps: int  # agent-steps driven
     done_step: int  # episode step (1-based) at which the agent was done
 
+    @classmethod
+    def of(cls, agent: object) -> AgentEntry:
+        """The summary fields of a scoring ``AgentSummary`` (which also carries positions)."""
+        return cls(**{name: getattr(agent, name) for name in cls.model_fields})
+
 
 class ScenarioEntry(Frozen):
     id: str

@@ -144,8 +144,8 @@ def score_outcome(
         family=scenario.family,
         status=ScenarioStatus.done,
         steps=steps,
-        agents=tuple(AgentEntry(**vars(agent)) for agent in agents),
+        agents=tuple(AgentEntry.of(agent) for agent in agents),
         metrics=scenario_metrics(score),
-        terms={name: total / max(score.agent_steps, 1) for name, total in score.term_sums.items()},
+        terms={name: total / max(score.weight, 1) for name, total in score.term_sums.items()},
     )
     return entry, score

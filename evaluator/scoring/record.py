@@ -41,6 +41,8 @@ class AgentSummary:
     reason: str
     steps: int  # agent-steps driven
     done_step: int  # episode step (1-based) at which the agent was done
+    goal: tuple[float, float] | None = None  # [m] mission goal centre
+    final_position: tuple[float, float] | None = None  # [m] centre on the last driven row
 
 
 @dataclass(frozen=True)
@@ -88,6 +90,8 @@ def _parse(arrays: dict[str, np.ndarray]) -> EpisodeRecord:
             reason=str(arrays["done_reason"][a]),
             steps=int(steps[a]),
             done_step=int(arrays["done_step"][a]),
+            goal=(float(arrays["goal_x"][a]), float(arrays["goal_y"][a])),
+            final_position=_final_position(arrays, a, int(steps[a])),
         )
         for a in range(len(steps))
     )
@@ -101,6 +105,14 @@ def _parse(arrays: dict[str, np.ndarray]) -> EpisodeRecord:
         agents=agents,
         tracks=tracks,
     )
+
+
+def _final_position(
+    arrays: dict[str, np.ndarray], agent: int, n: int
+) -> tuple[float, float] | None:
+    if n == 0:
+        return None
+    return float(arrays["x"][agent, n - 1]), float(arrays["y"][agent, n - 1])
 
 
 def _track(arrays: dict[str, np.ndarray], agent: int, n: int) -> AgentTrack:

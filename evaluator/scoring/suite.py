@@ -16,8 +16,8 @@ class Metrics(BaseModel):
 
     completion: float  # failures / N
     time: float  # [steps] mean of T^i
-    humanness: float  # mean over all agent-steps of the humanness terms
-    rules: float  # mean over all agent-steps of the rules terms
+    humanness: float  # mean over all agent-steps (or agent-episodes) of the humanness terms
+    rules: float  # mean over all agent-steps (or agent-episodes) of the rules terms
 
 
 def aggregate(scores: Iterable[EpisodeScore]) -> Metrics | None:
@@ -27,12 +27,12 @@ def aggregate(scores: Iterable[EpisodeScore]) -> Metrics | None:
         return None
     n = len(scores)
     # A set where no agent drove a step (all failed at start) has no humanness/rules error.
-    agent_steps = sum(score.agent_steps for score in scores) or 1
+    weight = sum(score.weight for score in scores) or 1
     return Metrics(
         completion=sum(score.failure for score in scores) / n,
         time=sum(score.time for score in scores) / n,
-        humanness=sum(score.humanness_sum for score in scores) / agent_steps,
-        rules=sum(score.rules_sum for score in scores) / agent_steps,
+        humanness=sum(score.humanness_sum for score in scores) / weight,
+        rules=sum(score.rules_sum for score in scores) / weight,
     )
 
 
