@@ -115,7 +115,8 @@ class Simulation:
         """Apply one action per live agent, advance every vehicle by dt, detect events, record.
 
         A missing, wrongly shaped or non-finite action ends that agent with ``invalid_action``.
-        Returns the observations of the agents still live afterwards.
+        Returns the observations of the agents still live afterwards and, once, the last
+        observation of each agent that finished while driving this step (``done`` True).
         """
         traffic = self._traffic
         assert traffic is not None, "reset() first"
@@ -165,6 +166,12 @@ class Simulation:
                 if v.status is not Status.done:
                     self._finish(v, DoneReason.max_episode_steps)
         obs = {}
+        for v in driven:
+            # As in SMARTS, an agent that finished this step gets its last observation (its
+            # events, done = True); from the next step on it is off the road and in no one's
+            # neighbours (``_surroundings`` lists live egos only, SUMO has removed it).
+            if v.status is Status.done:
+                obs[v.id] = self._observe(v, surroundings[v.id], events[v.id])
         for v in self.live:
             ev = events.get(v.id) or self._events_at_rest(v)
             obs[v.id] = self._observe(v, surroundings[v.id], ev)
