@@ -119,6 +119,43 @@ def load_policy(submission: str, deps: str | None) -> object:
     return policy
 
 
+def checked_act(act, obs: dict) -> dict:
+    actions = act(obs)
+    if not isinstance(actions, dict):
+        raise TypeError(
+            f"Policy.act must return a dict of agent id -> action, got {type(actions).__name__}"
+        )
+    return actions
+
+
+def act_isolating_agents(act, obs: dict) -> dict:
+    """The ``actions`` message for ``obs``. When ``act`` raises an ordinary exception with
+    several agents in ``obs``, it is called again with each agent's observation alone: the
+    agents whose own call raises are listed under ``failed`` (id -> traceback) and end with
+    ``agent_error``; their team mates drive on with the actions of their own calls. One agent's
+    bad input then does not end the others (a policy is one function for every agent, so this
+    is the only way to tell whose it was). If every agent fails alone, or a single agent was
+    asked, the exception ends the whole agent as before. MemoryError and exits always do."""
+    try:
+        return {"type": "actions", "actions": checked_act(act, obs)}
+    except Exception as error:
+        if len(obs) < 2:
+            raise
+        first_error = error
+    actions, failed = {}, {}
+    for agent_id, agent_obs in obs.items():
+        try:
+            own = checked_act(act, {agent_id: agent_obs})
+        except Exception as error:
+            failed[agent_id] = "".join(traceback.format_exception(error))[-4000:]
+            continue
+        if agent_id in own:
+            actions[agent_id] = own[agent_id]
+    if len(failed) == len(obs):
+        raise first_error
+    return {"type": "actions", "actions": actions, "failed": failed}
+
+
 def serve(stream: Stream, policy: object) -> None:
     reset = getattr(policy, "reset", None)
     act = policy.act
@@ -129,13 +166,7 @@ def serve(stream: Stream, policy: object) -> None:
             return
         if kind == "act":
             try:
-                actions = act(body)
-                if not isinstance(actions, dict):
-                    raise TypeError(
-                        f"Policy.act must return a dict of agent id -> action, "
-                        f"got {type(actions).__name__}"
-                    )
-                stream.send({"type": "actions", "actions": actions})
+                stream.send(act_isolating_agents(act, body))
             except BaseException as error:
                 stream.send(error_message(error))
                 return

@@ -258,7 +258,6 @@ def test_the_others_drive_on_after_one_agent_is_removed(tmp_path, run):
     assert "Agent_0" not in [n["id"] for n in late]
 
 
-
 def test_finishing_agent_gets_its_last_observation_then_is_nobodys_neighbour(tmp_path, run):
     """Two agents side by side; Agent_0 drives off the road. The step it ends, it receives its
     last observation (off_road event, done) while Agent_1 may still see it; from the next step
@@ -291,6 +290,7 @@ def test_finishing_agent_gets_its_last_observation_then_is_nobodys_neighbour(tmp
     assert len(r.agent.seen) > ended + 1
     assert {o.id: o.reason for o in r.result.agents}["Agent_0"] is DoneReason.off_road
 
+
 FORWARD = {
     ActionSpace.TargetPose: lambda o: drive_straight(8.0)(o),
     ActionSpace.RelativeTargetPose: lambda o: [0.8, 0.0, 0.0],
@@ -309,3 +309,42 @@ def test_every_action_space_drives_forward_with_serialisable_observations(tmp_pa
     assert rec["x"][0, -1] > 20.0 + 5.0
     assert abs(rec["lane_offset"][0, -1]) < 0.3 and not rec["ev_wrong_way"].any()
     json.dumps(r.agent.seen[-1])  # crosses a process boundary as JSON
+
+
+def test_one_agents_failure_ends_that_agent_and_its_team_mate_drives_on(tmp_path):
+    """The sandbox reports Agent_0's exception alone (SomeAgentsFailed): Agent_0 ends with
+    agent_error at that step, Agent_1 takes its action and reaches its goal."""
+    from pathlib import Path
+
+    from sim.agent import SomeAgentsFailed
+    from sim.episode import run_episode
+    from sim.interface import AgentInterface
+    from tests.sim.agents import ScriptedAgent
+
+    folder = make_scenario(
+        tmp_path,
+        ScenarioSpec(
+            missions=(
+                mission("Agent_0", start=(20.0, lane_y(0), 0.0)),
+                mission("Agent_1", start=(20.0, lane_y(1), 0.0), goal=(120.0, lane_y(1))),
+            ),
+        ),
+    )
+
+    class FailsAgent0AtStep5(ScriptedAgent):
+        def act(self, obs):
+            actions = super().act(obs)
+            if len(self.seen) == 5 and "Agent_0" in obs:
+                del actions["Agent_0"]
+                raise SomeAgentsFailed(actions, {"Agent_0": "ValueError: bad input"})
+            return actions
+
+    agent = FailsAgent0AtStep5(drive_straight(10.0))
+    result = run_episode(
+        folder, agent, AgentInterface(), record_path=Path(tmp_path) / "records" / "r.npz"
+    )
+    by_id = {o.id: o for o in result.agents}
+    assert by_id["Agent_0"].reason is DoneReason.agent_error and by_id["Agent_0"].steps == 4
+    assert by_id["Agent_1"].reason is DoneReason.reached_goal
+    assert "Agent_0: ValueError: bad input" in result.detail
+    assert all("Agent_0" not in obs for obs in agent.seen[5:])
