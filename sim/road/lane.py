@@ -30,7 +30,7 @@ class Lane:
     is_internal: bool
     is_shoulder: bool
     successors: list[str] = field(default_factory=list)  # lane ids reachable at the lane's end
-    # first waypoint's s [m] (rounded) -> waypoint dicts; see waypoints_from()
+    # phase [m] (rounded) of the first waypoint -> waypoint dicts; see waypoints_from()
     _waypoint_cache: dict[float, list[dict]] = field(default_factory=dict, init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -92,17 +92,23 @@ class Lane:
     @property
     def waypoints(self) -> list[dict]:
         """Waypoint dicts every :data:`WAYPOINT_SPACING` along the lane, from s = 0."""
-        return self.waypoints_from(0.0)
+        return self._waypoints_with_phase(0.0)
 
-    def waypoints_from(self, first_s: float) -> list[dict]:
-        """Waypoint dicts at s = ``first_s`` + k * :data:`WAYPOINT_SPACING` [m], k >= 0, short of
-        the lane's end (empty when ``first_s`` is past it).
+    def waypoints_from(self, first_s: float, limit: int) -> tuple[list[dict], int]:
+        """Up to ``limit`` waypoint dicts at s = ``first_s`` + k * :data:`WAYPOINT_SPACING` [m],
+        k >= 0, short of the lane's end; and how many such points the lane has in all.
 
         A path crossing into this lane starts at the offset left over from the previous lane, so
-        the spacing stays even across the join; the few offsets a lane is entered at are cached
-        and the dicts shared by every observation: treat them as read-only.
+        the spacing stays even across the join. Points are built once per offset phase (the
+        few a lane is entered at) and shared by every observation: treat them as read-only.
         """
-        key = round(first_s, 4)
+        k0 = math.floor(first_s / WAYPOINT_SPACING + 1e-9)
+        phase = max(first_s - k0 * WAYPOINT_SPACING, 0.0)
+        points = self._waypoints_with_phase(phase)
+        return points[k0 : k0 + limit], max(len(points) - k0, 0)
+
+    def _waypoints_with_phase(self, phase: float) -> list[dict]:
+        key = round(phase, 4)
         cached = self._waypoint_cache.get(key)
         if cached is None:
             cached = self._waypoint_dicts(np.arange(key, self.length, WAYPOINT_SPACING))

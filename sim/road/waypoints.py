@@ -23,6 +23,9 @@ _MAX_INTERNAL_CHAIN = 8  # junction-internal lanes in a row before a normal lane
 _JUNCTION_MATCH_DISTANCE = 0.5  # [m] a route lane this much farther than the nearest still wins
 
 _junction_lanes: WeakKeyDictionary[RoadNetwork, dict[str, list[Lane]]] = WeakKeyDictionary()
+_successor_cache: WeakKeyDictionary[RoadNetwork, dict[tuple[str, tuple[str, ...]], Lane]] = (
+    WeakKeyDictionary()
+)
 
 
 def exit_edge(road: RoadNetwork, lane: Lane) -> str:
@@ -40,6 +43,17 @@ def preferred_successor(road: RoadNetwork, lane: Lane, route: tuple[str, ...]) -
     internal lanes), else the first one; None at a dead end."""
     if not lane.successors:
         return None
+    # Asked for every path of every observation, with few distinct (lane, route) pairs.
+    by_road = _successor_cache.get(road)
+    if by_road is None:
+        by_road = _successor_cache[road] = {}
+    key = (lane.id, tuple(route))
+    if key not in by_road:
+        by_road[key] = _route_successor(road, lane, route)
+    return by_road[key]
+
+
+def _route_successor(road: RoadNetwork, lane: Lane, route: tuple[str, ...]) -> Lane:
     successors = [road.lanes[succ_id] for succ_id in lane.successors]
     edge = exit_edge(road, lane)
     # Edges after the current one first: a route that passes an edge twice goes on, not back.
@@ -121,12 +135,12 @@ def _path_from(road: RoadNetwork, lane: Lane, s: float, route: tuple[str, ...], 
     path: list[dict] = []
     first_s = math.ceil(s / WAYPOINT_SPACING - 1e-9) * WAYPOINT_SPACING
     for _ in range(_MAX_LANE_HOPS):
-        points = lane.waypoints_from(first_s)
-        path.extend(points[: n - len(path)])
+        points, on_lane = lane.waypoints_from(first_s, n - len(path))
+        path.extend(points)
         if len(path) >= n:
             break
         # The next point lies past this lane's end by what is left of one spacing.
-        first_s = first_s + len(points) * WAYPOINT_SPACING - lane.length
+        first_s = first_s + on_lane * WAYPOINT_SPACING - lane.length
         successor = preferred_successor(road, lane, route)
         if successor is None:
             break
