@@ -190,16 +190,30 @@ def _neighbour(n: dict) -> VehicleObservation:
     )
 
 
-def _waypoint(w: dict) -> Waypoint:
-    return Waypoint(
-        pos=np.asarray(w["pos"][:2], dtype=np.float64),
-        heading=Heading(to_smarts_heading(w["heading"])),
-        lane_id=w["lane_id"],
-        lane_width=w["lane_width"],
-        speed_limit=w["speed_limit"],
-        lane_index=w["lane_index"],
-        lane_offset=w["lane_offset"],
-    )
+def _path(path: list[dict]) -> list[Waypoint]:
+    """One waypoint path, positions and headings converted for the whole path at once (a
+    step's observation holds a few hundred waypoints)."""
+    if not path:
+        return []
+    xy = np.array([w["pos"][:2] for w in path], dtype=np.float64)  # (n, 2) [m]
+    ours = np.array([w["heading"] for w in path], dtype=np.float64)
+    headings = ((ours - math.pi / 2 + math.pi) % (2 * math.pi) - math.pi).tolist()
+    make = tuple.__new__  # skips NamedTuple's argument parsing; the fields are in order
+    return [
+        make(
+            Waypoint,
+            (
+                xy[i],
+                Heading(h),
+                w["lane_id"],
+                w["lane_width"],
+                w["speed_limit"],
+                w["lane_index"],
+                w["lane_offset"],
+            ),
+        )
+        for i, (w, h) in enumerate(zip(path, headings, strict=True))
+    ]
 
 
 class SmartsAdapter:
@@ -239,7 +253,7 @@ class SmartsAdapter:
             ego_vehicle_state=_ego(o["ego_vehicle_state"]),
             under_this_agent_control=True,
             neighborhood_vehicle_states=[_neighbour(n) for n in o["neighborhood_vehicle_states"]],
-            waypoint_paths=[[_waypoint(w) for w in path] for path in o["waypoint_paths"]],
+            waypoint_paths=[_path(path) for path in o["waypoint_paths"]],
             distance_travelled=step_distance,
             done=bool(o.get("done", False)),
             drivable_area_grid_map=o.get("drivable_area_grid_map"),
