@@ -30,8 +30,8 @@ class Lane:
     is_internal: bool
     is_shoulder: bool
     successors: list[str] = field(default_factory=list)  # lane ids reachable at the lane's end
-    # phase [m] (rounded) of the first waypoint -> waypoint dicts; see waypoints_from()
-    _waypoint_cache: dict[float, list[dict]] = field(default_factory=dict, init=False, repr=False)
+    # phase of the first waypoint [0.1 mm] -> waypoint dicts; see waypoints_from()
+    _waypoint_cache: dict[int, list[dict]] = field(default_factory=dict, init=False, repr=False)
 
     def __post_init__(self) -> None:
         pts = np.asarray(self.centreline, dtype=np.float64)
@@ -108,11 +108,11 @@ class Lane:
         return points[k0 : k0 + limit], max(len(points) - k0, 0)
 
     def _waypoints_with_phase(self, phase: float) -> list[dict]:
-        key = round(phase, 4)
+        key = math.floor(phase * 1e4 + 0.5)  # [0.1 mm]; round() is slow on the per-step path
         cached = self._waypoint_cache.get(key)
         if cached is None:
-            cached = self._waypoint_dicts(np.arange(key, self.length, WAYPOINT_SPACING))
-            self._waypoint_cache[key] = cached
+            s = np.arange(key / 1e4, self.length, WAYPOINT_SPACING)
+            cached = self._waypoint_cache[key] = self._waypoint_dicts(s)
         return cached
 
     @cached_property
