@@ -23,6 +23,7 @@ _MAX_INTERNAL_CHAIN = 8  # junction-internal lanes in a row before a normal lane
 _JUNCTION_MATCH_DISTANCE = 0.5  # [m] a route lane this much farther than the nearest still wins
 
 _junction_lanes: WeakKeyDictionary[RoadNetwork, dict[str, list[Lane]]] = WeakKeyDictionary()
+_predecessor_cache: WeakKeyDictionary[RoadNetwork, dict[str, list[Lane]]] = WeakKeyDictionary()
 _successor_cache: WeakKeyDictionary[RoadNetwork, dict[tuple[str, tuple[str, ...]], Lane]] = (
     WeakKeyDictionary()
 )
@@ -96,23 +97,44 @@ def route_lane_in_junction(
     """The junction lane under (x, y) that leads onto ``route``, and s [m] on it.
 
     Junction lanes from one incoming lane overlap at first (straight on, left, right); the
-    nearest one, which ``position`` holds, need not be the vehicle's way. A lane of the same
-    junction within the vehicle's own lane surface that exits onto the route wins."""
+    nearest one, which ``position`` holds, need not be the vehicle's way. Among the lanes of the
+    same junction within the vehicle's own lane surface that exit onto the route, the one the
+    path took before the junction (its entering lane's preferred successor) wins while the
+    vehicle is on it, so the path does not jump to a neighbouring turning lane; else the
+    nearest."""
     here = position.lane
     if not route or exit_edge(road, here) in route:
         return here, position.s
-    best: tuple[float, Lane, float] | None = None
+    candidates: list[tuple[float, Lane, float]] = []
     for lane in _lanes_of_junction(road, here):
         if lane is here or exit_edge(road, lane) not in route:
             continue
         s, _, _ = lane.project(x, y)
         px, py = lane.position_at(s)
         distance = math.hypot(px - x, py - y)
-        if distance <= max(position.distance + _JUNCTION_MATCH_DISTANCE, lane.width / 2) and (
-            best is None or distance < best[0]
-        ):
-            best = (distance, lane, s)
-    return (best[1], best[2]) if best else (here, position.s)
+        if distance <= max(position.distance + _JUNCTION_MATCH_DISTANCE, lane.width / 2):
+            candidates.append((distance, lane, s))
+    if not candidates:
+        return here, position.s
+    predecessors = _predecessors(road)
+    taken = [
+        c
+        for c in candidates
+        if any(preferred_successor(road, p, route) is c[1] for p in predecessors.get(c[1].id, ()))
+    ]
+    _, lane, s = min(taken or candidates, key=lambda c: c[0])
+    return lane, s
+
+
+def _predecessors(road: RoadNetwork) -> dict[str, list[Lane]]:
+    found = _predecessor_cache.get(road)
+    if found is None:
+        found = {}
+        for lane in road.lanes.values():
+            for succ_id in lane.successors:
+                found.setdefault(succ_id, []).append(lane)
+        _predecessor_cache[road] = found
+    return found
 
 
 def _lanes_of_junction(road: RoadNetwork, lane: Lane) -> list[Lane]:

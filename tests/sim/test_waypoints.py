@@ -59,6 +59,28 @@ def test_left_turn_path_in_the_junction_takes_the_turning_lane(name, into_juncti
     assert len(path) == 50
 
 
+@pytest.mark.parametrize(
+    "name", ["p002_turn_c_left_turn_c_low", "p004_turn_c_left_turn_middle_lane_c_low"]
+)
+def test_path_keeps_its_turning_lane_when_the_vehicle_enters_the_junction(name):
+    """Several junction lanes turn onto the route (one per outgoing lane): the path just before
+    the junction and the paths inside it take the same one, not a neighbouring turning lane."""
+    road, route = road_of(name), tuple(mission_of(name)["route"])
+    incoming = road.edges[route[0]][0]
+    heading = incoming.heading_end
+    end_x, end_y = (float(v) for v in incoming.position_at(incoming.length))
+    chosen = []
+    for into in (-0.3, 1.0, 2.0, 3.0):
+        x, y = end_x + into * math.cos(heading), end_y + into * math.sin(heading)
+        path = next(
+            p
+            for p in paths_at(road, x, y, heading, route)
+            if p[0]["lane_id"] == incoming.id or road.lanes[p[0]["lane_id"]].is_internal
+        )
+        chosen.append(next(w["lane_id"] for w in path if road.lanes[w["lane_id"]].is_internal))
+    assert len(set(chosen)) == 1, chosen
+
+
 def _spacings(path: list[dict]) -> np.ndarray:
     xy = np.array([w["pos"] for w in path])
     return np.hypot(*np.diff(xy, axis=0).T)
