@@ -90,8 +90,8 @@ def raw_stepping(suite: str, steps: dict[str, int], queue) -> None:
     """In a child of its own (libsumo: one simulation at a time per process): start each
     scenario's SUMO as :class:`sim.traffic.SumoTraffic` would and time only the stepping."""
     import libsumo
-    from scenarios.schema import load_scenario
 
+    from arena.scenario import load_scenario
     from sim.traffic import sumo_command
 
     elapsed = 0.0

@@ -21,3 +21,13 @@ class Agent(Protocol):
 
     def close(self) -> None:
         """Release the agent (process, container)."""
+
+
+class SomeAgentsFailed(Exception):
+    """The agent answered for some of its mission vehicles and raised for the others: those end
+    with ``agent_error`` (``failed``: id -> detail), the rest drive on with ``actions``."""
+
+    def __init__(self, actions: dict[str, Any], failed: dict[str, str]) -> None:
+        super().__init__(f"agent_error for {', '.join(sorted(failed))}")
+        self.actions = actions
+        self.failed = failed

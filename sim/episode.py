@@ -9,7 +9,7 @@ from pathlib import Path
 from arena.errors import AgentFailed
 from arena.outcome import DoneReason
 from arena.scenario import load_scenario
-from sim.agent import Agent
+from sim.agent import Agent, SomeAgentsFailed
 from sim.interface import AgentInterface
 from sim.result import EpisodeResult
 from sim.simulation import Simulation
@@ -28,7 +28,8 @@ def run_episode(
     step limit; write the record to ``record_path`` (always, even with no rows).
 
     Calls ``agent.reset()`` first and never ``agent.close()`` (the caller owns the agent). An
-    :class:`AgentFailed` ends every still-live agent with its reason; a bad action ends only its
+    :class:`AgentFailed` ends every still-live agent with its reason; :class:`SomeAgentsFailed`
+    ends the agents it names with ``agent_error`` and the rest drive on; a bad action ends only its
     agent (``invalid_action``); passing ``wall_timeout_s`` ends the rest with
     ``episode_timeout``. SUMO errors propagate (the isolated runner turns them into
     ``simulator_error``).
@@ -47,6 +48,11 @@ def run_episode(
                 break
             try:
                 actions = agent.act(obs) if obs else {}
+            except SomeAgentsFailed as exc:  # the others drive on (see submissions/runner.py)
+                failed = [agent_id for agent_id in exc.failed if agent_id in obs]
+                sim.fail(DoneReason.agent_error, failed)
+                detail = "\n".join(f"{k}: {v}" for k, v in exc.failed.items())[-4000:]
+                actions = exc.actions
             except AgentFailed as exc:
                 sim.fail(exc.reason)
                 detail = exc.detail or str(exc)

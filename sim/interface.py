@@ -26,12 +26,22 @@ ACTION_LENGTH: dict[ActionSpace, int] = {
 }
 
 
+class ObservationFormat(StrEnum):
+    """How the in-sandbox runner hands observations to the policy (the simulator is unaffected)."""
+
+    native = "native"  # plain dicts and lists, our heading frame (0 = +x east)
+    smarts2022 = (
+        "smarts2022"  # SMARTS attribute objects, numpy, 0 = +y north: docs/smarts-compat.md
+    )
+
+
 class AgentInterface(BaseModel):
     """Contents of ``agent.yaml``; every key is optional, a misspelt key is an error."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
     action_space: ActionSpace = ActionSpace.TargetPose
+    observation_format: ObservationFormat = ObservationFormat.native
     observation_radius: float = Field(default=100.0, gt=0, le=200)  # [m]
     max_waypoint_paths: int = Field(default=4, ge=1, le=4)
     waypoints_per_path: int = Field(default=50, ge=1, le=50)

@@ -12,7 +12,7 @@ import numpy as np
 
 from sim.events import Events
 from sim.interface import AgentInterface
-from sim.mission_vehicle import MissionVehicle
+from sim.mission_vehicle import MissionVehicle, Status
 from sim.road import LanePosition, RoadNetwork
 from sim.vehicles import VehicleStates
 
@@ -38,6 +38,7 @@ def build_observation(
         "step_count": step,
         "elapsed_sim_time": round(step * dt, 6),
         "distance_travelled": vehicle.distance_travelled,
+        "done": vehicle.status is Status.done,  # True once: the agent's last observation
         "events": events.as_observation(),
         "ego_vehicle_state": {
             "id": vehicle.id,

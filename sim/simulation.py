@@ -120,7 +120,8 @@ class Simulation:
         A missing, wrongly shaped, non-finite or out-of-range action ends that agent with
         ``invalid_action``, and so does an action for an agent id the scenario does not have (for
         every live agent: it cannot be told which one was meant); :attr:`violations` keeps why.
-        Returns the observations of the agents still live afterwards.
+        Returns the observations of the agents still live afterwards and, once, the last
+        observation of each agent that finished while driving this step (``done`` True).
         """
         traffic = self._traffic
         assert traffic is not None, "reset() first"
@@ -179,6 +180,12 @@ class Simulation:
                 if v.status is not Status.done:
                     self._finish(v, DoneReason.max_episode_steps)
         obs = {}
+        for v in driven:
+            # As in SMARTS, an agent that finished this step gets its last observation (its
+            # events, done = True); from the next step on it is off the road and in no one's
+            # neighbours (``_surroundings`` lists live egos only, SUMO has removed it).
+            if v.status is Status.done:
+                obs[v.id] = self._observe(v, surroundings[v.id], events[v.id])
         for v in self.live:
             ev = events.get(v.id) or self._events_at_rest(v)
             obs[v.id] = self._observe(v, surroundings[v.id], ev)

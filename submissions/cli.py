@@ -31,15 +31,19 @@ def report_checked(zip_path: Path, install: bool) -> None:
             ):
                 prepared = prepare_submission(zip_path, Path(tmp) / "submission")
                 interface, sha256, size = prepared.interface, prepared.sha256, prepared.size
+                notes = prepared.notes
         else:
             checked = check_zip(zip_path)
             interface, sha256, size = checked.interface, checked.sha256, checked.size
+            notes = checked.notes
     except IntakeError as error:
         errors.print(f"[bold red]rejected[/]: {error.entry}: {error.message}")
         errors.print(f"  rule: [yellow]{error.rule}[/] (see docs/submissions.md)")
         raise typer.Exit(1) from error
     console.print(f"[bold green]ok[/] {zip_path} ({size / 1024:.1f} KiB, sha256 {sha256[:12]})")
     console.print(f"  action space: {interface.action_space.value}")
+    for note in notes:
+        console.print(f"  [yellow]porting note[/]: {note}")
 
 
 @submission_app.command("pack")

@@ -28,6 +28,7 @@ import time
 import traceback
 
 PROTOCOL_VERSION = 1
+COMPAT = "smarts_compat.py"  # observation converters, next to this file
 HEADER = struct.Struct(">I")
 MAX_INCOMING_BYTES = 1 << 30
 
@@ -119,7 +120,58 @@ def load_policy(submission: str, deps: str | None) -> object:
     return policy
 
 
-def serve(stream: Stream, policy: object) -> None:
+def checked_act(act, obs: dict) -> dict:
+    actions = act(obs)
+    if not isinstance(actions, dict):
+        raise TypeError(
+            f"Policy.act must return a dict of agent id -> action, got {type(actions).__name__}"
+        )
+    return actions
+
+
+def act_isolating_agents(act, obs: dict) -> dict:
+    """The ``actions`` message for ``obs``. When ``act`` raises an ordinary exception with
+    several agents in ``obs``, it is called again with each agent's observation alone: the
+    agents whose own call raises are listed under ``failed`` (id -> traceback) and end with
+    ``agent_error``; their team mates drive on with the actions of their own calls. One agent's
+    bad input then does not end the others (a policy is one function for every agent, so this
+    is the only way to tell whose it was). If every agent fails alone, or a single agent was
+    asked, the exception ends the whole agent as before. MemoryError and exits always do."""
+    try:
+        return {"type": "actions", "actions": checked_act(act, obs)}
+    except Exception as error:
+        if len(obs) < 2:
+            raise
+        first_error = error
+    actions, failed = {}, {}
+    for agent_id, agent_obs in obs.items():
+        try:
+            own = checked_act(act, {agent_id: agent_obs})
+        except Exception as error:
+            failed[agent_id] = "".join(traceback.format_exception(error))[-4000:]
+            continue
+        if agent_id in own:
+            actions[agent_id] = own[agent_id]
+    if len(failed) == len(obs):
+        raise first_error
+    return {"type": "actions", "actions": actions, "failed": failed}
+
+
+def load_adapter(observation_format: str, action_space: str):
+    """The converter for ``observation_format`` (None for ours), loaded from the module beside
+    this file (the sandbox mounts it there; -I keeps this folder off sys.path)."""
+    if observation_format == "native":
+        return None
+    here = os.path.dirname(os.path.abspath(__file__))
+    spec = importlib.util.spec_from_file_location("smarts_compat", os.path.join(here, COMPAT))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    if observation_format != module.FORMAT:
+        raise ValueError(f"unknown observation_format {observation_format!r}")
+    return module.SmartsAdapter(action_space)
+
+
+def serve(stream: Stream, policy: object, adapter=None) -> None:
     reset = getattr(policy, "reset", None)
     act = policy.act
     while True:
@@ -129,18 +181,18 @@ def serve(stream: Stream, policy: object) -> None:
             return
         if kind == "act":
             try:
-                actions = act(body)
-                if not isinstance(actions, dict):
-                    raise TypeError(
-                        f"Policy.act must return a dict of agent id -> action, "
-                        f"got {type(actions).__name__}"
-                    )
-                stream.send({"type": "actions", "actions": actions})
+                obs = adapter.observations(body) if adapter else body
+                message = act_isolating_agents(act, obs)
+                if adapter:
+                    message["actions"] = adapter.actions(message["actions"])
+                stream.send(message)
             except BaseException as error:
                 stream.send(error_message(error))
                 return
         elif kind == "reset":
             try:
+                if adapter:
+                    adapter.reset()
                 if reset is not None:
                     reset()
                 stream.send({"type": "done"})
@@ -157,6 +209,8 @@ def main() -> int:
     parser.add_argument("--submission", required=True)
     parser.add_argument("--deps")
     parser.add_argument("--socket", help="unix socket to connect to instead of stdin/stdout")
+    parser.add_argument("--observation-format", default="native", help="agent.yaml's choice")
+    parser.add_argument("--action-space", default="TargetPose", help="agent.yaml's choice")
     args = parser.parse_args()
     started = time.perf_counter()
     stream = open_stream(args.socket)
@@ -171,12 +225,13 @@ def main() -> int:
         }
     )
     try:
+        adapter = load_adapter(args.observation_format, args.action_space)
         policy = load_policy(args.submission, args.deps)
     except BaseException as error:
         stream.send(error_message(error))
         return 1
     stream.send({"type": "ready", "init_s": round(time.perf_counter() - started, 6)})
-    serve(stream, policy)
+    serve(stream, policy, adapter)
     return 0
 
 

@@ -47,6 +47,7 @@ def sample_observation(
             "step_count": 12,
             "elapsed_sim_time": 1.2,
             "distance_travelled": 14.5,
+            "done": False,
             "events": {
                 "collisions": [],
                 "off_road": False,

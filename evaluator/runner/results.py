@@ -122,7 +122,7 @@ def _score_done(
         steps=steps,
         agents=agents,
         metrics=scenario_metrics(score),
-        terms={name: total / max(score.agent_steps, 1) for name, total in score.term_sums.items()},
+        terms={name: total / max(score.weight, 1) for name, total in score.term_sums.items()},
     )
     return entry, score
 

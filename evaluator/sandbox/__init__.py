@@ -109,6 +109,8 @@ def start(
         deps=submission.deps_dir,
         settings=settings,
         labels=dict(labels or {}),
+        observation_format=str(submission.interface.observation_format),
+        action_space=str(submission.interface.action_space),
     )
     handle = AgentHandle(chosen.launch(spec), settings)
     try:

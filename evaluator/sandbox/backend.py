@@ -20,6 +20,9 @@ SUBMISSION_MOUNT = "/submission"
 DEPS_MOUNT = "/deps"
 RUNNER_MOUNT = "/opt/arena/runner.py"
 RUNNER_PATH = Path(__file__).resolve().parents[2] / "submissions" / "runner.py"
+# The runner loads its observation converters from beside itself.
+COMPAT_MOUNT = "/opt/arena/smarts_compat.py"
+COMPAT_PATH = RUNNER_PATH.with_name("smarts_compat.py")
 # One thread for BLAS/OpenMP: the agent has one CPU, and a thread each counts against its pids.
 # (No PYTHON* variables: the runner starts with -I, which ignores them; -B keeps bytecode away.)
 RUNTIME_ENV = {
@@ -40,6 +43,8 @@ class LaunchSpec:
     deps: Path | None
     settings: Settings
     labels: dict[str, str] = field(default_factory=dict)
+    observation_format: str = "native"  # agent.yaml's, passed to the runner
+    action_space: str = "TargetPose"
     instance: str = field(default_factory=lambda: uuid.uuid4().hex)
 
     @property
@@ -52,7 +57,25 @@ class LaunchSpec:
 
     def runner_args(self) -> list[str]:
         deps = ["--deps", DEPS_MOUNT] if self.deps else []
-        return ["-I", "-B", RUNNER_MOUNT, "--submission", SUBMISSION_MOUNT, *deps]
+        return [
+            "-I",
+            "-B",
+            RUNNER_MOUNT,
+            "--submission",
+            SUBMISSION_MOUNT,
+            *deps,
+            *self.format_args(),
+        ]
+
+    def format_args(self) -> list[str]:
+        if self.observation_format == "native":
+            return []
+        return [
+            "--observation-format",
+            self.observation_format,
+            "--action-space",
+            self.action_space,
+        ]
 
 
 @dataclass(frozen=True)

@@ -23,6 +23,8 @@ from pathlib import Path
 from arena.config import SandboxKind, Settings
 from arena.errors import SandboxUnavailable
 from evaluator.sandbox.backend import (
+    COMPAT_MOUNT,
+    COMPAT_PATH,
     DEPS_MOUNT,
     RUNNER_MOUNT,
     RUNNER_PATH,
@@ -110,15 +112,16 @@ class BubblewrapBackend:
         # The runner goes in as data read from a descriptor: it may live under a root-only
         # prefix (a virtualenv in /root) that uid 65534 cannot enter.
         runner_fd = os.open(RUNNER_PATH, os.O_RDONLY | os.O_CLOEXEC)
+        compat_fd = os.open(COMPAT_PATH, os.O_RDONLY | os.O_CLOEXEC)
         try:
             process = subprocess.Popen(
-                [*prefix, *self.command(spec, binds, runner_fd)],
+                [*prefix, *self.command(spec, binds, runner_fd, compat_fd)],
                 stdin=subprocess.PIPE,
                 stdout=subprocess.PIPE,
                 stderr=subprocess.PIPE,
                 cwd="/",
                 env={"PATH": os.defpath, LABELS_ENV: encode_labels(spec.all_labels)},
-                pass_fds=(runner_fd,),
+                pass_fds=(runner_fd, compat_fd),
                 start_new_session=True,
                 preexec_fn=rlimit_setter(
                     settings.agent_memory_bytes,
@@ -132,14 +135,18 @@ class BubblewrapBackend:
             raise SandboxUnavailable(f"cannot start bubblewrap: {error}") from error
         finally:
             os.close(runner_fd)
+            os.close(compat_fd)
         return PopenSandbox(
             process, settings.agent_log_tail_bytes, spec.instance_labels, cleanup=stage
         )
 
     @staticmethod
-    def command(spec: LaunchSpec, binds: dict[str, Path], runner_fd: int) -> list[str]:
+    def command(
+        spec: LaunchSpec, binds: dict[str, Path], runner_fd: int, compat_fd: int
+    ) -> list[str]:
         settings = spec.settings
         mounts = ["--perms", "0444", "--ro-bind-data", str(runner_fd), RUNNER_MOUNT]
+        mounts += ["--perms", "0444", "--ro-bind-data", str(compat_fd), COMPAT_MOUNT]
         for target, source in binds.items():
             mounts += ["--ro-bind", str(source), target]
         environment = []

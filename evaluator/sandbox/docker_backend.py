@@ -21,6 +21,8 @@ from typing import Any
 from arena.config import SandboxKind, Settings
 from arena.errors import SandboxUnavailable
 from evaluator.sandbox.backend import (
+    COMPAT_MOUNT,
+    COMPAT_PATH,
     DEPS_MOUNT,
     INSTANCE_LABEL,
     RUNNER_MOUNT,
@@ -77,6 +79,7 @@ def container_options(spec: LaunchSpec, socket_dir: Path) -> dict[str, Any]:
     volumes = {
         str(spec.submission): {"bind": SUBMISSION_MOUNT, "mode": "ro"},
         str(RUNNER_PATH): {"bind": RUNNER_MOUNT, "mode": "ro"},
+        str(COMPAT_PATH): {"bind": COMPAT_MOUNT, "mode": "ro"},
         str(socket_dir): {"bind": SOCKET_MOUNT, "mode": "ro"},
     }
     if spec.deps:

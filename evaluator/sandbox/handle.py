@@ -14,7 +14,7 @@ from arena.errors import AgentFailed
 from arena.outcome import DoneReason
 from evaluator.sandbox.backend import ExitStatus, Sandbox
 from evaluator.sandbox.channel import Channel, ChannelClosed, ChannelTimeout, ChannelViolation
-from sim.agent import Observation
+from sim.agent import Observation, SomeAgentsFailed
 
 # How long a closing agent may take to say goodbye before it is killed [s].
 CLOSE_GRACE_S = 1.0
@@ -57,9 +57,12 @@ class AgentHandle:
     def act(self, obs: dict[str, Observation]) -> dict[str, Any]:
         deadline = time.monotonic() + self._step_timeout_s
         self._send("act", obs, deadline, DoneReason.step_timeout)
-        actions = self._expect("actions", deadline, DoneReason.step_timeout).get("actions")
-        if not isinstance(actions, dict):
+        message = self._expect("actions", deadline, DoneReason.step_timeout)
+        actions, failed = message.get("actions"), message.get("failed")
+        if not isinstance(actions, dict) or not isinstance(failed, dict | None):
             self._fail(DoneReason.agent_error, "protocol violation: actions are not a dict")
+        if failed:
+            raise SomeAgentsFailed(actions, {str(k): str(v) for k, v in failed.items()})
         return actions
 
     def close(self) -> None:

@@ -38,6 +38,7 @@ class ProcessBackend:
             "--submission",
             str(spec.submission),
             *deps,
+            *spec.format_args(),
         ]
         env = {
             "PATH": os.defpath,

@@ -9,8 +9,8 @@ import numpy as np
 
 from arena.errors import RecordError
 from arena.outcome import AgentOutcome
-from evaluator.scoring.profile import ScoringProfile
-from evaluator.scoring.record import EpisodeRecord
+from evaluator.scoring.profile import Averaging, ScoringProfile
+from evaluator.scoring.record import AgentTrack, EpisodeRecord
 from evaluator.scoring.registry import get_term
 
 
@@ -24,19 +24,29 @@ class EpisodeScore:
 
     scenario_id: str
     failure: float  # fraction of mission agents that did not reach their goal, 0..1
-    time: int  # [steps] last goal step, or max_episode_steps if any agent failed
+    # [steps] last goal step, or max_episode_steps if any agent failed (plus the goal L1
+    # distances [m] under a profile with time_adds_goal_l1)
+    time: float
     agent_steps: int  # agent-steps driven, over all agents
     humanness_sum: float
     rules_sum: float
     term_sums: dict[str, float]  # per term, over all agent-steps
+    # With agent_episode averaging the sums are of per-agent-episode means and this counts the
+    # agent-episodes that drove a step; the suite then divides by it instead of agent_steps.
+    agent_episodes: int | None = None
+
+    @property
+    def weight(self) -> int:
+        """What humanness_sum and rules_sum are averaged over."""
+        return self.agent_steps if self.agent_episodes is None else self.agent_episodes
 
     @property
     def humanness(self) -> float:
-        return self.humanness_sum / self.agent_steps if self.agent_steps else 0.0
+        return self.humanness_sum / self.weight if self.weight else 0.0
 
     @property
     def rules(self) -> float:
-        return self.rules_sum / self.agent_steps if self.agent_steps else 0.0
+        return self.rules_sum / self.weight if self.weight else 0.0
 
 
 def score_episode(record: EpisodeRecord, profile: ScoringProfile) -> EpisodeScore:
@@ -46,11 +56,25 @@ def score_episode(record: EpisodeRecord, profile: ScoringProfile) -> EpisodeScor
             f"{profile.dt_s} s"
         )
     names = profile.humanness_terms + profile.rules_terms
+    if profile.averaging is Averaging.agent_episode:
+        driven = [track for track in record.tracks if len(track.x)]
+        term_sums = {
+            name: float(sum(_per_agent_episode(name, track, profile) for track in driven))
+            for name in names
+        }
+        return _score(
+            record.scenario_id, record.agents, term_sums, profile, len(driven), goal_l1(record)
+        )
     term_sums = {
         name: float(sum(get_term(name)(track, profile).sum() for track in record.tracks))
         for name in names
     }
-    return _score(record.scenario_id, record.agents, term_sums, profile)
+    return _score(record.scenario_id, record.agents, term_sums, profile, None, goal_l1(record))
+
+
+def _per_agent_episode(name: str, track: AgentTrack, profile: ScoringProfile) -> float:
+    values = get_term(name)(track, profile)
+    return float(values[-1] if name in profile.last_value_terms else values.mean())
 
 
 def score_without_record(
@@ -61,7 +85,8 @@ def score_without_record(
     if any(agent.steps for agent in agents):
         raise RecordError(f"{scenario_id}: agents drove steps but the record is missing")
     names = profile.humanness_terms + profile.rules_terms
-    return _score(scenario_id, agents, dict.fromkeys(names, 0.0), profile)
+    episodes = 0 if profile.averaging is Averaging.agent_episode else None
+    return _score(scenario_id, agents, dict.fromkeys(names, 0.0), profile, episodes)
 
 
 def _score(
@@ -69,11 +94,15 @@ def _score(
     agents: Sequence[AgentOutcome],
     term_sums: dict[str, float],
     profile: ScoringProfile,
+    agent_episodes: int | None = None,
+    goal_distance: float = 0.0,
 ) -> EpisodeScore:
     if not agents:
         raise RecordError(f"{scenario_id}: no mission agents")
     failed = sum(not agent.reached_goal for agent in agents)
-    time = profile.max_episode_steps if failed else max(agent.done_step for agent in agents)
+    time: float = profile.max_episode_steps if failed else max(a.done_step for a in agents)
+    if profile.time_adds_goal_l1:
+        time += goal_distance
     return EpisodeScore(
         scenario_id=scenario_id,
         failure=failed / len(agents),
@@ -82,4 +111,16 @@ def _score(
         humanness_sum=sum(term_sums[name] for name in profile.humanness_terms),
         rules_sum=sum(term_sums[name] for name in profile.rules_terms),
         term_sums=term_sums,
+        agent_episodes=agent_episodes,
+    )
+
+
+def goal_l1(record: EpisodeRecord) -> float:
+    """Sum over agents of ``|x - goal_x| + |y - goal_y|`` [m] at the agent's last driven row; 0
+    for an agent that never drove (its start is not in the record; it is charged the step limit
+    anyway)."""
+    return sum(
+        abs(float(track.x[-1]) - gx) + abs(float(track.y[-1]) - gy)
+        for track, (gx, gy) in zip(record.tracks, record.goals, strict=True)
+        if len(track.x)
     )

@@ -6,10 +6,18 @@ not registered, or a term listed twice fails when the profile loads, not halfway
 
 from __future__ import annotations
 
+from enum import StrEnum
 from functools import cache
 from importlib import resources
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
 from evaluator.scoring.registry import get_term
 
@@ -18,6 +26,15 @@ DEFAULT_PROFILE = "driving-smarts-2022"
 
 class ProfileError(ValueError):
     pass
+
+
+class Averaging(StrEnum):
+    """How humanness and rules are averaged over a set of scenarios."""
+
+    # The paper: every agent-step weighs the same (long episodes weigh more).
+    agent_step = "agent_step"
+    # The competition's evaluation code: each agent-episode's mean first, then the mean of those.
+    agent_episode = "agent_episode"
 
 
 class ScoringProfile(BaseModel):
@@ -39,6 +56,13 @@ class ScoringProfile(BaseModel):
     speeding_tolerance_fraction: float = Field(gt=0)  # speeding saturates at (1 + f) x limit
     wrong_way_angle_deg: float = Field(gt=0, le=180)
 
+    averaging: Averaging = Averaging.agent_step
+    # With agent_episode averaging: terms whose per-step values are running means, so an
+    # agent-episode keeps the value of its last step instead of the mean of its steps.
+    last_value_terms: tuple[str, ...] = ()
+    # Time adds sum over agents of |x - goal_x| + |y - goal_y| [m] at the agent's last row.
+    time_adds_goal_l1: bool = False
+
     @field_validator("humanness_terms", "rules_terms")
     @classmethod
     def _registered_once(cls, names: tuple[str, ...]) -> tuple[str, ...]:
@@ -47,6 +71,15 @@ class ScoringProfile(BaseModel):
         for name in names:
             get_term(name)  # raises on an unknown name
         return names
+
+    @model_validator(mode="after")
+    def _last_value_terms_are_scored(self) -> ScoringProfile:
+        unknown = set(self.last_value_terms) - set(self.humanness_terms + self.rules_terms)
+        if unknown:
+            raise ValueError(f"last_value_terms not in the profile's terms: {sorted(unknown)}")
+        if self.last_value_terms and self.averaging is not Averaging.agent_episode:
+            raise ValueError("last_value_terms needs averaging = agent_episode")
+        return self
 
     @property
     def ref(self) -> dict[str, str | int]:
@@ -60,7 +93,8 @@ def profile_names() -> tuple[str, ...]:
 
 @cache
 def load_profile(name: str = DEFAULT_PROFILE) -> ScoringProfile:
-    import evaluator.scoring.terms  # noqa: F401  (registers the terms the profile names)
+    import evaluator.scoring.reference_terms  # registers the terms the profiles name
+    import evaluator.scoring.terms  # noqa: F401
 
     if name not in profile_names():
         known = ", ".join(profile_names())

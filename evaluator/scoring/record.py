@@ -41,6 +41,7 @@ class EpisodeRecord:
     episode_steps: int
     agents: tuple[AgentOutcome, ...]
     tracks: tuple[AgentTrack, ...]
+    goals: tuple[tuple[float, float], ...]  # [m] each mission's goal centre
 
 
 def load_record(path: Path) -> EpisodeRecord:
@@ -89,6 +90,9 @@ def _parse(arrays: dict[str, np.ndarray]) -> EpisodeRecord:
         episode_steps=int(scalar(arrays["episode_steps"])),
         agents=agents,
         tracks=tracks,
+        goals=tuple(
+            (float(arrays["goal_x"][a]), float(arrays["goal_y"][a])) for a in range(len(steps))
+        ),
     )
 
 

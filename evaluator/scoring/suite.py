@@ -16,8 +16,8 @@ class Metrics(BaseModel):
 
     completion: float  # failures / N
     time: float  # [steps] mean of T^i
-    # Means over all agent-steps of the humanness and rules terms; None when no agent drove a
-    # step (nothing was measured: never shown as 0, the best value).
+    # Means over all agent-steps (or agent-episodes, per the profile) of the humanness and rules
+    # terms; None when no agent drove a step (nothing was measured: never shown as 0, the best).
     humanness: float | None
     rules: float | None
 
@@ -32,14 +32,12 @@ def aggregate(scores: Iterable[EpisodeScore]) -> Metrics | None:
     if not scores:
         return None
     n = len(scores)
-    agent_steps = sum(score.agent_steps for score in scores)
+    weight = sum(score.weight for score in scores)
     return Metrics(
         completion=sum(score.failure for score in scores) / n,
         time=sum(score.time for score in scores) / n,
-        humanness=sum(score.humanness_sum for score in scores) / agent_steps
-        if agent_steps
-        else None,
-        rules=sum(score.rules_sum for score in scores) / agent_steps if agent_steps else None,
+        humanness=sum(score.humanness_sum for score in scores) / weight if weight else None,
+        rules=sum(score.rules_sum for score in scores) / weight if weight else None,
     )
 
 

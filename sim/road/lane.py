@@ -30,6 +30,8 @@ class Lane:
     is_internal: bool
     is_shoulder: bool
     successors: list[str] = field(default_factory=list)  # lane ids reachable at the lane's end
+    # phase of the first waypoint [0.1 mm] -> waypoint dicts; see waypoints_from()
+    _waypoint_cache: dict[int, list[dict]] = field(default_factory=dict, init=False, repr=False)
 
     def __post_init__(self) -> None:
         pts = np.asarray(self.centreline, dtype=np.float64)
@@ -87,15 +89,40 @@ class Lane:
         )
         return self.segment_headings[i]
 
-    @cached_property
+    @property
     def waypoints(self) -> list[dict]:
-        """Waypoint dicts every :data:`WAYPOINT_SPACING` along the lane, from s = 0.
+        """Waypoint dicts every :data:`WAYPOINT_SPACING` along the lane, from s = 0."""
+        return self._waypoints_with_phase(0.0)
 
-        Built once per lane and shared by every observation: treat them as read-only.
+    def waypoints_from(self, first_s: float, limit: int) -> tuple[list[dict], int]:
+        """Up to ``limit`` waypoint dicts at s = ``first_s`` + k * :data:`WAYPOINT_SPACING` [m],
+        k >= 0, short of the lane's end; and how many such points the lane has in all.
+
+        A path crossing into this lane starts at the offset left over from the previous lane, so
+        the spacing stays even across the join. Points are built once per offset phase (the
+        few a lane is entered at) and shared by every observation: treat them as read-only.
         """
-        s = np.arange(0.0, self.length, WAYPOINT_SPACING)
+        k0 = math.floor(first_s / WAYPOINT_SPACING + 1e-9)
+        phase = max(first_s - k0 * WAYPOINT_SPACING, 0.0)
+        points = self._waypoints_with_phase(phase)
+        return points[k0 : k0 + limit], max(len(points) - k0, 0)
+
+    def _waypoints_with_phase(self, phase: float) -> list[dict]:
+        key = math.floor(phase * 1e4 + 0.5)  # [0.1 mm]; round() is slow on the per-step path
+        cached = self._waypoint_cache.get(key)
+        if cached is None:
+            s = np.arange(key / 1e4, self.length, WAYPOINT_SPACING)
+            cached = self._waypoint_cache[key] = self._waypoint_dicts(s)
+        return cached
+
+    @cached_property
+    def end_waypoint(self) -> dict:
+        """The waypoint at the lane's very end: the last point of a path that ends here."""
+        return self._waypoint_dicts(np.array([self.length]))[0]
+
+    def _waypoint_dicts(self, s: np.ndarray) -> list[dict]:
         pos = self.position_at(s)
-        heading = self.heading_at(s)
+        heading = self.heading_at(np.minimum(s, self.length - 1e-9))
         return [
             {
                 "pos": [round(float(p[0]), 4), round(float(p[1]), 4)],
@@ -106,12 +133,16 @@ class Lane:
                 "speed_limit": self.speed_limit,
                 "lane_offset": float(si),
             }
-            for p, h, si in zip(pos, heading, s, strict=True)
+            for p, h, si in zip(pos, np.atleast_1d(heading), s, strict=True)
         ]
 
     @property
     def heading_start(self) -> float:
         return float(self.segment_headings[0])
+
+    @property
+    def heading_end(self) -> float:
+        return float(self.segment_headings[-1])
 
     def __repr__(self) -> str:
         return f"Lane({self.id!r}, length={self.length:.1f}, width={self.width:.2f})"

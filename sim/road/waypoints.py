@@ -1,25 +1,69 @@
-"""Waypoint paths ahead of a vehicle: one per lane of its road, continuing into successors."""
+"""Waypoint paths ahead of a vehicle: one per lane of its road, continuing into successors.
+
+Paths follow the mission route: at a fork the successor that leads onto the route is taken, also
+through chains of junction-internal lanes, and inside a junction the path starts on the junction
+lane that leads onto the route even when another (overlapping) junction lane is nearer. Points are
+:data:`WAYPOINT_SPACING` apart along the lanes, also across lane joins (each lane is entered at
+the offset left over from the previous one), so consecutive points never coincide. A path is never
+empty: it runs on along successor lanes, stops at a dead end (the end of an acceleration lane or
+of the road), and a vehicle past the last regular waypoint of a dead-end lane gets that lane's end
+point as its one waypoint.
+"""
 
 from __future__ import annotations
 
 import math
+from weakref import WeakKeyDictionary
 
 from sim.road.lane import WAYPOINT_SPACING, Lane
 from sim.road.network import LanePosition, RoadNetwork
 
+_MAX_LANE_HOPS = 256  # a path crosses at most this many lanes (zero-length junction lanes)
+_MAX_INTERNAL_CHAIN = 8  # junction-internal lanes in a row before a normal lane
+_JUNCTION_MATCH_DISTANCE = 0.5  # [m] a route lane this much farther than the nearest still wins
+
+_junction_lanes: WeakKeyDictionary[RoadNetwork, dict[str, list[Lane]]] = WeakKeyDictionary()
+_predecessor_cache: WeakKeyDictionary[RoadNetwork, dict[str, list[Lane]]] = WeakKeyDictionary()
+_successor_cache: WeakKeyDictionary[RoadNetwork, dict[tuple[str, tuple[str, ...]], Lane]] = (
+    WeakKeyDictionary()
+)
+
+
+def exit_edge(road: RoadNetwork, lane: Lane) -> str:
+    """The normal edge a vehicle reaches from ``lane``: its own edge unless ``lane`` is a
+    junction-internal lane, then the edge at the end of its chain of internal lanes."""
+    for _ in range(_MAX_INTERNAL_CHAIN):
+        if not lane.is_internal or not lane.successors:
+            break
+        lane = road.lanes[lane.successors[0]]
+    return lane.edge_id
+
 
 def preferred_successor(road: RoadNetwork, lane: Lane, route: tuple[str, ...]) -> Lane | None:
-    """The successor of ``lane`` that stays on ``route`` (also through a junction's internal
-    lane), else the first one; None at a dead end."""
+    """The successor of ``lane`` that stays on ``route`` (also through a junction's chain of
+    internal lanes), else the first one; None at a dead end."""
     if not lane.successors:
         return None
-    for succ_id in lane.successors:
-        succ = road.lanes[succ_id]
-        if succ.edge_id in route:
-            return succ
-        if succ.is_internal and any(road.lanes[n].edge_id in route for n in succ.successors):
-            return succ
-    return road.lanes[lane.successors[0]]
+    # Asked for every path of every observation, with few distinct (lane, route) pairs.
+    by_road = _successor_cache.get(road)
+    if by_road is None:
+        by_road = _successor_cache[road] = {}
+    key = (lane.id, tuple(route))
+    if key not in by_road:
+        by_road[key] = _route_successor(road, lane, route)
+    return by_road[key]
+
+
+def _route_successor(road: RoadNetwork, lane: Lane, route: tuple[str, ...]) -> Lane:
+    successors = [road.lanes[succ_id] for succ_id in lane.successors]
+    edge = exit_edge(road, lane)
+    # Edges after the current one first: a route that passes an edge twice goes on, not back.
+    ahead = route[route.index(edge) + 1 :] if edge in route else route
+    for edges in (ahead, route):
+        for succ in successors:
+            if exit_edge(road, succ) in edges:
+                return succ
+    return successors[0]
 
 
 def waypoint_paths(
@@ -31,26 +75,100 @@ def waypoint_paths(
     max_paths: int,
     per_path: int,
 ) -> list[list[dict]]:
-    """Up to ``max_paths`` paths of up to ``per_path`` waypoints (1 m apart) starting level with
+    """Up to ``max_paths`` paths of 1 to ``per_path`` waypoints (1 m apart) starting level with
     (x, y) on each lane of the vehicle's road, nearest lanes to the vehicle's own first, then
-    ordered by lane index. Waypoint dicts are shared between observations (read-only)."""
+    ordered by lane index. In a junction, one path along the junction lane that leads onto
+    ``route``. Waypoint dicts are shared between observations (read-only)."""
     here = position.lane
-    lanes = road.edges[here.edge_id] if not here.is_internal else [here]
-    lanes = sorted(lanes, key=lambda lane: abs(lane.index - here.index))[:max_paths]
+    if here.is_internal:
+        lane, s = route_lane_in_junction(road, position, x, y, route)
+        return [_path_from(road, lane, s, route, per_path)]
+    lanes = sorted(road.edges[here.edge_id], key=lambda lane: abs(lane.index - here.index))
     paths = []
-    for lane in sorted(lanes, key=lambda lane: lane.index):
+    for lane in sorted(lanes[:max_paths], key=lambda lane: lane.index):
         s = position.s if lane is here else lane.project(x, y)[0]
         paths.append(_path_from(road, lane, s, route, per_path))
     return paths
 
 
+def route_lane_in_junction(
+    road: RoadNetwork, position: LanePosition, x: float, y: float, route: tuple[str, ...]
+) -> tuple[Lane, float]:
+    """The junction lane under (x, y) that leads onto ``route``, and s [m] on it.
+
+    Junction lanes from one incoming lane overlap at first (straight on, left, right); the
+    nearest one, which ``position`` holds, need not be the vehicle's way. Among the lanes of the
+    same junction within the vehicle's own lane surface that exit onto the route, the one the
+    path took before the junction (its entering lane's preferred successor) wins while the
+    vehicle is on it, so the path does not jump to a neighbouring turning lane; else the
+    nearest."""
+    here = position.lane
+    if not route or exit_edge(road, here) in route:
+        return here, position.s
+    candidates: list[tuple[float, Lane, float]] = []
+    for lane in _lanes_of_junction(road, here):
+        if lane is here or exit_edge(road, lane) not in route:
+            continue
+        s, _, _ = lane.project(x, y)
+        px, py = lane.position_at(s)
+        distance = math.hypot(px - x, py - y)
+        if distance <= max(position.distance + _JUNCTION_MATCH_DISTANCE, lane.width / 2):
+            candidates.append((distance, lane, s))
+    if not candidates:
+        return here, position.s
+    predecessors = _predecessors(road)
+    taken = [
+        c
+        for c in candidates
+        if any(preferred_successor(road, p, route) is c[1] for p in predecessors.get(c[1].id, ()))
+    ]
+    _, lane, s = min(taken or candidates, key=lambda c: c[0])
+    return lane, s
+
+
+def _predecessors(road: RoadNetwork) -> dict[str, list[Lane]]:
+    found = _predecessor_cache.get(road)
+    if found is None:
+        found = {}
+        for lane in road.lanes.values():
+            for succ_id in lane.successors:
+                found.setdefault(succ_id, []).append(lane)
+        _predecessor_cache[road] = found
+    return found
+
+
+def _lanes_of_junction(road: RoadNetwork, lane: Lane) -> list[Lane]:
+    by_junction = _junction_lanes.get(road)
+    if by_junction is None:
+        by_junction = {}
+        for other in road.lanes.values():
+            if other.is_internal:
+                by_junction.setdefault(_junction_id(other), []).append(other)
+        _junction_lanes[road] = by_junction
+    return by_junction.get(_junction_id(lane), [])
+
+
+def _junction_id(lane: Lane) -> str:
+    # SUMO names internal edges ":<junction id>_<index>".
+    return lane.edge_id[1:].rsplit("_", 1)[0]
+
+
 def _path_from(road: RoadNetwork, lane: Lane, s: float, route: tuple[str, ...], n: int) -> list:
     path: list[dict] = []
-    start = math.ceil(s / WAYPOINT_SPACING - 1e-9)
-    while lane is not None and len(path) < n:
-        path.extend(lane.waypoints[start : start + n - len(path)])
-        lane = preferred_successor(road, lane, route)
-        start = 0
+    first_s = math.ceil(s / WAYPOINT_SPACING - 1e-9) * WAYPOINT_SPACING
+    for _ in range(_MAX_LANE_HOPS):
+        points, on_lane = lane.waypoints_from(first_s, n - len(path))
+        path.extend(points)
+        if len(path) >= n:
+            break
+        # The next point lies past this lane's end by what is left of one spacing.
+        first_s = first_s + on_lane * WAYPOINT_SPACING - lane.length
+        successor = preferred_successor(road, lane, route)
+        if successor is None:
+            break
+        lane = successor
+    if not path:
+        path.append(lane.end_waypoint)
     return path
 
 

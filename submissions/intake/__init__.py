@@ -25,6 +25,7 @@ from submissions.intake.contents import (
 )
 from submissions.intake.dependencies import install_requirements
 from submissions.intake.pack import pack_folder
+from submissions.intake.porting import porting_notes
 
 __all__ = ["IntakeError", "PreparedSubmission", "check_zip", "pack_folder", "prepare_submission"]
 
@@ -39,6 +40,7 @@ class PreparedSubmission:
     sha256: str  # of the zip's bytes
     size: int  # of the zip [bytes]
     explanation: str | None
+    notes: tuple[str, ...] = ()  # porting help that does not reject (submissions.intake.porting)
 
 
 @dataclass(frozen=True)
@@ -48,6 +50,7 @@ class CheckedZip:
     requirements: str | None
     sha256: str
     size: int
+    notes: tuple[str, ...] = ()
 
 
 def check_zip(path: Path, settings: Settings | None = None) -> CheckedZip:
@@ -59,11 +62,14 @@ def check_zip(path: Path, settings: Settings | None = None) -> CheckedZip:
         interface = load_interface(archive)
         explanation = load_explanation(archive)
         requirements = read_text(archive, REQUIREMENTS)
+        notes = porting_notes(archive)
     digest = hashlib.sha256()
     with path.open("rb") as handle:
         while chunk := handle.read(1024**2):
             digest.update(chunk)
-    return CheckedZip(interface, explanation, requirements, digest.hexdigest(), path.stat().st_size)
+    return CheckedZip(
+        interface, explanation, requirements, digest.hexdigest(), path.stat().st_size, notes
+    )
 
 
 def prepare_submission(
@@ -100,4 +106,5 @@ def prepare_submission(
         sha256=checked.sha256,
         size=checked.size,
         explanation=checked.explanation,
+        notes=checked.notes,
     )

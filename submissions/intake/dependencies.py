@@ -19,6 +19,7 @@ from arena.config import Settings
 from arena.errors import IntakeError
 from submissions.intake.archive import make_read_only
 from submissions.intake.contents import REQUIREMENTS
+from submissions.intake.porting import explain_missing_wheel
 
 PIP_TIMEOUT_S = 600
 COMPLETE_MARKER = ".complete"
@@ -64,11 +65,14 @@ def install_requirements(text: str, settings: Settings) -> Path | None:
         listed = work / REQUIREMENTS
         listed.write_text("\n".join(requirements) + "\n")
         wheels = work / "wheels"
-        pip(
-            ["download", "--only-binary=:all:", "--dest", str(wheels), "-r", str(listed)],
-            "no-wheel",
-            "could not be resolved to wheels (source distributions are not accepted)",
-        )
+        try:
+            pip(
+                ["download", "--only-binary=:all:", "--dest", str(wheels), "-r", str(listed)],
+                "no-wheel",
+                "could not be resolved to wheels (source distributions are not accepted)",
+            )
+        except IntakeError as error:
+            raise explain_missing_wheel(error, text) from error
         installed = work / "deps"
         pip(
             [

@@ -123,6 +123,7 @@ def test_observation_has_every_field_of_the_spec(tmp_path, run):
         "step_count",
         "elapsed_sim_time",
         "distance_travelled",
+        "done",
         "events",
         "ego_vehicle_state",
         "neighborhood_vehicle_states",
@@ -258,6 +259,39 @@ def test_the_others_drive_on_after_one_agent_is_removed(tmp_path, run):
     assert "Agent_0" not in [n["id"] for n in late]
 
 
+def test_finishing_agent_gets_its_last_observation_then_is_nobodys_neighbour(tmp_path, run):
+    """Two agents side by side; Agent_0 drives off the road. The step it ends, it receives its
+    last observation (off_road event, done) while Agent_1 may still see it; from the next step
+    on it appears neither in the observations nor among Agent_1's neighbours."""
+    folder = make_scenario(
+        tmp_path,
+        ScenarioSpec(
+            missions=(
+                mission("Agent_0", start=(20.0, lane_y(0), 0.0)),
+                mission("Agent_1", start=(20.0, lane_y(1), 0.0), goal=(120.0, lane_y(1))),
+            ),
+        ),
+    )
+
+    def policy(obs):
+        x, y, _ = obs["ego_vehicle_state"]["position"]
+        if obs["ego_vehicle_state"]["id"] == "Agent_0":
+            return [x + 1.0, y - 0.5, -0.5, 0.1]
+        return [x + 1.0, y, 0.0, 0.1]
+
+    r = run(folder, policy)
+    ended = next(i for i, obs in enumerate(r.agent.seen) if obs.get("Agent_0", {}).get("done"))
+    last = r.agent.seen[ended]["Agent_0"]
+    assert last["events"]["off_road"] and last["done"]
+    assert not r.agent.seen[ended]["Agent_1"]["done"]
+    assert all(not obs["Agent_0"]["done"] for obs in r.agent.seen[:ended])
+    for obs in r.agent.seen[ended + 1 :]:
+        assert "Agent_0" not in obs
+        assert "Agent_0" not in [n["id"] for n in obs["Agent_1"]["neighborhood_vehicle_states"]]
+    assert len(r.agent.seen) > ended + 1
+    assert {o.id: o.reason for o in r.result.agents}["Agent_0"] is DoneReason.off_road
+
+
 FORWARD = {
     ActionSpace.TargetPose: lambda o: drive_straight(8.0)(o),
     ActionSpace.RelativeTargetPose: lambda o: [0.8, 0.0, 0.0],
@@ -332,3 +366,42 @@ def test_an_action_for_an_unknown_or_missing_agent_id_is_named(tmp_path, run):
     )
     assert silent.agents[0].reason is DoneReason.invalid_action
     assert "no action for agent id 'Agent_0' [rule: missing-agent-id]" in silent.detail
+
+
+def test_one_agents_failure_ends_that_agent_and_its_team_mate_drives_on(tmp_path):
+    """The sandbox reports Agent_0's exception alone (SomeAgentsFailed): Agent_0 ends with
+    agent_error at that step, Agent_1 takes its action and reaches its goal."""
+    from pathlib import Path
+
+    from sim.agent import SomeAgentsFailed
+    from sim.episode import run_episode
+    from sim.interface import AgentInterface
+    from tests.sim.agents import ScriptedAgent
+
+    folder = make_scenario(
+        tmp_path,
+        ScenarioSpec(
+            missions=(
+                mission("Agent_0", start=(20.0, lane_y(0), 0.0)),
+                mission("Agent_1", start=(20.0, lane_y(1), 0.0), goal=(120.0, lane_y(1))),
+            ),
+        ),
+    )
+
+    class FailsAgent0AtStep5(ScriptedAgent):
+        def act(self, obs):
+            actions = super().act(obs)
+            if len(self.seen) == 5 and "Agent_0" in obs:
+                del actions["Agent_0"]
+                raise SomeAgentsFailed(actions, {"Agent_0": "ValueError: bad input"})
+            return actions
+
+    agent = FailsAgent0AtStep5(drive_straight(10.0))
+    result = run_episode(
+        folder, agent, AgentInterface(), record_path=Path(tmp_path) / "records" / "r.npz"
+    )
+    by_id = {o.id: o for o in result.agents}
+    assert by_id["Agent_0"].reason is DoneReason.agent_error and by_id["Agent_0"].steps == 4
+    assert by_id["Agent_1"].reason is DoneReason.reached_goal
+    assert "Agent_0: ValueError: bad input" in result.detail
+    assert all("Agent_0" not in obs for obs in agent.seen[5:])

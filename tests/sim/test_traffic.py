@@ -1,7 +1,6 @@
 """SumoTraffic: whether our own vehicles are still in SUMO's network."""
 
-from scenarios.schema import load_scenario
-
+from arena.scenario import load_scenario
 from sim.traffic import SumoTraffic
 from tests.sim.builders import ScenarioSpec, lane_y, make_scenario
 

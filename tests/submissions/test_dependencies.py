@@ -30,7 +30,7 @@ def test_a_requirement_without_a_wheel_is_rejected(tmp_path: Path) -> None:
     upload = write_zip(tmp_path / "a.zip", with_policy(**{"requirements.txt": "PyYAML==5.1\n"}))
     with pytest.raises(IntakeError) as caught:
         prepare_submission(upload, tmp_path / "a", settings)
-    assert (caught.value.entry, caught.value.rule) == ("requirements.txt", "no-wheel")
+    assert (caught.value.entry, caught.value.rule) == ("requirements.txt:1", "no-wheel")
     assert not (tmp_path / "a").exists()
 
 

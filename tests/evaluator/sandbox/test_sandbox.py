@@ -17,6 +17,7 @@ from arena.config import SandboxKind, Settings
 from arena.errors import AgentFailed, SandboxUnavailable
 from arena.outcome import DoneReason
 from evaluator.sandbox import check_service_kind, cleanup, resolve_kind, start
+from sim.agent import SomeAgentsFailed
 from submissions.intake import pack_folder, prepare_submission
 from tests.evaluator.sandbox.agents import agent, observation
 from tests.evaluator.sandbox.conftest import leftovers, usable
@@ -230,3 +231,27 @@ def test_nothing_naming_the_scenario_enters_the_sandbox(any_kind, settings, tmp)
     inside = base64.b64decode(encoded).decode()
     assert "DRIVING_ARENA" in inside or any_kind is SandboxKind.docker
     assert scenario_id not in inside and "hidden-scenario" not in inside
+
+
+def test_one_agents_exception_fails_that_agent_only(any_kind, settings, labels, tmp) -> None:
+    """The policy raises on Agent_1's observation only: Agent_0 still gets its action, Agent_1
+    is reported failed with its traceback; when every agent raises, the whole agent fails."""
+    act = """
+    if "Agent_1" in obs:
+        raise ValueError("cannot drive " + obs["Agent_1"]["ego_vehicle_state"]["id"])
+    return {k: [1.0, 0.0] for k in obs}
+    """
+    submission = agent(tmp, settings, act=act)
+    two = {"Agent_0": observation()["Agent_0"], "Agent_1": observation()["Agent_0"]}
+    two["Agent_1"] = {**two["Agent_1"], "ego_vehicle_state": {"id": "Agent_1"}}
+    with start(submission, kind=any_kind, labels=labels, settings=settings) as handle:
+        handle.reset()
+        with pytest.raises(SomeAgentsFailed) as caught:
+            handle.act(two)
+        assert caught.value.actions == {"Agent_0": [1.0, 0.0]}
+        assert list(caught.value.failed) == ["Agent_1"]
+        assert "ValueError: cannot drive Agent_1" in caught.value.failed["Agent_1"]
+        assert handle.act({"Agent_0": two["Agent_0"]}) == {"Agent_0": [1.0, 0.0]}
+        with pytest.raises(AgentFailed) as whole:
+            handle.act({"Agent_1": two["Agent_1"]})
+        assert whole.value.reason is DoneReason.agent_error

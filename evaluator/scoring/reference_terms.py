@@ -1,0 +1,49 @@
+"""Terms of the ``driving-smarts-2022-reference`` profile: the formulas of the competition's own
+evaluation code, where they differ from the paper's (``docs/scoring.md`` compares them).
+
+Same contract as :mod:`evaluator.scoring.terms`: one agent's driven rows in, ``(n,)`` floats out.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from evaluator.scoring.profile import ScoringProfile
+from evaluator.scoring.record import AgentTrack
+from evaluator.scoring.registry import register_term
+from evaluator.scoring.terms import distance_obs, wrap_angle
+
+
+@register_term("jerk_squared_change")
+def jerk_squared_change(track: AgentTrack, profile: ScoringProfile) -> np.ndarray:
+    """``|a_t - a_(t-1)|^2 + (alpha_t - alpha_(t-1))^2``: the squared change between steps of
+    the acceleration vector [m/s^2] plus that of the angular acceleration [rad/s^2], not
+    divided by dt; 0 on the first two rows (no earlier acceleration)."""
+    dt = profile.dt_s
+    velocity = np.stack([track.vx, track.vy], axis=1)  # (n, 2) [m/s]
+    accel = np.diff(velocity, axis=0) / dt  # (n-1, 2): row i is the accel at row i+1
+    yaw_rate = wrap_angle(np.diff(track.heading)) / dt  # (n-1,) [rad/s]
+    angular_accel = np.diff(yaw_rate) / dt  # (n-2,): row i is at row i+2
+    out = np.zeros(len(track.x))
+    if len(track.x) > 2:
+        out[2:] = (np.diff(accel, axis=0) ** 2).sum(axis=1)
+    if len(track.x) > 3:
+        out[3:] += np.diff(angular_accel) ** 2
+    return out
+
+
+@register_term("lc_off_half_width")
+def lc_off_half_width(track: AgentTrack, profile: ScoringProfile) -> np.ndarray:
+    """``(distance from the lane centre / (lane width / 2))^2``: 1 on the lane's edge."""
+    return (track.lane_offset / (track.lane_width / 2)) ** 2
+
+
+@register_term("distance_obs_running_mean")
+def distance_obs_running_mean(track: AgentTrack, profile: ScoringProfile) -> np.ndarray:
+    """The running mean of :func:`distance_obs` over the steps with a vehicle ahead, as of
+    each step (0 until the first such step; a step with nothing ahead leaves it unchanged). The
+    reference code reports this running mean, so an agent-episode keeps its last value."""
+    value = distance_obs(track, profile)
+    ahead = value > 0.0
+    count = np.cumsum(ahead)
+    return np.where(count > 0, np.cumsum(value) / np.maximum(count, 1), 0.0)

@@ -1,0 +1,81 @@
+"""Porting help at intake for Driving SMARTS 2022 submissions (issue 10)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from arena.cli import app
+from arena.config import Settings
+from arena.errors import IntakeError
+from submissions.intake import check_zip, prepare_submission
+from submissions.intake.porting import explain_missing_wheel
+from tests.submissions.zips import GOOD_POLICY, write_zip
+
+SMARTS_POLICY = (
+    GOOD_POLICY
+    + """
+
+def submitted_wrappers():
+    return []
+"""
+)
+
+
+def test_smarts_leftovers_get_notes_naming_them(tmp_path: Path) -> None:
+    upload = write_zip(
+        tmp_path / "a.zip", {"policy.py": SMARTS_POLICY, "config.yaml": "img_meters: 50\n"}
+    )
+    notes = check_zip(upload, Settings(data_dir=tmp_path / "data")).notes
+    assert len(notes) == 2
+    assert "submitted_wrappers()" in notes[0] and "observation_format: smarts2022" in notes[0]
+    assert notes[1].startswith("config.yaml") and "agent.yaml" in notes[1]
+
+
+def test_a_plain_submission_gets_no_notes(tmp_path: Path) -> None:
+    # The name in a comment or string is not a definition.
+    policy = GOOD_POLICY + "\n# no submitted_wrappers here\n"
+    upload = write_zip(tmp_path / "a.zip", {"policy.py": policy})
+    assert check_zip(upload, Settings(data_dir=tmp_path / "data")).notes == ()
+
+
+def test_check_prints_the_porting_notes(tmp_path: Path) -> None:
+    upload = write_zip(tmp_path / "a.zip", {"policy.py": SMARTS_POLICY})
+    result = CliRunner().invoke(app, ["submission", "check", str(upload), "--no-install"])
+    assert result.exit_code == 0, result.output
+    assert "porting note" in result.output and "submitted_wrappers" in result.output
+
+
+def test_missing_wheel_of_a_dependency_is_named_as_one() -> None:
+    # pip's own wording (its last lines), for a package pulled in by a listed requirement.
+    pip_said = IntakeError(
+        "requirements.txt",
+        "no-wheel",
+        "could not be resolved to wheels: ERROR: Could not find a version that satisfies the "
+        "requirement gym==0.19.0 (from versions: none) / ERROR: No matching distribution found "
+        "for gym==0.19.0",
+    )
+    explained = explain_missing_wheel(pip_said, "d3rlpy==1.1.1\n")
+    assert explained.entry == "requirements.txt" and explained.rule == "no-wheel"
+    assert "gym==0.19.0 (a dependency of a listed requirement)" in explained.message
+    assert "Replace it with a package that ships wheels" in explained.message
+    assert "remove the requirement that pulls it in" in explained.message
+
+
+@pytest.mark.slow
+def test_a_smarts_requirement_without_a_wheel_names_its_line_and_versions(tmp_path: Path) -> None:
+    """The 1st-place team's Panda3D pin (resolved from PyPI, as the service does)."""
+    settings = Settings(data_dir=tmp_path / "data")
+    requirements = "# from the SMARTS 2022 submission\nsix==1.16.0\nPanda3D==1.10.9\n"
+    upload = write_zip(
+        tmp_path / "a.zip", {"policy.py": GOOD_POLICY, "requirements.txt": requirements}
+    )
+    with pytest.raises(IntakeError) as caught:
+        prepare_submission(upload, tmp_path / "a", settings)
+    error = caught.value
+    assert (error.entry, error.rule) == ("requirements.txt:3", "no-wheel")
+    assert error.message.startswith("Panda3D==1.10.9 has no wheel for CPython 3.11")
+    assert "Pin a version that has one (1.10." in error.message
+    assert "remove it" in error.message
