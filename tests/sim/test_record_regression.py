@@ -1,10 +1,10 @@
 """Records and observations of public scenarios must not change with simulator refactors.
 
 Speed work (bulk SUMO reads, vectorised geometry, leaner observation building) must keep every
-record byte and every observation value. The digests below were last taken when waypoint paths began to follow the
-mission route and a finishing agent began to get its last observation (``done``): the planner
-drives the junction and cut-in scenarios differently since, the replays' records are unchanged.
-A deliberate change of records or observations (new fields,
+record byte and every observation value. The digests below were last taken when waypoint paths
+began to follow the mission route and a finishing agent began to get its last observation
+(``done``): the planner drives the junction and cut-in scenarios differently since; the replays'
+records are unchanged. A deliberate change of records or observations (new fields,
 other waypoints, other terminal steps) updates them in the same commit, saying why:
 ``python -m tests.sim.test_record_regression`` prints the current digests.
 """
