@@ -23,7 +23,7 @@ if [ "${#need_apt[@]}" -gt 0 ]; then
 fi
 
 extras=""
-[ "$dev" = 1 ] && extras="[dev]"
+[ "$dev" = 1 ] && extras="[dev,learn]"
 python3 -m pip install -q --disable-pip-version-check -e ".${extras}"
 
 # The Docker sandbox: engine, daemon and the offline-built agent image (skipped where impossible).
