@@ -41,9 +41,10 @@ class Config:
 class Reply:
     """What one reset or step produced."""
 
-    observations: dict[str, dict]  # encoded, of the agents live after the step
+    # Observations are encoded and packed (learn.packing); SimulatorProcess unpacks them.
+    observations: dict[str, Any]  # of the agents live after the step
     finished: dict[str, str] = field(default_factory=dict)  # agent id -> done reason
-    terminal: dict[str, dict] = field(default_factory=dict)  # encoded, of the finished agents
+    terminal: dict[str, Any] = field(default_factory=dict)  # of the agents finished this step
     events: dict[str, dict] = field(default_factory=dict)  # of every agent that drove this step
     terms: dict[str, dict[str, float]] = field(default_factory=dict)
     ids: dict[str, dict[str, str]] = field(default_factory=dict)  # road/lane ids per agent
@@ -59,6 +60,10 @@ class SimulatorProcess:
     """A child process holding one simulator; :meth:`call` sends a command and waits."""
 
     def __init__(self, config: Config) -> None:
+        from learn.packing import Layout
+        from learn.spaces import observation_space
+
+        self._layout = Layout(observation_space(config.interface, config.max_neighbours))
         env = dict(os.environ)
         # The child must import the same code as this process (a worktree before an install).
         env["PYTHONPATH"] = os.pathsep.join(
@@ -82,6 +87,10 @@ class SimulatorProcess:
             raise SimulatorError(f"simulator process died: {error}") from error
         if status == "error":
             raise SimulatorError(value)
+        if isinstance(value, Reply):
+            unpack = self._layout.unpack
+            value.observations = {k: unpack(v) for k, v in value.observations.items()}
+            value.terminal = {k: unpack(v) for k, v in value.terminal.items()}
         return value
 
     def close(self) -> None:
@@ -123,9 +132,12 @@ class _Episode:
 
     def __init__(self, config: Config) -> None:
         from evaluator.scoring import load_profile
+        from learn.packing import Layout
+        from learn.spaces import observation_space
 
         self.config = config
         self.profile = load_profile(config.profile)
+        self.layout = Layout(observation_space(config.interface, config.max_neighbours))
         self.sim = None
 
     def reset(self, scenario_dir: str, seed: int | None) -> Reply:
@@ -171,10 +183,11 @@ class _Episode:
         reply.step = self.sim.step_count
         return reply
 
-    def _encode(self, obs: dict) -> dict:
+    def _encode(self, obs: dict) -> bytes:
         from learn.spaces import encode_observation
 
-        return encode_observation(obs, self.config.interface, self.config.max_neighbours)
+        encoded = encode_observation(obs, self.config.interface, self.config.max_neighbours)
+        return self.layout.pack(encoded)
 
     def close(self) -> None:
         if self.sim is not None:

@@ -49,3 +49,23 @@ def test_the_encoding_module_imports_only_numpy() -> None:
         for alias in node.names
     } | {node.module.split(".")[0] for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
     assert imported == {"numpy", "__future__"}
+
+
+def test_packing_round_trips_every_leaf() -> None:
+    from learn.packing import Layout
+
+    interface = AgentInterface(drivable_area_grid_map=True, img_pixels=32, waypoints_per_path=20)
+    space = observation_space(interface, max_neighbours=4)
+    encoded = encode_observation(
+        sample_observation(rasters=True, img_pixels=32)["Agent_0"], interface, 4
+    )
+    layout = Layout(space)
+    back = layout.unpack(layout.pack(encoded))
+    assert space.contains(back)
+    for path, *_ in layout.leaves:
+        a, b = encoded, back
+        for key in path:
+            a, b = a[key], b[key]
+        np.testing.assert_array_equal(a, b)
+        assert a.dtype == b.dtype and a.shape == b.shape
+    back["ego_vehicle_state"]["speed"][...] = 1.0  # writable, like the unpacked arrays in use
