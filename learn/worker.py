@@ -93,6 +93,11 @@ class SimulatorProcess:
             value.terminal = {k: unpack(v) for k, v in value.terminal.items()}
         return value
 
+    def cpu_seconds(self) -> float:
+        """CPU time [s] the child has used so far (user + system; Linux ``/proc``)."""
+        fields = Path(f"/proc/{self._child.pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
     def close(self) -> None:
         if self._child.poll() is None:
             try:
