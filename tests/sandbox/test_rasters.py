@@ -36,3 +36,18 @@ def test_sample_rasters_reach_the_policy_as_uint8_arrays(any_kind, settings, lab
         received = handle.act(obs)["Agent_0"]
     assert received == checksums(obs)
     assert received[:3] == [96, 96, 3] and received[3] > 0  # a real picture, not zeros
+
+
+def test_the_ppo_example_drives_from_rasters_in_the_sandbox(any_kind, settings, labels, tmp):
+    """The committed PPO baseline (onnxruntime from its requirements.txt) answers a rastered
+    observation with LaneWithContinuousSpeed actions."""
+    from tests.sandbox.test_sandbox import packed_example
+
+    submission = packed_example("ppo", tmp, settings)
+    assert submission.deps_dir is not None  # onnxruntime, installed from wheels
+    obs = sample_observation(("Agent_0", "Agent_1"), rasters=True, img_pixels=64)
+    with start(submission, kind=any_kind, labels=labels, settings=settings) as handle:
+        actions = handle.act(obs)
+    assert set(actions) == {"Agent_0", "Agent_1"}
+    for speed, lane_change in actions.values():
+        assert 0.0 <= speed <= 14.0 and lane_change in (-1.0, 0.0, 1.0)
