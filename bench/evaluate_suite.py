@@ -32,9 +32,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from evaluator.runner.manifest import load_manifest
 
 from arena.config import SandboxKind, get_settings
+from arena.suite import load_suite
 from evaluator.runner import evaluate
 from evaluator.runner.evaluate import TIMINGS_FILE
 
@@ -140,7 +140,7 @@ def main() -> None:
             print(f"built hidden suite (seed {seed}) in {time.perf_counter() - started:.1f} s")
         ids = None
         if args.first:
-            ids = [s.id for s in load_manifest(suite).scenarios[: args.first]]
+            ids = [s.id for s in load_suite(suite).scenarios[: args.first]]
         jobs_1 = timed_evaluation(PLANNER, suite, work / "planner-jobs1", 1, args.sandbox, ids)
         jobs_2 = timed_evaluation(PLANNER, suite, work / "planner-jobs2", 2, args.sandbox, ids)
         trivial = timed_evaluation(TRIVIAL, suite, work / "trivial-jobs1", 1, args.sandbox, ids)

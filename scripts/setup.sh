@@ -23,7 +23,12 @@ if [ "${#need_apt[@]}" -gt 0 ]; then
 fi
 
 extras=""
-[ "$dev" = 1 ] && extras="[dev]"
+[ "$dev" = 1 ] && extras="[dev,learn]"
+# The [learn] extra's stable-baselines3 needs torch: the CPU build first, or pip would resolve a
+# multi-GB GPU build.
+if [ "$dev" = 1 ]; then
+  python3 -m pip install -q --disable-pip-version-check "torch==2.13.0"
+fi
 python3 -m pip install -q --disable-pip-version-check -e ".${extras}"
 
 # The Docker sandbox: engine, daemon and the offline-built agent image (skipped where impossible).

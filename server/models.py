@@ -24,6 +24,7 @@ from sqlalchemy import (
     Text,
     TypeDecorator,
     UniqueConstraint,
+    false,
 )
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
@@ -142,6 +143,9 @@ class Submission(Base):
     upload_key: Mapped[str] = mapped_column(String(512))
     status: Mapped[SubmissionStatus] = mapped_column(_enum(SubmissionStatus), index=True)
     status_reason: Mapped[str] = mapped_column(Text, default="")
+    # Failed through no fault of the team (our scenarios failed): the one failure that gives the
+    # daily quota back. Everything else counts from the moment the upload is accepted.
+    failed_on_our_side: Mapped[bool] = mapped_column(default=False, server_default=false())
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     queued_at: Mapped[datetime | None]
     # Set when the first evaluation starts: a submission cancelled before it does not count

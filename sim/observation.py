@@ -1,7 +1,7 @@
 """The observation dict an agent receives, exactly as ``shared/spec/agent-interface.md`` lists it.
 
-Plain Python values (lists, floats, ints, bools, strings) so it can cross a process boundary as
-JSON. Optional rasters have their keys reserved: they are None until raster rendering exists.
+Plain Python values (lists, floats, ints, bools, strings), plus the optional rasters as uint8 numpy
+arrays (``sim.bev``), which the sandbox protocol carries as arrays.
 Waypoint dicts are built once per lane and shared between observations (cheap per step): an
 in-process policy must treat observations as read-only.
 """
@@ -31,6 +31,7 @@ def build_observation(
     road: RoadNetwork,
     waypoint_paths: list[list[dict]],
     interface: AgentInterface,
+    rasters: dict[str, np.ndarray] | None = None,
 ) -> dict:
     pose, k, mission = vehicle.pose, vehicle.kinematics, vehicle.mission
     obs = {
@@ -69,7 +70,7 @@ def build_observation(
     }
     for name in RASTERS:
         if getattr(interface, name):
-            obs[name] = None
+            obs[name] = rasters[name] if rasters else None
     return obs
 
 

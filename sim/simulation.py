@@ -22,6 +22,7 @@ import numpy as np
 
 from arena.outcome import AgentOutcome, DoneReason
 from arena.scenario import ReplayTraffic, Scenario, content_hash
+from sim.bev import BevRenderer, EgoPose
 from sim.bubble import ReactiveBubble
 from sim.events import NOT_MOVING_SPEED, NOT_MOVING_STEPS, Events, collisions, is_wrong_way
 from sim.events import reached_goal as within_goal
@@ -75,6 +76,7 @@ class Simulation:
         # Why each agent that sent an invalid action was stopped (agent id -> message).
         self.violations: dict[str, str] = {}
         self.recorder = EpisodeRecorder([m.agent_id for m in self._missions])
+        self._bev = BevRenderer(self.road, interface, {m.agent_id: m.route for m in self._missions})
 
     # --- lifecycle ---------------------------------------------------------------------------
 
@@ -381,6 +383,17 @@ class Simulation:
             road=self.road,
             waypoint_paths=paths,
             interface=self.interface,
+            rasters=self._bev.render(
+                v.id,
+                EgoPose(
+                    v.pose.x,
+                    v.pose.y,
+                    v.pose.heading,
+                    v.mission.vehicle.length,
+                    v.mission.vehicle.width,
+                ),
+                near,
+            ),
         )
 
 

@@ -5,13 +5,27 @@ For participants' own unit tests of a policy, the sandbox tests and the round-tr
 
 from __future__ import annotations
 
+import numpy as np
+
+SAMPLE_LANES = 4
+SAMPLE_LANE_WIDTH = 3.2  # [m]
+SAMPLE_ROAD_LENGTH = 500.0  # [m] edge E1 runs from x = 0 to here, lanes along +x
+
 
 def sample_observation(
-    agent_ids: tuple[str, ...] = ("Agent_0",), *, waypoints: int = 50, neighbours: int = 20
+    agent_ids: tuple[str, ...] = ("Agent_0",),
+    *,
+    waypoints: int = 50,
+    neighbours: int = 20,
+    rasters: bool = False,
+    img_pixels: int = 256,
+    img_meters: float = 64.0,
 ) -> dict[str, dict]:
     """One observation per agent id: 4 straight waypoint paths of ``waypoints`` (1 m apart,
     lanes 3.2 m wide along +x), ``neighbours`` vehicles spread over the lanes ahead, the ego at
-    (100, 0) doing 12 m/s in lane 0."""
+    (100, 0) doing 12 m/s in lane 0. With ``rasters`` it also holds the three BEV rasters of that
+    scene (uint8 numpy arrays, rendered by the simulator's own renderer), as an ``agent.yaml``
+    asking for all three with ``img_pixels`` and ``img_meters`` would get them."""
 
     def one(index: int) -> dict:
         paths = [
@@ -86,4 +100,58 @@ def sample_observation(
             "waypoint_paths": paths,
         }
 
-    return {agent_id: one(i) for i, agent_id in enumerate(agent_ids)}
+    observations = {agent_id: one(i) for i, agent_id in enumerate(agent_ids)}
+    if rasters:
+        for obs in observations.values():
+            obs.update(_sample_rasters(obs, img_pixels, img_meters))
+    return observations
+
+
+def _sample_rasters(obs: dict, img_pixels: int, img_meters: float) -> dict[str, np.ndarray]:
+    """The rasters of ``obs``'s scene on a straight 4-lane road (no SUMO needed)."""
+    from sim.bev import BevRenderer, EgoPose
+    from sim.interface import AgentInterface
+    from sim.road import RoadNetwork
+    from sim.road.lane import Lane
+    from sim.vehicles import VehicleStates
+
+    lanes = {
+        f"E1_{i}": Lane(
+            id=f"E1_{i}",
+            edge_id="E1",
+            index=i,
+            centreline=np.array(
+                [[0.0, SAMPLE_LANE_WIDTH * i], [SAMPLE_ROAD_LENGTH, SAMPLE_LANE_WIDTH * i]]
+            ),
+            width=SAMPLE_LANE_WIDTH,
+            speed_limit=13.89,
+            is_internal=False,
+            is_shoulder=False,
+        )
+        for i in range(SAMPLE_LANES)
+    }
+    interface = AgentInterface(
+        top_down_rgb=True,
+        occupancy_grid_map=True,
+        drivable_area_grid_map=True,
+        img_pixels=img_pixels,
+        img_meters=img_meters,
+    )
+    ego = obs["ego_vehicle_state"]
+    others = obs["neighborhood_vehicle_states"]
+    renderer = BevRenderer(
+        RoadNetwork(lanes, []), interface, {ego["id"]: tuple(ego["mission"]["route"])}
+    )
+    near = VehicleStates(
+        [o["id"] for o in others],
+        np.array([o["position"][0] for o in others], float),
+        np.array([o["position"][1] for o in others], float),
+        np.array([o["heading"] for o in others], float),
+        np.array([o["speed"] for o in others], float),
+        np.array([o["bounding_box"][0] for o in others], float),
+        np.array([o["bounding_box"][1] for o in others], float),
+        [o["lane_id"] for o in others],
+    )
+    x, y, _ = ego["position"]
+    length, width, _ = ego["bounding_box"]
+    return renderer.render(ego["id"], EgoPose(x, y, ego["heading"], length, width), near)

@@ -333,12 +333,14 @@ def finish_run(session: Session, store: ArtifactStore, run_id: int) -> RunStatus
                 submission.status, SubmissionStatus.failed, SUBMISSION_MOVES
             )
             submission.status_reason = run.error
+            submission.failed_on_our_side = bool(summary.uncharged)
             submission.finished_at = now()
         return run.status
     write_score(session, run, run_score, run.scoring_profile, run.scoring_version)
     run.status = advance(run.status, RunStatus.scored, RUN_MOVES)
     if submission.status in (SubmissionStatus.running, SubmissionStatus.failed):
         submission.status = advance(submission.status, SubmissionStatus.scored, SUBMISSION_MOVES)
+        submission.failed_on_our_side = False
         submission.status_reason = ""
         submission.finished_at = now()
     return run.status

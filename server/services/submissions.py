@@ -54,8 +54,10 @@ class NewSubmission:
 def quota_used(
     session: Session, team_id: int, phase: str, track: Track, moment: datetime
 ) -> int:
-    """Submissions of the phase and the UTC day so far that count: failed ones and ones cancelled
-    before their evaluation started do not."""
+    """Submissions of the phase and the UTC day so far that count: every accepted one, failed ones
+    included (an agent that crashes costs its team a try, or a crash would buy free evaluations
+    of the hidden suite), except those that failed on our side and those cancelled before their
+    evaluation started."""
     day_start = datetime.combine(moment.date(), time.min, tzinfo=moment.tzinfo)
     return session.scalar(
         select(func.count())
@@ -65,7 +67,7 @@ def quota_used(
             Submission.phase == phase,
             Submission.track == track,
             Submission.created_at >= day_start,
-            Submission.status != S.failed,
+            or_(Submission.status != S.failed, Submission.failed_on_our_side.is_(False)),
             or_(Submission.status != S.cancelled, Submission.started_at.is_not(None)),
         )
     )
@@ -85,7 +87,8 @@ def check_quota(
     if quota_used(session, team_id, phase, track, moment) >= limit:
         raise QuotaExceeded(
             f"daily quota of the {phase!r} phase reached: {limit} submissions per team and "
-            "track per UTC day (failed and cancelled-before-start ones do not count)"
+            "track per UTC day (only those that failed on our side or were cancelled before "
+            "they started do not count)"
         )
 
 

@@ -156,10 +156,15 @@ def test_daily_quota_per_team_and_track(client, db, settings, keep_lane_zip):
     )
     assert upload(client, token, keep_lane_zip).status_code == 201
     assert upload(client, token, keep_lane_zip).status_code == 429
-    # Failed: does not count either.
+    # Failed through the agent's fault (it crashed): still counts, or crashing on purpose would
+    # buy free evaluations of the hidden suite.
     with db.session() as session:
         submission = evaluation.lock(session, Submission, ids[1])
         submission.status = SubmissionStatus.failed
+    assert upload(client, token, keep_lane_zip).status_code == 429
+    # Failed on our side: the try is given back.
+    with db.session() as session:
+        evaluation.lock(session, Submission, ids[1]).failed_on_our_side = True
     assert upload(client, token, keep_lane_zip).status_code == 201
 
 

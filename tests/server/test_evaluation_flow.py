@@ -229,6 +229,7 @@ def test_a_score_covers_the_whole_suite_or_waits_for_an_organiser(db, settings, 
         run = session.get(EvaluationRun, plan.run_id)
         assert run.score is None
         assert "1 scenario(s) failed on our side" in run.error
+        assert run.submission.failed_on_our_side  # not charged to the team's quota
 
 
 def run_everything(db, settings, plan, success=True):

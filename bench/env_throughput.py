@@ -1,0 +1,121 @@
+"""Training-environment throughput: raw libsumo vs our Gymnasium env, without and with rasters.
+
+The traffic of ``bench/sim_throughput.py`` (a 3-lane, 3 km straight road, 100 background
+vehicles, steps of 0.1 s). Three sides, in one run: raw libsumo stepping that traffic
+(``simulationStep`` only, in its own process); :class:`learn.gym_env.DrivingArenaEnv` with one
+ego driven by a gap-keeping policy (TargetPose), no rasters; and the same env with all three
+rasters at 256 px. The env sides time ``env.step`` as a training loop sees it (the simulator
+child, the pipe, observation encoding); the policy's own time is not counted. Best of
+``--repeat`` each.
+
+Two clocks: wall time, and CPU time (this process's plus the simulator child's, from ``/proc``).
+On a shared, loaded machine wall time mostly measures the neighbours; the summary line uses CPU
+time, which counts only the work done.
+
+Usage: ``python bench/env_throughput.py [--steps 1000] [--vehicles 100] [--repeat 2]``.
+The last line printed is ``env_ratio=<env_time/raw_time> raster_ms=<extra ms per agent-step for
+rasters>`` (targets: at most 2 and at most 1).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from sim_throughput import build, in_child
+
+RASTERS = {"top_down_rgb": True, "occupancy_grid_map": True, "drivable_area_grid_map": True}
+
+
+def follow_gap(obs: dict) -> np.ndarray:
+    """TargetPose along the lane, slowing for the nearest vehicle ahead in it (encoded obs)."""
+    x, y, _ = obs["ego_vehicle_state"]["position"]
+    nbr = obs["neighborhood_vehicle_states"]
+    pos = nbr["position"]
+    ahead = (nbr["mask"] > 0) & (pos[:, 0] > x) & (np.abs(pos[:, 1] - y) < 1.6)
+    gap = float((pos[ahead, 0] - x).min()) if ahead.any() else 100.0
+    speed = min(25.0, max(0.0, (gap - 10.0) / 1.5))
+    return np.array([x + speed * 0.1, y, 0.0, 0.1], np.float32)
+
+
+def raw_side(folder: str, steps: int, queue) -> None:
+    """``simulationStep`` only, in its own process: (wall, CPU) seconds."""
+    import libsumo
+
+    from arena.scenario import load_scenario
+    from sim.traffic import sumo_command
+
+    sc = load_scenario(Path(folder))
+    libsumo.start(
+        sumo_command(Path(folder) / sc.map, Path(folder) / sc.traffic.routes, sc.seed, 0.1)
+    )
+    wall, cpu = time.perf_counter(), time.process_time()
+    for _ in range(steps):
+        libsumo.simulationStep()
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    libsumo.close()
+    queue.put(((wall, cpu), ""))
+
+
+def env_side(folder: Path, steps: int, rasters: bool) -> tuple[float, float]:
+    """(wall, CPU) seconds spent in ``env.step`` over ``steps`` steps (policy excluded)."""
+    from learn.gym_env import DrivingArenaEnv
+
+    options = {**RASTERS, "img_pixels": 256} if rasters else {}
+    env = DrivingArenaEnv(folder, **options)
+    try:
+        obs, _ = env.reset(seed=0)
+        child = env._process
+        wall = cpu = 0.0
+        child_cpu = child.cpu_seconds()
+        for _ in range(steps):
+            action = follow_gap(obs)
+            t0, c0 = time.perf_counter(), time.process_time()
+            obs, _, terminated, truncated, info = env.step(action)
+            wall += time.perf_counter() - t0
+            cpu += time.process_time() - c0
+            if terminated or truncated:
+                raise SystemExit(f"the ego must drive the whole run: {info['done_reason']}")
+        cpu += child.cpu_seconds() - child_cpu
+    finally:
+        env.close()
+    return wall, cpu
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=1000)
+    parser.add_argument("--vehicles", type=int, default=100)
+    parser.add_argument("--repeat", type=int, default=2)
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = build(Path(tmp) / "bench", args.vehicles, args.steps)
+        raw, plain, raster = [], [], []
+        for _ in range(args.repeat):
+            raw.append(in_child(raw_side, str(folder), args.steps)[0])
+            plain.append(env_side(folder, args.steps, rasters=False))
+            raster.append(env_side(folder, args.steps, rasters=True))
+    n = args.steps
+    best = {
+        name: (min(w for w, _ in runs), min(c for _, c in runs))
+        for name, runs in (("raw libsumo", raw), ("env", plain), ("env+rasters", raster))
+    }
+    for name, (wall, cpu) in best.items():
+        print(
+            f"{name + ':':13s} wall {n / wall:7,.0f} steps/s ({wall * 1e3 / n:.3f} ms/step)"
+            f"   CPU {n / cpu:7,.0f} steps/s ({cpu * 1e3 / n:.3f} ms/step)"
+        )
+    raster_ms = (best["env+rasters"][1] - best["env"][1]) * 1e3 / n
+    print(f"env_ratio={best['env'][1] / best['raw libsumo'][1]:.2f} raster_ms={raster_ms:.3f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,147 @@
+"""``arena/DrivingArena-v0``: one mission agent on the arena's simulator, as a Gymnasium env."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from learn.reward import RewardFn, RewardInput, default_reward
+from learn.scenarios import scenario_dirs
+from learn.spaces import DEFAULT_MAX_NEIGHBOURS, action_space, observation_space
+from learn.worker import Config, Reply, SimulatorProcess
+from sim.interface import AgentInterface
+
+MAX_STEPS_REASON = "max_episode_steps"
+
+
+class EpisodeState:
+    """What an environment remembers of the running episode, per agent."""
+
+    def __init__(self, reply: Reply) -> None:
+        self.scenario_id = reply.scenario_id
+        self.last_obs: dict[str, dict] = dict(reply.observations)
+
+
+def step_outcome(
+    agent_id: str, reply: Reply, state: EpisodeState, reward_fn: RewardFn
+) -> tuple[dict, float, bool, bool, dict]:
+    """(observation, reward, terminated, truncated, info) of one agent after a step.
+
+    ``terminated`` when the agent's episode ended for any reason but the step limit (goal,
+    collision, off road, invalid action), ``truncated`` at the step limit."""
+    previous = state.last_obs[agent_id]
+    reason = reply.finished.get(agent_id)
+    # A finished agent has no terminal observation only when it did not drive (invalid action).
+    obs = reply.observations[agent_id] if reason is None else reply.terminal.get(agent_id, previous)
+    events = reply.events.get(agent_id, {})
+    terms = reply.terms.get(agent_id, {})
+    reward = reward_fn(RewardInput(agent_id, previous, obs, events, reason, terms))
+    state.last_obs[agent_id] = obs
+    info = {
+        "scenario_id": reply.scenario_id,
+        "step": reply.step,
+        "events": events,
+        "done_reason": reason,
+        "scoring_terms": terms,
+        **({"ids": reply.ids[agent_id]} if agent_id in reply.ids else {}),
+    }
+    terminated = reason is not None and reason != MAX_STEPS_REASON
+    truncated = reason == MAX_STEPS_REASON
+    return obs, float(reward), terminated, truncated, info
+
+
+class DrivingArenaEnv(gym.Env):
+    """One mission agent, episodes drawn from single-agent scenarios of a suite.
+
+    Keyword arguments: ``suite`` (``public``, a built suite folder or a scenario folder),
+    ``scenario`` (an id or folder: always that one; default: one drawn per ``reset(seed=...)``,
+    deterministic for a seed), ``action_space`` and every other ``agent.yaml`` option
+    (``top_down_rgb=True``, ``img_pixels=...``), ``max_neighbours`` (neighbour slots of the
+    observation), ``reward_fn`` (replaces :func:`learn.reward.default_reward`), ``profile`` (the
+    scoring profile whose terms go into ``info``) and ``traffic_seed`` (``"scenario"``: the
+    scenario's own seed, as evaluation uses; ``"random"``: drawn from the reset seed).
+    """
+
+    metadata = {"render_modes": []}  # noqa: RUF012 - gymnasium's class attribute
+
+    def __init__(
+        self,
+        suite: str | Path = "public",
+        scenario: str | Path | None = None,
+        *,
+        action_space: str = "TargetPose",
+        max_neighbours: int = DEFAULT_MAX_NEIGHBOURS,
+        reward_fn: RewardFn | None = None,
+        profile: str | None = None,
+        traffic_seed: str = "scenario",
+        **interface_options: Any,
+    ) -> None:
+        self.interface = AgentInterface(action_space=action_space, **interface_options)
+        self.scenarios = scenario_dirs(suite, scenario, agents=(1, 1))
+        self.observation_space = observation_space(self.interface, max_neighbours)
+        self.action_space = _action_space(self.interface)
+        self.reward_fn = reward_fn or default_reward
+        if traffic_seed not in ("scenario", "random"):
+            raise ValueError("traffic_seed is 'scenario' or 'random'")
+        self.traffic_seed = traffic_seed
+        self._config = Config(self.interface, max_neighbours, _profile_name(profile))
+        self._process: SimulatorProcess | None = None  # started at the first reset
+        self._state: EpisodeState | None = None
+        self._agent_id = ""
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
+        super().reset(seed=seed)
+        reply = start_episode(self, options)
+        self._agent_id, obs = next(iter(reply.observations.items()))
+        self._state = EpisodeState(reply)
+        info = {
+            "scenario_id": reply.scenario_id,
+            "step": reply.step,
+            "ids": reply.ids[self._agent_id],
+        }
+        return obs, info
+
+    def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
+        if self._state is None or self._process is None:
+            raise RuntimeError("reset() before step()")
+        reply = self._process.call("step", {self._agent_id: np.asarray(action).tolist()})
+        out = step_outcome(self._agent_id, reply, self._state, self.reward_fn)
+        if out[2] or out[3]:
+            self._state = None  # stepping on needs a reset
+        return out
+
+    def close(self) -> None:
+        if self._process is not None:
+            self._process.close()
+            self._process = None
+        super().close()
+
+
+def start_episode(env: Any, options: dict | None) -> Reply:
+    """Reset ``env``'s simulator (starting its process if needed) on the scenario ``options``
+    names or one drawn from ``env.np_random``."""
+    folder = (options or {}).get("scenario")
+    if folder is None:
+        folder = env.scenarios[int(env.np_random.integers(len(env.scenarios)))]
+    sim_seed = None
+    if env.traffic_seed == "random":
+        sim_seed = int(env.np_random.integers(2**31 - 1))
+    if env._process is None:
+        env._process = SimulatorProcess(env._config)
+    reply = env._process.call("reset", (str(folder), sim_seed))
+    if not reply.observations:
+        raise RuntimeError(f"{reply.scenario_id}: the episode ended before any agent entered")
+    return reply
+
+
+def _action_space(interface: AgentInterface) -> gym.spaces.Box:
+    return action_space(interface.action_space)
+
+
+def _profile_name(profile: str | None) -> str:
+    from evaluator.scoring import DEFAULT_PROFILE
+
+    return profile or DEFAULT_PROFILE

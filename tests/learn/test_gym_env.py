@@ -1,0 +1,147 @@
+"""The Gymnasium environment: API conformance, the evaluator's own step, episode ends, reward."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import gymnasium
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+from arena.scenario import load_scenario
+from learn.gym_env import DrivingArenaEnv
+from learn.reward import RewardInput
+from sim.episode import run_episode
+from sim.interface import ActionSpace, AgentInterface
+from tests.learn.conftest import PUBLIC
+
+CRUISE = PUBLIC / "p016_cruise_2lane_low"
+
+
+def test_passes_gymnasiums_env_checker_with_rasters(closing) -> None:
+    env = DrivingArenaEnv(
+        CRUISE,
+        action_space="LaneWithContinuousSpeed",
+        top_down_rgb=True,
+        occupancy_grid_map=True,
+        drivable_area_grid_map=True,
+        img_pixels=64,
+    )
+    closing(env)
+    check_env(env, skip_render_check=True)
+    obs, _ = env.reset(seed=0)
+    assert env.observation_space.contains(obs)
+    assert obs["top_down_rgb"].shape == (64, 64, 3) and obs["top_down_rgb"].any()
+
+
+class Repeat:
+    """An in-process agent for the evaluator's episode loop: the same action every step."""
+
+    def __init__(self, action: list[float]) -> None:
+        self.action = action
+
+    def reset(self) -> None:
+        pass
+
+    def act(self, obs: dict) -> dict:
+        return {agent_id: self.action for agent_id in obs}
+
+    def close(self) -> None:
+        pass
+
+
+def test_an_episode_is_the_evaluators_episode(closing, tmp_path) -> None:
+    """Driving the env and the evaluator's episode loop with the same actions ends the same way
+    on the same step, at the same place (same simulator, decoding, events and done reason)."""
+    action = [9.0, 0.0]
+    env = DrivingArenaEnv(CRUISE, action_space="LaneWithContinuousSpeed")
+    closing(env)
+    obs, _ = env.reset(seed=1)
+    steps, reward_sum = 0, 0.0
+    while True:
+        obs, reward, terminated, truncated, info = env.step(np.array(action, np.float32))
+        steps += 1
+        reward_sum += reward
+        if terminated or truncated:
+            break
+    interface = AgentInterface(action_space=ActionSpace.LaneWithContinuousSpeed)
+    result = run_episode(CRUISE, Repeat(action), interface, record_path=tmp_path / "r.npz")
+    outcome = result.agents[0]
+    assert info["done_reason"] == outcome.reason.value
+    assert steps == outcome.steps
+    with np.load(tmp_path / "r.npz") as record:
+        final_xy = record["x"][0, steps - 1], record["y"][0, steps - 1]
+    np.testing.assert_allclose(obs["ego_vehicle_state"]["position"][:2], final_xy, atol=1e-3)
+    assert reward_sum != 0.0
+
+
+def test_collision_terminates_with_events_and_penalty(closing, car_ahead) -> None:
+    env = DrivingArenaEnv(car_ahead, action_space="RelativeTargetPose")
+    closing(env)
+    env.reset(seed=0)
+    for _ in range(40):
+        obs, reward, terminated, truncated, info = env.step(np.array([2.8, 0.0, 0.0]))
+        if terminated or truncated:
+            break
+    assert terminated and not truncated
+    assert info["done_reason"] == "collision"
+    assert info["events"]["collisions"] == ["slow"]
+    assert obs["events"]["collisions"] == 1
+    assert reward < -9.0  # the collision penalty outweighs one step's progress
+    assert set(info["scoring_terms"]) >= {"jerk", "speeding", "wrong_way"}
+    with pytest.raises(RuntimeError):
+        env.step(np.zeros(3))
+
+
+def test_step_limit_truncates(closing, short_road) -> None:
+    env = DrivingArenaEnv(short_road, action_space="Continuous")
+    closing(env)
+    env.reset(seed=0)
+    ends = [env.step(np.array([0.0, 1.0, 0.0]))[2:4] for _ in range(30)]
+    assert ends[:-1] == [(False, False)] * 29
+    assert ends[-1] == (False, True)
+
+
+def test_reset_seed_chooses_the_scenario_deterministically(closing) -> None:
+    env = DrivingArenaEnv("public", action_space="LaneWithContinuousSpeed")
+    closing(env)
+    single_agent = {p.name for p in env.scenarios}
+    assert all(len(load_scenario(p).missions) == 1 for p in env.scenarios)
+    drawn = [env.reset(seed=s)[1]["scenario_id"] for s in (5, 6, 7, 5)]
+    assert drawn[0] == drawn[3]
+    assert len(set(drawn)) > 1 and set(drawn) <= single_agent
+
+
+def test_reward_function_is_replaceable(closing, short_road) -> None:
+    seen: list[RewardInput] = []
+
+    def reward_fn(step: RewardInput) -> float:
+        seen.append(step)
+        return 2.5
+
+    env = DrivingArenaEnv(short_road, action_space="Continuous", reward_fn=reward_fn)
+    closing(env)
+    env.reset(seed=0)
+    assert env.step(np.array([1.0, 0.0, 0.0]))[1] == 2.5
+    assert seen[0].agent_id == "Agent_0" and seen[0].done_reason is None
+    assert seen[0].current["ego_vehicle_state"]["speed"] > 0.0
+
+
+def test_async_vector_env_runs_two_simulators() -> None:
+    def make(scenario: Path):
+        return lambda: DrivingArenaEnv(scenario, action_space="LaneWithContinuousSpeed")
+
+    envs = gymnasium.vector.AsyncVectorEnv([make(CRUISE), make(PUBLIC / "p000_left_turn_t_low")])
+    try:
+        obs, infos = envs.reset(seed=3)
+        assert obs["ego_vehicle_state"]["position"].shape == (2, 3)
+        assert list(infos["scenario_id"]) == [CRUISE.name, "p000_left_turn_t_low"]
+        start = obs["ego_vehicle_state"]["position"].copy()
+        for _ in range(10):
+            obs, rewards, terminated, _, _ = envs.step(np.tile([8.0, 0.0], (2, 1)))
+        assert rewards.shape == (2,) and not terminated.any()
+        moved = np.linalg.norm(obs["ego_vehicle_state"]["position"] - start, axis=1)
+        assert (moved > 3.0).all()
+    finally:
+        envs.close()

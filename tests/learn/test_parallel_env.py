@@ -1,0 +1,41 @@
+"""The PettingZoo environment: API conformance and every mission agent acting at once."""
+
+from __future__ import annotations
+
+import numpy as np
+from pettingzoo.test import parallel_api_test
+
+from learn.parallel_env import DrivingArenaParallelEnv
+from tests.learn.conftest import PUBLIC
+
+TWO_AGENTS = PUBLIC / "p019_cruise_2lane_low_2agents"
+THREE_AGENTS = PUBLIC / "p020_cruise_3lane_curve_low_3agents"
+
+
+def test_passes_pettingzoos_parallel_api_test(closing) -> None:
+    env = DrivingArenaParallelEnv(TWO_AGENTS, action_space="LaneWithContinuousSpeed")
+    closing(env)
+    parallel_api_test(env, num_cycles=60)
+
+
+def test_three_agents_act_at_once_joining_and_leaving(closing) -> None:
+    env = DrivingArenaParallelEnv(THREE_AGENTS, action_space="LaneWithContinuousSpeed")
+    closing(env)
+    obs, _ = env.reset(seed=0)
+    assert env.possible_agents == ["Agent_0", "Agent_1", "Agent_2"]
+    assert env.agents == sorted(obs) and env.agents  # those that start at step 0
+    seen, finished = set(env.agents), {}
+    for _ in range(1000):
+        actions = {a: np.array([8.0, 0.0]) for a in env.agents}
+        obs, rewards, terminations, truncations, infos = env.step(actions)
+        assert set(obs) == set(rewards) == set(terminations) == set(infos)
+        for agent in obs:
+            assert env.observation_space(agent).contains(obs[agent])
+            if terminations[agent] or truncations[agent]:
+                finished[agent] = infos[agent]["done_reason"]
+                assert agent not in env.agents
+        seen |= set(env.agents)
+        if not env.agents:
+            break
+    assert seen == set(finished) == {"Agent_0", "Agent_1", "Agent_2"}
+    assert all(reason is not None for reason in finished.values())
