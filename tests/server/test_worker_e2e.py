@@ -15,7 +15,7 @@ import pytest
 import redis
 from sqlalchemy import func, select
 
-from arena.config import Settings
+from arena.config import ArtifactBackend, Settings
 from server.core.db import Database
 from server.core.migrate import upgrade_database
 from server.models import ScenarioResult
@@ -332,7 +332,9 @@ def test_two_workers_with_separate_data_folders_share_nothing_but_broker_and_dat
 
     def machine(name: str):
         folder = shared_dir(f"arena-e2e-{name}-")
-        return stack_settings.model_copy(update={"data_dir": folder, "artifact_store": "database"})
+        return stack_settings.model_copy(
+            update={"data_dir": folder, "artifact_store": ArtifactBackend.database}
+        )
 
     api_settings, first, second = machine("api"), machine("w1"), machine("w2")
     db = Database(stack_settings.database_url)
