@@ -18,7 +18,7 @@ import re
 import shutil
 import subprocess
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
@@ -323,13 +323,35 @@ def build_map(name: str, cache_dir: Path) -> Path:
     """The ``.net.xml`` of template ``name``, built once into ``cache_dir`` and reused."""
     if name not in TEMPLATES:
         raise KeyError(f"unknown map template {name!r}; known: {', '.join(sorted(TEMPLATES))}")
-    documents = TEMPLATES[name]().to_xml()
+    return convert_plain_xml(name, TEMPLATES[name]().to_xml(), NETCONVERT_OPTIONS, cache_dir)
+
+
+def convert_plain_xml(
+    name: str, documents: Sequence[str], options: Sequence[str], cache_dir: Path
+) -> Path:
+    """netconvert of plain XML ``documents`` (nodes, edges, connections) into
+    ``cache_dir/<name>-<key>.net.xml``, keyed by the hash of every input, and reused."""
     key = hashlib.sha256(
-        "\0".join([*documents, *NETCONVERT_OPTIONS, netconvert_version()]).encode()
+        "\0".join([*documents, *options, netconvert_version()]).encode()
     ).hexdigest()[:16]
     target = Path(cache_dir) / f"{name}-{key}.net.xml"
     if target.exists():
         return target
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        tmpdir = Path(tmp)
+        for suffix, text in zip(("nod", "edg", "con"), documents, strict=True):
+            (tmpdir / f"map.{suffix}.xml").write_text(text)
+        cmd = ["netconvert", "-n", "map.nod.xml", "-e", "map.edg.xml", "-x", "map.con.xml"]
+        cmd += ["-o", "map.net.xml", *options, "--no-warnings"]
+        proc = subprocess.run(cmd, cwd=tmpdir, capture_output=True, text=True)
+        if proc.returncode != 0:
+            raise MapBuildError(f"netconvert failed for {name}: {proc.stderr.strip()}")
+        data = _HEADER.sub(b"", (tmpdir / "map.net.xml").read_bytes(), count=1)
+        partial = target.with_suffix(".tmp")
+        partial.write_bytes(data)
+        shutil.move(partial, target)
+    return target
     target.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         tmpdir = Path(tmp)

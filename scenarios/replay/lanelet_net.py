@@ -18,17 +18,13 @@ netconvert (and options) that builds our own maps.
 
 from __future__ import annotations
 
-import hashlib
-import shutil
-import subprocess
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from scenarios.maps import _HEADER, NETCONVERT_OPTIONS, MapBuildError, netconvert_version
+from scenarios.maps import NETCONVERT_OPTIONS, convert_plain_xml
 from scenarios.replay.commonroad import Lanelet
 
 SIDE_BY_SIDE_M = 1.0  # [m] neighbours whose ends are farther apart than this are separate edges
@@ -157,26 +153,5 @@ def lanelet_edges(lanelets: Sequence[Lanelet]) -> dict[int, tuple[str, int]]:
 def build_lanelet_net(name: str, lanelets: Sequence[Lanelet], cache_dir: Path) -> Path:
     """The ``.net.xml`` of a lanelet network, built once into ``cache_dir`` (keyed by the hash of
     the netconvert inputs) and reused."""
-    documents = plain_xml(lanelets)
     options = (*NETCONVERT_OPTIONS, *LANELET_NET_OPTIONS)
-    key = hashlib.sha256(
-        "\0".join([*documents, *options, netconvert_version()]).encode()
-    ).hexdigest()[:16]
-    target = Path(cache_dir) / f"{name}-{key}.net.xml"
-    if target.exists():
-        return target
-    target.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory() as tmp:
-        tmpdir = Path(tmp)
-        for suffix, text in zip(("nod", "edg", "con"), documents, strict=True):
-            (tmpdir / f"map.{suffix}.xml").write_text(text)
-        cmd = ["netconvert", "-n", "map.nod.xml", "-e", "map.edg.xml", "-x", "map.con.xml"]
-        cmd += ["-o", "map.net.xml", *options, "--no-warnings"]
-        proc = subprocess.run(cmd, cwd=tmpdir, capture_output=True, text=True)
-        if proc.returncode != 0:
-            raise MapBuildError(f"netconvert failed for {name}: {proc.stderr.strip()}")
-        data = _HEADER.sub(b"", (tmpdir / "map.net.xml").read_bytes(), count=1)
-        partial = target.with_suffix(".tmp")
-        partial.write_bytes(data)
-        shutil.move(partial, target)
-    return target
+    return convert_plain_xml(name, plain_xml(lanelets), options, cache_dir)
