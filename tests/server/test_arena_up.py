@@ -134,3 +134,18 @@ def test_one_instance_per_data_folder_children_die_with_it_token_stays(root, tmp
         for process in processes:
             if process.poll() is None:
                 os.killpg(process.pid, signal.SIGKILL)
+
+
+def test_a_port_with_a_listener_is_refused_one_without_is_free():
+    import socket
+
+    from server.embedded import AlreadyServed, _check_port_free
+
+    with socket.socket() as listener:
+        listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        listener.bind(("127.0.0.1", 0))
+        listener.listen()
+        port = listener.getsockname()[1]
+        with pytest.raises(AlreadyServed, match=f"port {port} on 127.0.0.1 is already in use"):
+            _check_port_free("127.0.0.1", port)
+    _check_port_free("127.0.0.1", port)
