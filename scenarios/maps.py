@@ -352,29 +352,3 @@ def convert_plain_xml(
         partial.write_bytes(data)
         shutil.move(partial, target)
     return target
-    target.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory() as tmp:
-        tmpdir = Path(tmp)
-        for suffix, text in zip(("nod", "edg", "con"), documents, strict=True):
-            (tmpdir / f"map.{suffix}.xml").write_text(text)
-        cmd = [
-            "netconvert",
-            "-n",
-            "map.nod.xml",
-            "-e",
-            "map.edg.xml",
-            "-x",
-            "map.con.xml",
-            "-o",
-            "map.net.xml",
-            *NETCONVERT_OPTIONS,
-            "--no-warnings",
-        ]
-        proc = subprocess.run(cmd, cwd=tmpdir, capture_output=True, text=True)
-        if proc.returncode != 0:
-            raise MapBuildError(f"netconvert failed for {name}: {proc.stderr.strip()}")
-        data = _HEADER.sub(b"", (tmpdir / "map.net.xml").read_bytes(), count=1)
-        partial = target.with_suffix(".tmp")
-        partial.write_bytes(data)
-        shutil.move(partial, target)
-    return target
