@@ -114,16 +114,7 @@ def test_worker_killed_mid_evaluation_finishes_after_restart(stack_settings, tmp
         with api_server(stack_settings, tmp_path / "api.log") as (url, _):
             sid = upload_example(url, token, "planner", tmp_path)
             # Wait until the worker holds a scenario (claimed, not finished), then kill it.
-            deadline = time.monotonic() + 120
-            while True:
-                with db.session() as session:
-                    running = session.scalar(
-                        select(func.count()).where(ScenarioResult.status == "running")
-                    )
-                if running:
-                    break
-                assert time.monotonic() < deadline, "no scenario was ever claimed"
-                time.sleep(0.2)
+            wait_for_claims(db, lambda claims: len(claims) >= 1)
             stop(worker, signal.SIGKILL)
             worker = start_worker(stack_settings, tmp_path / "worker2.log", concurrency=2)
             body = wait_finished(url, token, sid)
@@ -133,6 +124,25 @@ def test_worker_killed_mid_evaluation_finishes_after_restart(stack_settings, tmp
         stop(worker)
     assert results_per_scenario(db) == dict.fromkeys(SCENARIOS, 1)
     db.dispose()
+
+
+def wait_for_claims(db: Database, enough, timeout_s: float = 120) -> dict[str, str]:
+    """Poll the scenarios held by a worker (claimed, not finished), scenario id -> worker,
+    until ``enough(claims)``; returns them."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        with db.session() as session:
+            claims = dict(
+                session.execute(
+                    select(ScenarioResult.scenario_id, ScenarioResult.worker).where(
+                        ScenarioResult.status == "running", ScenarioResult.worker != ""
+                    )
+                ).all()
+            )
+        if enough(claims):
+            return claims
+        assert time.monotonic() < deadline, f"scenarios held by workers: {claims}"
+        time.sleep(0.2)
 
 
 def sandboxes_of_run(run_id: int) -> list[int]:
@@ -164,18 +174,7 @@ def test_a_worker_stopped_with_sigterm_hands_its_scenario_back(stack_settings, t
     try:
         with api_server(stack_settings, tmp_path / "api.log") as (url, _):
             sid = upload_example(url, token, "planner", tmp_path)
-            deadline = time.monotonic() + 120
-            while True:
-                with db.session() as session:
-                    claimed = session.scalar(
-                        select(ScenarioResult.scenario_id).where(
-                            ScenarioResult.status == "running", ScenarioResult.worker != ""
-                        )
-                    )
-                if claimed:
-                    break
-                assert time.monotonic() < deadline, "no scenario was ever claimed"
-                time.sleep(0.2)
+            (claimed,) = wait_for_claims(db, lambda claims: len(claims) == 1)
             stopped_at = time.monotonic()
             worker.send_signal(signal.SIGTERM)  # the worker alone, as `arena up` dying does
             worker.wait(timeout=90)
@@ -346,18 +345,8 @@ def test_two_workers_with_separate_data_folders_share_nothing_but_broker_and_dat
     try:
         with api_server(api_settings, tmp_path / "api.log") as (url, _):
             sid = upload_example(url, token, "planner", tmp_path)
-            deadline = time.monotonic() + 120
-            while True:  # both workers hold a scenario: the run is shared
-                with db.session() as session:
-                    holders = set(
-                        session.scalars(
-                            select(ScenarioResult.worker).where(ScenarioResult.worker != "")
-                        )
-                    )
-                if len(holders) == 2:
-                    break
-                assert time.monotonic() < deadline, f"workers holding scenarios: {holders}"
-                time.sleep(0.2)
+            # Both workers hold a scenario: the run is shared.
+            wait_for_claims(db, lambda claims: len(set(claims.values())) == 2)
             stop(workers[0], signal.SIGKILL)
             body = wait_finished(url, token, sid, timeout_s=300)
             assert body["status"] == "scored", body
