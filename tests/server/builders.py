@@ -134,3 +134,32 @@ def default_phases() -> list[Phase]:
         Phase(name="validation", suite="public", visibility=Visibility.full),
         Phase(name="final", suite="hidden", visibility=Visibility.hidden),
     ]
+
+
+def evaluate_failing_everywhere(
+    db: Database, settings, submission_id: int, *, log: str, error: str | None = None
+) -> None:
+    """Run the submission through the service's bookkeeping as a worker would: every scenario
+    claimed, reported done with its agent colliding (no record) and ``log`` as its output, then
+    the run aggregated."""
+    from arena.outcome import AgentOutcome, ScenarioStatus
+    from evaluator.runner import ScenarioOutcome
+    from server.core.artifacts import DatabaseStore
+
+    with db.session() as session:
+        plan = evaluation.start_evaluation(session, settings, submission_id)
+    for scenario_id in plan.scenario_ids:
+        with db.session() as session:
+            job = evaluation.claim_scenario(session, settings, plan.run_id, scenario_id, "w1")
+        outcome = ScenarioOutcome(
+            scenario_id=scenario_id,
+            status=ScenarioStatus.done,
+            steps=0,
+            agents=(AgentOutcome(**agent(False)),),
+            record_path=None,
+            error=error,
+        )
+        with db.session() as session:
+            evaluation.record_scenario(session, job, "w1", outcome, log)
+    with db.session() as session:
+        assert evaluation.finish_run(session, DatabaseStore(db), plan.run_id) is not None

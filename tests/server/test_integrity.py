@@ -5,11 +5,8 @@ from __future__ import annotations
 
 import pytest
 
-from arena.outcome import AgentOutcome, ScenarioStatus
-from evaluator.runner import ScenarioOutcome
-from server.core.artifacts import DatabaseStore
-from server.services import evaluation
-from tests.server.builders import agent, bearer, make_team, queued_submission
+from arena.suite import load_suite
+from tests.server.builders import bearer, evaluate_failing_everywhere, make_team, queued_submission
 
 NASTY = "before\x00after \ud800 lone surrogate \x01\x7f end"
 
@@ -30,27 +27,11 @@ def test_agent_output_with_any_byte_records_and_reads_back(client, db, settings)
     team, token = make_team(db, "alpha")
     # The validation phase, where the team reads its agent's output back.
     submission_id = queued_submission(db, team, phase="validation")
-    with db.session() as session:
-        plan = evaluation.start_evaluation(session, settings, submission_id)
-    for scenario_id in plan.scenario_ids:
-        with db.session() as session:
-            job = evaluation.claim_scenario(session, settings, plan.run_id, scenario_id, "w1")
-        outcome = ScenarioOutcome(
-            scenario_id=scenario_id,
-            status=ScenarioStatus.done,
-            steps=0,
-            agents=(AgentOutcome(**agent(False, reason="collision")),),
-            record_path=None,
-            error=NASTY,
-        )
-        with db.session() as session:
-            evaluation.record_scenario(session, job, "w1", outcome, NASTY * 100)
-    with db.session() as session:
-        assert evaluation.finish_run(session, DatabaseStore(db), plan.run_id) is not None
+    evaluate_failing_everywhere(db, settings, submission_id, log=NASTY * 100, error=NASTY)
     response = client.get(f"/api/v1/submissions/{submission_id}/logs", headers=bearer(token))
     assert response.status_code == 200
     tails = [s["log_tail"] for s in response.json()["scenarios"]]
-    assert len(tails) == len(plan.scenario_ids)
+    assert len(tails) == len(load_suite(settings.public_suite_dir).scenarios)
     for tail in tails:
         assert "\x00" not in tail and "before\ufffdafter" in tail and "\x01\x7f end" in tail
 

@@ -7,16 +7,13 @@ from datetime import timedelta
 
 import pytest
 
-from arena.outcome import AgentOutcome, ScenarioStatus
-from evaluator.runner import ScenarioOutcome
-from server.core.artifacts import DatabaseStore
 from server.models import utcnow
-from server.services import evaluation, phases
+from server.services import phases
 from server.services.leaderboard import LeaderboardCache
 from server.tracks import Track
 from tests.server.builders import (
-    agent,
     bearer,
+    evaluate_failing_everywhere,
     make_team,
     pack_example,
     queued_submission,
@@ -92,23 +89,7 @@ def test_submit_page_offers_the_open_phases(client, db):
 def finished_submission(db, settings, phase: str) -> int:
     team_id, _ = make_team(db, f"team-{phase}")
     submission_id = queued_submission(db, team_id, phase=phase)
-    with db.session() as session:
-        plan = evaluation.start_evaluation(session, settings, submission_id)
-    for scenario_id in plan.scenario_ids:
-        with db.session() as session:
-            job = evaluation.claim_scenario(session, settings, plan.run_id, scenario_id, "w1")
-        outcome = ScenarioOutcome(
-            scenario_id=scenario_id,
-            status=ScenarioStatus.done,
-            steps=0,
-            agents=(AgentOutcome(**agent(False)),),
-            record_path=None,
-            log=SECRET,
-        )
-        with db.session() as session:
-            evaluation.record_scenario(session, job, "w1", outcome, SECRET)
-    with db.session() as session:
-        evaluation.finish_run(session, DatabaseStore(db), plan.run_id)
+    evaluate_failing_everywhere(db, settings, submission_id, log=SECRET)
     return submission_id
 
 
