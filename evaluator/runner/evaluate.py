@@ -162,13 +162,9 @@ def _outcome_of(future: Future, scenario: ManifestEntry) -> ScenarioOutcome:
     try:
         return future.result()
     except Exception as exc:
-        return ScenarioOutcome(
-            scenario_id=scenario.id,
-            status=ScenarioStatus.evaluator_error,
-            steps=0,
-            agents=(),
-            record_path=None,
-            error=f"{type(exc).__name__}: {exc}",
+        return ScenarioOutcome.ours(
+            scenario.id,
+            f"{type(exc).__name__}: {exc}",
             log="".join(traceback.format_exception(exc)),
         )
 

@@ -58,6 +58,20 @@ class ScenarioOutcome:
     attempts: int = 1
     wall_time_s: float = 0.0
 
+    @classmethod
+    def ours(cls, scenario_id: str, error: str, *, log: str = "", attempts: int = 1):
+        """A scenario that could not be evaluated through no fault of the submission."""
+        return cls(
+            scenario_id=scenario_id,
+            status=ScenarioStatus.evaluator_error,
+            steps=0,
+            agents=(),
+            record_path=None,
+            error=error,
+            log=log,
+            attempts=attempts,
+        )
+
 
 def new_run_key() -> str:
     """An opaque key for one run of one scenario: unique, and identifying no scenario (labels

@@ -33,7 +33,6 @@ from sqlalchemy.exc import SQLAlchemyError
 
 from arena.config import get_settings
 from arena.errors import InfrastructureError
-from arena.outcome import ScenarioStatus
 from evaluator.runner.scenario import ScenarioOutcome
 from server.core.artifacts import ArtifactStore, artifact_store
 from server.core.celery_app import QUEUE, TASK_AGGREGATE, TASK_EVALUATE, TASK_SCENARIO
@@ -143,14 +142,8 @@ def _hand_back(job: evaluation.ScenarioJob, worker: str) -> None:
 
 def _our_failure(job: evaluation.ScenarioJob, reason: str, error: str) -> ScenarioOutcome:
     """A scenario that could not be evaluated through no fault of the submission."""
-    return ScenarioOutcome(
-        scenario_id=job.scenario_id,
-        status=ScenarioStatus.evaluator_error,
-        steps=0,
-        agents=(),
-        record_path=None,
-        error=f"{reason}: {error} (claim {job.attempt})",
-        attempts=job.attempt,
+    return ScenarioOutcome.ours(
+        job.scenario_id, f"{reason}: {error} (claim {job.attempt})", attempts=job.attempt
     )
 
 
