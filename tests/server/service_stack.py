@@ -43,7 +43,11 @@ def build_small_suite(root: Path) -> Path:
         check=True,
         capture_output=True,
     )
-    small = root / "suite"
+    return cut_suite(full, root / "suite")
+
+
+def cut_suite(full: Path, small: Path) -> Path:
+    """A copy of the suite folder ``full`` with only :data:`SCENARIOS`, in ``small``."""
     manifest = json.loads((full / "manifest.json").read_text())
     manifest["scenarios"] = [s for s in manifest["scenarios"] if s["id"] in SCENARIOS]
     assert len(manifest["scenarios"]) == len(SCENARIOS)
@@ -63,9 +67,15 @@ def start_worker(settings: Settings, log_path: Path, concurrency: int = 2) -> su
 
 
 def upload_example(url: str, token: str, name: str, zips: Path) -> int:
-    from tests.server.builders import pack_example
+    return upload_folder(url, token, EXAMPLES / name, zips)
 
-    path = pack_example(name, zips)
+
+def upload_folder(url: str, token: str, folder: Path, zips: Path) -> int:
+    """Pack the agent ``folder`` into ``zips`` and upload it; the submission's id."""
+    from submissions.intake import pack_folder
+
+    name = folder.name
+    path = pack_folder(folder, zips / f"{name}.zip")
     with path.open("rb") as handle:
         response = httpx.post(
             f"{url}/api/v1/submissions",
