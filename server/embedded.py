@@ -85,7 +85,7 @@ def run_embedded(console: Console, *, host: str, port: int, demo_team: str) -> N
         console.print("stopping…")
     finally:
         _stop(children)
-        _remove_leftover_sandboxes(console)
+        _remove_leftover_sandboxes(console, settings)
         lock.close()
 
 
@@ -144,13 +144,15 @@ def _check_port_free(host: str, port: int) -> None:
             ) from None
 
 
-def _remove_leftover_sandboxes(console: Console) -> None:
-    """Agents of episodes the stopped worker left behind (it was the only worker here)."""
+def _remove_leftover_sandboxes(console: Console, settings: Settings) -> None:
+    """Agents of episodes the stopped worker left behind (it was this data folder's only
+    worker); other services' and local evaluations' sandboxes on this host are not ours."""
     from arena.errors import ArenaError
     from evaluator import sandbox
+    from evaluator.sandbox.backend import owner_labels
 
     try:
-        removed = sandbox.cleanup()
+        removed = sandbox.cleanup(owner_labels(settings))
     except ArenaError as exc:
         console.print(f"[yellow]could not look for leftover sandboxes: {exc}[/yellow]")
         return

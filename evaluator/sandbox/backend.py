@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import signal
 import uuid
 from dataclasses import dataclass, field
@@ -15,6 +16,9 @@ from evaluator.sandbox.channel import Channel
 SANDBOX_LABEL = "driving-arena.sandbox"
 # And this one, unique to it, so killing one sandbox never touches another with the same labels.
 INSTANCE_LABEL = "driving-arena.instance"
+# And the data folder of the process that started it (a digest): one service's leftovers are
+# removed without touching another's, or a local evaluation's, on the same host.
+OWNER_LABEL = "driving-arena.owner"
 # Where the runner finds things inside every sandbox.
 SUBMISSION_MOUNT = "/submission"
 DEPS_MOUNT = "/deps"
@@ -49,7 +53,12 @@ class LaunchSpec:
 
     @property
     def all_labels(self) -> dict[str, str]:
-        return {**self.labels, SANDBOX_LABEL: "1", INSTANCE_LABEL: self.instance}
+        return {
+            **self.labels,
+            SANDBOX_LABEL: "1",
+            INSTANCE_LABEL: self.instance,
+            **owner_labels(self.settings),
+        }
 
     @property
     def instance_labels(self) -> dict[str, str]:
@@ -137,3 +146,9 @@ class Backend(Protocol):
 
     def cleanup(self, labels: dict[str, str]) -> int:
         """Kill and remove every sandbox carrying all ``labels``; returns how many."""
+
+
+def owner_labels(settings: Settings) -> dict[str, str]:
+    """The label every sandbox started with ``settings`` carries: its data folder's digest."""
+    digest = hashlib.sha256(str(settings.resolved_data_dir).encode()).hexdigest()[:16]
+    return {OWNER_LABEL: digest}
