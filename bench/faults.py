@@ -71,6 +71,8 @@ SANDBOX_SETTLE_S = 2.0
 DATABASE_DOWN_S = 3.0
 # [s] How long a stopped embedded service may take until none of its processes remain.
 EXIT_LIMIT_S = 60.0
+# [s] How long stopped processes' children may take to exit before they count as left over.
+LEFTOVER_GRACE_S = 10.0
 POLL_S = 0.2
 FINAL_STATES = {"scored", "failed"}
 
@@ -525,8 +527,14 @@ class Campaign:
         self.submitted += ids
         return ids
 
-    def wait_held(self, condition: Callable[[dict], bool]) -> dict:
-        held = wait_until(lambda: (lambda h: h if condition(h) else None)(self.ledger.held()), 180)
+    def wait_held(self, condition: Callable[[Results], bool]) -> Results:
+        """The scenarios workers hold, once ``condition`` holds of them."""
+
+        def matching() -> Results | None:
+            held = self.ledger.held()
+            return held if condition(held) else None
+
+        held = wait_until(matching, 180)
         if held is None:
             raise RuntimeError("no worker took a scenario within 180 s")
         return held
@@ -724,6 +732,13 @@ class Campaign:
         }
         lost = len(self.submitted) - len(named)
         duplicates, stuck = self.ledger.integrity()
+        # Stopped processes' children may take a moment to exit: only what stays is left over.
+        wait_until(
+            lambda: (
+                not campaign_processes(self.root) and not campaign_sandboxes(self.root, self.kind)
+            ),
+            LEFTOVER_GRACE_S,
+        )
         processes = campaign_processes(self.root)
         sandboxes = campaign_sandboxes(self.root, self.kind)
         for pid in processes:
