@@ -466,7 +466,8 @@ def _moment(text: str | None, option: str):
 
 @phases_app.command("list")
 def phases_list() -> None:
-    """Every phase: its suite, visibility, dates (UTC), daily quota and whether it is open."""
+    """Every phase: its suite, visibility, dates (UTC), daily quota, episodes per reactive
+    scenario (what an evaluation costs) and whether it is open."""
     from server.models import utcnow
     from server.services import phases
 
@@ -474,7 +475,9 @@ def phases_list() -> None:
     with ctx.db.read_session() as session:
         rows = phases.list_phases(session)
     moment = utcnow()
-    table = Table("phase", "suite", "visibility", "starts", "ends", "daily quota", "open")
+    table = Table(
+        "phase", "suite", "visibility", "starts", "ends", "daily quota", "episodes", "open"
+    )
     for phase in rows:
         table.add_row(
             phase.name,
@@ -483,9 +486,15 @@ def phases_list() -> None:
             f"{phase.starts_at:%Y-%m-%d %H:%M}" if phase.starts_at else "-",
             f"{phase.ends_at:%Y-%m-%d %H:%M}" if phase.ends_at else "-",
             str(phases.daily_quota(phase, ctx.settings)),
+            str(phases.episodes_per_scenario(phase, ctx.settings)),
             "yes" if phases.is_open(phase, moment) else "no",
         )
     console.print(table)
+    console.print(
+        "episodes: of each reactive scenario, each with other traffic; an evaluation takes about "
+        "that many times as long as with one",
+        style="dim",
+    )
 
 
 @phases_app.command("set")
@@ -499,6 +508,13 @@ def phases_set(
     ends: Annotated[str | None, typer.Option(help="Closes at (ISO 8601, UTC).")] = None,
     quota: Annotated[int | None, typer.Option(help="Submissions per team, track and day.")] = None,
     profile: Annotated[str | None, typer.Option(help="Scoring profile of the phase.")] = None,
+    episodes: Annotated[
+        int | None,
+        typer.Option(
+            help="Episodes of each reactive scenario, each with other traffic; evaluation takes "
+            "about this many times as long (default: ARENA_EPISODES_PER_SCENARIO)."
+        ),
+    ] = None,
     open_ended: Annotated[
         bool, typer.Option("--open-ended", help="No start and no end date.")
     ] = False,
@@ -516,8 +532,12 @@ def phases_set(
         ends_at=_moment(ends, "--ends"),
         daily_quota=quota,
         scoring_profile=profile,
+        episodes_per_scenario=episodes,
         clear_dates=open_ended,
     )
     ctx = _Context()
     phase = _run(lambda: phases.set_phase(ctx.db, name, changes))
     console.print(f"phase [bold]{phase.name}[/bold] saved")
+    per_scenario = phases.episodes_per_scenario(phase, ctx.settings)
+    if per_scenario > 1:
+        console.print(phases.episodes_cost(per_scenario))

@@ -216,7 +216,7 @@ def running_submission(db, team_id: int, total: int) -> int:
                 status=RunStatus.running,
                 suite_dir="/nonexistent",
                 manifest_sha256="0" * 64,
-                scenario_count=total,
+                episode_count=total,
                 scoring_profile="driving-smarts-2022",
             )
         )
