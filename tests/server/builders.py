@@ -62,8 +62,10 @@ def seed_scored(
     families: dict | None = None,
     status: SubmissionStatus = SubmissionStatus.scored,
     phase: str = "final",
+    interval: tuple[float, float] | None = None,
 ) -> int:
-    """A submission with one scored run and its score, as if a worker had evaluated it."""
+    """A submission with one scored run and its score (completion interval ``interval``), as
+    if a worker had evaluated it."""
     created_at = created_at or utcnow()
     with db.session() as session:
         submission = Submission(
@@ -96,6 +98,8 @@ def seed_scored(
                 run_id=run.id,
                 profile="driving-smarts-2022",
                 families=families or {},
+                completion_low=interval[0] if interval else None,
+                completion_high=interval[1] if interval else None,
                 **dict(zip(METRICS, metrics, strict=True)),
             )
         )

@@ -282,3 +282,45 @@ def test_an_unreadable_record_fails_the_run_instead_of_wedging_it(
     assert status_of(db, submission_id) == SubmissionStatus.failed
     with db.session() as session:
         assert "failed on our side" in session.get(EvaluationRun, plan.run_id).error
+
+
+def test_each_episode_of_a_reactive_scenario_is_a_claim_of_its_own(db, settings, submission_id):
+    """With 2 episodes per reactive scenario the run fans out 2 per scenario, each claimed and
+    recorded on its own; the score is the mean over episodes and carries its interval."""
+    from arena.episodes import Episode
+    from server.services import phases
+    from server.services.errors import NotFound
+
+    phases.set_phase(db, "final", phases.PhaseChanges(episodes_per_scenario=2))
+    plan = start(db, settings, submission_id)
+    ids = sorted({e.scenario_id for e in plan.episodes})
+    assert sorted(plan.episodes) == [Episode(sid, k) for sid in ids for k in (0, 1)]
+    with db.session() as session, pytest.raises(NotFound, match="no episode 2"):
+        evaluation.claim_scenario(session, settings, plan.run_id, ids[0], "w1", 2)
+    last = []
+    for episode in plan.episodes:
+        with db.session() as session:
+            job = evaluation.claim_scenario(
+                session, settings, plan.run_id, episode.scenario_id, "w1", episode.index
+            )
+        assert job.key == episode
+        # The first scenario fails in its second episode only.
+        success = episode != Episode(ids[0], 1)
+        outcome = ScenarioOutcome(
+            scenario_id=episode.scenario_id,
+            status=ScenarioStatus.done,
+            steps=0,
+            agents=(AgentOutcome(**agent(success)),),
+            record_path=None,
+            episode=episode.index,
+        )
+        with db.session() as session:
+            last.append(evaluation.record_scenario(session, job, "w1", outcome, ""))
+    assert last == [False] * 5 + [True]
+    assert aggregate(db, plan.run_id) == RunStatus.scored
+    with db.session() as session:
+        run = session.get(EvaluationRun, plan.run_id)
+        assert (run.episode_count, run.episodes_per_scenario) == (6, 2)
+        assert run.score.completion == pytest.approx(0.5 / 3)
+        assert run.score.completion_low <= run.score.completion <= run.score.completion_high
+        assert run.score.completion_high > run.score.completion_low
