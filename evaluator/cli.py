@@ -40,7 +40,7 @@ def evaluate(
         list[str] | None, typer.Option(help="Only this scenario id (repeatable).")
     ] = None,
     jobs: Annotated[
-        int | None, typer.Option(min=1, help="Scenarios run at once (default: ARENA_JOBS).")
+        int | None, typer.Option(min=1, help="Episodes run at once (default: ARENA_JOBS).")
     ] = None,
     sandbox: Annotated[
         SandboxKind | None, typer.Option(help="Agent sandbox (default: ARENA_SANDBOX).")

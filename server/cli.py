@@ -208,11 +208,14 @@ def submissions_show(
                 run.worker,
                 run.scoring_profile,
                 run.error,
-                sorted((r.scenario_id, r.family, r.status, r.reason, r.steps) for r in run.results),
+                sorted(
+                    (r.scenario_id, r.episode, r.family, r.status, r.reason, r.steps)
+                    for r in run.results
+                ),
             )
             for run in submission.runs
         ]
-    columns = ("scenario", "family", "status", "reason", "steps")
+    columns = ("scenario", "episode", "family", "status", "reason", "steps")
     if as_json:
         document = view.model_dump(mode="json")
         document["attempts"] = [
@@ -239,14 +242,19 @@ def submissions_show(
             "metrics",
             "-"
             if m is None
-            else f"completion {m.completion:.4f}, time {m.time:.1f}, "
-            f"humanness {_metric(m.humanness)}, rules {_metric(m.rules)}",
+            else f"completion {m.completion:.4f}{_interval_text(view.completion_interval)}, "
+            f"time {m.time:.1f}, humanness {_metric(m.humanness)}, rules {_metric(m.rules)}",
         ),
+        ("episodes", f"{view.episodes_per_scenario} per reactive scenario"),
     ):
         console.print(f"{name}: {value}", markup=False, highlight=False)
     for attempt, status, worker, profile, error, results in runs:
         title = f"attempt {attempt}: {status} ({profile}) {worker or ''} {error or ''}".strip()
-        print_rows(console, columns, results, title=title, numeric=("steps",))
+        print_rows(console, columns, results, title=title, numeric=("episode", "steps"))
+
+
+def _interval_text(interval) -> str:
+    return "" if interval is None else f" [{interval.low:.4f}, {interval.high:.4f}]"
 
 
 @submissions_app.command("logs")
@@ -260,7 +268,10 @@ def submissions_logs(submission_id: SubmissionId) -> None:
         submission = _run(lambda: submissions.get_submission(session, submission_id))
         view = submissions.logs(session, submission, organiser=True)
     for entry in view.scenarios:
-        typer.echo(f"=== {entry.scenario_id} ({entry.family}): {entry.status} {entry.reason}")
+        episode = f" episode {entry.episode}" if entry.episode else ""
+        typer.echo(
+            f"=== {entry.scenario_id}{episode} ({entry.family}): {entry.status} {entry.reason}"
+        )
         typer.echo(entry.log_tail)
 
 

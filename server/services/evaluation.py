@@ -178,7 +178,7 @@ def claim_scenario(
             run_id=run_id,
             scenario_id=scenario_id,
             episode=episode,
-            family=entry.family,
+            family=entry.family.value,
             status=ScenarioStatus.running,
             worker=worker,
             attempts=0,
