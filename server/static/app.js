@@ -105,11 +105,9 @@ const Arena = (() => {
       $(`metric-${metric}`).textContent = s.metrics ? fmt(metric, s.metrics[metric]) : "–";
     }
     const ci = s.completion_interval;
-    if (s.metrics && ci) {
-      $("metric-completion").textContent +=
-        ` [${fmt("completion", ci.low)}, ${fmt("completion", ci.high)}]`;
-      $("metric-completion").title = "95% bootstrap confidence interval (docs/scoring.md)";
-    }
+    $("interval-row").hidden = !(s.metrics && ci);
+    $("completion-interval").textContent =
+      s.metrics && ci ? `[${fmt("completion", ci.low)}, ${fmt("completion", ci.high)}]` : "";
     const families = Object.keys(s.families).sort();
     $("families-box").hidden = families.length === 0;
     $("families").innerHTML = families.length ? `<table><thead><tr><th>family</th>` +
