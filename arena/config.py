@@ -53,6 +53,9 @@ class Settings(BaseSettings):
     # The shipped naturalistic scenes (CommonRoad NGSIM); None: ../shared/data/naturalistic/
     # commonroad-ngsim beside the repository.
     naturalistic_dir: Path | None = None
+    # Episodes of each reactive scenario, each with other traffic (arena/episodes.py); the
+    # metrics average them. Evaluation takes about this many times as long. A phase may override.
+    episodes_per_scenario: int = Field(default=1, ge=1)
 
     # Sandbox.
     sandbox: SandboxKind = SandboxKind.auto

@@ -40,7 +40,7 @@ def evaluate(
         list[str] | None, typer.Option(help="Only this scenario id (repeatable).")
     ] = None,
     jobs: Annotated[
-        int | None, typer.Option(min=1, help="Scenarios run at once (default: ARENA_JOBS).")
+        int | None, typer.Option(min=1, help="Episodes run at once (default: ARENA_JOBS).")
     ] = None,
     sandbox: Annotated[
         SandboxKind | None, typer.Option(help="Agent sandbox (default: ARENA_SANDBOX).")
@@ -53,6 +53,14 @@ def evaluate(
         ),
     ] = None,
     profile: Annotated[str | None, typer.Option(help="Scoring profile.")] = None,
+    episodes: Annotated[
+        int | None,
+        typer.Option(
+            min=1,
+            help="Episodes of each reactive scenario, each with other traffic; the evaluation "
+            "takes about this many times as long (default: ARENA_EPISODES_PER_SCENARIO).",
+        ),
+    ] = None,
     as_json: Annotated[
         bool, typer.Option("--json", help="Print summary.json to stdout (progress to stderr).")
     ] = False,
@@ -94,6 +102,7 @@ def evaluate(
             sandbox=sandbox or settings.sandbox,
             profile=profile or settings.scoring_profile,
             progress=progress,
+            episodes_per_scenario=episodes or settings.episodes_per_scenario,
         )
     except (ArenaError, ProfileError) as exc:
         console.print(f"[bold red]error:[/] {escape(str(exc))}")
@@ -109,7 +118,7 @@ def evaluate(
     explain_failures(
         summary, out, make_console(stderr=True) if as_json else console, verbose=verbose
     )
-    if any(is_agent_fault(entry.agents) for entry in summary.scenarios):
+    if any(is_agent_fault(episode.agents) for _, episode in _episodes(summary)):
         raise typer.Exit(1)
 
 
@@ -169,8 +178,19 @@ def replay(
     console.print(f"wrote {out}")
 
 
+def _episodes(summary: Summary) -> list[tuple[str, object]]:
+    """Every episode of the summary with its name (the scenario id when it ran once)."""
+    from evaluator.runner.results import stored_episodes
+
+    return [
+        (key.name, episode)
+        for entry in summary.scenarios
+        for key, episode in stored_episodes(entry)
+    ]
+
+
 class _RichProgress:
-    """Scenarios done/total, failures so far and ETA, on the console given."""
+    """Episodes done/total, failures so far and ETA, on the console given."""
 
     def __init__(self, console: Console) -> None:
         from rich.progress import (
@@ -232,7 +252,7 @@ def _report(
     summary: Summary, results_dir: Path, console: Console, as_json: bool, per_scenario: bool
 ) -> None:
     if as_json:
-        sys.stdout.write(json.dumps(summary.model_dump(mode="json"), indent=2) + "\n")
+        sys.stdout.write(json.dumps(summary.to_dict(), indent=2) + "\n")
         return
     profile = summary.profile
     counts: dict[str, int] = {}
@@ -254,11 +274,12 @@ def _report(
         numeric=("scenarios", "completion", "time", "humanness", "rules"),
     )
     console.print("All four are errors: smaller is better.", style="dim")
-    for entry in summary.scenarios:
-        failed = [a for a in entry.agents if not a.reached_goal]
+    _print_interval(summary, console)
+    for name, episode in _episodes(summary):
+        failed = [a for a in episode.agents if not a.reached_goal]
         if failed:
             reasons = ", ".join(describe_end(a) for a in failed)
-            console.print(f"[yellow]failed[/] {entry.id}: {reasons}")
+            console.print(f"[yellow]failed[/] {name}: {reasons}")
     for scenario_id in summary.uncharged:
         entry = next(e for e in summary.scenarios if e.id == scenario_id)
         error = escape(str(entry.error))
@@ -268,10 +289,23 @@ def _report(
     console.print(f"results in {results_dir} (agent logs in {results_dir / 'logs'})")
 
 
+def _print_interval(summary: Summary, console: Console) -> None:
+    interval = summary.completion_interval()
+    if interval is None:
+        return
+    n = summary.episodes_per_scenario
+    runs = f"{n} episodes of each reactive scenario" if n > 1 else "one episode per scenario"
+    console.print(
+        f"completion {summary.metrics.completion:.4f}, 95% interval "
+        f"[{interval.low:.4f}, {interval.high:.4f}] (bootstrap over scenarios and episodes; "
+        f"{runs})"
+    )
+
+
 def could_not_start(summary: Summary) -> bool:
-    """Every scenario that ran shows the agent failing before its first step, and the run
+    """Every episode that ran shows the agent failing before its first step, and the run
     stopped early because of it."""
-    ran = [e for e in summary.scenarios if e.status == "done"]
+    ran = [e for _, e in _episodes(summary) if e.status == "done"]
     return not summary.complete and bool(ran) and all(never_started(e.agents) for e in ran)
 
 
@@ -280,10 +314,10 @@ def explain_failures(
 ) -> None:
     """The tracebacks behind the failures, from the agent logs: the first of each failed
     scenario (``verbose``: all of them), identical ones printed once with their scenarios."""
-    failed = [e for e in summary.scenarios if is_agent_fault(e.agents)]
-    logs = {e.id: _read_log(results_dir, e.id) for e in failed}
+    failed = [name for name, e in _episodes(summary) if is_agent_fault(e.agents)]
+    logs = {name: _read_log(results_dir, name) for name in failed}
     if could_not_start(summary):
-        ran = [e.id for e in summary.scenarios if e.status == "done"]
+        ran = [name for name, e in _episodes(summary) if e.status == "done"]
         error = startup_error(logs.get(ran[0], ""))
         console.print(
             f"[bold red]your agent could not start[/] (stopped after {len(ran)} scenarios, "
@@ -297,8 +331,8 @@ def explain_failures(
             )
         return
     found = []
-    for entry in failed:
-        found += [(entry.id, text) for text in failure_texts(logs[entry.id], every=verbose)]
+    for name in failed:
+        found += [(name, text) for text in failure_texts(logs[name], every=verbose)]
     for group in group_identical(found):
         n = len(group.scenarios)
         where = ", ".join(group.scenarios[:5]) + (f" and {n - 5} more" if n > 5 else "")

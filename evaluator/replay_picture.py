@@ -33,14 +33,17 @@ class ReplayError(ValueError):
 def draw_episode(
     results_dir: Path, scenario_id: str, out: Path, *, suite_dir: Path | None = None
 ) -> Path:
-    """Write the picture of ``scenario_id``'s episode; the map is drawn when the scenario folder
-    is found in ``suite_dir``."""
+    """Write the picture of ``scenario_id``'s episode (or of a later episode, named
+    ``<scenario id>.ep<k>``); the map is drawn when the scenario folder is found in
+    ``suite_dir``."""
     path = record_path(results_dir, scenario_id)
     if not path.exists():
         raise ReplayError(f"no record for {scenario_id} in {results_dir}")
     with np.load(path, allow_pickle=False) as data:
         rec = {name: data[name] for name in data.files}
-    scenario_dir = Path(suite_dir) / scenario_id if suite_dir is not None else None
+    # The record names its scenario: a later episode's file name is not the scenario's folder.
+    folder = str(rec["scenario_id"])
+    scenario_dir = Path(suite_dir) / folder if suite_dir is not None else None
     if scenario_dir is not None and not (scenario_dir / "scenario.json").exists():
         scenario_dir = None
     Path(out).write_text(episode_svg(rec, scenario_dir))

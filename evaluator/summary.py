@@ -13,7 +13,7 @@ from pathlib import Path
 from pydantic import BaseModel, ConfigDict
 
 from arena.outcome import AgentOutcome, ScenarioStatus
-from evaluator.scoring import Metrics
+from evaluator.scoring import Interval, Metrics, bootstrap_interval
 
 SUMMARY_FILE = "summary.json"
 
@@ -22,15 +22,29 @@ class Frozen(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
 
 
+class EpisodeEntry(Frozen):
+    """One episode of a scenario run several times (``Summary.episodes_per_scenario`` > 1)."""
+
+    index: int  # 0 is the scenario's own traffic seed (arena.episodes)
+    status: ScenarioStatus
+    steps: int = 0
+    agents: tuple[AgentOutcome, ...] = ()
+    metrics: Metrics | None = None  # this episode alone
+    error: str | None = None
+
+
 class ScenarioEntry(Frozen):
     id: str
     family: str
     status: ScenarioStatus
-    steps: int = 0  # episode steps simulated
-    agents: tuple[AgentOutcome, ...] = ()
-    metrics: Metrics | None = None  # this scenario alone
+    steps: int = 0  # episode steps simulated (over all its episodes)
+    agents: tuple[AgentOutcome, ...] = ()  # run once only; else in each of ``episodes``
+    # This scenario alone; run several times, the mean over its episodes.
+    metrics: Metrics | None = None
     terms: dict[str, float] | None = None  # mean of each metric term over its agent-steps
     error: str | None = None  # why a scenario was not charged
+    # Only for a scenario run several times: each episode, in order.
+    episodes: tuple[EpisodeEntry, ...] | None = None
 
 
 class ProfileRef(Frozen):
@@ -48,13 +62,42 @@ class Summary(Frozen):
     families: dict[str, Metrics]
     uncharged: tuple[str, ...]  # scenario ids excluded from N (our failures)
     scenarios: tuple[ScenarioEntry, ...]
+    episodes_per_scenario: int = 1  # of each reactive scenario (arena.episodes)
+
+    def to_dict(self) -> dict:
+        """The JSON shape: with one episode per scenario, exactly the shape from before episodes
+        existed (no ``episodes_per_scenario``, no per-scenario ``episodes``)."""
+        data = self.model_dump(mode="json")
+        if self.episodes_per_scenario == 1:
+            del data["episodes_per_scenario"]
+        for entry in data["scenarios"]:
+            if entry["episodes"] is None:
+                del entry["episodes"]
+        return data
+
+    def completion_samples(self) -> list[list[float]]:
+        """Each charged scenario's completion error in each of its episodes: what the
+        completion interval resamples."""
+        return [
+            [e.metrics.completion for e in entry.episodes]
+            if entry.episodes
+            else [entry.metrics.completion]
+            for entry in self.scenarios
+            if entry.status == ScenarioStatus.done and entry.metrics is not None
+        ]
+
+    def completion_interval(self) -> Interval | None:
+        """The 95% bootstrap interval of ``metrics.completion`` (docs/scoring.md); None when no
+        scenario was charged."""
+        samples = self.completion_samples()
+        return bootstrap_interval(samples) if samples else None
 
 
 def write_summary(summary: Summary, results_dir: Path) -> Path:
     """Atomic: a reader (or a crash) never sees a half-written file."""
     path = Path(results_dir) / SUMMARY_FILE
     tmp = path.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(summary.model_dump(mode="json"), indent=2) + "\n")
+    tmp.write_text(json.dumps(summary.to_dict(), indent=2) + "\n")
     os.replace(tmp, path)
     return path
 

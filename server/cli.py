@@ -208,11 +208,14 @@ def submissions_show(
                 run.worker,
                 run.scoring_profile,
                 run.error,
-                sorted((r.scenario_id, r.family, r.status, r.reason, r.steps) for r in run.results),
+                sorted(
+                    (r.scenario_id, r.episode, r.family, r.status, r.reason, r.steps)
+                    for r in run.results
+                ),
             )
             for run in submission.runs
         ]
-    columns = ("scenario", "family", "status", "reason", "steps")
+    columns = ("scenario", "episode", "family", "status", "reason", "steps")
     if as_json:
         document = view.model_dump(mode="json")
         document["attempts"] = [
@@ -239,14 +242,19 @@ def submissions_show(
             "metrics",
             "-"
             if m is None
-            else f"completion {m.completion:.4f}, time {m.time:.1f}, "
-            f"humanness {_metric(m.humanness)}, rules {_metric(m.rules)}",
+            else f"completion {m.completion:.4f}{_interval_text(view.completion_interval)}, "
+            f"time {m.time:.1f}, humanness {_metric(m.humanness)}, rules {_metric(m.rules)}",
         ),
+        ("episodes", f"{view.episodes_per_scenario} per reactive scenario"),
     ):
         console.print(f"{name}: {value}", markup=False, highlight=False)
     for attempt, status, worker, profile, error, results in runs:
         title = f"attempt {attempt}: {status} ({profile}) {worker or ''} {error or ''}".strip()
-        print_rows(console, columns, results, title=title, numeric=("steps",))
+        print_rows(console, columns, results, title=title, numeric=("episode", "steps"))
+
+
+def _interval_text(interval) -> str:
+    return "" if interval is None else f" [{interval.low:.4f}, {interval.high:.4f}]"
 
 
 @submissions_app.command("logs")
@@ -260,7 +268,10 @@ def submissions_logs(submission_id: SubmissionId) -> None:
         submission = _run(lambda: submissions.get_submission(session, submission_id))
         view = submissions.logs(session, submission, organiser=True)
     for entry in view.scenarios:
-        typer.echo(f"=== {entry.scenario_id} ({entry.family}): {entry.status} {entry.reason}")
+        episode = f" episode {entry.episode}" if entry.episode else ""
+        typer.echo(
+            f"=== {entry.scenario_id}{episode} ({entry.family}): {entry.status} {entry.reason}"
+        )
         typer.echo(entry.log_tail)
 
 
@@ -466,7 +477,8 @@ def _moment(text: str | None, option: str):
 
 @phases_app.command("list")
 def phases_list() -> None:
-    """Every phase: its suite, visibility, dates (UTC), daily quota and whether it is open."""
+    """Every phase: its suite, visibility, dates (UTC), daily quota, episodes per reactive
+    scenario (what an evaluation costs) and whether it is open."""
     from server.models import utcnow
     from server.services import phases
 
@@ -474,7 +486,9 @@ def phases_list() -> None:
     with ctx.db.read_session() as session:
         rows = phases.list_phases(session)
     moment = utcnow()
-    table = Table("phase", "suite", "visibility", "starts", "ends", "daily quota", "open")
+    table = Table(
+        "phase", "suite", "visibility", "starts", "ends", "daily quota", "episodes", "open"
+    )
     for phase in rows:
         table.add_row(
             phase.name,
@@ -483,9 +497,15 @@ def phases_list() -> None:
             f"{phase.starts_at:%Y-%m-%d %H:%M}" if phase.starts_at else "-",
             f"{phase.ends_at:%Y-%m-%d %H:%M}" if phase.ends_at else "-",
             str(phases.daily_quota(phase, ctx.settings)),
+            str(phases.episodes_per_scenario(phase, ctx.settings)),
             "yes" if phases.is_open(phase, moment) else "no",
         )
     console.print(table)
+    console.print(
+        "episodes: of each reactive scenario, each with other traffic; an evaluation takes about "
+        "that many times as long as with one",
+        style="dim",
+    )
 
 
 @phases_app.command("set")
@@ -499,6 +519,13 @@ def phases_set(
     ends: Annotated[str | None, typer.Option(help="Closes at (ISO 8601, UTC).")] = None,
     quota: Annotated[int | None, typer.Option(help="Submissions per team, track and day.")] = None,
     profile: Annotated[str | None, typer.Option(help="Scoring profile of the phase.")] = None,
+    episodes: Annotated[
+        int | None,
+        typer.Option(
+            help="Episodes of each reactive scenario, each with other traffic; evaluation takes "
+            "about this many times as long (default: ARENA_EPISODES_PER_SCENARIO)."
+        ),
+    ] = None,
     open_ended: Annotated[
         bool, typer.Option("--open-ended", help="No start and no end date.")
     ] = False,
@@ -516,8 +543,12 @@ def phases_set(
         ends_at=_moment(ends, "--ends"),
         daily_quota=quota,
         scoring_profile=profile,
+        episodes_per_scenario=episodes,
         clear_dates=open_ended,
     )
     ctx = _Context()
     phase = _run(lambda: phases.set_phase(ctx.db, name, changes))
     console.print(f"phase [bold]{phase.name}[/bold] saved")
+    per_scenario = phases.episodes_per_scenario(phase, ctx.settings)
+    if per_scenario > 1:
+        console.print(phases.episodes_cost(per_scenario))

@@ -121,13 +121,13 @@ class Phase(Base):
     ends_at: Mapped[datetime | None]  # None: never closes
     daily_quota: Mapped[int | None] = mapped_column(Integer)  # None: the setting's daily_quota
     scoring_profile: Mapped[str | None] = mapped_column(String(64))  # None: the setting's
+    # Episodes of each reactive scenario (arena/episodes.py); None: the setting's.
+    episodes_per_scenario: Mapped[int | None] = mapped_column(Integer)
 
 
 class Submission(Base):
     __tablename__ = "submissions"
-    __table_args__ = (
-        Index("ix_submissions_team_track_created", "team_id", "track", "created_at"),
-    )
+    __table_args__ = (Index("ix_submissions_team_track_created", "team_id", "track", "created_at"),)
 
     id: Mapped[int] = mapped_column(primary_key=True)
     team_id: Mapped[int] = mapped_column(ForeignKey("teams.id"))
@@ -171,7 +171,10 @@ class EvaluationRun(Base):
     status: Mapped[RunStatus] = mapped_column(_enum(RunStatus), index=True)
     suite_dir: Mapped[str] = mapped_column(String(512))
     manifest_sha256: Mapped[str] = mapped_column(String(64))
-    scenario_count: Mapped[int] = mapped_column(Integer)
+    # Episodes to run: one per scenario, episodes_per_scenario per reactive scenario.
+    episode_count: Mapped[int] = mapped_column(Integer)
+    # Fixed when the run is made: a later change to the phase does not change a run under way.
+    episodes_per_scenario: Mapped[int] = mapped_column(Integer, default=1, server_default="1")
     scoring_profile: Mapped[str] = mapped_column(String(64))
     scoring_version: Mapped[str] = mapped_column(String(32), default="")
     worker: Mapped[str] = mapped_column(String(255), default="")
@@ -187,15 +190,16 @@ class EvaluationRun(Base):
 
 
 class ScenarioResult(Base):
-    """The outcome of one scenario in one run. Unique per (run, scenario): a redelivered task
-    finds the row already there and cannot count the scenario twice."""
+    """The outcome of one episode of one scenario in one run. Unique per (run, scenario,
+    episode): a redelivered task finds the row already there and cannot count it twice."""
 
     __tablename__ = "scenario_results"
-    __table_args__ = (UniqueConstraint("run_id", "scenario_id"),)
+    __table_args__ = (UniqueConstraint("run_id", "scenario_id", "episode"),)
 
     id: Mapped[int] = mapped_column(primary_key=True)
     run_id: Mapped[int] = mapped_column(ForeignKey("evaluation_runs.id"))
     scenario_id: Mapped[str] = mapped_column(String(128))
+    episode: Mapped[int] = mapped_column(Integer, default=0, server_default="0")
     family: Mapped[str] = mapped_column(String(64))
     # The core's vocabulary (arena.outcome); only `done` is charged to the submission.
     status: Mapped[ScenarioStatus] = mapped_column(
@@ -229,6 +233,10 @@ class Score(Base):
     # NULL when no agent drove a step: nothing measured (0 would be the best value).
     humanness: Mapped[float | None] = mapped_column(Float)
     rules: Mapped[float | None] = mapped_column(Float)
+    # The 95% bootstrap interval of completion (evaluator/scoring/interval.py); NULL for scores
+    # written before intervals existed.
+    completion_low: Mapped[float | None] = mapped_column(Float)
+    completion_high: Mapped[float | None] = mapped_column(Float)
     families: Mapped[dict[str, Any]] = mapped_column(default=dict)
     profile: Mapped[str] = mapped_column(String(64))
     profile_version: Mapped[str] = mapped_column(String(32), default="")

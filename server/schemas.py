@@ -27,9 +27,16 @@ class FamilyMetrics(Metrics):
     scenarios: int
 
 
+class CompletionInterval(Schema):
+    """The 95% bootstrap confidence interval of completion (docs/scoring.md)."""
+
+    low: float
+    high: float
+
+
 class Progress(Schema):
     done: int
-    total: int
+    total: int  # episodes: one per scenario, episodes_per_scenario per reactive scenario
 
 
 class SubmissionSummary(Schema):
@@ -42,6 +49,9 @@ class SubmissionSummary(Schema):
     created_at: datetime
     progress: Progress
     metrics: Metrics | None
+    # None until scored (and for scores from before intervals existed).
+    completion_interval: CompletionInterval | None
+    episodes_per_scenario: int
 
 
 class SubmissionDetail(SubmissionSummary):
@@ -52,14 +62,15 @@ class SubmissionDetail(SubmissionSummary):
     attempt: int
     scoring_profile: str | None
     families: dict[str, FamilyMetrics]
-    # family -> failure reason -> number of scenarios. Scenario ids of the hidden suite are never
-    # shown to participants; these counts are.
+    # family -> failure reason -> number of episodes (of scenarios, when each ran once). Scenario
+    # ids of the hidden suite are never shown to participants; these counts are.
     failure_reasons: dict[str, dict[str, int]]
 
 
 class ScenarioLog(Schema):
-    label: str  # "<family> #<k>"
+    label: str  # "<family> #<k>", plus " episode <e>" when scenarios ran several times
     scenario_id: str  # only ever shown where the suite is public to the reader
+    episode: int
     family: str
     status: str
     reason: str
@@ -78,6 +89,11 @@ class LeaderboardEntry(Schema):
     method_name: str
     submitted_at: datetime
     metrics: Metrics
+    completion_interval: CompletionInterval | None
+    # Ranks of the neighbours (just above, just below) whose completion interval overlaps this
+    # one's: statistically tied, their order may be chance.
+    tied_with: list[int]
+    episodes_per_scenario: int
     families: dict[str, FamilyMetrics]
 
 

@@ -1,9 +1,10 @@
 """Evaluate one submission on a scenario set: ``arena evaluate``.
 
-Up to ``jobs`` scenarios run at once, each in its own simulator process with its own sandboxed
-agent (the threads here only wait on those processes). ``summary.json`` is rewritten whenever a
-scenario starts or finishes, so a crash leaves a trace and a re-run with the same ``out_dir``
-resumes where it stopped.
+Up to ``jobs`` episodes run at once, each in its own simulator process with its own sandboxed
+agent (the threads here only wait on those processes). A reactive scenario runs
+``episodes_per_scenario`` episodes, each with other traffic (:mod:`arena.episodes`).
+``summary.json`` is rewritten whenever an episode starts or finishes, so a crash leaves a trace
+and a re-run with the same ``out_dir`` resumes where it stopped.
 """
 
 from __future__ import annotations
@@ -19,9 +20,10 @@ from pathlib import Path
 from typing import Protocol
 
 from arena.config import SandboxKind
+from arena.episodes import Episode, episodes_of
 from arena.errors import ArenaError
 from arena.outcome import ScenarioStatus
-from arena.suite import ManifestEntry, Suite, load_suite
+from arena.suite import Suite, load_suite
 from evaluator.failures import FAIL_FAST_AFTER, never_started
 from evaluator.runner.results import (
     LOGS_DIR,
@@ -30,6 +32,7 @@ from evaluator.runner.results import (
     is_finished,
     score_outcome,
     score_outcomes,
+    stored_episodes,
     stored_outcome,
 )
 from evaluator.runner.scenario import ScenarioOutcome, run_scenario
@@ -62,12 +65,15 @@ def evaluate(
     per_submission: bool = False,
     force: bool = False,
     fail_fast_after: int | None = FAIL_FAST_AFTER,
+    episodes_per_scenario: int = 1,
 ) -> Summary:
-    """Run the scenarios not yet finished in ``out_dir`` and return the summary.
+    """Run the episodes not yet finished in ``out_dir`` and return the summary.
 
     ``per_submission`` puts the results in ``out_dir/<first 12 hex of the submission's sha256>``,
     so an edited agent gets a folder of its own; ``force`` discards the results already there.
-    When the first ``fail_fast_after`` scenarios all end with the agent failing to start, the
+    ``episodes_per_scenario`` episodes of each reactive scenario run (one of each replay); the
+    episodes a previous run finished are kept, so raising it reuses them.
+    When the first ``fail_fast_after`` episodes all end with the agent failing to start, the
     rest are not run (the summary stays incomplete): one error, not one per scenario.
     """
     from submissions.intake import prepare_submission
@@ -85,25 +91,31 @@ def evaluate(
             discard_results(out_dir)
         (out_dir / RECORDS_DIR).mkdir(parents=True, exist_ok=True)
         (out_dir / LOGS_DIR).mkdir(exist_ok=True)
-        run = ResultsFolder(out_dir, suite, scoring_profile, submission.sha256)
+        run = ResultsFolder(
+            out_dir, suite, scoring_profile, submission.sha256, episodes_per_scenario
+        )
         todo = run.resume()
         if progress:
-            progress.started(len(suite.scenarios), len(suite.scenarios) - len(todo))
+            progress.started(len(run.episodes), len(run.episodes) - len(todo))
 
-        def play(scenario: ManifestEntry) -> ScenarioOutcome:
-            run.mark_running(scenario.id)
+        def play(episode: Episode) -> ScenarioOutcome:
+            run.mark_running(episode)
             return run_scenario(
-                submission, suite.scenario_dir(scenario.id), out_dir / RECORDS_DIR, sandbox=sandbox
+                submission,
+                suite.scenario_dir(episode.scenario_id),
+                out_dir / RECORDS_DIR,
+                sandbox=sandbox,
+                episode=episode.index,
             )
 
         with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
-            pending: dict[Future, ManifestEntry] = {}
+            pending: dict[Future, Episode] = {}
             queue = list(todo)
             starts = _StartWatch(fail_fast_after)
             while queue or pending:
                 while queue and len(pending) < jobs and not starts.gave_up:
-                    scenario = queue.pop(0)
-                    pending[pool.submit(play, scenario)] = scenario
+                    episode = queue.pop(0)
+                    pending[pool.submit(play, episode)] = episode
                 if not pending:
                     break
                 done, _ = wait(pending, return_when=FIRST_COMPLETED)
@@ -156,16 +168,17 @@ def _usable_sandbox(kind: SandboxKind | None) -> SandboxKind:
     return kind
 
 
-def _outcome_of(future: Future, scenario: ManifestEntry) -> ScenarioOutcome:
-    """An exception from the runner itself (sandbox unavailable, a bug) is ours: the scenario is
+def _outcome_of(future: Future, episode: Episode) -> ScenarioOutcome:
+    """An exception from the runner itself (sandbox unavailable, a bug) is ours: the episode is
     reported uncharged with the traceback rather than ending the whole evaluation."""
     try:
         return future.result()
     except Exception as exc:
         return ScenarioOutcome.ours(
-            scenario.id,
+            episode.scenario_id,
             f"{type(exc).__name__}: {exc}",
             log="".join(traceback.format_exception(exc)),
+            episode=episode.index,
         )
 
 
@@ -173,20 +186,27 @@ class ResultsFolder:
     """The results folder of one evaluation, written from the main thread and workers alike."""
 
     def __init__(
-        self, out_dir: Path, suite: Suite, profile: ScoringProfile, submission: str
+        self,
+        out_dir: Path,
+        suite: Suite,
+        profile: ScoringProfile,
+        submission: str,
+        episodes_per_scenario: int = 1,
     ) -> None:
         self.out_dir = out_dir
         self.suite = suite
         self.profile = profile
         self.submission = submission
-        self.outcomes: dict[str, ScenarioOutcome] = {}
-        self.running: set[str] = set()
-        self.cache: dict[str, ScoredEntry] = {}
-        self.timings: dict[str, float] = {}
+        self.episodes_per_scenario = episodes_per_scenario
+        self.episodes = episodes_of(suite.scenarios, episodes_per_scenario)
+        self.outcomes: dict[Episode, ScenarioOutcome] = {}
+        self.running: set[Episode] = set()
+        self.cache: dict[Episode, ScoredEntry] = {}
+        self.timings: dict[str, float] = {}  # episode name -> wall time [s]
         self.lock = threading.Lock()
 
-    def resume(self) -> list[ManifestEntry]:
-        """Keep the scenarios a previous run finished; return the ones still to run."""
+    def resume(self) -> list[Episode]:
+        """Keep the episodes a previous run finished; return the ones still to run."""
         if (self.out_dir / SUMMARY_FILE).exists():
             previous = read_summary(self.out_dir)
             if (previous.submission, previous.manifest_hash) != (
@@ -199,28 +219,32 @@ class ResultsFolder:
                     "use a fresh --out, or --force to replace them"
                 )
             for entry in previous.scenarios:
-                if is_finished(entry, self.out_dir):
-                    self.outcomes[entry.id] = stored_outcome(entry, self.out_dir)
+                for key, episode in stored_episodes(entry):
+                    if is_finished(key, episode, self.out_dir):
+                        self.outcomes[key] = stored_outcome(key, episode, self.out_dir)
             timings = self.out_dir / TIMINGS_FILE
             if timings.exists():
                 self.timings = json.loads(timings.read_text())
+        # Episodes beyond the ones now asked for are dropped, not reported.
+        self.outcomes = {k: o for k, o in self.outcomes.items() if k in set(self.episodes)}
         self._write()
-        return [s for s in self.suite.scenarios if s.id not in self.outcomes]
+        return [e for e in self.episodes if e not in self.outcomes]
 
-    def mark_running(self, scenario_id: str) -> None:
+    def mark_running(self, episode: Episode) -> None:
         with self.lock:
-            self.running.add(scenario_id)
+            self.running.add(episode)
             self._write()
 
     def record(self, outcome: ScenarioOutcome) -> None:
         with self.lock:
-            self.running.discard(outcome.scenario_id)
+            key = outcome.key
+            self.running.discard(key)
             scenario = next(s for s in self.suite.scenarios if s.id == outcome.scenario_id)
             scored = score_outcome(scenario, outcome, self.profile)
-            self.outcomes[outcome.scenario_id] = outcome
-            self.cache[outcome.scenario_id] = scored
-            self.timings[outcome.scenario_id] = round(outcome.wall_time_s, 3)
-            (self.out_dir / LOGS_DIR / f"{outcome.scenario_id}.txt").write_text(outcome.log)
+            self.outcomes[key] = outcome
+            self.cache[key] = scored
+            self.timings[key.name] = round(outcome.wall_time_s, 3)
+            (self.out_dir / LOGS_DIR / f"{key.name}.txt").write_text(outcome.log)
             self._write()
 
     def summary(self) -> Summary:
@@ -233,6 +257,7 @@ class ResultsFolder:
             self.suite,
             self.profile,
             submission=self.submission,
+            episodes_per_scenario=self.episodes_per_scenario,
             running=self.running,
             cache=self.cache,
         )

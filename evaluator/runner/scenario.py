@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from arena.config import SandboxKind, get_settings
+from arena.episodes import Episode, traffic_seed
 from arena.outcome import AgentOutcome, ScenarioStatus
 from arena.record_format import RECORD_SUFFIX
 from arena.scenario import load_scenario
@@ -48,6 +49,8 @@ class SandboxedAgentFactory:
 
 @dataclass(frozen=True)
 class ScenarioOutcome:
+    """How one episode of a scenario ended."""
+
     scenario_id: str
     status: ScenarioStatus  # done, simulator_error or evaluator_error
     steps: int  # episode steps simulated
@@ -57,12 +60,20 @@ class ScenarioOutcome:
     log: str = ""  # agent stderr tail and failure detail, for the participant
     attempts: int = 1
     wall_time_s: float = 0.0
+    episode: int = 0  # which episode of the scenario (arena.episodes)
+
+    @property
+    def key(self) -> Episode:
+        return Episode(self.scenario_id, self.episode)
 
     @classmethod
-    def ours(cls, scenario_id: str, error: str, *, log: str = "", attempts: int = 1):
+    def ours(
+        cls, scenario_id: str, error: str, *, log: str = "", attempts: int = 1, episode: int = 0
+    ):
         """A scenario that could not be evaluated through no fault of the submission."""
         return cls(
             scenario_id=scenario_id,
+            episode=episode,
             status=ScenarioStatus.evaluator_error,
             steps=0,
             agents=(),
@@ -97,9 +108,11 @@ def run_scenario(
     *,
     sandbox: SandboxKind | None = None,
     run_key: str | None = None,
+    episode: int = 0,
 ) -> ScenarioOutcome:
-    """Simulate ``scenario_dir`` with the submission's agent, writing
-    ``records_dir/<scenario_id>.npz``; a simulator error is retried once.
+    """Simulate episode ``episode`` of ``scenario_dir`` (its traffic seed from
+    :func:`arena.episodes.traffic_seed`) with the submission's agent, writing
+    ``records_dir/<episode name>.npz``; a simulator error is retried once.
 
     Agent failures come back as a ``done`` outcome whose agents carry the reason. Infrastructure
     errors (sandbox unavailable) are raised so the caller can retry the job. ``run_key`` labels
@@ -109,7 +122,8 @@ def run_scenario(
     from sim.isolation import run_episode_isolated
 
     scenario = load_scenario(scenario_dir)
-    record_path = Path(records_dir) / f"{scenario.id}{RECORD_SUFFIX}"
+    key = Episode(scenario.id, episode)
+    record_path = Path(records_dir) / f"{key.name}{RECORD_SUFFIX}"
     record_path.parent.mkdir(parents=True, exist_ok=True)
     run_key = run_key or new_run_key()
     started = time.monotonic()
@@ -123,11 +137,12 @@ def run_scenario(
             factory,
             submission.interface,
             record_path=record_path,
+            seed=traffic_seed(scenario.id, scenario.seed, episode),
             episode_timeout_s=get_settings().episode_timeout_s,
         )
-        logs.append(_log_text(result, attempt))
+        logs.append(_log_text(result, attempt, key))
         if result.simulator_error is None:
-            return _outcome(result, record_path, "\n".join(logs), attempt, started)
+            return _outcome(result, record_path, "\n".join(logs), attempt, started, episode)
         # The episode's process died or SUMO failed: its agent's sandbox may never have been
         # closed. (A clean episode closes its own agent.)
         sandboxes.cleanup(labels)
@@ -142,11 +157,17 @@ def run_scenario(
         log="\n".join(logs),
         attempts=SIMULATOR_ATTEMPTS,
         wall_time_s=time.monotonic() - started,
+        episode=episode,
     )
 
 
 def _outcome(
-    result: EpisodeResult, record_path: Path, log: str, attempts: int, started: float
+    result: EpisodeResult,
+    record_path: Path,
+    log: str,
+    attempts: int,
+    started: float,
+    episode: int,
 ) -> ScenarioOutcome:
     return ScenarioOutcome(
         scenario_id=result.scenario_id,
@@ -157,11 +178,13 @@ def _outcome(
         log=log,
         attempts=attempts,
         wall_time_s=time.monotonic() - started,
+        episode=episode,
     )
 
 
-def _log_text(result: EpisodeResult, attempt: int) -> str:
-    parts = [f"--- attempt {attempt}: {result.scenario_id}"]
+def _log_text(result: EpisodeResult, attempt: int, key: Episode) -> str:
+    shown = key.scenario_id if key.index == 0 else f"{key.scenario_id} episode {key.index}"
+    parts = [f"--- attempt {attempt}: {shown}"]
     if result.simulator_error:
         parts.append(f"simulator error: {result.simulator_error}")
     for agent in result.agents:

@@ -3,7 +3,13 @@
 Everything here is a pure function of records and a :class:`ScoringProfile`.
 """
 
-from evaluator.scoring.episode import EpisodeScore, score_episode, score_without_record
+from evaluator.scoring.episode import (
+    EpisodeScore,
+    mean_score,
+    score_episode,
+    score_without_record,
+)
+from evaluator.scoring.interval import Interval, bootstrap_interval, tied_neighbours
 from evaluator.scoring.profile import DEFAULT_PROFILE, ProfileError, ScoringProfile, load_profile
 from evaluator.scoring.ranking import rank, rank_key
 from evaluator.scoring.record import EpisodeRecord, load_record
@@ -13,16 +19,20 @@ __all__ = [
     "DEFAULT_PROFILE",
     "EpisodeRecord",
     "EpisodeScore",
+    "Interval",
     "Metrics",
     "ProfileError",
     "ScoringProfile",
     "aggregate",
+    "bootstrap_interval",
     "by_family",
     "load_profile",
     "load_record",
+    "mean_score",
     "rank",
     "rank_key",
     "scenario_metrics",
     "score_episode",
     "score_without_record",
+    "tied_neighbours",
 ]

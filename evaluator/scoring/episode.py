@@ -27,16 +27,17 @@ class EpisodeScore:
     # [steps] last goal step, or max_episode_steps if any agent failed (plus the goal L1
     # distances [m] under a profile with time_adds_goal_l1)
     time: float
-    agent_steps: int  # agent-steps driven, over all agents
+    # Agent-steps driven, over all agents (a mean over episodes in :func:`mean_score`).
+    agent_steps: float
     humanness_sum: float
     rules_sum: float
     term_sums: dict[str, float]  # per term, over all agent-steps
     # With agent_episode averaging the sums are of per-agent-episode means and this counts the
     # agent-episodes that drove a step; the suite then divides by it instead of agent_steps.
-    agent_episodes: int | None = None
+    agent_episodes: float | None = None
 
     @property
-    def weight(self) -> int:
+    def weight(self) -> float:
         """What humanness_sum and rules_sum are averaged over."""
         return self.agent_steps if self.agent_episodes is None else self.agent_episodes
 
@@ -70,6 +71,30 @@ def score_episode(record: EpisodeRecord, profile: ScoringProfile) -> EpisodeScor
         for name in names
     }
     return _score(record.scenario_id, record.agents, term_sums, profile, None, goal_l1(record))
+
+
+def mean_score(scores: Sequence[EpisodeScore]) -> EpisodeScore:
+    """One scenario's score from its episodes: every field the mean over them. Sums and weights
+    are averaged alike, so each scenario weighs in the suite as one episode does (a scenario run
+    50 times does not drown one run once) and its humanness stays a mean over agent-steps."""
+    if len(scores) == 1:
+        return scores[0]
+    n = len(scores)
+
+    def mean(values) -> float:
+        return sum(values) / n
+
+    episodes = [s.agent_episodes for s in scores]
+    return EpisodeScore(
+        scenario_id=scores[0].scenario_id,
+        failure=mean(s.failure for s in scores),
+        time=mean(s.time for s in scores),
+        agent_steps=mean(s.agent_steps for s in scores),
+        humanness_sum=mean(s.humanness_sum for s in scores),
+        rules_sum=mean(s.rules_sum for s in scores),
+        term_sums={name: mean(s.term_sums[name] for s in scores) for name in scores[0].term_sums},
+        agent_episodes=None if episodes[0] is None else mean(episodes),
+    )
 
 
 def _per_agent_episode(name: str, track: AgentTrack, profile: ScoringProfile) -> float:

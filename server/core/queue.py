@@ -9,6 +9,7 @@ from celery import Celery
 from kombu.exceptions import OperationalError
 
 from arena.config import Settings
+from arena.episodes import Episode
 from server.core.celery_app import (
     QUEUE,
     TASK_AGGREGATE,
@@ -25,16 +26,16 @@ BROKER_ERRORS = (OperationalError, OSError)
 
 @dataclass(frozen=True)
 class RunPlan:
-    """Scenario tasks to send for a run (and whether its aggregation is due)."""
+    """Episode tasks to send for a run (and whether its aggregation is due)."""
 
     run_id: int
-    scenario_ids: tuple[str, ...] = ()
+    episodes: tuple[Episode, ...] = ()
     aggregate: bool = False
 
 
-def scenario_task_id(run_id: int, scenario_id: str) -> str:
+def scenario_task_id(run_id: int, episode: Episode) -> str:
     """Deterministic, so cancel can revoke a run's queued tasks without having stored their ids."""
-    return f"run-{run_id}-{scenario_id}"
+    return f"run-{run_id}-{episode.name}"
 
 
 class TaskQueue:
@@ -50,11 +51,11 @@ class TaskQueue:
     def evaluate(self, submission_id: int) -> None:
         self.celery.send_task(TASK_EVALUATE, kwargs={"submission_id": submission_id}, queue=QUEUE)
 
-    def run_scenario(self, run_id: int, scenario_id: str) -> None:
+    def run_scenario(self, run_id: int, episode: Episode) -> None:
         self.celery.send_task(
             TASK_SCENARIO,
-            kwargs={"run_id": run_id, "scenario_id": scenario_id},
-            task_id=scenario_task_id(run_id, scenario_id),
+            kwargs={"run_id": run_id, "scenario_id": episode.scenario_id, "episode": episode.index},
+            task_id=scenario_task_id(run_id, episode),
             queue=QUEUE,
         )
 
@@ -62,8 +63,8 @@ class TaskQueue:
         self.celery.send_task(TASK_AGGREGATE, kwargs={"run_id": run_id}, queue=QUEUE)
 
     def send(self, plan: RunPlan) -> None:
-        for scenario_id in plan.scenario_ids:
-            self.run_scenario(plan.run_id, scenario_id)
+        for episode in plan.episodes:
+            self.run_scenario(plan.run_id, episode)
         if plan.aggregate:
             self.aggregate(plan.run_id)
 

@@ -38,15 +38,15 @@ def requeue(db: Database, settings: Settings, queue: TaskQueue, submission_id: i
                     f"submission {submission_id} is {submission.status} with no evaluation in "
                     "progress; use rerun for a new attempt"
                 )
-            pending = evaluation.pending_scenarios(runs[-1])
+            pending = evaluation.pending_episodes(runs[-1])
             runs[-1].lease_expires_at = evaluation.lease_until(settings)
-            plan = RunPlan(run_id=runs[-1].id, scenario_ids=pending, aggregate=not pending)
+            plan = RunPlan(run_id=runs[-1].id, episodes=pending, aggregate=not pending)
     if plan is None:
         queue.evaluate(submission_id)
         return "evaluation queued"
     queue.send(plan)
-    if plan.scenario_ids:
-        return f"{len(plan.scenario_ids)} scenario(s) re-sent"
+    if plan.episodes:
+        return f"{len(plan.episodes)} episode(s) re-sent"
     return "aggregation re-sent"
 
 

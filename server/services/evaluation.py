@@ -15,6 +15,7 @@ from sqlalchemy import delete, func, select, update
 from sqlalchemy.orm import Session
 
 from arena.config import Settings
+from arena.episodes import Episode, episode_count, episodes_of
 from arena.errors import SuiteError
 from arena.outcome import FINISHED, AgentOutcome, ScenarioStatus
 from arena.suite import Suite, load_suite
@@ -39,7 +40,7 @@ from server.status import (
 
 @dataclass(frozen=True)
 class ScenarioJob:
-    """What a worker needs to run one scenario of a run."""
+    """What a worker needs to run one episode of one scenario of a run."""
 
     run_id: int
     submission_id: int
@@ -47,6 +48,11 @@ class ScenarioJob:
     scenario_dir: str
     upload_key: str  # the submission's zip in the artifact store
     attempt: int  # 1 for the first claim; more after workers died holding it
+    episode: int = 0  # arena.episodes: which traffic seed
+
+    @property
+    def key(self) -> Episode:
+        return Episode(self.scenario_id, self.episode)
 
 
 def lock(session: Session, model, row_id: int):
@@ -78,10 +84,12 @@ def _suite(folder: Path) -> Suite:
 
 
 def create_run(session: Session, settings: Settings, submission: Submission) -> RunPlan:
-    """A new attempt on the suite of the submission's phase; every scenario of it still to run."""
+    """A new attempt on the suite of the submission's phase; every episode of it still to run."""
     phase = phases.get_phase(session, submission.phase)
     suite = _suite(phases.suite_dir(phase, settings))
     profile = load_profile(phases.scoring_profile(phase, settings))
+    per_scenario = phases.episodes_per_scenario(phase, settings)
+    episodes = episodes_of(suite.scenarios, per_scenario)
     attempt = 1 + (
         session.scalar(
             select(func.max(EvaluationRun.attempt)).where(
@@ -96,15 +104,15 @@ def create_run(session: Session, settings: Settings, submission: Submission) -> 
         status=RunStatus.queued,
         suite_dir=str(suite.root),
         manifest_sha256=suite.sha256,
-        scenario_count=len(suite.scenarios),
+        episode_count=len(episodes),
+        episodes_per_scenario=per_scenario,
         scoring_profile=profile.name,
         scoring_version=str(profile.version),
         lease_expires_at=lease_until(settings),
     )
     session.add(run)
     session.flush()
-    ids = tuple(entry.id for entry in suite.scenarios)
-    return RunPlan(run_id=run.id, scenario_ids=ids, aggregate=not ids)
+    return RunPlan(run_id=run.id, episodes=episodes, aggregate=not episodes)
 
 
 def start_evaluation(session: Session, settings: Settings, submission_id: int) -> RunPlan | None:
@@ -133,16 +141,23 @@ def rerun(session: Session, settings: Settings, submission_id: int) -> RunPlan:
 
 
 def claim_scenario(
-    session: Session, settings: Settings, run_id: int, scenario_id: str, worker: str
+    session: Session,
+    settings: Settings,
+    run_id: int,
+    scenario_id: str,
+    worker: str,
+    episode: int = 0,
 ) -> ScenarioJob | None:
-    """Mark a scenario as being run by ``worker``; None if the run is over or the scenario is
-    finished or held by a worker whose lease is still valid."""
+    """Mark an episode of a scenario as being run by ``worker``; None if the run is over or the
+    episode is finished or held by a worker whose lease is still valid."""
     run = lock(session, EvaluationRun, run_id)
     if run.status not in ACTIVE_RUN:
         return None
     existing = session.scalar(
         select(ScenarioResult).where(
-            ScenarioResult.run_id == run_id, ScenarioResult.scenario_id == scenario_id
+            ScenarioResult.run_id == run_id,
+            ScenarioResult.scenario_id == scenario_id,
+            ScenarioResult.episode == episode,
         )
     )
     if existing is not None and existing.status != ScenarioStatus.running:
@@ -153,14 +168,17 @@ def claim_scenario(
     if existing is not None and existing.worker and lease_valid:
         return None
     suite = _suite(Path(run.suite_dir))
-    family = suite.family_of().get(scenario_id)
-    if family is None:
+    entry = next((e for e in suite.scenarios if e.id == scenario_id), None)
+    if entry is None:
         raise NotFound(f"scenario {scenario_id} is not in the suite of run {run_id}")
+    if not 0 <= episode < episode_count(entry, run.episodes_per_scenario):
+        raise NotFound(f"run {run_id} has no episode {episode} of scenario {scenario_id}")
     if existing is None:
         existing = ScenarioResult(
             run_id=run_id,
             scenario_id=scenario_id,
-            family=family,
+            episode=episode,
+            family=entry.family.value,
             status=ScenarioStatus.running,
             worker=worker,
             attempts=0,
@@ -181,6 +199,7 @@ def claim_scenario(
         scenario_dir=str(suite.scenario_dir(scenario_id)),
         upload_key=run.submission.upload_key,
         attempt=existing.attempts,
+        episode=episode,
     )
 
 
@@ -222,6 +241,7 @@ def _claim_of(job: ScenarioJob, worker: str) -> tuple:
     return (
         ScenarioResult.run_id == job.run_id,
         ScenarioResult.scenario_id == job.scenario_id,
+        ScenarioResult.episode == job.episode,
         ScenarioResult.status == ScenarioStatus.running,
         ScenarioResult.worker == worker,
         ScenarioResult.attempts == job.attempt,
@@ -252,7 +272,7 @@ def record_scenario(
         return False  # a duplicate delivery, or a superseded claim: the result is not ours
     if _give_up_if_agent_cannot_start(session, run):
         return False
-    return finished_count(session, job.run_id) == run.scenario_count
+    return finished_count(session, job.run_id) == run.episode_count
 
 
 def _give_up_if_agent_cannot_start(session: Session, run: EvaluationRun) -> bool:
@@ -265,7 +285,7 @@ def _give_up_if_agent_cannot_start(session: Session, run: EvaluationRun) -> bool
         .where(ScenarioResult.run_id == run.id, ScenarioResult.status.in_(list(FINISHED)))
         .order_by(ScenarioResult.id)
     ).all()
-    if len(results) < failures.FAIL_FAST_AFTER or len(results) >= run.scenario_count:
+    if len(results) < failures.FAIL_FAST_AFTER or len(results) >= run.episode_count:
         return False
     agents = [[AgentOutcome(**a) for a in r.detail.get("agents", [])] for r in results]
     if not all(
@@ -282,7 +302,7 @@ def _give_up_if_agent_cannot_start(session: Session, run: EvaluationRun) -> bool
         shown += " (evaluate in the validation phase or locally to see its output)"
     run.error = (
         f"your agent could not start: {shown} "
-        f"(the same in the first {len(results)} scenarios; the others were not run)"
+        f"(the same in the first {len(results)} episodes; the others were not run)"
     )
     run.status = advance(run.status, RunStatus.failed, RUN_MOVES)
     run.finished_at = now()
@@ -310,7 +330,7 @@ def finish_run(session: Session, store: ArtifactStore, run_id: int) -> RunStatus
     run = lock(session, EvaluationRun, run_id)
     if run.status not in ACTIVE_RUN:
         return None
-    if finished_count(session, run_id) < run.scenario_count:
+    if finished_count(session, run_id) < run.episode_count:
         raise Conflict(f"run {run_id} still has scenarios to run")
     submission = lock(session, Submission, run.submission_id)
     summary = scoring.run_summary(run, load_profile(run.scoring_profile), store)
@@ -356,25 +376,32 @@ def write_score(
             profile=profile,
             profile_version=version,
             families=run_score.families,
+            completion_low=run_score.completion_interval.low,
+            completion_high=run_score.completion_interval.high,
             **run_score.metrics,
         )
     )
     bump_leaderboard(session)
 
 
-def pending_scenarios(run: EvaluationRun) -> tuple[str, ...]:
-    """Scenario ids of the run's suite that have no finished result yet, in manifest order."""
-    done = {result.scenario_id for result in run.results if result.status in FINISHED}
+def pending_episodes(run: EvaluationRun) -> tuple[Episode, ...]:
+    """Episodes of the run that have no finished result yet, in manifest order."""
+    done = {
+        Episode(result.scenario_id, result.episode)
+        for result in run.results
+        if result.status in FINISHED
+    }
     suite = _suite(Path(run.suite_dir))
-    return tuple(entry.id for entry in suite.scenarios if entry.id not in done)
+    episodes = episodes_of(suite.scenarios, run.episodes_per_scenario)
+    return tuple(episode for episode in episodes if episode not in done)
 
 
-def cancel_run(session: Session, run: EvaluationRun) -> tuple[str, ...]:
-    """Cancel an active run; returns the ids of its scenarios that have not finished. Their
-    claims go too: a cancelled run shows no scenario as running."""
+def cancel_run(session: Session, run: EvaluationRun) -> tuple[Episode, ...]:
+    """Cancel an active run; returns its episodes that have not finished. Their claims go too:
+    a cancelled run shows no scenario as running."""
     run.status = advance(run.status, RunStatus.cancelled, RUN_MOVES)
     run.finished_at = now()
-    pending = pending_scenarios(run)
+    pending = pending_episodes(run)
     session.execute(
         delete(ScenarioResult).where(
             ScenarioResult.run_id == run.id, ScenarioResult.status == ScenarioStatus.running
@@ -402,7 +429,7 @@ def reap(session: Session, settings: Settings, *, queue_empty: bool) -> Reaped:
     persistence).
     """
     moment = now()
-    resend: dict[int, set[str]] = {}
+    resend: dict[int, set[Episode]] = {}
     stale_claims = session.scalars(
         select(ScenarioResult)
         .join(EvaluationRun, EvaluationRun.id == ScenarioResult.run_id)
@@ -418,9 +445,10 @@ def reap(session: Session, settings: Settings, *, queue_empty: bool) -> Reaped:
         # Released, so the re-sent task can claim it; the old claim's writes are fenced off.
         claim.worker = ""
         claim.lease_expires_at = None
-        resend.setdefault(claim.run_id, set()).add(claim.scenario_id)
+        resend.setdefault(claim.run_id, set()).add(Episode(claim.scenario_id, claim.episode))
     plans = [
-        RunPlan(run_id=run_id, scenario_ids=tuple(sorted(ids))) for run_id, ids in resend.items()
+        RunPlan(run_id=run_id, episodes=tuple(sorted(episodes)))
+        for run_id, episodes in resend.items()
     ]
     if queue_empty:
         idle = session.scalars(
@@ -433,9 +461,9 @@ def reap(session: Session, settings: Settings, *, queue_empty: bool) -> Reaped:
             .with_for_update()
         )
         for run in idle:
-            pending = pending_scenarios(run)
+            pending = pending_episodes(run)
             run.lease_expires_at = lease_until(settings)
-            plans.append(RunPlan(run_id=run.id, scenario_ids=pending, aggregate=not pending))
+            plans.append(RunPlan(run_id=run.id, episodes=pending, aggregate=not pending))
     submission_ids: list[int] = []
     if queue_empty:
         waiting = session.scalars(

@@ -2,7 +2,9 @@
 scoring spec.
 
 The ordering rule lives in :func:`evaluator.scoring.rank` (lexicographic on the four errors, full
-ties to the earlier submission); this module only chooses the candidates and caches the result.
+ties to the earlier submission) and the statistical ties in
+:func:`evaluator.scoring.tied_neighbours`; this module only chooses the candidates and caches the
+result.
 """
 
 from __future__ import annotations
@@ -16,8 +18,8 @@ from dataclasses import dataclass
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from evaluator.scoring import Interval, rank, tied_neighbours
 from evaluator.scoring import Metrics as ScoringMetrics
-from evaluator.scoring import rank
 from server.core.db import Database
 from server.models import (
     EvaluationRun,
@@ -29,6 +31,7 @@ from server.models import (
 )
 from server.schemas import FamilyMetrics, Leaderboard, LeaderboardEntry, Metrics
 from server.services.phases import DEFAULT_PHASE, get_phase
+from server.services.submissions import completion_interval
 from server.status import RunStatus, SubmissionStatus
 
 METRICS = ("completion", "time", "humanness", "rules")
@@ -36,7 +39,9 @@ METRICS = ("completion", "time", "humanness", "rules")
 
 def compute(session: Session, track: Track, phase: str = DEFAULT_PHASE) -> Leaderboard:
     rows = session.execute(
-        select(Submission, Team.name, EvaluationRun.attempt, Score)
+        select(
+            Submission, Team.name, EvaluationRun.attempt, Score, EvaluationRun.episodes_per_scenario
+        )
         .join(Team, Team.id == Submission.team_id)
         .join(EvaluationRun, EvaluationRun.submission_id == Submission.id)
         .join(Score, Score.run_id == EvaluationRun.id)
@@ -49,9 +54,10 @@ def compute(session: Session, track: Track, phase: str = DEFAULT_PHASE) -> Leade
     ).all()
     # A submission's standing score is that of its latest scored attempt.
     latest: dict[int, tuple] = {}
-    for submission, team, attempt, score in rows:
+    for row in rows:
+        submission, _, attempt = row[:3]
         if submission.id not in latest or attempt > latest[submission.id][2]:
-            latest[submission.id] = (submission, team, attempt, score)
+            latest[submission.id] = tuple(row)
 
     def metrics(row: tuple) -> ScoringMetrics:
         score = row[3]
@@ -63,6 +69,8 @@ def compute(session: Session, track: Track, phase: str = DEFAULT_PHASE) -> Leade
     best_per_team: dict[str, tuple] = {}
     for row in rank(latest.values(), metrics=metrics, submitted_at=submitted_at):
         best_per_team.setdefault(row[1], row)
+    intervals = [completion_interval(row[3]) for row in best_per_team.values()]
+    ties = tied_neighbours([Interval(i.low, i.high) if i is not None else None for i in intervals])
     entries = [
         LeaderboardEntry(
             rank=position,
@@ -71,12 +79,17 @@ def compute(session: Session, track: Track, phase: str = DEFAULT_PHASE) -> Leade
             method_name=submission.method_name,
             submitted_at=submission.created_at,
             metrics=Metrics.model_validate(score),
+            completion_interval=interval,
+            tied_with=[other + 1 for other in tied],
+            episodes_per_scenario=episodes,
             families={
                 family: FamilyMetrics.model_validate(values)
                 for family, values in score.families.items()
             },
         )
-        for position, (submission, team, _, score) in enumerate(best_per_team.values(), start=1)
+        for position, ((submission, team, _, score, episodes), interval, tied) in enumerate(
+            zip(best_per_team.values(), intervals, ties, strict=True), start=1
+        )
     ]
     return Leaderboard(phase=phase, track=track, entries=entries)
 
@@ -95,7 +108,19 @@ def _csv_value(value: float | None) -> str:
 def to_csv(board: Leaderboard) -> str:
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(["rank", "team", "submission_id", "method_name", "submitted_at", *METRICS])
+    writer.writerow(
+        [
+            "rank",
+            "team",
+            "submission_id",
+            "method_name",
+            "submitted_at",
+            *METRICS,
+            "completion_low",
+            "completion_high",
+            "tied_with",
+        ]
+    )
     for entry in board.entries:
         writer.writerow(
             [
@@ -105,6 +130,11 @@ def to_csv(board: Leaderboard) -> str:
                 entry.method_name,
                 entry.submitted_at.isoformat(),
                 *(_csv_value(getattr(entry.metrics, name)) for name in METRICS),
+                *(
+                    _csv_value(getattr(entry.completion_interval, bound, None))
+                    for bound in ("low", "high")
+                ),
+                " ".join(str(rank) for rank in entry.tied_with),
             ]
         )
     return out.getvalue()

@@ -45,9 +45,7 @@ def open_phases(session: Session, moment: datetime | None = None) -> list[Phase]
 def check_open(phase: Phase, moment: datetime) -> None:
     """Refuse an upload outside the phase's dates, saying when it opens or that it closed."""
     if phase.starts_at is not None and moment < phase.starts_at:
-        raise Forbidden(
-            f"phase {phase.name!r} opens for submissions at {_when(phase.starts_at)}"
-        )
+        raise Forbidden(f"phase {phase.name!r} opens for submissions at {_when(phase.starts_at)}")
     if phase.ends_at is not None and moment >= phase.ends_at:
         raise Forbidden(f"phase {phase.name!r} closed for submissions at {_when(phase.ends_at)}")
 
@@ -66,6 +64,20 @@ def suite_dir(phase: Phase, settings: Settings) -> Path:
 
 def scoring_profile(phase: Phase, settings: Settings) -> str:
     return phase.scoring_profile or settings.scoring_profile
+
+
+def episodes_per_scenario(phase: Phase, settings: Settings) -> int:
+    if phase.episodes_per_scenario is not None:
+        return phase.episodes_per_scenario
+    return settings.episodes_per_scenario
+
+
+def episodes_cost(per_scenario: int) -> str:
+    """The cost of several episodes, said wherever the count is set or shown."""
+    return (
+        f"{per_scenario} episodes per reactive scenario: evaluation takes about {per_scenario} "
+        "times as long"
+    )
 
 
 def team_sees_everything(phase: Phase) -> bool:
@@ -88,6 +100,7 @@ class PhaseChanges:
     ends_at: datetime | None = None
     daily_quota: int | None = None
     scoring_profile: str | None = None
+    episodes_per_scenario: int | None = None
     clear_dates: bool = False  # open-ended again: no start and no end
 
 
@@ -95,6 +108,8 @@ def set_phase(db: Database, name: str, changes: PhaseChanges) -> Phase:
     """Create the phase ``name`` or change the given fields of it."""
     if changes.daily_quota is not None and changes.daily_quota < 0:
         raise InvalidInput("daily quota: a number of submissions, 0 or more")
+    if changes.episodes_per_scenario is not None and changes.episodes_per_scenario < 1:
+        raise InvalidInput("episodes: how often each reactive scenario runs, 1 or more")
     if changes.scoring_profile is not None:
         try:
             load_profile(changes.scoring_profile)
@@ -109,7 +124,14 @@ def set_phase(db: Database, name: str, changes: PhaseChanges) -> Phase:
             session.add(phase)
         if changes.clear_dates:
             phase.starts_at = phase.ends_at = None
-        for field in ("suite", "visibility", "starts_at", "ends_at", "daily_quota"):
+        for field in (
+            "suite",
+            "visibility",
+            "starts_at",
+            "ends_at",
+            "daily_quota",
+            "episodes_per_scenario",
+        ):
             value = getattr(changes, field)
             if value is not None:
                 setattr(phase, field, value)

@@ -13,10 +13,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from arena.episodes import Episode
 from arena.outcome import FINISHED, AgentOutcome, DoneReason, ScenarioStatus
 from arena.suite import load_suite
 from evaluator.runner import ScenarioOutcome, score_outcomes
-from evaluator.scoring import ScoringProfile
+from evaluator.scoring import Interval, ScoringProfile
 from evaluator.summary import Summary
 from server.core.artifacts import ArtifactStore, MissingArtifact
 from server.models import EvaluationRun, ScenarioResult
@@ -27,6 +28,7 @@ from server.services.storable import storable_json, storable_text
 class RunScore:
     metrics: dict[str, float]
     families: dict[str, dict[str, Any]]  # family -> the four metrics and "scenarios" (count)
+    completion_interval: Interval
 
 
 def result_values(
@@ -62,11 +64,13 @@ def stored_outcome(result: ScenarioResult, store: ArtifactStore, scratch: Path) 
     record missing from the store leaves the outcome without one (the core then refuses to
     charge a scenario whose agents drove steps)."""
     path = None
+    name = Episode(result.scenario_id, result.episode).name
     if result.record_key:
         with contextlib.suppress(MissingArtifact):
-            path = store.fetch(result.record_key, scratch / f"{result.scenario_id}.npz")
+            path = store.fetch(result.record_key, scratch / f"{name}.npz")
     return ScenarioOutcome(
         scenario_id=result.scenario_id,
+        episode=result.episode,
         status=ScenarioStatus(result.status),
         steps=result.steps,
         agents=tuple(AgentOutcome(**agent) for agent in result.detail.get("agents", [])),
@@ -78,13 +82,20 @@ def stored_outcome(result: ScenarioResult, store: ArtifactStore, scratch: Path) 
 def run_summary(run: EvaluationRun, profile: ScoringProfile, store: ArtifactStore) -> Summary:
     """The core's summary of a run from its stored outcomes and records."""
     suite = load_suite(Path(run.suite_dir))
-    running = [r.scenario_id for r in run.results if r.status == ScenarioStatus.running]
+    running = [
+        Episode(r.scenario_id, r.episode) for r in run.results if r.status == ScenarioStatus.running
+    ]
     with tempfile.TemporaryDirectory(prefix="arena-score-") as scratch:
         outcomes = [
             stored_outcome(r, store, Path(scratch)) for r in run.results if r.status in FINISHED
         ]
         return score_outcomes(
-            outcomes, suite, profile, submission=run.submission.file_sha256, running=running
+            outcomes,
+            suite,
+            profile,
+            submission=run.submission.file_sha256,
+            episodes_per_scenario=run.episodes_per_scenario,
+            running=running,
         )
 
 
@@ -100,4 +111,8 @@ def run_score(summary: Summary) -> RunScore | None:
         family: metrics.model_dump() | {"scenarios": counts[family]}
         for family, metrics in summary.families.items()
     }
-    return RunScore(metrics=summary.metrics.model_dump(), families=families)
+    return RunScore(
+        metrics=summary.metrics.model_dump(),
+        families=families,
+        completion_interval=summary.completion_interval(),
+    )

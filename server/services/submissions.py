@@ -17,8 +17,9 @@ from arena.outcome import FINISHED, ScenarioStatus
 from server.core.artifacts import artifact_store
 from server.core.db import Database
 from server.core.queue import BROKER_ERRORS, TaskQueue, scenario_task_id
-from server.models import EvaluationRun, ScenarioResult, Submission, Team, utcnow
+from server.models import EvaluationRun, ScenarioResult, Score, Submission, Team, utcnow
 from server.schemas import (
+    CompletionInterval,
     FamilyMetrics,
     Metrics,
     Progress,
@@ -51,9 +52,7 @@ class NewSubmission:
     phase: str = DEFAULT_PHASE
 
 
-def quota_used(
-    session: Session, team_id: int, phase: str, track: Track, moment: datetime
-) -> int:
+def quota_used(session: Session, team_id: int, phase: str, track: Track, moment: datetime) -> int:
     """Submissions of the phase and the UTC day so far that count: every accepted one, failed ones
     included (an agent that crashes costs its team a try, or a crash would buy free evaluations
     of the hidden suite), except those that failed on our side and those cancelled before their
@@ -242,9 +241,18 @@ def _summary_fields(submission: Submission, run: EvaluationRun | None, done: int
         "method_name": submission.method_name,
         "status": submission.status,
         "created_at": submission.created_at,
-        "progress": Progress(done=done, total=run.scenario_count if run else 0),
+        "progress": Progress(done=done, total=run.episode_count if run else 0),
         "metrics": Metrics.model_validate(score) if score is not None else None,
+        "completion_interval": completion_interval(score),
+        # Of the run whose progress is shown: what the progress counts.
+        "episodes_per_scenario": run.episodes_per_scenario if run is not None else 1,
     }
+
+
+def completion_interval(score: Score | None) -> CompletionInterval | None:
+    if score is None or score.completion_low is None or score.completion_high is None:
+        return None
+    return CompletionInterval(low=score.completion_low, high=score.completion_high)
 
 
 def detail(session: Session, submission: Submission) -> SubmissionDetail:
@@ -282,16 +290,22 @@ def logs(session: Session, submission: Submission, *, organiser: bool = False) -
         check_team_may_see_output(phase)
     run = current_run(submission)
     entries = []
-    ordinal: dict[str, int] = {}
+    # One ordinal per scenario of a family (its episodes share it), in the order they started.
+    ordinal: dict[str, dict[str, int]] = {}
     results = sorted(run.results, key=lambda r: (r.family, r.id)) if run is not None else []
     for result in results:
-        ordinal[result.family] = ordinal.get(result.family, 0) + 1
+        numbers = ordinal.setdefault(result.family, {})
+        number = numbers.setdefault(result.scenario_id, len(numbers) + 1)
         if result.status == ScenarioStatus.running:
             continue
+        label = f"{result.family} #{number}"
+        if run.episodes_per_scenario > 1:
+            label += f" episode {result.episode}"
         entries.append(
             ScenarioLog(
-                label=f"{result.family} #{ordinal[result.family]}",
+                label=label,
                 scenario_id=result.scenario_id,
+                episode=result.episode,
                 family=result.family,
                 status=result.status,
                 reason=result.reason,
@@ -313,7 +327,7 @@ def cancel(db: Database, queue: TaskQueue, submission_id: int) -> Submission:
         unfinished: list[str] = []
         for run in submission.runs:
             if run.status in ACTIVE_RUN:
-                unfinished += [scenario_task_id(run.id, sid) for sid in cancel_run(session, run)]
+                unfinished += [scenario_task_id(run.id, e) for e in cancel_run(session, run)]
     queue.revoke(unfinished)
     return submission
 
@@ -327,7 +341,7 @@ def disqualify(db: Database, queue: TaskQueue, submission_id: int, reason: str) 
         unfinished: list[str] = []
         for run in submission.runs:
             if run.status in ACTIVE_RUN:
-                unfinished += [scenario_task_id(run.id, sid) for sid in cancel_run(session, run)]
+                unfinished += [scenario_task_id(run.id, e) for e in cancel_run(session, run)]
         bump_leaderboard(session)
     queue.revoke(unfinished)
     return submission

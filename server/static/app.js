@@ -95,12 +95,19 @@ const Arena = (() => {
     const pct = s.progress.total ? (100 * s.progress.done) / s.progress.total : 0;
     $("progress-bar").style.width = `${pct}%`;
     const left = s.status === "running" ? timeLeft(s.progress) : "";
+    // Several episodes per reactive scenario: the progress counts episodes, and says the cost.
+    const unit = s.episodes_per_scenario > 1
+      ? `episodes (${s.episodes_per_scenario} of each reactive scenario)` : "scenarios";
     $("progress-text").textContent =
-      `${s.progress.done} / ${s.progress.total} scenarios${left ? ` · ${left}` : ""}`;
+      `${s.progress.done} / ${s.progress.total} ${unit}${left ? ` · ${left}` : ""}`;
     $("cancel").hidden = !["received", "queued", "running"].includes(s.status);
     for (const metric of metrics) {
       $(`metric-${metric}`).textContent = s.metrics ? fmt(metric, s.metrics[metric]) : "–";
     }
+    const ci = s.completion_interval;
+    $("interval-row").hidden = !(s.metrics && ci);
+    $("completion-interval").textContent =
+      s.metrics && ci ? `[${fmt("completion", ci.low)}, ${fmt("completion", ci.high)}]` : "";
     const families = Object.keys(s.families).sort();
     $("families-box").hidden = families.length === 0;
     $("families").innerHTML = families.length ? `<table><thead><tr><th>family</th>` +

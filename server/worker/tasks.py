@@ -3,10 +3,12 @@
 Every task is declared with :func:`arena_task` (late acknowledgement, requeue when the worker
 process dies, one queue, time limits), takes keyword-only ids, returns early when the database
 says its work is done, and sends follow-up tasks only after its transaction committed. Any task
-can therefore be delivered twice: the unique (run, scenario) row makes the second a no-op.
+can therefore be delivered twice: the unique (run, scenario, episode) row makes the second a
+no-op.
 
-``evaluate_submission`` fans out one ``run_scenario`` per scenario; the ``run_scenario`` that
-finishes the last one sends ``aggregate_run``, which scores the run from its stored records.
+``evaluate_submission`` fans out one ``run_scenario`` per episode of each scenario (several of
+each reactive scenario when the phase asks for them); the ``run_scenario`` that finishes the last
+one sends ``aggregate_run``, which scores the run from its stored records.
 """
 
 from __future__ import annotations
@@ -87,12 +89,12 @@ def evaluate_submission(*, submission_id: int) -> None:
     bind=True,
     max_retries=INFRASTRUCTURE_RETRIES,
 )
-def run_scenario(self, *, run_id: int, scenario_id: str) -> None:
+def run_scenario(self, *, run_id: int, scenario_id: str, episode: int = 0) -> None:
     settings = get_settings()
     db = get_database()
     me = worker_name()
     with db.session() as session:
-        job = evaluation.claim_scenario(session, settings, run_id, scenario_id, me)
+        job = evaluation.claim_scenario(session, settings, run_id, scenario_id, me, episode)
     if job is None:
         return
     if job.attempt > MAX_SCENARIO_ATTEMPTS:
@@ -113,7 +115,9 @@ def run_scenario(self, *, run_id: int, scenario_id: str) -> None:
         except Exception as exc:
             # A bug on our side: recorded (the run then fails visibly and can be re-run) rather
             # than left for the reaper to hand out again and again.
-            log.exception("scenario %s of run %s crashed the task", scenario_id, run_id)
+            log.exception(
+                "episode %d of scenario %s of run %s crashed the task", episode, scenario_id, run_id
+            )
             outcome = _our_failure(job, type(exc).__name__, traceback.format_exc())
     record_key = _record_key(job, outcome)
     with db.session() as session:
@@ -136,14 +140,17 @@ def _hand_back(job: evaluation.ScenarioJob, worker: str) -> None:
     with get_database().session() as session:
         released = evaluation.release_claim(session, job, worker)
     if released:
-        _queue().run_scenario(job.run_id, job.scenario_id)
-        log.warning("handed scenario %s of run %s back", job.scenario_id, job.run_id)
+        _queue().run_scenario(job.run_id, job.key)
+        log.warning("handed %s of run %s back", job.key.name, job.run_id)
 
 
 def _our_failure(job: evaluation.ScenarioJob, reason: str, error: str) -> ScenarioOutcome:
     """A scenario that could not be evaluated through no fault of the submission."""
     return ScenarioOutcome.ours(
-        job.scenario_id, f"{reason}: {error} (claim {job.attempt})", attempts=job.attempt
+        job.scenario_id,
+        f"{reason}: {error} (claim {job.attempt})",
+        attempts=job.attempt,
+        episode=job.episode,
     )
 
 
@@ -159,6 +166,7 @@ def _simulate(job: evaluation.ScenarioJob, run_key: str) -> ScenarioOutcome:
         records,
         sandbox=_sandbox_kind(),
         run_key=run_key,
+        episode=job.episode,
     )
 
 
@@ -166,7 +174,7 @@ def _record_key(job: evaluation.ScenarioJob, outcome: ScenarioOutcome) -> str | 
     """Put the episode record in the artifact store, where any worker can score it."""
     if outcome.record_path is None:
         return None
-    key = f"runs/{job.run_id}/claim-{job.attempt}/{job.scenario_id}.npz"
+    key = f"runs/{job.run_id}/claim-{job.attempt}/{job.key.name}.npz"
     _store().put(key, outcome.record_path)
     outcome.record_path.unlink(missing_ok=True)
     return key
@@ -269,7 +277,7 @@ def _heartbeat(job: evaluation.ScenarioJob, worker: str, labels: dict[str, str])
                 sandbox.cleanup(labels)
                 return
 
-    name = f"lease-{job.run_id}-{job.scenario_id}"
+    name = f"lease-{job.run_id}-{job.key.name}"
     thread = threading.Thread(target=beat, name=name, daemon=True)
     thread.start()
     try:

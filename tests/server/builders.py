@@ -16,6 +16,12 @@ EXAMPLES = Path(__file__).resolve().parents[2] / "submissions" / "examples"
 METRICS = ("completion", "time", "humanness", "rules")
 
 
+def scenario_ids(plan) -> tuple[str, ...]:
+    """The scenarios of a plan of one episode per scenario."""
+    assert all(episode.index == 0 for episode in plan.episodes)
+    return tuple(episode.scenario_id for episode in plan.episodes)
+
+
 def write_suite(root: Path, families: dict[str, int]) -> Path:
     """A suite folder with a manifest and empty scenario folders (enough for the bookkeeping;
     the end-to-end tests use real scenarios)."""
@@ -56,8 +62,10 @@ def seed_scored(
     families: dict | None = None,
     status: SubmissionStatus = SubmissionStatus.scored,
     phase: str = "final",
+    interval: tuple[float, float] | None = None,
 ) -> int:
-    """A submission with one scored run and its score, as if a worker had evaluated it."""
+    """A submission with one scored run and its score (completion interval ``interval``), as
+    if a worker had evaluated it."""
     created_at = created_at or utcnow()
     with db.session() as session:
         submission = Submission(
@@ -80,7 +88,7 @@ def seed_scored(
             status=RunStatus.scored,
             suite_dir="/nonexistent",
             manifest_sha256="0" * 64,
-            scenario_count=1,
+            episode_count=1,
             scoring_profile="driving-smarts-2022",
         )
         session.add(run)
@@ -90,6 +98,8 @@ def seed_scored(
                 run_id=run.id,
                 profile="driving-smarts-2022",
                 families=families or {},
+                completion_low=interval[0] if interval else None,
+                completion_high=interval[1] if interval else None,
                 **dict(zip(METRICS, metrics, strict=True)),
             )
         )
@@ -148,7 +158,7 @@ def evaluate_failing_everywhere(
 
     with db.session() as session:
         plan = evaluation.start_evaluation(session, settings, submission_id)
-    for scenario_id in plan.scenario_ids:
+    for scenario_id in scenario_ids(plan):
         with db.session() as session:
             job = evaluation.claim_scenario(session, settings, plan.run_id, scenario_id, "w1")
         outcome = ScenarioOutcome(

@@ -149,3 +149,14 @@ def test_leaderboard_export_names_the_tracks_and_the_unwritable_file(arena):
     assert "no phase 'finale'" in arena("leaderboard", "export", "--phase", "finale", ok=False)
     unwritable = arena("leaderboard", "export", "--out", "/", ok=False)
     assert "cannot write /: Is a directory" in unwritable
+
+
+def test_phases_set_episodes_says_the_cost_and_list_shows_it(arena, client):
+    output = arena("phases", "set", "final", "--episodes", "3")
+    assert "3 episodes per reactive scenario: evaluation takes about 3 times as long" in output
+    listing = arena("phases", "list")
+    final = next(line for line in listing.splitlines() if "final" in line)
+    assert " 3 " in final
+    assert "1 or more" in arena("phases", "set", "final", "--episodes", "0", ok=False)
+    page = client.get("/submit").text
+    assert "3 episodes per reactive scenario: evaluation takes about 3 times as long" in page

@@ -9,7 +9,7 @@ from server.core.artifacts import DatabaseStore
 from server.models import EvaluationRun, Submission
 from server.services import evaluation
 from server.status import RunStatus, SubmissionStatus
-from tests.server.builders import make_team, queued_submission
+from tests.server.builders import make_team, queued_submission, scenario_ids
 from tests.server.test_evaluation_flow import claim, start
 
 TORCH = (
@@ -40,8 +40,8 @@ def test_an_import_error_fails_the_run_after_two_scenarios(db, settings):
     team, _ = make_team(db, "alpha")
     submission_id = queued_submission(db, team, phase="validation")
     plan = start(db, settings, submission_id)
-    assert len(plan.scenario_ids) == 3
-    for sid in plan.scenario_ids[:2]:
+    assert len(scenario_ids(plan)) == 3
+    for sid in scenario_ids(plan)[:2]:
         job = claim(db, settings, plan.run_id, sid)
         assert record(db, job, reason="agent_error", steps=0, log=TORCH) is False
     with db.session() as session:
@@ -54,14 +54,14 @@ def test_an_import_error_fails_the_run_after_two_scenarios(db, settings):
         )
         assert run.score is None  # never on the leaderboard
     # The third scenario's task finds the run over and does nothing.
-    assert claim(db, settings, plan.run_id, plan.scenario_ids[2]) is None
+    assert claim(db, settings, plan.run_id, scenario_ids(plan)[2]) is None
 
 
 def test_in_a_hidden_phase_the_startup_error_keeps_the_agents_words_out(db, settings):
     team, _ = make_team(db, "gamma")
     submission_id = queued_submission(db, team)  # final: a hidden phase
     plan = start(db, settings, submission_id)
-    for sid in plan.scenario_ids[:2]:
+    for sid in scenario_ids(plan)[:2]:
         job = claim(db, settings, plan.run_id, sid)
         record(db, job, reason="agent_error", steps=0, log=TORCH)
     with db.session() as session:
@@ -74,7 +74,7 @@ def test_an_agent_that_drove_once_runs_every_scenario(db, settings):
     team, _ = make_team(db, "beta")
     submission_id = queued_submission(db, team)
     plan = start(db, settings, submission_id)
-    first, *rest = plan.scenario_ids
+    first, *rest = scenario_ids(plan)
     job = claim(db, settings, plan.run_id, first)
     record(db, job, reason="collision", steps=0)  # it started: a driving failure
     for sid in rest:

@@ -43,10 +43,16 @@ def served(tmp_path):
     other_id, _ = make_team(db, "other-team")
     ids = [
         seed_scored(db, team_id, (0.25, 716.1, 0.5, 0.125), method_name="first try"),
-        seed_scored(db, team_id, (0.0, 512.34, 0.25, 0.0625), method_name="second try"),
+        seed_scored(
+            db,
+            team_id,
+            (0.0, 512.34, 0.25, 0.0625),
+            method_name="second try",
+            interval=(0.0, 0.05),
+        ),
         queued_submission(db, team_id),
     ]
-    seed_scored(db, other_id, (0.1, 600.0, 0.2, 0.1), method_name="not ours")
+    seed_scored(db, other_id, (0.1, 600.0, 0.2, 0.1), method_name="not ours", interval=(0.02, 0.2))
     db.dispose()
     with api_server(settings, tmp_path / "api.log") as (url, _):
         yield url, token, ids
@@ -216,7 +222,7 @@ def running_submission(db, team_id: int, total: int) -> int:
                 status=RunStatus.running,
                 suite_dir="/nonexistent",
                 manifest_sha256="0" * 64,
-                scenario_count=total,
+                episode_count=total,
                 scoring_profile="driving-smarts-2022",
             )
         )
@@ -233,7 +239,12 @@ def test_submission_page_groups_identical_output_and_hides_empty_sections(tmp_pa
     db = Database(settings.resolved_database_url)
     team_id, token = make_team(db, "logs-team")
     failed = seed_scored(
-        db, team_id, (1.0, 800.0, None, None), method_name="import torch", phase="validation"
+        db,
+        team_id,
+        (1.0, 800.0, None, None),
+        method_name="import torch",
+        phase="validation",
+        interval=(1.0, 1.0),
     )
     add_results(db, failed, [("cruise", "done", "agent_error", TRACEBACK)] * 5)
     running = running_submission(db, team_id, total=10)
@@ -251,6 +262,8 @@ def test_submission_page_groups_identical_output_and_hides_empty_sections(tmp_pa
                 expect(page.locator("#logs pre")).to_have_count(1)
                 expect(page.locator("#logs h3")).to_contain_text("× 5")
                 expect(page.locator("#metric-humanness")).to_have_text("—")
+                expect(page.locator("#metric-completion")).to_have_text("1.0000")
+                expect(page.locator("#completion-interval")).to_have_text("[1.0000, 1.0000]")
                 expect(page.locator("#failures")).to_contain_text("agent_error × 5")
                 shoot(page, name)
                 page.goto(f"{url}/submissions/{running}")
@@ -277,6 +290,10 @@ def test_leaderboard_fits_a_phone_and_formats_numbers_alike(served, browser):
         expect(page.locator("tr.entry")).to_have_count(2)  # best per team
         expect(page.locator("#nav-mine")).to_be_hidden()  # no token in this tab
         expect(page.locator("tr.entry").first).to_contain_text("512.3")
+        # Completion with its interval; the overlapping neighbours marked tied, and why.
+        expect(page.locator("tr.entry").first).to_contain_text("[0.0000, 0.0500]")
+        expect(page.locator("tr.entry .tied")).to_have_count(2)
+        expect(page.locator("#interval-legend")).to_be_visible()
         assert page.evaluate("document.documentElement.scrollWidth") <= viewport["width"]
         shoot(page, name)
         page.close()

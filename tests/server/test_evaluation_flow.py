@@ -16,7 +16,7 @@ from server.models import EvaluationRun, ScenarioResult, Submission, utcnow
 from server.services import admin, evaluation
 from server.services.errors import Conflict
 from server.status import RunStatus, SubmissionStatus
-from tests.server.builders import agent, make_team, queued_submission
+from tests.server.builders import agent, make_team, queued_submission, scenario_ids
 
 
 def start(db, settings, submission_id):
@@ -106,10 +106,10 @@ def submission_id(db):
 
 def test_fan_out_results_and_aggregation(db, settings, submission_id):
     plan = start(db, settings, submission_id)
-    assert len(plan.scenario_ids) == 3 and not plan.aggregate
+    assert len(scenario_ids(plan)) == 3 and not plan.aggregate
     assert start(db, settings, submission_id) is None  # a redelivered evaluate task
     assert status_of(db, submission_id) == SubmissionStatus.running
-    ids = plan.scenario_ids
+    ids = scenario_ids(plan)
     for sid in ids:
         assert claim(db, settings, plan.run_id, sid) is not None
     assert finish(db, plan.run_id, ids[0]) is False
@@ -132,7 +132,7 @@ def test_fan_out_results_and_aggregation(db, settings, submission_id):
 
 def test_a_claim_is_exclusive_while_the_lease_lives(db, settings, submission_id):
     plan = start(db, settings, submission_id)
-    sid = plan.scenario_ids[0]
+    sid = scenario_ids(plan)[0]
     assert claim(db, settings, plan.run_id, sid, "w1") is not None
     assert claim(db, settings, plan.run_id, sid, "w2") is None
     expire_lease(db, plan.run_id, sid)
@@ -144,7 +144,7 @@ def test_a_claim_is_exclusive_while_the_lease_lives(db, settings, submission_id)
 
 def test_reaper_resends_stale_claims_and_lost_messages(db, settings, submission_id):
     plan = start(db, settings, submission_id)
-    first, *rest = plan.scenario_ids
+    first, *rest = scenario_ids(plan)
     w1 = claim(db, settings, plan.run_id, first, "w1")
     with db.session() as session:
         assert evaluation.reap(session, settings, queue_empty=True).plans == ()  # lease valid
@@ -153,7 +153,7 @@ def test_reaper_resends_stale_claims_and_lost_messages(db, settings, submission_
     expire_lease(db, plan.run_id, first)
     with db.session() as session:
         reaped = evaluation.reap(session, settings, queue_empty=False)
-    assert [p.scenario_ids for p in reaped.plans] == [(first,)]
+    assert [scenario_ids(p) for p in reaped.plans] == [(first,)]
     retaken = claim(db, settings, plan.run_id, first, "w2")
     assert retaken is not None and retaken.attempt == 2  # the task gives up after too many
     assert claim(db, settings, plan.run_id, first, "w3") is None  # w2 holds it now
@@ -175,7 +175,7 @@ def test_reaper_resends_stale_claims_and_lost_messages(db, settings, submission_
         assert evaluation.reap(session, settings, queue_empty=False).plans == ()
     with db.session() as session:
         reaped = evaluation.reap(session, settings, queue_empty=True)
-    assert [p.scenario_ids for p in reaped.plans] == [tuple(rest)]
+    assert [scenario_ids(p) for p in reaped.plans] == [tuple(rest)]
 
 
 def test_reaper_resends_a_submission_whose_first_task_was_lost(db, settings, submission_id):
@@ -193,7 +193,7 @@ def test_cancel_stops_a_running_evaluation(db, settings, submission_id):
     from server.services import submissions
 
     plan = start(db, settings, submission_id)
-    job = claim(db, settings, plan.run_id, plan.scenario_ids[0])
+    job = claim(db, settings, plan.run_id, scenario_ids(plan)[0])
     submissions.cancel(db, TaskQueue(settings), submission_id)
     assert status_of(db, submission_id) == SubmissionStatus.cancelled
     with db.session() as session:
@@ -201,15 +201,15 @@ def test_cancel_stops_a_running_evaluation(db, settings, submission_id):
         # A cancelled run shows no scenario as running.
         running = select(func.count()).where(ScenarioResult.status == "running")
         assert session.scalar(running) == 0
-    assert finish(db, plan.run_id, plan.scenario_ids[0], claim=(job, "w1")) is False
-    assert claim(db, settings, plan.run_id, plan.scenario_ids[1]) is None
+    assert finish(db, plan.run_id, scenario_ids(plan)[0], claim=(job, "w1")) is False
+    assert claim(db, settings, plan.run_id, scenario_ids(plan)[1]) is None
     with pytest.raises(Conflict):
         submissions.cancel(db, TaskQueue(settings), submission_id)
 
 
 def test_simulator_errors_only_fail_the_run(db, settings, submission_id):
     plan = start(db, settings, submission_id)
-    for sid in plan.scenario_ids:
+    for sid in scenario_ids(plan):
         claim(db, settings, plan.run_id, sid)
         finish(db, plan.run_id, sid, status=ScenarioStatus.simulator_error)
     assert aggregate(db, plan.run_id) == RunStatus.failed
@@ -218,7 +218,7 @@ def test_simulator_errors_only_fail_the_run(db, settings, submission_id):
 
 def test_a_score_covers_the_whole_suite_or_waits_for_an_organiser(db, settings, submission_id):
     plan = start(db, settings, submission_id)
-    first, *rest = plan.scenario_ids
+    first, *rest = scenario_ids(plan)
     claim(db, settings, plan.run_id, first)
     finish(db, plan.run_id, first, status=ScenarioStatus.simulator_error)
     for sid in rest:
@@ -233,7 +233,7 @@ def test_a_score_covers_the_whole_suite_or_waits_for_an_organiser(db, settings, 
 
 
 def run_everything(db, settings, plan, success=True):
-    for sid in plan.scenario_ids:
+    for sid in scenario_ids(plan):
         claim(db, settings, plan.run_id, sid)
         finish(db, plan.run_id, sid, success=success)
     return aggregate(db, plan.run_id)
@@ -249,7 +249,7 @@ def test_rerun_is_a_new_attempt_and_the_old_score_stands_meanwhile(db, settings,
     assert status_of(db, submission_id) == SubmissionStatus.scored
     with db.session() as session:
         second = session.scalar(select(EvaluationRun).where(EvaluationRun.attempt == 2))
-        plan = RunPlan(run_id=second.id, scenario_ids=evaluation.pending_scenarios(second))
+        plan = RunPlan(run_id=second.id, episodes=evaluation.pending_episodes(second))
     run_everything(db, settings, plan, success=True)
     with db.session() as session:
         from server.services import submissions
@@ -275,10 +275,52 @@ def test_an_unreadable_record_fails_the_run_instead_of_wedging_it(
     broken = tmp_path / "broken.npz"
     broken.write_bytes(b"not an npz")
     DatabaseStore(db).put("runs/broken.npz", broken)
-    for sid in plan.scenario_ids:
+    for sid in scenario_ids(plan):
         claim(db, settings, plan.run_id, sid)
         finish(db, plan.run_id, sid, record_key="runs/broken.npz")
     assert aggregate(db, plan.run_id) == RunStatus.failed
     assert status_of(db, submission_id) == SubmissionStatus.failed
     with db.session() as session:
         assert "failed on our side" in session.get(EvaluationRun, plan.run_id).error
+
+
+def test_each_episode_of_a_reactive_scenario_is_a_claim_of_its_own(db, settings, submission_id):
+    """With 2 episodes per reactive scenario the run fans out 2 per scenario, each claimed and
+    recorded on its own; the score is the mean over episodes and carries its interval."""
+    from arena.episodes import Episode
+    from server.services import phases
+    from server.services.errors import NotFound
+
+    phases.set_phase(db, "final", phases.PhaseChanges(episodes_per_scenario=2))
+    plan = start(db, settings, submission_id)
+    ids = sorted({e.scenario_id for e in plan.episodes})
+    assert sorted(plan.episodes) == [Episode(sid, k) for sid in ids for k in (0, 1)]
+    with db.session() as session, pytest.raises(NotFound, match="no episode 2"):
+        evaluation.claim_scenario(session, settings, plan.run_id, ids[0], "w1", 2)
+    last = []
+    for episode in plan.episodes:
+        with db.session() as session:
+            job = evaluation.claim_scenario(
+                session, settings, plan.run_id, episode.scenario_id, "w1", episode.index
+            )
+        assert job.key == episode
+        # The first scenario fails in its second episode only.
+        success = episode != Episode(ids[0], 1)
+        outcome = ScenarioOutcome(
+            scenario_id=episode.scenario_id,
+            status=ScenarioStatus.done,
+            steps=0,
+            agents=(AgentOutcome(**agent(success)),),
+            record_path=None,
+            episode=episode.index,
+        )
+        with db.session() as session:
+            last.append(evaluation.record_scenario(session, job, "w1", outcome, ""))
+    assert last == [False] * 5 + [True]
+    assert aggregate(db, plan.run_id) == RunStatus.scored
+    with db.session() as session:
+        run = session.get(EvaluationRun, plan.run_id)
+        assert (run.episode_count, run.episodes_per_scenario) == (6, 2)
+        assert run.score.completion == pytest.approx(0.5 / 3)
+        assert run.score.completion_low <= run.score.completion <= run.score.completion_high
+        assert run.score.completion_high > run.score.completion_low

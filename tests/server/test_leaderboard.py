@@ -103,3 +103,28 @@ def test_an_entry_that_never_drove_shows_dashes_and_ranks_last(client, db):
     assert row.count("—") == 2 and "0.0000" not in row
     rows = list(csv.DictReader(io.StringIO(client.get("/api/v1/leaderboard.csv").text)))
     assert (rows[1]["team"], rows[1]["humanness"], rows[1]["rules"]) == ("never", "", "")
+
+
+def test_intervals_are_shown_and_overlapping_neighbours_marked_tied(client, db):
+    t0 = utcnow() - timedelta(hours=5)
+    teams = {name: make_team(db, name)[0] for name in ("a", "b", "c", "d")}
+    seed_scored(db, teams["a"], (0.10, 300.0, 0.1, 0.0), interval=(0.05, 0.15), created_at=t0)
+    seed_scored(db, teams["b"], (0.12, 300.0, 0.1, 0.0), interval=(0.08, 0.20), created_at=t0)
+    seed_scored(db, teams["c"], (0.40, 300.0, 0.1, 0.0), interval=(0.30, 0.50), created_at=t0)
+    seed_scored(db, teams["d"], (0.45, 300.0, 0.1, 0.0), created_at=t0)  # scored before intervals
+    entries = board(client)
+    assert [e["team"] for e in entries] == ["a", "b", "c", "d"]
+    assert entries[0]["completion_interval"] == {"low": 0.05, "high": 0.15}
+    assert entries[3]["completion_interval"] is None
+    assert [e["tied_with"] for e in entries] == [[2], [1], [], []]
+
+    page = client.get("/").text
+    assert "0.1000" in page and "[0.0500, 0.1500]" in page and "[0.3000, 0.5000]" in page
+    assert page.count('class="tied"') == 2 + 1  # the two tied rows and the legend
+    assert "statistically tied with rank 2" in page
+    rows = list(csv.DictReader(io.StringIO(client.get("/api/v1/leaderboard.csv").text)))
+    assert (rows[1]["completion_low"], rows[1]["completion_high"], rows[1]["tied_with"]) == (
+        "0.08",
+        "0.2",
+        "1",
+    )

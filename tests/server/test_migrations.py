@@ -69,3 +69,74 @@ def test_old_scenario_statuses_move_to_the_core_vocabulary(tmp_path):
         phase, upload = connection.execute(text("SELECT phase, upload_key FROM submissions")).one()
         assert (phase, upload) == ("final", "submissions/d/upload.zip")
     engine.dispose()
+
+
+def test_episodes_migration_keeps_runs_and_results_and_goes_back(tmp_path):
+    """Migration 0008_episodes_per_scenario: a run's scenario count becomes its episode count,
+    every existing result is episode 0, old scores have no interval; the downgrade keeps first
+    episodes only."""
+    from alembic import command
+    from sqlalchemy import text
+
+    from server.core.db import make_engine
+    from server.core.migrate import alembic_config
+
+    url = f"sqlite:///{tmp_path / 'old.db'}"
+    upgrade_database(url, "0007")
+    engine = make_engine(url)
+    with engine.begin() as connection:
+        connection.execute(text("INSERT INTO teams (id, name, created_at) VALUES (1, 't', '2026')"))
+        connection.execute(
+            text(
+                "INSERT INTO submissions (id, team_id, phase, track, method_name, description,"
+                " file_sha256, file_size, upload_key, status, status_reason, created_at)"
+                " VALUES (1, 1, 'final', 'freestyle', 'm', '', 'x', 1, 'k', 'scored', '', '2026')"
+            )
+        )
+        connection.execute(
+            text(
+                "INSERT INTO evaluation_runs (id, submission_id, attempt, status, suite_dir,"
+                " manifest_sha256, scenario_count, scoring_profile, scoring_version, worker,"
+                " created_at, error) VALUES (1, 1, 1, 'scored', 's', 'h', 2, 'p', '1', '',"
+                " '2026', '')"
+            )
+        )
+        for sid in ("a", "b"):
+            connection.execute(
+                text(
+                    "INSERT INTO scenario_results (run_id, scenario_id, family, status, reason,"
+                    " steps, log_tail, detail, worker, attempts, created_at) VALUES"
+                    f" (1, '{sid}', 'cruise', 'done', '', 0, '', '{{}}', '', 1, '2026')"
+                )
+            )
+        connection.execute(
+            text(
+                "INSERT INTO scores (run_id, completion, time, families, profile,"
+                " profile_version, computed_at) VALUES (1, 0.5, 400, '{}', 'p', '1', '2026')"
+            )
+        )
+    upgrade_database(url)
+    with engine.begin() as connection:
+        run = connection.execute(
+            text("SELECT episode_count, episodes_per_scenario FROM evaluation_runs")
+        ).one()
+        assert tuple(run) == (2, 1)
+        episodes = connection.execute(text("SELECT episode FROM scenario_results")).scalars()
+        assert list(episodes) == [0, 0]
+        interval = connection.execute(text("SELECT completion_low FROM scores")).scalar()
+        assert interval is None
+        # A second episode of a scenario is a row of its own now.
+        connection.execute(
+            text(
+                "INSERT INTO scenario_results (run_id, scenario_id, episode, family, status,"
+                " reason, steps, log_tail, detail, worker, attempts, created_at) VALUES"
+                " (1, 'a', 1, 'cruise', 'done', '', 0, '', '{}', '', 1, '2026')"
+            )
+        )
+    command.downgrade(alembic_config(url), "0007")
+    with engine.connect() as connection:
+        rows = connection.execute(text("SELECT scenario_id FROM scenario_results")).scalars()
+        assert sorted(rows) == ["a", "b"]
+        count = connection.execute(text("SELECT scenario_count FROM evaluation_runs")).scalar()
+        assert count == 2
+    engine.dispose()

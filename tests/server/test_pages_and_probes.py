@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from server.services import evaluation
-from tests.server.builders import bearer, make_team, queued_submission, seed_scored
+from tests.server.builders import bearer, make_team, queued_submission, scenario_ids, seed_scored
 from tests.server.conftest import ADMIN_TOKEN
 
 FAMILIES = {
@@ -43,7 +43,7 @@ def test_healthz_and_metrics(client, db, settings):
     with db.session() as session:
         plan = evaluation.start_evaluation(session, settings, sid)
     with db.session() as session:
-        evaluation.claim_scenario(session, settings, plan.run_id, plan.scenario_ids[0], "w")
+        evaluation.claim_scenario(session, settings, plan.run_id, scenario_ids(plan)[0], "w")
     text = client.get("/api/v1/metrics").text
     assert "arena_queue_depth" in text
     assert "arena_running_evaluations 1.0" in text

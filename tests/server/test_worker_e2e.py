@@ -363,3 +363,58 @@ def test_two_workers_with_separate_data_folders_share_nothing_but_broker_and_dat
         assert not list(settings.data_dir.rglob("*.npz"))
         subprocess.run(["rm", "-rf", str(settings.data_dir)], check=False)
     db.dispose()
+
+
+def test_several_episodes_per_scenario_through_the_worker(stack_settings, suite, tmp_path):
+    """A phase running 2 episodes of each reactive scenario: the worker claims each episode on
+    its own (the replay runs once), the score and its completion interval are the local
+    evaluation's with --episodes 2, and the leaderboard page shows the interval."""
+    from evaluator.runner import evaluate
+    from evaluator.runner.results import stored_episodes
+    from server.services import phases
+    from tests.server.builders import pack_example
+
+    local = evaluate(
+        pack_example("keep_lane", tmp_path),
+        suite,
+        out_dir=tmp_path / "local",
+        jobs=2,
+        sandbox="bubblewrap",
+        episodes_per_scenario=2,
+    )
+    interval = local.completion_interval()
+    db = Database(stack_settings.database_url)
+    phases.set_phase(db, "final", phases.PhaseChanges(episodes_per_scenario=2))
+    _, token = make_team(db, "keep-lane-team")
+    worker = start_worker(stack_settings, tmp_path / "worker.log")
+    try:
+        with api_server(stack_settings, tmp_path / "api.log") as (url, _):
+            sid = upload_example(url, token, "keep_lane", tmp_path)
+            body = wait_finished(url, token, sid)
+            time.sleep(1.1)  # the API re-checks the leaderboard generation once a second
+            page = httpx.get(f"{url}/?phase=final").text
+            entry = httpx.get(f"{url}/api/v1/leaderboard").json()["entries"][0]
+    finally:
+        stop(worker)
+    reactive = [s for s in SCENARIOS if "replay" not in s]
+    assert body["status"] == "scored", body
+    episodes = 2 * len(reactive) + 1
+    assert body["progress"] == {"done": episodes, "total": episodes}
+    assert body["episodes_per_scenario"] == 2
+    assert body["metrics"] == local.metrics.model_dump()
+    assert body["completion_interval"] == {"low": interval.low, "high": interval.high}
+    assert entry["completion_interval"] == body["completion_interval"]
+    assert f"[{interval.low:.4f}, {interval.high:.4f}]" in page
+    with db.session() as session:
+        rows = session.execute(
+            select(ScenarioResult.scenario_id, ScenarioResult.episode, ScenarioResult.status)
+        ).all()
+    assert sorted((sid, k) for sid, k, _ in rows) == sorted(
+        [(s, k) for s in reactive for k in (0, 1)] + [("p030_replay_cruise", 0)]
+    )
+    assert {(sid, k): status for sid, k, status in rows} == {
+        (key.scenario_id, key.index): episode.status
+        for scenario in local.scenarios
+        for key, episode in stored_episodes(scenario)
+    }
+    db.dispose()

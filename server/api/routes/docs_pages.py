@@ -22,7 +22,11 @@ ASSETS_DIR = Path(fastapi_offline.__file__).resolve().parent / "static"
 ASSETS_URL = "/docs-assets"
 DOCS_DIR = Path(__file__).resolve().parents[3] / "docs"
 # Participant guides served as pages: name in the URL -> file under docs/.
-GUIDES = {"agent-interface": "agent-interface.md", "submissions": "submissions.md"}
+GUIDES = {
+    "agent-interface": "agent-interface.md",
+    "submissions": "submissions.md",
+    "scoring": "scoring.md",
+}
 
 templates = Jinja2Templates(directory=Path(__file__).resolve().parents[2] / "templates")
 router = APIRouter(include_in_schema=False)

@@ -12,7 +12,7 @@ from fastapi import Path as PathParam
 from fastapi.responses import HTMLResponse
 from fastapi.templating import Jinja2Templates
 
-from server.api.deps import MAX_ROW_ID, LeaderboardDep, PhaseQuery, SessionDep
+from server.api.deps import MAX_ROW_ID, LeaderboardDep, PhaseQuery, SessionDep, SettingsDep
 from server.services import phases
 from server.services.leaderboard import METRICS
 from server.services.phases import DEFAULT_PHASE
@@ -49,14 +49,18 @@ def leaderboard_page(
 
 
 @router.get("/submit", response_class=HTMLResponse)
-def submit_page(request: Request, session: SessionDep) -> HTMLResponse:
+def submit_page(request: Request, session: SessionDep, settings: SettingsDep) -> HTMLResponse:
+    open_phases = phases.open_phases(session)
+    episodes = {p.name: phases.episodes_per_scenario(p, settings) for p in open_phases}
     return templates.TemplateResponse(
         request,
         "submit.html",
         {
             "tracks": list(Track),
-            "phases": phases.open_phases(session),
+            "phases": open_phases,
             "default_phase": DEFAULT_PHASE,
+            # Said before the upload: several episodes multiply the time to a score.
+            "costs": {name: phases.episodes_cost(n) for name, n in episodes.items() if n > 1},
         },
     )
 

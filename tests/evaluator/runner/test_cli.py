@@ -51,7 +51,7 @@ def test_score_json_is_the_rewritten_summary(results):
     result = CliRunner().invoke(app, ["score", str(results), "--json"])
     assert result.exit_code == 0
     printed = json.loads(result.stdout)
-    assert printed == read_summary(results).model_dump(mode="json")
+    assert printed == read_summary(results).to_dict()
     assert printed["metrics"]["completion"] == 0.5
     assert printed["metrics"]["time"] == 550.0
 

@@ -171,3 +171,62 @@ def test_evaluate_in_docker_sandbox(public_suite, tmp_path):
     )
     assert summary.complete and summary.uncharged == ()
     assert summary.scenarios[0].steps > 1
+
+
+def test_episodes_repeat_reactive_scenarios_with_other_traffic(public_suite, tmp_path):
+    """Episode 0 is the single-episode run byte for byte; episode 1 meets other traffic; the
+    replay runs once; raising the count on a results folder runs only the new episodes."""
+    import numpy as np
+
+    manifest = load_suite(public_suite)
+    reactive = next(e.id for e in manifest.scenarios if e.reactive and e.agents == 1)
+    replay = next(e.id for e in manifest.scenarios if not e.reactive and e.agents == 1)
+    ids = [reactive, replay]
+    source = steady(tmp_path)
+    once = run(source, public_suite, tmp_path / "once", ids)
+    twice = evaluate(
+        source,
+        public_suite,
+        out_dir=tmp_path / "twice",
+        scenario_ids=ids,
+        jobs=2,
+        sandbox=TEST_SANDBOX,
+        episodes_per_scenario=2,
+    )
+
+    records = {name: tmp_path / name / "records" for name in ("once", "twice")}
+    for scenario_id in ids:
+        assert (records["once"] / f"{scenario_id}.npz").read_bytes() == (
+            records["twice"] / f"{scenario_id}.npz"
+        ).read_bytes()
+    assert not (records["twice"] / f"{replay}.ep1.npz").exists()
+    with (
+        np.load(records["twice"] / f"{reactive}.npz") as first,
+        np.load(records["twice"] / f"{reactive}.ep1.npz") as second,
+    ):
+        assert int(first["seed"]) != int(second["seed"])
+        assert not np.array_equal(first["nbr_x"], second["nbr_x"], equal_nan=True)
+    entry, replay_entry = twice.scenarios
+    assert [e.index for e in entry.episodes] == [0, 1] and replay_entry.episodes is None
+    assert entry.episodes[0].agents == once.scenarios[0].agents
+    assert twice.episodes_per_scenario == 2
+
+    class Count:
+        def started(self, total, already_done):
+            self.total, self.already_done = total, already_done
+
+        def finished(self, outcome):
+            self.ran = (outcome.scenario_id, outcome.episode)
+
+    count = Count()
+    again = evaluate(
+        source,
+        public_suite,
+        out_dir=tmp_path / "once",
+        scenario_ids=ids,
+        sandbox=TEST_SANDBOX,
+        episodes_per_scenario=2,
+        progress=count,
+    )
+    assert (count.total, count.already_done, count.ran) == (3, 2, (reactive, 1))
+    assert again == twice

@@ -1,11 +1,13 @@
 """Summaries from outcomes and stored records, without the simulator."""
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from arena.episodes import Episode
 from arena.outcome import AgentOutcome, ScenarioStatus
 from arena.suite import ManifestEntry, Suite, SuiteManifest
 from evaluator.runner.results import record_path, score_outcomes, score_results_dir
@@ -90,7 +92,9 @@ def test_scenario_entries_follow_the_manifest_and_carry_agent_outcomes(tmp_path,
 
 
 def test_unfinished_scenarios_are_pending_or_running(tmp_path, outcomes):
-    summary = score_outcomes(outcomes[:1], SUITE, PROFILE, submission="s", running=["merge_b"])
+    summary = score_outcomes(
+        outcomes[:1], SUITE, PROFILE, submission="s", running=[Episode("merge_b")]
+    )
     assert [e.status for e in summary.scenarios] == ["done", "pending", "running", "pending"]
     assert not summary.complete
     assert summary.metrics.completion == 0.0
@@ -153,3 +157,115 @@ def test_broken_record_is_reported_uncharged_not_scored(tmp_path):
     assert summary.scenarios[1].status == "evaluator_error"
     assert "unusable episode record" in summary.scenarios[1].error
     assert summary.metrics.time == 50
+
+
+EPISODE_SUITE = Suite(
+    root=Path("unit"),
+    manifest=SuiteManifest(
+        suite="unit",
+        scenarios=(
+            ManifestEntry(id="cruise_a", family="cruise"),
+            ManifestEntry(id="replay_a", family="replay", reactive=False),
+        ),
+    ),
+    sha256="e" * 64,
+)
+
+
+def done_episode(results_dir, scenario_id, index, agents) -> ScenarioOutcome:
+    name = Episode(scenario_id, index).name
+    path = record_path(results_dir, name)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_record(path, scenario_id, agents)
+    return ScenarioOutcome(scenario_id, ScenarioStatus.done, 0, (), path, episode=index)
+
+
+@pytest.fixture
+def episode_outcomes(tmp_path):
+    return [
+        done_episode(tmp_path, "cruise_a", 0, [AgentSpec(weaving(300), done_step=300)]),
+        done_episode(tmp_path, "cruise_a", 1, [AgentSpec(weaving(100), reason="collision")]),
+        done_episode(tmp_path, "replay_a", 0, [AgentSpec(weaving(200), done_step=200)]),
+    ]
+
+
+def test_a_scenario_run_twice_scores_the_mean_of_its_episodes(episode_outcomes):
+    summary = score_outcomes(
+        episode_outcomes, EPISODE_SUITE, PROFILE, submission="s", episodes_per_scenario=2
+    )
+    cruise, replay = summary.scenarios
+    assert [e.index for e in cruise.episodes] == [0, 1]
+    assert replay.episodes is None  # a non-reactive replay runs once
+    assert cruise.metrics.completion == 0.5
+    assert cruise.metrics.time == (300 + 800) / 2
+    assert cruise.steps == 300 + 100
+    # Each scenario counts once in the suite, however many episodes it ran.
+    assert summary.metrics.completion == pytest.approx((0.5 + 0.0) / 2)
+    assert summary.metrics.time == pytest.approx((550 + 200) / 2)
+    # Humanness stays a mean over agent-steps: the episodes' sums over their steps.
+    alone = score_outcomes(
+        episode_outcomes[:2],
+        EPISODE_SUITE.select(["cruise_a"]),
+        PROFILE,
+        submission="s",
+        episodes_per_scenario=2,
+    )
+    first = score_outcomes(
+        episode_outcomes[:1], EPISODE_SUITE.select(["cruise_a"]), PROFILE, submission="s"
+    )
+    second = score_outcomes(
+        [replace(episode_outcomes[1], episode=0)],
+        EPISODE_SUITE.select(["cruise_a"]),
+        PROFILE,
+        submission="s",
+    )
+    steps = (300, 100)
+    expected = (first.metrics.humanness * steps[0] + second.metrics.humanness * steps[1]) / 400
+    assert alone.metrics.humanness == pytest.approx(expected)
+
+
+def test_a_scenario_is_charged_once_all_its_episodes_are_done(tmp_path, episode_outcomes):
+    partial = score_outcomes(
+        episode_outcomes[:1] + episode_outcomes[2:],
+        EPISODE_SUITE,
+        PROFILE,
+        submission="s",
+        episodes_per_scenario=2,
+    )
+    assert partial.scenarios[0].status == "running"  # started, one episode to go
+    assert [e.status for e in partial.scenarios[0].episodes] == ["done", "pending"]
+    assert partial.metrics.completion == 0.0  # the replay alone
+    crashed = replace(episode_outcomes[1], status=ScenarioStatus.simulator_error, error="SUMO")
+    ours = score_outcomes(
+        [episode_outcomes[0], crashed, episode_outcomes[2]],
+        EPISODE_SUITE,
+        PROFILE,
+        submission="s",
+        episodes_per_scenario=2,
+    )
+    assert ours.uncharged == ("cruise_a",)
+    assert ours.scenarios[0].error == "episode 1: SUMO"
+
+
+def test_one_episode_summaries_keep_their_shape_and_several_rescore_alike(
+    tmp_path, episode_outcomes
+):
+    once = score_outcomes(
+        [episode_outcomes[0], episode_outcomes[2]], EPISODE_SUITE, PROFILE, submission="s"
+    )
+    write_summary(once, tmp_path)
+    data = json.loads((tmp_path / "summary.json").read_text())
+    assert "episodes_per_scenario" not in data
+    assert all("episodes" not in entry for entry in data["scenarios"])
+
+    twice = score_outcomes(
+        episode_outcomes, EPISODE_SUITE, PROFILE, submission="s", episodes_per_scenario=2
+    )
+    write_summary(twice, tmp_path)
+    data = json.loads((tmp_path / "summary.json").read_text())
+    assert data["episodes_per_scenario"] == 2
+    assert len(data["scenarios"][0]["episodes"]) == 2
+    assert score_results_dir(tmp_path, PROFILE) == twice
+    assert twice.completion_samples() == [[0.0, 1.0], [0.0]]
+    interval = twice.completion_interval()
+    assert interval.low <= twice.metrics.completion <= interval.high
