@@ -68,14 +68,16 @@ def raw_side(folder: str, steps: int, queue) -> None:
 def env_side(folder: Path, steps: int, rasters: bool) -> tuple[float, float]:
     """(wall, CPU) seconds spent in ``env.step`` over ``steps`` steps (policy excluded)."""
     from learn.gym_env import DrivingArenaEnv
+    from learn.worker import SimulatorProcess
 
     options = {**RASTERS, "img_pixels": 256} if rasters else {}
     env = DrivingArenaEnv(folder, **options)
     try:
         obs, _ = env.reset(seed=0)
-        child = env._process
+        # A simulator in a child process (simulator="subprocess") uses CPU there too.
+        child = env._simulator if isinstance(env._simulator, SimulatorProcess) else None
         wall = cpu = 0.0
-        child_cpu = child.cpu_seconds()
+        child_cpu = child.cpu_seconds() if child else 0.0
         for _ in range(steps):
             action = follow_gap(obs)
             t0, c0 = time.perf_counter(), time.process_time()
@@ -84,7 +86,8 @@ def env_side(folder: Path, steps: int, rasters: bool) -> tuple[float, float]:
             cpu += time.process_time() - c0
             if terminated or truncated:
                 raise SystemExit(f"the ego must drive the whole run: {info['done_reason']}")
-        cpu += child.cpu_seconds() - child_cpu
+        if child:
+            cpu += child.cpu_seconds() - child_cpu
     finally:
         env.close()
     return wall, cpu
