@@ -2,5 +2,6 @@
 
 ``learn.gym_env.DrivingArenaEnv`` (one agent) and ``learn.parallel_env.DrivingArenaParallelEnv``
 (1-3 agents) drive :class:`sim.simulation.Simulation` exactly as evaluation does, through a
-``learn.session`` in their own process or in a child process (``learn.worker``). See ``docs/training.md``.
+``learn.session`` in their own process or in a child process (``learn.worker``). See
+``docs/training.md``.
 """
