@@ -1,14 +1,16 @@
 """Training-environment throughput: raw libsumo vs our Gymnasium env, without and with rasters.
 
 The traffic of ``bench/sim_throughput.py`` (a 3-lane, 3 km straight road, 100 background
-vehicles, steps of 0.1 s). Three sides, in one run: raw libsumo stepping that traffic
+vehicles, steps of 0.1 s). Four sides, in one run: raw libsumo stepping that traffic
 (``simulationStep`` only, in its own process); :class:`learn.gym_env.DrivingArenaEnv` with one
-ego driven by a gap-keeping policy (TargetPose), no rasters; and the same env with all three
-rasters at 256 px. The env sides time ``env.step`` as a training loop sees it (the simulator
-child, the pipe, observation encoding); the policy's own time is not counted. Best of
-``--repeat`` each.
+ego driven by a gap-keeping policy (TargetPose), no rasters, its simulator in this process (the
+default when nothing else simulates here); the same env with all three rasters at 256 px; and,
+for comparison, the env without rasters with its simulator in a child process
+(``simulator="subprocess"``: the pipe and packing on top). The env sides time ``env.step`` as a
+training loop sees it (simulator, observation encoding, scoring terms, reward); the policy's own
+time is not counted. Best of ``--repeat`` each.
 
-Two clocks: wall time, and CPU time (this process's plus the simulator child's, from ``/proc``).
+Two clocks: wall time, and CPU time (this process's plus any simulator child's, from ``/proc``).
 On a shared, loaded machine wall time mostly measures the neighbours; the summary line uses CPU
 time, which counts only the work done.
 
@@ -65,17 +67,21 @@ def raw_side(folder: str, steps: int, queue) -> None:
     queue.put(((wall, cpu), ""))
 
 
-def env_side(folder: Path, steps: int, rasters: bool) -> tuple[float, float]:
+def env_side(
+    folder: Path, steps: int, rasters: bool, simulator: str = "auto"
+) -> tuple[float, float]:
     """(wall, CPU) seconds spent in ``env.step`` over ``steps`` steps (policy excluded)."""
     from learn.gym_env import DrivingArenaEnv
+    from learn.worker import SimulatorProcess
 
     options = {**RASTERS, "img_pixels": 256} if rasters else {}
-    env = DrivingArenaEnv(folder, **options)
+    env = DrivingArenaEnv(folder, simulator=simulator, **options)
     try:
         obs, _ = env.reset(seed=0)
-        child = env._process
+        # A simulator in a child process (simulator="subprocess") uses CPU there too.
+        child = env._simulator if isinstance(env._simulator, SimulatorProcess) else None
         wall = cpu = 0.0
-        child_cpu = child.cpu_seconds()
+        child_cpu = child.cpu_seconds() if child else 0.0
         for _ in range(steps):
             action = follow_gap(obs)
             t0, c0 = time.perf_counter(), time.process_time()
@@ -84,7 +90,8 @@ def env_side(folder: Path, steps: int, rasters: bool) -> tuple[float, float]:
             cpu += time.process_time() - c0
             if terminated or truncated:
                 raise SystemExit(f"the ego must drive the whole run: {info['done_reason']}")
-        cpu += child.cpu_seconds() - child_cpu
+        if child:
+            cpu += child.cpu_seconds() - child_cpu
     finally:
         env.close()
     return wall, cpu
@@ -98,16 +105,15 @@ def main() -> None:
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         folder = build(Path(tmp) / "bench", args.vehicles, args.steps)
-        raw, plain, raster = [], [], []
+        raw, plain, raster, child = [], [], [], []
         for _ in range(args.repeat):
             raw.append(in_child(raw_side, str(folder), args.steps)[0])
             plain.append(env_side(folder, args.steps, rasters=False))
             raster.append(env_side(folder, args.steps, rasters=True))
+            child.append(env_side(folder, args.steps, rasters=False, simulator="subprocess"))
     n = args.steps
-    best = {
-        name: (min(w for w, _ in runs), min(c for _, c in runs))
-        for name, runs in (("raw libsumo", raw), ("env", plain), ("env+rasters", raster))
-    }
+    sides = (("raw libsumo", raw), ("env", plain), ("env+rasters", raster), ("env (child)", child))
+    best = {name: (min(w for w, _ in runs), min(c for _, c in runs)) for name, runs in sides}
     for name, (wall, cpu) in best.items():
         print(
             f"{name + ':':13s} wall {n / wall:7,.0f} steps/s ({wall * 1e3 / n:.3f} ms/step)"

@@ -10,8 +10,15 @@ import numpy as np
 
 from learn.reward import RewardFn, RewardInput, default_reward
 from learn.scenarios import scenario_dirs
+from learn.session import (
+    Config,
+    Reply,
+    Simulator,
+    SimulatorMode,
+    check_simulator_mode,
+    open_simulator,
+)
 from learn.spaces import DEFAULT_MAX_NEIGHBOURS, action_space, observation_space
-from learn.worker import Config, Reply, SimulatorProcess
 from sim.interface import AgentInterface
 
 MAX_STEPS_REASON = "max_episode_steps"
@@ -62,7 +69,9 @@ class DrivingArenaEnv(gym.Env):
     (``top_down_rgb=True``, ``img_pixels=...``), ``max_neighbours`` (neighbour slots of the
     observation), ``reward_fn`` (replaces :func:`learn.reward.default_reward`), ``profile`` (the
     scoring profile whose terms go into ``info``) and ``traffic_seed`` (``"scenario"``: the
-    scenario's own seed, as evaluation uses; ``"random"``: drawn from the reset seed).
+    scenario's own seed, as evaluation uses; ``"random"``: drawn from the reset seed) and
+    ``simulator`` (where the simulator runs: ``"auto"``, ``"in_process"`` or ``"subprocess"``,
+    see :func:`learn.session.open_simulator`).
     """
 
     metadata = {"render_modes": []}  # noqa: RUF012 - gymnasium's class attribute
@@ -77,6 +86,7 @@ class DrivingArenaEnv(gym.Env):
         reward_fn: RewardFn | None = None,
         profile: str | None = None,
         traffic_seed: str = "scenario",
+        simulator: SimulatorMode = "auto",
         **interface_options: Any,
     ) -> None:
         self.interface = AgentInterface(action_space=action_space, **interface_options)
@@ -88,7 +98,9 @@ class DrivingArenaEnv(gym.Env):
             raise ValueError("traffic_seed is 'scenario' or 'random'")
         self.traffic_seed = traffic_seed
         self._config = Config(self.interface, max_neighbours, _profile_name(profile))
-        self._process: SimulatorProcess | None = None  # started at the first reset
+        check_simulator_mode(simulator)
+        self._simulator_mode = simulator
+        self._simulator: Simulator | None = None  # opened at the first reset
         self._state: EpisodeState | None = None
         self._agent_id = ""
 
@@ -105,33 +117,33 @@ class DrivingArenaEnv(gym.Env):
         return obs, info
 
     def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
-        if self._state is None or self._process is None:
+        if self._state is None or self._simulator is None:
             raise RuntimeError("reset() before step()")
-        reply = self._process.call("step", {self._agent_id: np.asarray(action).tolist()})
+        reply = self._simulator.step({self._agent_id: np.asarray(action).tolist()})
         out = step_outcome(self._agent_id, reply, self._state, self.reward_fn)
         if out[2] or out[3]:
             self._state = None  # stepping on needs a reset
         return out
 
     def close(self) -> None:
-        if self._process is not None:
-            self._process.close()
-            self._process = None
+        if self._simulator is not None:
+            self._simulator.close()
+            self._simulator = None
         super().close()
 
 
 def start_episode(env: Any, options: dict | None) -> Reply:
-    """Reset ``env``'s simulator (starting its process if needed) on the scenario ``options``
-    names or one drawn from ``env.np_random``."""
+    """Reset ``env``'s simulator (opening it if needed) on the scenario ``options`` names or one
+    drawn from ``env.np_random``."""
     folder = (options or {}).get("scenario")
     if folder is None:
         folder = env.scenarios[int(env.np_random.integers(len(env.scenarios)))]
     sim_seed = None
     if env.traffic_seed == "random":
         sim_seed = int(env.np_random.integers(2**31 - 1))
-    if env._process is None:
-        env._process = SimulatorProcess(env._config)
-    reply = env._process.call("reset", (str(folder), sim_seed))
+    if env._simulator is None:
+        env._simulator = open_simulator(env._config, env._simulator_mode)
+    reply = env._simulator.reset(str(folder), sim_seed)
     if not reply.observations:
         raise RuntimeError(f"{reply.scenario_id}: the episode ended before any agent entered")
     return reply

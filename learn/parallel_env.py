@@ -15,8 +15,8 @@ from arena.scenario import load_scenario
 from learn.gym_env import EpisodeState, start_episode, step_outcome
 from learn.reward import RewardFn, default_reward
 from learn.scenarios import scenario_dirs
+from learn.session import Config, Simulator, SimulatorMode, check_simulator_mode
 from learn.spaces import DEFAULT_MAX_NEIGHBOURS, action_space, observation_space
-from learn.worker import Config, SimulatorProcess
 from sim.interface import AgentInterface
 
 
@@ -40,6 +40,7 @@ class DrivingArenaParallelEnv(ParallelEnv):
         reward_fn: RewardFn | None = None,
         profile: str | None = None,
         traffic_seed: str = "scenario",
+        simulator: SimulatorMode = "auto",
         **interface_options: Any,
     ) -> None:
         from learn.gym_env import _profile_name
@@ -54,7 +55,9 @@ class DrivingArenaParallelEnv(ParallelEnv):
         self.np_random, _ = seeding.np_random(None)
         self._max_neighbours = max_neighbours
         self._config = Config(self.interface, max_neighbours, _profile_name(profile))
-        self._process: SimulatorProcess | None = None
+        check_simulator_mode(simulator)
+        self._simulator_mode = simulator
+        self._simulator: Simulator | None = None
         self._state: EpisodeState | None = None
 
     @cached_property
@@ -84,10 +87,10 @@ class DrivingArenaParallelEnv(ParallelEnv):
         return dict(reply.observations), infos
 
     def step(self, actions: dict[str, np.ndarray]):
-        if self._state is None or self._process is None:
+        if self._state is None or self._simulator is None:
             raise RuntimeError("reset() before step()")
         sent = {a: np.asarray(actions[a]).tolist() for a in self.agents if a in actions}
-        reply = self._process.call("step", sent)
+        reply = self._simulator.step(sent)
         obs, rewards, terminations, truncations, infos = {}, {}, {}, {}, {}
         for agent in self.agents:
             o, r, term, trunc, info = step_outcome(agent, reply, self._state, self.reward_fn)
@@ -103,6 +106,6 @@ class DrivingArenaParallelEnv(ParallelEnv):
         return obs, rewards, terminations, truncations, infos
 
     def close(self) -> None:
-        if self._process is not None:
-            self._process.close()
-            self._process = None
+        if self._simulator is not None:
+            self._simulator.close()
+            self._simulator = None

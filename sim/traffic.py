@@ -42,6 +42,11 @@ def sumo_command(net: Path, routes: Path | None, seed: int, step_length: float) 
     return [*cmd, *(item for pair in options.items() for item in pair)]
 
 
+def sumo_running() -> bool:
+    """Whether this process already runs its one SUMO simulation."""
+    return _open_instance is not None
+
+
 class SumoTraffic:
     """One running SUMO simulation. Create, :meth:`step`, read states, :meth:`close`."""
 

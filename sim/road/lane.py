@@ -9,6 +9,9 @@ from functools import cached_property
 import numpy as np
 
 WAYPOINT_SPACING = 1.0  # [m] distance between consecutive waypoints along a lane
+# Lanes of more centreline points than this are projected onto with numpy (one pass over all
+# segments), fewer with a scalar loop; both give the same result.
+_VECTOR_PROJECTION_POINTS = 16
 
 
 def wrap_angle(angle: float | np.ndarray) -> float | np.ndarray:
@@ -45,13 +48,17 @@ class Lane:
         self.cumulative_s = np.concatenate([[0.0], np.cumsum(self.segment_lengths)])  # (n,) [m]
         self.length = float(self.cumulative_s[-1])  # [m]
         self._points = pts.tolist()
+        self._seg_len2 = np.maximum(seg[:, 0] * seg[:, 0] + seg[:, 1] * seg[:, 1], 1e-12)
 
     def project(self, x: float, y: float) -> tuple[float, float, float]:
         """Lane coordinates of a point: (s [m] along the lane, t [m] signed lateral offset, left
         positive, heading [rad] of the lane at s)."""
-        # Scalar Python: lanes have few segments, and numpy's per-call overhead would dominate.
-        best = (math.inf, 0, 0.0)
         pts = self._points
+        if len(pts) > _VECTOR_PROJECTION_POINTS:
+            return self._project_vectorised(x, y)
+        # Scalar Python: most lanes have few segments, and numpy's per-call overhead would
+        # dominate.
+        best = (math.inf, 0, 0.0)
         for i in range(len(pts) - 1):
             (x0, y0), (x1, y1) = pts[i], pts[i + 1]
             dx, dy = x1 - x0, y1 - y0
@@ -61,6 +68,16 @@ class Lane:
             if d2 < best[0]:
                 best = (d2, i, u)
         return self._frame(best[1], best[2], x, y)
+
+    def _project_vectorised(self, x: float, y: float) -> tuple[float, float, float]:
+        """:meth:`project` for lanes of many points (curves): the same arithmetic per segment,
+        and the first nearest segment wins as in the scalar loop."""
+        p0, d = self.centreline[:-1], np.diff(self.centreline, axis=0)
+        rx, ry = x - p0[:, 0], y - p0[:, 1]
+        u = np.minimum(np.maximum((rx * d[:, 0] + ry * d[:, 1]) / self._seg_len2, 0.0), 1.0)
+        ex, ey = rx - d[:, 0] * u, ry - d[:, 1] * u
+        i = int(np.argmin(ex * ex + ey * ey))
+        return self._frame(i, float(u[i]), x, y)
 
     def _frame(self, i: int, u: float, x: float, y: float) -> tuple[float, float, float]:
         (x0, y0), (x1, y1) = self._points[i], self._points[i + 1]

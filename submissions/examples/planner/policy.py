@@ -84,6 +84,10 @@ class Path:
                 start = i
         _, a, b = max(runs) if runs else (0, 0, len(self.xy))
         self.end_curvature = menger_curvature(self.xy[a:b])
+        self._ab = self.xy[1:] - self.xy[:-1]  # (n - 1, 2) segment vectors [m]
+        self._ab_len2 = np.maximum((self._ab * self._ab).sum(1), 1e-9)
+        self._projected: tuple[list, list[tuple[float, float]]] | None = None
+        self._memo: dict[tuple[float, float], tuple[float, float]] = {}
 
     def direction(self, i: int) -> float:
         """Heading [rad] of the chord from waypoint ``i`` to ``i + 2`` (clamped to the path)."""
@@ -93,7 +97,7 @@ class Path:
         return math.atan2(dy, dx) if (dx or dy) else float(self.heading[i])
 
     def on_route(self, route: set[str]) -> bool:
-        edges = {lane.rsplit("_", 1)[0] for lane in self.lane_ids if not lane.startswith(":")}
+        edges = {lane.rsplit("_", 1)[0] for lane in set(self.lane_ids) if not lane.startswith(":")}
         return edges <= route
 
     def point(self, s: float) -> tuple[float, float, float]:
@@ -113,21 +117,44 @@ class Path:
 
     def project(self, x: float, y: float) -> tuple[float, float]:
         """(s [m], lateral offset [m], left positive) of a point; extends beyond both ends."""
-        p = np.array([x, y])
+        # The ego and the goal are projected onto the same path several times per step.
+        key = (x, y)
+        if key not in self._memo:
+            self._memo[key] = self.project_many(np.array([[x, y]], dtype=float))[0]
+        return self._memo[key]
+
+    def project_many(self, points: np.ndarray) -> list[tuple[float, float]]:
+        """:meth:`project` of each of ``points`` (n, 2), the segment search in one pass."""
         if len(self.xy) == 1:
-            return self._extend(p, 0)
-        a, b = self.xy[:-1], self.xy[1:]
-        ab = b - a
-        t = np.clip(((p - a) * ab).sum(1) / np.maximum((ab * ab).sum(1), 1e-9), 0.0, 1.0)
-        d = np.hypot(*(a + t[:, None] * ab - p).T)
-        i = int(np.argmin(d))
-        if i == 0 and t[0] <= 0.0:
-            return self._extend(p, 0)
-        if i == len(ab) - 1 and t[-1] >= 1.0:
-            return self._extend_arc(p)
-        seg = ab[i] / max(np.hypot(*ab[i]), 1e-9)
-        rel = p - a[i]
-        return float(self.s[i] + t[i] * np.hypot(*ab[i])), float(seg[0] * rel[1] - seg[1] * rel[0])
+            return [self._extend(p, 0) for p in points]
+        a, ab = self.xy[:-1], self._ab
+        rel = points[:, None, :] - a  # (n, segments, 2)
+        t = np.minimum(np.maximum((rel * ab).sum(2) / self._ab_len2, 0.0), 1.0)
+        d = np.hypot(*(a + t[:, :, None] * ab - points[:, None, :]).transpose(2, 0, 1))
+        out = []
+        for p, t_p, i in zip(points, t, np.argmin(d, axis=1).tolist(), strict=True):
+            if i == 0 and t_p[0] <= 0.0:
+                out.append(self._extend(p, 0))
+            elif i == len(ab) - 1 and t_p[-1] >= 1.0:
+                out.append(self._extend_arc(p))
+            else:
+                seg = ab[i] / max(np.hypot(*ab[i]), 1e-9)
+                r = p - a[i]
+                out.append(
+                    (
+                        float(self.s[i] + t_p[i] * np.hypot(*ab[i])),
+                        float(seg[0] * r[1] - seg[1] * r[0]),
+                    )
+                )
+        return out
+
+    def project_vehicles(self, others: list[dict]) -> list[tuple[float, float]]:
+        """:meth:`project` of each vehicle's position; asked for several times per step (lane
+        choice, lead vehicle, gaps), so kept for the last ``others`` list seen."""
+        if self._projected is None or self._projected[0] is not others:
+            points = np.array([o["position"][:2] for o in others], dtype=float).reshape(-1, 2)
+            self._projected = (others, self.project_many(points))
+        return self._projected[1]
 
     def _extend(self, p: np.ndarray, k: int) -> tuple[float, float]:
         h = self.heading[k]
@@ -311,9 +338,7 @@ class AgentPlanner:
         """(longitudinal offset [m], speed [m/s]) of a vehicle in ``path``'s lane that leaves too
         small a gap ahead of or behind us for a lane change, or None when the change is safe."""
         s0, _ = path.project(x, y)
-        for o in others:
-            ox, oy = o["position"][0], o["position"][1]
-            s, lat = path.project(ox, oy)
+        for o, (s, lat) in zip(others, path.project_vehicles(others), strict=True):
             if abs(lat) > path.width * 0.5 + 0.4:
                 continue
             half = 0.5 * (length + o["bounding_box"][0])
@@ -352,8 +377,7 @@ class AgentPlanner:
         """(gap [m], speed [m/s]) of the nearest vehicle ahead within the lane corridor."""
         s0, _ = path.project(x, y)
         best = (1e9, 30.0)
-        for o in others:
-            s, lat = path.project(o["position"][0], o["position"][1])
+        for o, (s, lat) in zip(others, path.project_vehicles(others), strict=True):
             if s <= s0 or s - s0 > 120.0:
                 continue
             if abs(lat) > 0.5 * (width + o["bounding_box"][1]) + 0.3:

@@ -133,7 +133,8 @@ def train(
             return self.deadline is None or time.monotonic() < self.deadline
 
     torch.set_num_threads(1)  # the simulators need the other core
-    # DummyVecEnv is enough: each env's simulator already runs in a process of its own.
+    # DummyVecEnv is enough: the first env simulates in this process, the second in a child of
+    # its own (libsumo holds one simulation per process; learn.session.open_simulator).
     envs = DummyVecEnv([make_env(suite, rank, seed) for rank in range(2)])
     model = PPO(
         "MultiInputPolicy",
