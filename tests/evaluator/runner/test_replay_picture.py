@@ -57,5 +57,8 @@ def test_map_is_drawn_when_the_scenario_is_found(tmp_path):
 
 
 def test_missing_record_is_a_clear_error(tmp_path):
+    with pytest.raises(ReplayError, match="not a results folder"):
+        draw_episode(tmp_path, "nope", tmp_path / "p.svg")
+    crash_record(tmp_path)
     with pytest.raises(ReplayError, match="no record for nope"):
         draw_episode(tmp_path, "nope", tmp_path / "p.svg")
