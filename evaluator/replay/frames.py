@@ -101,12 +101,22 @@ class FramePainter:
             cv2.polylines(image, [self._px(body, centre)], True, (34, 34, 34), 1, shift=4)
             cv2.fillPoly(image, [self._px(nose, centre)], (50, 50, 50), shift=4)
             if kind.value != "traffic":
-                labels.append((r.vehicle_ids[v], self._px([x, y], centre)[0] // 16))
-        for text, (px, py) in labels:  # fixed pixel size, drawn last: never under a vehicle
-            (w, _), _ = cv2.getTextSize(text, FONT, 0.45, 1)
-            org = (int(px - w / 2), int(py - 14))
-            cv2.putText(image, text, org, FONT, 0.45, (255, 255, 255), 3, cv2.LINE_AA)
-            cv2.putText(image, text, org, FONT, 0.45, (17, 17, 17), 1, cv2.LINE_AA)
+                anchor = self._px([x, y], centre)[0] // 16
+                labels.append((r.vehicle_ids[v], anchor, r.width[v] * self.scale))
+        for agent in r.agents if len(r.agents) > 1 else ():
+            gx, gy, radius = agent.goal
+            ((px, py),) = self._px([gx, gy], centre) // 16
+            labels.append((f"goal {agent.id}", (px, py), max(radius * self.scale, 4)))
+        self._labels(image, labels)
+
+    def _labels(self, image: np.ndarray, labels: list) -> None:
+        """Fixed pixel size, drawn last so no vehicle hides one; each goes above or below its
+        anchor, out of the way of those already placed."""
+        sizes = [cv2.getTextSize(text, FONT, 0.45, 1)[0] for text, _, _ in labels]
+        anchors = [(float(x), float(y), float(gap)) for _, (x, y), gap in labels]
+        for (text, _, _), (x, y) in zip(labels, place_labels(anchors, sizes), strict=True):
+            cv2.putText(image, text, (x, y), FONT, 0.45, (255, 255, 255), 3, cv2.LINE_AA)
+            cv2.putText(image, text, (x, y), FONT, 0.45, (17, 17, 17), 1, cv2.LINE_AA)
 
     def _strip(self, image: np.ndarray, f: int) -> None:
         r, ego = self.replay, self.ego
@@ -145,6 +155,30 @@ class FramePainter:
             cv2.putText(image, text, org, FONT, 0.42, _bgr("#b42318"), 1, cv2.LINE_AA)
         cv2.putText(image, f"{vmax:.0f}", (6, y1 + 4), FONT, 0.38, (133, 112, 102), 1)
         cv2.putText(image, "0", (6, y0), FONT, 0.38, (133, 112, 102), 1)
+
+
+def place_labels(
+    anchors: list[tuple[float, float, float]], sizes: list[tuple[int, int]]
+) -> list[tuple[int, int]]:
+    """Text origins [px] for labels of ``sizes`` (w, h) at ``anchors`` (x, y, gap): the first
+    spot, alternately above and below the anchor by ``gap`` and more, that overlaps no label
+    placed before it."""
+    placed: list[tuple[float, float, float, float]] = []
+    origins = []
+    for (x, y, gap), (w, h) in zip(anchors, sizes, strict=True):
+        for k in range(12):
+            lift = gap + 8 + (k // 2) * (h + 4)
+            baseline = y - lift if k % 2 == 0 else y + lift + h
+            box = (x - w / 2 - 2, baseline - h - 1, x + w / 2 + 2, baseline + 3)
+            clear = all(
+                box[2] <= q[0] or q[2] <= box[0] or box[3] <= q[1] or q[3] <= box[1]
+                for q in placed
+            )
+            if clear:
+                break
+        placed.append(box)
+        origins.append((round(x - w / 2), round(baseline)))
+    return origins
 
 
 def frames(replay: Replay, every: int = 1, width: int = FRAME_WIDTH_PX) -> Iterator[np.ndarray]:

@@ -116,6 +116,10 @@ def test_anyone_watches_the_expert_drive_a_public_scenario(served):
     assert unknown.status_code == 404 and "no public scenario" in unknown.json()["detail"]
 
 
+def apart_vertically(a: dict, b: dict) -> bool:
+    return a["y1"] <= b["y0"] or b["y1"] <= a["y0"]
+
+
 def drawn(page) -> dict[str, dict]:
     vehicles = page.evaluate("() => document.getElementById('replay').replay.drawn")
     return {v["id"]: v for v in vehicles}
@@ -139,6 +143,12 @@ def test_submission_page_links_each_episode_and_the_slider_moves_the_vehicles(se
         expect(page.locator("#replay")).to_have_attribute("data-frame", "0")
         expect(page.locator(".replay-counter")).to_contain_text("step 1 / 60")
         start = drawn(page)
+        # Side by side at the start: the two agents' and their goals' labels do not overlap.
+        boxes = page.evaluate("document.getElementById('replay').replay.labels")
+        assert len(boxes) == 4
+        for i, a in enumerate(boxes):
+            for b in boxes[i + 1 :]:
+                assert a["x1"] <= b["x0"] or b["x1"] <= a["x0"] or apart_vertically(a, b), (a, b)
         canvas = page.locator("canvas.replay-view")
         before = canvas.screenshot()
         page.locator(".replay-scrub").fill("40")

@@ -5,6 +5,7 @@
 const ArenaReplay = (() => {
   const SPEEDS = [0.25, 0.5, 1, 2, 4];
   const FOLLOW_VIEW_M = 110;  // width of road shown around the followed vehicle
+  const MIN_FOLLOW_SCALE = 6;  // [px/m]: on a phone less road, cars still big enough to see
   const MIN_SCALE = 0.2, MAX_SCALE = 40;  // [px/m]
 
   function el(tag, attrs = {}, text = "") {
@@ -39,7 +40,9 @@ const ArenaReplay = (() => {
     speedLabel.append(ui.speed);
     const followLabel = el("label", {}, "camera ");
     followLabel.append(ui.follow);
-    tools.append(followLabel, speedLabel, ui.zoomOut, ui.zoomIn);
+    const zoom = el("span", { class: "replay-zoom-group" });
+    zoom.append(ui.zoomOut, ui.zoomIn);
+    tools.append(followLabel, speedLabel, zoom);
     root.append(ui.view, bar, tools, ui.timeline, ui.events, ui.status);
     return ui;
   }
@@ -56,6 +59,7 @@ const ArenaReplay = (() => {
       this.scale = null;  // [px/m], set on the first layout
       this.userZoomed = false;
       this.drawn = [];
+      const labels = [];
       this.wire();
       this.resize();
       new ResizeObserver(() => this.resize()).observe(root);
@@ -107,7 +111,7 @@ const ArenaReplay = (() => {
       data.agents.forEach((agent) => {
         for (const [frame, name] of agent.events) {
           const item = el("li");
-          const jump = el("button", { type: "button", class: "replay-event" }, `${agent.id}: ${name.replace("_", " ")} @ step ${data.first_step + frame}`);
+          const jump = el("button", { type: "button", class: "replay-event" }, `${agent.id}: ${name.replaceAll("_", " ")} @ step ${data.first_step + frame}`);
           jump.style.setProperty("--event", data.style.events[name] || "#333");
           jump.addEventListener("click", () => { this.pause(); this.seek(frame); });
           item.append(jump);
@@ -175,7 +179,7 @@ const ArenaReplay = (() => {
     }
 
     defaultScale() {
-      if (this.followed >= 0) return Math.max(this.width / FOLLOW_VIEW_M, 2);
+      if (this.followed >= 0) return Math.max(this.width / FOLLOW_VIEW_M, MIN_FOLLOW_SCALE);
       const [x0, y0, x1, y1] = this.data.bounds;
       return Math.min(this.width / (x1 - x0), this.height / (y1 - y0));
     }
@@ -213,7 +217,8 @@ const ArenaReplay = (() => {
       ctx.fillStyle = data.style.background;
       ctx.fillRect(0, 0, this.width, this.height);
       if (data.map) this.drawMap(ctx, toPx, s);
-      this.drawGoals(ctx, toPx, s);
+      const goalLabels = [];
+      this.drawGoals(ctx, toPx, s, goalLabels);
       this.drawTrail(ctx, toPx);
       this.drawn = [];
       const labels = [];
@@ -224,22 +229,44 @@ const ArenaReplay = (() => {
         this.drawVehicle(ctx, toPx, s, vehicle, p);
         if (vehicle.kind !== "traffic") labels.push([vehicle.id, ...toPx(p.x, p.y), vehicle.width * s]);
       });
-      // Labels last, in screen pixels at a fixed size: they never scale with the road.
-      ctx.font = "600 12px system-ui, sans-serif";
-      ctx.textAlign = "center";
-      ctx.lineWidth = 3;
-      for (const [text, px, py, w] of labels) {
-        ctx.strokeStyle = "rgba(255,255,255,.9)";
-        ctx.strokeText(text, px, py - w - 8);
-        ctx.fillStyle = "#111";
-        ctx.fillText(text, px, py - w - 8);
-      }
+      this.drawLabels(ctx, [...labels, ...goalLabels]);
       this.drawTimeline();
       const agent = data.agents[Math.max(this.followed, 0)];
       const speed = agent.speed[this.frame];
       const step = data.first_step + this.frame;
       this.ui.counter.textContent = `step ${step} / ${data.first_step + data.frames - 1} · ` +
         `${(step * data.dt).toFixed(1)} s · ${agent.id} ${speed === null ? "–" : speed.toFixed(1)} m/s`;
+    }
+
+    // Labels last, in screen pixels at a fixed size (they never scale with the road), each moved
+    // up or down out of the way of those already placed, with a leader line when moved.
+    drawLabels(ctx, labels) {
+      ctx.font = "600 12px system-ui, sans-serif";
+      ctx.textAlign = "center";
+      const placed = [];
+      const overlaps = (r) => placed.some((q) => r.x0 < q.x1 && q.x0 < r.x1 && r.y0 < q.y1 && q.y0 < r.y1);
+      for (const [text, px, py, w] of labels) {
+        const half = ctx.measureText(text).width / 2 + 2;
+        let box = null;
+        for (let k = 0; k < 12 && !box; k++) {
+          const lift = (Math.floor(k / 2) * 15) + w + 8;
+          const y = k % 2 === 0 ? py - lift : py + lift + 10;
+          const candidate = { x0: px - half, x1: px + half, y0: y - 11, y1: y + 3, y };
+          if (!overlaps(candidate) || k === 11) box = candidate;
+        }
+        placed.push(box);
+        if (Math.abs(box.y - py) > w + 20) {
+          ctx.strokeStyle = "rgba(17,17,17,.6)";
+          ctx.lineWidth = 1;
+          ctx.beginPath(); ctx.moveTo(px, py); ctx.lineTo(px, box.y < py ? box.y1 : box.y0); ctx.stroke();
+        }
+        ctx.lineWidth = 3;
+        ctx.strokeStyle = "rgba(255,255,255,.9)";
+        ctx.strokeText(text, px, box.y);
+        ctx.fillStyle = "#111";
+        ctx.fillText(text, px, box.y);
+      }
+      this.labels = placed;
     }
 
     drawMap(ctx, toPx, s) {
@@ -272,7 +299,8 @@ const ArenaReplay = (() => {
       stroke(map.stop_lines, style.stop_line, 0.5, []);
     }
 
-    drawGoals(ctx, toPx, s) {
+    // Goal circles; their labels (several agents only) go with the vehicles' into `labels`.
+    drawGoals(ctx, toPx, s, labels) {
       const { style } = this.data;
       for (const agent of this.data.agents) {
         const [gx, gy, r] = agent.goal;
@@ -284,12 +312,7 @@ const ArenaReplay = (() => {
         ctx.strokeStyle = style.goal;
         ctx.lineWidth = 1.5;
         ctx.stroke();
-        if (this.data.agents.length > 1) {
-          ctx.font = "11px system-ui, sans-serif";
-          ctx.textAlign = "center";
-          ctx.fillStyle = "#145214";
-          ctx.fillText(`goal ${agent.id}`, px, py + Math.max(r * s, 4) + 12);
-        }
+        if (this.data.agents.length > 1) labels.push([`goal ${agent.id}`, px, py, Math.max(r * s, 4)]);
       }
     }
 
