@@ -87,7 +87,7 @@ class FramePainter:
 
     def _vehicles(self, image: np.ndarray, centre: np.ndarray, f: int) -> None:
         r = self.replay
-        labels = []
+        labels, boxes = [], []
         for v, kind in enumerate(r.kinds):
             x, y, heading = r.x[v, f], r.y[v, f], r.heading[v, f]
             if not np.isfinite(x):
@@ -100,21 +100,23 @@ class FramePainter:
             cv2.fillPoly(image, [self._px(body, centre)], _bgr(STYLE[kind.value]), shift=4)
             cv2.polylines(image, [self._px(body, centre)], True, (34, 34, 34), 1, shift=4)
             cv2.fillPoly(image, [self._px(nose, centre)], (50, 50, 50), shift=4)
+            anchor = self._px([x, y], centre)[0] // 16
+            half = r.length[v] * self.scale / 2
+            boxes.append((anchor[0] - half, anchor[1] - half, anchor[0] + half, anchor[1] + half))
             if kind.value != "traffic":
-                anchor = self._px([x, y], centre)[0] // 16
                 labels.append((r.vehicle_ids[v], anchor, r.width[v] * self.scale))
         for agent in r.agents if len(r.agents) > 1 else ():
             gx, gy, radius = agent.goal
             ((px, py),) = self._px([gx, gy], centre) // 16
             labels.append((f"goal {agent.id}", (px, py), max(radius * self.scale, 4)))
-        self._labels(image, labels)
+        self._labels(image, labels, boxes)
 
-    def _labels(self, image: np.ndarray, labels: list) -> None:
+    def _labels(self, image: np.ndarray, labels: list, boxes: list[Box]) -> None:
         """Fixed pixel size, drawn last so no vehicle hides one; each goes above or below its
         anchor, out of the way of those already placed."""
         sizes = [cv2.getTextSize(text, FONT, 0.45, 1)[0] for text, _, _ in labels]
         anchors = [(float(x), float(y), float(gap)) for _, (x, y), gap in labels]
-        for (text, _, _), (x, y) in zip(labels, place_labels(anchors, sizes), strict=True):
+        for (text, _, _), (x, y) in zip(labels, place_labels(anchors, sizes, boxes), strict=True):
             cv2.putText(image, text, (x, y), FONT, 0.45, (255, 255, 255), 3, cv2.LINE_AA)
             cv2.putText(image, text, (x, y), FONT, 0.45, (17, 17, 17), 1, cv2.LINE_AA)
 
@@ -157,13 +159,18 @@ class FramePainter:
         cv2.putText(image, "0", (6, y0), FONT, 0.38, (133, 112, 102), 1)
 
 
+Box = tuple[float, float, float, float]  # x0, y0, x1, y1 [px]
+
+
 def place_labels(
-    anchors: list[tuple[float, float, float]], sizes: list[tuple[int, int]]
+    anchors: list[tuple[float, float, float]],
+    sizes: list[tuple[int, int]],
+    obstacles: list[Box] = (),
 ) -> list[tuple[int, int]]:
     """Text origins [px] for labels of ``sizes`` (w, h) at ``anchors`` (x, y, gap): the first
     spot, alternately above and below the anchor by ``gap`` and more, that overlaps no label
-    placed before it."""
-    placed: list[tuple[float, float, float, float]] = []
+    placed before it and none of the ``obstacles`` (the vehicles drawn)."""
+    placed: list[Box] = []
     origins = []
     for (x, y, gap), (w, h) in zip(anchors, sizes, strict=True):
         for k in range(12):
@@ -172,7 +179,7 @@ def place_labels(
             box = (x - w / 2 - 2, baseline - h - 1, x + w / 2 + 2, baseline + 3)
             clear = all(
                 box[2] <= q[0] or q[2] <= box[0] or box[3] <= q[1] or q[3] <= box[1]
-                for q in placed
+                for q in [*placed, *obstacles]
             )
             if clear:
                 break

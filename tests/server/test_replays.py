@@ -143,11 +143,13 @@ def test_submission_page_links_each_episode_and_the_slider_moves_the_vehicles(se
         expect(page.locator("#replay")).to_have_attribute("data-frame", "0")
         expect(page.locator(".replay-counter")).to_contain_text("step 1 / 60")
         start = drawn(page)
-        # Side by side at the start: the two agents' and their goals' labels do not overlap.
+        # Side by side at the start: the labels of the two agents and their goals overlap
+        # neither each other nor any vehicle.
         boxes = page.evaluate("document.getElementById('replay').replay.labels")
-        assert len(boxes) == 4
+        cars = page.evaluate("document.getElementById('replay').replay.vehicleBoxes")
+        assert len(boxes) == 4 and len(cars) == len(start)
         for i, a in enumerate(boxes):
-            for b in boxes[i + 1 :]:
+            for b in [*boxes[i + 1 :], *cars]:
                 assert a["x1"] <= b["x0"] or b["x1"] <= a["x0"] or apart_vertically(a, b), (a, b)
         canvas = page.locator("canvas.replay-view")
         before = canvas.screenshot()

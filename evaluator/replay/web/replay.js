@@ -221,15 +221,18 @@ const ArenaReplay = (() => {
       this.drawGoals(ctx, toPx, s, goalLabels);
       this.drawTrail(ctx, toPx);
       this.drawn = [];
-      const labels = [];
+      const labels = [], boxes = [];
       data.vehicles.forEach((vehicle, v) => {
         const p = this.pose(v, this.frame);
         if (!p) return;
         this.drawn.push({ id: vehicle.id, kind: vehicle.kind, x: p.x, y: p.y, heading: p.heading });
         this.drawVehicle(ctx, toPx, s, vehicle, p);
-        if (vehicle.kind !== "traffic") labels.push([vehicle.id, ...toPx(p.x, p.y), vehicle.width * s]);
+        const [px, py] = toPx(p.x, p.y);
+        const r = Math.max(vehicle.length * s, 3) / 2;
+        boxes.push({ x0: px - r, x1: px + r, y0: py - r, y1: py + r });
+        if (vehicle.kind !== "traffic") labels.push([vehicle.id, px, py, vehicle.width * s]);
       });
-      this.drawLabels(ctx, [...labels, ...goalLabels]);
+      this.drawLabels(ctx, [...labels, ...goalLabels], boxes);
       this.drawTimeline();
       const agent = data.agents[Math.max(this.followed, 0)];
       const speed = agent.speed[this.frame];
@@ -239,12 +242,14 @@ const ArenaReplay = (() => {
     }
 
     // Labels last, in screen pixels at a fixed size (they never scale with the road), each moved
-    // up or down out of the way of those already placed, with a leader line when moved.
-    drawLabels(ctx, labels) {
+    // up or down out of the way of the labels placed before it and of every vehicle drawn
+    // (`boxes`), with a leader line when moved.
+    drawLabels(ctx, labels, boxes) {
       ctx.font = "600 12px system-ui, sans-serif";
       ctx.textAlign = "center";
       const placed = [];
-      const overlaps = (r) => placed.some((q) => r.x0 < q.x1 && q.x0 < r.x1 && r.y0 < q.y1 && q.y0 < r.y1);
+      const hits = (r, q) => r.x0 < q.x1 && q.x0 < r.x1 && r.y0 < q.y1 && q.y0 < r.y1;
+      const overlaps = (r) => placed.some((q) => hits(r, q)) || boxes.some((q) => hits(r, q));
       for (const [text, px, py, w] of labels) {
         const half = ctx.measureText(text).width / 2 + 2;
         let box = null;
@@ -267,6 +272,7 @@ const ArenaReplay = (() => {
         ctx.fillText(text, px, box.y);
       }
       this.labels = placed;
+      this.vehicleBoxes = boxes;
     }
 
     drawMap(ctx, toPx, s) {

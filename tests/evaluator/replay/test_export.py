@@ -77,9 +77,10 @@ def test_labels_at_one_spot_are_stacked_apart():
 
     sizes = [(60, 10), (60, 10), (80, 10), (40, 10)]
     anchors = [(100.0, 100.0, 4.0), (100.0, 102.0, 4.0), (95.0, 100.0, 12.0), (300.0, 50.0, 4.0)]
-    origins = place_labels(anchors, sizes)
+    car = (90.0, 70.0, 110.0, 90.0)  # a vehicle right above the first two anchors
+    origins = place_labels(anchors, sizes, [car])
     boxes = [(x, y - h, x + w, y) for (x, y), (w, h) in zip(origins, sizes, strict=True)]
     for i, a in enumerate(boxes):
-        for b in boxes[i + 1 :]:
+        for b in [*boxes[i + 1 :], car]:
             assert a[2] <= b[0] or b[2] <= a[0] or a[3] <= b[1] or b[3] <= a[1], (a, b)
     assert boxes[3][3] < 50  # alone: right above its anchor
