@@ -116,7 +116,8 @@ class FramePainter:
         anchor, out of the way of those already placed."""
         sizes = [cv2.getTextSize(text, FONT, 0.45, 1)[0] for text, _, _ in labels]
         anchors = [(float(x), float(y), float(gap)) for _, (x, y), gap in labels]
-        for (text, _, _), (x, y) in zip(labels, place_labels(anchors, sizes, boxes), strict=True):
+        origins = place_labels(anchors, sizes, boxes, self.road_height)
+        for (text, _, _), (x, y) in zip(labels, origins, strict=True):
             cv2.putText(image, text, (x, y), FONT, 0.45, (255, 255, 255), 3, cv2.LINE_AA)
             cv2.putText(image, text, (x, y), FONT, 0.45, (17, 17, 17), 1, cv2.LINE_AA)
 
@@ -166,23 +167,33 @@ def place_labels(
     anchors: list[tuple[float, float, float]],
     sizes: list[tuple[int, int]],
     obstacles: list[Box] = (),
+    height: float = float("inf"),
 ) -> list[tuple[int, int]]:
     """Text origins [px] for labels of ``sizes`` (w, h) at ``anchors`` (x, y, gap): the first
-    spot, alternately above and below the anchor by ``gap`` and more, that overlaps no label
-    placed before it and none of the ``obstacles`` (the vehicles drawn)."""
+    spot, alternately above and below the anchor by ``gap`` and more, inside rows 0..``height``,
+    that overlaps no label placed before it and none of the ``obstacles`` (the vehicles drawn)."""
     placed: list[Box] = []
     origins = []
     for (x, y, gap), (w, h) in zip(anchors, sizes, strict=True):
+        spots = []
         for k in range(12):
             lift = gap + 8 + (k // 2) * (h + 4)
             baseline = y - lift if k % 2 == 0 else y + lift + h
-            box = (x - w / 2 - 2, baseline - h - 1, x + w / 2 + 2, baseline + 3)
-            clear = all(
-                box[2] <= q[0] or q[2] <= box[0] or box[3] <= q[1] or q[3] <= box[1]
-                for q in [*placed, *obstacles]
-            )
-            if clear:
-                break
+            spots.append((baseline, (x - w / 2 - 2, baseline - h - 1, x + w / 2 + 2, baseline + 3)))
+        # Nowhere clear (a crowd of vehicles): right above the anchor.
+        baseline, box = next(
+            (
+                (baseline, box)
+                for baseline, box in spots
+                if box[1] >= 0
+                and box[3] <= height
+                and all(
+                    box[2] <= q[0] or q[2] <= box[0] or box[3] <= q[1] or q[3] <= box[1]
+                    for q in [*placed, *obstacles]
+                )
+            ),
+            spots[0],
+        )
         placed.append(box)
         origins.append((round(x - w / 2), round(baseline)))
     return origins

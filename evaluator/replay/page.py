@@ -22,7 +22,7 @@ _PAGE = """<!doctype html>
 <style>
 body {{ margin: 0 auto; max-width: 1100px; padding: 1rem;
   font: 15px/1.5 system-ui, -apple-system, "Segoe UI", sans-serif; color: #1d2330; }}
-h1 {{ font-size: 1.3rem; margin: .2rem 0 .8rem; }}
+h1 {{ font-size: 1.3rem; margin: .2rem 0 .8rem; overflow-wrap: anywhere; }}
 button {{ padding: .4rem 1rem; font: inherit; color: #fff; background: #2457c5; border: 0;
   border-radius: 6px; cursor: pointer; }}
 {styles}

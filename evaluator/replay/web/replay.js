@@ -249,16 +249,17 @@ const ArenaReplay = (() => {
       ctx.textAlign = "center";
       const placed = [];
       const hits = (r, q) => r.x0 < q.x1 && q.x0 < r.x1 && r.y0 < q.y1 && q.y0 < r.y1;
-      const overlaps = (r) => placed.some((q) => hits(r, q)) || boxes.some((q) => hits(r, q));
+      const offView = (r) => r.y0 < 0 || r.y1 > this.height;
+      const overlaps = (r) => offView(r) || placed.some((q) => hits(r, q)) || boxes.some((q) => hits(r, q));
       for (const [text, px, py, w] of labels) {
         const half = ctx.measureText(text).width / 2 + 2;
-        let box = null;
-        for (let k = 0; k < 12 && !box; k++) {
+        const spots = [...Array(12).keys()].map((k) => {
           const lift = (Math.floor(k / 2) * 15) + w + 8;
           const y = k % 2 === 0 ? py - lift : py + lift + 10;
-          const candidate = { x0: px - half, x1: px + half, y0: y - 11, y1: y + 3, y };
-          if (!overlaps(candidate) || k === 11) box = candidate;
-        }
+          return { x0: px - half, x1: px + half, y0: y - 11, y1: y + 3, y };
+        });
+        // Nowhere clear (a crowd of vehicles): right above the anchor.
+        const box = spots.find((spot) => !overlaps(spot)) || spots[0];
         placed.push(box);
         if (Math.abs(box.y - py) > w + 20) {
           ctx.strokeStyle = "rgba(17,17,17,.6)";
