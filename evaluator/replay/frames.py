@@ -141,9 +141,9 @@ class FramePainter:
         cv2.polylines(image, points(ego.speed), False, colour, 2, cv2.LINE_AA, shift=4)
         for frame, name in ego.events:
             x = int(fx[frame])
-            cv2.line(image, (x, y1 - 4), (x, y0), _bgr(STYLE["events"][name]), 1)
+            cv2.line(image, (x, y1 - 2), (x, y0), _bgr(STYLE["events"][name]), 1)
         x = int(fx[f])
-        cv2.line(image, (x, y1 - 8), (x, y0), (48, 35, 29), 2)
+        cv2.line(image, (x, y1 - 2), (x, y0), (48, 35, 29), 2)
         speed = ego.speed[f]
         shown = f"{speed:.1f} m/s" if np.isfinite(speed) else "-"
         step = r.first_step + f
