@@ -22,7 +22,7 @@ from sim import render
 from sim.render import RoadGeometry
 
 REPLAY_FORMAT = 1
-MAP_MARGIN_M = 40.0  # map drawn around what the vehicles did
+MAP_MARGIN_M = 40.0  # the whole-map view: around the mission agents' paths and goals
 MISSION_COLOUR = "#f2a541"
 EVENT_COLOURS = {
     "collision": "#d62728",
