@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -22,6 +23,7 @@ from evaluator.failures import (
     never_started,
     startup_error,
 )
+from evaluator.replay.export import ReplayFormat
 
 if TYPE_CHECKING:
     from evaluator.runner import ScenarioOutcome
@@ -155,27 +157,81 @@ def score(
 
 @app.command()
 def replay(
-    results_dir: Annotated[Path, typer.Argument(help="A results folder of `arena evaluate`.")],
-    scenario_id: Annotated[str, typer.Argument(help="The scenario to draw.")],
-    out: Annotated[Path, typer.Option(help="SVG file to write.")] = Path("replay.svg"),
+    source: Annotated[
+        Path, typer.Argument(help="An episode record (.npz) or an `arena evaluate` results folder.")
+    ],
+    scenario_id: Annotated[
+        str | None,
+        typer.Argument(help="The scenario, when SOURCE is a results folder of several."),
+    ] = None,
+    fmt: Annotated[
+        ReplayFormat,
+        typer.Option(
+            "--format",
+            help="html: the animated replay page in one offline file; gif, mp4: a video "
+            "following the first agent; svg: one still picture of the whole episode.",
+        ),
+    ] = ReplayFormat.html,
+    out: Annotated[
+        Path | None, typer.Option(help="File to write [default: SCENARIO_ID.FORMAT].")
+    ] = None,
     suite: Annotated[
         str, typer.Option(help="Suite folder holding the scenario's map, or `public`.")
     ] = "public",
+    every: Annotated[
+        int, typer.Option(min=1, help="gif/mp4: draw every N-th step (N x faster, smaller).")
+    ] = 1,
 ) -> None:
-    """Draw one episode as SVG: map, ego path coloured by speed, other vehicles' trails, goal,
-    collision and off-road markers."""
+    """Watch one episode: an animated page (open it in a browser), a GIF or MP4 video, or a still
+    SVG picture, with the map, every vehicle, the ego's speed and its events."""
     from arena.config import get_settings
-    from arena.errors import SuiteError
+    from arena.errors import RecordError, SuiteError
     from arena.suite import resolve_suite
-    from evaluator.replay_picture import ReplayError, draw_episode
+    from evaluator.replay.export import find_record, write_replay
+    from evaluator.replay.model import ReplayError
 
-    console = Console()
+    console = Console(stderr=True)
     try:
-        draw_episode(results_dir, scenario_id, out, suite_dir=resolve_suite(suite, get_settings()))
-    except (ReplayError, SuiteError) as exc:
+        record = find_record(source, scenario_id)
+        out = out or Path(f"{scenario_id or record.stem}.{fmt.value}")
+        with _FrameProgress(console) as progress:
+            write_replay(
+                record,
+                resolve_suite(suite, get_settings()),
+                fmt,
+                out,
+                every=every,
+                on_frames=progress.start,
+            )
+    except (ReplayError, RecordError, SuiteError) as exc:
         console.print(f"[bold red]error:[/] {escape(str(exc))}")
         raise typer.Exit(2) from None
-    console.print(f"wrote {out}")
+    console.print(f"wrote {escape(str(out))}")
+
+
+class _FrameProgress:
+    """A bar of frames drawn, shown once a video starts rendering."""
+
+    def __init__(self, console: Console) -> None:
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
+
+        self.bar = Progress(
+            TextColumn("[bold]drawing frames"), BarColumn(), MofNCompleteColumn(), console=console
+        )
+        self.started = False
+
+    def start(self, total: int) -> Callable[[], None]:
+        task = self.bar.add_task("frames", total=total)
+        self.bar.start()
+        self.started = True
+        return lambda: self.bar.advance(task)
+
+    def __enter__(self) -> _FrameProgress:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self.started:
+            self.bar.stop()
 
 
 def _episodes(summary: Summary) -> list[tuple[str, object]]:

@@ -1,4 +1,4 @@
-"""`arena replay`: one episode drawn as SVG from its record, over the scenario's map.
+"""`arena replay --format svg`: one episode drawn as SVG from its record, over the scenario's map.
 
 What a participant needs to understand a failure: where the ego drove and how fast, where the
 other vehicles went, where the goal was, and where it collided or left the road. Drawing is done
@@ -13,7 +13,6 @@ from pathlib import Path
 
 import numpy as np
 
-from evaluator.runner.results import record_path
 from evaluator.scoring.record import scalar
 from sim.render import GOAL_COLOUR, SvgCanvas
 
@@ -24,30 +23,6 @@ EVENT_MARKERS = (("ev_collision", "#d62728", "collision"), ("ev_off_road", "#ff7
 MARKER_SIZE_M = 2.5
 MARGIN_M = 30.0  # around the mission agents' paths and goals
 PICTURE_WIDTH_PX = 1200.0
-
-
-class ReplayError(ValueError):
-    pass
-
-
-def draw_episode(
-    results_dir: Path, scenario_id: str, out: Path, *, suite_dir: Path | None = None
-) -> Path:
-    """Write the picture of ``scenario_id``'s episode (or of a later episode, named
-    ``<scenario id>.ep<k>``); the map is drawn when the scenario folder is found in
-    ``suite_dir``."""
-    path = record_path(results_dir, scenario_id)
-    if not path.exists():
-        raise ReplayError(f"no record for {scenario_id} in {results_dir}")
-    with np.load(path, allow_pickle=False) as data:
-        rec = {name: data[name] for name in data.files}
-    # The record names its scenario: a later episode's file name is not the scenario's folder.
-    folder = str(rec["scenario_id"])
-    scenario_dir = Path(suite_dir) / folder if suite_dir is not None else None
-    if scenario_dir is not None and not (scenario_dir / "scenario.json").exists():
-        scenario_dir = None
-    Path(out).write_text(episode_svg(rec, scenario_dir))
-    return Path(out)
 
 
 def episode_svg(rec: dict[str, np.ndarray], scenario_dir: Path | None) -> str:

@@ -13,6 +13,7 @@ from fastapi.staticfiles import StaticFiles
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from arena.config import Settings, get_settings
+from evaluator.replay.page import WEB_DIR as REPLAY_WEB_DIR
 from server.api.contract import allowed_methods
 from server.api.main import api_router
 from server.api.routes import docs_pages, pages
@@ -72,4 +73,6 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(docs_pages.router)
     docs_pages.mount_docs_assets(app)
     app.mount("/static", StaticFiles(directory=STATIC_DIR), name="static")
+    # The replay viewer's script and styles, the same files `arena replay --format html` inlines.
+    app.mount("/replay-static", StaticFiles(directory=REPLAY_WEB_DIR), name="replay_static")
     return app

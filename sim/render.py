@@ -15,6 +15,7 @@ elements; :func:`draw_road` paints a :class:`sim.road.RoadNetwork` onto it. Scen
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from html import escape
 from typing import TYPE_CHECKING
 
@@ -169,32 +170,69 @@ def lane_outline(centreline: np.ndarray, width: float) -> np.ndarray:
     return np.concatenate([_offset(centreline, width / 2), _offset(centreline, -width / 2)[::-1]])
 
 
-def draw_road(canvas: SvgCanvas, road: RoadNetwork, stop_lanes: tuple[str, ...] = ()) -> None:
-    """Junctions, lane surfaces (shoulders in a paler colour), dashed lane dividers and solid road
-    edges, and a stop line across the end of each lane in ``stop_lanes``."""
-    for polygon in road.junction_polygons:
-        canvas.polygon(np.asarray(polygon.exterior.coords), JUNCTION_COLOUR)
+@dataclass(frozen=True)
+class RoadGeometry:
+    """What a road map is drawn from, in map coordinates [m]: every picture of a road (SVG,
+    replay page, video frames) paints these in this order."""
+
+    junctions: tuple[np.ndarray, ...]  # (n, 2) junction areas and internal lane surfaces
+    lanes: tuple[np.ndarray, ...]  # (n, 2) lane surfaces
+    shoulders: tuple[np.ndarray, ...]  # (n, 2) shoulder lane surfaces
+    dashed: tuple[np.ndarray, ...]  # (n, 2) dividers between lanes of one edge
+    solid: tuple[np.ndarray, ...]  # (n, 2) road edges
+    stop_lines: tuple[np.ndarray, ...]  # (2, 2) across the end of a lane with a stop sign
+
+
+def road_geometry(road: RoadNetwork, stop_lanes: tuple[str, ...] = ()) -> RoadGeometry:
+    """Junctions, lane surfaces (shoulders apart), dashed lane dividers and solid road edges, and
+    a stop line across the end of each lane in ``stop_lanes``."""
+    junctions = [np.asarray(polygon.exterior.coords) for polygon in road.junction_polygons]
+    junctions += [
+        lane_outline(lane.centreline, lane.width)
+        for lane in road.lanes.values()
+        if lane.is_internal
+    ]
     normal = [lane for lane in road.lanes.values() if not lane.is_internal]
-    for lane in road.lanes.values():
-        if lane.is_internal:
-            canvas.polygon(lane_outline(lane.centreline, lane.width), JUNCTION_COLOUR)
-    for lane in normal:
-        colour = SHOULDER_COLOUR if lane.is_shoulder else ROAD_COLOUR
-        canvas.polygon(lane_outline(lane.centreline, lane.width), colour)
+    dashed, solid, stop_lines = [], [], []
     for lane in normal:
         left = _offset(lane.centreline, lane.width / 2)
-        right = _offset(lane.centreline, -lane.width / 2)
-        siblings = road.edges[lane.edge_id]
-        is_leftmost = lane.index == len(siblings) - 1
-        canvas.polyline(left, MARKING_COLOUR, 0.15, dash=None if is_leftmost else "6 6")
+        is_leftmost = lane.index == len(road.edges[lane.edge_id]) - 1
+        (solid if is_leftmost else dashed).append(left)
         if lane.index == 0:
-            canvas.polyline(right, MARKING_COLOUR, 0.15)
+            solid.append(_offset(lane.centreline, -lane.width / 2))
     for lane_id in stop_lanes:
         lane = road.lanes[lane_id]
         end = lane.centreline[-2:]
         d = end[1] - end[0]
         n = np.array([-d[1], d[0]]) / max(float(np.hypot(*d)), 1e-9)
         p = end[1] - 0.3 * d / max(float(np.hypot(*d)), 1e-9)
-        canvas.polyline(
-            np.array([p + n * lane.width / 2, p - n * lane.width / 2]), STOP_LINE_COLOUR, 0.5
-        )
+        stop_lines.append(np.array([p + n * lane.width / 2, p - n * lane.width / 2]))
+    return RoadGeometry(
+        junctions=tuple(junctions),
+        lanes=tuple(
+            lane_outline(lane.centreline, lane.width) for lane in normal if not lane.is_shoulder
+        ),
+        shoulders=tuple(
+            lane_outline(lane.centreline, lane.width) for lane in normal if lane.is_shoulder
+        ),
+        dashed=tuple(dashed),
+        solid=tuple(solid),
+        stop_lines=tuple(stop_lines),
+    )
+
+
+def draw_road(canvas: SvgCanvas, road: RoadNetwork, stop_lanes: tuple[str, ...] = ()) -> None:
+    """Paint :func:`road_geometry` onto ``canvas``."""
+    geometry = road_geometry(road, stop_lanes)
+    for polygon in geometry.junctions:
+        canvas.polygon(polygon, JUNCTION_COLOUR)
+    for polygon in geometry.lanes:
+        canvas.polygon(polygon, ROAD_COLOUR)
+    for polygon in geometry.shoulders:
+        canvas.polygon(polygon, SHOULDER_COLOUR)
+    for line in geometry.dashed:
+        canvas.polyline(line, MARKING_COLOUR, 0.15, dash="6 6")
+    for line in geometry.solid:
+        canvas.polyline(line, MARKING_COLOUR, 0.15)
+    for line in geometry.stop_lines:
+        canvas.polyline(line, STOP_LINE_COLOUR, 0.5)

@@ -44,12 +44,17 @@ class EpisodeRecord:
     goals: tuple[tuple[float, float], ...]  # [m] each mission's goal centre
 
 
-def load_record(path: Path) -> EpisodeRecord:
+def read_arrays(path: Path) -> dict[str, np.ndarray]:
+    """Every array of the record at ``path``, by name (no pickle)."""
     try:
         with np.load(Path(path), allow_pickle=False) as data:
-            arrays = {name: data[name] for name in data.files}
-    except (OSError, ValueError) as exc:
+            return {name: data[name] for name in data.files}
+    except (OSError, ValueError, EOFError) as exc:
         raise RecordError(f"{path}: not a readable episode record: {exc}") from exc
+
+
+def load_record(path: Path) -> EpisodeRecord:
+    arrays = read_arrays(path)
     try:
         return _parse(arrays)
     except KeyError as exc:

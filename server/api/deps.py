@@ -102,6 +102,12 @@ def get_owned_submission(
 OwnedSubmission = Annotated[Submission, Depends(get_owned_submission)]
 
 
+ScenarioId = Annotated[
+    str,
+    Path(max_length=128, pattern=r"^[A-Za-z0-9_.-]+$", description="A scenario id."),
+]
+
+
 PhaseQuery = Annotated[
     str,
     Query(max_length=32, pattern=r"^[A-Za-z0-9_-]+$", description="The competition phase."),

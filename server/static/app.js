@@ -134,6 +134,7 @@ const Arena = (() => {
     }
     if (!response.ok) return;
     const logs = await response.json();
+    episodes(id, logs.scenarios);
     // Identical output (the same traceback in 128 scenarios) is shown once, with its count.
     const groups = new Map();
     for (const e of logs.scenarios.filter((x) => x.reason !== "reached_goal" || x.log_tail)) {
@@ -148,6 +149,37 @@ const Arena = (() => {
       return `<h3 class="log-group">${shown} · ${escape(entry.reason || entry.status)}${count}</h3>` +
         `<pre>${escape(entry.log_tail || "(no output)")}</pre>`;
     }).join("");
+  }
+
+  // One "watch" link per finished scenario, failures first (shown where the phase shows logs).
+  function episodes(id, scenarios) {
+    const order = (e) => (e.reason === "reached_goal" ? 1 : 0);
+    const sorted = [...scenarios].sort((a, b) => order(a) - order(b));
+    $("episodes-box").hidden = sorted.length === 0;
+    $("episodes").innerHTML = sorted.map((e) =>
+      `<li><a href="/submissions/${id}/replays/${encodeURIComponent(e.scenario_id)}">` +
+      `${escape(e.label)}</a> <span class="note">${escape(e.reason || e.status)} · ` +
+      `<code>${escape(e.scenario_id)}</code></span></li>`).join("");
+  }
+
+  // The replay page: the team's own episode needs the token this tab holds.
+  function replayPage(url, needsToken) {
+    const root = $("replay");
+    let token = sessionStorage.getItem(TOKEN_KEY);
+    const load = () => ArenaReplay.mount(root, { url, token: needsToken ? token : null });
+    $("token-form").addEventListener("submit", (event) => {
+      event.preventDefault();
+      token = $("token").value.trim();
+      sessionStorage.setItem(TOKEN_KEY, token);
+      $("token-form").hidden = true;
+      load();
+    });
+    if (needsToken && !token) {
+      root.innerHTML = "";
+      $("token-form").hidden = false;
+    } else {
+      load();
+    }
   }
 
   // Time left, from the scenarios finished since this page started watching (a rate measured
@@ -277,5 +309,5 @@ const Arena = (() => {
     if (token) load(); else $("token-form").hidden = false;
   }
 
-  return { submitForm, submissionPage, mySubmissions };
+  return { submitForm, submissionPage, mySubmissions, replayPage };
 })();

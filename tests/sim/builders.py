@@ -159,3 +159,35 @@ def make_scenario(folder: Path, spec: ScenarioSpec | None = None) -> Path:
     )
     (folder / SCENARIO_FILE).write_text(scenario.model_dump_json(indent=2))
     return folder
+
+
+def recorded_episode(root: Path) -> tuple[Path, Path]:
+    """A real short episode (libsumo in this process): ``Agent_0`` drives at 10 m/s into a slow
+    car ahead in its lane, ``Agent_1`` cruises beside it until the 60-step limit, and two cars
+    pass. Returns (the suite folder holding the scenario ``two_lanes``, the record)."""
+    from sim.episode import run_episode
+    from sim.interface import ActionSpace, AgentInterface
+    from tests.sim.agents import ScriptedAgent, drive_straight
+
+    folder = make_scenario(
+        root / "suite" / "two_lanes",
+        ScenarioSpec(
+            missions=(
+                mission("Agent_0", start=(20.0, lane_y(1), 0.0)),
+                mission("Agent_1", start=(20.0, lane_y(0), 0.0), goal=(380.0, lane_y(0))),
+            ),
+            vehicles=[
+                '<vType id="crawler" length="4.5" width="1.8" sigma="0" maxSpeed="2"/>',
+                '<route id="west" edges="W"/>',
+                vehicle_xml("slow", 45.0, 1, 2.0, vtype="crawler"),
+                vehicle_xml("fast", 60.0, 0, 12.0),
+                vehicle_xml("oncoming", 300.0, 0, 13.0, route="west"),
+            ],
+            max_episode_steps=60,
+        ),
+    )
+    record = root / "records" / "two_lanes.npz"
+    agent = ScriptedAgent(drive_straight(10.0))
+    interface = AgentInterface(action_space=ActionSpace.TargetPose)
+    run_episode(folder, agent, interface, record_path=record)
+    return folder.parent, record

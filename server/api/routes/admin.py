@@ -8,9 +8,17 @@ from fastapi import APIRouter, Body, Query
 from starlette.concurrency import run_in_threadpool
 
 from server.api.contract import errors
-from server.api.deps import AdminDep, DatabaseDep, QueueDep, RowId, SessionDep, SettingsDep
+from server.api.deps import (
+    AdminDep,
+    DatabaseDep,
+    QueueDep,
+    RowId,
+    ScenarioId,
+    SessionDep,
+    SettingsDep,
+)
 from server.schemas import SubmissionSummary
-from server.services import admin, submissions
+from server.services import admin, replays, submissions
 
 router = APIRouter(
     prefix="/admin",
@@ -26,6 +34,21 @@ def all_submissions(
     session: SessionDep, limit: Annotated[int, Query(ge=1, le=1000)] = 100
 ) -> list[SubmissionSummary]:
     return submissions.list_submissions(session, limit=limit)
+
+
+@router.get("/submissions/{submission_id}/replays/{scenario_id}")
+def replay(
+    submission_id: SubmissionId,
+    scenario_id: ScenarioId,
+    session: SessionDep,
+    settings: SettingsDep,
+    db: DatabaseDep,
+) -> dict:
+    """Any episode of any submission, hidden phases included."""
+    submission = submissions.get_submission(session, submission_id)
+    return replays.submission_replay(
+        session, settings, db, submission, scenario_id, organiser=True
+    )
 
 
 @router.post("/submissions/{submission_id}/disqualify", response_model=SubmissionSummary)

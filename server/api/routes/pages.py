@@ -12,8 +12,16 @@ from fastapi import Path as PathParam
 from fastapi.responses import HTMLResponse
 from fastapi.templating import Jinja2Templates
 
-from server.api.deps import MAX_ROW_ID, LeaderboardDep, PhaseQuery, SessionDep, SettingsDep
-from server.services import phases
+from server.api.deps import (
+    MAX_ROW_ID,
+    LeaderboardDep,
+    PhaseQuery,
+    ScenarioId,
+    SessionDep,
+    SettingsDep,
+)
+from server.services import phases, scenarios
+from server.services.errors import NotFound
 from server.services.leaderboard import METRICS
 from server.services.phases import DEFAULT_PHASE
 from server.tracks import Track
@@ -78,3 +86,50 @@ def submission_page(
 def my_submissions_page(request: Request) -> HTMLResponse:
     """The team's submissions; the list comes from the API with the token held in the tab."""
     return templates.TemplateResponse(request, "my_submissions.html", {"metrics": METRICS})
+
+
+@router.get("/submissions/{submission_id}/replays/{scenario_id}", response_class=HTMLResponse)
+def submission_replay_page(
+    request: Request,
+    submission_id: Annotated[int, PathParam(ge=1, le=MAX_ROW_ID)],
+    scenario_id: ScenarioId,
+) -> HTMLResponse:
+    """One episode of the team's submission; the data comes from the API with the tab's token."""
+    return templates.TemplateResponse(
+        request,
+        "replay.html",
+        {
+            "scenario_id": scenario_id,
+            "what": f"Submission {submission_id}: your agent's episode.",
+            "api_url": f"/api/v1/submissions/{submission_id}/replays/{scenario_id}",
+            "needs_token": True,
+            "back_url": f"/submissions/{submission_id}",
+            "back_label": f"submission {submission_id}",
+        },
+    )
+
+
+@router.get("/scenarios", response_class=HTMLResponse)
+def scenarios_page(request: Request, settings: SettingsDep) -> HTMLResponse:
+    try:
+        entries = scenarios.public_scenarios(settings)
+    except NotFound:
+        entries = ()
+    return templates.TemplateResponse(request, "scenarios.html", {"scenarios": entries})
+
+
+@router.get("/scenarios/{scenario_id}/replay", response_class=HTMLResponse)
+def public_replay_page(request: Request, scenario_id: ScenarioId) -> HTMLResponse:
+    return templates.TemplateResponse(
+        request,
+        "replay.html",
+        {
+            "scenario_id": scenario_id,
+            "what": "The expert's drive through this public scenario (the reference planner, or "
+            "the recorded driver of a replay).",
+            "api_url": f"/api/v1/scenarios/public/{scenario_id}/replay",
+            "needs_token": False,
+            "back_url": "/scenarios",
+            "back_label": "public scenarios",
+        },
+    )

@@ -1,12 +1,15 @@
-"""/scenarios/public: the public suite participants evaluate on locally."""
+"""/scenarios/public: the public suite participants evaluate on locally, and its expert drives to
+watch."""
 
 from __future__ import annotations
 
 from fastapi import APIRouter
+from starlette.concurrency import run_in_threadpool
 
-from server.api.deps import SettingsDep
+from server.api.contract import errors
+from server.api.deps import DatabaseDep, ScenarioId, SettingsDep
 from server.schemas import PublicScenario
-from server.services import scenarios
+from server.services import replays, scenarios
 
 router = APIRouter(tags=["scenarios"])
 
@@ -16,3 +19,10 @@ def public_scenarios(settings: SettingsDep) -> list[PublicScenario]:
     return [
         PublicScenario.model_validate(e.model_dump()) for e in scenarios.public_scenarios(settings)
     ]
+
+
+@router.get("/scenarios/public/{scenario_id}/replay", responses=errors(404, 422))
+async def public_replay(scenario_id: ScenarioId, settings: SettingsDep, db: DatabaseDep) -> dict:
+    """The expert's drive through a public scenario, to watch (the replay page's data). The
+    first request simulates it (a few seconds); later ones read it back."""
+    return await run_in_threadpool(replays.public_replay, settings, db, scenario_id)

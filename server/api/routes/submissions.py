@@ -11,12 +11,13 @@ from server.api.deps import (
     DatabaseDep,
     OwnedSubmission,
     QueueDep,
+    ScenarioId,
     SessionDep,
     SettingsDep,
 )
 from server.api.upload import receive_form
 from server.schemas import SubmissionDetail, SubmissionLogs, SubmissionSummary
-from server.services import downloads, submissions
+from server.services import downloads, replays, submissions
 from server.services.errors import InvalidUpload
 from server.services.phases import DEFAULT_PHASE
 from server.tracks import Track
@@ -77,6 +78,19 @@ def get_logs(session: SessionDep, submission: OwnedSubmission) -> SubmissionLogs
     """The agent's stdout/stderr tail per scenario, in a phase of full visibility (validation);
     403 in a hidden phase, whose agent output goes to the organisers only."""
     return submissions.logs(session, submission)
+
+
+@router.get("/{submission_id}/replays/{scenario_id}", responses=errors(403))
+def get_replay(
+    session: SessionDep,
+    settings: SettingsDep,
+    db: DatabaseDep,
+    submission: OwnedSubmission,
+    scenario_id: ScenarioId,
+) -> dict:
+    """One episode to watch (the replay page's data: map, every vehicle's pose per step, the
+    agents' speed and events), in a phase of full visibility; 403 in a hidden phase."""
+    return replays.submission_replay(session, settings, db, submission, scenario_id)
 
 
 @router.get(

@@ -66,9 +66,8 @@ def test_score_refuses_an_unknown_profile_without_touching_the_summary(results):
 
 def test_replay_writes_a_picture(results, tmp_path):
     out = tmp_path / "b.svg"
-    result = CliRunner().invoke(
-        app, ["replay", str(results), "b", "--out", str(out), "--suite", str(tmp_path)]
-    )
+    args = ["replay", str(results), "b", "--format", "svg", "--out", str(out)]
+    result = CliRunner().invoke(app, [*args, "--suite", str(tmp_path)])
     assert result.exit_code == 0, result.output
     assert "collision at step 120" in out.read_text()
 

@@ -3,7 +3,9 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from evaluator.replay_picture import TRAIL_COLOUR, ReplayError, draw_episode
+from evaluator.replay.export import ReplayFormat, find_record, write_replay
+from evaluator.replay.model import ReplayError
+from evaluator.replay_picture import TRAIL_COLOUR
 from evaluator.runner.results import record_path
 from sim.render import ROAD_COLOUR
 from tests.evaluator.scoring.builders import AgentSpec, drive, write_record
@@ -20,6 +22,10 @@ def crash_record(results_dir, scenario_id="cut_in_1"):
     path = record_path(results_dir, scenario_id)
     path.parent.mkdir(parents=True)
     write_record(path, scenario_id, [AgentSpec(rows, reason="collision", nbr_xy=nbr)])
+
+
+def draw_episode(results_dir, scenario_id, out, suite_dir=None):
+    return write_replay(find_record(results_dir, scenario_id), suite_dir, ReplayFormat.svg, out)
 
 
 def texts(root) -> list[str]:
@@ -51,5 +57,8 @@ def test_map_is_drawn_when_the_scenario_is_found(tmp_path):
 
 
 def test_missing_record_is_a_clear_error(tmp_path):
+    with pytest.raises(ReplayError, match="not a results folder"):
+        draw_episode(tmp_path, "nope", tmp_path / "p.svg")
+    crash_record(tmp_path)
     with pytest.raises(ReplayError, match="no record for nope"):
         draw_episode(tmp_path, "nope", tmp_path / "p.svg")

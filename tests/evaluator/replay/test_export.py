@@ -1,0 +1,86 @@
+"""`arena replay --format gif|mp4|html` on a real episode record: what is written is a valid
+animation of the episode, and the HTML file animates in Chromium with nothing fetched."""
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from arena.cli import app
+from tests.server.test_browser import CHROMIUM, CHROMIUM_ARGS
+
+
+def replay(record, suite, *args):
+    result = CliRunner().invoke(app, ["replay", str(record), "--suite", str(suite), *args])
+    assert result.exit_code == 0, result.output
+    return result
+
+
+def test_gif_has_one_frame_per_drawn_step_and_the_vehicles_move(episode, tmp_path):
+    suite, record = episode
+    out = tmp_path / "e.gif"
+    replay(record, suite, "--format", "gif", "--every", "3", "--out", str(out))
+    assert out.read_bytes()[:6] == b"GIF89a"
+    ok, animation = cv2.imreadanimation(str(out))
+    assert ok and len(animation.frames) == 20  # 60 steps, every 3rd
+    assert set(animation.durations) == {300}  # [ms]: 3 steps of 0.1 s
+    first, last = animation.frames[0], animation.frames[-1]
+    assert first.shape == last.shape and np.abs(first.astype(int) - last).sum() > 0
+
+
+def test_mp4_has_every_step(episode, tmp_path):
+    suite, record = episode
+    out = tmp_path / "e.mp4"
+    replay(record, suite, "--format", "mp4", "--out", str(out))
+    video = cv2.VideoCapture(str(out))
+    assert video.isOpened() and int(video.get(cv2.CAP_PROP_FRAME_COUNT)) == 60
+    assert video.get(cv2.CAP_PROP_FPS) == pytest.approx(10.0)
+    video.release()
+
+
+def test_results_folder_needs_a_known_scenario(tmp_path):
+    (tmp_path / "results" / "records").mkdir(parents=True)
+    result = CliRunner().invoke(app, ["replay", str(tmp_path / "results"), "nope"])
+    assert result.exit_code == 2 and "no record for nope" in result.output
+
+
+@pytest.mark.skipif(not CHROMIUM.exists(), reason="needs Debian's chromium")
+def test_html_file_plays_offline_in_chromium(episode, tmp_path):
+    from playwright.sync_api import expect, sync_playwright
+
+    suite, record = episode
+    out = tmp_path / "e.html"
+    replay(record, suite, "--format", "html", "--out", str(out))
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+        page = browser.new_page(viewport={"width": 1000, "height": 800})
+        fetched = []
+        page.route("**/*", lambda route: (fetched.append(route.request.url), route.continue_()))
+        page.goto(out.as_uri())
+        expect(page.locator("#replay")).to_have_attribute("data-frame", "0")
+        drawn = "() => document.getElementById('replay').replay.drawn"
+        before = {v["id"]: v for v in page.evaluate(drawn)}
+        page.click(".replay-play")
+        expect(page.locator("#replay")).not_to_have_attribute("data-frame", "0")
+        page.click(".replay-play")  # pause
+        after = {v["id"]: v for v in page.evaluate(drawn)}
+        assert after["Agent_1"]["x"] > before["Agent_1"]["x"]
+        assert fetched == [out.as_uri()]  # the file itself, nothing else
+        assert json.loads(page.evaluate("JSON.stringify(document.title)")).startswith("Replay")
+        browser.close()
+
+
+def test_labels_at_one_spot_are_stacked_apart():
+    from evaluator.replay.frames import place_labels
+
+    sizes = [(60, 10), (60, 10), (80, 10), (40, 10)]
+    anchors = [(100.0, 100.0, 4.0), (100.0, 102.0, 4.0), (95.0, 100.0, 12.0), (300.0, 50.0, 4.0)]
+    car = (90.0, 70.0, 110.0, 90.0)  # a vehicle right above the first two anchors
+    origins = place_labels(anchors, sizes, [car])
+    boxes = [(x, y - h, x + w, y) for (x, y), (w, h) in zip(origins, sizes, strict=True)]
+    for i, a in enumerate(boxes):
+        for b in [*boxes[i + 1 :], car]:
+            assert a[2] <= b[0] or b[2] <= a[0] or a[3] <= b[1] or b[3] <= a[1], (a, b)
+    assert boxes[3][3] < 50  # alone: right above its anchor
