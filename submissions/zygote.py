@@ -12,7 +12,8 @@ episode's protocol socket, its lifeline and its log. The child takes the protoco
 log (fds 1 and 2); the parent keeps the lifeline and, when it reads anything or the evaluator
 closes it, kills the child. After the child, the parent returns the sandbox to its starting state
 (every other process killed, ``/tmp`` and ``/dev/shm`` emptied, System V IPC objects removed) and
-writes ``{"type": "exited", "code": ..., "oom": ...}`` on the lifeline. When that cleanup needs
+says ``{"type": "ready"}`` on the control socket, then writes ``{"type": "exited", "code": ...,
+"oom": ...}`` on the lifeline. When that cleanup needs
 the parent to be the sandbox's PID 1 (Docker without ``--init``, ``bwrap --as-pid-1``): then no
 signal from inside reaches it, and ``kill(-1)`` reaches everything else. Under the unisolated
 ``process`` backend it only kills the child's process group. A sandbox it cannot bring back to
@@ -36,6 +37,7 @@ import signal
 import socket
 import sys
 import time
+import traceback
 
 HEADER_SIZE = 4
 FORK_FDS = 3  # protocol socket, lifeline, log
@@ -121,7 +123,13 @@ class Zygote:
         os.close(data)
         os.close(log)
         code = self.supervise(pid, lifeline)
-        clean = self.reset_sandbox(pid)
+        try:
+            clean = self.reset_sandbox(pid)
+        except Exception:
+            traceback.print_exc()
+            clean = False
+        if clean:  # before the exit status: the evaluator may fork again as soon as it has that
+            self.stream.send({"type": "ready"})
         status = {"type": "exited", "code": code, "oom": oom_kills() > oom_before}
         payload = json.dumps(status).encode()
         with contextlib.suppress(OSError):
@@ -219,10 +227,11 @@ def empty(folder: str) -> bool:
     except OSError:
         return True  # no such scratch folder in this sandbox
     for entry in entries:
-        with contextlib.suppress(OSError):
-            if entry.is_dir(follow_symlinks=False):
-                shutil.rmtree(entry.path, onerror=make_writable)
-            else:
+        if entry.is_dir(follow_symlinks=False):
+            make_deletable(entry.path)
+            shutil.rmtree(entry.path, ignore_errors=True)
+        else:
+            with contextlib.suppress(OSError):
                 os.unlink(entry.path)
     try:
         return not os.listdir(folder)
@@ -230,12 +239,14 @@ def empty(folder: str) -> bool:
         return False
 
 
-def make_writable(function, path: str, _error) -> None:
-    """rmtree's retry for folders the agent made unreadable (it owns them, so may we)."""
-    with contextlib.suppress(OSError):
-        os.chmod(path, 0o700)
-        os.chmod(os.path.dirname(path), 0o700)
-        function(path)
+def make_deletable(top: str) -> None:
+    """Give back the permissions the agent took from its own folders (same user: we may)."""
+    pending = [top]
+    while pending:
+        path = pending.pop()
+        with contextlib.suppress(OSError):
+            os.chmod(path, 0o700)
+            pending += [e.path for e in os.scandir(path) if e.is_dir(follow_symlinks=False)]
 
 
 def remove_ipc_objects() -> bool:

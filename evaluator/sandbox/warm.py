@@ -31,10 +31,18 @@ from dataclasses import dataclass, field
 from arena.config import SandboxKind, Settings
 from arena.errors import SandboxUnavailable
 from evaluator.sandbox.backend import SANDBOX_LABEL, ExitStatus, LaunchSpec, Sandbox
-from evaluator.sandbox.channel import HEADER, Channel, ChannelClosed, ChannelTimeout
+from evaluator.sandbox.channel import (
+    HEADER,
+    Channel,
+    ChannelClosed,
+    ChannelTimeout,
+    ChannelViolation,
+)
 from evaluator.sandbox.handle import AgentHandle
 from evaluator.sandbox.subprocess_sandbox import LogTail
 
+# Every zygote's sandbox carries this label besides the usual ones.
+WARM_LABEL = "driving-arena.warm"
 # How long a killed agent's zygote may take to report it dead and the sandbox clean [s].
 KILL_WAIT_S = 5.0
 STATUS_MAX_BYTES = 4096
@@ -132,7 +140,13 @@ class WarmAgent:
         self._closed = False
 
     @classmethod
-    def start(cls, submission, kind: SandboxKind, settings: Settings) -> WarmAgent:
+    def start(
+        cls,
+        submission,
+        kind: SandboxKind,
+        settings: Settings,
+        labels: dict[str, str] | None = None,
+    ) -> WarmAgent:
         """Start ``submission``'s zygote. Raises :class:`SandboxUnavailable` when it does not say
         hello and ready in ``init_timeout_s``: it runs none of the participant's code, so that
         is ours (the caller then starts each agent cold, which reports the agent's own errors)."""
@@ -142,7 +156,7 @@ class WarmAgent:
             submission=submission.root,
             deps=submission.deps_dir,
             settings=settings,
-            labels={"driving-arena.warm": "1"},
+            labels={**(labels or {}), WARM_LABEL: "1"},
             observation_format=str(submission.interface.observation_format),
             action_space=str(submission.interface.action_space),
             zygote=True,
@@ -188,6 +202,15 @@ class WarmAgent:
                 end.close()
         self.last_used = time.monotonic()
         return ForkedAgent(*ours, settings=settings, labels={SANDBOX_LABEL: "1", **labels})
+
+    def wait_ready(self, timeout: float) -> bool:
+        """Whether the zygote, after its last agent, says the sandbox is clean and it is ready
+        for the next fork within ``timeout`` seconds (it says nothing and exits when not)."""
+        try:
+            message = self._channel.receive(time.monotonic() + timeout)
+        except (ChannelClosed, ChannelTimeout, ChannelViolation):
+            return False
+        return message.get("type") == "ready"
 
     def alive(self) -> bool:
         """Whether the zygote still waits for requests (it never writes on its own: anything

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from arena.config import SandboxKind, Settings
 from arena.errors import SandboxUnavailable
-from evaluator.sandbox.warm import ForkedAgent, WarmAgent
+from evaluator.sandbox.warm import KILL_WAIT_S, ForkedAgent, WarmAgent
 
 log = logging.getLogger(__name__)
 
@@ -28,7 +28,8 @@ Key = tuple[Path, SandboxKind]
 
 
 class WarmAgents:
-    def __init__(self) -> None:
+    def __init__(self, labels: dict[str, str] | None = None) -> None:
+        self._labels = dict(labels or {})  # on every zygote's sandbox
         self._lock = threading.Lock()
         self._idle: dict[Key, list[WarmAgent]] = {}
         self._leased: list[ForkedAgent] = []
@@ -101,7 +102,7 @@ class WarmAgents:
                     return warm
                 warm.close()
         try:
-            return WarmAgent.start(submission, key[1], settings)
+            return WarmAgent.start(submission, key[1], settings, labels=self._labels)
         except SandboxUnavailable as error:
             log.warning("no warm agent for %s, its episodes start cold: %s", key[0], error)
             with self._lock:
@@ -109,7 +110,7 @@ class WarmAgents:
             return None
 
     def _give_back(self, key: Key, warm: WarmAgent) -> None:
-        if not warm.alive():
+        if not warm.wait_ready(KILL_WAIT_S):
             warm.close()
             return
         with self._lock:
