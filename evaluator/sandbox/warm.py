@@ -21,6 +21,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import logging
 import os
 import pickle
 import select
@@ -40,6 +41,8 @@ from evaluator.sandbox.channel import (
 )
 from evaluator.sandbox.handle import AgentHandle
 from evaluator.sandbox.subprocess_sandbox import LogTail
+
+log = logging.getLogger(__name__)
 
 # Every zygote's sandbox carries this label besides the usual ones.
 WARM_LABEL = "driving-arena.warm"
@@ -227,4 +230,9 @@ class WarmAgent:
         self._closed = True
         with contextlib.suppress(ChannelClosed, ChannelTimeout, OSError):
             self._channel.send("close", None, time.monotonic() + 1.0)
-        self._sandbox.kill()
+        try:
+            self._sandbox.kill()
+        except SandboxUnavailable as error:
+            # The episodes it served are over and kept; a sandbox the daemon already removed
+            # (``arena sandbox cleanup``) must not turn them into errors.
+            log.warning("closing a warm agent: %s", error)
