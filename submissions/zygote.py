@@ -11,14 +11,13 @@ For each ``fork`` request the control socket carries three descriptors (``SCM_RI
 episode's protocol socket, its lifeline and its log. The child takes the protocol socket and the
 log (fds 1 and 2); the parent keeps the lifeline and, when it reads anything or the evaluator
 closes it, kills the child. After the child, the parent returns the sandbox to its starting state
-(every other process killed, ``/tmp`` and ``/dev/shm`` emptied, System V IPC objects removed) and
+(every other process killed, ``/tmp`` and ``/dev/shm`` emptied, System V IPC objects removed),
 says ``{"type": "ready"}`` on the control socket, then writes ``{"type": "exited", "code": ...,
-"oom": ...}`` on the lifeline. When that cleanup needs
-the parent to be the sandbox's PID 1 (Docker without ``--init``, ``bwrap --as-pid-1``): then no
-signal from inside reaches it, and ``kill(-1)`` reaches everything else. Under the unisolated
-``process`` backend it only kills the child's process group. A sandbox it cannot bring back to
-that state (a file it cannot delete) is retired: the parent exits and the evaluator starts
-another.
+"oom": ...}`` on the lifeline. That cleanup needs the parent to be the sandbox's PID 1 (Docker
+without ``--init``, ``bwrap --as-pid-1``), which also means that no signal from inside reaches it
+and that ``kill(-1)`` reaches everything else; under the unisolated ``process`` backend it only
+kills the child's process group. A sandbox it cannot bring back to that state (a file it cannot
+delete) is retired: the parent exits and the evaluator starts another.
 """
 
 from __future__ import annotations
