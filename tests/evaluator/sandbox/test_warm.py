@@ -66,7 +66,8 @@ def episode(warm: WarmAgent, settings: Settings, steps: int = 1) -> list:
             return [handle.act(observation()) for _ in range(steps)]
     finally:
         forked.close()
-        assert warm.wait_ready(5.0), "the zygote did not come back clean"
+        # Generous: under memory pressure on a loaded host the cleanup takes its time.
+        assert warm.wait_ready(30.0), "the zygote did not come back clean"
 
 
 def test_no_state_crosses_from_one_episode_to_the_next(kind, settings, labels, tmp) -> None:
