@@ -70,6 +70,10 @@ class Settings(BaseSettings):
     agent_pids: int = 64
     agent_tmp_bytes: int = 64 * 1024**2
     agent_log_tail_bytes: int = 64 * 1024
+    # Warm agents (docs/protocol.md): one sandbox per submission and evaluating process forks a
+    # fresh agent for each episode; off: a new sandbox per episode. Idle ones close after this.
+    warm_agents: bool = True
+    warm_agent_idle_s: float = 120.0
 
     # Intake limits.
     max_zip_bytes: int = 100 * 1024**2

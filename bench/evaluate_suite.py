@@ -16,6 +16,11 @@ Prints, in order:
 The last line is ``wall_s=<planner, jobs 2> speedup=<jobs1/jobs2> fixed_ms=<...>
 step_ratio=<step_ms/raw_step_ms>``. Targets (2-core machine): wall_s <= 50, speedup >= 1.8,
 fixed_ms <= 100, step_ratio <= 2.
+
+Agents are forked in warm sandboxes, as every evaluation runs them (docs/protocol.md); run with
+``ARENA_WARM_AGENTS=false`` for the cold figures (a new sandbox per scenario) side by side. The
+fit is only as good as the machine is quiet: on a loaded host the per-step noise swamps the
+intercept (it can come out negative).
 """
 
 from __future__ import annotations

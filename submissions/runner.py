@@ -12,6 +12,11 @@ the submission and its dependency folder.
 The protocol stream is a private copy of the original stdout (or a unix socket with ``--socket``);
 file descriptor 1 is pointed at stderr before the policy is imported, so a policy's ``print`` and
 anything its libraries write to stdout land in the log, never in the protocol.
+
+With ``--zygote`` the runner is a warm parent instead (``docs/protocol.md``, "Warm agents"): it
+imports the runtime's libraries once and, for each episode, forks a child that receives that
+episode's channels over the control socket, imports ``policy.py`` and serves it as above. The
+zygote itself never runs the participant's code.
 """
 
 from __future__ import annotations
@@ -28,7 +33,8 @@ import time
 import traceback
 
 PROTOCOL_VERSION = 1
-COMPAT = "smarts_compat.py"  # observation converters, next to this file
+COMPAT = "smarts_compat"  # observation converters, next to this file
+ZYGOTE = "zygote"  # the warm parent of --zygote, next to this file
 HEADER = struct.Struct(">I")
 MAX_INCOMING_BYTES = 1 << 30
 
@@ -158,17 +164,26 @@ def act_isolating_agents(act, obs: dict) -> dict:
 
 
 def load_adapter(observation_format: str, action_space: str):
-    """The converter for ``observation_format`` (None for ours), loaded from the module beside
-    this file (the sandbox mounts it there; -I keeps this folder off sys.path)."""
+    """The converter for ``observation_format`` (None for ours)."""
     if observation_format == "native":
         return None
-    here = os.path.dirname(os.path.abspath(__file__))
-    spec = importlib.util.spec_from_file_location("smarts_compat", os.path.join(here, COMPAT))
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = sibling_module(COMPAT)
     if observation_format != module.FORMAT:
         raise ValueError(f"unknown observation_format {observation_format!r}")
     return module.SmartsAdapter(action_space)
+
+
+def sibling_module(name: str):
+    """``<name>.py`` from beside this file (the sandbox mounts it there; -I keeps this folder off
+    sys.path), loaded once per process: a zygote's children find it loaded."""
+    module = sys.modules.get(name)
+    if module is None:
+        here = os.path.dirname(os.path.abspath(__file__))
+        spec = importlib.util.spec_from_file_location(name, os.path.join(here, f"{name}.py"))
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        sys.modules[name] = module
+    return module
 
 
 def serve(stream: Stream, policy: object, adapter=None) -> None:
@@ -204,16 +219,8 @@ def serve(stream: Stream, policy: object, adapter=None) -> None:
             return
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--submission", required=True)
-    parser.add_argument("--deps")
-    parser.add_argument("--socket", help="unix socket to connect to instead of stdin/stdout")
-    parser.add_argument("--observation-format", default="native", help="agent.yaml's choice")
-    parser.add_argument("--action-space", default="TargetPose", help="agent.yaml's choice")
-    args = parser.parse_args()
-    started = time.perf_counter()
-    stream = open_stream(args.socket)
+def run_agent(stream: Stream, args: argparse.Namespace, started: float) -> int:
+    """One agent's life on ``stream``: hello, build the policy, ready, serve until close."""
     import numpy
 
     stream.send(
@@ -233,6 +240,22 @@ def main() -> int:
     stream.send({"type": "ready", "init_s": round(time.perf_counter() - started, 6)})
     serve(stream, policy, adapter)
     return 0
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--submission", required=True)
+    parser.add_argument("--deps")
+    parser.add_argument("--socket", help="unix socket to connect to instead of stdin/stdout")
+    parser.add_argument("--observation-format", default="native", help="agent.yaml's choice")
+    parser.add_argument("--action-space", default="TargetPose", help="agent.yaml's choice")
+    parser.add_argument("--zygote", action="store_true", help="fork one agent per episode")
+    args = parser.parse_args()
+    started = time.perf_counter()
+    stream = open_stream(args.socket)
+    if args.zygote:
+        return sibling_module(ZYGOTE).Zygote(stream, args, sys.modules[__name__]).serve()
+    return run_agent(stream, args, started)
 
 
 if __name__ == "__main__":

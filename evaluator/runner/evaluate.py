@@ -14,8 +14,9 @@ import shutil
 import tempfile
 import threading
 import traceback
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Protocol
 
@@ -108,7 +109,7 @@ def evaluate(
                 episode=episode.index,
             )
 
-        with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
+        with _warm_agents_of(submission), ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
             pending: dict[Future, Episode] = {}
             queue = list(todo)
             starts = _StartWatch(fail_fast_after)
@@ -126,6 +127,17 @@ def evaluate(
                     if progress:
                         progress.finished(outcome)
     return run.summary()
+
+
+@contextmanager
+def _warm_agents_of(submission) -> Iterator[None]:
+    """The submission's warm agents close with its evaluation (its folder is about to go)."""
+    from evaluator.sandbox.warm_pool import warm_agents
+
+    try:
+        yield
+    finally:
+        warm_agents().close(submission.root)
 
 
 def discard_results(out_dir: Path) -> None:

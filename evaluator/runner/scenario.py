@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import time
 import uuid
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -16,6 +18,7 @@ from arena.scenario import load_scenario
 from evaluator.failures import describe_end
 
 if TYPE_CHECKING:
+    from evaluator.sandbox.warm import ForkedAgent
     from sim.agent import Agent
     from sim.result import EpisodeResult
     from submissions.intake import PreparedSubmission
@@ -45,6 +48,38 @@ class SandboxedAgentFactory:
         from evaluator import sandbox
 
         return ("evaluator.sandbox", *sandbox.client_modules(self.kind))
+
+
+@dataclass(frozen=True)
+class ForkedAgentFactory:
+    """Picklable: the simulator's child process calls it to take over the agent forked for this
+    episode in the submission's warm sandbox (:mod:`evaluator.sandbox.warm`)."""
+
+    agent: ForkedAgent
+
+    def __call__(self) -> Agent:
+        return self.agent.start()
+
+    preload_modules = ("evaluator.sandbox.warm",)
+
+
+@contextmanager
+def agent_factory(
+    submission: PreparedSubmission, kind: SandboxKind, labels: dict[str, str]
+) -> Iterator[SandboxedAgentFactory | ForkedAgentFactory]:
+    """How one episode gets its agent: forked in a warm sandbox when the setting allows and the
+    submission's zygote started, else in a sandbox of its own."""
+    from evaluator.sandbox.warm_pool import warm_agents
+
+    settings = get_settings()
+    if not settings.warm_agents:
+        yield SandboxedAgentFactory(submission, kind, labels)
+        return
+    with warm_agents().lease(submission, kind, labels, settings) as forked:
+        if forked is None:
+            yield SandboxedAgentFactory(submission, kind, labels)
+        else:
+            yield ForkedAgentFactory(forked)
 
 
 @dataclass(frozen=True)
@@ -121,6 +156,7 @@ def run_scenario(
     from evaluator import sandbox as sandboxes
     from sim.isolation import run_episode_isolated
 
+    kind = sandboxes.resolve_kind(sandbox)
     scenario = load_scenario(scenario_dir)
     key = Episode(scenario.id, episode)
     record_path = Path(records_dir) / f"{key.name}{RECORD_SUFFIX}"
@@ -130,16 +166,16 @@ def run_scenario(
     logs = []
     for attempt in range(1, SIMULATOR_ATTEMPTS + 1):
         labels = sandbox_labels(run_key, attempt)
-        factory = SandboxedAgentFactory(submission, sandbox, labels)
         record_path.unlink(missing_ok=True)
-        result = run_episode_isolated(
-            scenario_dir,
-            factory,
-            submission.interface,
-            record_path=record_path,
-            seed=traffic_seed(scenario.id, scenario.seed, episode),
-            episode_timeout_s=get_settings().episode_timeout_s,
-        )
+        with agent_factory(submission, kind, labels) as factory:
+            result = run_episode_isolated(
+                scenario_dir,
+                factory,
+                submission.interface,
+                record_path=record_path,
+                seed=traffic_seed(scenario.id, scenario.seed, episode),
+                episode_timeout_s=get_settings().episode_timeout_s,
+            )
         logs.append(_log_text(result, attempt, key))
         if result.simulator_error is None:
             return _outcome(result, record_path, "\n".join(logs), attempt, started, episode)

@@ -122,11 +122,13 @@ def start(
 
 
 def cleanup(labels: dict[str, str] | None = None) -> int:
-    """Remove leftover sandboxes of every backend carrying ``labels`` (default: all of ours)."""
+    """Remove leftover sandboxes of every backend carrying ``labels`` (default: all of ours),
+    and kill this process's leased warm agents carrying them."""
     from evaluator.sandbox.backend import SANDBOX_LABEL
+    from evaluator.sandbox.warm_pool import warm_agents
 
     wanted = {SANDBOX_LABEL: "1", **(labels or {})}
-    removed = 0
+    removed = warm_agents().kill(wanted)
     for kind in (SandboxKind.docker, SandboxKind.bubblewrap):
         removed += backend(kind).cleanup(wanted)
     return removed

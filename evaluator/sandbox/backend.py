@@ -27,6 +27,9 @@ RUNNER_PATH = Path(__file__).resolve().parents[2] / "submissions" / "runner.py"
 # The runner loads its observation converters from beside itself.
 COMPAT_MOUNT = "/opt/arena/smarts_compat.py"
 COMPAT_PATH = RUNNER_PATH.with_name("smarts_compat.py")
+# And its warm-parent mode (``--zygote``, docs/protocol.md "Warm agents").
+ZYGOTE_MOUNT = "/opt/arena/zygote.py"
+ZYGOTE_PATH = RUNNER_PATH.with_name("zygote.py")
 # One thread for BLAS/OpenMP: the agent has one CPU, and a thread each counts against its pids.
 # (No PYTHON* variables: the runner starts with -I, which ignores them; -B keeps bytecode away.)
 RUNTIME_ENV = {
@@ -49,6 +52,8 @@ class LaunchSpec:
     labels: dict[str, str] = field(default_factory=dict)
     observation_format: str = "native"  # agent.yaml's, passed to the runner
     action_space: str = "TargetPose"
+    # A warm parent forking one agent per episode (evaluator.sandbox.warm) instead of the agent.
+    zygote: bool = False
     instance: str = field(default_factory=lambda: uuid.uuid4().hex)
 
     @property
@@ -77,13 +82,16 @@ class LaunchSpec:
         ]
 
     def format_args(self) -> list[str]:
+        """The runner's options beyond its folders: the observation format, warm mode."""
+        zygote = ["--zygote"] if self.zygote else []
         if self.observation_format == "native":
-            return []
+            return zygote
         return [
             "--observation-format",
             self.observation_format,
             "--action-space",
             self.action_space,
+            *zygote,
         ]
 
 

@@ -30,17 +30,22 @@ from evaluator.sandbox.backend import (
     RUNNER_PATH,
     RUNTIME_ENV,
     SUBMISSION_MOUNT,
+    ZYGOTE_MOUNT,
+    ZYGOTE_PATH,
     LaunchSpec,
 )
 from evaluator.sandbox.subprocess_sandbox import (
     LABELS_ENV,
     PopenSandbox,
+    control_pair,
     encode_labels,
     kill_labelled,
     rlimit_setter,
 )
 
 RUNTIME_PYTHON = Path("/usr/bin/python3")
+# Our files the sandbox gets, copied in as data: host path -> where the runner finds it.
+INSIDE_FILES = {RUNNER_PATH: RUNNER_MOUNT, COMPAT_PATH: COMPAT_MOUNT, ZYGOTE_PATH: ZYGOTE_MOUNT}
 UNPRIVILEGED_ID = 65534
 # Debian finds BLAS through /etc/alternatives symlinks; nothing else of /etc is bound.
 ETC_NEEDED = ("/etc/alternatives", "/etc/ld.so.cache")
@@ -111,17 +116,17 @@ class BubblewrapBackend:
             stage, binds, prefix = staged(binds)
         # The runner goes in as data read from a descriptor: it may live under a root-only
         # prefix (a virtualenv in /root) that uid 65534 cannot enter.
-        runner_fd = os.open(RUNNER_PATH, os.O_RDONLY | os.O_CLOEXEC)
-        compat_fd = os.open(COMPAT_PATH, os.O_RDONLY | os.O_CLOEXEC)
+        files = [os.open(path, os.O_RDONLY | os.O_CLOEXEC) for path in INSIDE_FILES]
+        control, child_end = control_pair(spec.zygote)
         try:
             process = subprocess.Popen(
-                [*prefix, *self.command(spec, binds, runner_fd, compat_fd)],
-                stdin=subprocess.PIPE,
-                stdout=subprocess.PIPE,
+                [*prefix, *self.command(spec, binds, files)],
+                stdin=child_end or subprocess.PIPE,
+                stdout=child_end or subprocess.PIPE,
                 stderr=subprocess.PIPE,
                 cwd="/",
                 env={"PATH": os.defpath, LABELS_ENV: encode_labels(spec.all_labels)},
-                pass_fds=(runner_fd, compat_fd),
+                pass_fds=files,
                 start_new_session=True,
                 preexec_fn=rlimit_setter(
                     settings.agent_memory_bytes,
@@ -134,27 +139,34 @@ class BubblewrapBackend:
                 shutil.rmtree(stage, ignore_errors=True)
             raise SandboxUnavailable(f"cannot start bubblewrap: {error}") from error
         finally:
-            os.close(runner_fd)
-            os.close(compat_fd)
+            for fd in files if child_end is None else [*files, child_end]:
+                os.close(fd)
         return PopenSandbox(
-            process, settings.agent_log_tail_bytes, spec.instance_labels, cleanup=stage
+            process,
+            settings.agent_log_tail_bytes,
+            spec.instance_labels,
+            cleanup=stage,
+            control=control,
         )
 
     @staticmethod
-    def command(
-        spec: LaunchSpec, binds: dict[str, Path], runner_fd: int, compat_fd: int
-    ) -> list[str]:
+    def command(spec: LaunchSpec, binds: dict[str, Path], files: list[int]) -> list[str]:
+        """``files``: open descriptors of :data:`INSIDE_FILES`, in that order."""
         settings = spec.settings
-        mounts = ["--perms", "0444", "--ro-bind-data", str(runner_fd), RUNNER_MOUNT]
-        mounts += ["--perms", "0444", "--ro-bind-data", str(compat_fd), COMPAT_MOUNT]
+        mounts = []
+        for fd, target in zip(files, INSIDE_FILES.values(), strict=True):
+            mounts += ["--perms", "0444", "--ro-bind-data", str(fd), target]
         for target, source in binds.items():
             mounts += ["--ro-bind", str(source), target]
         environment = []
         for key, value in RUNTIME_ENV.items():
             environment += ["--setenv", key, value]
+        # A warm parent is the namespace's PID 1 itself: no signal from its children reaches it.
+        as_pid_1 = ["--as-pid-1"] if spec.zygote else []
         return [
             "bwrap",
             "--unshare-all",
+            *as_pid_1,
             "--die-with-parent",
             "--new-session",
             "--cap-drop",

@@ -30,6 +30,8 @@ from evaluator.sandbox.backend import (
     RUNTIME_ENV,
     SANDBOX_LABEL,
     SUBMISSION_MOUNT,
+    ZYGOTE_MOUNT,
+    ZYGOTE_PATH,
     ExitStatus,
     LaunchSpec,
 )
@@ -80,6 +82,7 @@ def container_options(spec: LaunchSpec, socket_dir: Path) -> dict[str, Any]:
         str(spec.submission): {"bind": SUBMISSION_MOUNT, "mode": "ro"},
         str(RUNNER_PATH): {"bind": RUNNER_MOUNT, "mode": "ro"},
         str(COMPAT_PATH): {"bind": COMPAT_MOUNT, "mode": "ro"},
+        str(ZYGOTE_PATH): {"bind": ZYGOTE_MOUNT, "mode": "ro"},
         str(socket_dir): {"bind": SOCKET_MOUNT, "mode": "ro"},
     }
     if spec.deps:
@@ -93,7 +96,9 @@ def container_options(spec: LaunchSpec, socket_dir: Path) -> dict[str, Any]:
             f"{SOCKET_MOUNT}/{SOCKET_NAME}",
         ],
         "detach": True,
-        "init": True,
+        # A warm parent is the container's PID 1 itself: no signal from its children reaches
+        # it, and it reaps their orphans as the init would.
+        "init": not spec.zygote,
         "network_mode": "none",
         "read_only": True,
         "tmpfs": {"/tmp": f"rw,nosuid,nodev,size={settings.agent_tmp_bytes},mode=1777"},

@@ -16,6 +16,7 @@ from evaluator.sandbox.backend import RUNNER_PATH, RUNTIME_ENV, LaunchSpec
 from evaluator.sandbox.subprocess_sandbox import (
     LABELS_ENV,
     PopenSandbox,
+    control_pair,
     encode_labels,
     kill_labelled,
     rlimit_setter,
@@ -47,17 +48,24 @@ class ProcessBackend:
             LABELS_ENV: encode_labels(spec.all_labels),
         }
         env.pop("TMPDIR")
-        process = subprocess.Popen(
-            command,
-            stdin=subprocess.PIPE,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            cwd=spec.submission,
-            env=env,
-            start_new_session=True,
-            preexec_fn=rlimit_setter(spec.settings.agent_memory_bytes, None),
+        control, child_end = control_pair(spec.zygote)
+        try:
+            process = subprocess.Popen(
+                command,
+                stdin=child_end or subprocess.PIPE,
+                stdout=child_end or subprocess.PIPE,
+                stderr=subprocess.PIPE,
+                cwd=spec.submission,
+                env=env,
+                start_new_session=True,
+                preexec_fn=rlimit_setter(spec.settings.agent_memory_bytes, None),
+            )
+        finally:
+            if child_end is not None:
+                os.close(child_end)
+        return PopenSandbox(
+            process, spec.settings.agent_log_tail_bytes, spec.instance_labels, control=control
         )
-        return PopenSandbox(process, spec.settings.agent_log_tail_bytes, spec.instance_labels)
 
     def cleanup(self, labels: dict[str, str]) -> int:
         return kill_labelled(labels)

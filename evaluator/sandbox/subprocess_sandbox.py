@@ -8,6 +8,7 @@ import os
 import resource
 import shutil
 import signal
+import socket
 import subprocess
 import threading
 import time
@@ -71,6 +72,15 @@ def rlimit_setter(
     return apply
 
 
+def control_pair(spec_zygote: bool) -> tuple[socket.socket | None, int | None]:
+    """(our end, the child's stdin and stdout) of a unix socket for a warm parent, which receives
+    descriptors on it; (None, None) for an agent, which talks over pipes."""
+    if not spec_zygote:
+        return None, None
+    ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
+    return ours, theirs.detach()
+
+
 class PopenSandbox:
     def __init__(
         self,
@@ -78,13 +88,17 @@ class PopenSandbox:
         log_limit: int,
         labels: dict[str, str],
         cleanup: Path | None = None,
+        control: socket.socket | None = None,
     ) -> None:
         self.process = process
         self._stderr = LogTail(process.stderr, log_limit)
         self._labels = labels
         self._cleanup = cleanup  # a folder of ours to delete once the sandbox is gone
+        self.control = control  # a warm parent's socket (stdin and stdout), else pipes
 
     def connect(self, deadline: float) -> Channel:
+        if self.control is not None:
+            return Channel(self.control.fileno(), self.control.fileno())
         return Channel(self.process.stdout.fileno(), self.process.stdin.fileno())
 
     def exit_status(self, timeout: float) -> ExitStatus | None:
@@ -102,8 +116,8 @@ class PopenSandbox:
         # What the agent forked inside its own session or pid namespace dies with the sandbox's
         # init a moment later; wait for that too, so nothing outlives kill().
         kill_labelled(self._labels)
-        for stream in (self.process.stdin, self.process.stdout):
-            with contextlib.suppress(OSError):
+        for stream in (self.process.stdin, self.process.stdout, self.control):
+            with contextlib.suppress(OSError, AttributeError):
                 stream.close()
         self._stderr.text(wait=1.0)
         self.process.stderr.close()

@@ -325,9 +325,12 @@ def _start_reaper(**_: Any) -> None:
     interval = get_settings().reaper_interval_s
 
     def loop() -> None:
+        from evaluator.sandbox.warm_pool import warm_agents
+
         while not _reaper_stop.wait(interval):
             try:
                 reap_once()
+                warm_agents().close_idle(get_settings().warm_agent_idle_s)
             except Exception:  # a bad round must not end the loop; logged with traceback
                 log.exception("reaper round failed")
 
@@ -337,6 +340,15 @@ def _start_reaper(**_: Any) -> None:
 @worker_shutdown.connect
 def _stop_reaper(**_: Any) -> None:
     _reaper_stop.set()
+
+
+@worker_shutdown.connect
+def _close_warm_agents(**_: Any) -> None:
+    """The warm agent sandboxes this worker kept (one per submission it ran and thread, see
+    docs/protocol.md) end with it; running scenarios were handed back before."""
+    from evaluator.sandbox.warm_pool import warm_agents
+
+    warm_agents().close()
 
 
 @worker_process_init.connect

@@ -1,5 +1,6 @@
 """Episodes in a child process: results come back, crashes become simulator_error."""
 
+import os
 import subprocess
 import sys
 from functools import partial
@@ -130,3 +131,39 @@ for i in range(2):
     )
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == ["preloaded=True", "preloaded=True"]
+
+
+def test_episode_children_do_not_run_the_main_script_again(tmp_path):
+    """multiprocessing would run the main script again in every episode's child (for ``arena
+    evaluate``, importing every command's modules): the factory does not come from it."""
+    folder = make_scenario(tmp_path / "sc", ScenarioSpec(max_episode_steps=5))
+    runs = tmp_path / "main-runs.txt"
+    script = tmp_path / "main_script.py"
+    script.write_text(
+        f"""
+from pathlib import Path
+
+with open({str(runs)!r}, "a") as runs:
+    runs.write(__name__ + "\\n")
+
+if __name__ == "__main__":
+    from sim.interface import AgentInterface
+    from sim.isolation import run_episode_isolated
+    from tests.sim.agents import PreloadProbe
+
+    for i in range(3):
+        result = run_episode_isolated(
+            Path({str(folder)!r}), PreloadProbe(), AgentInterface(),
+            record_path=Path({str(tmp_path)!r}) / f"{{i}}.npz",
+        )
+        assert result.simulator_error is None, result.simulator_error
+"""
+    )
+    repo = Path(__file__).resolve().parents[2]
+    env = {**os.environ, "PYTHONPATH": str(repo)}
+    done = subprocess.run(
+        [sys.executable, str(script)], cwd=repo, env=env, capture_output=True, text=True,
+        timeout=120,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert runs.read_text().split() == ["__main__"]

@@ -230,3 +230,27 @@ def test_episodes_repeat_reactive_scenarios_with_other_traffic(public_suite, tmp
     )
     assert (count.total, count.already_done, count.ran) == (3, 2, (reactive, 1))
     assert again == twice
+
+
+@pytest.mark.docker
+def test_warm_and_cold_agents_give_identical_summary_and_records(
+    public_suite, tmp_path, monkeypatch
+):
+    """Forking each episode's agent in a warm sandbox changes who starts it, nothing it does."""
+    from arena.config import SandboxKind, get_settings
+
+    ids = few_scenarios(public_suite, 3)
+    out = {}
+    for warm in (True, False):
+        monkeypatch.setenv("ARENA_WARM_AGENTS", str(warm).lower())
+        get_settings.cache_clear()
+        out[warm] = tmp_path / f"warm-{warm}"
+        evaluate(
+            example("planner"), public_suite, out_dir=out[warm], scenario_ids=ids,
+            sandbox=SandboxKind.docker,
+        )  # fmt: skip
+    get_settings.cache_clear()
+    assert (out[True] / "summary.json").read_bytes() == (out[False] / "summary.json").read_bytes()
+    for scenario_id in ids:
+        record = f"records/{scenario_id}.npz"
+        assert (out[True] / record).read_bytes() == (out[False] / record).read_bytes()

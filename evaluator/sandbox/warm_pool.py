@@ -1,0 +1,125 @@
+"""The warm agents of one evaluating process (``arena evaluate``, or a service worker).
+
+Each episode leases a :class:`~evaluator.sandbox.warm.WarmAgent` of its submission for itself:
+one zygote serves one episode at a time, so two episodes in parallel get two. A lease returns
+it; it closes when it has been idle for ``warm_agent_idle_s``, when the evaluation that used it
+ends (:meth:`WarmAgents.close`), when the worker stops (``server/worker/tasks.py``) or at exit.
+A submission whose zygote cannot start is run cold (a new sandbox per episode) in this process.
+"""
+
+from __future__ import annotations
+
+import atexit
+import logging
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from functools import lru_cache
+from pathlib import Path
+
+from arena.config import SandboxKind, Settings
+from arena.errors import SandboxUnavailable
+from evaluator.sandbox.warm import KILL_WAIT_S, ForkedAgent, WarmAgent
+
+log = logging.getLogger(__name__)
+
+Key = tuple[Path, SandboxKind]
+
+
+class WarmAgents:
+    def __init__(self, labels: dict[str, str] | None = None) -> None:
+        self._labels = dict(labels or {})  # on every zygote's sandbox
+        self._lock = threading.Lock()
+        self._idle: dict[Key, list[WarmAgent]] = {}
+        self._leased: list[ForkedAgent] = []
+        self._cold: set[Key] = set()  # submissions whose zygote would not start
+
+    @contextmanager
+    def lease(
+        self, submission, kind: SandboxKind, labels: dict[str, str], settings: Settings
+    ) -> Iterator[ForkedAgent | None]:
+        """A freshly forked agent of ``submission`` for one episode, or None when this
+        submission runs cold. Raises nothing of the zygote's: it falls back to cold."""
+        key = (Path(submission.root), kind)
+        self.close_idle(settings.warm_agent_idle_s)
+        warm = self._take(key, submission, settings)
+        if warm is None:
+            yield None
+            return
+        try:
+            agent = warm.fork(settings, labels)
+        except SandboxUnavailable as error:
+            log.warning("warm agent lost, this episode starts cold: %s", error)
+            warm.close()
+            yield None
+            return
+        with self._lock:
+            self._leased.append(agent)
+        try:
+            yield agent
+        finally:
+            with self._lock:
+                self._leased.remove(agent)
+            agent.close()
+            self._give_back(key, warm)
+
+    def kill(self, labels: dict[str, str]) -> int:
+        """Kill the leased agents carrying all ``labels``; how many."""
+        wanted = labels.items()
+        with self._lock:
+            chosen = [a for a in self._leased if wanted <= a.labels.items()]
+        for agent in chosen:
+            agent.kill()
+        return len(chosen)
+
+    def close(self, root: Path | None = None) -> None:
+        """Close the idle warm agents of the submission at ``root`` (every one without)."""
+        with self._lock:
+            keys = [k for k in self._idle if root is None or k[0] == Path(root)]
+            closing = [warm for key in keys for warm in self._idle.pop(key)]
+            self._cold -= {k for k in self._cold if root is None or k[0] == Path(root)}
+        for warm in closing:
+            warm.close()
+
+    def close_idle(self, idle_s: float) -> None:
+        cutoff = time.monotonic() - idle_s
+        with self._lock:
+            closing = [w for ws in self._idle.values() for w in ws if w.last_used < cutoff]
+            for key, ws in self._idle.items():
+                self._idle[key] = [w for w in ws if w.last_used >= cutoff]
+        for warm in closing:
+            warm.close()
+
+    def _take(self, key: Key, submission, settings: Settings) -> WarmAgent | None:
+        with self._lock:
+            if key in self._cold:
+                return None
+            idle = self._idle.get(key, [])
+            while idle:
+                warm = idle.pop()
+                if warm.alive():
+                    return warm
+                warm.close()
+        try:
+            return WarmAgent.start(submission, key[1], settings, labels=self._labels)
+        except SandboxUnavailable as error:
+            log.warning("no warm agent for %s, its episodes start cold: %s", key[0], error)
+            with self._lock:
+                self._cold.add(key)
+            return None
+
+    def _give_back(self, key: Key, warm: WarmAgent) -> None:
+        if not warm.wait_ready(KILL_WAIT_S):
+            warm.close()
+            return
+        with self._lock:
+            self._idle.setdefault(key, []).append(warm)
+
+
+@lru_cache(maxsize=1)
+def warm_agents() -> WarmAgents:
+    """This process's warm agents, closed at exit."""
+    agents = WarmAgents()
+    atexit.register(agents.close)
+    return agents

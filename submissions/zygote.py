@@ -1,0 +1,317 @@
+"""The warm agent parent (``runner.py --zygote``): one per submission and evaluating process,
+forking a fresh agent for every episode inside the same sandbox.
+
+Standard library plus numpy only, no import of this project: it runs in the sandbox next to
+``runner.py``. It imports the runtime's libraries ``policy.py`` names (numpy, and whatever the
+image ships), never the participant's own code: ``policy.py``, the submission's modules and its
+dependency folder are imported by each child. So nothing a participant wrote runs in the parent,
+and each episode's agent starts from the same state.
+
+For each ``fork`` request the control socket carries three descriptors (``SCM_RIGHTS``): the
+episode's protocol socket, its lifeline and its log. The child takes the protocol socket and the
+log (fds 1 and 2); the parent keeps the lifeline and, when it reads anything or the evaluator
+closes it, kills the child. After the child, the parent returns the sandbox to its starting state
+(every other process killed, ``/tmp`` and ``/dev/shm`` emptied, System V IPC objects removed),
+says ``{"type": "ready"}`` on the control socket, then writes ``{"type": "exited", "code": ...,
+"oom": ...}`` on the lifeline. That cleanup needs the parent to be the sandbox's PID 1 (Docker
+without ``--init``, ``bwrap --as-pid-1``), which also means that no signal from inside reaches it
+and that ``kill(-1)`` reaches everything else; under the unisolated ``process`` backend it only
+kills the child's process group. A sandbox it cannot bring back to that state (a file it cannot
+delete) is retired: the parent exits and the evaluator starts another.
+"""
+
+from __future__ import annotations
+
+import ast
+import contextlib
+import importlib
+import importlib.machinery
+import importlib.util
+import json
+import os
+import pickle
+import select
+import shutil
+import signal
+import socket
+import sys
+import time
+import traceback
+
+HEADER_SIZE = 4
+FORK_FDS = 3  # protocol socket, lifeline, log
+SCRATCH_DIRS = ("/tmp", "/dev/shm")
+PR_SET_DUMPABLE = 4
+IPC_RMID = 0
+
+
+class Zygote:
+    def __init__(self, stream, args, runner) -> None:
+        self.stream = stream
+        self.args = args
+        self.runner = runner  # the runner.py module: each child does its run_agent
+        self.control = socket.socket(fileno=stream.read_fd)
+        self.inbox = bytearray()
+        self.fds: list[int] = []
+        self.private = os.getpid() == 1  # its own pid namespace and /tmp: the sandbox is ours
+
+    def serve(self) -> int:
+        started = time.perf_counter()
+        import numpy
+
+        self.stream.send(
+            {
+                "type": "hello",
+                "protocol": self.runner.PROTOCOL_VERSION,
+                "zygote": True,
+                "python": sys.version.split()[0],
+                "numpy": numpy.__version__,
+            }
+        )
+        os.chdir("/")  # no library reads configuration from the submission folder here
+        if self.args.observation_format != "native":
+            self.runner.sibling_module(self.runner.COMPAT)
+        preload_runtime_modules(self.args)
+        # PID 1 ignores every signal it has no handler for, so only SIGCHLD (a wake-up) gets one;
+        # Python's SIGINT handler would let a child end the parent with KeyboardInterrupt.
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
+        self.wake_r, self.wake_w = os.pipe()
+        os.set_blocking(self.wake_w, False)
+        signal.set_wakeup_fd(self.wake_w)
+        signal.signal(signal.SIGCHLD, lambda *_: None)
+        set_dumpable(False)  # a child may not ptrace or write the parent's memory
+        self.stream.send({"type": "ready", "init_s": round(time.perf_counter() - started, 6)})
+        while True:
+            try:
+                kind = self.receive()
+            except EOFError:
+                return 0
+            fds, self.fds = self.fds, []
+            if kind == "fork" and len(fds) == FORK_FDS:
+                if not self.episode(*fds):
+                    return 0  # retired
+            else:
+                for fd in fds:
+                    os.close(fd)
+                if kind == "close":
+                    return 0
+
+    def receive(self) -> str:
+        """The next control message's kind; descriptors that came with it land in ``self.fds``."""
+        while True:
+            if len(self.inbox) >= HEADER_SIZE:
+                size = int.from_bytes(self.inbox[:HEADER_SIZE], "big")
+                if len(self.inbox) >= HEADER_SIZE + size:
+                    payload = bytes(self.inbox[HEADER_SIZE : HEADER_SIZE + size])
+                    del self.inbox[: HEADER_SIZE + size]
+                    kind, _ = pickle.loads(payload)
+                    return kind
+            data, fds, _, _ = socket.recv_fds(self.control, 1 << 16, FORK_FDS)
+            if not data:
+                raise EOFError
+            self.inbox += data
+            self.fds += fds
+
+    def episode(self, data: int, lifeline: int, log: int) -> bool:
+        """Fork one agent, wait for its end, clean up; False when the sandbox must retire."""
+        oom_before = oom_kills()
+        sys.stderr.flush()
+        pid = os.fork()
+        if pid == 0:
+            self.child(data, lifeline, log)
+        os.close(data)
+        os.close(log)
+        code = self.supervise(pid, lifeline)
+        try:
+            clean = self.reset_sandbox(pid)
+        except Exception:
+            traceback.print_exc()
+            clean = False
+        if clean:  # before the exit status: the evaluator may fork again as soon as it has that
+            self.stream.send({"type": "ready"})
+        status = {"type": "exited", "code": code, "oom": oom_kills() > oom_before}
+        payload = json.dumps(status).encode()
+        with contextlib.suppress(OSError):
+            os.write(lifeline, len(payload).to_bytes(HEADER_SIZE, "big") + payload)
+        os.close(lifeline)
+        return clean
+
+    def child(self, data: int, lifeline: int, log: int) -> None:
+        """The episode's agent: what ``runner.py`` does without ``--zygote``. Never returns."""
+        code = 1
+        try:
+            os.setsid()
+            signal.set_wakeup_fd(-1)
+            signal.signal(signal.SIGCHLD, signal.SIG_DFL)
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+            set_dumpable(True)
+            for fd in {self.control.fileno(), self.stream.write_fd, lifeline, *self.wakeups}:
+                os.close(fd)
+            self.control.detach()
+            os.dup2(log, 1)
+            os.dup2(log, 2)
+            os.close(log)
+            stream = self.runner.Stream(data, data)
+            code = self.runner.run_agent(stream, self.args, time.perf_counter())
+        except BaseException:
+            code = 1
+        finally:
+            with contextlib.suppress(BaseException):
+                sys.stderr.flush()
+            os._exit(code)
+
+    @property
+    def wakeups(self) -> tuple[int, int]:
+        return self.wake_r, self.wake_w
+
+    def supervise(self, pid: int, lifeline: int) -> int:
+        """Wait until the child ends or the evaluator asks (any byte, or closing the lifeline)
+        for it to be killed; its exit code, negative for a signal, like ``Popen.returncode``."""
+        poller = select.poll()
+        poller.register(lifeline, select.POLLIN)
+        poller.register(self.wake_r, select.POLLIN)
+        while True:
+            code = reap(pid)
+            if code is not None:
+                return code
+            events = dict(poller.poll())
+            if self.wake_r in events:
+                with contextlib.suppress(BlockingIOError):
+                    os.read(self.wake_r, 4096)
+            if lifeline in events:
+                with contextlib.suppress(ProcessLookupError):
+                    os.killpg(pid, signal.SIGKILL)
+                _, status = os.waitpid(pid, 0)
+                return os.waitstatus_to_exitcode(status)
+
+    def reset_sandbox(self, pid: int) -> bool:
+        """Bring the sandbox back to how the first episode found it; False if that failed."""
+        if not self.private:
+            with contextlib.suppress(ProcessLookupError, PermissionError):
+                os.killpg(pid, signal.SIGKILL)
+            return True
+        with contextlib.suppress(ProcessLookupError):  # none left
+            os.kill(-1, signal.SIGKILL)  # from PID 1: every process of the sandbox but this one
+        while reap(None) is not None:
+            pass
+        clean = all(empty(folder) for folder in SCRATCH_DIRS)
+        return remove_ipc_objects() and clean
+
+
+def reap(pid: int | None) -> int | None:
+    """Reap every ended child (PID 1 inherits the orphans); ``pid``'s exit code if it ended.
+    With ``pid`` None: block until any child ends, None when there is none left."""
+    if pid is None:
+        try:
+            _, status = os.waitpid(-1, 0)
+        except ChildProcessError:
+            return None
+        return os.waitstatus_to_exitcode(status)
+    code = None
+    while True:
+        try:
+            ended, status = os.waitpid(-1, os.WNOHANG)
+        except ChildProcessError:
+            return code
+        if ended == 0:
+            return code
+        if ended == pid:
+            code = os.waitstatus_to_exitcode(status)
+
+
+def empty(folder: str) -> bool:
+    """Delete what is in ``folder``; whether it is empty now."""
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return True  # no such scratch folder in this sandbox
+    for entry in entries:
+        if entry.is_dir(follow_symlinks=False):
+            make_deletable(entry.path)
+            shutil.rmtree(entry.path, ignore_errors=True)
+        else:
+            with contextlib.suppress(OSError):
+                os.unlink(entry.path)
+    try:
+        return not os.listdir(folder)
+    except OSError:
+        return False
+
+
+def make_deletable(top: str) -> None:
+    """Give back the permissions the agent took from its own folders (same user: we may)."""
+    pending = [top]
+    while pending:
+        path = pending.pop()
+        with contextlib.suppress(OSError):
+            os.chmod(path, 0o700)
+            pending += [e.path for e in os.scandir(path) if e.is_dir(follow_symlinks=False)]
+
+
+def remove_ipc_objects() -> bool:
+    """Remove the System V shared memory, queues and semaphores the agent left; whether every
+    one is gone. They outlive processes, and /tmp is not the only place to leave a note."""
+    left = 0
+    for table in ("shm", "msg", "sem"):
+        try:
+            with open(f"/proc/sysvipc/{table}") as listing:
+                ids = [int(line.split()[1]) for line in listing.readlines()[1:] if line.strip()]
+        except OSError:
+            continue
+        if not ids:
+            continue
+        try:
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+        except (ImportError, OSError):
+            return False
+        for ident in ids:
+            if table == "sem":
+                failed = libc.semctl(ident, 0, IPC_RMID) != 0
+            else:
+                failed = getattr(libc, f"{table}ctl")(ident, IPC_RMID, None) != 0
+            left += failed
+    return left == 0
+
+
+def oom_kills() -> int:
+    """The sandbox cgroup's count of OOM kills (v2 memory.events, v1 oom_control); 0 if unseen."""
+    for path in ("/sys/fs/cgroup/memory.events", "/sys/fs/cgroup/memory/memory.oom_control"):
+        with contextlib.suppress(OSError, ValueError), open(path) as counters:
+            for line in counters:
+                name, _, value = line.partition(" ")
+                if name == "oom_kill":
+                    return int(value)
+    return 0
+
+
+def set_dumpable(on: bool) -> None:
+    with contextlib.suppress(ImportError, OSError, AttributeError):
+        import ctypes
+
+        ctypes.CDLL(None).prctl(PR_SET_DUMPABLE, int(on), 0, 0, 0)
+
+
+def preload_runtime_modules(args) -> None:
+    """Import the top-level modules ``policy.py`` imports that the runtime provides: found
+    neither in the submission folder nor in its dependency folder (those are the participant's
+    and run only in the children). A library that fails here is left to the child to report."""
+    private = [args.submission, *([args.deps] if args.deps else [])]
+    try:
+        with open(os.path.join(args.submission, "policy.py"), "rb") as source:
+            tree = ast.parse(source.read())
+    except (OSError, SyntaxError, ValueError):
+        return
+    names = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names.update(alias.name.partition(".")[0] for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            names.add(node.module.partition(".")[0])
+    for name in sorted(names - set(sys.modules)):
+        if importlib.machinery.PathFinder.find_spec(name, private) is not None:
+            continue  # the participant's own module, or one that shadows the runtime's
+        with contextlib.suppress(Exception):
+            if importlib.util.find_spec(name) is not None:
+                importlib.import_module(name)
