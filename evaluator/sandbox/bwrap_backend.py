@@ -25,10 +25,11 @@ from arena.errors import SandboxUnavailable
 from evaluator.sandbox.backend import (
     COMPAT_MOUNT,
     COMPAT_PATH,
+    DATASET_MOUNT,
     DEPS_MOUNT,
+    MODEL_MOUNT,
     RUNNER_MOUNT,
     RUNNER_PATH,
-    RUNTIME_ENV,
     SUBMISSION_MOUNT,
     LaunchSpec,
 )
@@ -106,6 +107,12 @@ class BubblewrapBackend:
         binds = {SUBMISSION_MOUNT: spec.submission}
         if spec.deps:
             binds[DEPS_MOUNT] = spec.deps
+        if spec.training is not None:
+            binds[DATASET_MOUNT] = spec.training.dataset
+            binds[MODEL_MOUNT] = spec.training.output
+        elif spec.model is not None:
+            binds[MODEL_MOUNT] = spec.model
+        training = spec.training is not None
         stage, prefix = None, []
         if os.geteuid() == 0:
             stage, binds, prefix = staged(binds)
@@ -116,9 +123,10 @@ class BubblewrapBackend:
         try:
             process = subprocess.Popen(
                 [*prefix, *self.command(spec, binds, runner_fd, compat_fd)],
-                stdin=subprocess.PIPE,
+                # A training run talks to no one: its output is its log.
+                stdin=subprocess.DEVNULL if training else subprocess.PIPE,
                 stdout=subprocess.PIPE,
-                stderr=subprocess.PIPE,
+                stderr=subprocess.STDOUT if training else subprocess.PIPE,
                 cwd="/",
                 env={"PATH": os.defpath, LABELS_ENV: encode_labels(spec.all_labels)},
                 pass_fds=(runner_fd, compat_fd),
@@ -126,7 +134,8 @@ class BubblewrapBackend:
                 preexec_fn=rlimit_setter(
                     settings.agent_memory_bytes,
                     settings.agent_pids,
-                    cpu_seconds=settings.init_timeout_s + settings.episode_timeout_s,
+                    cpu_seconds=spec.cpu_seconds(),
+                    file_bytes=settings.train_output_bytes if training else None,
                 ),
             )
         except OSError as error:
@@ -148,9 +157,10 @@ class BubblewrapBackend:
         mounts = ["--perms", "0444", "--ro-bind-data", str(runner_fd), RUNNER_MOUNT]
         mounts += ["--perms", "0444", "--ro-bind-data", str(compat_fd), COMPAT_MOUNT]
         for target, source in binds.items():
-            mounts += ["--ro-bind", str(source), target]
+            writable = spec.training is not None and target == MODEL_MOUNT
+            mounts += ["--bind" if writable else "--ro-bind", str(source), target]
         environment = []
-        for key, value in RUNTIME_ENV.items():
+        for key, value in spec.sandbox_env().items():
             environment += ["--setenv", key, value]
         return [
             "bwrap",
@@ -191,7 +201,7 @@ class BubblewrapBackend:
             encode_labels(spec.all_labels),
             *environment,
             str(RUNTIME_PYTHON),
-            *spec.runner_args(),
+            *spec.python_args(),
         ]
 
     def cleanup(self, labels: dict[str, str]) -> int:

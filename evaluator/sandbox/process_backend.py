@@ -12,7 +12,14 @@ import subprocess
 import sys
 
 from arena.config import SandboxKind, Settings
-from evaluator.sandbox.backend import RUNNER_PATH, RUNTIME_ENV, LaunchSpec
+from evaluator.sandbox.backend import (
+    DATASET_ENV,
+    MODEL_ENV,
+    RUNNER_PATH,
+    RUNTIME_ENV,
+    TRAIN_SCRIPT,
+    LaunchSpec,
+)
 from evaluator.sandbox.subprocess_sandbox import (
     LABELS_ENV,
     PopenSandbox,
@@ -29,17 +36,6 @@ class ProcessBackend:
         return None
 
     def launch(self, spec: LaunchSpec) -> PopenSandbox:
-        deps = ["--deps", str(spec.deps)] if spec.deps else []
-        command = [
-            sys.executable,
-            "-I",
-            "-B",
-            str(RUNNER_PATH),
-            "--submission",
-            str(spec.submission),
-            *deps,
-            *spec.format_args(),
-        ]
         env = {
             "PATH": os.defpath,
             **RUNTIME_ENV,
@@ -47,15 +43,43 @@ class ProcessBackend:
             LABELS_ENV: encode_labels(spec.all_labels),
         }
         env.pop("TMPDIR")
+        training = spec.training
+        if training is not None:
+            command = [sys.executable, "-B", "-s", str(spec.submission / TRAIN_SCRIPT)]
+            env |= {
+                DATASET_ENV: str(training.dataset),
+                MODEL_ENV: str(training.output),
+                "PYTHONUNBUFFERED": "1",
+            }
+            if spec.deps:
+                env["PYTHONPATH"] = str(spec.deps)
+        else:
+            deps = ["--deps", str(spec.deps)] if spec.deps else []
+            command = [
+                sys.executable,
+                "-I",
+                "-B",
+                str(RUNNER_PATH),
+                "--submission",
+                str(spec.submission),
+                *deps,
+                *spec.format_args(),
+            ]
+            if spec.model is not None:
+                env[MODEL_ENV] = str(spec.model)
         process = subprocess.Popen(
             command,
-            stdin=subprocess.PIPE,
+            stdin=subprocess.DEVNULL if training else subprocess.PIPE,
             stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
+            stderr=subprocess.STDOUT if training else subprocess.PIPE,
             cwd=spec.submission,
             env=env,
             start_new_session=True,
-            preexec_fn=rlimit_setter(spec.settings.agent_memory_bytes, None),
+            preexec_fn=rlimit_setter(
+                spec.settings.agent_memory_bytes,
+                None,
+                file_bytes=spec.settings.train_output_bytes if training else None,
+            ),
         )
         return PopenSandbox(process, spec.settings.agent_log_tail_bytes, spec.instance_labels)
 
