@@ -62,6 +62,7 @@ def evaluate(
     per_submission: bool = False,
     force: bool = False,
     fail_fast_after: int | None = FAIL_FAST_AFTER,
+    model_dir: Path | None = None,
 ) -> Summary:
     """Run the scenarios not yet finished in ``out_dir`` and return the summary.
 
@@ -69,6 +70,8 @@ def evaluate(
     so an edited agent gets a folder of its own; ``force`` discards the results already there.
     When the first ``fail_fast_after`` scenarios all end with the agent failing to start, the
     rest are not run (the summary stays incomplete): one error, not one per scenario.
+    ``model_dir`` is a trained output (``arena train``) the policy reads as ARENA_MODEL_DIR; the
+    results then belong to the submission and that model together.
     """
     from submissions.intake import prepare_submission
 
@@ -79,13 +82,16 @@ def evaluate(
     with tempfile.TemporaryDirectory(prefix="arena-submission-") as tmp:
         Path(tmp).chmod(0o755)  # sandboxes run the agent as another user, who must enter it
         submission = prepare_submission(Path(source), Path(tmp) / "submission")
+        identity = submission.sha256
+        if model_dir is not None:
+            submission, identity = _with_model(submission, Path(model_dir))
         if per_submission:
-            out_dir = out_dir / submission.sha256[:12]
+            out_dir = out_dir / identity[:12]
         if force:
             discard_results(out_dir)
         (out_dir / RECORDS_DIR).mkdir(parents=True, exist_ok=True)
         (out_dir / LOGS_DIR).mkdir(exist_ok=True)
-        run = ResultsFolder(out_dir, suite, scoring_profile, submission.sha256)
+        run = ResultsFolder(out_dir, suite, scoring_profile, identity)
         todo = run.resume()
         if progress:
             progress.started(len(suite.scenarios), len(suite.scenarios) - len(todo))
@@ -114,6 +120,19 @@ def evaluate(
                     if progress:
                         progress.finished(outcome)
     return run.summary()
+
+
+def _with_model(submission, model_dir: Path):
+    """The submission reading ``model_dir``, and the identity of the pair (sha256 of both)."""
+    import dataclasses
+    import hashlib
+
+    from evaluator.training import folder_digest
+
+    if not model_dir.is_dir():
+        raise ResultsDirError(f"the model folder {model_dir} does not exist (run `arena train`)")
+    pair = hashlib.sha256(f"{submission.sha256}:{folder_digest(model_dir)}".encode())
+    return dataclasses.replace(submission, model_dir=model_dir.resolve()), pair.hexdigest()
 
 
 def discard_results(out_dir: Path) -> None:

@@ -63,7 +63,11 @@ def pack_model(folder: Path, archive: Path) -> str:
             with path.open("rb") as handle:
                 tar.addfile(info, handle)
     archive.parent.mkdir(parents=True, exist_ok=True)
-    with archive.open("wb") as raw, gzip.GzipFile(filename="", fileobj=raw, mode="wb", mtime=0) as zipped:
+    # No name and no time in the gzip header: the same files give the same bytes.
+    with (
+        archive.open("wb") as raw,
+        gzip.GzipFile(filename="", fileobj=raw, mode="wb", mtime=0) as zipped,
+    ):
         zipped.write(buffer.getvalue())
     return hashlib.sha256(archive.read_bytes()).hexdigest()
 

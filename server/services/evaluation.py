@@ -23,7 +23,14 @@ from evaluator.runner import ScenarioOutcome
 from evaluator.scoring import load_profile
 from server.core.artifacts import ArtifactStore
 from server.core.queue import RunPlan
-from server.models import EvaluationRun, LeaderboardGeneration, ScenarioResult, Score, Submission
+from server.models import (
+    EvaluationRun,
+    LeaderboardGeneration,
+    ScenarioResult,
+    Score,
+    Submission,
+    TrainingJob,
+)
 from server.models import utcnow as now
 from server.services import phases, scoring
 from server.services.errors import Conflict, NotFound
@@ -33,8 +40,10 @@ from server.status import (
     SUBMISSION_MOVES,
     RunStatus,
     SubmissionStatus,
+    TrainingStatus,
     advance,
 )
+from server.tracks import Track
 
 
 @dataclass(frozen=True)
@@ -47,6 +56,7 @@ class ScenarioJob:
     scenario_dir: str
     upload_key: str  # the submission's zip in the artifact store
     attempt: int  # 1 for the first claim; more after workers died holding it
+    model_key: str | None = None  # the trained output it evaluates (offline submissions)
 
 
 def lock(session: Session, model, row_id: int):
@@ -77,8 +87,14 @@ def _suite(folder: Path) -> Suite:
         raise NotFound(str(exc)) from exc
 
 
-def create_run(session: Session, settings: Settings, submission: Submission) -> RunPlan:
-    """A new attempt on the suite of the submission's phase; every scenario of it still to run."""
+def create_run(
+    session: Session,
+    settings: Settings,
+    submission: Submission,
+    training: TrainingJob | None = None,
+) -> RunPlan:
+    """A new attempt on the suite of the submission's phase; every scenario of it still to run.
+    ``training``: the trained output it evaluates (offline submissions)."""
     phase = phases.get_phase(session, submission.phase)
     suite = _suite(phases.suite_dir(phase, settings))
     profile = load_profile(phases.scoring_profile(phase, settings))
@@ -100,6 +116,7 @@ def create_run(session: Session, settings: Settings, submission: Submission) -> 
         scoring_profile=profile.name,
         scoring_version=str(profile.version),
         lease_expires_at=lease_until(settings),
+        training_id=training.id if training is not None else None,
     )
     session.add(run)
     session.flush()
@@ -129,6 +146,13 @@ def rerun(session: Session, settings: Settings, submission_id: int) -> RunPlan:
         )
     if any(run.status in ACTIVE_RUN for run in submission.runs):
         raise Conflict(f"submission {submission_id} already has an evaluation in progress")
+    if submission.track == Track.offline:
+        trained = [job for job in submission.trainings if job.status == TrainingStatus.trained]
+        if not trained:
+            raise Conflict(
+                f"submission {submission_id} has no trained output to evaluate: retrain it"
+            )
+        return create_run(session, settings, submission, training=trained[-1])
     return create_run(session, settings, submission)
 
 
@@ -181,6 +205,7 @@ def claim_scenario(
         scenario_dir=str(suite.scenario_dir(scenario_id)),
         upload_key=run.submission.upload_key,
         attempt=existing.attempts,
+        model_key=run.training.model_key if run.training is not None else None,
     )
 
 

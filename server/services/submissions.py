@@ -26,6 +26,7 @@ from server.schemas import (
     SubmissionDetail,
     SubmissionLogs,
     SubmissionSummary,
+    TrainingProgress,
 )
 from server.services.errors import Conflict, InvalidUpload, NotFound, QuotaExceeded
 from server.services.evaluation import bump_leaderboard, cancel_run, lock
@@ -36,7 +37,15 @@ from server.services.phases import (
     daily_quota,
     get_phase,
 )
-from server.status import ACTIVE_RUN, SUBMISSION_MOVES, RunStatus, SubmissionStatus, advance
+from server.services.training import cancel_trainings, shown_training
+from server.status import (
+    ACTIVE_RUN,
+    ACTIVE_SUBMISSION,
+    SUBMISSION_MOVES,
+    RunStatus,
+    SubmissionStatus,
+    advance,
+)
 from server.tracks import Track
 
 S = SubmissionStatus
@@ -51,9 +60,7 @@ class NewSubmission:
     phase: str = DEFAULT_PHASE
 
 
-def quota_used(
-    session: Session, team_id: int, phase: str, track: Track, moment: datetime
-) -> int:
+def quota_used(session: Session, team_id: int, phase: str, track: Track, moment: datetime) -> int:
     """Submissions of the phase and the UTC day so far that count: every accepted one, failed ones
     included (an agent that crashes costs its team a try, or a crash would buy free evaluations
     of the hidden suite), except those that failed on our side and those cancelled before their
@@ -130,6 +137,12 @@ def accept_upload(
             prepared = prepare_submission(zip_path, scratch / "prepared", settings)
         except IntakeError as exc:
             raise InvalidUpload(str(exc)) from exc
+        if new.track == Track.offline and not prepared.trains:
+            raise InvalidUpload(
+                "train.py: an offline (Track 2) submission holds train.py beside policy.py; the "
+                "service runs it on the dataset before evaluating (docs/dataset.md) "
+                "[rule: train-missing]"
+            )
         store.put(f"{prefix}/upload.zip", zip_path)
         with db.session() as session:
             lock(session, Team, team_id)  # serialises concurrent uploads of one team (quota)
@@ -270,7 +283,13 @@ def detail(session: Session, submission: Submission) -> SubmissionDetail:
             for family, values in (score.families if score is not None else {}).items()
         },
         failure_reasons={family: reasons[family] for family in sorted(reasons)},
+        training=_training(submission),
     )
+
+
+def _training(submission: Submission) -> TrainingProgress | None:
+    job = shown_training(submission)
+    return TrainingProgress.model_validate(job) if job is not None else None
 
 
 def logs(session: Session, submission: Submission, *, organiser: bool = False) -> SubmissionLogs:
@@ -306,10 +325,11 @@ def cancel(db: Database, queue: TaskQueue, submission_id: int) -> Submission:
     its running sandboxes (they see the cancelled run on their next lease heartbeat)."""
     with db.session() as session:
         submission = lock(session, Submission, submission_id)
-        if submission.status not in (S.received, S.queued, S.running):
+        if submission.status not in ACTIVE_SUBMISSION:
             raise Conflict(f"submission {submission_id} is {submission.status}; cannot cancel")
         submission.status = advance(submission.status, S.cancelled, SUBMISSION_MOVES)
         submission.finished_at = utcnow()
+        cancel_trainings(submission)
         unfinished: list[str] = []
         for run in submission.runs:
             if run.status in ACTIVE_RUN:
@@ -324,6 +344,7 @@ def disqualify(db: Database, queue: TaskQueue, submission_id: int, reason: str) 
         submission.status = advance(submission.status, S.disqualified, SUBMISSION_MOVES)
         submission.status_reason = reason
         submission.finished_at = submission.finished_at or utcnow()
+        cancel_trainings(submission)
         unfinished: list[str] = []
         for run in submission.runs:
             if run.status in ACTIVE_RUN:

@@ -13,8 +13,8 @@ from arena.config import SandboxKind, Settings
 from arena.errors import DatasetError
 from evaluator.training import TrainFailure, TrainingStopped, pack_model, train, unpack_model
 from submissions.intake import prepare_submission
-from tests.evaluator.sandbox.conftest import ALL_KINDS, ISOLATING, usable
 from tests.evaluator.sandbox.agents import policy_source
+from tests.evaluator.sandbox.conftest import ALL_KINDS, ISOLATING, usable
 
 # Reads the dataset, writes a model and a checkpoint folder: what a real train.py does.
 GOOD = """
