@@ -45,7 +45,9 @@ def open_phases(session: Session, moment: datetime | None = None) -> list[Phase]
 def check_open(phase: Phase, moment: datetime) -> None:
     """Refuse an upload outside the phase's dates, saying when it opens or that it closed."""
     if phase.starts_at is not None and moment < phase.starts_at:
-        raise Forbidden(f"phase {phase.name!r} opens for submissions at {_when(phase.starts_at)}")
+        raise Forbidden(
+            f"phase {phase.name!r} opens for submissions at {_when(phase.starts_at)}"
+        )
     if phase.ends_at is not None and moment >= phase.ends_at:
         raise Forbidden(f"phase {phase.name!r} closed for submissions at {_when(phase.ends_at)}")
 
