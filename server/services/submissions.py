@@ -123,6 +123,11 @@ def accept_upload(
         bad = next((c for c in value if ord(c) < 32 and c not in "\t\n\r"), None)
         if bad is not None:
             raise InvalidUpload(f"{field_name}: control character {bad!r} is not allowed")
+    if new.track == Track.offline and settings.train_dataset_dir is None:
+        raise InvalidUpload(
+            "track: this service cannot train offline submissions yet (no dataset: the "
+            "organisers set ARENA_TRAIN_DATASET_DIR to a folder of `arena dataset build`)"
+        )
     with db.read_session() as session:
         check_quota(session, settings, team_id, new.phase, new.track)
     prefix = f"submissions/{uuid.uuid4().hex}"

@@ -16,9 +16,7 @@ from tests.server.builders import bearer, make_team, pack_example
 from tests.submissions.zips import bad_crc_zip
 
 
-def upload(
-    client, token, payload: bytes, *, track="freestyle", method="keep lane", phase="final"
-):
+def upload(client, token, payload: bytes, *, track="freestyle", method="keep lane", phase="final"):
     return client.post(
         "/api/v1/submissions",
         headers=bearer(token),
@@ -220,3 +218,22 @@ def test_a_train_py_that_does_not_compile_is_named(client, db, keep_lane_zip):
     )
     assert response.status_code == 422
     assert "train-syntax" in response.json()["detail"]
+
+
+def test_offline_uploads_are_refused_while_the_service_has_no_dataset(
+    client, db, settings, tmp_path
+):
+    from server.api.deps import get_settings_dep
+
+    _, token = make_team(db, "alpha")
+    no_dataset = settings.model_copy(update={"train_dataset_dir": None})
+    client.app.dependency_overrides[get_settings_dep] = lambda: no_dataset
+    try:
+        response = upload(
+            client, token, pack_example("offline_bc", tmp_path).read_bytes(), track="offline"
+        )
+    finally:
+        client.app.dependency_overrides.clear()
+    assert response.status_code == 422
+    assert "ARENA_TRAIN_DATASET_DIR" in response.json()["detail"]
+    assert count_submissions(db) == 0
