@@ -37,11 +37,14 @@ def requeue(db: Database, settings: Settings, queue: TaskQueue, submission_id: i
             submission.status = advance(
                 submission.status, SubmissionStatus.queued, SUBMISSION_MOVES
             )
-        trainings = [job for job in submission.trainings if job.status in ACTIVE_TRAINING]
+        # A training still held by a live worker ignores the re-sent task; a dead worker's is
+        # handed out by the reaper once its lease expires.
+        trainings = [job.id for job in submission.trainings if job.status in ACTIVE_TRAINING]
+        training_id = None
         if submission.status == SubmissionStatus.queued:
             submission.queued_at = utcnow()
         elif trainings:
-            trainings[-1].lease_expires_at = evaluation.lease_until(settings)
+            training_id = trainings[-1]
         else:
             runs = [run for run in submission.runs if run.status in ACTIVE_RUN]
             if not runs:
@@ -52,8 +55,8 @@ def requeue(db: Database, settings: Settings, queue: TaskQueue, submission_id: i
             pending = evaluation.pending_scenarios(runs[-1])
             runs[-1].lease_expires_at = evaluation.lease_until(settings)
             plan = RunPlan(run_id=runs[-1].id, scenario_ids=pending, aggregate=not pending)
-    if trainings and plan is None and submission.status != SubmissionStatus.queued:
-        queue.train(trainings[-1].id)
+    if training_id is not None:
+        queue.train(training_id)
         return "training re-sent"
     if plan is None:
         queue.evaluate(submission_id)

@@ -165,3 +165,16 @@ def test_retrain_is_a_new_attempt_and_rerun_uses_the_trained_output(db, settings
     with db.session() as session:
         jobs = session.get(Submission, sid).trainings
         assert [(j.attempt, j.status) for j in jobs] == [(1, "trained"), (2, "queued")]
+
+
+def test_requeue_resends_a_training(db, settings):
+    from server.core.queue import TaskQueue
+    from server.services import admin
+
+    sid = offline(db)
+    started(db, settings, sid)
+    queue = TaskQueue(settings)
+    try:
+        assert admin.requeue(db, settings, queue, sid) == "training re-sent"
+    finally:
+        queue.close()
