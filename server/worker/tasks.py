@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import logging
 import os
+import shutil
 import socket
 import threading
 import time
@@ -141,6 +142,7 @@ def train_submission(self, *, training_id: int) -> None:
         return
     tail = _tail(result.log)
     if not result.ok:
+        shutil.rmtree(_training_output(claim).parent, ignore_errors=True)
         with get_database().session() as session:
             training.record_failed(
                 session,
@@ -225,8 +227,6 @@ def _training_output(claim: training.TrainingClaim) -> Path:
 def _train(claim: training.TrainingClaim, worker: str):
     """Run the submission's train.py; its progress renews the claim's lease, and a lost claim
     or a stopping worker ends it (TrainingStopped)."""
-    import shutil
-
     from evaluator.runner import new_run_key
     from evaluator.training import train
 
@@ -262,8 +262,6 @@ def _train(claim: training.TrainingClaim, worker: str):
 
 def _store_model(claim: training.TrainingClaim) -> tuple[str, str, int]:
     """Pack the trained output into the artifact store: (key, sha256, size [bytes])."""
-    import shutil
-
     from evaluator.training import MODEL_ARCHIVE, pack_model
 
     output = _training_output(claim)
