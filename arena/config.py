@@ -75,6 +75,16 @@ class Settings(BaseSettings):
     warm_agents: bool = True
     warm_agent_idle_s: float = 120.0
 
+    # Track 2 training (docs/dataset.md): `train.py` runs in the sandbox with the memory and CPU
+    # limits above, the dataset mounted read-only and a writable output folder.
+    # The dataset the service mounts (`arena dataset build --out DIR`); None: offline
+    # submissions cannot be trained.
+    train_dataset_dir: Path | None = None
+    train_timeout_s: float = 1800.0
+    train_output_bytes: int = 512 * 1024**2
+    # Pass the host's GPUs to the training container (Docker only; needs the NVIDIA toolkit).
+    train_gpu: bool = False
+
     # Intake limits.
     max_zip_bytes: int = 100 * 1024**2
     max_unzipped_bytes: int = 500 * 1024**2

@@ -59,3 +59,7 @@ class SuiteError(ArenaError):
 
 class RecordError(ArenaError, ValueError):
     """An episode record that does not follow ``docs/records.md`` (ours: never charged)."""
+
+
+class DatasetError(ArenaError):
+    """The training dataset folder is missing or unusable (ours in the service: never charged)."""

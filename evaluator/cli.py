@@ -76,6 +76,13 @@ def evaluate(
         bool,
         typer.Option("--verbose", "-v", help="Every traceback of every failed scenario."),
     ] = False,
+    model: Annotated[
+        Path | None,
+        typer.Option(
+            help="A trained output of `arena train` (Track 2), mounted read-only; the policy "
+            "finds it as ARENA_MODEL_DIR."
+        ),
+    ] = None,
 ) -> None:
     """Evaluate a submission on a scenario set and print its four metrics.
 
@@ -105,6 +112,7 @@ def evaluate(
             profile=profile or settings.scoring_profile,
             progress=progress,
             episodes_per_scenario=episodes or settings.episodes_per_scenario,
+            model_dir=model,
         )
     except (ArenaError, ProfileError) as exc:
         console.print(f"[bold red]error:[/] {escape(str(exc))}")
@@ -122,6 +130,69 @@ def evaluate(
     )
     if any(is_agent_fault(episode.agents) for _, episode in _episodes(summary)):
         raise typer.Exit(1)
+
+
+@app.command()
+def train(
+    path: Annotated[Path, typer.Argument(help="The submission (a zip or a folder) with train.py.")],
+    dataset: Annotated[
+        Path, typer.Option(help="The dataset folder of `arena dataset build`, mounted read-only.")
+    ],
+    out: Annotated[Path, typer.Option(help="The output folder (new or empty): the model.")],
+    sandbox: Annotated[
+        SandboxKind | None, typer.Option(help="Sandbox (default: ARENA_SANDBOX).")
+    ] = None,
+    timeout: Annotated[
+        float | None,
+        typer.Option(min=1, help="Wall-time budget [s] (default: ARENA_TRAIN_TIMEOUT_S)."),
+    ] = None,
+) -> None:
+    """Run train.py in the sandbox exactly as the service does (Track 2); then
+    `arena evaluate PATH --model OUT`.
+
+    Exits 1 when the training failed (its named reason and log tail are printed), 2 when it
+    could not run."""
+    import tempfile
+
+    from arena.config import get_settings
+    from arena.errors import ArenaError
+    from evaluator.training import train as run_training
+    from submissions.intake import prepare_submission
+
+    settings = get_settings()
+    if timeout is not None:
+        settings = settings.model_copy(update={"train_timeout_s": timeout})
+    console = make_console()
+    try:
+        with tempfile.TemporaryDirectory(prefix="arena-train-") as tmp:
+            Path(tmp).chmod(0o755)  # the sandbox user must enter the submission
+            submission = prepare_submission(path, Path(tmp) / "submission", settings)
+            with console.status("training") as status:
+
+                def progress(elapsed: float, log: str) -> bool:
+                    last = log.strip().splitlines()[-1:] or [""]
+                    status.update(f"training {elapsed:.0f} s  {escape(last[0][:100])}")
+                    return True
+
+                result = run_training(
+                    submission,
+                    dataset,
+                    out,
+                    kind=sandbox,
+                    settings=settings,
+                    on_progress=progress,
+                )
+    except ArenaError as exc:
+        console.print(f"[bold red]error:[/] {escape(str(exc))}")
+        raise typer.Exit(2) from None
+    if not result.ok:
+        console.print(escape(result.log), highlight=False)
+        console.print(f"[bold red]{result.failure}[/]: {escape(result.detail)}")
+        raise typer.Exit(1)
+    console.print(
+        f"trained in {result.elapsed_s:.1f} s: {result.output_bytes} bytes in {out}; "
+        f"now `arena evaluate {path} --model {out}`"
+    )
 
 
 @app.command()

@@ -356,6 +356,39 @@ def rerun(submission_id: SubmissionId) -> None:
     console.print(f"submission {submission_id}: attempt {attempt} queued")
 
 
+@admin_app.command("retrain")
+def retrain(submission_id: SubmissionId) -> None:
+    """Train a scored or failed offline submission again, from scratch, then evaluate it."""
+    from server.services import admin
+
+    ctx = _Context()
+    attempt = _run(lambda: admin.retrain(ctx.db, ctx.settings, ctx.queue, submission_id))
+    console.print(f"submission {submission_id}: training attempt {attempt} queued")
+
+
+@admin_app.command("model")
+def model(
+    submission_id: SubmissionId,
+    out: Annotated[
+        Path | None, typer.Option(help="File to write (default: model-<sha>.tar.gz).")
+    ] = None,
+) -> None:
+    """Download an offline submission's trained output for audit (checked against its sha256)."""
+    import hashlib
+
+    from server.services import admin
+
+    ctx = _Context()
+    trained = _run(lambda: admin.trained_model(ctx.db, submission_id))
+    path = ctx.store.fetch(trained.key, out or Path(trained.file_name))
+    if hashlib.sha256(path.read_bytes()).hexdigest() != trained.sha256:
+        raise _fail(ValueError(f"{path} does not match the stored sha256 {trained.sha256}"))
+    console.print(
+        f"wrote {path} ({trained.size} bytes, sha256 {trained.sha256}, training attempt "
+        f"{trained.attempt})"
+    )
+
+
 @admin_app.command("status")
 def status() -> None:
     """Queue depth, workers, submissions by status and runs whose lease expired."""

@@ -29,7 +29,7 @@ from sqlalchemy import (
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
 from arena.outcome import ScenarioStatus
-from server.status import RunStatus, SubmissionStatus
+from server.status import RunStatus, SubmissionStatus, TrainingStatus
 from server.tracks import Track
 
 
@@ -157,6 +157,43 @@ class Submission(Base):
     runs: Mapped[list[EvaluationRun]] = relationship(
         back_populates="submission", order_by="EvaluationRun.attempt"
     )
+    trainings: Mapped[list[TrainingJob]] = relationship(
+        back_populates="submission", order_by="TrainingJob.attempt"
+    )
+
+
+class TrainingJob(Base):
+    """One attempt at training an offline (Track 2) submission: its ``train.py`` in the sandbox,
+    then the trained output in the artifact store with its sha256. Claimed and leased like a
+    scenario: a worker that dies while training stops renewing the lease and the reaper sends
+    the job again (``claims`` fences the dead worker's late writes)."""
+
+    __tablename__ = "training_jobs"
+    __table_args__ = (UniqueConstraint("submission_id", "attempt"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    submission_id: Mapped[int] = mapped_column(ForeignKey("submissions.id"), index=True)
+    attempt: Mapped[int] = mapped_column(Integer)
+    status: Mapped[TrainingStatus] = mapped_column(_enum(TrainingStatus), index=True)
+    worker: Mapped[str] = mapped_column(String(255), default="")
+    claims: Mapped[int] = mapped_column(Integer, default=0)
+    lease_expires_at: Mapped[datetime | None]
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    started_at: Mapped[datetime | None]
+    finished_at: Mapped[datetime | None]
+    # Progress the team sees (the dataset is public, so the log is theirs to read).
+    elapsed_s: Mapped[float] = mapped_column(Float, default=0.0)
+    log_tail: Mapped[str] = mapped_column(Text, default="")
+    # A named failure (evaluator.training.TrainFailure) or one of ours; "" while it runs or after
+    # it trained.
+    failure: Mapped[str] = mapped_column(String(32), default="")
+    error: Mapped[str] = mapped_column(Text, default="")
+    # The trained output in the artifact store: a deterministic .tar.gz and its sha256.
+    model_key: Mapped[str | None] = mapped_column(String(512))
+    model_sha256: Mapped[str] = mapped_column(String(64), default="")
+    model_size: Mapped[int] = mapped_column(BigInteger, default=0)
+
+    submission: Mapped[Submission] = relationship(back_populates="trainings")
 
 
 class EvaluationRun(Base):
@@ -183,8 +220,11 @@ class EvaluationRun(Base):
     started_at: Mapped[datetime | None]
     finished_at: Mapped[datetime | None]
     error: Mapped[str] = mapped_column(Text, default="")
+    # The trained output this run evaluates (offline submissions); None for freestyle.
+    training_id: Mapped[int | None] = mapped_column(ForeignKey("training_jobs.id"))
 
     submission: Mapped[Submission] = relationship(back_populates="runs")
+    training: Mapped[TrainingJob | None] = relationship()
     results: Mapped[list[ScenarioResult]] = relationship(back_populates="run")
     score: Mapped[Score | None] = relationship(back_populates="run")
 

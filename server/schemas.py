@@ -6,7 +6,7 @@ from datetime import datetime
 
 from pydantic import BaseModel, ConfigDict
 
-from server.status import SubmissionStatus
+from server.status import SubmissionStatus, TrainingStatus
 from server.tracks import Track
 
 
@@ -54,6 +54,20 @@ class SubmissionSummary(Schema):
     episodes_per_scenario: int
 
 
+class TrainingProgress(Schema):
+    """The latest training attempt of an offline submission. Its log is the team's to read: the
+    dataset it trains on is public."""
+
+    attempt: int
+    status: TrainingStatus
+    elapsed_s: float
+    log_tail: str
+    failure: str  # a named failure (e.g. train_timeout), "" unless it failed
+    error: str
+    model_sha256: str  # of the stored trained output, once trained
+    model_size: int  # [bytes]
+
+
 class SubmissionDetail(SubmissionSummary):
     description: str
     status_reason: str
@@ -65,6 +79,7 @@ class SubmissionDetail(SubmissionSummary):
     # family -> failure reason -> number of episodes (of scenarios, when each ran once). Scenario
     # ids of the hidden suite are never shown to participants; these counts are.
     failure_reasons: dict[str, dict[str, int]]
+    training: TrainingProgress | None = None  # offline (Track 2) submissions
 
 
 class ScenarioLog(Schema):

@@ -1,6 +1,7 @@
 """Submission and evaluation-run status: an enum state machine that never moves backwards.
 
-A submission goes ``received -> queued -> running -> scored | failed``; it can be ``cancelled``
+A submission goes ``received -> queued -> running -> scored | failed``; an offline (Track 2) one
+trains first: ``queued -> training -> running``. It can be ``cancelled``
 before it finishes and ``disqualified`` at any time. A later evaluation attempt (``arena admin
 rerun``) that scores turns a ``failed`` submission ``scored``; a ``scored`` one never becomes
 ``failed`` again (a failed re-run leaves the earlier score standing).
@@ -15,11 +16,20 @@ from typing import TypeVar
 class SubmissionStatus(StrEnum):
     received = "received"
     queued = "queued"
+    training = "training"
     running = "running"
     scored = "scored"
     failed = "failed"
     cancelled = "cancelled"
     disqualified = "disqualified"
+
+
+class TrainingStatus(StrEnum):
+    queued = "queued"
+    training = "training"
+    trained = "trained"
+    failed = "failed"
+    cancelled = "cancelled"
 
 
 class RunStatus(StrEnum):
@@ -35,7 +45,8 @@ R = RunStatus
 
 SUBMISSION_MOVES: dict[SubmissionStatus, frozenset[SubmissionStatus]] = {
     S.received: frozenset({S.queued, S.failed, S.cancelled, S.disqualified}),
-    S.queued: frozenset({S.running, S.failed, S.cancelled, S.disqualified}),
+    S.queued: frozenset({S.training, S.running, S.failed, S.cancelled, S.disqualified}),
+    S.training: frozenset({S.running, S.failed, S.cancelled, S.disqualified}),
     S.running: frozenset({S.scored, S.failed, S.cancelled, S.disqualified}),
     S.scored: frozenset({S.disqualified}),
     S.failed: frozenset({S.scored, S.disqualified}),
@@ -51,15 +62,25 @@ RUN_MOVES: dict[RunStatus, frozenset[RunStatus]] = {
     R.cancelled: frozenset(),
 }
 
-ACTIVE_SUBMISSION = frozenset({S.received, S.queued, S.running})
+T_ = TrainingStatus
+TRAINING_MOVES: dict[TrainingStatus, frozenset[TrainingStatus]] = {
+    T_.queued: frozenset({T_.training, T_.failed, T_.cancelled}),
+    T_.training: frozenset({T_.trained, T_.failed, T_.cancelled}),
+    T_.trained: frozenset(),
+    T_.failed: frozenset(),
+    T_.cancelled: frozenset(),
+}
+
+ACTIVE_SUBMISSION = frozenset({S.received, S.queued, S.training, S.running})
 ACTIVE_RUN = frozenset({R.queued, R.running})
+ACTIVE_TRAINING = frozenset({T_.queued, T_.training})
 
 
 class IllegalTransition(ValueError):
     """A status change the state machine forbids (e.g. ``scored -> running``)."""
 
 
-T = TypeVar("T", SubmissionStatus, RunStatus)
+T = TypeVar("T", SubmissionStatus, RunStatus, TrainingStatus)
 
 
 def advance(current: T, new: T, moves: dict[T, frozenset[T]]) -> T:

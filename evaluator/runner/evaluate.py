@@ -67,6 +67,7 @@ def evaluate(
     force: bool = False,
     fail_fast_after: int | None = FAIL_FAST_AFTER,
     episodes_per_scenario: int = 1,
+    model_dir: Path | None = None,
 ) -> Summary:
     """Run the episodes not yet finished in ``out_dir`` and return the summary.
 
@@ -76,6 +77,8 @@ def evaluate(
     episodes a previous run finished are kept, so raising it reuses them.
     When the first ``fail_fast_after`` episodes all end with the agent failing to start, the
     rest are not run (the summary stays incomplete): one error, not one per scenario.
+    ``model_dir`` is a trained output (``arena train``) the policy reads as ARENA_MODEL_DIR; the
+    results then belong to the submission and that model together.
     """
     from submissions.intake import prepare_submission
 
@@ -86,15 +89,16 @@ def evaluate(
     with tempfile.TemporaryDirectory(prefix="arena-submission-") as tmp:
         Path(tmp).chmod(0o755)  # sandboxes run the agent as another user, who must enter it
         submission = prepare_submission(Path(source), Path(tmp) / "submission")
+        identity = submission.sha256
+        if model_dir is not None:
+            submission, identity = _with_model(submission, Path(model_dir))
         if per_submission:
-            out_dir = out_dir / submission.sha256[:12]
+            out_dir = out_dir / identity[:12]
         if force:
             discard_results(out_dir)
         (out_dir / RECORDS_DIR).mkdir(parents=True, exist_ok=True)
         (out_dir / LOGS_DIR).mkdir(exist_ok=True)
-        run = ResultsFolder(
-            out_dir, suite, scoring_profile, submission.sha256, episodes_per_scenario
-        )
+        run = ResultsFolder(out_dir, suite, scoring_profile, identity, episodes_per_scenario)
         todo = run.resume()
         if progress:
             progress.started(len(run.episodes), len(run.episodes) - len(todo))
@@ -138,6 +142,19 @@ def _warm_agents_of(submission) -> Iterator[None]:
         yield
     finally:
         warm_agents().close(submission.root)
+
+
+def _with_model(submission, model_dir: Path):
+    """The submission reading ``model_dir``, and the identity of the pair (sha256 of both)."""
+    import dataclasses
+    import hashlib
+
+    from evaluator.training import folder_digest
+
+    if not model_dir.is_dir():
+        raise ResultsDirError(f"the model folder {model_dir} does not exist (run `arena train`)")
+    pair = hashlib.sha256(f"{submission.sha256}:{folder_digest(model_dir)}".encode())
+    return dataclasses.replace(submission, model_dir=model_dir.resolve()), pair.hexdigest()
 
 
 def discard_results(out_dir: Path) -> None:

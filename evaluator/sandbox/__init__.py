@@ -7,9 +7,11 @@ isolation; participants' local runs only, refused by the service through
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from arena.config import SandboxKind, Settings, get_settings
 from arena.errors import SandboxUnavailable
-from evaluator.sandbox.backend import Backend, LaunchSpec
+from evaluator.sandbox.backend import Backend, LaunchSpec, Sandbox, Training
 from evaluator.sandbox.handle import AgentHandle
 
 __all__ = [
@@ -21,6 +23,7 @@ __all__ = [
     "client_modules",
     "resolve_kind",
     "start",
+    "start_training",
 ]
 
 # Kinds that isolate the agent; the only ones the service may evaluate with.
@@ -111,6 +114,7 @@ def start(
         labels=dict(labels or {}),
         observation_format=str(submission.interface.observation_format),
         action_space=str(submission.interface.action_space),
+        model=submission.model_dir,
     )
     handle = AgentHandle(chosen.launch(spec), settings)
     try:
@@ -119,6 +123,29 @@ def start(
         handle.close()
         raise
     return handle
+
+
+def start_training(
+    submission,
+    dataset: Path,
+    output: Path,
+    *,
+    kind: SandboxKind | str | None = None,
+    labels: dict[str, str] | None = None,
+    settings: Settings | None = None,
+) -> Sandbox:
+    """Start ``submission``'s ``train.py`` (see :mod:`evaluator.training`); it runs until it
+    exits or is killed. Raises :class:`~arena.errors.SandboxUnavailable`."""
+    settings = settings or get_settings()
+    chosen = backend(resolve_kind(kind, settings))
+    spec = LaunchSpec(
+        submission=submission.root,
+        deps=submission.deps_dir,
+        settings=settings,
+        labels=dict(labels or {}),
+        training=Training(dataset=Path(dataset).resolve(), output=Path(output).resolve()),
+    )
+    return chosen.launch(spec)
 
 
 def cleanup(labels: dict[str, str] | None = None) -> int:

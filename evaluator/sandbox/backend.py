@@ -30,6 +30,14 @@ COMPAT_PATH = RUNNER_PATH.with_name("smarts_compat.py")
 # And its warm-parent mode (``--zygote``, docs/protocol.md "Warm agents").
 ZYGOTE_MOUNT = "/opt/arena/zygote.py"
 ZYGOTE_PATH = RUNNER_PATH.with_name("zygote.py")
+# Track 2 (docs/dataset.md): training runs `train.py` with the dataset read-only and the output
+# folder writable; evaluation then mounts that output read-only. Both are named by these variables
+# (fixed paths in Docker and bubblewrap, host paths with the process backend).
+TRAIN_SCRIPT = "train.py"
+DATASET_MOUNT = "/dataset"
+MODEL_MOUNT = "/model"
+DATASET_ENV = "ARENA_DATASET_DIR"
+MODEL_ENV = "ARENA_MODEL_DIR"
 # One thread for BLAS/OpenMP: the agent has one CPU, and a thread each counts against its pids.
 # (No PYTHON* variables: the runner starts with -I, which ignores them; -B keeps bytecode away.)
 RUNTIME_ENV = {
@@ -43,8 +51,17 @@ RUNTIME_ENV = {
 
 
 @dataclass(frozen=True)
+class Training:
+    """A training run instead of an agent: the dataset (read-only) and the output folder."""
+
+    dataset: Path
+    output: Path
+
+
+@dataclass(frozen=True)
 class LaunchSpec:
-    """One agent to start: its folders, labels and the limits it runs under."""
+    """One agent (or one training run) to start: its folders, labels and the limits it runs
+    under."""
 
     submission: Path
     deps: Path | None
@@ -55,6 +72,33 @@ class LaunchSpec:
     # A warm parent forking one agent per episode (evaluator.sandbox.warm) instead of the agent.
     zygote: bool = False
     instance: str = field(default_factory=lambda: uuid.uuid4().hex)
+    model: Path | None = None  # a trained output the agent reads (mounted read-only)
+    training: Training | None = None  # set: run train.py, not the agent runner
+
+    def python_args(self) -> list[str]:
+        """What the sandbox's python3 runs: the agent runner, or the submission's train.py."""
+        if self.training is not None:
+            # Not -I: PYTHONPATH is how train.py finds its installed requirements.
+            return ["-B", "-s", f"{SUBMISSION_MOUNT}/{TRAIN_SCRIPT}"]
+        return self.runner_args()
+
+    def sandbox_env(self) -> dict[str, str]:
+        """The environment inside Docker and bubblewrap (fixed mount points)."""
+        env = dict(RUNTIME_ENV)
+        if self.training is not None:
+            env |= {DATASET_ENV: DATASET_MOUNT, MODEL_ENV: MODEL_MOUNT, "PYTHONUNBUFFERED": "1"}
+            if self.deps:
+                env["PYTHONPATH"] = DEPS_MOUNT
+        elif self.model is not None:
+            env[MODEL_ENV] = MODEL_MOUNT
+        return env
+
+    def cpu_seconds(self) -> float:
+        """CPU time the sandbox may burn where no cgroup caps its share (bubblewrap)."""
+        settings = self.settings
+        if self.training is not None:
+            return settings.train_timeout_s * settings.agent_cpus + settings.init_timeout_s
+        return settings.init_timeout_s + settings.episode_timeout_s
 
     @property
     def all_labels(self) -> dict[str, str]:

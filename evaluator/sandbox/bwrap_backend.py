@@ -25,10 +25,11 @@ from arena.errors import SandboxUnavailable
 from evaluator.sandbox.backend import (
     COMPAT_MOUNT,
     COMPAT_PATH,
+    DATASET_MOUNT,
     DEPS_MOUNT,
+    MODEL_MOUNT,
     RUNNER_MOUNT,
     RUNNER_PATH,
-    RUNTIME_ENV,
     SUBMISSION_MOUNT,
     ZYGOTE_MOUNT,
     ZYGOTE_PATH,
@@ -41,6 +42,7 @@ from evaluator.sandbox.subprocess_sandbox import (
     encode_labels,
     kill_labelled,
     rlimit_setter,
+    sandbox_streams,
 )
 
 RUNTIME_PYTHON = Path("/usr/bin/python3")
@@ -111,6 +113,12 @@ class BubblewrapBackend:
         binds = {SUBMISSION_MOUNT: spec.submission}
         if spec.deps:
             binds[DEPS_MOUNT] = spec.deps
+        if spec.training is not None:
+            binds[DATASET_MOUNT] = spec.training.dataset
+            binds[MODEL_MOUNT] = spec.training.output
+        elif spec.model is not None:
+            binds[MODEL_MOUNT] = spec.model
+        training = spec.training is not None
         stage, prefix = None, []
         if os.geteuid() == 0:
             stage, binds, prefix = staged(binds)
@@ -121,9 +129,7 @@ class BubblewrapBackend:
         try:
             process = subprocess.Popen(
                 [*prefix, *self.command(spec, binds, files)],
-                stdin=child_end or subprocess.PIPE,
-                stdout=child_end or subprocess.PIPE,
-                stderr=subprocess.PIPE,
+                **sandbox_streams(training, child_end),
                 cwd="/",
                 env={"PATH": os.defpath, LABELS_ENV: encode_labels(spec.all_labels)},
                 pass_fds=files,
@@ -131,7 +137,8 @@ class BubblewrapBackend:
                 preexec_fn=rlimit_setter(
                     settings.agent_memory_bytes,
                     settings.agent_pids,
-                    cpu_seconds=settings.init_timeout_s + settings.episode_timeout_s,
+                    cpu_seconds=spec.cpu_seconds(),
+                    file_bytes=settings.train_output_bytes if training else None,
                 ),
             )
         except OSError as error:
@@ -157,9 +164,10 @@ class BubblewrapBackend:
         for fd, target in zip(files, INSIDE_FILES.values(), strict=True):
             mounts += ["--perms", "0444", "--ro-bind-data", str(fd), target]
         for target, source in binds.items():
-            mounts += ["--ro-bind", str(source), target]
+            writable = spec.training is not None and target == MODEL_MOUNT
+            mounts += ["--bind" if writable else "--ro-bind", str(source), target]
         environment = []
-        for key, value in RUNTIME_ENV.items():
+        for key, value in spec.sandbox_env().items():
             environment += ["--setenv", key, value]
         # A warm parent is the namespace's PID 1 itself: no signal from its children reaches it.
         as_pid_1 = ["--as-pid-1"] if spec.zygote else []
@@ -203,7 +211,7 @@ class BubblewrapBackend:
             encode_labels(spec.all_labels),
             *environment,
             str(RUNTIME_PYTHON),
-            *spec.runner_args(),
+            *spec.python_args(),
         ]
 
     def cleanup(self, labels: dict[str, str]) -> int:

@@ -23,11 +23,12 @@ from arena.errors import SandboxUnavailable
 from evaluator.sandbox.backend import (
     COMPAT_MOUNT,
     COMPAT_PATH,
+    DATASET_MOUNT,
     DEPS_MOUNT,
     INSTANCE_LABEL,
+    MODEL_MOUNT,
     RUNNER_MOUNT,
     RUNNER_PATH,
-    RUNTIME_ENV,
     SANDBOX_LABEL,
     SUBMISSION_MOUNT,
     ZYGOTE_MOUNT,
@@ -73,9 +74,12 @@ def docker_client():
     return docker.from_env()
 
 
-def container_options(spec: LaunchSpec, socket_dir: Path) -> dict[str, Any]:
-    """Everything ``containers.run`` gets; the safety options are not negotiable."""
-    from docker.types import LogConfig
+def container_options(spec: LaunchSpec, socket_dir: Path | None) -> dict[str, Any]:
+    """Everything ``containers.run`` gets; the safety options are not negotiable. A training run
+    (``spec.training``) has no protocol socket: it gets the dataset read-only, the output folder
+    writable with no single file larger than its cap, and the GPUs when the organisers enable
+    them."""
+    from docker.types import DeviceRequest, LogConfig, Ulimit
 
     settings = spec.settings
     volumes = {
@@ -83,18 +87,27 @@ def container_options(spec: LaunchSpec, socket_dir: Path) -> dict[str, Any]:
         str(RUNNER_PATH): {"bind": RUNNER_MOUNT, "mode": "ro"},
         str(COMPAT_PATH): {"bind": COMPAT_MOUNT, "mode": "ro"},
         str(ZYGOTE_PATH): {"bind": ZYGOTE_MOUNT, "mode": "ro"},
-        str(socket_dir): {"bind": SOCKET_MOUNT, "mode": "ro"},
     }
     if spec.deps:
         volumes[str(spec.deps)] = {"bind": DEPS_MOUNT, "mode": "ro"}
+    command = ["python3", *spec.python_args()]
+    extra: dict[str, Any] = {}
+    if spec.training is not None:
+        volumes[str(spec.training.dataset)] = {"bind": DATASET_MOUNT, "mode": "ro"}
+        volumes[str(spec.training.output)] = {"bind": MODEL_MOUNT, "mode": "rw"}
+        cap = settings.train_output_bytes
+        extra["ulimits"] = [Ulimit(name="fsize", soft=cap, hard=cap)]
+        if settings.train_gpu:
+            extra["device_requests"] = [DeviceRequest(count=-1, capabilities=[["gpu"]])]
+    else:
+        if spec.model is not None:
+            volumes[str(spec.model)] = {"bind": MODEL_MOUNT, "mode": "ro"}
+        assert socket_dir is not None
+        volumes[str(socket_dir)] = {"bind": SOCKET_MOUNT, "mode": "ro"}
+        command += ["--socket", f"{SOCKET_MOUNT}/{SOCKET_NAME}"]
     return {
         "image": settings.agent_image,
-        "command": [
-            "python3",
-            *spec.runner_args(),
-            "--socket",
-            f"{SOCKET_MOUNT}/{SOCKET_NAME}",
-        ],
+        "command": command,
         "detach": True,
         # A warm parent is the container's PID 1 itself: no signal from its children reaches
         # it, and it reaps their orphans as the init would.
@@ -111,12 +124,13 @@ def container_options(spec: LaunchSpec, socket_dir: Path) -> dict[str, Any]:
         "user": UNPRIVILEGED_USER,
         "ipc_mode": "none",
         "working_dir": SUBMISSION_MOUNT,
-        "environment": RUNTIME_ENV,
+        "environment": spec.sandbox_env(),
         "volumes": volumes,
         "labels": spec.all_labels,
         "log_config": LogConfig(
             type="json-file", config={"max-size": LOG_MAX_SIZE, "max-file": "1"}
         ),
+        **extra,
     }
 
 
@@ -133,7 +147,9 @@ def share_with_agent(socket_dir: Path, path: Path) -> None:
 
 
 class DockerSandbox:
-    def __init__(self, container, listener: socket.socket, socket_dir: Path, log_limit: int):
+    def __init__(
+        self, container, listener: socket.socket | None, socket_dir: Path | None, log_limit: int
+    ):
         self.container = container
         self._listener = listener
         self._socket_dir = socket_dir
@@ -143,6 +159,7 @@ class DockerSandbox:
 
     def connect(self, deadline: float) -> Channel:
         """Wait for the runner to connect, noticing a container that dies first."""
+        assert self._listener is not None, "a training container has no protocol socket"
         while True:
             left = deadline - time.monotonic()
             if left <= 0:
@@ -202,7 +219,8 @@ class DockerSandbox:
             for closable in (self._connection, self._listener):
                 if closable is not None:
                     closable.close()
-            shutil.rmtree(self._socket_dir, ignore_errors=True)
+            if self._socket_dir is not None:
+                shutil.rmtree(self._socket_dir, ignore_errors=True)
 
     def logs(self) -> str:
         import docker.errors
@@ -239,6 +257,12 @@ class DockerBackend:
     def launch(self, spec: LaunchSpec) -> DockerSandbox:
         import docker.errors
 
+        if spec.training is not None:
+            try:
+                container = docker_client().containers.run(**container_options(spec, None))
+            except docker.errors.DockerException as error:
+                raise SandboxUnavailable(f"cannot start the training container: {error}") from error
+            return DockerSandbox(container, None, None, spec.settings.agent_log_tail_bytes)
         socket_dir = socket_dir_for(spec.instance)
         listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         try:

@@ -12,7 +12,14 @@ import subprocess
 import sys
 
 from arena.config import SandboxKind, Settings
-from evaluator.sandbox.backend import RUNNER_PATH, RUNTIME_ENV, LaunchSpec
+from evaluator.sandbox.backend import (
+    DATASET_ENV,
+    MODEL_ENV,
+    RUNNER_PATH,
+    RUNTIME_ENV,
+    TRAIN_SCRIPT,
+    LaunchSpec,
+)
 from evaluator.sandbox.subprocess_sandbox import (
     LABELS_ENV,
     PopenSandbox,
@@ -20,6 +27,7 @@ from evaluator.sandbox.subprocess_sandbox import (
     encode_labels,
     kill_labelled,
     rlimit_setter,
+    sandbox_streams,
 )
 
 
@@ -30,17 +38,6 @@ class ProcessBackend:
         return None
 
     def launch(self, spec: LaunchSpec) -> PopenSandbox:
-        deps = ["--deps", str(spec.deps)] if spec.deps else []
-        command = [
-            sys.executable,
-            "-I",
-            "-B",
-            str(RUNNER_PATH),
-            "--submission",
-            str(spec.submission),
-            *deps,
-            *spec.format_args(),
-        ]
         env = {
             "PATH": os.defpath,
             **RUNTIME_ENV,
@@ -48,17 +45,43 @@ class ProcessBackend:
             LABELS_ENV: encode_labels(spec.all_labels),
         }
         env.pop("TMPDIR")
+        training = spec.training
+        if training is not None:
+            command = [sys.executable, "-B", "-s", str(spec.submission / TRAIN_SCRIPT)]
+            env |= {
+                DATASET_ENV: str(training.dataset),
+                MODEL_ENV: str(training.output),
+                "PYTHONUNBUFFERED": "1",
+            }
+            if spec.deps:
+                env["PYTHONPATH"] = str(spec.deps)
+        else:
+            deps = ["--deps", str(spec.deps)] if spec.deps else []
+            command = [
+                sys.executable,
+                "-I",
+                "-B",
+                str(RUNNER_PATH),
+                "--submission",
+                str(spec.submission),
+                *deps,
+                *spec.format_args(),
+            ]
+            if spec.model is not None:
+                env[MODEL_ENV] = str(spec.model)
         control, child_end = control_pair(spec.zygote)
         try:
             process = subprocess.Popen(
                 command,
-                stdin=child_end or subprocess.PIPE,
-                stdout=child_end or subprocess.PIPE,
-                stderr=subprocess.PIPE,
+                **sandbox_streams(training is not None, child_end),
                 cwd=spec.submission,
                 env=env,
                 start_new_session=True,
-                preexec_fn=rlimit_setter(spec.settings.agent_memory_bytes, None),
+                preexec_fn=rlimit_setter(
+                    spec.settings.agent_memory_bytes,
+                    None,
+                    file_bytes=spec.settings.train_output_bytes if training else None,
+                ),
             )
         finally:
             if child_end is not None:

@@ -52,9 +52,12 @@ class LogTail:
 
 
 def rlimit_setter(
-    memory_bytes: int, processes: int | None, cpu_seconds: float | None = None
+    memory_bytes: int,
+    processes: int | None,
+    cpu_seconds: float | None = None,
+    file_bytes: int | None = None,
 ) -> Callable[[], None]:
-    """A preexec function that caps address space, processes, CPU time and core dumps.
+    """A preexec function that caps address space, processes, CPU time, file size and core dumps.
 
     Without cgroups there is no CPU share to cap, so the CPU time an agent may burn is bounded
     instead: start-up plus one episode's wall time on one CPU (SIGXCPU, then SIGKILL 5 s later).
@@ -63,6 +66,8 @@ def rlimit_setter(
     def apply() -> None:
         resource.setrlimit(resource.RLIMIT_AS, (memory_bytes, memory_bytes))
         resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
+        if file_bytes is not None:
+            resource.setrlimit(resource.RLIMIT_FSIZE, (file_bytes, file_bytes))
         if cpu_seconds is not None:
             soft = math.ceil(cpu_seconds)
             resource.setrlimit(resource.RLIMIT_CPU, (soft, soft + 5))
@@ -81,6 +86,15 @@ def control_pair(spec_zygote: bool) -> tuple[socket.socket | None, int | None]:
     return ours, theirs.detach()
 
 
+def sandbox_streams(training: bool, control_end: int | None) -> dict[str, int]:
+    """Popen's stdin, stdout and stderr: a training run talks to no one (its output is its log),
+    a warm parent talks over its control socket, an agent over pipes (stderr is its log)."""
+    if training:
+        return {"stdin": subprocess.DEVNULL, "stdout": subprocess.PIPE, "stderr": subprocess.STDOUT}
+    protocol = control_end if control_end is not None else subprocess.PIPE
+    return {"stdin": protocol, "stdout": protocol, "stderr": subprocess.PIPE}
+
+
 class PopenSandbox:
     def __init__(
         self,
@@ -91,7 +105,9 @@ class PopenSandbox:
         control: socket.socket | None = None,
     ) -> None:
         self.process = process
-        self._stderr = LogTail(process.stderr, log_limit)
+        # An agent's log is its stderr (stdout carries the protocol); a training run's is both.
+        self._log_pipe = process.stderr or process.stdout
+        self._stderr = LogTail(self._log_pipe, log_limit)
         self._labels = labels
         self._cleanup = cleanup  # a folder of ours to delete once the sandbox is gone
         self.control = control  # a warm parent's socket (stdin and stdout), else pipes
@@ -117,10 +133,11 @@ class PopenSandbox:
         # init a moment later; wait for that too, so nothing outlives kill().
         kill_labelled(self._labels)
         for stream in (self.process.stdin, self.process.stdout, self.control):
-            with contextlib.suppress(OSError, AttributeError):
-                stream.close()
+            if stream is not None and stream is not self._log_pipe:
+                with contextlib.suppress(OSError):
+                    stream.close()
         self._stderr.text(wait=1.0)
-        self.process.stderr.close()
+        self._log_pipe.close()
         if self._cleanup is not None:
             shutil.rmtree(self._cleanup, ignore_errors=True)
 

@@ -160,6 +160,7 @@ class WarmAgent:
             deps=submission.deps_dir,
             settings=settings,
             labels={**(labels or {}), WARM_LABEL: "1"},
+            model=submission.model_dir,
             observation_format=str(submission.interface.observation_format),
             action_space=str(submission.interface.action_space),
             zygote=True,

@@ -24,7 +24,8 @@ from evaluator.sandbox.warm import KILL_WAIT_S, ForkedAgent, WarmAgent
 
 log = logging.getLogger(__name__)
 
-Key = tuple[Path, SandboxKind]
+# (submission folder, trained model folder or None, sandbox kind)
+Key = tuple[Path, Path | None, SandboxKind]
 
 
 class WarmAgents:
@@ -41,7 +42,8 @@ class WarmAgents:
     ) -> Iterator[ForkedAgent | None]:
         """A freshly forked agent of ``submission`` for one episode, or None when this
         submission runs cold. Raises nothing of the zygote's: it falls back to cold."""
-        key = (Path(submission.root), kind)
+        # A retrained model is another agent: it gets a zygote of its own.
+        key = (Path(submission.root), submission.model_dir, kind)
         self.close_idle(settings.warm_agent_idle_s)
         warm = self._take(key, submission, settings)
         if warm is None:
@@ -102,7 +104,7 @@ class WarmAgents:
                     return warm
                 warm.close()
         try:
-            return WarmAgent.start(submission, key[1], settings, labels=self._labels)
+            return WarmAgent.start(submission, key[2], settings, labels=self._labels)
         except SandboxUnavailable as error:
             log.warning("no warm agent for %s, its episodes start cold: %s", key[0], error)
             with self._lock:

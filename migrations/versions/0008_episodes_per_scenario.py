@@ -1,7 +1,7 @@
 """several episodes per reactive scenario: the phase's count, the run's, an episode index per
 result, and the completion interval of a score
 
-Revision ID: 0008_episodes_per_scenario
+Revision ID: 0008
 Revises: 0007
 """
 
@@ -10,7 +10,7 @@ from collections.abc import Sequence
 import sqlalchemy as sa
 from alembic import op
 
-revision: str = "0008_episodes_per_scenario"
+revision: str = "0008"
 down_revision: str | None = "0007"
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None

@@ -25,6 +25,9 @@ from scenarios.replay.naturalistic import ego_choices, load_scenes, scene_net, w
 
 DATASET_ID = "driving-arena/replays-v0"
 MANIFEST = "dataset-manifest.json"
+# The same transitions as plain numpy arrays: what a Track 2 train.py reads in the sandbox, which
+# has numpy but neither minari nor h5py.
+TRANSITIONS = "transitions.npz"
 
 
 def hidden_scene_hashes(suite_dir: Path | None) -> set[str]:
@@ -77,12 +80,14 @@ def build_dataset(
     excluded = hidden_scene_hashes(exclude_suite)
     rows: list[dict] = []
     buffers = []
+    episodes: list[Episode] = []
     with tempfile.TemporaryDirectory(prefix="arena-dataset-") as tmp:
         sources, left_out = _sources(
             scenes_dir, public_dir, excluded, Path(tmp), Path(cache_dir) / "naturalistic"
         )
         for folder, facts in sources:
             for episode in collect(folder):
+                episodes.append(episode)
                 buffers.append(_buffer(EpisodeBuffer, len(buffers), episode))
                 rows.append(
                     {
@@ -109,8 +114,29 @@ def build_dataset(
         "observation_size": OBS_SIZE,
         "action_size": ACTION_SIZE,
     }
+    write_transitions(out / TRANSITIONS, episodes)
     (out / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
     return manifest
+
+
+def write_transitions(path: Path, episodes: list[Episode]) -> None:
+    """Every transition of every episode, one row each (docs/dataset.md: `transitions.npz`)."""
+    empty_obs = np.zeros((0, OBS_SIZE), np.float32)
+    np.savez_compressed(
+        path,
+        observations=np.concatenate([e.observations[:-1] for e in episodes] or [empty_obs]),
+        next_observations=np.concatenate([e.observations[1:] for e in episodes] or [empty_obs]),
+        actions=np.concatenate(
+            [e.actions for e in episodes] or [np.zeros((0, ACTION_SIZE), np.float32)]
+        ),
+        rewards=np.concatenate([e.rewards for e in episodes] or [np.zeros(0)]),
+        terminations=np.concatenate([e.terminations for e in episodes] or [np.zeros(0, bool)]),
+        truncations=np.concatenate([e.truncations for e in episodes] or [np.zeros(0, bool)]),
+        episode=np.concatenate(
+            [np.full(len(e.actions), i, np.int32) for i, e in enumerate(episodes)]
+            or [np.zeros(0, np.int32)]
+        ),
+    )
 
 
 def _buffer(cls, index: int, episode: Episode):

@@ -19,6 +19,7 @@ QUEUE = "arena"
 TASK_EVALUATE = "arena.evaluate_submission"
 TASK_SCENARIO = "arena.run_scenario"
 TASK_AGGREGATE = "arena.aggregate_run"
+TASK_TRAIN = "arena.train_submission"
 
 
 def is_embedded_broker(broker_url: str) -> bool:

@@ -15,6 +15,7 @@ from server.core.celery_app import (
     TASK_AGGREGATE,
     TASK_EVALUATE,
     TASK_SCENARIO,
+    TASK_TRAIN,
     create_celery_app,
     is_embedded_broker,
 )
@@ -58,6 +59,9 @@ class TaskQueue:
             task_id=scenario_task_id(run_id, episode),
             queue=QUEUE,
         )
+
+    def train(self, training_id: int) -> None:
+        self.celery.send_task(TASK_TRAIN, kwargs={"training_id": training_id}, queue=QUEUE)
 
     def aggregate(self, run_id: int) -> None:
         self.celery.send_task(TASK_AGGREGATE, kwargs={"run_id": run_id}, queue=QUEUE)

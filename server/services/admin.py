@@ -1,4 +1,5 @@
-"""Organiser actions that re-drive evaluations: re-queue, re-run, re-score, service status."""
+"""Organiser actions that re-drive evaluations: re-queue, re-run, re-train, re-score, the
+trained model for audit, service status."""
 
 from __future__ import annotations
 
@@ -13,10 +14,17 @@ from server.core.artifacts import ArtifactStore
 from server.core.db import Database
 from server.core.queue import BROKER_ERRORS, TaskQueue
 from server.models import EvaluationRun, Submission, utcnow
-from server.services import evaluation, scoring
-from server.services.errors import Conflict, InvalidInput
+from server.services import evaluation, scoring, training
+from server.services.errors import Conflict, InvalidInput, NotFound
 from server.services.evaluation import RunPlan, lock
-from server.status import ACTIVE_RUN, SUBMISSION_MOVES, RunStatus, SubmissionStatus, advance
+from server.status import (
+    ACTIVE_RUN,
+    ACTIVE_TRAINING,
+    SUBMISSION_MOVES,
+    RunStatus,
+    SubmissionStatus,
+    advance,
+)
 
 
 def requeue(db: Database, settings: Settings, queue: TaskQueue, submission_id: int) -> str:
@@ -29,8 +37,14 @@ def requeue(db: Database, settings: Settings, queue: TaskQueue, submission_id: i
             submission.status = advance(
                 submission.status, SubmissionStatus.queued, SUBMISSION_MOVES
             )
+        # A training still held by a live worker ignores the re-sent task; a dead worker's is
+        # handed out by the reaper once its lease expires.
+        trainings = [job.id for job in submission.trainings if job.status in ACTIVE_TRAINING]
+        training_id = None
         if submission.status == SubmissionStatus.queued:
             submission.queued_at = utcnow()
+        elif trainings:
+            training_id = trainings[-1]
         else:
             runs = [run for run in submission.runs if run.status in ACTIVE_RUN]
             if not runs:
@@ -41,6 +55,9 @@ def requeue(db: Database, settings: Settings, queue: TaskQueue, submission_id: i
             pending = evaluation.pending_episodes(runs[-1])
             runs[-1].lease_expires_at = evaluation.lease_until(settings)
             plan = RunPlan(run_id=runs[-1].id, episodes=pending, aggregate=not pending)
+    if training_id is not None:
+        queue.train(training_id)
+        return "training re-sent"
     if plan is None:
         queue.evaluate(submission_id)
         return "evaluation queued"
@@ -57,6 +74,41 @@ def rerun(db: Database, settings: Settings, queue: TaskQueue, submission_id: int
         attempt = session.get(EvaluationRun, plan.run_id).attempt
     queue.send(plan)
     return attempt
+
+
+def retrain(db: Database, settings: Settings, queue: TaskQueue, submission_id: int) -> int:
+    """A new training attempt of an offline submission, from scratch (then its evaluation);
+    returns its attempt number."""
+    with db.session() as session:
+        job = training.retrain(session, settings, submission_id)
+        training_id, attempt = job.id, job.attempt
+    queue.train(training_id)
+    return attempt
+
+
+@dataclass(frozen=True)
+class TrainedModel:
+    """The stored trained output of a submission's latest successful training."""
+
+    key: str
+    sha256: str
+    size: int  # [bytes]
+    attempt: int
+
+    @property
+    def file_name(self) -> str:
+        return f"model-{self.sha256[:12]}.tar.gz"
+
+
+def trained_model(db: Database, submission_id: int) -> TrainedModel:
+    with db.read_session() as session:
+        submission = session.get(Submission, submission_id)
+        if submission is None:
+            raise NotFound(f"no submission {submission_id}")
+        job = training.latest_trained(submission)
+        if job is None or job.model_key is None:
+            raise NotFound(f"submission {submission_id} has no trained output")
+        return TrainedModel(job.model_key, job.model_sha256, job.model_size, job.attempt)
 
 
 def scoring_profile(name: str) -> ScoringProfile:

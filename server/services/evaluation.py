@@ -24,7 +24,14 @@ from evaluator.runner import ScenarioOutcome
 from evaluator.scoring import load_profile
 from server.core.artifacts import ArtifactStore
 from server.core.queue import RunPlan
-from server.models import EvaluationRun, LeaderboardGeneration, ScenarioResult, Score, Submission
+from server.models import (
+    EvaluationRun,
+    LeaderboardGeneration,
+    ScenarioResult,
+    Score,
+    Submission,
+    TrainingJob,
+)
 from server.models import utcnow as now
 from server.services import phases, scoring
 from server.services.errors import Conflict, NotFound
@@ -34,8 +41,10 @@ from server.status import (
     SUBMISSION_MOVES,
     RunStatus,
     SubmissionStatus,
+    TrainingStatus,
     advance,
 )
+from server.tracks import Track
 
 
 @dataclass(frozen=True)
@@ -49,6 +58,7 @@ class ScenarioJob:
     upload_key: str  # the submission's zip in the artifact store
     attempt: int  # 1 for the first claim; more after workers died holding it
     episode: int = 0  # arena.episodes: which traffic seed
+    model_key: str | None = None  # the trained output it evaluates (offline submissions)
 
     @property
     def key(self) -> Episode:
@@ -83,8 +93,14 @@ def _suite(folder: Path) -> Suite:
         raise NotFound(str(exc)) from exc
 
 
-def create_run(session: Session, settings: Settings, submission: Submission) -> RunPlan:
-    """A new attempt on the suite of the submission's phase; every episode of it still to run."""
+def create_run(
+    session: Session,
+    settings: Settings,
+    submission: Submission,
+    training: TrainingJob | None = None,
+) -> RunPlan:
+    """A new attempt on the suite of the submission's phase; every episode of it still to run.
+    ``training``: the trained output it evaluates (offline submissions)."""
     phase = phases.get_phase(session, submission.phase)
     suite = _suite(phases.suite_dir(phase, settings))
     profile = load_profile(phases.scoring_profile(phase, settings))
@@ -109,6 +125,7 @@ def create_run(session: Session, settings: Settings, submission: Submission) -> 
         scoring_profile=profile.name,
         scoring_version=str(profile.version),
         lease_expires_at=lease_until(settings),
+        training_id=training.id if training is not None else None,
     )
     session.add(run)
     session.flush()
@@ -137,6 +154,13 @@ def rerun(session: Session, settings: Settings, submission_id: int) -> RunPlan:
         )
     if any(run.status in ACTIVE_RUN for run in submission.runs):
         raise Conflict(f"submission {submission_id} already has an evaluation in progress")
+    if submission.track == Track.offline:
+        trained = [job for job in submission.trainings if job.status == TrainingStatus.trained]
+        if not trained:
+            raise Conflict(
+                f"submission {submission_id} has no trained output to evaluate: retrain it"
+            )
+        return create_run(session, settings, submission, training=trained[-1])
     return create_run(session, settings, submission)
 
 
@@ -200,6 +224,7 @@ def claim_scenario(
         upload_key=run.submission.upload_key,
         attempt=existing.attempts,
         episode=episode,
+        model_key=run.training.model_key if run.training is not None else None,
     )
 
 

@@ -27,6 +27,7 @@ from server.schemas import (
     SubmissionDetail,
     SubmissionLogs,
     SubmissionSummary,
+    TrainingProgress,
 )
 from server.services.errors import Conflict, InvalidUpload, NotFound, QuotaExceeded
 from server.services.evaluation import bump_leaderboard, cancel_run, lock
@@ -37,7 +38,15 @@ from server.services.phases import (
     daily_quota,
     get_phase,
 )
-from server.status import ACTIVE_RUN, SUBMISSION_MOVES, RunStatus, SubmissionStatus, advance
+from server.services.training import cancel_trainings, shown_training
+from server.status import (
+    ACTIVE_RUN,
+    ACTIVE_SUBMISSION,
+    SUBMISSION_MOVES,
+    RunStatus,
+    SubmissionStatus,
+    advance,
+)
 from server.tracks import Track
 
 S = SubmissionStatus
@@ -115,6 +124,11 @@ def accept_upload(
         bad = next((c for c in value if ord(c) < 32 and c not in "\t\n\r"), None)
         if bad is not None:
             raise InvalidUpload(f"{field_name}: control character {bad!r} is not allowed")
+    if new.track == Track.offline and settings.train_dataset_dir is None:
+        raise InvalidUpload(
+            "track: this service cannot train offline submissions yet (no dataset: the "
+            "organisers set ARENA_TRAIN_DATASET_DIR to a folder of `arena dataset build`)"
+        )
     with db.read_session() as session:
         check_quota(session, settings, team_id, new.phase, new.track)
     prefix = f"submissions/{uuid.uuid4().hex}"
@@ -129,6 +143,12 @@ def accept_upload(
             prepared = prepare_submission(zip_path, scratch / "prepared", settings)
         except IntakeError as exc:
             raise InvalidUpload(str(exc)) from exc
+        if new.track == Track.offline and not prepared.trains:
+            raise InvalidUpload(
+                "train.py: an offline (Track 2) submission holds train.py beside policy.py; the "
+                "service runs it on the dataset before evaluating (docs/dataset.md) "
+                "[rule: train-missing]"
+            )
         store.put(f"{prefix}/upload.zip", zip_path)
         with db.session() as session:
             lock(session, Team, team_id)  # serialises concurrent uploads of one team (quota)
@@ -278,7 +298,13 @@ def detail(session: Session, submission: Submission) -> SubmissionDetail:
             for family, values in (score.families if score is not None else {}).items()
         },
         failure_reasons={family: reasons[family] for family in sorted(reasons)},
+        training=_training(submission),
     )
+
+
+def _training(submission: Submission) -> TrainingProgress | None:
+    job = shown_training(submission)
+    return TrainingProgress.model_validate(job) if job is not None else None
 
 
 def logs(session: Session, submission: Submission, *, organiser: bool = False) -> SubmissionLogs:
@@ -320,10 +346,11 @@ def cancel(db: Database, queue: TaskQueue, submission_id: int) -> Submission:
     its running sandboxes (they see the cancelled run on their next lease heartbeat)."""
     with db.session() as session:
         submission = lock(session, Submission, submission_id)
-        if submission.status not in (S.received, S.queued, S.running):
+        if submission.status not in ACTIVE_SUBMISSION:
             raise Conflict(f"submission {submission_id} is {submission.status}; cannot cancel")
         submission.status = advance(submission.status, S.cancelled, SUBMISSION_MOVES)
         submission.finished_at = utcnow()
+        cancel_trainings(submission)
         unfinished: list[str] = []
         for run in submission.runs:
             if run.status in ACTIVE_RUN:
@@ -338,6 +365,7 @@ def disqualify(db: Database, queue: TaskQueue, submission_id: int, reason: str) 
         submission.status = advance(submission.status, S.disqualified, SUBMISSION_MOVES)
         submission.status_reason = reason
         submission.finished_at = submission.finished_at or utcnow()
+        cancel_trainings(submission)
         unfinished: list[str] = []
         for run in submission.runs:
             if run.status in ACTIVE_RUN:

@@ -100,7 +100,8 @@ const Arena = (() => {
       ? `episodes (${s.episodes_per_scenario} of each reactive scenario)` : "scenarios";
     $("progress-text").textContent =
       `${s.progress.done} / ${s.progress.total} ${unit}${left ? ` · ${left}` : ""}`;
-    $("cancel").hidden = !["received", "queued", "running"].includes(s.status);
+    $("cancel").hidden = !["received", "queued", "training", "running"].includes(s.status);
+    renderTraining(s.training, s.status);
     for (const metric of metrics) {
       $(`metric-${metric}`).textContent = s.metrics ? fmt(metric, s.metrics[metric]) : "–";
     }
@@ -124,6 +125,21 @@ const Arena = (() => {
       `<li><strong>${escape(family)}</strong>: ${Object.entries(reasons)
         .map(([r, n]) => `${escape(r)} × ${n}`).join(", ")}</li>`).join("")}</ul>`
       : `<p class="empty">None.</p>`;
+  }
+
+  function renderTraining(t, status) {
+    // Offline (Track 2) submissions train first; their training log is the team's to read.
+    $("training-box").hidden = !t;
+    if (!t) return;
+    $("training-box").open = status === "training" || t.status === "failed";
+    const when = t.status === "training" || t.status === "queued"
+      ? `${t.status} · ${Math.round(t.elapsed_s)} s elapsed`
+      : `${t.status} in ${Math.round(t.elapsed_s)} s`;
+    const failure = t.failure ? ` · ${t.failure}: ${t.error}` : "";
+    const model = t.model_sha256 ? ` · model sha256 ${t.model_sha256.slice(0, 12)}… ` +
+      `(${t.model_size} bytes)` : "";
+    $("training-text").textContent = `attempt ${t.attempt} · ${when}${failure}${model}`;
+    $("training-log").textContent = t.log_tail || "(no output yet)";
   }
 
   async function loadLogs(id, token) {

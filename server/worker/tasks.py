@@ -8,13 +8,16 @@ no-op.
 
 ``evaluate_submission`` fans out one ``run_scenario`` per episode of each scenario (several of
 each reactive scenario when the phase asks for them); the ``run_scenario`` that finishes the last
-one sends ``aggregate_run``, which scores the run from its stored records.
+one sends ``aggregate_run``, which scores the run from its stored records. An offline (Track 2)
+submission first goes through ``train_submission``, which runs its ``train.py`` in the sandbox,
+stores the trained output and then fans out the evaluation of that output.
 """
 
 from __future__ import annotations
 
 import logging
 import os
+import shutil
 import socket
 import threading
 import time
@@ -34,13 +37,19 @@ from celery.signals import (
 from sqlalchemy.exc import SQLAlchemyError
 
 from arena.config import get_settings
-from arena.errors import InfrastructureError
+from arena.errors import DatasetError, InfrastructureError
 from evaluator.runner.scenario import ScenarioOutcome
 from server.core.artifacts import ArtifactStore, artifact_store
-from server.core.celery_app import QUEUE, TASK_AGGREGATE, TASK_EVALUATE, TASK_SCENARIO
+from server.core.celery_app import (
+    QUEUE,
+    TASK_AGGREGATE,
+    TASK_EVALUATE,
+    TASK_SCENARIO,
+    TASK_TRAIN,
+)
 from server.core.db import get_database
 from server.core.queue import BROKER_ERRORS, TaskQueue
-from server.services import evaluation
+from server.services import evaluation, training
 
 log = logging.getLogger(__name__)
 
@@ -50,6 +59,10 @@ BOOKKEEPING_TIME_LIMIT_S = 300
 INFRASTRUCTURE_RETRIES = 2
 # Claims of one scenario (a worker dying mid-scenario releases its claim) before giving up.
 MAX_SCENARIO_ATTEMPTS = 3
+# A backstop only (the thread pool enforces no task time limit): the training's own budget,
+# ARENA_TRAIN_TIMEOUT_S, is enforced by evaluator.training.
+TRAIN_TIME_LIMIT_S = 24 * 3600
+MAX_TRAINING_CLAIMS = 3
 
 
 def arena_task(name: str, *, time_limit: int, **options: Any):
@@ -77,8 +90,85 @@ def _queue() -> TaskQueue:
 
 @arena_task(TASK_EVALUATE, time_limit=BOOKKEEPING_TIME_LIMIT_S)
 def evaluate_submission(*, submission_id: int) -> None:
+    settings = get_settings()
     with get_database().session() as session:
-        plan = evaluation.start_evaluation(session, get_settings(), submission_id)
+        # Offline submissions train first; the training's end starts their evaluation.
+        training_id = training.start_training(session, settings, submission_id)
+        plan = (
+            evaluation.start_evaluation(session, settings, submission_id)
+            if training_id is None
+            else None
+        )
+    if training_id is not None:
+        _queue().train(training_id)
+    if plan is not None:
+        _queue().send(plan)
+
+
+@arena_task(
+    TASK_TRAIN, time_limit=TRAIN_TIME_LIMIT_S, bind=True, max_retries=INFRASTRUCTURE_RETRIES
+)
+def train_submission(self, *, training_id: int) -> None:
+    from evaluator.training import TrainingStopped
+
+    settings = get_settings()
+    me = worker_name()
+    with get_database().session() as session:
+        claim = training.claim_training(session, settings, training_id, me)
+    if claim is None:
+        return
+    if claim.claim > MAX_TRAINING_CLAIMS:
+        detail = f"{claim.claim - 1} workers died training it; an organiser can retrain it"
+        _training_failed(claim, me, training.WORKER_LOST, detail, ours=True)
+        return
+    try:
+        result = _train(claim, me)
+    except TrainingStopped:
+        if _shutting_down.is_set():
+            _hand_back_training(claim, me)
+        return  # otherwise the claim was lost: cancelled, or another worker has it
+    except InfrastructureError as exc:
+        if self.request.retries < INFRASTRUCTURE_RETRIES:
+            with get_database().session() as session:
+                training.release(session, claim, me)
+            raise self.retry(exc=exc, countdown=10 * (self.request.retries + 1)) from exc
+        _training_failed(claim, me, type(exc).__name__, str(exc), ours=True)
+        return
+    except DatasetError as exc:
+        _training_failed(claim, me, "no_dataset", str(exc), ours=True)
+        return
+    except Exception:
+        # A bug on our side: recorded (an organiser can retrain) rather than re-sent forever.
+        log.exception("training %s crashed the task", training_id)
+        _training_failed(claim, me, "evaluator_error", traceback.format_exc(), ours=True)
+        return
+    tail = _tail(result.log)
+    if not result.ok:
+        shutil.rmtree(_training_output(claim).parent, ignore_errors=True)
+        with get_database().session() as session:
+            training.record_failed(
+                session,
+                claim,
+                me,
+                failure=str(result.failure),
+                error=result.detail,
+                elapsed_s=result.elapsed_s,
+                log_tail=tail,
+            )
+        return
+    key, sha256, size = _store_model(claim)
+    with get_database().session() as session:
+        plan = training.record_trained(
+            session,
+            settings,
+            claim,
+            me,
+            elapsed_s=result.elapsed_s,
+            log_tail=tail,
+            model_key=key,
+            model_sha256=sha256,
+            model_size=size,
+        )
     if plan is not None:
         _queue().send(plan)
 
@@ -134,6 +224,76 @@ def aggregate_run(*, run_id: int) -> None:
         evaluation.finish_run(session, _store(), run_id)
 
 
+def _training_output(claim: training.TrainingClaim) -> Path:
+    return _scratch() / "training" / str(claim.training_id) / f"claim-{claim.claim}"
+
+
+def _train(claim: training.TrainingClaim, worker: str):
+    """Run the submission's train.py; its progress renews the claim's lease, and a lost claim
+    or a stopping worker ends it (TrainingStopped)."""
+    from evaluator.runner import new_run_key
+    from evaluator.training import train
+
+    settings = get_settings()
+    if settings.train_dataset_dir is None:
+        raise DatasetError("the service has no training dataset (ARENA_TRAIN_DATASET_DIR)")
+    output = _training_output(claim)
+    shutil.rmtree(output.parent, ignore_errors=True)  # an earlier claim's leftovers on this worker
+
+    def progress(elapsed_s: float, log_text: str) -> bool:
+        if _shutting_down.is_set():
+            return False
+        try:
+            with get_database().session() as session:
+                return training.heartbeat(
+                    session, settings, claim, worker, elapsed_s, _tail(log_text)
+                )
+        except SQLAlchemyError as exc:
+            log.warning("training heartbeat of %s failed: %s", claim.training_id, exc)
+            return True
+
+    return train(
+        _prepared(claim.upload_key),
+        settings.train_dataset_dir,
+        output,
+        kind=_sandbox_kind(),
+        labels={"arena.training": f"t{claim.training_id}c{claim.claim}-{new_run_key()}"},
+        settings=settings,
+        on_progress=progress,
+        progress_every_s=min(max(settings.lease_seconds / 3, 0.5), 5.0),
+    )
+
+
+def _store_model(claim: training.TrainingClaim) -> tuple[str, str, int]:
+    """Pack the trained output into the artifact store: (key, sha256, size [bytes])."""
+    from evaluator.training import MODEL_ARCHIVE, pack_model
+
+    output = _training_output(claim)
+    archive = output.parent / MODEL_ARCHIVE
+    sha256 = pack_model(output, archive)
+    size = archive.stat().st_size
+    key = f"training/{claim.training_id}/claim-{claim.claim}/{MODEL_ARCHIVE}"
+    _store().put(key, archive)
+    shutil.rmtree(output.parent, ignore_errors=True)
+    return key, sha256, size
+
+
+def _training_failed(
+    claim: training.TrainingClaim, worker: str, failure: str, error: str, *, ours: bool
+) -> None:
+    with get_database().session() as session:
+        training.record_failed(session, claim, worker, failure=failure, error=error, ours=ours)
+
+
+def _hand_back_training(claim: training.TrainingClaim, worker: str) -> None:
+    """This worker is stopping: release the training and send it again for another worker."""
+    with get_database().session() as session:
+        released = training.release(session, claim, worker)
+    if released:
+        _queue().train(claim.training_id)
+        log.warning("handed training %s back", claim.training_id)
+
+
 def _hand_back(job: evaluation.ScenarioJob, worker: str) -> None:
     """This worker is stopping: the episode was cut short on purpose, so its outcome is not
     the agent's. Release the claim and send the scenario again for another worker."""
@@ -155,13 +315,18 @@ def _our_failure(job: evaluation.ScenarioJob, reason: str, error: str) -> Scenar
 
 
 def _simulate(job: evaluation.ScenarioJob, run_key: str) -> ScenarioOutcome:
+    import dataclasses
+
     from evaluator.runner import run_scenario as run_one
 
     # This worker's own scratch folder, one per claim: an episode whose claim was superseded
     # never touches the live one's files.
     records = _scratch() / "records" / str(job.run_id) / f"claim-{job.attempt}"
+    submission = _prepared(job.upload_key)
+    if job.model_key is not None:
+        submission = dataclasses.replace(submission, model_dir=_model(job.model_key))
     return run_one(
-        _prepared(job.upload_key),
+        submission,
         Path(job.scenario_dir),
         records,
         sandbox=_sandbox_kind(),
@@ -194,7 +359,10 @@ def _store() -> ArtifactStore:
 
 def _log_tail(job: evaluation.ScenarioJob, outcome: ScenarioOutcome) -> str:
     """The tail of the scenario's log the team may see: without the hidden scenario's id."""
-    text = outcome.log.replace(job.scenario_id, "<scenario>")
+    return _tail(outcome.log.replace(job.scenario_id, "<scenario>"))
+
+
+def _tail(text: str) -> str:
     tail_bytes = get_settings().agent_log_tail_bytes
     return text.encode()[-tail_bytes:].decode("utf-8", "replace")
 
@@ -217,6 +385,23 @@ def _prepare(upload_key: str):
     folder = _scratch() / "submissions" / Path(upload_key).parent.name
     zip_path = _store().fetch(upload_key, folder / "upload.zip")
     return prepare_submission(zip_path, folder / "prepared", get_settings())
+
+
+def _model(model_key: str) -> Path:
+    """The trained output, unpacked once per worker process (several threads may ask)."""
+    with _prepare_lock:
+        return _unpacked_model(model_key)
+
+
+@lru_cache(maxsize=4)
+def _unpacked_model(model_key: str) -> Path:
+    import hashlib
+
+    from evaluator.training import unpack_model
+
+    folder = _scratch() / "models" / hashlib.sha256(model_key.encode()).hexdigest()[:16]
+    archive = _store().fetch(model_key, folder / "model.tar.gz")
+    return unpack_model(archive, folder / "model")
 
 
 @lru_cache(maxsize=1)
@@ -301,11 +486,16 @@ def reap_once() -> evaluation.Reaped:
         queue.send(plan)
     for submission_id in reaped.submission_ids:
         queue.evaluate(submission_id)
-    if reaped.plans or reaped.submission_ids:
+    with get_database().session() as session:
+        trainings = training.reap(session, get_settings(), queue_empty=queue_empty)
+    for training_id in trainings:
+        queue.train(training_id)
+    if reaped.plans or reaped.submission_ids or trainings:
         log.warning(
-            "reaper re-sent %d run(s) and %d submission(s)",
+            "reaper re-sent %d run(s), %d submission(s) and %d training(s)",
             len(reaped.plans),
             len(reaped.submission_ids),
+            len(trainings),
         )
     return reaped
 

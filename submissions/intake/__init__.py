@@ -19,6 +19,7 @@ from submissions.intake.archive import Budget, check_members, extract, open_zip,
 from submissions.intake.contents import (
     REQUIREMENTS,
     check_policy,
+    check_train_script,
     load_explanation,
     load_interface,
     read_text,
@@ -41,6 +42,9 @@ class PreparedSubmission:
     size: int  # of the zip [bytes]
     explanation: str | None
     notes: tuple[str, ...] = ()  # porting help that does not reject (submissions.intake.porting)
+    trains: bool = False  # holds train.py (Track 2: trained in the sandbox before evaluation)
+    # The trained output its policy reads (ARENA_MODEL_DIR), once `train.py` has run.
+    model_dir: Path | None = None
 
 
 @dataclass(frozen=True)
@@ -51,6 +55,7 @@ class CheckedZip:
     sha256: str
     size: int
     notes: tuple[str, ...] = ()
+    trains: bool = False
 
 
 def check_zip(path: Path, settings: Settings | None = None) -> CheckedZip:
@@ -59,6 +64,7 @@ def check_zip(path: Path, settings: Settings | None = None) -> CheckedZip:
     with open_zip(path, settings) as archive:
         check_members(archive, Budget(settings), depth=0)
         check_policy(archive)
+        trains = check_train_script(archive)
         interface = load_interface(archive)
         explanation = load_explanation(archive)
         requirements = read_text(archive, REQUIREMENTS)
@@ -68,7 +74,13 @@ def check_zip(path: Path, settings: Settings | None = None) -> CheckedZip:
         while chunk := handle.read(1024**2):
             digest.update(chunk)
     return CheckedZip(
-        interface, explanation, requirements, digest.hexdigest(), path.stat().st_size, notes
+        interface,
+        explanation,
+        requirements,
+        digest.hexdigest(),
+        path.stat().st_size,
+        notes,
+        trains,
     )
 
 
@@ -107,4 +119,5 @@ def prepare_submission(
         size=checked.size,
         explanation=checked.explanation,
         notes=checked.notes,
+        trains=checked.trains,
     )

@@ -17,6 +17,7 @@ from sim.interface import AgentInterface
 from submissions.intake.archive import read_entry
 
 POLICY = "policy.py"
+TRAIN_SCRIPT = "train.py"
 AGENT_YAML = "agent.yaml"
 REQUIREMENTS = "requirements.txt"
 EXPLANATION = "explanation.md"
@@ -43,21 +44,37 @@ def check_policy(archive: zipfile.ZipFile) -> None:
         nested = [n for n in archive.namelist() if n.endswith(f"/{POLICY}")]
         hint = f"; found {nested[0]}: zip the folder's contents, not the folder" if nested else ""
         raise IntakeError(POLICY, "policy-missing", f"the zip has no {POLICY} at its root{hint}")
+    tree = parse_script(POLICY, source, "policy")
+    if not defines_policy(tree):
+        raise IntakeError(POLICY, "policy-class", "defines no top-level class Policy")
+
+
+def check_train_script(archive: zipfile.ZipFile) -> bool:
+    """True when the zip holds a ``train.py`` (Track 2) that compiles."""
+    source = read_text(archive, TRAIN_SCRIPT)
+    if source is None:
+        return False
+    parse_script(TRAIN_SCRIPT, source, "train")
+    return True
+
+
+def parse_script(name: str, source: str, rule: str) -> ast.Module:
+    """The syntax tree of a submission's script; its rules are ``<rule>-syntax`` and
+    ``<rule>-too-deep``."""
     try:
-        tree = compile(source, POLICY, "exec", flags=ast.PyCF_ONLY_AST, dont_inherit=True)
-        compile(tree, POLICY, "exec", dont_inherit=True)
+        tree = compile(source, name, "exec", flags=ast.PyCF_ONLY_AST, dont_inherit=True)
+        compile(tree, name, "exec", dont_inherit=True)
     except SyntaxError as error:
         where = f"line {error.lineno}" + (f", column {error.offset}" if error.offset else "")
-        raise IntakeError(POLICY, "policy-syntax", f"{error.msg} ({where})") from error
+        raise IntakeError(name, f"{rule}-syntax", f"{error.msg} ({where})") from error
     except ValueError as error:
-        raise IntakeError(POLICY, "policy-syntax", str(error)) from error
+        raise IntakeError(name, f"{rule}-syntax", str(error)) from error
     except (RecursionError, MemoryError) as error:
         # A deeply nested expression overflows the compiler's stack: not a program we can check.
         raise IntakeError(
-            POLICY, "policy-too-deep", f"nests expressions too deeply to compile ({error})"
+            name, f"{rule}-too-deep", f"nests expressions too deeply to compile ({error})"
         ) from error
-    if not defines_policy(tree):
-        raise IntakeError(POLICY, "policy-class", "defines no top-level class Policy")
+    return tree
 
 
 def defines_policy(tree: ast.Module) -> bool:

@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 
 from arena.cli import app
 from arena.suite import SHIPPED_PUBLIC_DIR
-from scenarios.dataset.build import DATASET_ID, MANIFEST
+from scenarios.dataset.build import DATASET_ID, MANIFEST, TRANSITIONS
 from scenarios.dataset.collect import collect
 from scenarios.dataset.features import ACTION_SIZE, OBS_SIZE, to_target_pose
 from scenarios.replay.builder import EXPERT_FILE
@@ -80,6 +80,17 @@ def test_dataset_loads_with_minari_and_leaves_out_hidden_scenes(tmp_path, scenes
         assert ep.truncations[-1] and not ep.truncations[:-1].any()
         assert not ep.terminations.any()  # the expert never crashes
         assert np.isfinite(ep.rewards).all() and ep.rewards.sum() > 0  # it makes progress
+    # The numpy export a sandboxed train.py reads holds the very same transitions.
+    flat = np.load(out / TRANSITIONS)
+    every = list(dataset.iterate_episodes())
+    np.testing.assert_array_equal(flat["actions"], np.concatenate([e.actions for e in every]))
+    np.testing.assert_array_equal(
+        flat["observations"], np.concatenate([e.observations[:-1] for e in every])
+    )
+    np.testing.assert_array_equal(
+        flat["next_observations"], np.concatenate([e.observations[1:] for e in every])
+    )
+    assert flat["episode"].max() == len(episodes) - 1
 
 
 def _scene_and_net(path, tmp_path):

@@ -81,6 +81,7 @@ def settings(tmp_path, database_url, broker_prefix, suite_dir) -> Settings:
         admin_token=ADMIN_TOKEN,
         daily_quota=3,
         lease_seconds=60,
+        train_dataset_dir=tmp_path / "dataset",
     )
 
 

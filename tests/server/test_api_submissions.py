@@ -16,9 +16,7 @@ from tests.server.builders import bearer, make_team, pack_example
 from tests.submissions.zips import bad_crc_zip
 
 
-def upload(
-    client, token, payload: bytes, *, track="freestyle", method="keep lane", phase="final"
-):
+def upload(client, token, payload: bytes, *, track="freestyle", method="keep lane", phase="final"):
     return client.post(
         "/api/v1/submissions",
         headers=bearer(token),
@@ -141,14 +139,15 @@ def test_a_team_never_sees_another_teams_submission(client, db, keep_lane_zip):
     assert client.get("/api/v1/submissions", headers=bearer(token_b)).json() == []
 
 
-def test_daily_quota_per_team_and_track(client, db, settings, keep_lane_zip):
+def test_daily_quota_per_team_and_track(client, db, settings, keep_lane_zip, tmp_path):
     _, token = make_team(db, "alpha")
     ids = [upload(client, token, keep_lane_zip).json()["id"] for _ in range(settings.daily_quota)]
     response = upload(client, token, keep_lane_zip)
     assert response.status_code == 429
     assert "quota" in response.json()["detail"]
     # Another track has its own quota.
-    assert upload(client, token, keep_lane_zip, track="offline").status_code == 201
+    offline_zip = pack_example("offline_bc", tmp_path).read_bytes()
+    assert upload(client, token, offline_zip, track="offline").status_code == 201
     # Cancelled before it started: does not count.
     assert (
         client.post(f"/api/v1/submissions/{ids[0]}/cancel", headers=bearer(token)).status_code
@@ -197,4 +196,44 @@ def test_upload_declared_over_the_cap_is_refused_before_reading(client, db, sett
     )
     assert response.status_code == 413
     assert "MiB" in response.json()["detail"]
+    assert count_submissions(db) == 0
+
+
+def test_an_offline_submission_without_train_py_is_refused_and_costs_nothing(
+    client, db, keep_lane_zip
+):
+    _, token = make_team(db, "alpha")
+    response = upload(client, token, keep_lane_zip, track="offline")
+    assert response.status_code == 422
+    assert "train.py" in response.json()["detail"] and "train-missing" in response.json()["detail"]
+    assert count_submissions(db) == 0
+
+
+def test_a_train_py_that_does_not_compile_is_named(client, db, keep_lane_zip):
+    _, token = make_team(db, "alpha")
+    with zipfile.ZipFile(io.BytesIO(keep_lane_zip)) as archive:
+        entries = {name: archive.read(name) for name in archive.namelist()}
+    response = upload(
+        client, token, zip_bytes({**entries, "train.py": b"def fit(:\n"}), track="offline"
+    )
+    assert response.status_code == 422
+    assert "train-syntax" in response.json()["detail"]
+
+
+def test_offline_uploads_are_refused_while_the_service_has_no_dataset(
+    client, db, settings, tmp_path
+):
+    from server.api.deps import get_settings_dep
+
+    _, token = make_team(db, "alpha")
+    no_dataset = settings.model_copy(update={"train_dataset_dir": None})
+    client.app.dependency_overrides[get_settings_dep] = lambda: no_dataset
+    try:
+        response = upload(
+            client, token, pack_example("offline_bc", tmp_path).read_bytes(), track="offline"
+        )
+    finally:
+        client.app.dependency_overrides.clear()
+    assert response.status_code == 422
+    assert "ARENA_TRAIN_DATASET_DIR" in response.json()["detail"]
     assert count_submissions(db) == 0

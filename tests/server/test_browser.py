@@ -101,3 +101,52 @@ def test_upload_through_the_form_and_read_the_result(embedded_settings, tmp_path
             browser.close()
     finally:
         stop(worker)
+
+
+def test_an_offline_submission_through_the_form_trains_then_ranks(embedded_settings, tmp_path):
+    """The Track 2 path a new user takes: the example offline submission uploaded with the
+    form, its training shown on its page, then its score, then the offline leaderboard."""
+    from playwright.sync_api import expect, sync_playwright
+
+    from arena.suite import SHIPPED_PUBLIC_DIR
+    from scenarios.dataset.build import TRANSITIONS, write_transitions
+    from scenarios.dataset.collect import collect
+
+    dataset = embedded_settings.data_dir.parent / "dataset"
+    dataset.mkdir()
+    write_transitions(dataset / TRANSITIONS, collect(SHIPPED_PUBLIC_DIR / "p030_replay_cruise"))
+    (dataset / TRANSITIONS).chmod(0o644)
+    settings = embedded_settings.model_copy(update={"train_dataset_dir": dataset})
+    db = Database(settings.resolved_database_url)
+    _, token = make_team(db, "offline-team")
+    db.dispose()
+    agent_zip = pack_example("offline_bc", tmp_path)
+    worker = start_worker(settings, tmp_path / "worker.log")
+    try:
+        with (
+            api_server(settings, tmp_path / "api.log") as (url, _),
+            sync_playwright() as playwright,
+        ):
+            browser = playwright.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+            page = browser.new_page()
+            page.goto(f"{url}/submit")
+            page.fill("#token", token)
+            page.select_option("#track", "offline")
+            page.fill("#method_name", "behaviour cloning")
+            page.set_input_files("#file", str(agent_zip))
+            page.click("#submit-button")
+            page.wait_for_url("**/submissions/*", timeout=60_000)
+            expect(page.locator("#training-box")).to_be_visible(timeout=60_000)
+            expect(page.locator("#status")).to_have_text("scored", timeout=240_000)
+            expect(page.locator("#training-text")).to_contain_text("trained in")
+            expect(page.locator("#training-text")).to_contain_text("model sha256")
+            page.locator("#training-box summary").click()
+            expect(page.locator("#training-log")).to_contain_text("saved weights.npz")
+
+            page.goto(f"{url}/?track=offline")
+            row = page.locator("#leaderboard tr.entry").first
+            expect(row.locator(".method")).to_have_text("behaviour cloning", timeout=10_000)
+            expect(row.locator(".team")).to_have_text("offline-team")
+            browser.close()
+    finally:
+        stop(worker)

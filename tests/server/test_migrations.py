@@ -72,7 +72,7 @@ def test_old_scenario_statuses_move_to_the_core_vocabulary(tmp_path):
 
 
 def test_episodes_migration_keeps_runs_and_results_and_goes_back(tmp_path):
-    """Migration 0008_episodes_per_scenario: a run's scenario count becomes its episode count,
+    """Migration 0008: a run's scenario count becomes its episode count,
     every existing result is episode 0, old scores have no interval; the downgrade keeps first
     episodes only."""
     from alembic import command

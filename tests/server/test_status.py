@@ -10,9 +10,11 @@ import pytest
 from server.status import (
     RUN_MOVES,
     SUBMISSION_MOVES,
+    TRAINING_MOVES,
     IllegalTransition,
     RunStatus,
     SubmissionStatus,
+    TrainingStatus,
     advance,
 )
 
@@ -21,12 +23,15 @@ S = SubmissionStatus
 STAGE = {
     S.received: 0,
     S.queued: 1,
-    S.running: 2,
-    S.scored: 3,
-    S.failed: 3,
-    S.cancelled: 3,
-    S.disqualified: 4,
+    S.training: 2,  # offline submissions only
+    S.running: 3,
+    S.scored: 4,
+    S.failed: 4,
+    S.cancelled: 4,
+    S.disqualified: 5,
 }
+T = TrainingStatus
+TRAINING_STAGE = {T.queued: 0, T.training: 1, T.trained: 2, T.failed: 2, T.cancelled: 2}
 
 
 @pytest.mark.parametrize("current,new", list(itertools.product(SubmissionStatus, repeat=2)))
@@ -37,6 +42,16 @@ def test_submission_moves(current, new):
     else:
         with pytest.raises(IllegalTransition):
             advance(current, new, SUBMISSION_MOVES)
+
+
+@pytest.mark.parametrize("current,new", list(itertools.product(TrainingStatus, repeat=2)))
+def test_training_moves(current, new):
+    if new in TRAINING_MOVES[current]:
+        assert advance(current, new, TRAINING_MOVES) == new
+        assert TRAINING_STAGE[new] > TRAINING_STAGE[current]
+    else:
+        with pytest.raises(IllegalTransition):
+            advance(current, new, TRAINING_MOVES)
 
 
 @pytest.mark.parametrize("current,new", list(itertools.product(RunStatus, repeat=2)))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Body, Query
+from fastapi import APIRouter, Body, Query, Response
 from starlette.concurrency import run_in_threadpool
 
 from server.api.contract import errors
@@ -75,6 +75,34 @@ def rerun(
     submission_id: SubmissionId, db: DatabaseDep, settings: SettingsDep, queue: QueueDep
 ) -> dict[str, int]:
     return {"attempt": admin.rerun(db, settings, queue, submission_id)}
+
+
+@router.post("/submissions/{submission_id}/retrain")
+def retrain(
+    submission_id: SubmissionId, db: DatabaseDep, settings: SettingsDep, queue: QueueDep
+) -> dict[str, int]:
+    return {"attempt": admin.retrain(db, settings, queue, submission_id)}
+
+
+@router.get(
+    "/submissions/{submission_id}/model",
+    response_class=Response,
+    responses={200: {"content": {"application/gzip": {}}}},
+)
+def trained_model(submission_id: SubmissionId, db: DatabaseDep, settings: SettingsDep) -> Response:
+    """The trained output of an offline submission, for audit: the ``.tar.gz`` whose sha256 the
+    service stored (also in the ``X-Model-Sha256`` header)."""
+    from server.core.artifacts import artifact_store
+
+    model = admin.trained_model(db, submission_id)
+    return Response(
+        artifact_store(settings, db).read(model.key),
+        media_type="application/gzip",
+        headers={
+            "Content-Disposition": f'attachment; filename="{model.file_name}"',
+            "X-Model-Sha256": model.sha256,
+        },
+    )
 
 
 @router.post("/submissions/{submission_id}/rescore")

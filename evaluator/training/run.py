@@ -1,0 +1,186 @@
+"""One Track 2 training run: the submission's ``train.py`` in the sandbox, its end named.
+
+The sandbox is the evaluation's (same backend, memory and CPU limits, no network) with the dataset
+mounted read-only and the output folder writable. Here, on the host, the wall-time budget and the
+output's size cap are watched while it runs, and its end is turned into a :class:`TrainingResult`
+whose ``failure`` is None or one named reason. ``on_progress`` is how a caller sees the elapsed
+time and the log tail, and how it stops a run (its worker is shutting down, its claim was lost).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from enum import StrEnum
+from pathlib import Path
+
+from arena.config import SandboxKind, Settings, get_settings
+from arena.errors import DatasetError, IntakeError
+from evaluator.sandbox.backend import TRAIN_SCRIPT, ExitStatus
+from evaluator.training.model import output_bytes, regular_files
+
+# How often the run is looked at (exit, budget, output size) [s].
+POLL_S = 0.25
+# The sandbox user owns the output folder it writes (Docker and bubblewrap run as nobody).
+SANDBOX_UID = 65534
+
+
+class TrainFailure(StrEnum):
+    train_error = "train_error"  # train.py raised or exited non-zero
+    train_timeout = "train_timeout"  # ran past ARENA_TRAIN_TIMEOUT_S
+    train_memory_limit = "train_memory_limit"  # killed for, or failed on, its memory limit
+    train_output_too_large = "train_output_too_large"  # output past ARENA_TRAIN_OUTPUT_BYTES
+    no_model_produced = "no_model_produced"  # exited 0 with no file in the output folder
+
+
+@dataclass(frozen=True)
+class TrainingResult:
+    failure: TrainFailure | None
+    detail: str  # why it failed, for the team ("" when it succeeded)
+    log: str  # the tail of train.py's output (stdout and stderr)
+    elapsed_s: float
+    output_bytes: int
+
+    @property
+    def ok(self) -> bool:
+        return self.failure is None
+
+
+class TrainingStopped(Exception):
+    """The caller's ``on_progress`` asked to stop: the sandbox was killed, nothing is judged."""
+
+
+Progress = Callable[[float, str], bool]
+
+
+def train(
+    submission,
+    dataset: Path,
+    output: Path,
+    *,
+    kind: SandboxKind | str | None = None,
+    labels: dict[str, str] | None = None,
+    settings: Settings | None = None,
+    on_progress: Progress | None = None,
+    progress_every_s: float = 2.0,
+) -> TrainingResult:
+    """Run ``submission``'s (a PreparedSubmission) ``train.py`` into the empty folder ``output``.
+
+    ``on_progress(elapsed_s, log_tail)`` is called every ``progress_every_s``; returning False
+    kills the run and raises :class:`TrainingStopped`. Raises
+    :class:`~arena.errors.SandboxUnavailable` when the sandbox cannot start (ours, retried).
+    """
+    from evaluator import sandbox
+
+    settings = settings or get_settings()
+    if not submission.trains:
+        raise IntakeError(TRAIN_SCRIPT, "train-missing", "the submission has no train.py to run")
+    dataset = Path(dataset)
+    if not dataset.is_dir():
+        raise DatasetError(
+            f"the training dataset {dataset} is not a folder (build one with `arena dataset "
+            "build --out DIR`)"
+        )
+    _writable_output(Path(output))
+    cap = settings.train_output_bytes
+    started = time.monotonic()
+    box = sandbox.start_training(
+        submission, dataset, output, kind=kind, labels=labels, settings=settings
+    )
+    next_report = started + progress_every_s
+    try:
+        while (status := box.exit_status(POLL_S)) is None:
+            now = time.monotonic()
+            elapsed = now - started
+            if elapsed > settings.train_timeout_s:
+                return _ended(
+                    box,
+                    output,
+                    started,
+                    TrainFailure.train_timeout,
+                    f"training ran past its budget of {settings.train_timeout_s:g} s",
+                )
+            if output_bytes(output) > cap:
+                return _ended(
+                    box,
+                    output,
+                    started,
+                    TrainFailure.train_output_too_large,
+                    f"the output folder grew past its cap of {cap} bytes",
+                )
+            if on_progress is not None and now >= next_report:
+                next_report = now + progress_every_s
+                if not on_progress(elapsed, box.logs()):
+                    box.kill()
+                    raise TrainingStopped
+        box.kill()
+        return _judged(status, box.logs(), output, time.monotonic() - started, cap)
+    finally:
+        box.kill()
+
+
+def _writable_output(output: Path) -> None:
+    output.mkdir(parents=True, exist_ok=True)
+    if any(output.iterdir()):
+        raise DatasetError(f"the output folder {output} is not empty")
+    if os.geteuid() == 0:
+        os.chown(output, SANDBOX_UID, SANDBOX_UID)
+    else:
+        output.chmod(0o777)  # the sandbox user is not us
+
+
+def _ended(box, output: Path, started: float, failure: TrainFailure, detail: str):
+    box.kill()
+    return TrainingResult(
+        failure, detail, box.logs(), time.monotonic() - started, output_bytes(output)
+    )
+
+
+def _judged(
+    status: ExitStatus, log: str, output: Path, elapsed_s: float, cap: int
+) -> TrainingResult:
+    size = output_bytes(output)
+
+    def result(failure: TrainFailure | None, detail: str = "") -> TrainingResult:
+        return TrainingResult(failure, detail, log, elapsed_s, size)
+
+    if status.oom_killed or (status.code != 0 and _ran_out_of_memory(log)):
+        return result(
+            TrainFailure.train_memory_limit,
+            "train.py " + status.describe()
+            if status.oom_killed
+            else "train.py ran out of memory (MemoryError)",
+        )
+    if status.code != 0:
+        if _file_too_large(status, log):
+            return result(
+                TrainFailure.train_output_too_large,
+                f"train.py wrote a file past the output cap of {cap} bytes",
+            )
+        return result(TrainFailure.train_error, f"train.py {status.describe()}")
+    if size > cap:
+        return result(
+            TrainFailure.train_output_too_large,
+            f"the output folder holds {size} bytes, past its cap of {cap}",
+        )
+    if not regular_files(output):
+        return result(
+            TrainFailure.no_model_produced,
+            "train.py finished but wrote no file into the output folder (ARENA_MODEL_DIR)",
+        )
+    return result(None)
+
+
+def _ran_out_of_memory(log: str) -> bool:
+    lines = [line for line in log.strip().splitlines() if line.strip()]
+    return bool(lines) and lines[-1].startswith("MemoryError")
+
+
+def _file_too_large(status: ExitStatus, log: str) -> bool:
+    """SIGXFSZ, or Python's own error when it ignores the signal (EFBIG)."""
+    import signal
+
+    killed = status.code is not None and signal.SIGXFSZ in (-status.code, status.code - 128)
+    return killed or "File too large" in log

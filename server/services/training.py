@@ -1,0 +1,282 @@
+"""Training jobs of offline (Track 2) submissions, as database transitions (like
+:mod:`server.services.evaluation`, whose claim, lease and fence they follow).
+
+An offline submission goes ``queued -> training -> running``: :func:`start_training` makes its
+first job; a worker claims it (:func:`claim_training`), renews the lease with the progress the
+team sees (:func:`heartbeat`) and records the end (:func:`record_trained`, which creates the
+evaluation run of the trained output, or :func:`record_failed`). A worker that dies stops
+renewing its lease and :func:`reap` hands the job to another, which trains again from scratch.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from sqlalchemy import func, select, update
+from sqlalchemy.orm import Session
+
+from arena.config import Settings
+from server.core.queue import RunPlan
+from server.models import Submission, TrainingJob
+from server.models import utcnow as now
+from server.services.errors import Conflict
+from server.services.evaluation import create_run, lease_until, lock
+from server.status import (
+    ACTIVE_RUN,
+    ACTIVE_TRAINING,
+    SUBMISSION_MOVES,
+    TRAINING_MOVES,
+    SubmissionStatus,
+    TrainingStatus,
+    advance,
+)
+from server.tracks import Track
+
+S = SubmissionStatus
+T = TrainingStatus
+# The failure a job gets when every worker that took it died.
+WORKER_LOST = "worker_lost"
+
+
+@dataclass(frozen=True)
+class TrainingClaim:
+    """What a worker needs to train one submission."""
+
+    training_id: int
+    submission_id: int
+    upload_key: str  # the submission's zip in the artifact store
+    claim: int  # 1 for the first claim; more after workers died holding it: the fence token
+
+
+def _new_job(session: Session, settings: Settings, submission: Submission) -> TrainingJob:
+    attempt = 1 + (
+        session.scalar(
+            select(func.max(TrainingJob.attempt)).where(TrainingJob.submission_id == submission.id)
+        )
+        or 0
+    )
+    job = TrainingJob(
+        submission_id=submission.id,
+        attempt=attempt,
+        status=T.queued,
+        claims=0,
+        elapsed_s=0.0,
+        log_tail="",
+        failure="",
+        error="",
+        model_sha256="",
+        model_size=0,
+        lease_expires_at=lease_until(settings),
+    )
+    session.add(job)
+    session.flush()
+    return job
+
+
+def start_training(session: Session, settings: Settings, submission_id: int) -> int | None:
+    """The first training job of a queued offline submission; None for a freestyle one or one
+    no longer queued (a duplicate delivery)."""
+    submission = lock(session, Submission, submission_id)
+    if submission.track != Track.offline or submission.status != S.queued:
+        return None
+    submission.status = advance(submission.status, S.training, SUBMISSION_MOVES)
+    submission.started_at = now()
+    return _new_job(session, settings, submission).id
+
+
+def retrain(session: Session, settings: Settings, submission_id: int) -> TrainingJob:
+    """A new training attempt, from scratch, of a scored or failed offline submission; its score
+    stands until the new attempt's evaluation is scored."""
+    submission = lock(session, Submission, submission_id)
+    if submission.track != Track.offline:
+        raise Conflict(f"submission {submission_id} is {submission.track}: it has no training")
+    if submission.status not in (S.scored, S.failed):
+        raise Conflict(
+            f"submission {submission_id} is {submission.status}: only scored or failed "
+            "submissions can be retrained"
+        )
+    busy = [j for j in submission.trainings if j.status in ACTIVE_TRAINING]
+    if busy or any(run.status in ACTIVE_RUN for run in submission.runs):
+        raise Conflict(f"submission {submission_id} already has a training or evaluation running")
+    return _new_job(session, settings, submission)
+
+
+def latest_trained(submission: Submission) -> TrainingJob | None:
+    trained = [job for job in submission.trainings if job.status == T.trained]
+    return trained[-1] if trained else None
+
+
+def shown_training(submission: Submission) -> TrainingJob | None:
+    """The job whose progress is shown: the latest attempt."""
+    return submission.trainings[-1] if submission.trainings else None
+
+
+def claim_training(
+    session: Session, settings: Settings, training_id: int, worker: str
+) -> TrainingClaim | None:
+    """Mark a job as trained by ``worker``; None if it is over or held by a live lease."""
+    job = lock(session, TrainingJob, training_id)
+    if job.status not in ACTIVE_TRAINING:
+        return None
+    if job.worker and job.lease_expires_at is not None and job.lease_expires_at > now():
+        return None
+    if job.status == T.queued:
+        job.status = advance(job.status, T.training, TRAINING_MOVES)
+        job.started_at = now()
+    job.worker = worker
+    job.claims += 1
+    job.lease_expires_at = lease_until(settings)
+    return TrainingClaim(
+        training_id=job.id,
+        submission_id=job.submission_id,
+        upload_key=job.submission.upload_key,
+        claim=job.claims,
+    )
+
+
+def _fence(claim: TrainingClaim, worker: str) -> tuple:
+    """``worker``'s claim number ``claim.claim``: a superseded training never writes."""
+    return (
+        TrainingJob.id == claim.training_id,
+        TrainingJob.status == T.training,
+        TrainingJob.worker == worker,
+        TrainingJob.claims == claim.claim,
+    )
+
+
+def heartbeat(
+    session: Session,
+    settings: Settings,
+    claim: TrainingClaim,
+    worker: str,
+    elapsed_s: float,
+    log_tail: str,
+) -> bool:
+    """Extend the lease and show the progress; False when the claim is no longer ``worker``'s
+    (cancelled, or handed to another worker): the training must stop."""
+    updated = session.execute(
+        update(TrainingJob)
+        .where(*_fence(claim, worker))
+        .values(lease_expires_at=lease_until(settings), elapsed_s=elapsed_s, log_tail=log_tail)
+    )
+    return updated.rowcount == 1
+
+
+def release(session: Session, claim: TrainingClaim, worker: str) -> bool:
+    """Hand the job back (its worker is stopping, or retries later): any worker may claim it."""
+    released = session.execute(
+        update(TrainingJob).where(*_fence(claim, worker)).values(worker="", lease_expires_at=None)
+    )
+    return released.rowcount == 1
+
+
+def _finish(session: Session, claim: TrainingClaim, worker: str) -> TrainingJob | None:
+    job = lock(session, TrainingJob, claim.training_id)
+    if (job.status, job.worker, job.claims) != (T.training, worker, claim.claim):
+        return None  # a duplicate delivery, or a superseded claim: the result is not ours
+    job.worker = ""
+    job.lease_expires_at = None
+    job.finished_at = now()
+    return job
+
+
+def record_trained(
+    session: Session,
+    settings: Settings,
+    claim: TrainingClaim,
+    worker: str,
+    *,
+    elapsed_s: float,
+    log_tail: str,
+    model_key: str,
+    model_sha256: str,
+    model_size: int,
+) -> RunPlan | None:
+    """Store the trained output and start its evaluation; returns the run's scenario tasks, or
+    None if the claim was superseded or the submission was cancelled meanwhile."""
+    job = _finish(session, claim, worker)
+    if job is None:
+        return None
+    job.status = advance(job.status, T.trained, TRAINING_MOVES)
+    job.elapsed_s, job.log_tail = elapsed_s, log_tail
+    job.model_key, job.model_sha256, job.model_size = model_key, model_sha256, model_size
+    submission = lock(session, Submission, claim.submission_id)
+    if submission.status == S.training:
+        submission.status = advance(submission.status, S.running, SUBMISSION_MOVES)
+    elif submission.status not in (S.scored, S.failed):  # cancelled or disqualified
+        return None
+    return create_run(session, settings, submission, training=job)
+
+
+def record_failed(
+    session: Session,
+    claim: TrainingClaim,
+    worker: str,
+    *,
+    failure: str,
+    error: str,
+    elapsed_s: float = 0.0,
+    log_tail: str = "",
+    ours: bool = False,
+) -> bool:
+    """A training that ended without a model: the named ``failure`` (the team's, charged) or,
+    with ``ours``, a failure on our side (not charged). False if the claim was superseded."""
+    job = _finish(session, claim, worker)
+    if job is None:
+        return False
+    job.status = advance(job.status, T.failed, TRAINING_MOVES)
+    job.failure, job.error = failure, error
+    job.elapsed_s, job.log_tail = elapsed_s, log_tail
+    submission = lock(session, Submission, claim.submission_id)
+    if submission.status == S.training:
+        submission.status = advance(submission.status, S.failed, SUBMISSION_MOVES)
+        submission.status_reason = f"{failure}: {error}"
+        submission.failed_on_our_side = ours
+        submission.finished_at = now()
+    return True
+
+
+def cancel_trainings(submission: Submission) -> None:
+    """Cancel the submission's active training: its worker sees it on the next heartbeat and
+    kills the sandbox."""
+    for job in submission.trainings:
+        if job.status in ACTIVE_TRAINING:
+            job.status = advance(job.status, T.cancelled, TRAINING_MOVES)
+            job.worker = ""
+            job.lease_expires_at = None
+            job.finished_at = now()
+
+
+def reap(session: Session, settings: Settings, *, queue_empty: bool) -> tuple[int, ...]:
+    """Jobs to send again: those whose worker stopped renewing the lease (released at once),
+    and, when the queue is empty, those whose task was lost before any worker held them."""
+    moment = now()
+    resend: list[int] = []
+    stale = session.scalars(
+        select(TrainingJob)
+        .where(
+            TrainingJob.status == T.training,
+            TrainingJob.worker != "",
+            TrainingJob.lease_expires_at < moment,
+        )
+        .with_for_update()
+    )
+    for job in stale:
+        job.worker = ""
+        job.lease_expires_at = None
+        resend.append(job.id)
+    if queue_empty:
+        idle = session.scalars(
+            select(TrainingJob)
+            .where(
+                TrainingJob.status.in_(list(ACTIVE_TRAINING)),
+                TrainingJob.worker == "",
+                TrainingJob.id.not_in(resend),
+            )
+            .with_for_update()
+        )
+        for job in idle:
+            if job.lease_expires_at is None or job.lease_expires_at < moment:
+                job.lease_expires_at = lease_until(settings)
+                resend.append(job.id)
+    return tuple(resend)

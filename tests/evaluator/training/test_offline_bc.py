@@ -1,0 +1,79 @@
+"""The offline_bc example: trained in the sandbox on a tiny dataset of real replays, then
+evaluated with its trained output exactly as `arena train` + `arena evaluate --model` do."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from arena.config import SandboxKind, Settings
+from arena.suite import SHIPPED_PUBLIC_DIR
+from evaluator.runner import evaluate
+from evaluator.training import train
+from scenarios.dataset.build import TRANSITIONS, write_transitions
+from scenarios.dataset.collect import collect
+from submissions.intake import prepare_submission
+from tests.evaluator.sandbox.conftest import usable
+from tests.server.builders import EXAMPLES
+
+EXAMPLE = EXAMPLES / "offline_bc"
+REPLAY = "p033_replay_merge_2agents"
+SCENARIO = "p016_cruise_2lane_low"
+
+
+def test_its_features_are_the_datasets():
+    """A copy (the sandbox cannot import the project), kept identical."""
+    shipped = (EXAMPLE / "features.py").read_text()
+    assert shipped == (EXAMPLE.parents[2] / "scenarios" / "dataset" / "features.py").read_text()
+
+
+@pytest.fixture
+def dataset(tmp_path) -> Path:
+    folder = tmp_path / "dataset"
+    folder.mkdir()
+    write_transitions(folder / TRANSITIONS, collect(SHIPPED_PUBLIC_DIR / REPLAY))
+    return folder
+
+
+@pytest.mark.bwrap
+def test_it_trains_in_the_sandbox_and_drives_with_its_model(tmp_path, dataset):
+    tmp_path.chmod(0o755)  # the sandbox user enters the submission, dataset and model
+    settings = Settings(_env_file=None, data_dir=tmp_path / "data", train_timeout_s=120)
+    kind = usable(SandboxKind.bubblewrap, settings)
+    submission = prepare_submission(EXAMPLE, tmp_path / "submission", settings)
+    assert submission.trains
+    result = train(submission, dataset, tmp_path / "model", kind=kind, settings=settings)
+    assert result.ok, result.log
+    assert "saved weights.npz" in result.log
+    weights = np.load(tmp_path / "model" / "weights.npz")
+    assert weights["w0"].shape[0] == weights["x_mean"].shape[0]
+
+    summary = evaluate(
+        EXAMPLE,
+        SHIPPED_PUBLIC_DIR,
+        out_dir=tmp_path / "results",
+        scenario_ids=[SCENARIO],
+        sandbox=kind,
+        model_dir=tmp_path / "model",
+    )
+    (entry,) = summary.scenarios
+    assert entry.status == "done"
+    (agent,) = entry.agents
+    assert agent.steps > 10  # it drove with its model (no start-up failure)
+    assert agent.reason not in {"agent_error", "init_timeout", "agent_exited"}
+
+
+def test_evaluate_refuses_a_missing_model(tmp_path):
+    from evaluator.runner.evaluate import ResultsDirError
+
+    with pytest.raises(ResultsDirError, match="arena train"):
+        evaluate(
+            EXAMPLE,
+            SHIPPED_PUBLIC_DIR,
+            out_dir=tmp_path / "results",
+            scenario_ids=[SCENARIO],
+            sandbox=SandboxKind.process,
+            model_dir=tmp_path / "nowhere",
+        )

@@ -1,0 +1,147 @@
+"""Training runs in real sandboxes: each named failure from a small hostile train.py, and a
+good run whose output is packed and mounted read-only for its policy."""
+
+from __future__ import annotations
+
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from arena.config import SandboxKind, Settings
+from arena.errors import DatasetError
+from evaluator.training import TrainFailure, TrainingStopped, pack_model, train, unpack_model
+from submissions.intake import prepare_submission
+from tests.evaluator.sandbox.agents import policy_source
+from tests.evaluator.sandbox.conftest import ALL_KINDS, ISOLATING, usable
+
+# Reads the dataset, writes a model and a checkpoint folder: what a real train.py does.
+GOOD = """
+import os, pathlib
+import numpy as np
+data = np.load(pathlib.Path(os.environ["ARENA_DATASET_DIR"]) / "transitions.npz")
+out = pathlib.Path(os.environ["ARENA_MODEL_DIR"])
+print("rows", len(data["actions"]), flush=True)
+(out / "ckpt").mkdir()
+np.save(out / "ckpt" / "mean.npy", data["actions"].mean(axis=0))
+(out / "weights.txt").write_text("ok")
+"""
+
+
+@pytest.fixture(scope="module")
+def settings(tmp_path_factory: pytest.TempPathFactory) -> Settings:
+    return Settings(
+        data_dir=tmp_path_factory.mktemp("data"),
+        train_timeout_s=20.0,
+        train_output_bytes=2 * 1024**2,
+        agent_memory_bytes=512 * 1024**2,
+    )
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    folder = tmp_path_factory.mktemp("dataset")
+    folder.chmod(0o755)
+    rng = np.random.default_rng(0)
+    np.savez(folder / "transitions.npz", actions=rng.normal(size=(50, 3)).astype(np.float32))
+    (folder / "transitions.npz").chmod(0o644)
+    return folder
+
+
+def trainer(root: Path, settings: Settings, script: str):
+    folder = root / "src"
+    folder.mkdir(parents=True)
+    (folder / "policy.py").write_text(policy_source())
+    (folder / "train.py").write_text(textwrap.dedent(script))
+    root.chmod(0o755)
+    return prepare_submission(folder, root / "submission", settings)
+
+
+def run(tmp_path, settings, dataset, kind, script, **options):
+    submission = trainer(tmp_path, settings, script)
+    return train(
+        submission, dataset, tmp_path / "out", kind=kind, settings=settings, **options
+    ), tmp_path / "out"
+
+
+@pytest.fixture(params=ALL_KINDS)
+def any_kind(request, settings) -> SandboxKind:
+    return usable(request.param, settings)
+
+
+@pytest.fixture(params=ISOLATING)
+def kind(request, settings) -> SandboxKind:
+    return usable(request.param, settings)
+
+
+def test_a_good_run_reads_the_dataset_and_its_output_packs(tmp_path, settings, dataset, any_kind):
+    result, out = run(tmp_path, settings, dataset, any_kind, GOOD)
+    assert result.ok, result
+    assert "rows 50" in result.log
+    assert (out / "weights.txt").read_text() == "ok"
+    sha = pack_model(out, tmp_path / "model.tar.gz")
+    assert sha == pack_model(out, tmp_path / "again.tar.gz")  # deterministic: names the model
+    back = unpack_model(tmp_path / "model.tar.gz", tmp_path / "back")
+    assert np.load(back / "ckpt" / "mean.npy").shape == (3,)
+
+
+HOSTILE = {
+    TrainFailure.train_error: ("raise RuntimeError('diverged at epoch 3')", "diverged at epoch 3"),
+    TrainFailure.train_timeout: ("import time\nprint('epoch 1', flush=True)\ntime.sleep(60)", ""),
+    TrainFailure.train_memory_limit: ("blocks = [bytearray(64 * 2**20) for _ in range(64)]", ""),
+    TrainFailure.train_output_too_large: (
+        "import os\nwith open(os.environ['ARENA_MODEL_DIR'] + '/big', 'wb') as f:\n"
+        "    [f.write(b'x' * 2**20) for _ in range(8)]",
+        "",
+    ),
+    TrainFailure.no_model_produced: ("print('trained, but saved nothing')", ""),
+}
+
+
+@pytest.mark.parametrize("failure", list(HOSTILE), ids=str)
+def test_each_failure_has_its_name(tmp_path, settings, dataset, kind, failure):
+    script, shown = HOSTILE[failure]
+    fast = settings.model_copy(update={"train_timeout_s": 3.0})
+    result, _ = run(tmp_path, fast, dataset, kind, script)
+    assert result.failure == failure, result
+    assert shown in result.log
+    if failure is TrainFailure.train_error:
+        assert "Traceback" in result.log  # the team sees where it failed
+    if failure is TrainFailure.train_timeout:
+        assert "epoch 1" in result.log and result.elapsed_s < 15
+
+
+def test_many_small_files_past_the_cap_are_stopped(tmp_path, settings, dataset, kind):
+    script = """
+    import os, time
+    for i in range(40):
+        with open(f"{os.environ['ARENA_MODEL_DIR']}/part{i}", "wb") as f:
+            f.write(b"x" * 2**20)
+        time.sleep(0.05)
+    time.sleep(30)
+    """
+    result, _ = run(tmp_path, settings, dataset, kind, script)
+    assert result.failure is TrainFailure.train_output_too_large
+    assert result.elapsed_s < 15  # stopped while running, not at the budget
+
+
+def test_the_caller_can_stop_a_run(tmp_path, settings, dataset, kind):
+    seen = []
+
+    def progress(elapsed: float, log: str) -> bool:
+        seen.append(log)
+        return "epoch 2" not in log
+
+    script = (
+        "import time\nfor i in range(100):\n    print('epoch', i, flush=True)\n    time.sleep(0.3)"
+    )
+    with pytest.raises(TrainingStopped):
+        run(tmp_path, settings, dataset, kind, script, on_progress=progress, progress_every_s=0.5)
+    assert "epoch 0" in seen[0]
+
+
+def test_a_missing_dataset_is_named(tmp_path, settings):
+    submission = trainer(tmp_path, settings, GOOD)
+    with pytest.raises(DatasetError, match="arena dataset build"):
+        train(submission, tmp_path / "nowhere", tmp_path / "out", settings=settings)

@@ -1,0 +1,212 @@
+"""Track 2 end to end with real processes: an offline submission uploaded over HTTP trains in
+the bubblewrap sandbox on a dataset of real replays, is evaluated with its trained output and
+ranked on the offline leaderboard; a training past its budget fails with its name; a worker
+killed while training loses nothing."""
+
+from __future__ import annotations
+
+import hashlib
+import shutil
+import signal
+import subprocess
+import time
+import uuid
+from pathlib import Path
+
+import httpx
+import pytest
+from sqlalchemy import select
+
+from arena.config import Settings
+from arena.suite import SHIPPED_PUBLIC_DIR
+from server.core.db import Database
+from server.core.migrate import upgrade_database
+from server.models import EvaluationRun, TrainingJob
+from submissions.intake import pack_folder
+from tests.server.builders import EXAMPLES, bearer, make_team
+from tests.server.conftest import ADMIN_TOKEN, REDIS_URL, _create_pg_database, _drop_pg_database
+from tests.server.live import api_server, stop
+from tests.server.service_stack import (
+    SCENARIOS,
+    build_small_suite,
+    shared_dir,
+    start_worker,
+    wait_finished,
+)
+
+pytestmark = [pytest.mark.slow, pytest.mark.bwrap]
+
+# A recorded replay of the public set: two vehicles, a few hundred real transitions.
+DATASET_SCENARIO = "p033_replay_merge_2agents"
+
+
+@pytest.fixture(scope="module")
+def suite(tmp_path_factory):
+    root = shared_dir("arena-train-suite-")
+    yield build_small_suite(root)
+    subprocess.run(["rm", "-rf", str(root)], check=False)
+
+
+@pytest.fixture(scope="module")
+def dataset():
+    """A tiny dataset as `arena dataset build` writes it (its numpy export), from one replay."""
+    from scenarios.dataset.build import TRANSITIONS, write_transitions
+    from scenarios.dataset.collect import collect
+
+    root = shared_dir("arena-train-dataset-")
+    write_transitions(root / TRANSITIONS, collect(SHIPPED_PUBLIC_DIR / DATASET_SCENARIO))
+    (root / TRANSITIONS).chmod(0o644)
+    yield root
+    shutil.rmtree(root, ignore_errors=True)
+
+
+@pytest.fixture
+def stack_settings(suite, dataset, broker_prefix):
+    name, url = _create_pg_database()
+    upgrade_database(url)
+    data = shared_dir("arena-train-data-")
+    yield Settings(
+        _env_file=None,
+        data_dir=data,
+        database_url=url,
+        broker_url=REDIS_URL,
+        broker_key_prefix=f"{broker_prefix}{uuid.uuid4().hex[:6]}:",
+        hidden_suite_dir=suite,
+        public_suite_dir=suite,
+        admin_token=ADMIN_TOKEN,
+        sandbox="bubblewrap",
+        train_dataset_dir=dataset,
+        train_timeout_s=25,
+        lease_seconds=8,
+        reaper_interval_s=2,
+        daily_quota=10,
+        jobs=2,
+    )
+    _drop_pg_database(name)
+    subprocess.run(["rm", "-rf", str(data)], check=False)
+
+
+def offline_zip(out: Path, train_py: str | None = None) -> Path:
+    """The offline_bc example, or it with ``train.py`` replaced (the original kept as
+    ``bc_train.py`` for the replacement to run)."""
+    folder = out / "src"
+    shutil.copytree(EXAMPLES / "offline_bc", folder)
+    if train_py is not None:
+        (folder / "train.py").rename(folder / "bc_train.py")
+        (folder / "train.py").write_text(train_py)
+    return pack_folder(folder, out / "agent.zip")
+
+
+def upload(url: str, token: str, path: Path, method: str) -> int:
+    with path.open("rb") as handle:
+        response = httpx.post(
+            f"{url}/api/v1/submissions",
+            headers=bearer(token),
+            data={"track": "offline", "method_name": method},
+            files={"file": (path.name, handle, "application/zip")},
+            timeout=120,
+        )
+    assert response.status_code == 201, response.text
+    return response.json()["id"]
+
+
+def watch(url: str, token: str, submission_id: int, timeout_s: float = 300) -> list[dict]:
+    """Every distinct (status, training status) the submission shows until it finishes."""
+    seen: list[dict] = []
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        body = httpx.get(
+            f"{url}/api/v1/submissions/{submission_id}", headers=bearer(token), timeout=10
+        ).json()
+        if not seen or body["status"] != seen[-1]["status"]:
+            seen.append(body)
+        if body["status"] in ("scored", "failed", "cancelled"):
+            return seen
+        time.sleep(0.3)
+    raise AssertionError(f"submission {submission_id} did not finish: {seen[-1:]}")
+
+
+def test_offline_submission_trains_then_is_evaluated_and_ranked(stack_settings, tmp_path):
+    db = Database(stack_settings.database_url)
+    _, token = make_team(db, "bc-team")
+    _, slow_token = make_team(db, "slow-team")
+    worker = start_worker(stack_settings, tmp_path / "worker.log")
+    try:
+        with api_server(stack_settings, tmp_path / "api.log") as (url, _):
+            good = upload(url, token, offline_zip(tmp_path / "good"), "offline_bc")
+            slow = upload(
+                url,
+                slow_token,
+                offline_zip(tmp_path / "slow", "import time\nprint('epoch 1')\ntime.sleep(600)"),
+                "forever",
+            )
+            statuses = watch(url, token, good)
+            assert [s["status"] for s in statuses][-3:] == ["training", "running", "scored"]
+            final = statuses[-1]
+            assert final["progress"] == {"done": len(SCENARIOS), "total": len(SCENARIOS)}
+            training = final["training"]
+            assert training["status"] == "trained" and training["failure"] == ""
+            assert "saved weights.npz" in training["log_tail"]  # the team sees its log
+            time.sleep(1.1)  # the API re-checks the leaderboard generation once a second
+            board = httpx.get(f"{url}/api/v1/leaderboard", params={"track": "offline"}).json()
+            assert [e["submission_id"] for e in board["entries"]] == [good]
+            # The organisers' audit copy is the stored model, by its sha256.
+            model = httpx.get(
+                f"{url}/api/v1/admin/submissions/{good}/model", headers=bearer(ADMIN_TOKEN)
+            )
+            assert model.status_code == 200
+            assert hashlib.sha256(model.content).hexdigest() == training["model_sha256"]
+            assert model.headers["x-model-sha256"] == training["model_sha256"]
+
+            failed = wait_finished(url, slow_token, slow)
+            assert failed["status"] == "failed"
+            assert failed["status_reason"].startswith("train_timeout")
+            assert failed["training"]["failure"] == "train_timeout"
+            assert "epoch 1" in failed["training"]["log_tail"]
+            assert failed["progress"]["total"] == 0  # never evaluated
+    finally:
+        stop(worker)
+    with db.session() as session:
+        run = session.scalar(select(EvaluationRun).where(EvaluationRun.submission_id == good))
+        assert run.training is not None and run.training.model_sha256 == training["model_sha256"]
+    db.dispose()
+
+
+def test_a_worker_killed_while_training_loses_nothing(stack_settings, tmp_path):
+    db = Database(stack_settings.database_url)
+    _, token = make_team(db, "bc-team")
+    sleepy = "import runpy, time\ntime.sleep(6)\nrunpy.run_path('bc_train.py', run_name='__main__')"
+    worker = start_worker(stack_settings, tmp_path / "worker1.log", concurrency=1)
+    try:
+        with api_server(stack_settings, tmp_path / "api.log") as (url, _):
+            sid = upload(url, token, offline_zip(tmp_path, sleepy), "sleepy bc")
+            wait_for_training(db, sid)
+            stop(worker, signal.SIGKILL)
+            worker = start_worker(stack_settings, tmp_path / "worker2.log", concurrency=1)
+            body = wait_finished(url, token, sid, timeout_s=300)
+            assert body["status"] == "scored", body
+            assert body["training"]["status"] == "trained"
+    finally:
+        stop(worker)
+    with db.session() as session:
+        jobs = session.scalars(select(TrainingJob).where(TrainingJob.submission_id == sid)).all()
+        assert [(j.attempt, j.claims, j.status) for j in jobs] == [(1, 2, "trained")]
+        runs = session.scalars(select(EvaluationRun).where(EvaluationRun.submission_id == sid))
+        assert len(runs.all()) == 1
+    db.dispose()
+
+
+def wait_for_training(db: Database, submission_id: int, timeout_s: float = 60) -> None:
+    """Until a worker holds the submission's training."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        with db.session() as session:
+            held = session.scalar(
+                select(TrainingJob.worker).where(
+                    TrainingJob.submission_id == submission_id, TrainingJob.status == "training"
+                )
+            )
+        if held:
+            return
+        time.sleep(0.2)
+    raise AssertionError("no worker took the training")

@@ -1,0 +1,180 @@
+"""Training jobs as database transitions, on SQLite and PostgreSQL: the status only moves
+forward, a lost worker's training is re-sent and its late result refused, a cancelled training
+stops, and organisers retrain and re-run on the trained output."""
+
+from __future__ import annotations
+
+from datetime import timedelta
+
+import pytest
+from typer.testing import CliRunner
+
+from arena.cli import app
+from server.models import Submission, TrainingJob, utcnow
+from server.services import evaluation, submissions, training
+from server.services.errors import Conflict
+from server.status import (
+    SUBMISSION_MOVES,
+    IllegalTransition,
+    SubmissionStatus,
+    TrainingStatus,
+    advance,
+)
+from server.tracks import Track
+from tests.server.builders import make_team, queued_submission
+
+S = SubmissionStatus
+
+
+def offline(db) -> int:
+    team_id, _ = make_team(db, "bc")
+    return queued_submission(db, team_id, track=Track.offline)
+
+
+def started(db, settings, submission_id: int) -> int:
+    with db.session() as session:
+        return training.start_training(session, settings, submission_id)
+
+
+def claim(db, settings, training_id: int, worker: str):
+    with db.session() as session:
+        return training.claim_training(session, settings, training_id, worker)
+
+
+def trained(db, settings, job, worker: str):
+    with db.session() as session:
+        return training.record_trained(
+            session,
+            settings,
+            job,
+            worker,
+            elapsed_s=1.0,
+            log_tail="saved",
+            model_key="training/1/model.tar.gz",
+            model_sha256="a" * 64,
+            model_size=10,
+        )
+
+
+def status_of(db, submission_id: int) -> SubmissionStatus:
+    with db.session() as session:
+        return session.get(Submission, submission_id).status
+
+
+def test_only_offline_submissions_train_and_only_once(db, settings):
+    team_id, _ = make_team(db, "free")
+    freestyle = queued_submission(db, team_id)
+    assert started(db, settings, freestyle) is None
+    sid = offline(db)
+    assert started(db, settings, sid) is not None
+    assert started(db, settings, sid) is None  # a duplicate delivery
+    assert status_of(db, sid) == S.training
+    with pytest.raises(IllegalTransition):
+        advance(S.running, S.training, SUBMISSION_MOVES)  # never backwards
+
+
+def test_trained_output_starts_the_evaluation_of_that_output(db, settings):
+    sid = offline(db)
+    job = claim(db, settings, started(db, settings, sid), "w1")
+    plan = trained(db, settings, job, "w1")
+    assert plan is not None and plan.scenario_ids
+    assert status_of(db, sid) == S.running
+    with db.session() as session:
+        work = evaluation.claim_scenario(session, settings, plan.run_id, plan.scenario_ids[0], "w")
+    assert work.model_key == "training/1/model.tar.gz"  # the worker mounts this model
+    assert trained(db, settings, job, "w1") is None  # a redelivery changes nothing
+
+
+def test_a_dead_workers_training_is_resent_and_its_late_result_refused(db, settings):
+    sid = offline(db)
+    training_id = started(db, settings, sid)
+    first = claim(db, settings, training_id, "w1")
+    assert claim(db, settings, training_id, "w2") is None  # the lease is alive
+    with db.session() as session:
+        session.get(TrainingJob, training_id).lease_expires_at = utcnow() - timedelta(seconds=1)
+    with db.session() as session:
+        assert training.reap(session, settings, queue_empty=False) == (training_id,)
+    second = claim(db, settings, training_id, "w2")
+    assert second.claim == 2
+    with db.session() as session:
+        assert not training.heartbeat(session, settings, first, "w1", 5.0, "")  # fenced off
+        assert training.heartbeat(session, settings, second, "w2", 5.0, "epoch 1")
+    assert trained(db, settings, first, "w1") is None
+    assert trained(db, settings, second, "w2") is not None
+
+
+def test_a_failed_training_fails_the_submission_with_its_name(db, settings):
+    sid = offline(db)
+    job = claim(db, settings, started(db, settings, sid), "w1")
+    with db.session() as session:
+        assert training.record_failed(
+            session, job, "w1", failure="train_timeout", error="ran past 10 s", log_tail="epoch 3"
+        )
+    with db.session() as session:
+        submission = session.get(Submission, sid)
+        assert submission.status == S.failed
+        assert submission.status_reason == "train_timeout: ran past 10 s"
+        assert not submission.failed_on_our_side  # the team's: counts towards the quota
+
+
+def test_cancelling_stops_the_training(db, settings, client):
+    from server.core.queue import TaskQueue
+
+    sid = offline(db)
+    job = claim(db, settings, started(db, settings, sid), "w1")
+    submissions.cancel(db, TaskQueue(settings), sid)
+    with db.session() as session:
+        assert not training.heartbeat(session, settings, job, "w1", 1.0, "")
+        assert session.get(TrainingJob, job.training_id).status == TrainingStatus.cancelled
+    assert trained(db, settings, job, "w1") is None
+
+
+def test_retrain_is_a_new_attempt_and_rerun_uses_the_trained_output(db, settings, monkeypatch):
+    sid = offline(db)
+    job = claim(db, settings, started(db, settings, sid), "w1")
+    plan = trained(db, settings, job, "w1")
+    with db.session() as session:
+        with pytest.raises(Conflict, match="only scored or failed"):
+            training.retrain(session, settings, sid)
+        submission = session.get(Submission, sid)
+        submission.status = S.scored
+        for run in submission.runs:
+            run.status = "scored"
+    with db.session() as session:
+        rerun = evaluation.rerun(session, settings, sid)
+    assert rerun.run_id != plan.run_id
+    with db.session() as session:
+        session.get(Submission, sid).runs[-1].status = "scored"
+    for key, value in {
+        "ARENA_DATABASE_URL": settings.database_url,
+        "ARENA_BROKER_URL": settings.broker_url,
+        "ARENA_BROKER_KEY_PREFIX": settings.broker_key_prefix,
+        "ARENA_DATA_DIR": str(settings.data_dir),
+        "ARENA_HIDDEN_SUITE_DIR": str(settings.hidden_suite_dir),
+    }.items():
+        monkeypatch.setenv(key, value)
+    from arena.config import get_settings
+
+    get_settings.cache_clear()
+    try:
+        result = CliRunner().invoke(app, ["admin", "retrain", str(sid)])
+    finally:
+        get_settings.cache_clear()
+    assert result.exit_code == 0, result.output
+    assert "training attempt 2 queued" in result.output
+    with db.session() as session:
+        jobs = session.get(Submission, sid).trainings
+        assert [(j.attempt, j.status) for j in jobs] == [(1, "trained"), (2, "queued")]
+
+
+def test_requeue_resends_a_training(db, settings):
+    from server.core.queue import TaskQueue
+    from server.services import admin
+
+    sid = offline(db)
+    started(db, settings, sid)
+    queue = TaskQueue(settings)
+    try:
+        assert admin.requeue(db, settings, queue, sid) == "training re-sent"
+    finally:
+        queue.close()
