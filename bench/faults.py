@@ -71,6 +71,8 @@ SANDBOX_SETTLE_S = 2.0
 DATABASE_DOWN_S = 3.0
 # [s] How long a stopped embedded service may take until none of its processes remain.
 EXIT_LIMIT_S = 60.0
+# [s] How long a service process may take to stop after SIGTERM before it is SIGKILLed.
+STOP_LIMIT_S = 60.0
 # [s] How long stopped processes' children may take to exit before they count as left over.
 LEFTOVER_GRACE_S = 10.0
 POLL_S = 0.2
@@ -275,15 +277,25 @@ class Ledger:
                 return f"{key[1]} of run {key[0]} claimed (claim {row.claims})"
         return None
 
-    def finished_since(self, before: Results, run_id: int | None = None) -> str | None:
-        """A scenario (of ``run_id``, if given) running in ``before`` and finished now."""
+    def finished_since(self, before: Results, only: tuple[int, str] | None = None) -> str | None:
+        """A scenario (``only``, if given) running in ``before`` and finished now."""
         for key, row in (self.results() or {}).items():
             old = before.get(key)
-            if run_id not in (None, key[0]) or old is None or old.status != "running":
+            if only not in (None, key) or old is None or old.status != "running":
                 continue
             if row.status != "running":
                 return f"{key[1]} of run {key[0]} finished ({row.status}, {row.reason})"
         return None
+
+    def upload_folders(self, run_ids: set[int]) -> dict[int, str]:
+        """Run -> the folder of its submission's upload (where workers prepare it)."""
+        with self.db.session() as session:
+            rows = session.execute(
+                select(EvaluationRun.id, Submission.upload_key)
+                .join(Submission, Submission.id == EvaluationRun.submission_id)
+                .where(EvaluationRun.id.in_(run_ids))
+            ).all()
+        return {run_id: Path(key).parent.name for run_id, key in rows}
 
     def submissions(self, ids: list[int]) -> dict[int, tuple[str, str]]:
         with self.db.session() as session:
@@ -351,11 +363,11 @@ def campaign_processes(root: Path) -> list[int]:
 
 @dataclass
 class Sandbox:
-    """An agent sandbox of the campaign: its run id, how to kill it from outside (as the OOM
-    killer or an operator would) and how to remove it altogether."""
+    """An agent sandbox of the campaign: the worker that started it, how to kill it from outside
+    (as the OOM killer or an operator would) and how to remove it altogether."""
 
     key: str  # the container's id or the process's pid
-    run_id: int
+    driver: tuple[str, str]  # the worker (``host:pid``, as claims name it) and upload folder
     running: bool
     kill: Callable[[], None]
     remove: Callable[[], None]
@@ -376,27 +388,24 @@ def campaign_sandboxes(root: Path, kind: SandboxKind) -> list[Sandbox]:
         for container in containers:
             sources = [m.get("Source", "") for m in container.attrs.get("Mounts") or []]
             if any(s.startswith(str(root)) for s in sources):
-                run_id = _run_of((container.attrs.get("Labels") or {}).get("arena.run", ""))
+                driver = _driver_of(" ".join(sources))
                 running = container.attrs.get("State") == "running"
                 kill = _gone_ok(container.kill)
                 remove = _gone_ok(functools.partial(container.remove, force=True))
-                found.append(Sandbox(container.id, run_id, running, kill, remove))
+                found.append(Sandbox(container.id, driver, running, kill, remove))
         return found
-    from evaluator.sandbox.subprocess_sandbox import LABELS_ENV, labelled_pids
+    from evaluator.sandbox.subprocess_sandbox import labelled_pids
 
     for pid in labelled_pids({SANDBOX_LABEL: "1"}):
         try:
             cmdline = Path(f"/proc/{pid}/cmdline").read_bytes()
-            environ = Path(f"/proc/{pid}/environ").read_bytes().split(b"\0")
         except OSError:
             continue
         if str(root).encode() not in cmdline:
             continue
-        labels = next((v.decode() for v in environ if v.startswith(LABELS_ENV.encode())), "")
-        run_key = re.search(r"arena\.run=([^;]*)", labels)
         kill = functools.partial(os.kill, pid, signal.SIGKILL)
-        run_id = _run_of(run_key.group(1) if run_key else "")
-        found.append(Sandbox(str(pid), run_id, True, kill, kill))
+        driver = _driver_of(cmdline.decode(errors="replace"))
+        found.append(Sandbox(str(pid), driver, True, kill, kill))
     return found
 
 
@@ -412,10 +421,13 @@ def _gone_ok(action: Callable[[], object]) -> Callable[[], None]:
     return act
 
 
-def _run_of(run_key: str) -> int:
-    """The run id in a worker's run key ``r<run>a<claim>-<random>``; 0 when not one."""
-    match = re.match(r"r(\d+)a\d+-", run_key)
-    return int(match.group(1)) if match else 0
+def _driver_of(paths: str) -> tuple[str, str]:
+    """The worker and submission of the prepared submission a sandbox mounts,
+    ``<data>/scratch/<host>-<pid>/submissions/<upload folder>/`` (server/worker/tasks.py); claims
+    name the worker ``<host>:<pid>``. A warm sandbox serves many runs of its submission, so
+    this, not a run label, ties it to the scenario it is driving."""
+    match = re.search(r"/scratch/([^/\s]+)-(\d+)/submissions/([^/\s]+)/", paths)
+    return (f"{match.group(1)}:{match.group(2)}", match.group(3)) if match else ("", "")
 
 
 # --- the service under test -----------------------------------------------------------------
@@ -581,24 +593,26 @@ class Campaign:
         first_seen: dict[str, float] = {}
 
         def running():
-            """A sandbox of a scenario being run, alive for a while: its agent is driving."""
-            held_runs = {run_id for run_id, _ in self.ledger.held()}
+            """A sandbox alive for a while, of a worker holding one scenario (one job each):
+            the sandbox and the scenario its agent is driving."""
+            held = self.ledger.held()
+            uploads = self.ledger.upload_folders({run_id for run_id, _ in held})
+            drivers = {(row.worker, uploads[key[0]]): key for key, row in held.items()}
             for sandbox in campaign_sandboxes(self.root, self.kind):
                 seen = first_seen.setdefault(sandbox.key, time.monotonic())
                 settled = time.monotonic() - seen > SANDBOX_SETTLE_S
-                if sandbox.running and settled and sandbox.run_id in held_runs:
-                    return sandbox
+                if sandbox.running and settled and sandbox.driver in drivers:
+                    return sandbox, drivers[sandbox.driver]
             return None
 
-        target = wait_until(running, 180)
-        if target is None:
+        found = wait_until(running, 180)
+        if found is None:
             raise RuntimeError("no agent sandbox started within 180 s")
+        target, scenario = found
         before = self.ledger.results() or {}
         started = time.monotonic()
         target.kill()
-        found = wait_until(
-            lambda: self.ledger.finished_since(before, target.run_id), RECOVERY_LIMIT_S
-        )
+        found = wait_until(lambda: self.ledger.finished_since(before, scenario), RECOVERY_LIMIT_S)
         outcome = f"{found}; the worker went on" if found else "its scenario never finished"
         return FaultResult("sandbox_kill", _since(started, found), outcome)
 
@@ -634,9 +648,20 @@ class Campaign:
         return FaultResult("database_restart", _since(started, found), outcome)
 
     def stop_service(self) -> None:
-        for process in [*self.workers, self.api, self.up]:
-            if process is not None:
-                stop(process)
+        """SIGTERM every service process at once, wait for each, SIGKILL what outlasts
+        STOP_LIMIT_S. (`arena up` alone gets the signal: it stops its own children.)"""
+        processes = [p for p in (*self.workers, self.api, self.up) if p is not None]
+        for process in processes:
+            if process.poll() is None:
+                with contextlib.suppress(ProcessLookupError):
+                    os.killpg(process.pid, signal.SIGTERM)
+        for process in processes:
+            try:
+                process.wait(timeout=STOP_LIMIT_S)
+            except subprocess.TimeoutExpired:
+                with contextlib.suppress(ProcessLookupError):
+                    os.killpg(process.pid, signal.SIGKILL)
+                process.wait()
 
     # faults of the embedded service (`arena up`) ---------------------------------------------
 
@@ -720,7 +745,11 @@ class Campaign:
                 self.record(self.embedded_kill(sig))
             self.wait_submissions(self.submitted)
         finally:
-            # Whatever ended the campaign, the service stops before its folders go.
+            # Whatever ended the campaign, the service stops before its folders go, and neither
+            # the time limit nor a second signal cuts that short.
+            signal.alarm(0)
+            signal.signal(signal.SIGTERM, signal.SIG_IGN)
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
             self.stop_service()
 
     def report(self) -> str:
