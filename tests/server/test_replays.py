@@ -180,6 +180,8 @@ def test_public_scenario_replay_plays_from_the_scenarios_page(served, browser):
         page = offline_page(browser, url, viewport)
         page.goto(f"{url}/")
         page.click("header a[href='/scenarios']")
+        # Rows can be counted before the style sheet applies; widths are measured after it.
+        page.wait_for_load_state("load")
         expect(page.locator("#scenarios tbody tr")).to_have_count(len(PUBLIC_SUITE.scenarios))
         assert page.evaluate("document.documentElement.scrollWidth") <= viewport["width"]
         shoot(page, f"scenarios-{name}")

@@ -77,10 +77,13 @@ def test_trained_output_starts_the_evaluation_of_that_output(db, settings):
     sid = offline(db)
     job = claim(db, settings, started(db, settings, sid), "w1")
     plan = trained(db, settings, job, "w1")
-    assert plan is not None and plan.scenario_ids
+    assert plan is not None and plan.episodes
     assert status_of(db, sid) == S.running
     with db.session() as session:
-        work = evaluation.claim_scenario(session, settings, plan.run_id, plan.scenario_ids[0], "w")
+        first = plan.episodes[0]
+        work = evaluation.claim_scenario(
+            session, settings, plan.run_id, first.scenario_id, "w", first.index
+        )
     assert work.model_key == "training/1/model.tar.gz"  # the worker mounts this model
     assert trained(db, settings, job, "w1") is None  # a redelivery changes nothing
 
