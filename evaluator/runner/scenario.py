@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 
 from arena.config import SandboxKind, get_settings
 from arena.episodes import Episode, traffic_seed
-from arena.outcome import AgentOutcome, ScenarioStatus
+from arena.outcome import AgentOutcome, DoneReason, ScenarioStatus
 from arena.record_format import RECORD_SUFFIX
 from arena.scenario import load_scenario
 from evaluator.failures import describe_end
@@ -177,12 +177,22 @@ def run_scenario(
                 episode_timeout_s=get_settings().episode_timeout_s,
             )
         logs.append(_log_text(result, attempt, key))
-        if result.simulator_error is None:
+        lost_sandbox = any(a.reason is DoneReason.sandbox_error for a in result.agents)
+        if result.simulator_error is None and not lost_sandbox:
             return _outcome(result, record_path, "\n".join(logs), attempt, started, episode)
-        # The episode's process died or SUMO failed: its agent's sandbox may never have been
-        # closed. (A clean episode closes its own agent.)
+        # The episode's process died, SUMO failed, or a sandbox ended before our runner started
+        # in it (killed from outside, the daemon failed): none of it is the agent's doing, so
+        # the episode runs again. Its agent's sandbox may never have been closed.
         sandboxes.cleanup(labels)
     record_path.unlink(missing_ok=True)
+    if result.simulator_error is None:
+        return ScenarioOutcome.ours(
+            scenario.id,
+            "an agent's sandbox ended before the runner started in it, on every attempt",
+            log="\n".join(logs),
+            attempts=SIMULATOR_ATTEMPTS,
+            episode=episode,
+        )
     return ScenarioOutcome(
         scenario_id=scenario.id,
         status=ScenarioStatus.simulator_error,

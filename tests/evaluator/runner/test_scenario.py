@@ -130,3 +130,37 @@ def test_sandboxed_factory_preloads_only_modules_that_exist(submission, kind):
     assert all(importlib.util.find_spec(m) is not None for m in modules)
     if kind is SandboxKind.docker:
         assert "docker" in modules
+
+
+
+def test_a_sandbox_lost_before_the_runner_started_is_retried_then_not_charged(
+    submission, tmp_path
+):
+    """Too little memory for the interpreter to start: the sandbox ends before our runner says
+    hello, which no agent can cause (it runs none of the participant's code until then). In a
+    fresh interpreter, so that the episode's simulator process reads the setting too."""
+    import os
+    import subprocess
+    import sys
+
+    folder = scenario(tmp_path / "ok")
+    script = (
+        "import json, sys\n"
+        "from pathlib import Path\n"
+        "from evaluator.runner import run_scenario\n"
+        "from submissions.intake import prepare_submission\n"
+        f"s = prepare_submission(Path({str(tmp_path / 'cruise')!r}), Path(sys.argv[1]))\n"
+        f"o = run_scenario(s, Path({str(folder)!r}), Path(sys.argv[2]), sandbox={TEST_SANDBOX.value!r})\n"
+        "print(json.dumps([o.status, o.attempts, o.error, o.log, str(o.record_path)]))\n"
+    )
+    env = {**os.environ, "ARENA_AGENT_MEMORY_BYTES": str(16 * 1024**2)}
+    done = subprocess.run(
+        [sys.executable, "-c", script, str(tmp_path / "again"), str(tmp_path / "records")],
+        capture_output=True, text=True, env=env, cwd=Path(__file__).parents[3], timeout=300,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    status, attempts, error, log, record = json.loads(done.stdout.splitlines()[-1])
+    assert status == ScenarioStatus.evaluator_error, log
+    assert attempts == 2 and log.count("--- attempt") == 2
+    assert "sandbox_error" in log and "before the runner started" in error
+    assert record == "None"
