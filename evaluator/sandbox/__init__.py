@@ -107,16 +107,7 @@ def start(
     """
     settings = settings or get_settings()
     chosen = backend(resolve_kind(kind, settings))
-    spec = LaunchSpec(
-        submission=submission.root,
-        deps=submission.deps_dir,
-        settings=settings,
-        labels=dict(labels or {}),
-        observation_format=str(submission.interface.observation_format),
-        action_space=str(submission.interface.action_space),
-        model=submission.model_dir,
-    )
-    handle = AgentHandle(chosen.launch(spec), settings)
+    handle = AgentHandle(chosen.launch(LaunchSpec.of_agent(submission, settings, labels)), settings)
     try:
         handle.handshake()
     except BaseException:

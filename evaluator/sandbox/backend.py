@@ -75,6 +75,23 @@ class LaunchSpec:
     model: Path | None = None  # a trained output the agent reads (mounted read-only)
     training: Training | None = None  # set: run train.py, not the agent runner
 
+    @classmethod
+    def of_agent(
+        cls, submission, settings: Settings, labels: dict[str, str] | None, **options
+    ) -> LaunchSpec:
+        """The spec of ``submission``'s (a PreparedSubmission) agent, as its ``agent.yaml`` and
+        trained output say; ``options``: zygote."""
+        return cls(
+            submission=submission.root,
+            deps=submission.deps_dir,
+            settings=settings,
+            labels=dict(labels or {}),
+            observation_format=str(submission.interface.observation_format),
+            action_space=str(submission.interface.action_space),
+            model=submission.model_dir,
+            **options,
+        )
+
     def python_args(self) -> list[str]:
         """What the sandbox's python3 runs: the agent runner, or the submission's train.py."""
         if self.training is not None:

@@ -155,15 +155,8 @@ class WarmAgent:
         is ours (the caller then starts each agent cold, which reports the agent's own errors)."""
         from evaluator.sandbox import backend
 
-        spec = LaunchSpec(
-            submission=submission.root,
-            deps=submission.deps_dir,
-            settings=settings,
-            labels={**(labels or {}), WARM_LABEL: "1"},
-            model=submission.model_dir,
-            observation_format=str(submission.interface.observation_format),
-            action_space=str(submission.interface.action_space),
-            zygote=True,
+        spec = LaunchSpec.of_agent(
+            submission, settings, {**(labels or {}), WARM_LABEL: "1"}, zygote=True
         )
         sandbox = backend(kind).launch(spec)
         deadline = time.monotonic() + settings.init_timeout_s
