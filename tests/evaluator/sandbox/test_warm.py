@@ -20,7 +20,7 @@ from evaluator import sandbox
 from evaluator.sandbox.warm import WarmAgent
 from evaluator.sandbox.warm_pool import WarmAgents
 from tests.evaluator.sandbox.agents import agent, observation
-from tests.evaluator.sandbox.conftest import leftovers
+from tests.evaluator.sandbox.conftest import leftovers, usable
 from tests.evaluator.sandbox.test_hostile import CASES, Hostile
 
 # Episode 1 leaves a module global, files in /tmp (one in a folder it made unreadable), a
@@ -140,14 +140,14 @@ def test_cleanup_kills_a_leased_agent_and_close_leaves_nothing(kind, settings, l
     assert leftovers(kind, labels) == []
 
 
-def test_a_zygote_that_cannot_start_means_cold_episodes(kind, settings, labels, tmp) -> None:
+def test_a_zygote_that_cannot_start_means_cold_episodes(settings, labels, tmp) -> None:
     """Nothing of the participant runs in the zygote, so its failure is ours: the pool says
-    so with None (the runner then starts that submission's agents cold)."""
+    so with None (the runner then starts that submission's agents cold). Docker only: its
+    zygote has an image to break."""
+    kind = usable(SandboxKind.docker, settings)
     submission = agent(tmp, settings)
     broken = settings.model_copy(update={"agent_image": "driving-arena-no-such-image:0"})
     pool = WarmAgents(labels)
-    if kind is not SandboxKind.docker:
-        pytest.skip("only a Docker zygote has an image to break")
     with pool.lease(submission, kind, {}, broken) as forked:
         assert forked is None
     with sandbox.start(submission, kind=kind, labels=labels, settings=settings) as handle:
