@@ -50,8 +50,8 @@ class Settings(BaseSettings):
     hidden_seed: int | None = None
     hidden_suite_dir: Path | None = None
     public_suite_dir: Path | None = None
-    # The shipped naturalistic scenes (CommonRoad NGSIM); None: ../shared/data/naturalistic/
-    # commonroad-ngsim beside the repository.
+    # The naturalistic scenes (CommonRoad NGSIM); None: the shipped
+    # scenarios/data/naturalistic/commonroad-ngsim.
     naturalistic_dir: Path | None = None
     # Episodes of each reactive scenario, each with other traffic (arena/episodes.py); the
     # metrics average them. Evaluation takes about this many times as long. A phase may override.

@@ -1,6 +1,6 @@
 """The agent-interface observation encoded into fixed-shape numpy arrays (the Gymnasium space).
 
-The simulator's observation (``shared/spec/agent-interface.md``) has variable-length lists
+The simulator's observation (``docs/agent-interface.md``) has variable-length lists
 (neighbours, waypoints) and strings (road and lane ids); a space needs fixed shapes. The encoding
 keeps every numeric field under its interface name, pads lists to fixed sizes with a ``mask``, and
 leaves out the ids. Rasters pass through unchanged.

@@ -1,5 +1,5 @@
 """Bird's-eye-view rasters of the agent interface: ``top_down_rgb``, ``occupancy_grid_map`` and
-``drivable_area_grid_map`` (``shared/spec/agent-interface.md``).
+``drivable_area_grid_map`` (``docs/agent-interface.md``).
 
 The road (drivable area, lane markings, each mission's route) is rasterised once per scenario
 into world-aligned layers at the interface's resolution; each step crops and rotates them into

@@ -1,4 +1,4 @@
-"""The observation dict an agent receives, exactly as ``shared/spec/agent-interface.md`` lists it.
+"""The observation dict an agent receives, exactly as ``docs/agent-interface.md`` lists it.
 
 Plain Python values (lists, floats, ints, bools, strings), plus the optional rasters as uint8 numpy
 arrays (``sim.bev``), which the sandbox protocol carries as arrays.

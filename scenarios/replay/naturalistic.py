@@ -269,12 +269,12 @@ def write_naturalistic(
 
 
 def shipped_scenes_dir() -> Path:
-    """The naturalistic scenes shipped beside the repository (setting ``ARENA_NATURALISTIC_DIR``
-    overrides): ``../shared/data/naturalistic/commonroad-ngsim`` from the repository root."""
+    """The naturalistic scenes shipped with the package, with their licence and provenance:
+    ``scenarios/data/naturalistic/commonroad-ngsim`` (setting ``ARENA_NATURALISTIC_DIR``
+    overrides)."""
     from arena.config import get_settings
 
     configured = get_settings().naturalistic_dir
     if configured is not None:
         return configured
-    repo = Path(__file__).resolve().parents[2]
-    return repo.parent / "shared" / "data" / "naturalistic" / "commonroad-ngsim"
+    return Path(__file__).resolve().parents[1] / "data" / "naturalistic" / "commonroad-ngsim"

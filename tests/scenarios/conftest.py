@@ -19,7 +19,7 @@ def cache_dir(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="session")
 def scenes_dir() -> Path:
-    """The shipped naturalistic scenes (../shared/data/naturalistic/commonroad-ngsim)."""
+    """The shipped naturalistic scenes (scenarios/data/naturalistic/commonroad-ngsim)."""
     from scenarios.replay.naturalistic import shipped_scenes_dir
 
     folder = shipped_scenes_dir()

@@ -1,4 +1,4 @@
-"""Naturalistic scenes (NGSIM via CommonRoad, shipped in ../shared/data/naturalistic): both
+"""Naturalistic scenes (NGSIM via CommonRoad, shipped in scenarios/data/naturalistic): both
 CommonRoad formats import, the lanelets become a SUMO map the recorded vehicles drive on, and
 every scene gives naturalistic replays the log replay expert solves."""
 

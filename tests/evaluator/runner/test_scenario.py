@@ -149,8 +149,10 @@ def test_a_sandbox_lost_before_the_runner_started_is_retried_then_not_charged(
         "from pathlib import Path\n"
         "from evaluator.runner import run_scenario\n"
         "from submissions.intake import prepare_submission\n"
-        f"s = prepare_submission(Path({str(tmp_path / 'cruise')!r}), Path(sys.argv[1]))\n"
-        f"o = run_scenario(s, Path({str(folder)!r}), Path(sys.argv[2]), sandbox={TEST_SANDBOX.value!r})\n"
+        f"source = Path({str(tmp_path / 'cruise')!r})\n"
+        "s = prepare_submission(source, Path(sys.argv[1]))\n"
+        f"kind = {TEST_SANDBOX.value!r}\n"
+        f"o = run_scenario(s, Path({str(folder)!r}), Path(sys.argv[2]), sandbox=kind)\n"
         "print(json.dumps([o.status, o.attempts, o.error, o.log, str(o.record_path)]))\n"
     )
     env = {**os.environ, "ARENA_AGENT_MEMORY_BYTES": str(16 * 1024**2)}
