@@ -32,7 +32,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from sim_throughput import build, in_child
+from sim_throughput import build, in_child, raw_side
 
 RASTERS = {"top_down_rgb": True, "occupancy_grid_map": True, "drivable_area_grid_map": True}
 
@@ -46,25 +46,6 @@ def follow_gap(obs: dict) -> np.ndarray:
     gap = float((pos[ahead, 0] - x).min()) if ahead.any() else 100.0
     speed = min(25.0, max(0.0, (gap - 10.0) / 1.5))
     return np.array([x + speed * 0.1, y, 0.0, 0.1], np.float32)
-
-
-def raw_side(folder: str, steps: int, queue) -> None:
-    """``simulationStep`` only, in its own process: (wall, CPU) seconds."""
-    import libsumo
-
-    from arena.scenario import load_scenario
-    from sim.traffic import sumo_command
-
-    sc = load_scenario(Path(folder))
-    libsumo.start(
-        sumo_command(Path(folder) / sc.map, Path(folder) / sc.traffic.routes, sc.seed, 0.1)
-    )
-    wall, cpu = time.perf_counter(), time.process_time()
-    for _ in range(steps):
-        libsumo.simulationStep()
-    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
-    libsumo.close()
-    queue.put(((wall, cpu), ""))
 
 
 def env_side(

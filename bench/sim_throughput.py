@@ -64,6 +64,7 @@ def build(folder: Path, n_vehicles: int, steps: int) -> Path:
 
 
 def raw_side(folder: str, steps: int, queue) -> None:
+    """``simulationStep`` only, in its own process: (wall, CPU) seconds."""
     import libsumo
 
     from arena.scenario import load_scenario
