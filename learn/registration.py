@@ -1,9 +1,8 @@
-"""Registers ``arena/DrivingArena-v0`` with Gymnasium.
+"""Registers ``arena/DrivingArena-v0`` with Gymnasium, on import.
 
-``pyproject.toml`` names :func:`register_envs` under the ``gymnasium.envs`` entry point, the
-plugin hook of Gymnasium before 1.0. Gymnasium 1.x no longer reads that hook, so there use
-``gymnasium.make("learn.registration:arena/DrivingArena-v0", ...)`` (the ``module:`` prefix
-imports this module first) or ``import learn.registration``.
+The installed package's start-up hook (``learn/gymnasium_hook.py``) imports this module as soon as
+Gymnasium's registry loads; without the hook, the id's ``module:`` prefix imports it:
+``gymnasium.make("learn.registration:arena/DrivingArena-v0")``.
 """
 
 from __future__ import annotations

@@ -1,15 +1,19 @@
-"""Registration with Gymnasium: the entry point pyproject declares, and a fresh interpreter."""
+"""Registration with Gymnasium: the start-up hook every wheel carries, and a fresh interpreter
+making the env by its plain id without importing anything of ours."""
 
 from __future__ import annotations
 
+import base64
+import hashlib
 import importlib
 import os
 import subprocess
 import sys
-import tomllib
+import zipfile
 from pathlib import Path
 
 import gymnasium
+import pytest
 
 from learn.registration import ENV_ID
 from tests.learn.conftest import PUBLIC
@@ -17,11 +21,9 @@ from tests.learn.conftest import PUBLIC
 ROOT = Path(__file__).parents[2]
 
 
-def test_the_declared_entry_point_registers_the_env() -> None:
-    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
-    target = project["entry-points"]["gymnasium.envs"]["arena"]
-    module, function = target.split(":")
-    getattr(importlib.import_module(module), function)()
+def test_the_registered_env_resets_into_its_space() -> None:
+    import learn.registration  # noqa: F401 (registers, as the start-up hook does)
+
     assert ENV_ID == "arena/DrivingArena-v0" and ENV_ID in gymnasium.registry
     env = gymnasium.make(ENV_ID, suite=PUBLIC, scenario="p016_cruise_2lane_low")
     try:
@@ -32,18 +34,41 @@ def test_the_declared_entry_point_registers_the_env() -> None:
         env.close()
 
 
-def test_a_fresh_interpreter_makes_the_env_by_name(short_road) -> None:
+@pytest.mark.filterwarnings("ignore::UserWarning")  # setuptools says it builds an editable wheel
+def test_every_wheel_carries_the_start_up_hook(tmp_path) -> None:
+    sys.path.insert(0, str(ROOT / "build_backend"))
+    try:
+        backend = importlib.import_module("driving_arena_build")
+    finally:
+        sys.path.remove(str(ROOT / "build_backend"))
+    name = backend.build_editable(str(tmp_path))
+    with zipfile.ZipFile(tmp_path / name) as wheel:
+        hook = wheel.read("driving_arena_gymnasium.pth")
+        record = next(n for n in wheel.namelist() if n.endswith(".dist-info/RECORD"))
+        lines = wheel.read(record).decode().splitlines()
+    digest = base64.urlsafe_b64encode(hashlib.sha256(hook).digest()).rstrip(b"=").decode()
+    assert f"driving_arena_gymnasium.pth,sha256={digest},{len(hook)}" in lines
+    assert hook.decode().startswith("import learn.gymnasium_hook")
+
+
+def test_a_fresh_interpreter_makes_the_env_by_name(short_road, tmp_path) -> None:
     code = (
         "import gymnasium\n"
-        f"env = gymnasium.make('learn.registration:{ENV_ID}', suite={str(short_road)!r},"
+        f"env = gymnasium.make({ENV_ID!r}, suite={str(short_road)!r},"
         " action_space='Continuous')\n"
         "obs, info = env.reset(seed=0)\n"
         "print(info['scenario_id'], env.step([1.0, 0.0, 0.0])[0]['ego_vehicle_state']['speed'])\n"
         "env.close()\n"
     )
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    # The installed package, as a user has it: no PYTHONPATH, run from outside the checkout.
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     done = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=tmp_path,
+        timeout=120,
     )
     assert done.returncode == 0, done.stderr
     scenario_id, speed = done.stdout.split()
