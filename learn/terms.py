@@ -17,6 +17,20 @@ from sim.record import RecordRow
 _ROWS_NEEDED = 3
 
 
+_COLUMNS = (
+    "x",
+    "y",
+    "heading",
+    "speed",
+    "vx",
+    "vy",
+    "lane_offset",
+    "lane_width",
+    "lane_heading",
+    "speed_limit",
+)
+
+
 def track_of(rows: list[RecordRow]) -> AgentTrack:
     """An :class:`AgentTrack` of ``rows`` (oldest first), neighbours padded to the widest row."""
     k = max([1] + [len(r.neighbours) for r in rows])
@@ -28,21 +42,10 @@ def track_of(rows: list[RecordRow]) -> AgentTrack:
         nbr_valid[i, :m] = True
         nbr_x[i, :m] = row.neighbours.x
         nbr_y[i, :m] = row.neighbours.y
-
-    def column(name: str) -> np.ndarray:
-        return np.array([getattr(r, name) for r in rows], float)
-
+    # One array for every scalar column: this runs on every env step.
+    table = np.array([[getattr(r, name) for name in _COLUMNS] for r in rows], float).T
     return AgentTrack(
-        x=column("x"),
-        y=column("y"),
-        heading=column("heading"),
-        speed=column("speed"),
-        vx=column("vx"),
-        vy=column("vy"),
-        lane_offset=column("lane_offset"),
-        lane_width=column("lane_width"),
-        lane_heading=column("lane_heading"),
-        speed_limit=column("speed_limit"),
+        **dict(zip(_COLUMNS, table, strict=True)),
         in_junction=np.array([r.in_junction for r in rows], bool),
         nbr_valid=nbr_valid,
         nbr_x=nbr_x,
