@@ -114,9 +114,11 @@ def train(
     seed: int = 0,
     n_steps: int = 256,
     minutes: float | None = None,
+    export_every: int | None = None,
 ) -> Path:
     """Train for ``timesteps`` (or until ``minutes`` of wall time pass), export, return the
-    ONNX file's path."""
+    ONNX file's path. With ``export_every``, also export ``checkpoints/policy_<steps>.onnx``
+    every that many steps, to compare the stages of a run with ``arena evaluate``."""
     import time
 
     import torch
@@ -128,10 +130,18 @@ def train(
         def __init__(self) -> None:
             super().__init__()
             self.deadline = None if minutes is None else time.monotonic() + 60 * minutes
+            self.exported = 0
 
         def _on_step(self) -> bool:
+            if export_every and self.num_timesteps // export_every > self.exported:
+                self.exported = self.num_timesteps // export_every
+                export_onnx(self.model, checkpoints / f"policy_{self.num_timesteps}.onnx")
+                self.model.policy.train()  # export_onnx switched it to evaluation mode
             return self.deadline is None or time.monotonic() < self.deadline
 
+    checkpoints = out / "checkpoints"
+    if export_every:
+        checkpoints.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(1)  # the simulators need the other core
     # DummyVecEnv is enough: the first env simulates in this process, the second in a child of
     # its own (libsumo holds one simulation per process; learn.session.open_simulator).
@@ -165,8 +175,16 @@ def main() -> None:
     parser.add_argument("--suite", default="public")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--minutes", type=float, help="stop earlier after this much wall time")
+    parser.add_argument("--export-every", type=int, help="also export a checkpoint every N steps")
     args = parser.parse_args()
-    path = train(args.timesteps, args.out, suite=args.suite, seed=args.seed, minutes=args.minutes)
+    path = train(
+        args.timesteps,
+        args.out,
+        suite=args.suite,
+        seed=args.seed,
+        minutes=args.minutes,
+        export_every=args.export_every,
+    )
     print(path)
 
 
