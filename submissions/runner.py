@@ -185,11 +185,20 @@ class ArrayObservations:
 
         self.size = layout["size"]
         self.ndarray = numpy.ndarray
-        # (keys above the array, its key, shape, dtype, offset); nested dicts are made in order.
-        self.leaves = [
-            (tuple(path[:-1]), path[-1], tuple(shape), numpy.dtype(dtype), offset)
-            for path, dtype, shape, offset in layout["leaves"]
-        ]
+        # (key, (shape, dtype, offset), None) for an array, (key, None, [(name, shape, dtype,
+        # offset)]) for a dict of arrays (the layout nests two deep), in the layout's order.
+        self.plan = []
+        groups: dict[str, list] = {}
+        for path, dtype, shape, offset in layout["leaves"]:
+            leaf = (tuple(shape), numpy.dtype(dtype), offset)
+            if len(path) == 1:
+                self.plan.append((path[0], leaf, None))
+                continue
+            group, name = path
+            if group not in groups:
+                groups[group] = []
+                self.plan.append((group, None, groups[group]))
+            groups[group].append((name, *leaf))
 
     def decode(self, payload: memoryview) -> dict:
         _, count, size = ARRAYS_HEAD.unpack_from(payload)
@@ -210,16 +219,13 @@ class ArrayObservations:
 
     def observation(self, record: bytearray) -> dict:
         ndarray = self.ndarray
-        tree: dict = {}
-        for parents, key, shape, dtype, offset in self.leaves:
-            node = tree
-            for parent in parents:
-                child = node.get(parent)
-                if child is None:
-                    child = node[parent] = {}
-                node = child
-            node[key] = ndarray(shape, dtype, record, offset)
-        return tree
+        obs = {}
+        for key, leaf, group in self.plan:
+            if group is None:
+                obs[key] = ndarray(leaf[0], leaf[1], record, leaf[2])
+            else:
+                obs[key] = {name: ndarray(s, d, record, o) for name, s, d, o in group}
+        return obs
 
 
 def load_adapter(observation_format: str, action_space: str):
