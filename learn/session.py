@@ -29,7 +29,8 @@ class Config:
 class Reply:
     """What one reset or step produced."""
 
-    # Encoded observations (learn.spaces); a child process sends them packed (learn.packing).
+    # Observations as arrays (learn.spaces); a child process sends their records (bytes of
+    # sim.observation_arrays.ObservationLayout).
     observations: dict[str, Any]  # of the agents live after the step
     finished: dict[str, str] = field(default_factory=dict)  # agent id -> done reason
     terminal: dict[str, Any] = field(default_factory=dict)  # of the agents finished this step
@@ -53,18 +54,19 @@ class Simulator(Protocol):
 
 class SimulatorSession:
     """The simulator of one environment, episode after episode. ``packed``: observations as
-    bytes of :class:`learn.packing.Layout` (for the pipe), else as the encoded dicts."""
+    records of :class:`sim.observation_arrays.ObservationLayout` (for the pipe), else as the
+    dicts of arrays."""
 
     def __init__(self, config: Config, *, packed: bool = False) -> None:
         from evaluator.scoring import load_profile
-        from learn.packing import Layout
-        from learn.spaces import observation_space
+        from sim.observation_arrays import ObservationEncoder, ObservationLayout
 
         self.config = config
         self.profile = load_profile(config.profile)
-        self._layout = (
-            Layout(observation_space(config.interface, config.max_neighbours)) if packed else None
+        self._encoder = ObservationEncoder(
+            ObservationLayout(config.interface, config.max_neighbours)
         )
+        self._packed = packed
         self.sim = None
 
     def reset(self, scenario_dir: str, seed: int | None) -> Reply:
@@ -115,10 +117,11 @@ class SimulatorSession:
         return reply
 
     def _encode(self, obs: dict) -> Any:
-        from learn.spaces import encode_observation
-
-        encoded = encode_observation(obs, self.config.interface, self.config.max_neighbours)
-        return encoded if self._layout is None else self._layout.pack(encoded)
+        if not self._packed:
+            return self._encoder.encode(obs)
+        record = bytearray(self._encoder.layout.size)
+        self._encoder.write(obs, record)
+        return record
 
     def _end_episode(self) -> None:
         if self.sim is not None:

@@ -157,12 +157,6 @@ class ObservationLayout:
             node[leaf.path[-1]] = np.ndarray(leaf.shape, leaf.dtype, record, leaf.offset)
         return obs
 
-    def encode(self, obs: dict, encoder: ObservationEncoder | None = None) -> dict:
-        """``obs`` (the agent-interface dict) as fresh arrays, writable, sharing one buffer."""
-        record = bytearray(self.size)
-        (encoder or ObservationEncoder(self)).write(obs, record)
-        return self.arrays(record)
-
 
 def _aligned(offset: int, alignment: int) -> int:
     return -(-offset // alignment) * alignment
@@ -225,6 +219,12 @@ class ObservationEncoder:
         self._xy = np.zeros((1024, 2), np.float32)
         self._floats = np.zeros((len(WAYPOINT_FIELDS), 1024), np.float32)
         self._lanes = np.zeros(1024, np.int32)
+
+    def encode(self, obs: dict) -> dict:
+        """``obs`` (the agent-interface dict) as fresh arrays, writable, sharing one buffer."""
+        record = bytearray(self.layout.size)
+        self.write(obs, record)
+        return self.layout.arrays(record)
 
     def write(self, obs: dict, record: bytearray) -> None:
         """Encode ``obs`` into ``record`` (``layout.size`` bytes; every byte is rewritten)."""
