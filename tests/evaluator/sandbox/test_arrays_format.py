@@ -5,7 +5,9 @@ and ``test_warm.py`` run their cases in both formats)."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
+from arena.suite import SHIPPED_PUBLIC_DIR as PUBLIC_SUITE
 from evaluator.sandbox import start
 from evaluator.sandbox.array_frames import ArrayFrames
 from sim.interface import AgentInterface
@@ -115,3 +117,44 @@ def test_the_runner_reads_back_what_the_frames_hold() -> None:
                     got, want = got[key], want[key]
                 assert got.dtype == want.dtype and got.shape == want.shape
                 np.testing.assert_array_equal(got, want)
+
+
+POLICY_HEAD = "import numpy as np\n\nclass Policy:\n    def act(self, obs):\n"
+
+
+@pytest.mark.slow
+def test_records_and_scores_do_not_depend_on_the_format(tmp) -> None:
+    """The same actions in both formats, on a one-agent and a two-agent scenario (the arrays
+    agent also checks its arrays every step): byte-identical records, identical scenario
+    results; only the submission's own digest differs in ``summary.json``."""
+    from evaluator.runner import evaluate
+    from tests.evaluator.runner.conftest import TEST_SANDBOX, write_policy
+
+    scenarios = ["p016_cruise_2lane_low", "p019_cruise_2lane_low_2agents"]
+    checks = {
+        "native": "",
+        "arrays": (
+            "        for o in obs.values():\n"
+            "            assert o['waypoint_paths']['pos'].shape == (4, 50, 2)\n"
+            "            assert o['ego_vehicle_state']['speed'].dtype == np.float32\n"
+        ),
+    }
+    summaries = {}
+    for fmt, check in checks.items():
+        body = f"{POLICY_HEAD}{check}        return {{k: [8.0, 0] for k in obs}}\n"
+        source = write_policy(tmp / f"src-{fmt}", body)
+        yaml = source / "agent.yaml"
+        yaml.write_text(yaml.read_text() + f"observation_format: {fmt}\n")
+        summaries[fmt] = evaluate(
+            source, PUBLIC_SUITE, out_dir=tmp / fmt, scenario_ids=scenarios, sandbox=TEST_SANDBOX
+        )
+    native, arrays = summaries["native"], summaries["arrays"]
+    assert native.complete and not native.uncharged
+    reasons = {agent.reason for entry in native.scenarios for agent in entry.agents}
+    assert not reasons & {"agent_error", "invalid_action", "agent_exited", "step_timeout"}
+    first, second = native.to_dict(), arrays.to_dict()
+    assert first.pop("submission") != second.pop("submission")
+    assert first == second
+    for scenario_id in scenarios:
+        record = f"records/{scenario_id}.npz"
+        assert (tmp / "arrays" / record).read_bytes() == (tmp / "native" / record).read_bytes()
