@@ -59,13 +59,13 @@ class SimulatorSession:
 
     def __init__(self, config: Config, *, packed: bool = False) -> None:
         from evaluator.scoring import load_profile
-        from sim.observation_arrays import ObservationEncoder, ObservationLayout
+        from sim.observation_arrays import ObservationLayout
 
         self.config = config
         self.profile = load_profile(config.profile)
-        self._encoder = ObservationEncoder(
-            ObservationLayout(config.interface, config.max_neighbours)
-        )
+        self._layout = ObservationLayout(config.interface, config.max_neighbours)
+        # One encoder per agent of the episode: each follows its agent's paths step to step.
+        self._encoders: dict[str, Any] = {}
         self._packed = packed
         self.sim = None
 
@@ -97,7 +97,7 @@ class SimulatorSession:
             if v.id in live_before and v.id not in obs:
                 reply.finished[v.id] = str(v.reason)
                 if v.id in drove:  # drove this step (not ended by an invalid action)
-                    reply.terminal[v.id] = self._encode(drove[v.id])
+                    reply.terminal[v.id] = self._encode(v.id, drove[v.id])
         for agent_id, observation in drove.items():
             reply.events[agent_id] = observation["events"]
             reply.terms[agent_id] = _step_terms(sim.recorder.rows[agent_id], self.profile)
@@ -108,7 +108,7 @@ class SimulatorSession:
 
     def _reply(self, obs: dict[str, dict], reply: Reply) -> Reply:
         assert self.sim is not None
-        reply.observations = {k: self._encode(o) for k, o in obs.items()}
+        reply.observations = {k: self._encode(k, o) for k, o in obs.items()}
         reply.ids = {k: _ids(o) for k, o in obs.items()}
         reply.done = self.sim.done
         reply.step = self.sim.step_count
@@ -116,14 +116,20 @@ class SimulatorSession:
             self._end_episode()
         return reply
 
-    def _encode(self, obs: dict) -> Any:
+    def _encode(self, agent_id: str, obs: dict) -> Any:
+        from sim.observation_arrays import ObservationEncoder
+
+        encoder = self._encoders.get(agent_id)
+        if encoder is None:
+            encoder = self._encoders[agent_id] = ObservationEncoder(self._layout)
         if not self._packed:
-            return self._encoder.encode(obs)
-        record = bytearray(self._encoder.layout.size)
-        self._encoder.write(obs, record)
+            return encoder.encode(obs)
+        record = bytearray(self._layout.size)
+        encoder.write(obs, record)
         return record
 
     def _end_episode(self) -> None:
+        self._encoders.clear()
         if self.sim is not None:
             self.sim.close()
             self.sim = None

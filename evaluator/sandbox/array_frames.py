@@ -27,18 +27,21 @@ class ArrayFrames:
 
     def __init__(self, interface: AgentInterface) -> None:
         self.layout = ObservationLayout(interface)
-        self._encoder = ObservationEncoder(self.layout)
-        self._records: list[bytearray] = []
+        # agent id -> its encoder (which follows that agent's paths from step to step) and the
+        # record it writes into
+        self._agents: dict[str, tuple[ObservationEncoder, bytearray]] = {}
         self._prefixes: dict[tuple[str, ...], bytes] = {}
 
     def frame(self, obs: dict[str, dict]) -> list[bytes | bytearray]:
         """The frame's payload for ``obs`` (agent id -> agent-interface observation), in parts;
         valid until the next call (the records are reused)."""
-        while len(self._records) < len(obs):
-            self._records.append(bytearray(self.layout.size))
-        records = self._records[: len(obs)]
-        for record, observation in zip(records, obs.values(), strict=False):
-            self._encoder.write(observation, record)
+        records = []
+        for agent_id, observation in obs.items():
+            encoder, record = self._agents.get(agent_id) or self._agents.setdefault(
+                agent_id, (ObservationEncoder(self.layout), bytearray(self.layout.size))
+            )
+            encoder.write(observation, record)
+            records.append(record)
         return [self._prefix(tuple(obs)), *records]
 
     def _prefix(self, ids: tuple[str, ...]) -> bytes:
