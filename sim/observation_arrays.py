@@ -168,13 +168,16 @@ def _structs(code: str, count: int) -> struct.Struct:
 
 
 class ObservationEncoder:
-    """Writes observations into records of one layout; fast enough to run every step in front
-    of the sandbox protocol (a few tens of µs for 4 x 50 waypoints).
+    """Writes observations into records of one layout, fast enough for every step in front of
+    the sandbox protocol (about 25 µs for 4 x 50 waypoints and 16 neighbours, where building
+    the ~40 arrays one by one took about 90 µs). Use one encoder per agent.
 
-    The head (scalars, events, ego) is one ``struct`` call. Waypoints go through a table of the
-    waypoint dicts already seen, found by identity: the simulator builds each lane point's dict
-    once and shares it between observations and steps (``sim.road.lane``, read-only), so nearly
-    every waypoint of a step is a row gathered by numpy rather than seven dict reads. The table
+    The head (scalars, events, ego) is one ``struct`` call, the neighbours one per field. Waypoints
+    go through a table of the waypoint dicts already seen, found by identity: the simulator
+    builds each lane point's dict once and shares it between observations and steps
+    (``sim.road.lane``, read-only), so every waypoint becomes a row index and numpy gathers the
+    rows. A path is mostly its slot's path of the step before, shifted by the points the vehicle
+    passed: a pointer comparison confirms that and only the new tail is looked up. The table
     holds the dicts it indexes (their ids stay theirs) and starts over when full.
     """
 
