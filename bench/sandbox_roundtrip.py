@@ -1,17 +1,29 @@
-"""Benchmark: one ``act`` round trip, in-process vs process vs bubblewrap vs Docker, side by side.
+"""Benchmark: one ``act`` round trip per observation format, in-process vs process vs bubblewrap
+vs Docker, side by side.
+
+Target: the Docker median round trip with ``observation_format: arrays`` at most 0.1 ms.
 
 A trivial policy (one constant action per agent) gets a realistic observation per the agent
 interface: one agent, 4 waypoint paths x 50 waypoints, 20 neighbours. In-process calls the policy
-object directly; every other row is the full evaluator path (pickle the observation, frame,
-write, the runner decodes, calls the policy, answers in JSON, we decode). ``docker (forked)`` is
-an agent forked in a warm Docker sandbox, as evaluations run them (docs/protocol.md). The
-``floor`` column is the same round trip with an empty observation: what the transport alone
+object directly with the native observation; every other row is the full evaluator path from the
+simulator's observation dict to the actions, once per format:
+
+- ``native``: pickle the observation dicts, frame, write; the runner unpickles, calls the policy,
+  answers in JSON; we decode the JSON.
+- ``arrays``: encode the observation into its fixed-shape record (``sim/observation_arrays.py``),
+  write the binary act frame; the runner copies each record and makes its numpy views, calls the
+  policy, answers in JSON; we decode the JSON.
+
+``docker (forked)`` is an agent forked in a warm Docker sandbox, as evaluations run them
+(docs/protocol.md). The ``floor`` columns are the same round trip with an empty observation
+(native: one agent with an empty dict; arrays: a frame of no agents): what the transport alone
 costs, the rest of the median is encoding and decoding the observation.
 
     python bench/sandbox_roundtrip.py [--steps 2000] [--kinds process,bubblewrap,docker]
 
-The last line is ``docker_median_ms=<m> bwrap_median_ms=<m> docker_ratio=<docker/in-process>
-docker_floor_ms=<m>``. Target: Docker median round trip at most 0.1 ms.
+The last line is ``docker_median_ms=<arrays, Docker> docker_native_median_ms=<native, Docker>
+bwrap_median_ms=<arrays, bubblewrap> docker_ratio=<arrays Docker / in-process>
+docker_floor_ms=<arrays, Docker>``.
 """
 
 from __future__ import annotations
@@ -35,8 +47,9 @@ class Policy:
     def act(self, obs):
         return {agent_id: [10.0, 0.0] for agent_id in obs}
 """
+FORMATS = ("native", "arrays")
 WARMUP = 200
-EMPTY = {"Agent_0": {}}
+EMPTY = {"native": {"Agent_0": {}}, "arrays": {}}
 
 
 def timings_ms(act, obs: dict, steps: int) -> np.ndarray:
@@ -65,18 +78,21 @@ def main() -> None:
 
     base = Path(tempfile.mkdtemp(prefix="arena-bench-"))
     settings = Settings(data_dir=base / "data")
-    source = base / "src"
-    source.mkdir()
-    (source / "policy.py").write_text(TRIVIAL_POLICY)
-    submission = prepare_submission(source, base / "submission", settings)
+    submissions = {}
+    for name in FORMATS:
+        source = base / f"src-{name}"
+        source.mkdir()
+        (source / "policy.py").write_text(TRIVIAL_POLICY)
+        (source / "agent.yaml").write_text(f"observation_format: {name}\n")
+        submissions[name] = prepare_submission(source, base / f"submission-{name}", settings)
     obs = sample_observation()
 
-    results: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    in_process = in_process_act(source)
-    results["in-process"] = (
-        timings_ms(in_process, obs, args.steps),
-        timings_ms(in_process, EMPTY, args.steps),
-    )
+    # row -> format -> (times, floor times) [ms]
+    results: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]] = {}
+    in_process = in_process_act(base / "src-native")
+    results["in-process"] = {
+        "native": (timings_ms(in_process, obs, args.steps), timings_ms(in_process, {}, args.steps))
+    }
     labels = {"bench": "roundtrip"}
     for name in args.kinds.split(","):
         kind = SandboxKind(name)
@@ -84,43 +100,59 @@ def main() -> None:
         if reason:
             print(f"{name}: skipped ({reason})")
             continue
-        with start(submission, kind=kind, settings=settings, labels=labels) as handle:
-            results[name] = both(handle.act, obs, args.steps)
+        # Formats interleaved per row, so that both see the same load on a shared machine.
+        for fmt, submission in submissions.items():
+            with start(submission, kind=kind, settings=settings, labels=labels) as handle:
+                results.setdefault(name, {})[fmt] = both(handle.act, obs, fmt, args.steps)
         if kind is SandboxKind.docker:
-            warm = WarmAgent.start(submission, kind, settings, labels=labels)
-            forked = warm.fork(settings, labels)
-            try:
-                with forked.start() as handle:
-                    results["docker (forked)"] = both(handle.act, obs, args.steps)
-            finally:
-                forked.close()
-                warm.close()
+            for fmt, submission in submissions.items():
+                warm = WarmAgent.start(submission, kind, settings, labels=labels)
+                forked = warm.fork(settings, labels)
+                try:
+                    with forked.start() as handle:
+                        row = results.setdefault("docker (forked)", {})
+                        row[fmt] = both(handle.act, obs, fmt, args.steps)
+                finally:
+                    forked.close()
+                    warm.close()
 
     print(f"act round trip, {args.steps} steps, observation of 4 x 50 waypoints + 20 neighbours")
-    print(f"{'':>16} {'median ms':>10} {'p99 ms':>10} {'x in-process':>13} {'floor ms':>9}")
-    baseline = float(np.median(results["in-process"][0]))
-    for name, (times, floor) in results.items():
-        median = float(np.median(times))
-        print(
-            f"{name:>16} {median:>10.4f} {np.percentile(times, 99):>10.4f} "
-            f"{median / baseline:>13.1f} {np.median(floor):>9.4f}"
-        )
-    docker = median_of(results, "docker")
-    bwrap = median_of(results, "bubblewrap")
-    floor = float(np.median(results["docker"][1])) if "docker" in results else float("nan")
+    columns = f"{'median ms':>10} {'p99 ms':>8} {'floor ms':>9}"
+    print(f"{'':>16} {'native':^29} | {'arrays':^29} | {'arrays x in-process':>19}")
+    print(f"{'':>16} {columns} | {columns} |")
+    baseline = float(np.median(results["in-process"]["native"][0]))
+    for name, row in results.items():
+        cells = []
+        for fmt in FORMATS:
+            if fmt not in row:
+                cells.append(f"{'-':>10} {'-':>8} {'-':>9}")
+                continue
+            times, floor = row[fmt]
+            cells.append(
+                f"{np.median(times):>10.4f} {np.percentile(times, 99):>8.4f} "
+                f"{np.median(floor):>9.4f}"
+            )
+        ratio = median_of(results, name, "arrays", 0) / baseline
+        print(f"{name:>16} {cells[0]} | {cells[1]} | {ratio:>19.1f}".replace("nan", "  -"))
+    docker = median_of(results, "docker", "arrays", 0)
     print(
-        f"docker_median_ms={docker:.4f} bwrap_median_ms={bwrap:.4f} "
-        f"docker_ratio={docker / baseline:.1f} docker_floor_ms={floor:.4f}"
+        f"docker_median_ms={docker:.4f} "
+        f"docker_native_median_ms={median_of(results, 'docker', 'native', 0):.4f} "
+        f"bwrap_median_ms={median_of(results, 'bubblewrap', 'arrays', 0):.4f} "
+        f"docker_ratio={docker / baseline:.1f} "
+        f"docker_floor_ms={median_of(results, 'docker', 'arrays', 1):.4f}"
     )
 
 
-def both(act, obs: dict, steps: int) -> tuple[np.ndarray, np.ndarray]:
+def both(act, obs: dict, fmt: str, steps: int) -> tuple[np.ndarray, np.ndarray]:
     """Round trips with ``obs`` and with an empty observation [ms]."""
-    return timings_ms(act, obs, steps), timings_ms(act, EMPTY, steps)
+    return timings_ms(act, obs, steps), timings_ms(act, EMPTY[fmt], steps)
 
 
-def median_of(results: dict, name: str) -> float:
-    return float(np.median(results[name][0])) if name in results else float("nan")
+def median_of(results: dict, name: str, fmt: str, column: int) -> float:
+    """The median of ``column`` (0: the observation, 1: the floor) [ms]; NaN if not measured."""
+    times = results.get(name, {}).get(fmt)
+    return float(np.median(times[column])) if times is not None else float("nan")
 
 
 if __name__ == "__main__":

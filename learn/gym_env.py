@@ -18,8 +18,9 @@ from learn.session import (
     check_simulator_mode,
     open_simulator,
 )
-from learn.spaces import DEFAULT_MAX_NEIGHBOURS, action_space, observation_space
+from learn.spaces import action_space, observation_space
 from sim.interface import AgentInterface
+from sim.observation_arrays import DEFAULT_MAX_NEIGHBOURS
 
 MAX_STEPS_REASON = "max_episode_steps"
 

@@ -16,8 +16,9 @@ from learn.gym_env import EpisodeState, start_episode, step_outcome
 from learn.reward import RewardFn, default_reward
 from learn.scenarios import scenario_dirs
 from learn.session import Config, Simulator, SimulatorMode, check_simulator_mode
-from learn.spaces import DEFAULT_MAX_NEIGHBOURS, action_space, observation_space
+from learn.spaces import action_space, observation_space
 from sim.interface import AgentInterface
+from sim.observation_arrays import DEFAULT_MAX_NEIGHBOURS
 
 
 class DrivingArenaParallelEnv(ParallelEnv):

@@ -29,7 +29,8 @@ class Config:
 class Reply:
     """What one reset or step produced."""
 
-    # Encoded observations (learn.spaces); a child process sends them packed (learn.packing).
+    # Observations as arrays (learn.spaces); a child process sends their records (bytes of
+    # sim.observation_arrays.ObservationLayout).
     observations: dict[str, Any]  # of the agents live after the step
     finished: dict[str, str] = field(default_factory=dict)  # agent id -> done reason
     terminal: dict[str, Any] = field(default_factory=dict)  # of the agents finished this step
@@ -53,18 +54,19 @@ class Simulator(Protocol):
 
 class SimulatorSession:
     """The simulator of one environment, episode after episode. ``packed``: observations as
-    bytes of :class:`learn.packing.Layout` (for the pipe), else as the encoded dicts."""
+    records of :class:`sim.observation_arrays.ObservationLayout` (for the pipe), else as the
+    dicts of arrays."""
 
     def __init__(self, config: Config, *, packed: bool = False) -> None:
         from evaluator.scoring import load_profile
-        from learn.packing import Layout
-        from learn.spaces import observation_space
+        from sim.observation_arrays import ObservationLayout
 
         self.config = config
         self.profile = load_profile(config.profile)
-        self._layout = (
-            Layout(observation_space(config.interface, config.max_neighbours)) if packed else None
-        )
+        self._layout = ObservationLayout(config.interface, config.max_neighbours)
+        # One encoder per agent of the episode: each follows its agent's paths step to step.
+        self._encoders: dict[str, Any] = {}
+        self._packed = packed
         self.sim = None
 
     def reset(self, scenario_dir: str, seed: int | None) -> Reply:
@@ -95,7 +97,7 @@ class SimulatorSession:
             if v.id in live_before and v.id not in obs:
                 reply.finished[v.id] = str(v.reason)
                 if v.id in drove:  # drove this step (not ended by an invalid action)
-                    reply.terminal[v.id] = self._encode(drove[v.id])
+                    reply.terminal[v.id] = self._encode(v.id, drove[v.id])
         for agent_id, observation in drove.items():
             reply.events[agent_id] = observation["events"]
             reply.terms[agent_id] = _step_terms(sim.recorder.rows[agent_id], self.profile)
@@ -106,7 +108,7 @@ class SimulatorSession:
 
     def _reply(self, obs: dict[str, dict], reply: Reply) -> Reply:
         assert self.sim is not None
-        reply.observations = {k: self._encode(o) for k, o in obs.items()}
+        reply.observations = {k: self._encode(k, o) for k, o in obs.items()}
         reply.ids = {k: _ids(o) for k, o in obs.items()}
         reply.done = self.sim.done
         reply.step = self.sim.step_count
@@ -114,13 +116,20 @@ class SimulatorSession:
             self._end_episode()
         return reply
 
-    def _encode(self, obs: dict) -> Any:
-        from learn.spaces import encode_observation
+    def _encode(self, agent_id: str, obs: dict) -> Any:
+        from sim.observation_arrays import ObservationEncoder
 
-        encoded = encode_observation(obs, self.config.interface, self.config.max_neighbours)
-        return encoded if self._layout is None else self._layout.pack(encoded)
+        encoder = self._encoders.get(agent_id)
+        if encoder is None:
+            encoder = self._encoders[agent_id] = ObservationEncoder(self._layout)
+        if not self._packed:
+            return encoder.encode(obs)
+        record = bytearray(self._layout.size)
+        encoder.write(obs, record)
+        return record
 
     def _end_episode(self) -> None:
+        self._encoders.clear()
         if self.sim is not None:
             self.sim.close()
             self.sim = None

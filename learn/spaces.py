@@ -1,5 +1,6 @@
-"""Gymnasium spaces of the agent interface; :mod:`learn.encoding` encodes observations into
-them."""
+"""Gymnasium spaces of the agent interface. Observations are the fixed-shape arrays of
+:mod:`sim.observation_arrays`, the very arrays a policy with ``observation_format: arrays`` gets
+in its sandbox."""
 
 from __future__ import annotations
 
@@ -8,82 +9,28 @@ import math
 import numpy as np
 from gymnasium import spaces
 
-from learn.encoding import (
-    DEFAULT_MAX_NEIGHBOURS,
-    EGO_FIELDS,
-    EVENT_NAMES,
-    RASTER_NAMES,
-    WAYPOINT_FIELDS,
-    encode,
-)
 from sim.interface import ActionSpace, AgentInterface
+from sim.observation_arrays import DEFAULT_MAX_NEIGHBOURS, ObservationLayout
 from sim.vehicle.limits import LIMITS
-
-_INF = np.inf
-
-
-def _box(shape: tuple[int, ...], low: float = -_INF, high: float = _INF) -> spaces.Box:
-    return spaces.Box(low, high, shape, np.float32)
-
-
-def _flag() -> spaces.Box:
-    # A 0/1 value as a uint8 scalar box: Discrete/MultiBinary would break vectorised batching of
-    # the nested dict in some training libraries, a Box never does.
-    return spaces.Box(0, 1, (), np.uint8)
 
 
 def observation_space(
     interface: AgentInterface, max_neighbours: int = DEFAULT_MAX_NEIGHBOURS
 ) -> spaces.Dict:
-    """The space of :func:`encode_observation`'s output for this interface."""
-    n, p, w = max_neighbours, interface.max_waypoint_paths, interface.waypoints_per_path
-    ego = {name: _box((size,) if size else ()) for name, size in EGO_FIELDS}
-    ego["lane_index"] = spaces.Box(0, 255, (), np.int32)
-    ego["goal_position"] = _box((2,))
-    ego["goal_radius"] = _box((), 0.0)
-    out = {
-        "dt": _box((), 0.0),
-        "step_count": spaces.Box(0, np.iinfo(np.int32).max, (), np.int32),
-        "elapsed_sim_time": _box((), 0.0),
-        "distance_travelled": _box((), 0.0),
-        "events": spaces.Dict({name: _flag() for name in EVENT_NAMES}),
-        "ego_vehicle_state": spaces.Dict(ego),
-        "neighborhood_vehicle_states": spaces.Dict(
-            {
-                "mask": spaces.Box(0, 1, (n,), np.uint8),
-                "position": _box((n, 3)),
-                "heading": _box((n,)),
-                "speed": _box((n,)),
-                "bounding_box": _box((n, 3), 0.0),
-                "lane_index": spaces.Box(0, 255, (n,), np.int32),
-            }
-        ),
-        "waypoint_paths": spaces.Dict(
-            {
-                "mask": spaces.Box(0, 1, (p, w), np.uint8),
-                "pos": _box((p, w, 2)),
-                "lane_index": spaces.Box(0, 255, (p, w), np.int32),
-                **{name: _box((p, w)) for name in WAYPOINT_FIELDS},
-            }
-        ),
-    }
-    px = interface.img_pixels
-    if interface.drivable_area_grid_map:
-        out["drivable_area_grid_map"] = spaces.Box(0, 255, (px, px), np.uint8)
-    if interface.occupancy_grid_map:
-        out["occupancy_grid_map"] = spaces.Box(0, 255, (px, px), np.uint8)
-    if interface.top_down_rgb:
-        out["top_down_rgb"] = spaces.Box(0, 255, (px, px, 3), np.uint8)
-    return spaces.Dict(out)
+    """The space of the arrays observation for this interface: a Box per leaf of its
+    :class:`~sim.observation_arrays.ObservationLayout`, in nested Dicts."""
+    tree: dict = {}
+    for leaf in ObservationLayout(interface, max_neighbours).leaves:
+        node = tree
+        for key in leaf.path[:-1]:
+            node = node.setdefault(key, {})
+        node[leaf.path[-1]] = spaces.Box(leaf.low, leaf.high, leaf.shape, np.dtype(leaf.dtype))
+    return _dict_space(tree)
 
 
-def encode_observation(
-    obs: dict, interface: AgentInterface, max_neighbours: int = DEFAULT_MAX_NEIGHBOURS
-) -> dict:
-    """One agent's simulator observation as a member of :func:`observation_space`."""
-    rasters = tuple(name for name in RASTER_NAMES if getattr(interface, name))
-    return encode(
-        obs, interface.max_waypoint_paths, interface.waypoints_per_path, max_neighbours, rasters
+def _dict_space(tree: dict) -> spaces.Dict:
+    return spaces.Dict(
+        {key: _dict_space(sub) if isinstance(sub, dict) else sub for key, sub in tree.items()}
     )
 
 

@@ -3,7 +3,7 @@
 libsumo holds one simulation per process, so an environment that cannot simulate in its own
 process (another one already does: ``learn.session.open_simulator``) owns a child of its own
 (started with ``subprocess``, which also works inside the daemonic workers of
-``AsyncVectorEnv``). Observations travel packed (:mod:`learn.packing`).
+``AsyncVectorEnv``). Observations travel as records (:mod:`sim.observation_arrays`).
 
 Frames both ways are a 4-byte big-endian length and a pickle: both ends are our own code.
 """
@@ -36,10 +36,9 @@ class SimulatorProcess:
     """A child process holding one simulator; :meth:`call` sends a command and waits."""
 
     def __init__(self, config: Config) -> None:
-        from learn.packing import Layout
-        from learn.spaces import observation_space
+        from sim.observation_arrays import ObservationLayout
 
-        self._layout = Layout(observation_space(config.interface, config.max_neighbours))
+        self._layout = ObservationLayout(config.interface, config.max_neighbours)
         env = dict(os.environ)
         # The child must import the same code as this process (a worktree before an install).
         env["PYTHONPATH"] = os.pathsep.join(
@@ -70,9 +69,9 @@ class SimulatorProcess:
         if status == "error":
             raise SimulatorError(value)
         if isinstance(value, Reply):
-            unpack = self._layout.unpack
-            value.observations = {k: unpack(v) for k, v in value.observations.items()}
-            value.terminal = {k: unpack(v) for k, v in value.terminal.items()}
+            arrays = self._layout.arrays  # views of the freshly unpickled records
+            value.observations = {k: arrays(v) for k, v in value.observations.items()}
+            value.terminal = {k: arrays(v) for k, v in value.terminal.items()}
         return value
 
     def cpu_seconds(self) -> float:

@@ -30,6 +30,8 @@ class ObservationFormat(StrEnum):
     """How the in-sandbox runner hands observations to the policy (the simulator is unaffected)."""
 
     native = "native"  # plain dicts and lists, our heading frame (0 = +x east)
+    # numpy arrays of fixed shapes, the Gymnasium space of learn/: sim/observation_arrays.py
+    arrays = "arrays"
     smarts2022 = (
         "smarts2022"  # SMARTS attribute objects, numpy, 0 = +y north: docs/smarts-compat.md
     )

@@ -4,7 +4,8 @@ It imports the participant's ``policy.py`` (working directory = the submission f
 ``Policy()`` and then answers the evaluator over a framed protocol until told to close. The
 protocol is described in ``docs/protocol.md``; in short, every message is a 4-byte big-endian
 length followed by the payload. Evaluator -> agent payloads are pickles (the agent may trust its
-host); agent -> evaluator payloads are UTF-8 JSON (the host trusts nothing the agent sends).
+host), except the binary ``act`` frames of ``observation_format: arrays``; agent -> evaluator
+payloads are UTF-8 JSON (the host trusts nothing the agent sends).
 
 Standard library plus numpy only, and no import of this project: the sandbox holds just this file,
 the submission and its dependency folder.
@@ -37,6 +38,12 @@ COMPAT = "smarts_compat"  # observation converters, next to this file
 ZYGOTE = "zygote"  # the warm parent of --zygote, next to this file
 HEADER = struct.Struct(">I")
 MAX_INCOMING_BYTES = 1 << 30
+# Formats the policy gets as the protocol delivers them; any other is converted (COMPAT).
+PLAIN_FORMATS = ("native", "arrays")
+# An arrays act frame: b"a", then agent count and record size (a pickle starts with 0x80).
+ARRAYS_TAG = ord("a")
+ARRAYS_HEAD = struct.Struct(">BII")
+ID_SIZE = struct.Struct(">H")
 
 
 class Closed(Exception):
@@ -65,10 +72,15 @@ class Stream:
         return view
 
     def receive(self) -> tuple[str, object]:
+        """A message's kind and body; an arrays act frame is ``("arrays", payload)``, a view of
+        the reused buffer, valid until the next receive."""
         (size,) = HEADER.unpack(self.read_exact(HEADER.size))
         if size > MAX_INCOMING_BYTES:
             raise Closed
-        return pickle.loads(self.read_exact(size))
+        payload = self.read_exact(size)
+        if size and payload[0] == ARRAYS_TAG:
+            return "arrays", payload
+        return pickle.loads(payload)
 
     def send(self, message: dict) -> None:
         payload = json.dumps(message, default=to_json, separators=(",", ":")).encode()
@@ -163,9 +175,62 @@ def act_isolating_agents(act, obs: dict) -> dict:
     return {"type": "actions", "actions": actions, "failed": failed}
 
 
+class ArrayObservations:
+    """Reads arrays act frames (``docs/protocol.md``, "Arrays observations") with the layout
+    the evaluator sent once: each agent's record is copied out of the frame and its arrays are
+    views of that copy, so a policy may keep them."""
+
+    def __init__(self, layout: dict) -> None:
+        import numpy
+
+        self.size = layout["size"]
+        self.ndarray = numpy.ndarray
+        # (key, (shape, dtype, offset), None) for an array, (key, None, [(name, shape, dtype,
+        # offset)]) for a dict of arrays (the layout nests two deep), in the layout's order.
+        self.plan = []
+        groups: dict[str, list] = {}
+        for path, dtype, shape, offset in layout["leaves"]:
+            leaf = (tuple(shape), numpy.dtype(dtype), offset)
+            if len(path) == 1:
+                self.plan.append((path[0], leaf, None))
+                continue
+            group, name = path
+            if group not in groups:
+                groups[group] = []
+                self.plan.append((group, None, groups[group]))
+            groups[group].append((name, *leaf))
+
+    def decode(self, payload: memoryview) -> dict:
+        _, count, size = ARRAYS_HEAD.unpack_from(payload)
+        if size != self.size:
+            raise ValueError(f"an arrays frame of {size}-byte records, the layout has {self.size}")
+        at = ARRAYS_HEAD.size
+        ids = []
+        for _ in range(count):
+            (length,) = ID_SIZE.unpack_from(payload, at)
+            at += ID_SIZE.size
+            ids.append(str(payload[at : at + length], "utf-8"))
+            at += length
+        obs = {}
+        for agent_id in ids:
+            obs[agent_id] = self.observation(bytearray(payload[at : at + size]))
+            at += size
+        return obs
+
+    def observation(self, record: bytearray) -> dict:
+        ndarray = self.ndarray
+        obs = {}
+        for key, leaf, group in self.plan:
+            if group is None:
+                obs[key] = ndarray(leaf[0], leaf[1], record, leaf[2])
+            else:
+                obs[key] = {name: ndarray(s, d, record, o) for name, s, d, o in group}
+        return obs
+
+
 def load_adapter(observation_format: str, action_space: str):
     """The converter for ``observation_format`` (None for ours)."""
-    if observation_format == "native":
+    if observation_format in PLAIN_FORMATS:
         return None
     module = sibling_module(COMPAT)
     if observation_format != module.FORMAT:
@@ -189,14 +254,20 @@ def sibling_module(name: str):
 def serve(stream: Stream, policy: object, adapter=None) -> None:
     reset = getattr(policy, "reset", None)
     act = policy.act
+    arrays = None  # the reader of arrays act frames, once the layout came
     while True:
         try:
             kind, body = stream.receive()
         except Closed:
             return
-        if kind == "act":
+        if kind == "layout":
+            arrays = ArrayObservations(body)
+        elif kind in ("act", "arrays"):
             try:
-                obs = adapter.observations(body) if adapter else body
+                if kind == "arrays":
+                    obs = arrays.decode(body)
+                else:
+                    obs = adapter.observations(body) if adapter else body
                 message = act_isolating_agents(act, obs)
                 if adapter:
                     message["actions"] = adapter.actions(message["actions"])

@@ -69,7 +69,7 @@ class Zygote:
             }
         )
         os.chdir("/")  # no library reads configuration from the submission folder here
-        if self.args.observation_format != "native":
+        if self.args.observation_format not in self.runner.PLAIN_FORMATS:
             self.runner.sibling_module(self.runner.COMPAT)
         preload_runtime_modules(self.args)
         # PID 1 ignores every signal it has no handler for, so only SIGCHLD (a wake-up) gets one;

@@ -107,7 +107,8 @@ def start(
     """
     settings = settings or get_settings()
     chosen = backend(resolve_kind(kind, settings))
-    handle = AgentHandle(chosen.launch(LaunchSpec.of_agent(submission, settings, labels)), settings)
+    sandbox = chosen.launch(LaunchSpec.of_agent(submission, settings, labels))
+    handle = AgentHandle(sandbox, settings, submission.interface)
     try:
         handle.handshake()
     except BaseException:

@@ -2,9 +2,11 @@
 
 Frames are a 4-byte big-endian length and a payload. What we send is a pickle (protocol 5) of
 ``(kind, body)``; numpy arrays are pickled as ``numpy.ndarray(shape, dtype, buffer)`` so that any
-numpy the runtime has can load them. What we receive is JSON and is never unpickled: the agent is
-untrusted. Both descriptors are non-blocking and every wait goes through ``poll`` with the time
-left, so a silent or stuck agent can never hold the evaluator past its deadline.
+numpy the runtime has can load them. The one exception is the binary act frame of
+``observation_format: arrays`` (:mod:`evaluator.sandbox.array_frames`). What we receive is JSON
+and is never unpickled: the agent is untrusted. Both descriptors are non-blocking and every wait
+goes through ``poll`` with the time left, so a silent or stuck agent can never hold the evaluator
+past its deadline.
 """
 
 from __future__ import annotations
@@ -80,7 +82,15 @@ class Channel:
         self._pickler.clear_memo()
         self._pickler.dump((kind, body))
         payload = self._buffer.getbuffer()
-        pending = [memoryview(HEADER.pack(len(payload))), payload]
+        try:
+            self.send_frame([payload], deadline)
+        finally:
+            del payload
+
+    def send_frame(self, parts: list[bytes | bytearray | memoryview], deadline: float) -> None:
+        """Write one frame whose payload is ``parts`` joined (written as they are, not copied)."""
+        views = [memoryview(part).cast("B") for part in parts]
+        pending = [memoryview(HEADER.pack(sum(len(view) for view in views))), *views]
         try:
             while pending:
                 try:
@@ -96,7 +106,7 @@ class Channel:
                 if pending:
                     pending[0] = pending[0][written:]
         finally:
-            del payload, pending
+            del views, pending
 
     def receive(self, deadline: float) -> dict[str, Any]:
         """Read one message; ``deadline`` is a ``time.monotonic()`` value."""

@@ -12,9 +12,11 @@ from typing import Any, NoReturn
 from arena.config import Settings
 from arena.errors import AgentFailed
 from arena.outcome import DoneReason
+from evaluator.sandbox.array_frames import ArrayFrames
 from evaluator.sandbox.backend import ExitStatus, Sandbox
 from evaluator.sandbox.channel import Channel, ChannelClosed, ChannelTimeout, ChannelViolation
 from sim.agent import Observation, SomeAgentsFailed
+from sim.interface import AgentInterface, ObservationFormat
 
 # How long a closing agent may take to say goodbye before it is killed [s].
 CLOSE_GRACE_S = 1.0
@@ -23,10 +25,19 @@ EXIT_STATUS_WAIT_S = 2.0
 
 
 class AgentHandle:
-    """A started agent. Made by :func:`evaluator.sandbox.start`, which has done hello/ready."""
+    """A started agent. Made by :func:`evaluator.sandbox.start`, which has done hello/ready.
+    ``interface``: the submission's ``agent.yaml``, whose observation format says how
+    observations travel."""
 
-    def __init__(self, sandbox: Sandbox, settings: Settings) -> None:
+    def __init__(
+        self, sandbox: Sandbox, settings: Settings, interface: AgentInterface | None = None
+    ) -> None:
         self._sandbox = sandbox
+        self._arrays = (
+            ArrayFrames(interface)
+            if interface is not None and interface.observation_format is ObservationFormat.arrays
+            else None
+        )
         self._step_timeout_s = settings.step_timeout_s
         self._init_timeout_s = settings.init_timeout_s
         self._channel: Channel | None = None
@@ -49,6 +60,8 @@ class AgentHandle:
         self.init_s = (
             float(init_s) if isinstance(init_s, int | float) and 0 <= init_s < 1e9 else None
         )
+        if self._arrays is not None:  # no answer: the runner keeps it for the act frames
+            self._send("layout", self._arrays.layout.describe(), deadline, DoneReason.init_timeout)
 
     def reset(self) -> None:
         self._send("reset", None, time.monotonic() + self._init_timeout_s, DoneReason.init_timeout)
@@ -56,7 +69,10 @@ class AgentHandle:
 
     def act(self, obs: dict[str, Observation]) -> dict[str, Any]:
         deadline = time.monotonic() + self._step_timeout_s
-        self._send("act", obs, deadline, DoneReason.step_timeout)
+        if self._arrays is None:
+            self._send("act", obs, deadline, DoneReason.step_timeout)
+        else:
+            self._send_frame(self._arrays.frame(obs), deadline)
         message = self._expect("actions", deadline, DoneReason.step_timeout)
         actions, failed = message.get("actions"), message.get("failed")
         if not isinstance(actions, dict) or not isinstance(failed, dict | None):
@@ -88,14 +104,27 @@ class AgentHandle:
         self.close()
 
     def _send(self, kind: str, body: Any, deadline: float, late: DoneReason) -> None:
-        if self._closed or self._channel is None:
-            raise AgentFailed(DoneReason.sandbox_error, "the agent was already closed")
+        channel = self._open_channel()
         try:
-            self._channel.send(kind, body, deadline)
+            channel.send(kind, body, deadline)
         except ChannelTimeout:
             self._fail(late, f"the agent did not take its {kind} message in time")
         except ChannelClosed:
             self._died()
+
+    def _send_frame(self, parts: list, deadline: float) -> None:
+        channel = self._open_channel()
+        try:
+            channel.send_frame(parts, deadline)
+        except ChannelTimeout:
+            self._fail(DoneReason.step_timeout, "the agent did not take its act message in time")
+        except ChannelClosed:
+            self._died()
+
+    def _open_channel(self) -> Channel:
+        if self._closed or self._channel is None:
+            raise AgentFailed(DoneReason.sandbox_error, "the agent was already closed")
+        return self._channel
 
     def _expect(
         self, kind: str, deadline: float, late: DoneReason, *, startup: bool = False

@@ -41,6 +41,7 @@ from evaluator.sandbox.channel import (
 )
 from evaluator.sandbox.handle import AgentHandle
 from evaluator.sandbox.subprocess_sandbox import LogTail
+from sim.interface import AgentInterface
 
 log = logging.getLogger(__name__)
 
@@ -61,6 +62,7 @@ class ForkedAgent:
     log: socket.socket
     settings: Settings
     labels: dict[str, str] = field(default_factory=dict)
+    interface: AgentInterface | None = None  # the submission's agent.yaml
 
     def kill(self) -> None:
         """Ask the zygote to kill this agent (it may be gone already)."""
@@ -73,7 +75,7 @@ class ForkedAgent:
 
     def start(self) -> AgentHandle:
         """The agent's handle, after its hello and ready (in the episode process)."""
-        handle = AgentHandle(ForkedSandbox(self), self.settings)
+        handle = AgentHandle(ForkedSandbox(self), self.settings, self.interface)
         try:
             handle.handshake()
         except BaseException:
@@ -135,10 +137,13 @@ def read_exit_status(lifeline: socket.socket) -> ExitStatus:
 class WarmAgent:
     """A started zygote in its sandbox, forking agents one episode at a time."""
 
-    def __init__(self, sandbox: Sandbox, channel: Channel, kind: SandboxKind) -> None:
+    def __init__(
+        self, sandbox: Sandbox, channel: Channel, kind: SandboxKind, interface: AgentInterface
+    ) -> None:
         self._sandbox = sandbox
         self._channel = channel
         self.kind = kind
+        self.interface = interface  # the submission's agent.yaml, for its forked agents
         self.last_used = time.monotonic()
         self._closed = False
 
@@ -174,7 +179,7 @@ class WarmAgent:
         except BaseException:
             sandbox.kill()
             raise
-        return cls(sandbox, channel, kind)
+        return cls(sandbox, channel, kind, submission.interface)
 
     def fork(self, settings: Settings, labels: dict[str, str]) -> ForkedAgent:
         """A new agent for one episode. Raises :class:`SandboxUnavailable` when the zygote is
@@ -198,7 +203,12 @@ class WarmAgent:
             for end in theirs:
                 end.close()
         self.last_used = time.monotonic()
-        return ForkedAgent(*ours, settings=settings, labels={SANDBOX_LABEL: "1", **labels})
+        return ForkedAgent(
+            *ours,
+            settings=settings,
+            labels={SANDBOX_LABEL: "1", **labels},
+            interface=self.interface,
+        )
 
     def wait_ready(self, timeout: float) -> bool:
         """Whether the zygote, after its last agent, says the sandbox is clean and it is ready

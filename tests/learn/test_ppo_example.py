@@ -10,10 +10,17 @@ import numpy as np
 import onnxruntime
 import pytest
 import torch
+import yaml
 
+from sim.interface import AgentInterface, ObservationFormat
+from sim.observation_arrays import ObservationEncoder, ObservationLayout
 from submissions.sample import sample_observation
 
 EXAMPLE = Path(__file__).parents[2] / "submissions" / "examples" / "ppo"
+
+
+def example_interface() -> AgentInterface:
+    return AgentInterface(**yaml.safe_load((EXAMPLE / "agent.yaml").read_text()))
 
 
 @pytest.fixture(scope="module")
@@ -24,13 +31,13 @@ def example():
         yield {name: importlib.import_module(name) for name in ("train", "policy", "features")}
     finally:
         sys.path.remove(str(EXAMPLE))
-        for name in ("train", "policy", "features", "encoding"):
+        for name in ("train", "policy", "features"):
             sys.modules.pop(name, None)
 
 
-def test_the_submission_carries_the_training_encoding() -> None:
-    shipped = (EXAMPLE / "encoding.py").read_text()
-    assert shipped == (EXAMPLE.parents[2] / "learn" / "encoding.py").read_text()
+def test_the_submission_receives_the_training_observation() -> None:
+    """``observation_format: arrays``: the sandbox hands the policy what the env trained on."""
+    assert example_interface().observation_format is ObservationFormat.arrays
 
 
 def test_onnx_export_gives_the_trained_networks_logits(example, short_road) -> None:
@@ -63,8 +70,9 @@ def test_onnx_export_gives_the_trained_networks_logits(example, short_road) -> N
 def test_a_tiny_training_run_exports_a_policy_the_submission_runs(example, short_road) -> None:
     path = example["train"].train(64, short_road.parent / "tiny", suite=str(short_road), n_steps=32)
     policy = example["policy"].Policy(model=path)
+    encoder = ObservationEncoder(ObservationLayout(example_interface()))
     obs = sample_observation(("Agent_0", "Agent_1"), rasters=True, img_pixels=64)
-    actions = policy.act(obs)
+    actions = policy.act({agent_id: encoder.encode(o) for agent_id, o in obs.items()})
     assert set(actions) == {"Agent_0", "Agent_1"}
     for speed, lane_change in actions.values():
         assert 0.0 <= speed <= 14.0 and lane_change in (-1.0, 0.0, 1.0)

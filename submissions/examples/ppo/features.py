@@ -2,8 +2,8 @@
 
 Like the Driving SMARTS 2022 baseline: the BEV image plus the distance and heading error to the
 goal, and a small discrete action set (brake, forward, turn left, turn right) mapped onto
-LaneWithContinuousSpeed. Works on observations encoded by ``encoding.py`` (the training
-environment's encoding), so training and the submission compute the very same inputs.
+LaneWithContinuousSpeed. Works on the arrays observation (``observation_format: arrays``), which
+the training environment and the sandbox both give, so both compute the very same inputs.
 """
 
 from __future__ import annotations

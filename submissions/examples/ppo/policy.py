@@ -1,7 +1,8 @@
 """The PPO baseline's submission: the trained network, exported to ONNX, run by onnxruntime.
 
-``train.py`` trained it on the arena's own simulator (``learn.gym_env``); ``encoding.py`` (a copy
-of ``learn/encoding.py``) and ``features.py`` compute its inputs exactly as in training.
+``train.py`` trained it on the arena's own simulator (``learn.gym_env``). With
+``observation_format: arrays`` (``agent.yaml``) the sandbox hands the policy the very arrays the
+training environment gave, so ``features.py`` computes its inputs exactly as in training.
 """
 
 from __future__ import annotations
@@ -10,7 +11,6 @@ from pathlib import Path
 
 import numpy as np
 import onnxruntime
-from encoding import encode
 from features import features, to_action
 
 MODEL = Path(__file__).with_name("policy.onnx")
@@ -29,7 +29,6 @@ class Policy:
         return {agent_id: self.drive(o) for agent_id, o in obs.items()}
 
     def drive(self, obs: dict) -> list[float]:
-        encoded = encode(obs, rasters=("top_down_rgb",))
-        x = features(encoded)
+        x = features(obs)
         (logits,) = self.session.run(None, {"image": x["image"][None], "vector": x["vector"][None]})
         return to_action(int(np.argmax(logits[0])), float(obs["ego_vehicle_state"]["speed"]))

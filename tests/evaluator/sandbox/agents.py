@@ -26,10 +26,18 @@ def policy_source(act: str = "return {k: [1.0, 0.0] for k in obs}", init: str = 
 
 
 def agent(
-    root: Path, settings: Settings, *, act: str | None = None, init: str = "pass", source=None
+    root: Path,
+    settings: Settings,
+    *,
+    act: str | None = None,
+    init: str = "pass",
+    source=None,
+    agent_yaml: str | None = None,
 ) -> PreparedSubmission:
     folder = root / "src"
     folder.mkdir(parents=True)
     text = source or (policy_source(act, init) if act else policy_source(init=init))
     (folder / "policy.py").write_text(text)
+    if agent_yaml is not None:
+        (folder / "agent.yaml").write_text(agent_yaml)
     return prepare_submission(folder, root / "submission", settings)

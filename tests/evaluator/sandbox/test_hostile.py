@@ -175,12 +175,29 @@ CASES = [
 ]
 
 
+# Both ways observations travel: pickled dicts, or binary frames of arrays.
+FORMATS = ["native", "arrays"]
+
+
+@pytest.mark.parametrize("observation_format", FORMATS)
 @pytest.mark.parametrize("case", CASES, ids=[case.name for case in CASES])
 def test_hostile_agent_fails_with_its_reason(
-    case: Hostile, kind: SandboxKind, settings: Settings, labels, good_agent, tmp: Path
+    case: Hostile,
+    observation_format: str,
+    kind: SandboxKind,
+    settings: Settings,
+    labels,
+    good_agent,
+    tmp: Path,
 ) -> None:
     run_settings = settings.model_copy(update=case.overrides)
-    submission = agent(tmp, run_settings, act=case.act, init=case.init)
+    submission = agent(
+        tmp,
+        run_settings,
+        act=case.act,
+        init=case.init,
+        agent_yaml=f"observation_format: {observation_format}\n",
+    )
     with pytest.raises(AgentFailed) as caught:
         handle = start(submission, kind=kind, labels=labels, settings=run_settings)
         assert case.fails_at == "act", "the agent should not have started"

@@ -21,7 +21,7 @@ from evaluator.sandbox.warm import WarmAgent
 from evaluator.sandbox.warm_pool import WarmAgents
 from tests.evaluator.sandbox.agents import agent, observation
 from tests.evaluator.sandbox.conftest import leftovers, usable
-from tests.evaluator.sandbox.test_hostile import CASES, Hostile
+from tests.evaluator.sandbox.test_hostile import CASES, FORMATS, Hostile
 
 # Episode 1 leaves a module global, files in /tmp (one in a folder it made unreadable), a
 # System V shared memory segment and a process behind; each episode reports what it found.
@@ -90,12 +90,19 @@ def test_forked_agents_keep_their_state_apart_under_process(settings, labels, tm
         assert episode(warm, settings)[0]["Agent_0"][0] == 1.0
 
 
+@pytest.mark.parametrize("observation_format", FORMATS)
 @pytest.mark.parametrize("case", CASES, ids=[case.name for case in CASES])
 def test_forked_hostile_agent_fails_with_its_reason(
-    case: Hostile, kind: SandboxKind, settings: Settings, labels, tmp
+    case: Hostile, observation_format: str, kind: SandboxKind, settings: Settings, labels, tmp
 ) -> None:
     run_settings = settings.model_copy(update=case.overrides)
-    submission = agent(tmp, run_settings, act=case.act, init=case.init)
+    submission = agent(
+        tmp,
+        run_settings,
+        act=case.act,
+        init=case.init,
+        agent_yaml=f"observation_format: {observation_format}\n",
+    )
     with zygote(submission, kind, run_settings, labels) as warm:
         with pytest.raises(AgentFailed) as caught:
             episode(warm, run_settings)
