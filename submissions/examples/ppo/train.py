@@ -113,6 +113,8 @@ def train(
     suite: str = "public",
     seed: int = 0,
     n_steps: int = 256,
+    learning_rate: float = 3e-4,
+    ent_coef: float = 0.0,
     minutes: float | None = None,
     export_every: int | None = None,
 ) -> Path:
@@ -151,7 +153,8 @@ def train(
         envs,
         n_steps=n_steps,
         batch_size=min(128, 2 * n_steps),
-        learning_rate=3e-4,
+        learning_rate=learning_rate,
+        ent_coef=ent_coef,
         gamma=0.99,
         seed=seed,
         device="cpu",
@@ -175,6 +178,9 @@ def main() -> None:
     parser.add_argument("--suite", default="public")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--minutes", type=float, help="stop earlier after this much wall time")
+    parser.add_argument("--n-steps", type=int, default=256, help="steps per env and update")
+    parser.add_argument("--learning-rate", type=float, default=3e-4)
+    parser.add_argument("--ent-coef", type=float, default=0.0, help="entropy bonus")
     parser.add_argument("--export-every", type=int, help="also export a checkpoint every N steps")
     args = parser.parse_args()
     path = train(
@@ -182,6 +188,9 @@ def main() -> None:
         args.out,
         suite=args.suite,
         seed=args.seed,
+        n_steps=args.n_steps,
+        learning_rate=args.learning_rate,
+        ent_coef=args.ent_coef,
         minutes=args.minutes,
         export_every=args.export_every,
     )
