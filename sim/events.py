@@ -41,14 +41,23 @@ class Events:
 
 
 def collisions(
-    x: float, y: float, heading: float, length: float, width: float, others: VehicleStates
+    x: float,
+    y: float,
+    heading: float,
+    length: float,
+    width: float,
+    others: VehicleStates,
+    distance: np.ndarray | None = None,
 ) -> tuple[str, ...]:
-    """Ids of ``others`` whose oriented box overlaps the ego's (sorted)."""
+    """Ids of ``others`` whose oriented box overlaps the ego's (sorted). ``distance``: the
+    centres' distances from (x, y) [m] when the caller has them already."""
     if not len(others):
         return ()
+    if distance is None:
+        distance = np.hypot(others.x - x, others.y - y)
     # Boxes further apart than their half-diagonals cannot touch: skip the exact test for them.
     reach = 0.5 * (math.hypot(length, width) + np.hypot(others.length, others.width))
-    near = np.flatnonzero(np.hypot(others.x - x, others.y - y) <= reach)
+    near = np.flatnonzero(distance <= reach)
     if len(near) == 0:
         return ()
     ego = (x, y, heading, length, width)

@@ -63,6 +63,17 @@ def quote(value: object) -> str:
 def check_action(raw: object, space: ActionSpace) -> np.ndarray:
     """The action as a float array of the space's length; :class:`InvalidAction` otherwise."""
     length = ACTION_LENGTH[space]
+    # The usual action, a list of in-range floats, passes every check below: skip numpy's
+    # per-call overhead for it. Anything else (NaN, inf, ints, arrays) takes the full path.
+    if type(raw) in (list, tuple) and len(raw) == length:
+        for value in raw:
+            if (
+                type(value) is not float
+                or not -MAX_ACTION_MAGNITUDE <= value <= MAX_ACTION_MAGNITUDE
+            ):
+                break
+        else:
+            return np.array(raw)
     try:
         arr = np.asarray(raw, dtype=np.float64)
     except (TypeError, ValueError, OverflowError) as error:

@@ -3,7 +3,10 @@ import math
 import numpy as np
 import pytest
 
+from arena.scenario import load_scenario
+from arena.suite import SHIPPED_PUBLIC_DIR
 from sim.road import RoadNetwork
+from sim.road.network import _well_inside
 from sim.road.waypoints import waypoint_paths
 from tests.sim.builders import LANE_WIDTH, build_net, lane_y, straight_road
 
@@ -67,3 +70,29 @@ def test_junction_lanes_and_areas(tmp_path):
     assert road.in_junction(0.0, -2.0)
     successors = {road.lanes[s].successors[0] for s in road.lanes["in_0"].successors}
     assert successors == {"out_0", "down_0"}
+
+
+@pytest.mark.parametrize(
+    "scenario_id",
+    ["p000_left_turn_t_low", "p012_merge_3lane_curve_mid_2agents", "p038_replay_urban"],
+)
+def test_area_tests_given_the_nearest_lane_agree_with_the_polygons(scenario_id):
+    # The lane shortcut of is_on_road must never contradict the drivable-area polygon, also at
+    # lane edges, lane ends, curves and junctions: points scattered around every lane.
+    folder = SHIPPED_PUBLIC_DIR / scenario_id
+    road = RoadNetwork.load(folder / load_scenario(folder).map)
+    rng = np.random.default_rng(5)
+    shortcut = 0
+    for lane in road.lanes.values():
+        s = rng.uniform(-2.0, lane.length + 2.0, 40)
+        base = lane.position_at(s)
+        heading = np.asarray(lane.heading_at(np.clip(s, 0.0, lane.length)))
+        offset = rng.uniform(-0.7, 0.7, 40) * lane.width
+        xs = base[:, 0] - offset * np.sin(heading)
+        ys = base[:, 1] + offset * np.cos(heading)
+        for x, y, h in zip(xs.tolist(), ys.tolist(), heading.tolist(), strict=True):
+            near = road.nearest_lane(x, y, h)
+            assert road.is_on_road(x, y, near) == road.is_on_road(x, y), (lane.id, x, y)
+            assert road.in_junction(x, y, near) == road.in_junction(x, y), (lane.id, x, y)
+            shortcut += _well_inside(near)
+    assert shortcut > 0.3 * 40 * len(road.lanes)  # the shortcut is the common case
