@@ -146,7 +146,12 @@ class Simulation:
                 self._finish(v, DoneReason.invalid_action)
                 continue
             ctx = ControlContext(
-                self.dt, v.mission.vehicle.length, self.road, v.mission.route, v.target_lane
+                self.dt,
+                v.mission.vehicle.length,
+                self.road,
+                v.mission.route,
+                v.target_lane,
+                self._lanes.get(v.id),  # where the last step (or the entry) left it
             )
             new = DECODERS[space](action, v.pose, ctx)
             v.target_lane = ctx.target_lane
