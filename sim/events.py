@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -16,8 +16,7 @@ NOT_MOVING_SPEED = 0.1  # [m/s]
 NOT_MOVING_STEPS = 60  # 6 s at dt = 0.1 s
 
 
-@dataclass(frozen=True)
-class Events:
+class Events(NamedTuple):  # immutable, and cheaper to make per step than a frozen dataclass
     collisions: tuple[str, ...]  # ids of the vehicles the ego's box overlapped
     off_road: bool
     off_route: bool

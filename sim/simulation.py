@@ -42,6 +42,7 @@ from sim.vehicles import Surroundings, VehicleStates
 # SUMO reports the vehicles around an ego by front-bumper distance: ask a little wider, then
 # filter by centre distance ourselves.
 _CONTEXT_MARGIN = 10.0  # [m]
+_AT_REST = Events((), False, False, False, False, False, False, False)
 
 
 class Simulation:
@@ -372,7 +373,7 @@ class Simulation:
     def _events_at_rest(self, v: MissionVehicle) -> Events:
         """Events of an agent that has not driven yet (just entered): nothing happened."""
         self._lane_of(v)
-        return Events((), False, False, False, False, False, False, False)
+        return _AT_REST
 
     def _observe(self, v: MissionVehicle, around: Surroundings, events: Events) -> dict:
         lane, near = self._lanes[v.id], around.vehicles

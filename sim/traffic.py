@@ -207,29 +207,30 @@ class SumoTraffic:
             if v not in dims:
                 dims[v] = (self._ls.vehicle.getLength(v), self._ls.vehicle.getWidth(v))
         position, angle, speed, lane = self._vars
-        # One flat list of plain floats into one array: the cheapest way in for ~20 vehicles.
+        # Plain Python per vehicle and one array at the end: for the ~20 vehicles around an ego
+        # this beats a dozen numpy calls. The same operations as numpy's radians, mod, cos and
+        # sin, so the same values.
+        pi, tau = math.pi, 2 * math.pi
         flat: list[float] = []
         lanes = []
         for v in ids:
             r = results[v]
-            flat += r[position]
-            flat.append(r[angle])
-            flat.append(r[speed])
-            flat += dims[v]
+            fx, fy = r[position]
+            heading = pi - (pi - math.radians(90.0 - r[angle])) % tau
+            length, width = dims[v]
+            half = length / 2
+            flat += (
+                fx - half * math.cos(heading),
+                fy - half * math.sin(heading),
+                heading,
+                r[speed],
+                length,
+                width,
+            )
             lanes.append(r[lane])
         rows = np.array(flat).reshape(len(ids), 6)
-        heading = np.radians(90.0 - rows[:, 2])
-        heading = np.pi - np.mod(np.pi - heading, 2 * np.pi)
-        half = rows[:, 4] / 2
         return VehicleStates(
-            ids,
-            rows[:, 0] - half * np.cos(heading),
-            rows[:, 1] - half * np.sin(heading),
-            heading,
-            rows[:, 3],
-            rows[:, 4],
-            rows[:, 5],
-            lanes,
+            ids, rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3], rows[:, 4], rows[:, 5], lanes
         )
 
     def lane_index(self, vid: str) -> int:

@@ -149,13 +149,15 @@ class RoadNetwork:
             u = (rx * dx + ry * dy) / len2
             u = 0.0 if u < 0.0 else 1.0 if u > 1.0 else u
             found.append((math.hypot(rx - dx * u, ry - dy * u), u, k))
-        if not found or min(found)[0] + _TIE_DISTANCE > _GRID_REACH:
+        best = min(found) if found else None
+        if best is None or best[0] + _TIE_DISTANCE > _GRID_REACH:
             found = self._search_tree(x, y)
-        best = min(found)
+            best = min(found)
         seg_lane = self._seg_lane_list
         if heading is not None:
             close = [f for f in found if f[0] <= best[0] + _TIE_DISTANCE]
-            if len(close) > 1:
+            # Segments of one lane only (the usual case) leave nothing to choose.
+            if any(seg_lane[f[2]] != seg_lane[best[2]] for f in close):
                 headings = self._seg_heading_list
                 aligned = min(close, key=lambda f: angle_between(headings[f[2]], heading))
                 lane_k = seg_lane[aligned[2]]
