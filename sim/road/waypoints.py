@@ -161,7 +161,10 @@ def _path_from(road: RoadNetwork, lane: Lane, s: float, route: tuple[str, ...], 
     first_s = math.ceil(s / WAYPOINT_SPACING - 1e-9) * WAYPOINT_SPACING
     for _ in range(_MAX_LANE_HOPS):
         points, on_lane = lane.waypoints_from(first_s, n - len(path))
-        path.extend(points)
+        if path:
+            path.extend(points)
+        else:  # a fresh list: most paths end on their first lane
+            path = points
         if len(path) >= n:
             break
         # The next point lies past this lane's end by what is left of one spacing.
