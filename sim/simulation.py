@@ -293,15 +293,23 @@ class Simulation:
             parts.append(self._replay.states(self.step_count))
         others = [o for o in self.live if o is not v]
         if others:
+            rows = np.array(
+                [
+                    (
+                        o.pose.x,
+                        o.pose.y,
+                        o.pose.heading,
+                        o.pose.speed,
+                        o.mission.vehicle.length,
+                        o.mission.vehicle.width,
+                    )
+                    for o in others
+                ]
+            )
             parts.append(
                 VehicleStates(
                     [o.id for o in others],
-                    np.array([o.pose.x for o in others]),
-                    np.array([o.pose.y for o in others]),
-                    np.array([o.pose.heading for o in others]),
-                    np.array([o.pose.speed for o in others]),
-                    np.array([o.mission.vehicle.length for o in others]),
-                    np.array([o.mission.vehicle.width for o in others]),
+                    *rows.T,
                     [self._lanes[o.id].lane.id if o.id in self._lanes else "" for o in others],
                 )
             )
