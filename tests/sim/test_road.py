@@ -6,6 +6,7 @@ import pytest
 from arena.scenario import load_scenario
 from arena.suite import SHIPPED_PUBLIC_DIR
 from sim.road import RoadNetwork
+from sim.road.lane import Lane
 from sim.road.network import _well_inside
 from sim.road.waypoints import waypoint_paths
 from tests.sim.builders import LANE_WIDTH, build_net, lane_y, straight_road
@@ -96,3 +97,18 @@ def test_area_tests_given_the_nearest_lane_agree_with_the_polygons(scenario_id):
             assert road.in_junction(x, y, near) == road.in_junction(x, y), (lane.id, x, y)
             shortcut += _well_inside(near)
     assert shortcut > 0.3 * 40 * len(road.lanes)  # the shortcut is the common case
+
+
+def test_waypoints_built_block_by_block_equal_the_whole_lane_at_once():
+    # A curved 500 m lane, asked for paths in a scattered order and at two phases: every point
+    # must be what building the lane's whole list at once gives.
+    t = np.linspace(0.0, 1.0, 60)
+    centreline = np.stack([400.0 * t, 80.0 * np.sin(3.0 * t)], 1)
+    lane = Lane("L_0", "L", 0, centreline, 3.2, 13.9, is_internal=False, is_shoulder=False)
+    for phase in (0.0, 0.37):
+        whole = lane._waypoint_dicts(np.arange(phase, lane.length, 1.0))
+        for k in np.random.default_rng(2).permutation(len(whole) + 5)[:80].tolist():
+            points, count = lane.waypoints_from(k + phase, 50)
+            assert points == whole[k : k + 50]
+            assert count == max(len(whole) - k, 0)
+    assert lane.waypoints == lane._waypoint_dicts(np.arange(0.0, lane.length, 1.0))
