@@ -9,7 +9,6 @@ from functools import cached_property
 import numpy as np
 
 WAYPOINT_SPACING = 1.0  # [m] distance between consecutive waypoints along a lane
-_WAYPOINT_BLOCK = 64  # waypoint dicts are built this many at a time, when a path first needs them
 # Lanes of more centreline points than this are projected onto with numpy (one pass over all
 # segments), fewer with a scalar loop; both give the same result.
 _VECTOR_PROJECTION_POINTS = 16
@@ -34,10 +33,8 @@ class Lane:
     is_internal: bool
     is_shoulder: bool
     successors: list[str] = field(default_factory=list)  # lane ids reachable at the lane's end
-    # phase of the first waypoint [0.1 mm] -> (their s, their dicts); see waypoints_from()
-    _waypoint_cache: dict[int, tuple[np.ndarray, list[dict | None]]] = field(
-        default_factory=dict, init=False, repr=False
-    )
+    # phase of the first waypoint [0.1 mm] -> waypoint dicts; see waypoints_from()
+    _waypoint_cache: dict[int, list[dict]] = field(default_factory=dict, init=False, repr=False)
 
     def __post_init__(self) -> None:
         pts = np.asarray(self.centreline, dtype=np.float64)
@@ -112,8 +109,7 @@ class Lane:
     @property
     def waypoints(self) -> list[dict]:
         """Waypoint dicts every :data:`WAYPOINT_SPACING` along the lane, from s = 0."""
-        points = self._waypoints_with_phase(0.0)
-        return self._built(points, 0, len(points[1]))
+        return self._waypoints_with_phase(0.0)
 
     def waypoints_from(self, first_s: float, limit: int) -> tuple[list[dict], int]:
         """Up to ``limit`` waypoint dicts at s = ``first_s`` + k * :data:`WAYPOINT_SPACING` [m],
@@ -121,35 +117,20 @@ class Lane:
 
         A path crossing into this lane starts at the offset left over from the previous lane, so
         the spacing stays even across the join. Points are built once per offset phase (the
-        few a lane is entered at), a block at a time as paths first reach them, and shared by
-        every observation: treat them as read-only.
+        few a lane is entered at) and shared by every observation: treat them as read-only.
         """
         k0 = math.floor(first_s / WAYPOINT_SPACING + 1e-9)
         phase = max(first_s - k0 * WAYPOINT_SPACING, 0.0)
         points = self._waypoints_with_phase(phase)
-        return self._built(points, k0, k0 + limit), max(len(points[1]) - k0, 0)
+        return points[k0 : k0 + limit], max(len(points) - k0, 0)
 
-    def _waypoints_with_phase(self, phase: float) -> tuple[np.ndarray, list[dict | None]]:
-        """The distances along the lane [m] of the waypoints of ``phase``, and their dicts so
-        far (None in the blocks not built yet)."""
+    def _waypoints_with_phase(self, phase: float) -> list[dict]:
         key = math.floor(phase * 1e4 + 0.5)  # [0.1 mm]; round() is slow on the per-step path
         cached = self._waypoint_cache.get(key)
         if cached is None:
             s = np.arange(key / 1e4, self.length, WAYPOINT_SPACING)
-            cached = self._waypoint_cache[key] = (s, [None] * len(s))
+            cached = self._waypoint_cache[key] = self._waypoint_dicts(s)
         return cached
-
-    def _built(self, points: tuple[np.ndarray, list[dict | None]], start: int, stop: int) -> list:
-        """``dicts[start:stop]`` of ``points`` = (s, dicts), building the blocks it needs. Each
-        dict depends on its own s only, so building by blocks gives the same dicts as all at
-        once, and a long lane costs only the part that is driven along."""
-        s, dicts = points
-        first, last, _ = slice(start, stop).indices(len(dicts))
-        for block in range(first // _WAYPOINT_BLOCK, -(-last // _WAYPOINT_BLOCK)):
-            a = block * _WAYPOINT_BLOCK
-            if dicts[a] is None:
-                dicts[a : a + _WAYPOINT_BLOCK] = self._waypoint_dicts(s[a : a + _WAYPOINT_BLOCK])
-        return dicts[start:stop]
 
     @cached_property
     def end_waypoint(self) -> dict:
@@ -157,19 +138,21 @@ class Lane:
         return self._waypoint_dicts(np.array([self.length]))[0]
 
     def _waypoint_dicts(self, s: np.ndarray) -> list[dict]:
-        pos = self.position_at(s)
-        heading = self.heading_at(np.minimum(s, self.length - 1e-9))
+        # Plain floats first: rounding and boxing numpy scalars one by one costs several times
+        # more, for the same values.
+        xy = self.position_at(s).tolist()
+        heading = np.atleast_1d(self.heading_at(np.minimum(s, self.length - 1e-9))).tolist()
         return [
             {
-                "pos": [round(float(p[0]), 4), round(float(p[1]), 4)],
-                "heading": float(h),
+                "pos": [round(x, 4), round(y, 4)],
+                "heading": h,
                 "lane_id": self.id,
                 "lane_index": self.index,
                 "lane_width": self.width,
                 "speed_limit": self.speed_limit,
-                "lane_offset": float(si),
+                "lane_offset": si,
             }
-            for p, h, si in zip(pos, np.atleast_1d(heading), s, strict=True)
+            for (x, y), h, si in zip(xy, heading, s.tolist(), strict=True)
         ]
 
     @property

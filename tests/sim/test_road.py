@@ -99,16 +99,27 @@ def test_area_tests_given_the_nearest_lane_agree_with_the_polygons(scenario_id):
     assert shortcut > 0.3 * 40 * len(road.lanes)  # the shortcut is the common case
 
 
-def test_waypoints_built_block_by_block_equal_the_whole_lane_at_once():
-    # A curved 500 m lane, asked for paths in a scattered order and at two phases: every point
-    # must be what building the lane's whole list at once gives.
+def test_waypoint_dicts_of_a_curved_lane():
+    # Every waypoint sits on the centreline at its own s, rounded to 0.1 mm, with the heading of
+    # the segment under it; paths starting anywhere (and at another phase) are slices of it.
     t = np.linspace(0.0, 1.0, 60)
     centreline = np.stack([400.0 * t, 80.0 * np.sin(3.0 * t)], 1)
     lane = Lane("L_0", "L", 0, centreline, 3.2, 13.9, is_internal=False, is_shoulder=False)
-    for phase in (0.0, 0.37):
-        whole = lane._waypoint_dicts(np.arange(phase, lane.length, 1.0))
-        for k in np.random.default_rng(2).permutation(len(whole) + 5)[:80].tolist():
-            points, count = lane.waypoints_from(k + phase, 50)
-            assert points == whole[k : k + 50]
-            assert count == max(len(whole) - k, 0)
-    assert lane.waypoints == lane._waypoint_dicts(np.arange(0.0, lane.length, 1.0))
+    points = lane.waypoints
+    assert len(points) == math.ceil(lane.length)
+    for k in (0, 1, 17, 250, len(points) - 1):
+        x, y = lane.position_at(float(k))
+        assert points[k] == {
+            "pos": [round(float(x), 4), round(float(y), 4)],
+            "heading": float(lane.heading_at(float(k))),
+            "lane_id": "L_0",
+            "lane_index": 0,
+            "lane_width": 3.2,
+            "speed_limit": 13.9,
+            "lane_offset": float(k),
+        }
+        assert all(type(v) is float for v in (*points[k]["pos"], points[k]["heading"]))
+    assert lane.waypoints_from(17.0, 50) == (points[17:67], len(points) - 17)
+    shifted, count = lane.waypoints_from(17.37, 50)
+    assert [w["lane_offset"] for w in shifted] == pytest.approx([17.37 + i for i in range(50)])
+    assert count == math.ceil(lane.length - 17.37)
