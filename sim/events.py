@@ -56,7 +56,7 @@ def collisions(
         distance = np.hypot(others.x - x, others.y - y)
     # Boxes further apart than their half-diagonals cannot touch: skip the exact test for them.
     reach = 0.5 * (math.hypot(length, width) + np.hypot(others.length, others.width))
-    near = np.flatnonzero(distance <= reach)
+    near = (distance <= reach).nonzero()[0]
     if len(near) == 0:
         return ()
     ego = (x, y, heading, length, width)

@@ -60,7 +60,7 @@ class VehicleStates:
         """The vehicles whose centre is within ``radius`` [m] of (x, y) [m], nearest first (ties
         in their present order), and those distances [m]."""
         distance = np.hypot(self.x - x, self.y - y)
-        keep = np.flatnonzero(distance <= radius)
+        keep = (distance <= radius).nonzero()[0]
         order = keep[np.argsort(distance[keep], kind="stable")]
         return self.select(order), distance[order]
 

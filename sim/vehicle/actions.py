@@ -148,8 +148,10 @@ def continuous(action: np.ndarray, pose: Pose, ctx: ControlContext) -> Pose:
 def lane_with_continuous_speed(action: np.ndarray, pose: Pose, ctx: ControlContext) -> Pose:
     """[target_speed m/s, lane_change -1|0|+1]: a built-in controller tracks the target speed and
     the centreline of the target lane (+1 = one lane to the left, -1 = right), pure pursuit."""
-    target_speed = float(np.clip(action[0], 0.0, LIMITS.max_lane_speed))
-    lane_change = int(np.rint(np.clip(action[1], -1.0, 1.0)))
+    # min(max()) is np.clip on these finite scalars (signed zeros too), without numpy's
+    # per-call overhead; round() rounds half to even like np.rint.
+    target_speed = float(min(max(action[0], 0.0), LIMITS.max_lane_speed))
+    lane_change = round(float(min(max(action[1], -1.0), 1.0)))
     here = ctx.lane or ctx.road.nearest_lane(pose.x, pose.y, pose.heading)
     target = ctx.road.lanes.get(ctx.target_lane) if ctx.target_lane else None
     if target is None or target.edge_id != here.lane.edge_id:
@@ -160,9 +162,8 @@ def lane_with_continuous_speed(action: np.ndarray, pose: Pose, ctx: ControlConte
         if 0 <= index < len(siblings):
             target = siblings[index]
     ctx.target_lane = target.id
-    acceleration = np.clip(
-        (target_speed - pose.speed) / max(ctx.dt, 0.5),
-        -LIMITS.max_deceleration,
+    acceleration = min(
+        max((target_speed - pose.speed) / max(ctx.dt, 0.5), -LIMITS.max_deceleration),
         LIMITS.max_acceleration,
     )
     lookahead = max(4.0, 0.8 * pose.speed)
@@ -170,7 +171,7 @@ def lane_with_continuous_speed(action: np.ndarray, pose: Pose, ctx: ControlConte
     alpha = wrap(math.atan2(aim_y - pose.y, aim_x - pose.x) - pose.heading)
     distance = max(math.hypot(aim_x - pose.x, aim_y - pose.y), 1e-3)
     steering = math.atan(2 * wheelbase(ctx.length) * math.sin(alpha) / distance)
-    steering = float(np.clip(steering, -LIMITS.max_steering, LIMITS.max_steering))
+    steering = min(max(steering, -LIMITS.max_steering), LIMITS.max_steering)
     return bicycle_step(pose, float(acceleration), steering, ctx.dt, ctx.length, LIMITS.max_speed)
 
 
