@@ -13,6 +13,10 @@ loaded machine wall time mostly measures the neighbours, so ``ratio`` uses CPU t
 Usage: ``python bench/sim_throughput.py [--steps 1000] [--vehicles 100] [--repeat 3]``.
 The last line printed is ``ratio=<ours_cpu/raw_cpu> wall_ratio=<ours_wall/raw_wall>`` (target:
 ratio at most 1.5).
+
+``--sumo-costs`` first prints what SUMO itself costs per step for the ways we could put an ego
+into it and read its surroundings (libsumo only, no code of ours; an ego at constant speed along
+the middle lane), each against raw stepping in the same run: see :data:`SUMO_VARIANTS`.
 """
 
 from __future__ import annotations
@@ -80,6 +84,78 @@ def raw_side(folder: str, steps: int, queue) -> None:
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
     libsumo.close()
     queue.put(((wall, cpu), ""))
+
+
+# name -> (moveToXY keepRoute mode or None for no ego, how many variables a context subscription
+# of the ego reads (0: none), read it every step, subscribe every vehicle and read them all)
+SUMO_VARIANTS: dict[str, tuple[int | None, int, bool, bool]] = {
+    "raw": (None, 0, False, False),
+    "ego keepRoute=2 (ours)": (2, 0, False, False),
+    "ego keepRoute=1": (1, 0, False, False),
+    "ego keepRoute=0": (0, 0, False, False),
+    "ego + context 1 var": (2, 1, False, False),
+    "ego + context 4 vars (ours)": (2, 4, False, False),
+    "ego + context 1 var, read": (2, 1, True, False),
+    "ego + context 4 vars, read (ours)": (2, 4, True, False),
+    "ego + every vehicle 4 vars, read": (2, 0, False, True),
+}
+
+
+def sumo_side(folder: str, steps: int, variant: str, queue) -> None:
+    """SUMO's own cost of one :data:`SUMO_VARIANTS` entry, in its own process: (wall, CPU) s."""
+    import libsumo
+
+    from arena.scenario import load_scenario
+    from sim.traffic import sumo_command
+
+    keep_route, n_vars, read_context, read_all = SUMO_VARIANTS[variant]
+    tc = libsumo.constants
+    variables = [tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_SPEED, tc.VAR_LANE_ID]
+    sc = load_scenario(Path(folder))
+    libsumo.start(
+        sumo_command(Path(folder) / sc.map, Path(folder) / sc.traffic.routes, sc.seed, 0.1)
+    )
+    x, y = sc.missions[0].start[:2]
+    if keep_route is not None:
+        libsumo.route.add("ego_route", list(sc.missions[0].route))
+        libsumo.vehicle.add("ego", "ego_route", depart="now")
+        libsumo.vehicle.setSpeedMode("ego", 0)
+        libsumo.vehicle.setLaneChangeMode("ego", 0)
+        libsumo.vehicle.moveToXY("ego", "", -1, x, y, 90.0, keepRoute=keep_route)
+        if n_vars:
+            libsumo.vehicle.subscribeContext(
+                "ego", tc.CMD_GET_VEHICLE_VARIABLE, 110.0, variables[:n_vars]
+            )
+    libsumo.simulationStep()
+    wall, cpu = time.perf_counter(), time.process_time()
+    for _ in range(steps):
+        if keep_route is not None:
+            x += 1.5
+            libsumo.vehicle.moveToXY("ego", "", -1, x, y, 90.0, keepRoute=keep_route)
+            libsumo.vehicle.setPreviousSpeed("ego", 15.0)
+        if read_all:
+            for vid in libsumo.simulation.getDepartedIDList():
+                libsumo.vehicle.subscribe(vid, variables)
+        libsumo.simulationStep()
+        if read_context:
+            libsumo.vehicle.getContextSubscriptionResults("ego")
+        if read_all:
+            libsumo.vehicle.getAllSubscriptionResults()
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    libsumo.close()
+    queue.put(((wall, cpu), ""))
+
+
+def sumo_costs(folder: str, steps: int, repeat: int) -> None:
+    best = dict.fromkeys(SUMO_VARIANTS, float("inf"))
+    for _ in range(repeat):
+        for variant in SUMO_VARIANTS:
+            best[variant] = min(best[variant], in_child(sumo_side, folder, steps, variant)[0][1])
+    for variant, cpu in best.items():
+        print(
+            f"SUMO {variant:34s} CPU {cpu * 1e3 / steps:.4f} ms/step"
+            f"  ({cpu / best['raw']:.2f} x raw)"
+        )
 
 
 def follow_gap(obs: dict) -> list[float]:
@@ -150,9 +226,14 @@ def main() -> None:
     parser.add_argument("--vehicles", type=int, default=100)
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--profile", action="store_true", help="print where our side spends time")
+    parser.add_argument(
+        "--sumo-costs", action="store_true", help="first print SUMO's own cost of ego variants"
+    )
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         folder = str(build(Path(tmp) / "bench", args.vehicles, args.steps))
+        if args.sumo_costs:
+            sumo_costs(folder, args.steps, args.repeat)
         raw, ours = [], []
         for _ in range(args.repeat):
             raw.append(in_child(raw_side, folder, args.steps)[0])

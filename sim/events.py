@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -16,8 +16,7 @@ NOT_MOVING_SPEED = 0.1  # [m/s]
 NOT_MOVING_STEPS = 60  # 6 s at dt = 0.1 s
 
 
-@dataclass(frozen=True)
-class Events:
+class Events(NamedTuple):  # immutable, and cheaper to make per step than a frozen dataclass
     collisions: tuple[str, ...]  # ids of the vehicles the ego's box overlapped
     off_road: bool
     off_route: bool
@@ -41,14 +40,23 @@ class Events:
 
 
 def collisions(
-    x: float, y: float, heading: float, length: float, width: float, others: VehicleStates
+    x: float,
+    y: float,
+    heading: float,
+    length: float,
+    width: float,
+    others: VehicleStates,
+    distance: np.ndarray | None = None,
 ) -> tuple[str, ...]:
-    """Ids of ``others`` whose oriented box overlaps the ego's (sorted)."""
+    """Ids of ``others`` whose oriented box overlaps the ego's (sorted). ``distance``: the
+    centres' distances from (x, y) [m] when the caller has them already."""
     if not len(others):
         return ()
+    if distance is None:
+        distance = np.hypot(others.x - x, others.y - y)
     # Boxes further apart than their half-diagonals cannot touch: skip the exact test for them.
     reach = 0.5 * (math.hypot(length, width) + np.hypot(others.length, others.width))
-    near = np.flatnonzero(np.hypot(others.x - x, others.y - y) <= reach)
+    near = (distance <= reach).nonzero()[0]
     if len(near) == 0:
         return ()
     ego = (x, y, heading, length, width)

@@ -43,6 +43,8 @@ class MissionVehicle:
     still_steps: int = 0  # consecutive steps below the not-moving speed
     kinematics: Kinematics = field(default_factory=Kinematics)
     target_lane: str | None = None  # lane controller memory (LaneWithContinuousSpeed)
+    # Observation parts that never change during the episode (sim.observation builds them once).
+    constant_observation: dict = field(default_factory=dict, repr=False)
 
     @classmethod
     def from_mission(cls, mission: Mission) -> MissionVehicle:

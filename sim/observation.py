@@ -2,8 +2,9 @@
 
 Plain Python values (lists, floats, ints, bools, strings), plus the optional rasters as uint8 numpy
 arrays (``sim.bev``), which the sandbox protocol carries as arrays.
-Waypoint dicts are built once per lane and shared between observations (cheap per step): an
-in-process policy must treat observations as read-only.
+Waypoint dicts are built once per lane, and an agent's bounding box and mission once per episode,
+and shared between observations (cheap per step): an in-process policy must treat observations
+as read-only.
 """
 
 from __future__ import annotations
@@ -33,7 +34,8 @@ def build_observation(
     interface: AgentInterface,
     rasters: dict[str, np.ndarray] | None = None,
 ) -> dict:
-    pose, k, mission = vehicle.pose, vehicle.kinematics, vehicle.mission
+    pose, k = vehicle.pose, vehicle.kinematics
+    constant = vehicle.constant_observation or _constant_parts(vehicle)
     obs = {
         "dt": dt,
         "step_count": step,
@@ -46,7 +48,7 @@ def build_observation(
             "position": [pose.x, pose.y, 0.0],
             "heading": pose.heading,
             "speed": pose.speed,
-            "bounding_box": [mission.vehicle.length, mission.vehicle.width, mission.vehicle.height],
+            "bounding_box": constant["bounding_box"],
             "steering": pose.steering,
             "yaw_rate": k.yaw_rate,
             "road_id": lane.lane.edge_id,
@@ -59,11 +61,7 @@ def build_observation(
             "angular_acceleration": [0.0, 0.0, k.angular_acceleration],
             "linear_jerk": [*k.jerk, 0.0],
             "angular_jerk": [0.0, 0.0, k.angular_jerk],
-            "mission": {
-                "start": list(mission.start),
-                "goal": {"position": list(mission.goal.position), "radius": mission.goal.radius},
-                "route": list(mission.route),
-            },
+            "mission": constant["mission"],
         },
         "neighborhood_vehicle_states": neighbour_states(neighbours, road),
         "waypoint_paths": waypoint_paths,
@@ -72,6 +70,20 @@ def build_observation(
         if getattr(interface, name):
             obs[name] = rasters[name] if rasters else None
     return obs
+
+
+def _constant_parts(vehicle: MissionVehicle) -> dict:
+    """The parts of ``vehicle``'s observations that never change, built at its first one."""
+    mission = vehicle.mission
+    vehicle.constant_observation.update(
+        bounding_box=[mission.vehicle.length, mission.vehicle.width, mission.vehicle.height],
+        mission={
+            "start": list(mission.start),
+            "goal": {"position": list(mission.goal.position), "radius": mission.goal.radius},
+            "route": list(mission.route),
+        },
+    )
+    return vehicle.constant_observation
 
 
 def neighbour_states(neighbours: VehicleStates, road: RoadNetwork) -> list[dict]:

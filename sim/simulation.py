@@ -37,11 +37,12 @@ from sim.traffic import SumoTraffic
 from sim.triggers import CutInTriggers
 from sim.vehicle import DECODERS, ControlContext, InvalidAction, check_action
 from sim.vehicle.actions import quote
-from sim.vehicles import VehicleStates
+from sim.vehicles import Surroundings, VehicleStates
 
 # SUMO reports the vehicles around an ego by front-bumper distance: ask a little wider, then
 # filter by centre distance ourselves.
 _CONTEXT_MARGIN = 10.0  # [m]
+_AT_REST = Events((), False, False, False, False, False, False, False)
 
 
 class Simulation:
@@ -146,7 +147,12 @@ class Simulation:
                 self._finish(v, DoneReason.invalid_action)
                 continue
             ctx = ControlContext(
-                self.dt, v.mission.vehicle.length, self.road, v.mission.route, v.target_lane
+                self.dt,
+                v.mission.vehicle.length,
+                self.road,
+                v.mission.route,
+                v.target_lane,
+                self._lanes.get(v.id),  # where the last step (or the entry) left it
             )
             new = DECODERS[space](action, v.pose, ctx)
             v.target_lane = ctx.target_lane
@@ -279,45 +285,60 @@ class Simulation:
             return VehicleStates.empty()
         return self._replay.states(step)
 
-    def _surroundings(self, v: MissionVehicle) -> VehicleStates:
+    def _surroundings(self, v: MissionVehicle) -> Surroundings:
         """Other vehicles within the observation radius of ``v``'s centre, nearest first."""
         assert self._traffic is not None
-        sumo = self._traffic.vehicles_around(v.id).without(self._mission_ids)
+        parts = [self._traffic.vehicles_around(v.id, self._mission_ids)]
+        if self._replay is not None:
+            parts.append(self._replay.states(self.step_count))
         others = [o for o in self.live if o is not v]
-        egos = VehicleStates.empty()
         if others:
-            egos = VehicleStates(
-                [o.id for o in others],
-                np.array([o.pose.x for o in others]),
-                np.array([o.pose.y for o in others]),
-                np.array([o.pose.heading for o in others]),
-                np.array([o.pose.speed for o in others]),
-                np.array([o.mission.vehicle.length for o in others]),
-                np.array([o.mission.vehicle.width for o in others]),
-                [self._lanes[o.id].lane.id if o.id in self._lanes else "" for o in others],
+            rows = np.array(
+                [
+                    (
+                        o.pose.x,
+                        o.pose.y,
+                        o.pose.heading,
+                        o.pose.speed,
+                        o.mission.vehicle.length,
+                        o.mission.vehicle.width,
+                    )
+                    for o in others
+                ]
             )
-        near = VehicleStates.concat([sumo, self._replay_states(self.step_count), egos])
-        if not len(near):
-            return near
-        distance = np.hypot(near.x - v.pose.x, near.y - v.pose.y)
-        keep = np.flatnonzero(distance <= self.interface.observation_radius)
-        return near.select(keep[np.argsort(distance[keep], kind="stable")])
+            parts.append(
+                VehicleStates(
+                    [o.id for o in others],
+                    *rows.T,
+                    [self._lanes[o.id].lane.id if o.id in self._lanes else "" for o in others],
+                )
+            )
+        near, distance = VehicleStates.concat(parts).nearest_first(
+            v.pose.x, v.pose.y, self.interface.observation_radius
+        )
+        return Surroundings(near, distance)
 
     def _lane_of(self, v: MissionVehicle) -> LanePosition:
         lane = self.road.nearest_lane(v.pose.x, v.pose.y, v.pose.heading)
         self._lanes[v.id] = lane
         return lane
 
-    def _detect(self, v: MissionVehicle, near: VehicleStates, step: int) -> Events:
-        pose, m = v.pose, v.mission
+    def _detect(self, v: MissionVehicle, around: Surroundings, step: int) -> Events:
+        pose, m, near = v.pose, v.mission, around.vehicles
         lane = self._lane_of(v)
-        in_junction = lane.lane.is_internal or self.road.in_junction(pose.x, pose.y)
+        in_junction = lane.lane.is_internal or self.road.in_junction(pose.x, pose.y, lane)
         v.still_steps = v.still_steps + 1 if pose.speed < NOT_MOVING_SPEED else 0
         events = Events(
             collisions=collisions(
-                pose.x, pose.y, pose.heading, m.vehicle.length, m.vehicle.width, near
+                pose.x,
+                pose.y,
+                pose.heading,
+                m.vehicle.length,
+                m.vehicle.width,
+                near,
+                around.distance,
             ),
-            off_road=not self.road.is_on_road(pose.x, pose.y),
+            off_road=not self.road.is_on_road(pose.x, pose.y, lane),
             off_route=not lane.lane.is_internal and lane.lane.edge_id not in m.route,
             on_shoulder=lane.lane.is_shoulder,
             wrong_way=is_wrong_way(pose.heading, lane, in_junction),
@@ -360,10 +381,10 @@ class Simulation:
     def _events_at_rest(self, v: MissionVehicle) -> Events:
         """Events of an agent that has not driven yet (just entered): nothing happened."""
         self._lane_of(v)
-        return Events((), False, False, False, False, False, False, False)
+        return _AT_REST
 
-    def _observe(self, v: MissionVehicle, near: VehicleStates, events: Events) -> dict:
-        lane = self._lanes[v.id]
+    def _observe(self, v: MissionVehicle, around: Surroundings, events: Events) -> dict:
+        lane, near = self._lanes[v.id], around.vehicles
         paths = waypoint_paths(
             self.road,
             lane,
@@ -383,18 +404,15 @@ class Simulation:
             road=self.road,
             waypoint_paths=paths,
             interface=self.interface,
-            rasters=self._bev.render(
-                v.id,
-                EgoPose(
-                    v.pose.x,
-                    v.pose.y,
-                    v.pose.heading,
-                    v.mission.vehicle.length,
-                    v.mission.vehicle.width,
-                ),
-                near,
-            ),
+            rasters=self._rasters(v, near),
         )
+
+    def _rasters(self, v: MissionVehicle, near: VehicleStates) -> dict[str, np.ndarray] | None:
+        if not self._bev.names:  # the agent asked for none
+            return None
+        pose, vehicle = v.pose, v.mission.vehicle
+        ego = EgoPose(pose.x, pose.y, pose.heading, vehicle.length, vehicle.width)
+        return self._bev.render(v.id, ego, near)
 
 
 def scene_states(

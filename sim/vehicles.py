@@ -44,17 +44,39 @@ class VehicleStates:
 
     def select(self, index: np.ndarray) -> VehicleStates:
         """The vehicles at positions ``index`` (integer array), in that order."""
+        at = index.tolist()  # list indexing with Python ints is several times faster
         return VehicleStates(
-            [self.ids[i] for i in index],
-            *(getattr(self, f)[index] for f in _ARRAYS),
-            [self.lane_id[i] for i in index],
+            [self.ids[i] for i in at],
+            self.x[index],
+            self.y[index],
+            self.heading[index],
+            self.speed[index],
+            self.length[index],
+            self.width[index],
+            [self.lane_id[i] for i in at],
         )
+
+    def nearest_first(self, x: float, y: float, radius: float) -> tuple[VehicleStates, np.ndarray]:
+        """The vehicles whose centre is within ``radius`` [m] of (x, y) [m], nearest first (ties
+        in their present order), and those distances [m]."""
+        distance = np.hypot(self.x - x, self.y - y)
+        keep = (distance <= radius).nonzero()[0]
+        order = keep[np.argsort(distance[keep], kind="stable")]
+        return self.select(order), distance[order]
 
     def without(self, ids: set[str]) -> VehicleStates:
         """These states minus the vehicles whose id is in ``ids``."""
         if not any(vid in ids for vid in self.ids):
             return self
         return self.select(np.array([i for i, v in enumerate(self.ids) if v not in ids], dtype=int))
+
+
+@dataclass(frozen=True)
+class Surroundings:
+    """The vehicles around an ego, nearest first, and their centre distances from it."""
+
+    vehicles: VehicleStates
+    distance: np.ndarray  # (n,) [m]
 
 
 _ARRAYS = ("x", "y", "heading", "speed", "length", "width")

@@ -138,19 +138,21 @@ class Lane:
         return self._waypoint_dicts(np.array([self.length]))[0]
 
     def _waypoint_dicts(self, s: np.ndarray) -> list[dict]:
-        pos = self.position_at(s)
-        heading = self.heading_at(np.minimum(s, self.length - 1e-9))
+        # Plain floats first: rounding and boxing numpy scalars one by one costs several times
+        # more, for the same values.
+        xy = self.position_at(s).tolist()
+        heading = np.atleast_1d(self.heading_at(np.minimum(s, self.length - 1e-9))).tolist()
         return [
             {
-                "pos": [round(float(p[0]), 4), round(float(p[1]), 4)],
-                "heading": float(h),
+                "pos": [round(x, 4), round(y, 4)],
+                "heading": h,
                 "lane_id": self.id,
                 "lane_index": self.index,
                 "lane_width": self.width,
                 "speed_limit": self.speed_limit,
-                "lane_offset": float(si),
+                "lane_offset": si,
             }
-            for p, h, si in zip(pos, np.atleast_1d(heading), s, strict=True)
+            for (x, y), h, si in zip(xy, heading, s.tolist(), strict=True)
         ]
 
     @property

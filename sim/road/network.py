@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +21,8 @@ _TIE_DISTANCE = 0.5
 _GRID_CELL = 5.0  # [m] side of a nearest-lane index cell
 _GRID_REACH = 4.0  # [m] segments this close to a cell are listed in it
 _MAX_SEGMENT = 5.0  # [m] longer centreline segments are split in the index
+_SURFACE_MARGIN = 0.05  # [m] see _well_inside
+_CLEARANCE_MARGIN = 1e-6  # [m] beyond rounding of the distances in in_junction
 
 
 @dataclass(frozen=True)
@@ -32,6 +34,8 @@ class LanePosition:
     t: float  # [m] signed offset from the centreline, left positive
     heading: float  # [rad] lane direction at s
     distance: float  # [m] from the centreline (|t| unless past a lane end)
+    # The nearest-lane index segment measured on (RoadNetwork's own per-segment constants).
+    segment: int = field(default=-1, compare=False, repr=False)
 
 
 class RoadNetwork:
@@ -57,6 +61,7 @@ class RoadNetwork:
         )
         shapely.prepare(self.drivable_area)
         self._junction_area = shapely.unary_union(junction_polygons) if junction_polygons else None
+        self._seg_clearance: dict[int, float] = {}  # see _junction_clearance
         if self._junction_area is not None:
             shapely.prepare(self._junction_area)
 
@@ -144,13 +149,15 @@ class RoadNetwork:
             u = (rx * dx + ry * dy) / len2
             u = 0.0 if u < 0.0 else 1.0 if u > 1.0 else u
             found.append((math.hypot(rx - dx * u, ry - dy * u), u, k))
-        if not found or min(found)[0] + _TIE_DISTANCE > _GRID_REACH:
+        best = min(found) if found else None
+        if best is None or best[0] + _TIE_DISTANCE > _GRID_REACH:
             found = self._search_tree(x, y)
-        best = min(found)
+            best = min(found)
         seg_lane = self._seg_lane_list
         if heading is not None:
             close = [f for f in found if f[0] <= best[0] + _TIE_DISTANCE]
-            if len(close) > 1:
+            # Segments of one lane only (the usual case) leave nothing to choose.
+            if any(seg_lane[f[2]] != seg_lane[best[2]] for f in close):
                 headings = self._seg_heading_list
                 aligned = min(close, key=lambda f: angle_between(headings[f[2]], heading))
                 lane_k = seg_lane[aligned[2]]
@@ -164,6 +171,7 @@ class RoadNetwork:
             t=float((dx * ry - dy * rx) / seg_len),
             heading=self._seg_heading_list[seg],
             distance=float(distance),
+            segment=seg,
         )
 
     def _search_tree(self, x: float, y: float) -> list[tuple[float, float, int]]:
@@ -184,18 +192,57 @@ class RoadNetwork:
         _, seg = self._tree.query_nearest(shapely.points(xy), all_matches=False)
         return [self._lane_list[i] for i in self._seg_lane[seg]]
 
-    def is_on_road(self, x: float, y: float) -> bool:
+    def is_on_road(self, x: float, y: float, near: LanePosition | None = None) -> bool:
+        """Whether (x, y) [m] is inside the drivable area. ``near``, the point's
+        :meth:`nearest_lane`, lets a point well inside that lane skip the polygon test."""
+        if near is not None and _well_inside(near):
+            return True
         return bool(shapely.contains_xy(self.drivable_area, x, y))
 
-    def in_junction(self, x: float, y: float) -> bool:
-        return self._junction_area is not None and bool(
-            shapely.contains_xy(self._junction_area, x, y)
-        )
+    def in_junction(self, x: float, y: float, near: LanePosition | None = None) -> bool:
+        """Whether (x, y) [m] is inside a junction area. ``near``, the point's
+        :meth:`nearest_lane`, lets a point on a lane piece clear of junctions skip the polygon
+        test."""
+        if self._junction_area is None:
+            return False
+        # The point is near.distance from an index segment: farther than that from every
+        # junction, it is outside them all.
+        if (
+            near is not None
+            and near.segment >= 0
+            and self._junction_clearance(near.segment) - near.distance > _CLEARANCE_MARGIN
+        ):
+            return False
+        return bool(shapely.contains_xy(self._junction_area, x, y))
+
+    def _junction_clearance(self, segment: int) -> float:
+        """Distance [m] of nearest-lane index segment ``segment`` from every junction area;
+        measured when first asked (few segments are ever driven on)."""
+        clearance = self._seg_clearance.get(segment)
+        if clearance is None:
+            _, px, py, dx, dy, _, _ = self._seg_rows[segment]
+            piece = LineString([(px, py), (px + dx, py + dy)])
+            clearance = self._seg_clearance[segment] = float(
+                shapely.distance(self._junction_area, piece)
+            )
+        return clearance
 
     @property
     def bounds(self) -> tuple[float, float, float, float]:
         """(min_x, min_y, max_x, max_y) [m] of the drivable area."""
         return tuple(self.drivable_area.bounds)
+
+
+def _well_inside(position: LanePosition) -> bool:
+    """Whether a point is certainly inside its lane's surface (so inside the drivable area):
+    nearer the centreline than half the lane width and level with the lane's inside, not its
+    flat ends. The margins exceed GEOS' approximations of the surface (1 % line simplification
+    of a buffer, polygonal round joins), so this never says True where the polygon says False."""
+    lane = position.lane
+    return (
+        position.distance < 0.45 * lane.width - _SURFACE_MARGIN
+        and _SURFACE_MARGIN < position.s < lane.length - _SURFACE_MARGIN
+    )
 
 
 def lane_surface(lane: Lane) -> Polygon:

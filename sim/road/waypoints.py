@@ -83,9 +83,12 @@ def waypoint_paths(
     if here.is_internal:
         lane, s = route_lane_in_junction(road, position, x, y, route)
         return [_path_from(road, lane, s, route, per_path)]
-    lanes = sorted(road.edges[here.edge_id], key=lambda lane: abs(lane.index - here.index))
+    lanes = road.edges[here.edge_id]  # by index
+    if len(lanes) > max_paths:
+        nearest = sorted(lanes, key=lambda lane: abs(lane.index - here.index))[:max_paths]
+        lanes = sorted(nearest, key=lambda lane: lane.index)
     paths = []
-    for lane in sorted(lanes[:max_paths], key=lambda lane: lane.index):
+    for lane in lanes:
         s = position.s if lane is here else lane.project(x, y)[0]
         paths.append(_path_from(road, lane, s, route, per_path))
     return paths
@@ -158,7 +161,10 @@ def _path_from(road: RoadNetwork, lane: Lane, s: float, route: tuple[str, ...], 
     first_s = math.ceil(s / WAYPOINT_SPACING - 1e-9) * WAYPOINT_SPACING
     for _ in range(_MAX_LANE_HOPS):
         points, on_lane = lane.waypoints_from(first_s, n - len(path))
-        path.extend(points)
+        if path:
+            path.extend(points)
+        else:  # a fresh list: most paths end on their first lane
+            path = points
         if len(path) >= n:
             break
         # The next point lies past this lane's end by what is left of one spacing.

@@ -22,7 +22,7 @@ from sim.vehicle.bicycle import Pose, bicycle_step, wheelbase
 from sim.vehicle.limits import LIMITS
 
 if TYPE_CHECKING:
-    from sim.road import RoadNetwork
+    from sim.road import LanePosition, RoadNetwork
 
 
 @dataclass
@@ -35,6 +35,8 @@ class ControlContext:
     route: tuple[str, ...]
     # LaneWithContinuousSpeed keeps the lane it is steering to between steps.
     target_lane: str | None = None
+    # The road's nearest_lane of the vehicle's pose, when the caller has it already.
+    lane: LanePosition | None = None
 
 
 # Bound on every action element. Finite but huge values (1e300) overflow the geometry (hypot ->
@@ -63,6 +65,23 @@ def quote(value: object) -> str:
 def check_action(raw: object, space: ActionSpace) -> np.ndarray:
     """The action as a float array of the space's length; :class:`InvalidAction` otherwise."""
     length = ACTION_LENGTH[space]
+    # The usual action, in-range floats in a list or a float array, passes every check below:
+    # test it in plain Python, without numpy's per-call overhead. Anything else (NaN, inf,
+    # ints, other shapes) takes the full path and its messages.
+    values = None
+    if type(raw) in (list, tuple):
+        values = raw
+    elif type(raw) is np.ndarray and raw.dtype.kind == "f" and raw.shape == (length,):
+        values = raw.tolist()
+    if values is not None and len(values) == length:
+        for value in values:
+            if (
+                type(value) is not float
+                or not -MAX_ACTION_MAGNITUDE <= value <= MAX_ACTION_MAGNITUDE
+            ):
+                break
+        else:
+            return np.asarray(raw, dtype=np.float64)
     try:
         arr = np.asarray(raw, dtype=np.float64)
     except (TypeError, ValueError, OverflowError) as error:
@@ -104,20 +123,22 @@ def _limit_displacement(pose: Pose, x: float, y: float, heading: float, dt: floa
 def target_pose(action: np.ndarray, pose: Pose, ctx: ControlContext) -> Pose:
     """[x, y, heading, dt]: move to the pose over one step (``dt`` element is not used: a step
     is always ``ctx.dt``); displacement capped at max_speed x dt."""
-    return _limit_displacement(pose, action[0], action[1], action[2], ctx.dt)
+    x, y, heading = action[:3].tolist()  # plain floats: cheaper scalar maths, same values
+    return _limit_displacement(pose, x, y, heading, ctx.dt)
 
 
 def relative_target_pose(action: np.ndarray, pose: Pose, ctx: ControlContext) -> Pose:
     """[dx, dy, dheading] in the ego frame (x forward, y left); same displacement cap."""
+    forward, left, turn = action.tolist()  # plain floats: cheaper scalar maths, same values
     c, s = math.cos(pose.heading), math.sin(pose.heading)
-    x = pose.x + c * action[0] - s * action[1]
-    y = pose.y + s * action[0] + c * action[1]
-    return _limit_displacement(pose, x, y, pose.heading + action[2], ctx.dt)
+    x = pose.x + c * forward - s * left
+    y = pose.y + s * forward + c * left
+    return _limit_displacement(pose, x, y, pose.heading + turn, ctx.dt)
 
 
 def continuous(action: np.ndarray, pose: Pose, ctx: ControlContext) -> Pose:
     """[throttle 0..1, brake 0..1, steering -1..1] through the kinematic bicycle model."""
-    throttle, brake, steer = np.clip(action, [0.0, 0.0, -1.0], [1.0, 1.0, 1.0])
+    throttle, brake, steer = np.clip(action, [0.0, 0.0, -1.0], [1.0, 1.0, 1.0]).tolist()
     acceleration = throttle * LIMITS.max_acceleration - brake * LIMITS.max_deceleration
     return bicycle_step(
         pose, acceleration, steer * LIMITS.max_steering, ctx.dt, ctx.length, LIMITS.max_speed
@@ -127,9 +148,11 @@ def continuous(action: np.ndarray, pose: Pose, ctx: ControlContext) -> Pose:
 def lane_with_continuous_speed(action: np.ndarray, pose: Pose, ctx: ControlContext) -> Pose:
     """[target_speed m/s, lane_change -1|0|+1]: a built-in controller tracks the target speed and
     the centreline of the target lane (+1 = one lane to the left, -1 = right), pure pursuit."""
-    target_speed = float(np.clip(action[0], 0.0, LIMITS.max_lane_speed))
-    lane_change = int(np.rint(np.clip(action[1], -1.0, 1.0)))
-    here = ctx.road.nearest_lane(pose.x, pose.y, pose.heading)
+    # min(max()) is np.clip on these finite scalars (signed zeros too), without numpy's
+    # per-call overhead; round() rounds half to even like np.rint.
+    target_speed = float(min(max(action[0], 0.0), LIMITS.max_lane_speed))
+    lane_change = round(float(min(max(action[1], -1.0), 1.0)))
+    here = ctx.lane or ctx.road.nearest_lane(pose.x, pose.y, pose.heading)
     target = ctx.road.lanes.get(ctx.target_lane) if ctx.target_lane else None
     if target is None or target.edge_id != here.lane.edge_id:
         target = here.lane
@@ -139,9 +162,8 @@ def lane_with_continuous_speed(action: np.ndarray, pose: Pose, ctx: ControlConte
         if 0 <= index < len(siblings):
             target = siblings[index]
     ctx.target_lane = target.id
-    acceleration = np.clip(
-        (target_speed - pose.speed) / max(ctx.dt, 0.5),
-        -LIMITS.max_deceleration,
+    acceleration = min(
+        max((target_speed - pose.speed) / max(ctx.dt, 0.5), -LIMITS.max_deceleration),
         LIMITS.max_acceleration,
     )
     lookahead = max(4.0, 0.8 * pose.speed)
@@ -149,7 +171,7 @@ def lane_with_continuous_speed(action: np.ndarray, pose: Pose, ctx: ControlConte
     alpha = wrap(math.atan2(aim_y - pose.y, aim_x - pose.x) - pose.heading)
     distance = max(math.hypot(aim_x - pose.x, aim_y - pose.y), 1e-3)
     steering = math.atan(2 * wheelbase(ctx.length) * math.sin(alpha) / distance)
-    steering = float(np.clip(steering, -LIMITS.max_steering, LIMITS.max_steering))
+    steering = min(max(steering, -LIMITS.max_steering), LIMITS.max_steering)
     return bicycle_step(pose, float(acceleration), steering, ctx.dt, ctx.length, LIMITS.max_speed)
 
 

@@ -3,7 +3,11 @@ import math
 import numpy as np
 import pytest
 
+from arena.scenario import load_scenario
+from arena.suite import SHIPPED_PUBLIC_DIR
 from sim.road import RoadNetwork
+from sim.road.lane import Lane
+from sim.road.network import _well_inside
 from sim.road.waypoints import waypoint_paths
 from tests.sim.builders import LANE_WIDTH, build_net, lane_y, straight_road
 
@@ -67,3 +71,55 @@ def test_junction_lanes_and_areas(tmp_path):
     assert road.in_junction(0.0, -2.0)
     successors = {road.lanes[s].successors[0] for s in road.lanes["in_0"].successors}
     assert successors == {"out_0", "down_0"}
+
+
+@pytest.mark.parametrize(
+    "scenario_id",
+    ["p000_left_turn_t_low", "p012_merge_3lane_curve_mid_2agents", "p038_replay_urban"],
+)
+def test_area_tests_given_the_nearest_lane_agree_with_the_polygons(scenario_id):
+    # The lane shortcut of is_on_road must never contradict the drivable-area polygon, also at
+    # lane edges, lane ends, curves and junctions: points scattered around every lane.
+    folder = SHIPPED_PUBLIC_DIR / scenario_id
+    road = RoadNetwork.load(folder / load_scenario(folder).map)
+    rng = np.random.default_rng(5)
+    shortcut = 0
+    for lane in road.lanes.values():
+        s = rng.uniform(-2.0, lane.length + 2.0, 40)
+        base = lane.position_at(s)
+        heading = np.asarray(lane.heading_at(np.clip(s, 0.0, lane.length)))
+        offset = rng.uniform(-0.7, 0.7, 40) * lane.width
+        xs = base[:, 0] - offset * np.sin(heading)
+        ys = base[:, 1] + offset * np.cos(heading)
+        for x, y, h in zip(xs.tolist(), ys.tolist(), heading.tolist(), strict=True):
+            near = road.nearest_lane(x, y, h)
+            assert road.is_on_road(x, y, near) == road.is_on_road(x, y), (lane.id, x, y)
+            assert road.in_junction(x, y, near) == road.in_junction(x, y), (lane.id, x, y)
+            shortcut += _well_inside(near)
+    assert shortcut > 0.3 * 40 * len(road.lanes)  # the shortcut is the common case
+
+
+def test_waypoint_dicts_of_a_curved_lane():
+    # Every waypoint sits on the centreline at its own s, rounded to 0.1 mm, with the heading of
+    # the segment under it; paths starting anywhere (and at another phase) are slices of it.
+    t = np.linspace(0.0, 1.0, 60)
+    centreline = np.stack([400.0 * t, 80.0 * np.sin(3.0 * t)], 1)
+    lane = Lane("L_0", "L", 0, centreline, 3.2, 13.9, is_internal=False, is_shoulder=False)
+    points = lane.waypoints
+    assert len(points) == math.ceil(lane.length)
+    for k in (0, 1, 17, 250, len(points) - 1):
+        x, y = lane.position_at(float(k))
+        assert points[k] == {
+            "pos": [round(float(x), 4), round(float(y), 4)],
+            "heading": float(lane.heading_at(float(k))),
+            "lane_id": "L_0",
+            "lane_index": 0,
+            "lane_width": 3.2,
+            "speed_limit": 13.9,
+            "lane_offset": float(k),
+        }
+        assert all(type(v) is float for v in (*points[k]["pos"], points[k]["heading"]))
+    assert lane.waypoints_from(17.0, 50) == (points[17:67], len(points) - 17)
+    shifted, count = lane.waypoints_from(17.37, 50)
+    assert [w["lane_offset"] for w in shifted] == pytest.approx([17.37 + i for i in range(50)])
+    assert count == math.ceil(lane.length - 17.37)
