@@ -20,7 +20,6 @@ from learn.session import (
 )
 from learn.spaces import action_space, observation_space
 from sim.interface import AgentInterface
-from sim.observation_arrays import DEFAULT_MAX_NEIGHBOURS
 
 MAX_STEPS_REASON = "max_episode_steps"
 
@@ -67,8 +66,8 @@ class DrivingArenaEnv(gym.Env):
     Keyword arguments: ``suite`` (``public``, a built suite folder or a scenario folder),
     ``scenario`` (an id or folder: always that one; default: one drawn per ``reset(seed=...)``,
     deterministic for a seed), ``action_space`` and every other ``agent.yaml`` option
-    (``top_down_rgb=True``, ``img_pixels=...``), ``max_neighbours`` (neighbour slots of the
-    observation), ``reward_fn`` (replaces :func:`learn.reward.default_reward`), ``profile`` (the
+    (``top_down_rgb=True``, ``img_pixels=...``, ``max_neighbours=...``), ``reward_fn``
+    (replaces :func:`learn.reward.default_reward`), ``profile`` (the
     scoring profile whose terms go into ``info``) and ``traffic_seed`` (``"scenario"``: the
     scenario's own seed, as evaluation uses; ``"random"``: drawn from the reset seed) and
     ``simulator`` (where the simulator runs: ``"auto"``, ``"in_process"`` or ``"subprocess"``,
@@ -83,7 +82,6 @@ class DrivingArenaEnv(gym.Env):
         scenario: str | Path | None = None,
         *,
         action_space: str = "TargetPose",
-        max_neighbours: int = DEFAULT_MAX_NEIGHBOURS,
         reward_fn: RewardFn | None = None,
         profile: str | None = None,
         traffic_seed: str = "scenario",
@@ -92,13 +90,13 @@ class DrivingArenaEnv(gym.Env):
     ) -> None:
         self.interface = AgentInterface(action_space=action_space, **interface_options)
         self.scenarios = scenario_dirs(suite, scenario, agents=(1, 1))
-        self.observation_space = observation_space(self.interface, max_neighbours)
+        self.observation_space = observation_space(self.interface)
         self.action_space = _action_space(self.interface)
         self.reward_fn = reward_fn or default_reward
         if traffic_seed not in ("scenario", "random"):
             raise ValueError("traffic_seed is 'scenario' or 'random'")
         self.traffic_seed = traffic_seed
-        self._config = Config(self.interface, max_neighbours, _profile_name(profile))
+        self._config = Config(self.interface, _profile_name(profile))
         check_simulator_mode(simulator)
         self._simulator_mode = simulator
         self._simulator: Simulator | None = None  # opened at the first reset

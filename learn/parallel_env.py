@@ -18,7 +18,6 @@ from learn.scenarios import scenario_dirs
 from learn.session import Config, Simulator, SimulatorMode, check_simulator_mode
 from learn.spaces import action_space, observation_space
 from sim.interface import AgentInterface
-from sim.observation_arrays import DEFAULT_MAX_NEIGHBOURS
 
 
 class DrivingArenaParallelEnv(ParallelEnv):
@@ -37,7 +36,6 @@ class DrivingArenaParallelEnv(ParallelEnv):
         *,
         agents: tuple[int, int] = (1, 3),
         action_space: str = "TargetPose",
-        max_neighbours: int = DEFAULT_MAX_NEIGHBOURS,
         reward_fn: RewardFn | None = None,
         profile: str | None = None,
         traffic_seed: str = "scenario",
@@ -54,8 +52,7 @@ class DrivingArenaParallelEnv(ParallelEnv):
         self.reward_fn = reward_fn or default_reward
         self.traffic_seed = traffic_seed
         self.np_random, _ = seeding.np_random(None)
-        self._max_neighbours = max_neighbours
-        self._config = Config(self.interface, max_neighbours, _profile_name(profile))
+        self._config = Config(self.interface, _profile_name(profile))
         check_simulator_mode(simulator)
         self._simulator_mode = simulator
         self._simulator: Simulator | None = None
@@ -63,7 +60,7 @@ class DrivingArenaParallelEnv(ParallelEnv):
 
     @cached_property
     def _observation_space(self):
-        return observation_space(self.interface, self._max_neighbours)
+        return observation_space(self.interface)
 
     @cached_property
     def _action_space(self):

@@ -21,7 +21,6 @@ SIMULATOR_MODES = ("auto", "in_process", "subprocess")
 @dataclass(frozen=True)
 class Config:
     interface: Any  # sim.interface.AgentInterface
-    max_neighbours: int
     profile: str  # scoring profile whose terms go into info
 
 
@@ -63,7 +62,7 @@ class SimulatorSession:
 
         self.config = config
         self.profile = load_profile(config.profile)
-        self._layout = ObservationLayout(config.interface, config.max_neighbours)
+        self._layout = ObservationLayout(config.interface)
         # One encoder per agent of the episode: each follows its agent's paths step to step.
         self._encoders: dict[str, Any] = {}
         self._packed = packed

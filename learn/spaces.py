@@ -10,17 +10,15 @@ import numpy as np
 from gymnasium import spaces
 
 from sim.interface import ActionSpace, AgentInterface
-from sim.observation_arrays import DEFAULT_MAX_NEIGHBOURS, ObservationLayout
+from sim.observation_arrays import ObservationLayout
 from sim.vehicle.limits import LIMITS
 
 
-def observation_space(
-    interface: AgentInterface, max_neighbours: int = DEFAULT_MAX_NEIGHBOURS
-) -> spaces.Dict:
+def observation_space(interface: AgentInterface) -> spaces.Dict:
     """The space of the arrays observation for this interface: a Box per leaf of its
     :class:`~sim.observation_arrays.ObservationLayout`, in nested Dicts."""
     tree: dict = {}
-    for leaf in ObservationLayout(interface, max_neighbours).leaves:
+    for leaf in ObservationLayout(interface).leaves:
         node = tree
         for key in leaf.path[:-1]:
             node = node.setdefault(key, {})

@@ -38,7 +38,7 @@ class SimulatorProcess:
     def __init__(self, config: Config) -> None:
         from sim.observation_arrays import ObservationLayout
 
-        self._layout = ObservationLayout(config.interface, config.max_neighbours)
+        self._layout = ObservationLayout(config.interface)
         env = dict(os.environ)
         # The child must import the same code as this process (a worktree before an install).
         env["PYTHONPATH"] = os.pathsep.join(

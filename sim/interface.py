@@ -53,3 +53,6 @@ class AgentInterface(BaseModel):
     top_down_rgb: bool = False
     img_pixels: int = Field(default=256, ge=16, le=512)
     img_meters: float = Field(default=64.0, gt=0, le=200)
+    # Neighbour slots of the fixed-shape observation (`observation_format: arrays`, the learn
+    # environments): the nearest are kept. The native format lists every one in the radius.
+    max_neighbours: int = Field(default=16, ge=1, le=64)

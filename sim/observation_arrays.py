@@ -53,7 +53,6 @@ EGO_FIELDS = (
     ("angular_jerk", 3),
 )
 WAYPOINT_FIELDS = ("heading", "lane_width", "speed_limit", "lane_offset")
-DEFAULT_MAX_NEIGHBOURS = 16
 RASTER_NAMES = ("drivable_area_grid_map", "occupancy_grid_map", "top_down_rgb")
 F32, I32, U8 = "<f4", "<i4", "|u1"
 NEIGHBOURS = "neighborhood_vehicle_states"
@@ -121,16 +120,14 @@ def _leaf_specs(
 
 class ObservationLayout:
     """Where each array of one agent's observation sits in its record, for an interface's
-    ``max_waypoint_paths``, ``waypoints_per_path`` and rasters, with ``max_neighbours``
-    neighbour slots (the nearest kept: the simulator lists them nearest first)."""
+    ``max_waypoint_paths``, ``waypoints_per_path``, rasters and ``max_neighbours`` neighbour
+    slots (the nearest kept: the simulator lists them nearest first)."""
 
-    def __init__(
-        self, interface: AgentInterface, max_neighbours: int = DEFAULT_MAX_NEIGHBOURS
-    ) -> None:
+    def __init__(self, interface: AgentInterface) -> None:
         self.interface = interface
-        self.max_neighbours = max_neighbours
+        self.max_neighbours = interface.max_neighbours
         leaves, offset = [], 0
-        for path, dtype, shape, low, high in _leaf_specs(interface, max_neighbours):
+        for path, dtype, shape, low, high in _leaf_specs(interface, self.max_neighbours):
             offset = _aligned(offset, np.dtype(dtype).itemsize)
             leaves.append(Leaf(path, dtype, shape, offset, low, high))
             offset += leaves[-1].nbytes

@@ -13,19 +13,25 @@ from submissions.sample import sample_observation
 
 def test_encoded_observations_are_members_of_the_space() -> None:
     interface = AgentInterface(
-        top_down_rgb=True, occupancy_grid_map=True, img_pixels=64, max_waypoint_paths=3
+        top_down_rgb=True,
+        occupancy_grid_map=True,
+        img_pixels=64,
+        max_waypoint_paths=3,
+        max_neighbours=8,
     )
-    space = observation_space(interface, max_neighbours=8)
-    encoder = ObservationEncoder(ObservationLayout(interface, max_neighbours=8))
+    space = observation_space(interface)
+    encoder = ObservationEncoder(ObservationLayout(interface))
     for neighbours in (0, 3, 20):
         obs = sample_observation(neighbours=neighbours, rasters=True, img_pixels=64)
         assert space.contains(encoder.encode(obs["Agent_0"]))
 
 
 def test_every_leaf_is_a_box_of_the_layouts_dtype_and_shape() -> None:
-    interface = AgentInterface(drivable_area_grid_map=True, img_pixels=32, waypoints_per_path=20)
-    space = observation_space(interface, max_neighbours=4)
-    layout = ObservationLayout(interface, max_neighbours=4)
+    interface = AgentInterface(
+        drivable_area_grid_map=True, img_pixels=32, waypoints_per_path=20, max_neighbours=4
+    )
+    space = observation_space(interface)
+    layout = ObservationLayout(interface)
     for leaf in layout.leaves:
         box = space
         for key in leaf.path:

@@ -37,9 +37,13 @@ def assert_same(a: dict, b: dict) -> None:
 
 def test_the_sample_observation_encodes_into_its_leaves() -> None:
     interface = AgentInterface(
-        top_down_rgb=True, occupancy_grid_map=True, img_pixels=64, max_waypoint_paths=3
+        top_down_rgb=True,
+        occupancy_grid_map=True,
+        img_pixels=64,
+        max_waypoint_paths=3,
+        max_neighbours=8,
     )
-    layout = ObservationLayout(interface, max_neighbours=8)
+    layout = ObservationLayout(interface)
     obs = sample_observation(neighbours=20, rasters=True, img_pixels=64)["Agent_0"]
     encoded = ObservationEncoder(layout).encode(obs)
     for leaf in layout.leaves:
@@ -63,7 +67,7 @@ def test_the_sample_observation_encodes_into_its_leaves() -> None:
 
 
 def test_short_lists_are_padded_and_masked() -> None:
-    layout = ObservationLayout(AgentInterface(waypoints_per_path=10), max_neighbours=5)
+    layout = ObservationLayout(AgentInterface(waypoints_per_path=10, max_neighbours=5))
     obs = sample_observation(neighbours=2, waypoints=7)["Agent_0"]
     obs["events"]["collisions"] = [{"with": "car-1"}]  # a list: its truth is the flag
     encoded = ObservationEncoder(layout).encode(obs)
@@ -76,9 +80,13 @@ def test_short_lists_are_padded_and_masked() -> None:
 
 def test_leaves_are_aligned_and_apart() -> None:
     interface = AgentInterface(
-        drivable_area_grid_map=True, top_down_rgb=True, img_pixels=30, waypoints_per_path=7
+        drivable_area_grid_map=True,
+        top_down_rgb=True,
+        img_pixels=30,
+        waypoints_per_path=7,
+        max_neighbours=3,
     )
-    layout = ObservationLayout(interface, max_neighbours=3)
+    layout = ObservationLayout(interface)
     end = 0
     for leaf in layout.leaves:
         assert leaf.offset >= end and leaf.offset % np.dtype(leaf.dtype).itemsize == 0

@@ -17,8 +17,11 @@ from submissions.sample import sample_observation
 from tests.evaluator.sandbox.agents import agent
 from tests.evaluator.sandbox.test_warm import zygote
 
-AGENT_YAML = "observation_format: arrays\ntop_down_rgb: true\nimg_pixels: 32\n"
-INTERFACE = AgentInterface(observation_format="arrays", top_down_rgb=True, img_pixels=32)
+# Fewer neighbour slots than the sample has neighbours: agent.yaml's count must reach the layout.
+AGENT_YAML = "observation_format: arrays\ntop_down_rgb: true\nimg_pixels: 32\nmax_neighbours: 5\n"
+INTERFACE = AgentInterface(
+    observation_format="arrays", top_down_rgb=True, img_pixels=32, max_neighbours=5
+)
 
 # Every agent's arrays must be the layout's, writable, and those of earlier steps unchanged. It
 # answers with a few sums of what it got (SUMS), so that the values are checked too.
