@@ -9,6 +9,7 @@ participant's, and never raises here.
 from __future__ import annotations
 
 import multiprocessing as mp
+import pickle
 import sys
 import threading
 import time
@@ -25,7 +26,7 @@ from sim.result import EpisodeResult
 
 # Modules the fork server loads once, so each episode's child starts warm. Importing libsumo
 # starts nothing: only the child's own Simulation does.
-_PRELOAD = ["sim.episode", "sim.simulation", "sumolib", "libsumo"]
+_PRELOAD = ["sim.episode", "sim.simulation", "sim.inputs", "sumolib", "libsumo"]
 # Held while a child starts without the main script (see _start_without_main).
 _MAIN_LOCK = threading.Lock()
 # The child stops the agent this long before the hard timeout, to still write the record.
@@ -50,15 +51,24 @@ def run_episode_isolated(
     has a ``logs()`` method, returns its text in ``extra["agent_log"]``. The episode itself
     stops at ``episode_timeout_s``, the organisers' limit (reason ``episode_timeout``, record kept);
     ``timeout_s`` is the hard limit after which the child is killed (``simulator_error``).
+    The scenario's network and recording are parsed here, once per process (:mod:`sim.inputs`),
+    and reach the child pickled.
     """
+    from sim.inputs import packed_inputs
+
     started = time.monotonic()
+    inputs = packed_inputs.get(Path(scenario_dir))
     ctx = mp.get_context("forkserver")
     ctx.set_forkserver_preload(preload_modules(agent_factory))
     receiver, sender = ctx.Pipe(duplex=False)
     child = ctx.Process(
         target=_child_main,
         args=(Path(scenario_dir), agent_factory, interface, Path(record_path), seed),
-        kwargs={"wall_timeout_s": _wall_timeout(timeout_s, episode_timeout_s), "conn": sender},
+        kwargs={
+            "wall_timeout_s": _wall_timeout(timeout_s, episode_timeout_s),
+            "conn": sender,
+            "inputs": inputs,
+        },
         name=f"episode-{Path(scenario_dir).name}",
     )
     _start_without_main(child, agent_factory)
@@ -70,12 +80,12 @@ def run_episode_isolated(
     except (EOFError, OSError):
         message = None  # the child died without answering
     finally:
-        child.join(timeout=5)
-        if child.is_alive():
-            child.kill()
-            child.join()
         receiver.close()
+        if not isinstance(message, EpisodeResult):
+            _reap(child)
     if isinstance(message, EpisodeResult):
+        # The child has sent everything and only exits now: no need to wait for it (a few ms).
+        threading.Thread(target=_reap, args=(child,), name=f"reap-{child.name}").start()
         return message
     if message is None:
         elapsed = time.monotonic() - started
@@ -128,6 +138,13 @@ def _start_without_main(child: mp.process.BaseProcess, agent_factory) -> None:
             main.__spec__ = None
 
 
+def _reap(child: mp.process.BaseProcess) -> None:
+    child.join(timeout=5)
+    if child.is_alive():
+        child.kill()
+        child.join()
+
+
 def _wall_timeout(timeout_s: float, episode_timeout_s: float | None) -> float:
     """The episode's own wall limit: inside the hard limit, leaving time to write the record."""
     inside_hard_limit = max(timeout_s - _GRACE_S, 0.8 * timeout_s)
@@ -136,14 +153,17 @@ def _wall_timeout(timeout_s: float, episode_timeout_s: float | None) -> float:
     return min(episode_timeout_s, inside_hard_limit)
 
 
-def _child_main(scenario_dir, agent_factory, interface, record_path, seed, *, wall_timeout_s, conn):
+def _child_main(
+    scenario_dir, agent_factory, interface, record_path, seed, *, wall_timeout_s, conn, inputs
+):
     from sim.episode import describe_exception, run_episode
 
     try:
+        parsed = pickle.loads(inputs) if inputs is not None else None  # see sim.inputs
         try:
             agent = agent_factory()
         except AgentFailed as exc:
-            result = _write_failed_start(scenario_dir, interface, record_path, seed, exc)
+            result = _write_failed_start(scenario_dir, interface, record_path, seed, exc, parsed)
         else:
             result = run_episode(
                 scenario_dir,
@@ -152,6 +172,7 @@ def _child_main(scenario_dir, agent_factory, interface, record_path, seed, *, wa
                 record_path=record_path,
                 seed=seed,
                 wall_timeout_s=wall_timeout_s,
+                inputs=parsed,
             )
             log = _close_agent(agent)
             if log is not None:
@@ -170,12 +191,12 @@ def _close_agent(agent: Agent) -> str | None:
     return text
 
 
-def _write_failed_start(scenario_dir, interface, record_path, seed, exc: AgentFailed):
+def _write_failed_start(scenario_dir, interface, record_path, seed, exc: AgentFailed, inputs):
     """The agent never started: every mission fails with its reason, 0 steps, empty record."""
     from sim.simulation import Simulation
 
     scenario = load_scenario(scenario_dir)
-    sim = Simulation(scenario, scenario_dir, interface, seed)
+    sim = Simulation(scenario, scenario_dir, interface, seed, inputs=inputs)
     sim.fail(exc.reason)
     sim.write_record(record_path)
     return EpisodeResult(

@@ -60,6 +60,15 @@ class RoadNetwork:
         if self._junction_area is not None:
             shapely.prepare(self._junction_area)
 
+    def __setstate__(self, state: dict) -> None:
+        # Unpickled (an episode's process gets the network parsed by its evaluator, see
+        # sim.inputs): shapely pickles geometries unprepared, and the per-step point queries
+        # rely on preparation for their speed.
+        self.__dict__.update(state)
+        shapely.prepare(self.drivable_area)
+        if self._junction_area is not None:
+            shapely.prepare(self._junction_area)
+
     @classmethod
     def load(cls, net_path: Path) -> RoadNetwork:
         import sumolib  # heavy; only when a network is read
