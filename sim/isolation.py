@@ -9,12 +9,14 @@ participant's, and never raises here.
 from __future__ import annotations
 
 import multiprocessing as mp
-import pickle
+import os
 import sys
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from importlib.machinery import ModuleSpec
+from multiprocessing.reduction import DupFd
 from pathlib import Path
 
 from arena.errors import AgentFailed
@@ -51,13 +53,13 @@ def run_episode_isolated(
     has a ``logs()`` method, returns its text in ``extra["agent_log"]``. The episode itself
     stops at ``episode_timeout_s``, the organisers' limit (reason ``episode_timeout``, record kept);
     ``timeout_s`` is the hard limit after which the child is killed (``simulator_error``).
-    The scenario's network and recording are parsed here, once per process (:mod:`sim.inputs`),
-    and reach the child pickled.
+    The scenario's network and recording are parsed here, once per process, and reach the child
+    pickled in a memory file (:mod:`sim.inputs`).
     """
     from sim.inputs import packed_inputs
 
     started = time.monotonic()
-    inputs = packed_inputs.get(Path(scenario_dir))
+    inputs = packed_inputs.open(Path(scenario_dir))
     ctx = mp.get_context("forkserver")
     ctx.set_forkserver_preload(preload_modules(agent_factory))
     receiver, sender = ctx.Pipe(duplex=False)
@@ -67,12 +69,16 @@ def run_episode_isolated(
         kwargs={
             "wall_timeout_s": _wall_timeout(timeout_s, episode_timeout_s),
             "conn": sender,
-            "inputs": inputs,
+            "inputs": None if inputs is None else _ChildDescriptor(inputs),
         },
         name=f"episode-{Path(scenario_dir).name}",
     )
-    _start_without_main(child, agent_factory)
-    sender.close()
+    try:
+        _start_without_main(child, agent_factory)
+    finally:
+        sender.close()
+        if inputs is not None:
+            os.close(inputs)  # the child has its own now
     message = None
     try:
         if receiver.poll(timeout_s):
@@ -138,6 +144,21 @@ def _start_without_main(child: mp.process.BaseProcess, agent_factory) -> None:
             main.__spec__ = None
 
 
+@dataclass(frozen=True)
+class _ChildDescriptor:
+    """A file descriptor to hand to the child being started: unpickled there as the child's
+    own descriptor of the same file (multiprocessing passes it along, as it does sockets)."""
+
+    fd: int
+
+    def __reduce__(self):
+        return (_own_descriptor, (DupFd(self.fd),))
+
+
+def _own_descriptor(passed) -> int:
+    return passed.detach()
+
+
 def _reap(child: mp.process.BaseProcess) -> None:
     child.join(timeout=5)
     if child.is_alive():
@@ -157,9 +178,10 @@ def _child_main(
     scenario_dir, agent_factory, interface, record_path, seed, *, wall_timeout_s, conn, inputs
 ):
     from sim.episode import describe_exception, run_episode
+    from sim.inputs import read_inputs
 
     try:
-        parsed = pickle.loads(inputs) if inputs is not None else None  # see sim.inputs
+        parsed = read_inputs(inputs) if inputs is not None else None  # see sim.inputs
         try:
             agent = agent_factory()
         except AgentFailed as exc:

@@ -3,14 +3,14 @@ files parsed by the episode itself."""
 
 from __future__ import annotations
 
-import pickle
+import os
 
 import pytest
 
 from arena.outcome import DoneReason
 from arena.scenario import load_scenario
 from arena.suite import SHIPPED_PUBLIC_DIR
-from sim.inputs import PackedInputsCache, ScenarioInputs
+from sim.inputs import PackedInputsCache, ScenarioInputs, read_inputs
 from sim.interface import AgentInterface
 from sim.isolation import run_episode_isolated
 from tests.sim.agents import cruising_agent
@@ -24,7 +24,15 @@ REPLAY_CSV = "vehicle_id,time,x,y,heading,speed,length,width\n" + "".join(
 
 def unpickled_inputs(scenario_dir) -> ScenarioInputs:
     """What an episode's process gets: the inputs parsed elsewhere, through pickle."""
-    return pickle.loads(PackedInputsCache().get(scenario_dir))
+    return read_inputs(PackedInputsCache().open(scenario_dir))
+
+
+def file_of(fd: int) -> int:
+    """The memory file behind descriptor ``fd`` (closed)."""
+    try:
+        return os.fstat(fd).st_ino
+    finally:
+        os.close(fd)
 
 
 @pytest.mark.parametrize(
@@ -48,28 +56,40 @@ def test_the_recording_is_replayed_anew_in_every_episode(tmp_path):
 def test_cache_parses_once_per_content_and_again_after_an_edit(tmp_path):
     folder = make_scenario(tmp_path / "sc", ScenarioSpec(trajectories=REPLAY_CSV))
     cache = PackedInputsCache()
-    packed = cache.get(folder)
-    assert cache.get(folder) is packed
+    packed = file_of(cache.open(folder))
+    assert file_of(cache.open(folder)) == packed
     (folder / "traffic.csv").write_text(REPLAY_CSV.replace("10.000", "11.000"))
-    edited = cache.get(folder)
-    assert edited != packed
-    assert float(pickle.loads(edited).replay.speed[0, 0]) == 11.0
+    edited = cache.open(folder)
+    assert os.fstat(edited).st_ino != packed
+    assert float(read_inputs(edited).replay.speed[0, 0]) == 11.0
+
+
+def test_cached_inputs_cannot_be_written(tmp_path):
+    fd = PackedInputsCache().open(make_scenario(tmp_path / "sc", ScenarioSpec()))
+    try:
+        with pytest.raises(PermissionError):
+            os.pwrite(fd, b"x", 0)
+    finally:
+        os.close(fd)
 
 
 def test_cache_drops_the_least_recently_used_past_its_limit(tmp_path):
     one = make_scenario(tmp_path / "one", ScenarioSpec())
     two = make_scenario(tmp_path / "two", ScenarioSpec(trajectories=REPLAY_CSV))
-    cache = PackedInputsCache(limit=len(PackedInputsCache().get(two)))
-    first = cache.get(one)
-    cache.get(two)
-    assert cache.get(one) is not first  # parsed again: it had been dropped
+    fd = PackedInputsCache().open(two)
+    size = os.fstat(fd).st_size
+    os.close(fd)
+    cache = PackedInputsCache(limit=size)
+    first = file_of(cache.open(one))
+    file_of(cache.open(two))
+    assert file_of(cache.open(one)) != first  # parsed again: it had been dropped
 
 
 def test_an_unreadable_network_is_left_to_the_episode_and_is_a_simulator_error(tmp_path):
     folder = make_scenario(tmp_path / "sc", ScenarioSpec())
     scenario = load_scenario(folder)
     (folder / scenario.map).write_text("<net><edge")
-    assert PackedInputsCache().get(folder) is None
+    assert PackedInputsCache().open(folder) is None
     result = run_episode_isolated(
         folder, cruising_agent, AgentInterface(), record_path=tmp_path / "r.npz"
     )
