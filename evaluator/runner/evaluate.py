@@ -117,23 +117,26 @@ def evaluate(
             pending: dict[Future, Episode] = {}
             queue = list(todo)
             starts = _StartWatch(fail_fast_after)
-            while queue or pending:
+            finished: list[ScenarioOutcome] = []
+            while True:
                 while queue and len(pending) < jobs and not starts.gave_up:
                     episode = queue.pop(0)
                     run.mark_running(episode)
                     pending[pool.submit(play, episode)] = episode
-                # Written once per round, after the episodes started: a summary of a whole suite
-                # takes milliseconds to encode, twice per episode was a second per hundred.
+                # The episodes that finished are scored (reading their records) while the next
+                # ones start, and the summary is written once per round: encoding a whole
+                # suite's takes milliseconds, twice per episode was a second per hundred.
+                for outcome in finished:
+                    run.record(outcome)
+                    if progress:
+                        progress.finished(outcome)
                 run.summary()
                 if not pending:
                     break
                 done, _ = wait(pending, return_when=FIRST_COMPLETED)
-                for future in done:
-                    outcome = _outcome_of(future, pending.pop(future))
-                    run.record(outcome)
+                finished = [_outcome_of(future, pending.pop(future)) for future in done]
+                for outcome in finished:
                     starts.saw(outcome)
-                    if progress:
-                        progress.finished(outcome)
     return run.summary()
 
 
