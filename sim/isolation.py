@@ -26,9 +26,20 @@ from sim.agent import Agent
 from sim.interface import AgentInterface
 from sim.result import EpisodeResult
 
-# Modules the fork server loads once, so each episode's child starts warm. Importing libsumo
-# starts nothing: only the child's own Simulation does.
-_PRELOAD = ["sim.episode", "sim.simulation", "sim.inputs", "sumolib", "libsumo"]
+# Modules the fork server loads once, so each episode's child starts warm: this module (the
+# child's entry point) and multiprocessing's own for unpickling its descriptors included. Importing
+# libsumo starts nothing: only the child's own Simulation does.
+_PRELOAD = [
+    "sim.isolation",
+    "sim.episode",
+    "sim.simulation",
+    "sim.inputs",
+    "sumolib",
+    "libsumo",
+    "multiprocessing.popen_forkserver",
+]
+# Imported after all the others (see the module).
+_FREEZE = "sim.forked"
 # Held while a child starts without the main script (see _start_without_main).
 _MAIN_LOCK = threading.Lock()
 # The child stops the agent this long before the hard timeout, to still write the record.
@@ -107,9 +118,10 @@ def run_episode_isolated(
 def preload_modules(agent_factory: Callable[[], Agent]) -> list[str]:
     """What the fork server imports once: the simulator, the module defining ``agent_factory``
     (each child unpickles it) and the modules it lists in an optional ``preload_modules``
-    attribute (what it imports when called, e.g. a sandbox client). Children are forked from the
-    server, so these imports cost once per server instead of once per episode (about 0.1 s with
-    the Docker client); no episode's state reaches another, each child starts from the server's.
+    attribute (what it imports when called, e.g. a sandbox client), then :mod:`sim.forked`.
+    Children are forked from the server, so these imports cost once per server instead of once
+    per episode (about 0.1 s with the Docker client); no episode's state reaches another, each
+    child starts from the server's.
 
     Only the first episode of a process starts the fork server: later factories' modules are then
     imported by their children as before (slower, not different)."""
@@ -118,7 +130,7 @@ def preload_modules(agent_factory: Callable[[], Agent]) -> list[str]:
     if factory_module and factory_module != "__main__":
         modules.append(factory_module)
     modules += [m for m in getattr(agent_factory, "preload_modules", ()) if m not in modules]
-    return modules
+    return [*modules, _FREEZE]
 
 
 def _start_without_main(child: mp.process.BaseProcess, agent_factory) -> None:
