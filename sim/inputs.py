@@ -68,10 +68,17 @@ class PackedInputsCache:
 
     def open(self, scenario_dir: Path) -> int | None:
         """A new descriptor (the caller closes it) of the memory file holding the inputs of
-        ``scenario_dir``, or None when they cannot be parsed."""
+        ``scenario_dir``, or None when they cannot be parsed (or no memory file can be made:
+        out of descriptors)."""
+        try:
+            return self._open(Path(scenario_dir))
+        except OSError:
+            return None
+
+    def _open(self, scenario_dir: Path) -> int | None:
         try:
             scenario = load_scenario(scenario_dir)
-            key = _content_key(Path(scenario_dir), scenario)
+            key = _content_key(scenario_dir, scenario)
         except (OSError, ValueError):
             return None
         with self._lock:
@@ -96,10 +103,14 @@ class PackedInputsCache:
 
 def _sealed_memory_file(data: bytes) -> int:
     fd = os.memfd_create("scenario-inputs", os.MFD_CLOEXEC | os.MFD_ALLOW_SEALING)
-    view = memoryview(data)
-    while view:
-        view = view[os.write(fd, view) :]
-    fcntl.fcntl(fd, fcntl.F_ADD_SEALS, _SEALS)
+    try:
+        view = memoryview(data)
+        while view:
+            view = view[os.write(fd, view) :]
+        fcntl.fcntl(fd, fcntl.F_ADD_SEALS, _SEALS)
+    except BaseException:
+        os.close(fd)
+        raise
     return fd
 
 
