@@ -2,7 +2,8 @@
 and with two parallel jobs, a trivial agent to split scenario time into a fixed and a per-step
 part, and raw libsumo stepping the same traffic for comparison.
 
-    python bench/evaluate_suite.py [--sandbox docker] [--suite DIR] [--keep DIR]
+    python bench/evaluate_suite.py [--sandbox docker] [--suite DIR] [--keep DIR] [--first N]
+                                   [--only trivial]
 
 Prints, in order:
 
@@ -20,7 +21,9 @@ fixed_ms <= 100, step_ratio <= 2.
 Agents are forked in warm sandboxes, as every evaluation runs them (docs/protocol.md); run with
 ``ARENA_WARM_AGENTS=false`` for the cold figures (a new sandbox per scenario) side by side. The
 fit is only as good as the machine is quiet: on a loaded host the per-step noise swamps the
-intercept (it can come out negative).
+intercept (it can come out negative). ``--only trivial`` runs the trivial agent alone, twice: the
+first run parses each scenario's network and recording once (:mod:`sim.inputs`), as the planner's
+runs do in the full benchmark, and the second is the one fitted.
 """
 
 from __future__ import annotations
@@ -131,6 +134,9 @@ def main() -> None:
     parser.add_argument(
         "--first", type=int, help="only the suite's first N scenarios (a quick check of the script)"
     )
+    parser.add_argument(
+        "--only", choices=["trivial"], help="only fixed_ms and step_ms (a quick measurement)"
+    )
     args = parser.parse_args()
     if args.keep and args.keep.exists():
         parser.error(f"{args.keep} exists: results there would be resumed, not timed")
@@ -146,12 +152,18 @@ def main() -> None:
         ids = None
         if args.first:
             ids = [s.id for s in load_suite(suite).scenarios[: args.first]]
-        jobs_1 = timed_evaluation(PLANNER, suite, work / "planner-jobs1", 1, args.sandbox, ids)
-        jobs_2 = timed_evaluation(PLANNER, suite, work / "planner-jobs2", 2, args.sandbox, ids)
+        if args.only == "trivial":
+            timed_evaluation(TRIVIAL, suite, work / "trivial-warm-up", 1, args.sandbox, ids)
+        else:
+            jobs_1 = timed_evaluation(PLANNER, suite, work / "planner-jobs1", 1, args.sandbox, ids)
+            jobs_2 = timed_evaluation(PLANNER, suite, work / "planner-jobs2", 2, args.sandbox, ids)
         trivial = timed_evaluation(TRIVIAL, suite, work / "trivial-jobs1", 1, args.sandbox, ids)
         fixed_ms, step_ms = fit_fixed_and_step(trivial)
-        raw_ms = raw_step_ms(suite, trivial.steps)
+        if args.only is None:
+            raw_ms = raw_step_ms(suite, trivial.steps)
     print(f"trivial agent: fixed_ms={fixed_ms:.0f} per scenario, step_ms={step_ms:.3f} per step")
+    if args.only:
+        return
     print(f"raw libsumo, same traffic and steps: raw_step_ms={raw_ms:.3f}")
     print(
         f"wall_s={jobs_2.wall_s:.1f} speedup={jobs_1.wall_s / jobs_2.wall_s:.2f} "

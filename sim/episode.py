@@ -5,6 +5,7 @@ from __future__ import annotations
 import time
 import traceback
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from arena.errors import AgentFailed
 from arena.outcome import DoneReason
@@ -13,6 +14,9 @@ from sim.agent import Agent, SomeAgentsFailed
 from sim.interface import AgentInterface
 from sim.result import EpisodeResult
 from sim.simulation import Simulation
+
+if TYPE_CHECKING:
+    from sim.inputs import ScenarioInputs
 
 
 def run_episode(
@@ -23,6 +27,7 @@ def run_episode(
     record_path: Path,
     seed: int | None = None,
     wall_timeout_s: float | None = None,
+    inputs: ScenarioInputs | None = None,
 ) -> EpisodeResult:
     """Drive ``scenario_dir``'s mission vehicles with ``agent`` until every one is done or the
     step limit; write the record to ``record_path`` (always, even with no rows).
@@ -31,12 +36,12 @@ def run_episode(
     :class:`AgentFailed` ends every still-live agent with its reason; :class:`SomeAgentsFailed`
     ends the agents it names with ``agent_error`` and the rest drive on; a bad action ends only its
     agent (``invalid_action``); passing ``wall_timeout_s`` ends the rest with
-    ``episode_timeout``. SUMO errors propagate (the isolated runner turns them into
-    ``simulator_error``).
+    ``episode_timeout``. ``inputs`` are the scenario's files already parsed (:mod:`sim.inputs`).
+    SUMO errors propagate (the isolated runner turns them into ``simulator_error``).
     """
     started = time.monotonic()
     scenario = load_scenario(scenario_dir)
-    sim = Simulation(scenario, scenario_dir, interface, seed)
+    sim = Simulation(scenario, scenario_dir, interface, seed, inputs=inputs)
     detail = ""
     try:
         obs = sim.reset()

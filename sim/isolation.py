@@ -9,11 +9,14 @@ participant's, and never raises here.
 from __future__ import annotations
 
 import multiprocessing as mp
+import os
 import sys
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from importlib.machinery import ModuleSpec
+from multiprocessing.reduction import DupFd
 from pathlib import Path
 
 from arena.errors import AgentFailed
@@ -23,9 +26,20 @@ from sim.agent import Agent
 from sim.interface import AgentInterface
 from sim.result import EpisodeResult
 
-# Modules the fork server loads once, so each episode's child starts warm. Importing libsumo
-# starts nothing: only the child's own Simulation does.
-_PRELOAD = ["sim.episode", "sim.simulation", "sumolib", "libsumo"]
+# Modules the fork server loads once, so each episode's child starts warm: this module (the
+# child's entry point) and multiprocessing's own for unpickling its descriptors included. Importing
+# libsumo starts nothing: only the child's own Simulation does.
+_PRELOAD = [
+    "sim.isolation",
+    "sim.episode",
+    "sim.simulation",
+    "sim.inputs",
+    "sumolib",
+    "libsumo",
+    "multiprocessing.popen_forkserver",
+]
+# Imported after all the others (see the module).
+_FREEZE = "sim.forked"
 # Held while a child starts without the main script (see _start_without_main).
 _MAIN_LOCK = threading.Lock()
 # The child stops the agent this long before the hard timeout, to still write the record.
@@ -50,19 +64,32 @@ def run_episode_isolated(
     has a ``logs()`` method, returns its text in ``extra["agent_log"]``. The episode itself
     stops at ``episode_timeout_s``, the organisers' limit (reason ``episode_timeout``, record kept);
     ``timeout_s`` is the hard limit after which the child is killed (``simulator_error``).
+    The scenario's network and recording are parsed here, once per process, and reach the child
+    pickled in a memory file (:mod:`sim.inputs`).
     """
+    from sim.inputs import packed_inputs
+
     started = time.monotonic()
+    inputs = packed_inputs.open(Path(scenario_dir))
     ctx = mp.get_context("forkserver")
     ctx.set_forkserver_preload(preload_modules(agent_factory))
     receiver, sender = ctx.Pipe(duplex=False)
     child = ctx.Process(
         target=_child_main,
         args=(Path(scenario_dir), agent_factory, interface, Path(record_path), seed),
-        kwargs={"wall_timeout_s": _wall_timeout(timeout_s, episode_timeout_s), "conn": sender},
+        kwargs={
+            "wall_timeout_s": _wall_timeout(timeout_s, episode_timeout_s),
+            "conn": sender,
+            "inputs": None if inputs is None else _ChildDescriptor(inputs),
+        },
         name=f"episode-{Path(scenario_dir).name}",
     )
-    _start_without_main(child, agent_factory)
-    sender.close()
+    try:
+        _start_without_main(child, agent_factory)
+    finally:
+        sender.close()
+        if inputs is not None:
+            os.close(inputs)  # the child has its own now
     message = None
     try:
         if receiver.poll(timeout_s):
@@ -70,12 +97,12 @@ def run_episode_isolated(
     except (EOFError, OSError):
         message = None  # the child died without answering
     finally:
-        child.join(timeout=5)
-        if child.is_alive():
-            child.kill()
-            child.join()
         receiver.close()
+        if not isinstance(message, EpisodeResult):
+            _reap(child)
     if isinstance(message, EpisodeResult):
+        # The child has sent everything and only exits now: no need to wait for it (a few ms).
+        threading.Thread(target=_reap, args=(child,), name=f"reap-{child.name}").start()
         return message
     if message is None:
         elapsed = time.monotonic() - started
@@ -91,9 +118,10 @@ def run_episode_isolated(
 def preload_modules(agent_factory: Callable[[], Agent]) -> list[str]:
     """What the fork server imports once: the simulator, the module defining ``agent_factory``
     (each child unpickles it) and the modules it lists in an optional ``preload_modules``
-    attribute (what it imports when called, e.g. a sandbox client). Children are forked from the
-    server, so these imports cost once per server instead of once per episode (about 0.1 s with
-    the Docker client); no episode's state reaches another, each child starts from the server's.
+    attribute (what it imports when called, e.g. a sandbox client), then :mod:`sim.forked`.
+    Children are forked from the server, so these imports cost once per server instead of once
+    per episode (about 0.1 s with the Docker client); no episode's state reaches another, each
+    child starts from the server's.
 
     Only the first episode of a process starts the fork server: later factories' modules are then
     imported by their children as before (slower, not different)."""
@@ -102,7 +130,7 @@ def preload_modules(agent_factory: Callable[[], Agent]) -> list[str]:
     if factory_module and factory_module != "__main__":
         modules.append(factory_module)
     modules += [m for m in getattr(agent_factory, "preload_modules", ()) if m not in modules]
-    return modules
+    return [*modules, _FREEZE]
 
 
 def _start_without_main(child: mp.process.BaseProcess, agent_factory) -> None:
@@ -128,6 +156,28 @@ def _start_without_main(child: mp.process.BaseProcess, agent_factory) -> None:
             main.__spec__ = None
 
 
+@dataclass(frozen=True)
+class _ChildDescriptor:
+    """A file descriptor to hand to the child being started: unpickled there as the child's
+    own descriptor of the same file (multiprocessing passes it along, as it does sockets)."""
+
+    fd: int
+
+    def __reduce__(self):
+        return (_own_descriptor, (DupFd(self.fd),))
+
+
+def _own_descriptor(passed) -> int:
+    return passed.detach()
+
+
+def _reap(child: mp.process.BaseProcess) -> None:
+    child.join(timeout=5)
+    if child.is_alive():
+        child.kill()
+        child.join()
+
+
 def _wall_timeout(timeout_s: float, episode_timeout_s: float | None) -> float:
     """The episode's own wall limit: inside the hard limit, leaving time to write the record."""
     inside_hard_limit = max(timeout_s - _GRACE_S, 0.8 * timeout_s)
@@ -136,14 +186,18 @@ def _wall_timeout(timeout_s: float, episode_timeout_s: float | None) -> float:
     return min(episode_timeout_s, inside_hard_limit)
 
 
-def _child_main(scenario_dir, agent_factory, interface, record_path, seed, *, wall_timeout_s, conn):
+def _child_main(
+    scenario_dir, agent_factory, interface, record_path, seed, *, wall_timeout_s, conn, inputs
+):
     from sim.episode import describe_exception, run_episode
+    from sim.inputs import read_inputs
 
     try:
+        parsed = read_inputs(inputs) if inputs is not None else None  # see sim.inputs
         try:
             agent = agent_factory()
         except AgentFailed as exc:
-            result = _write_failed_start(scenario_dir, interface, record_path, seed, exc)
+            result = _write_failed_start(scenario_dir, interface, record_path, seed, exc, parsed)
         else:
             result = run_episode(
                 scenario_dir,
@@ -152,6 +206,7 @@ def _child_main(scenario_dir, agent_factory, interface, record_path, seed, *, wa
                 record_path=record_path,
                 seed=seed,
                 wall_timeout_s=wall_timeout_s,
+                inputs=parsed,
             )
             log = _close_agent(agent)
             if log is not None:
@@ -170,12 +225,12 @@ def _close_agent(agent: Agent) -> str | None:
     return text
 
 
-def _write_failed_start(scenario_dir, interface, record_path, seed, exc: AgentFailed):
+def _write_failed_start(scenario_dir, interface, record_path, seed, exc: AgentFailed, inputs):
     """The agent never started: every mission fails with its reason, 0 steps, empty record."""
     from sim.simulation import Simulation
 
     scenario = load_scenario(scenario_dir)
-    sim = Simulation(scenario, scenario_dir, interface, seed)
+    sim = Simulation(scenario, scenario_dir, interface, seed, inputs=inputs)
     sim.fail(exc.reason)
     sim.write_record(record_path)
     return EpisodeResult(

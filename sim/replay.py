@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 from pathlib import Path
 
 import numpy as np
@@ -32,6 +33,13 @@ class ReplayTable:
             self.x[k, span], self.y[k, span] = tr.x, tr.y
             self.heading[k, span], self.speed[k, span] = tr.heading, tr.speed
         self.active = np.ones(len(self.ids), dtype=bool)  # False once handed to SUMO
+
+    def fresh(self) -> ReplayTable:
+        """This recording with every vehicle replayed again (none handed to SUMO yet), for a new
+        episode; the recorded arrays are shared and never written."""
+        table = copy.copy(self)
+        table.active = np.ones(len(self.ids), dtype=bool)
+        return table
 
     def present(self, step: int) -> np.ndarray:
         """Row indices of the replayed (not handed over) vehicles existing at ``step``."""

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -39,6 +40,9 @@ from sim.vehicle import DECODERS, ControlContext, InvalidAction, check_action
 from sim.vehicle.actions import quote
 from sim.vehicles import Surroundings, VehicleStates
 
+if TYPE_CHECKING:
+    from sim.inputs import ScenarioInputs
+
 # SUMO reports the vehicles around an ego by front-bumper distance: ask a little wider, then
 # filter by centre distance ourselves.
 _CONTEXT_MARGIN = 10.0  # [m]
@@ -57,13 +61,20 @@ class Simulation:
         seed: int | None = None,
         *,
         with_missions: bool = True,
+        inputs: ScenarioInputs | None = None,
     ) -> None:
         self.scenario = scenario
         self.scenario_dir = Path(scenario_dir)
         self.interface = interface
         self.seed = scenario.seed if seed is None else seed
         self.dt = scenario.step_length
-        self.road = RoadNetwork.load(self.scenario_dir / scenario.map)
+        # Parsed once by the evaluating process when given (sim.inputs), else read here.
+        self._inputs = inputs
+        self.road = (
+            inputs.road
+            if inputs is not None
+            else RoadNetwork.load(self.scenario_dir / scenario.map)
+        )
         self._missions = scenario.missions if with_missions else ()
         self._traffic: SumoTraffic | None = None
         self._replay: ReplayTable | None = None  # replayed traffic outside SUMO
@@ -88,7 +99,10 @@ class Simulation:
         routes = folder / sc.traffic.routes if sc.traffic.kind == "sumo" else None
         self._traffic = SumoTraffic(folder / sc.map, routes, self.seed, self.dt)
         if isinstance(sc.traffic, ReplayTraffic):
-            table = ReplayTable(folder / sc.traffic.trajectories, self.dt)
+            if self._inputs is not None and self._inputs.replay is not None:
+                table = self._inputs.replay.fresh()
+            else:
+                table = ReplayTable(folder / sc.traffic.trajectories, self.dt)
             if sc.traffic.bubble_radius is None:
                 self._replay = table
             else:

@@ -3,8 +3,9 @@
 Up to ``jobs`` episodes run at once, each in its own simulator process with its own sandboxed
 agent (the threads here only wait on those processes). A reactive scenario runs
 ``episodes_per_scenario`` episodes, each with other traffic (:mod:`arena.episodes`).
-``summary.json`` is rewritten whenever an episode starts or finishes, so a crash leaves a trace
-and a re-run with the same ``out_dir`` resumes where it stopped.
+``summary.json`` is rewritten whenever episodes start or finish (once for those that finish and
+start together), so a crash leaves a trace and a re-run with the same ``out_dir`` resumes where it
+stopped.
 """
 
 from __future__ import annotations
@@ -104,7 +105,6 @@ def evaluate(
             progress.started(len(run.episodes), len(run.episodes) - len(todo))
 
         def play(episode: Episode) -> ScenarioOutcome:
-            run.mark_running(episode)
             return run_scenario(
                 submission,
                 suite.scenario_dir(episode.scenario_id),
@@ -117,19 +117,26 @@ def evaluate(
             pending: dict[Future, Episode] = {}
             queue = list(todo)
             starts = _StartWatch(fail_fast_after)
-            while queue or pending:
+            finished: list[ScenarioOutcome] = []
+            while True:
                 while queue and len(pending) < jobs and not starts.gave_up:
                     episode = queue.pop(0)
+                    run.mark_running(episode)
                     pending[pool.submit(play, episode)] = episode
+                # The episodes that finished are scored (reading their records) while the next
+                # ones start, and the summary is written once per round: encoding a whole
+                # suite's takes milliseconds, twice per episode was a second per hundred.
+                for outcome in finished:
+                    run.record(outcome)
+                    if progress:
+                        progress.finished(outcome)
+                run.summary()
                 if not pending:
                     break
                 done, _ = wait(pending, return_when=FIRST_COMPLETED)
-                for future in done:
-                    outcome = _outcome_of(future, pending.pop(future))
-                    run.record(outcome)
+                finished = [_outcome_of(future, pending.pop(future)) for future in done]
+                for outcome in finished:
                     starts.saw(outcome)
-                    if progress:
-                        progress.finished(outcome)
     return run.summary()
 
 
@@ -260,11 +267,12 @@ class ResultsFolder:
         return [e for e in self.episodes if e not in self.outcomes]
 
     def mark_running(self, episode: Episode) -> None:
+        """``episode`` started (written with the next :meth:`summary`)."""
         with self.lock:
             self.running.add(episode)
-            self._write()
 
     def record(self, outcome: ScenarioOutcome) -> None:
+        """``episode`` finished: its log now, its entry with the next :meth:`summary`."""
         with self.lock:
             key = outcome.key
             self.running.discard(key)
@@ -274,9 +282,9 @@ class ResultsFolder:
             self.cache[key] = scored
             self.timings[key.name] = round(outcome.wall_time_s, 3)
             (self.out_dir / LOGS_DIR / f"{key.name}.txt").write_text(outcome.log)
-            self._write()
 
     def summary(self) -> Summary:
+        """Write ``summary.json`` (and the timings) as they are now, and return the summary."""
         with self.lock:
             return self._write()
 

@@ -65,6 +65,20 @@ class RoadNetwork:
         if self._junction_area is not None:
             shapely.prepare(self._junction_area)
 
+    # Pickled: an episode's process gets the network parsed by its evaluator (sim.inputs).
+    def __getstate__(self) -> dict:
+        # The segment tree is rebuilt from its arrays: several times faster than unpickling it
+        # one geometry at a time.
+        return {k: v for k, v in self.__dict__.items() if k != "_tree"}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._tree = _segment_tree(self._seg_p0, self._seg_d)
+        # Geometries are pickled unprepared; the per-step point queries rely on preparation.
+        shapely.prepare(self.drivable_area)
+        if self._junction_area is not None:
+            shapely.prepare(self._junction_area)
+
     @classmethod
     def load(cls, net_path: Path) -> RoadNetwork:
         import sumolib  # heavy; only when a network is read
@@ -109,7 +123,7 @@ class RoadNetwork:
         self._seg_s0 = np.concatenate(s0)  # (S,) [m]
         self._seg_heading = np.arctan2(self._seg_d[:, 1], self._seg_d[:, 0])  # (S,) [rad]
         ends = self._seg_p0 + self._seg_d
-        self._tree = shapely.STRtree(shapely.linestrings(np.stack([self._seg_p0, ends], 1)))
+        self._tree = _segment_tree(self._seg_p0, self._seg_d)
         # Uniform grid: each cell lists the segments passing within _GRID_REACH of it, so a point
         # whose nearest centreline is closer than that is answered from its own cell.
         lo = np.floor((np.minimum(self._seg_p0, ends) - _GRID_REACH) / _GRID_CELL).astype(int)
@@ -248,6 +262,11 @@ def _well_inside(position: LanePosition) -> bool:
 def lane_surface(lane: Lane) -> Polygon:
     """The lane's paved area: its centreline widened to the lane width, flat ends."""
     return LineString(lane.centreline).buffer(lane.width / 2, cap_style="flat", join_style="round")
+
+
+def _segment_tree(p0: np.ndarray, d: np.ndarray) -> shapely.STRtree:
+    """Search tree of the segments from ``p0`` (S, 2) along ``d`` (S, 2) [m]."""
+    return shapely.STRtree(shapely.linestrings(np.stack([p0, p0 + d], 1)))
 
 
 def _successors(lane) -> list[str]:

@@ -86,21 +86,24 @@ def slow_agent() -> ScriptedAgent:
 
 
 class _PreloadReporter(ScriptedAgent):
-    def __init__(self, preloaded: bool) -> None:
+    def __init__(self, preloaded: bool, frozen: bool) -> None:
         super().__init__(stand_still)
         self.preloaded = preloaded
+        self.frozen = frozen
 
     def logs(self) -> str:
-        return f"preloaded={self.preloaded}"
+        return f"preloaded={self.preloaded} frozen={self.frozen}"
 
 
 class PreloadProbe:
     """An agent factory naming a module for the simulator's fork server to import once; its
-    agent's log says whether that module was already imported when the factory ran."""
+    agent's log says whether that module was already imported when the factory ran, and whether
+    the objects inherited from the server are out of the garbage collector's reach."""
 
     preload_modules = ("wave",)  # stdlib, imported by nothing else here
 
     def __call__(self) -> ScriptedAgent:
+        import gc
         import sys
 
-        return _PreloadReporter("wave" in sys.modules)
+        return _PreloadReporter("wave" in sys.modules, gc.get_freeze_count() > 0)

@@ -106,6 +106,7 @@ def test_preload_names_the_simulator_the_factory_module_and_what_it_lists():
     modules = preload_modules(PreloadProbe())
     assert {"sim.simulation", "libsumo", "tests.sim.agents", "wave"} <= set(modules)
     assert len(modules) == len(set(modules))
+    assert modules[-1] == "sim.forked"  # freezes what the others made
 
 
 def test_episode_children_start_with_the_factory_modules_already_imported(tmp_path):
@@ -130,7 +131,7 @@ for i in range(2):
         [sys.executable, "-c", script], cwd=repo, capture_output=True, text=True, timeout=120
     )
     assert done.returncode == 0, done.stderr
-    assert done.stdout.split() == ["preloaded=True", "preloaded=True"]
+    assert done.stdout.split() == ["preloaded=True", "frozen=True"] * 2
 
 
 def test_episode_children_do_not_run_the_main_script_again(tmp_path):

@@ -29,6 +29,7 @@ import pytest
 from arena.suite import SHIPPED_PUBLIC_DIR
 from scenarios.experts import PlannerAgent, planner_interface
 from sim.episode import run_episode
+from sim.inputs import ScenarioInputs
 from sim.interface import AgentInterface
 
 # scenario id -> (sha256 of the .npz record, sha256 of every observation the agent got as JSON)
@@ -213,10 +214,13 @@ class _WatchedPlanner(PlannerAgent):
         return super().act(obs)
 
 
-def digests(scenario_id: str, folder: Path) -> tuple[str, str]:
+def digests(
+    scenario_id: str, folder: Path, inputs: ScenarioInputs | None = None
+) -> tuple[str, str]:
     agent = _WatchedPlanner()
     record = folder / "record.npz"
-    run_episode(SHIPPED_PUBLIC_DIR / scenario_id, agent, planner_interface(), record_path=record)
+    scenario_dir = SHIPPED_PUBLIC_DIR / scenario_id
+    run_episode(scenario_dir, agent, planner_interface(), record_path=record, inputs=inputs)
     return hashlib.sha256(record.read_bytes()).hexdigest(), agent.digest.hexdigest()
 
 

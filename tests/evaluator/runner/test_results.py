@@ -151,6 +151,7 @@ def test_broken_record_is_reported_uncharged_not_scored(tmp_path):
     broken.write_bytes(b"not an npz")
     folder.record(good)
     folder.record(ScenarioOutcome("merge_a", ScenarioStatus.done, 10, (), broken))
+    folder.summary()
 
     summary = read_summary(tmp_path)
     assert summary.uncharged == ("merge_a",)
