@@ -9,26 +9,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from arena.record_format import STEP_FLOATS
 from evaluator.scoring.profile import ScoringProfile
 from evaluator.scoring.record import AgentTrack
 from evaluator.scoring.registry import get_term
 from sim.record import RecordRow
 
 _ROWS_NEEDED = 3
-
-
-_COLUMNS = (
-    "x",
-    "y",
-    "heading",
-    "speed",
-    "vx",
-    "vy",
-    "lane_offset",
-    "lane_width",
-    "lane_heading",
-    "speed_limit",
-)
 
 
 def track_of(rows: list[RecordRow]) -> AgentTrack:
@@ -43,9 +30,9 @@ def track_of(rows: list[RecordRow]) -> AgentTrack:
         nbr_x[i, :m] = row.neighbours.x
         nbr_y[i, :m] = row.neighbours.y
     # One array for every scalar column: this runs on every env step.
-    table = np.array([[getattr(r, name) for name in _COLUMNS] for r in rows], float).T
+    table = np.array([[getattr(r, name) for name in STEP_FLOATS] for r in rows], float).T
     return AgentTrack(
-        **dict(zip(_COLUMNS, table, strict=True)),
+        **dict(zip(STEP_FLOATS, table, strict=True)),
         in_junction=np.array([r.in_junction for r in rows], bool),
         nbr_valid=nbr_valid,
         nbr_x=nbr_x,
