@@ -13,6 +13,9 @@ Prints, in order:
   evaluator, not the planner's thinking or two episodes sharing the cores);
 - ``raw_step_ms``: libsumo alone, in one process, stepping each scenario's SUMO traffic (same
   network, routes, seed and step length) for as many steps as the trivial agent's episode had.
+  Replayed traffic is not SUMO's (the simulator reads it from the recording), so for the
+  suite's replay scenarios this is SUMO stepping an empty network: ``raw_step_ms`` is about
+  0.01 ms, less than the agent round trip's floor alone (``bench/sandbox_roundtrip.py``).
 
 The last line is ``wall_s=<planner, jobs 2> speedup=<jobs1/jobs2> fixed_ms=<...>
 step_ratio=<step_ms/raw_step_ms>``. Targets (2-core machine): wall_s <= 50, speedup >= 1.8,
