@@ -1,7 +1,7 @@
 """Train the PPO baseline on the arena's own simulator and export it to ONNX.
 
     pip install torch==2.13.0 && pip install -e ".[learn]"
-    python submissions/examples/ppo/train.py --minutes 30 --seed 0 --out my_ppo
+    python submissions/examples/ppo/train.py --minutes 30 --seed 0 --out runs/ppo
 
 Stable-Baselines3 PPO on CPU, two environments (each its own simulator process), episodes drawn
 from the public set's single-agent scenarios; ``--seed`` makes a run reproducible. Writes
