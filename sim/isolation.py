@@ -219,10 +219,11 @@ def _child_main(
 
 
 def _close_agent(agent: Agent) -> str | None:
-    logs = getattr(agent, "logs", None)
-    text = logs() if callable(logs) else None
+    # Closed first: a sandbox's log is complete once the agent has ended (read before, a line
+    # the agent wrote just before its last answer could still be in the pipe).
     agent.close()
-    return text
+    logs = getattr(agent, "logs", None)
+    return logs() if callable(logs) else None
 
 
 def _write_failed_start(scenario_dir, interface, record_path, seed, exc: AgentFailed, inputs):
