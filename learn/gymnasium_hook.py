@@ -3,10 +3,10 @@
 Gymnasium 1.x dropped the ``gymnasium.envs`` plugin entry points that used to make a package's
 environments known without importing the package. To keep
 ``gymnasium.make("arena/DrivingArena-v0")`` working in a fresh interpreter, the installed package
-ships ``driving_arena_gymnasium.pth``
-(``build_backend/``), which calls :func:`install` at start-up. That must cost nothing when
-Gymnasium is never used, so this module imports nothing heavy: it only waits for Gymnasium's
-registry module to load, then registers our ids (``learn.registration``).
+ships ``driving_arena_gymnasium.pth`` (``build_backend/``), which calls :func:`install` at
+start-up. That must cost nothing when Gymnasium is never used, so this module imports nothing
+heavy: it only waits for Gymnasium's registry module to load, then registers our ids
+(``learn.registration``).
 """
 
 from __future__ import annotations
