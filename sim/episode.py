@@ -53,7 +53,7 @@ def run_episode(
                 break
             try:
                 actions = agent.act(obs) if obs else {}
-            except SomeAgentsFailed as exc:  # the others drive on (see submissions/runner.py)
+            except SomeAgentsFailed as exc:  # the others drive on (see agent_runtime/main.py)
                 failed = [agent_id for agent_id in exc.failed if agent_id in obs]
                 sim.fail(DoneReason.agent_error, failed)
                 detail = "\n".join(f"{k}: {v}" for k, v in exc.failed.items())[-4000:]

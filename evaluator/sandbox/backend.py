@@ -6,9 +6,11 @@ import hashlib
 import signal
 import uuid
 from dataclasses import dataclass, field
+from importlib import resources
 from pathlib import Path
 from typing import Protocol
 
+import agent_runtime
 from arena.config import SandboxKind, Settings
 from evaluator.sandbox.channel import Channel
 
@@ -22,14 +24,10 @@ OWNER_LABEL = "driving-arena.owner"
 # Where the runner finds things inside every sandbox.
 SUBMISSION_MOUNT = "/submission"
 DEPS_MOUNT = "/deps"
-RUNNER_MOUNT = "/opt/arena/runner.py"
-RUNNER_PATH = Path(__file__).resolve().parents[2] / "submissions" / "runner.py"
-# The runner loads its observation converters from beside itself.
-COMPAT_MOUNT = "/opt/arena/smarts_compat.py"
-COMPAT_PATH = RUNNER_PATH.with_name("smarts_compat.py")
-# And its warm-parent mode (``--zygote``, docs/protocol.md "Warm agents").
-ZYGOTE_MOUNT = "/opt/arena/zygote.py"
-ZYGOTE_PATH = RUNNER_PATH.with_name("zygote.py")
+# The agent runtime (the package ``agent_runtime``: the program that serves the policy, its warm
+# parent and its observation converters) is mounted whole, read-only, at this folder.
+RUNTIME_MOUNT = "/opt/arena"
+RUNTIME_MAIN = "main.py"
 # Track 2 (docs/dataset.md): training runs `train.py` with the dataset read-only and the output
 # folder writable; evaluation then mounts that output read-only. Both are named by these variables
 # (fixed paths in Docker and bubblewrap, host paths with the process backend).
@@ -48,6 +46,15 @@ RUNTIME_ENV = {
     "TMPDIR": "/tmp",
     "LANG": "C.UTF-8",
 }
+
+
+def runtime_dir() -> Path:
+    """The agent runtime's folder on this host, the source of every sandbox's ``/opt/arena``."""
+    folder = resources.files(agent_runtime)
+    # A sandbox binds a real folder: an installation that left the package zipped cannot serve.
+    if not isinstance(folder, Path) or not (folder / RUNTIME_MAIN).is_file():
+        raise RuntimeError(f"the agent runtime is not a folder on disk: {folder}")
+    return folder
 
 
 @dataclass(frozen=True)
@@ -135,7 +142,7 @@ class LaunchSpec:
         return [
             "-I",
             "-B",
-            RUNNER_MOUNT,
+            f"{RUNTIME_MOUNT}/{RUNTIME_MAIN}",
             "--submission",
             SUBMISSION_MOUNT,
             *deps,

@@ -23,17 +23,13 @@ from pathlib import Path
 from arena.config import SandboxKind, Settings
 from arena.errors import SandboxUnavailable
 from evaluator.sandbox.backend import (
-    COMPAT_MOUNT,
-    COMPAT_PATH,
     DATASET_MOUNT,
     DEPS_MOUNT,
     MODEL_MOUNT,
-    RUNNER_MOUNT,
-    RUNNER_PATH,
+    RUNTIME_MOUNT,
     SUBMISSION_MOUNT,
-    ZYGOTE_MOUNT,
-    ZYGOTE_PATH,
     LaunchSpec,
+    runtime_dir,
 )
 from evaluator.sandbox.subprocess_sandbox import (
     LABELS_ENV,
@@ -46,8 +42,6 @@ from evaluator.sandbox.subprocess_sandbox import (
 )
 
 RUNTIME_PYTHON = Path("/usr/bin/python3")
-# Our files the sandbox gets, copied in as data: host path -> where the runner finds it.
-INSIDE_FILES = {RUNNER_PATH: RUNNER_MOUNT, COMPAT_PATH: COMPAT_MOUNT, ZYGOTE_PATH: ZYGOTE_MOUNT}
 UNPRIVILEGED_ID = 65534
 # Debian finds BLAS through /etc/alternatives symlinks; nothing else of /etc is bound.
 ETC_NEEDED = ("/etc/alternatives", "/etc/ld.so.cache")
@@ -84,7 +78,7 @@ def staged(binds: dict[str, Path]) -> tuple[Path, dict[str, Path], list[str]]:
     sources, pairs = {}, []
     for target, source in binds.items():
         point = stage / target.strip("/")
-        point.mkdir(mode=0o755)
+        point.mkdir(mode=0o755, parents=True)
         sources[target] = point
         pairs += [str(source), str(point)]
     prefix = ["unshare", "--mount", "--propagation", "private", "--", "sh", "-c", STAGE_SCRIPT]
@@ -110,7 +104,7 @@ class BubblewrapBackend:
 
     def launch(self, spec: LaunchSpec) -> PopenSandbox:
         settings = spec.settings
-        binds = {SUBMISSION_MOUNT: spec.submission}
+        binds = {RUNTIME_MOUNT: runtime_dir(), SUBMISSION_MOUNT: spec.submission}
         if spec.deps:
             binds[DEPS_MOUNT] = spec.deps
         if spec.training is not None:
@@ -122,17 +116,13 @@ class BubblewrapBackend:
         stage, prefix = None, []
         if os.geteuid() == 0:
             stage, binds, prefix = staged(binds)
-        # The runner goes in as data read from a descriptor: it may live under a root-only
-        # prefix (a virtualenv in /root) that uid 65534 cannot enter.
-        files = [os.open(path, os.O_RDONLY | os.O_CLOEXEC) for path in INSIDE_FILES]
         control, child_end = control_pair(spec.zygote)
         try:
             process = subprocess.Popen(
-                [*prefix, *self.command(spec, binds, files)],
+                [*prefix, *self.command(spec, binds)],
                 **sandbox_streams(training, child_end),
                 cwd="/",
                 env={"PATH": os.defpath, LABELS_ENV: encode_labels(spec.all_labels)},
-                pass_fds=files,
                 start_new_session=True,
                 preexec_fn=rlimit_setter(
                     settings.agent_memory_bytes,
@@ -146,8 +136,8 @@ class BubblewrapBackend:
                 shutil.rmtree(stage, ignore_errors=True)
             raise SandboxUnavailable(f"cannot start bubblewrap: {error}") from error
         finally:
-            for fd in files if child_end is None else [*files, child_end]:
-                os.close(fd)
+            if child_end is not None:
+                os.close(child_end)
         return PopenSandbox(
             process,
             settings.agent_log_tail_bytes,
@@ -157,12 +147,9 @@ class BubblewrapBackend:
         )
 
     @staticmethod
-    def command(spec: LaunchSpec, binds: dict[str, Path], files: list[int]) -> list[str]:
-        """``files``: open descriptors of :data:`INSIDE_FILES`, in that order."""
+    def command(spec: LaunchSpec, binds: dict[str, Path]) -> list[str]:
         settings = spec.settings
         mounts = []
-        for fd, target in zip(files, INSIDE_FILES.values(), strict=True):
-            mounts += ["--perms", "0444", "--ro-bind-data", str(fd), target]
         for target, source in binds.items():
             writable = spec.training is not None and target == MODEL_MOUNT
             mounts += ["--bind" if writable else "--ro-bind", str(source), target]
@@ -194,8 +181,6 @@ class BubblewrapBackend:
             str(settings.agent_tmp_bytes),
             "--tmpfs",
             "/tmp",
-            "--dir",
-            "/opt/arena",
             *mounts,
             "--remount-ro",
             "/",

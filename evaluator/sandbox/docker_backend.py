@@ -21,20 +21,16 @@ from typing import Any
 from arena.config import SandboxKind, Settings
 from arena.errors import SandboxUnavailable
 from evaluator.sandbox.backend import (
-    COMPAT_MOUNT,
-    COMPAT_PATH,
     DATASET_MOUNT,
     DEPS_MOUNT,
     INSTANCE_LABEL,
     MODEL_MOUNT,
-    RUNNER_MOUNT,
-    RUNNER_PATH,
+    RUNTIME_MOUNT,
     SANDBOX_LABEL,
     SUBMISSION_MOUNT,
-    ZYGOTE_MOUNT,
-    ZYGOTE_PATH,
     ExitStatus,
     LaunchSpec,
+    runtime_dir,
 )
 from evaluator.sandbox.channel import Channel, ChannelClosed, ChannelTimeout
 
@@ -84,9 +80,7 @@ def container_options(spec: LaunchSpec, socket_dir: Path | None) -> dict[str, An
     settings = spec.settings
     volumes = {
         str(spec.submission): {"bind": SUBMISSION_MOUNT, "mode": "ro"},
-        str(RUNNER_PATH): {"bind": RUNNER_MOUNT, "mode": "ro"},
-        str(COMPAT_PATH): {"bind": COMPAT_MOUNT, "mode": "ro"},
-        str(ZYGOTE_PATH): {"bind": ZYGOTE_MOUNT, "mode": "ro"},
+        str(runtime_dir()): {"bind": RUNTIME_MOUNT, "mode": "ro"},
     }
     if spec.deps:
         volumes[str(spec.deps)] = {"bind": DEPS_MOUNT, "mode": "ro"}

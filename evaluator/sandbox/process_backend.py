@@ -15,10 +15,11 @@ from arena.config import SandboxKind, Settings
 from evaluator.sandbox.backend import (
     DATASET_ENV,
     MODEL_ENV,
-    RUNNER_PATH,
     RUNTIME_ENV,
+    RUNTIME_MAIN,
     TRAIN_SCRIPT,
     LaunchSpec,
+    runtime_dir,
 )
 from evaluator.sandbox.subprocess_sandbox import (
     LABELS_ENV,
@@ -61,7 +62,7 @@ class ProcessBackend:
                 sys.executable,
                 "-I",
                 "-B",
-                str(RUNNER_PATH),
+                str(runtime_dir() / RUNTIME_MAIN),
                 "--submission",
                 str(spec.submission),
                 *deps,

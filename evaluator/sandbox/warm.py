@@ -2,7 +2,7 @@
 
 Starting a sandbox costs far more than an episode's first step (a Docker container about 0.35 s,
 then the interpreter and numpy), so :class:`WarmAgent` starts one with the runner in its zygote
-mode (``submissions/zygote.py``) and keeps it. For each episode, :meth:`WarmAgent.fork` makes
+mode (``agent_runtime/zygote.py``) and keeps it. For each episode, :meth:`WarmAgent.fork` makes
 three socket pairs and passes one end of each to the zygote, which forks the episode's agent:
 
 - the **protocol** socket, on which the agent says hello and ready and answers as always;

@@ -7,12 +7,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from agent_runtime import main as agent_main
 from arena.suite import SHIPPED_PUBLIC_DIR as PUBLIC_SUITE
 from evaluator.sandbox import start
 from evaluator.sandbox.array_frames import ArrayFrames
 from sim.interface import AgentInterface
 from sim.observation_arrays import ObservationEncoder, ObservationLayout
-from submissions import runner
 from submissions.sample import sample_observation
 from tests.evaluator.sandbox.agents import agent
 from tests.evaluator.sandbox.test_warm import zygote
@@ -107,7 +107,7 @@ def test_a_forked_policy_gets_the_layouts_arrays(any_kind, settings, labels, tmp
 def test_the_runner_reads_back_what_the_frames_hold() -> None:
     """The runner's decoding against the encoder's, without a sandbox: every leaf, every agent."""
     frames = ArrayFrames(INTERFACE)
-    reader = runner.ArrayObservations(frames.layout.describe())
+    reader = agent_main.ArrayObservations(frames.layout.describe())
     for obs in steps():
         payload = memoryview(b"".join(bytes(part) for part in frames.frame(obs)))
         decoded = reader.decode(payload)

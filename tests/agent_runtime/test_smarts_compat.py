@@ -1,4 +1,4 @@
-"""The in-sandbox SMARTS 2022 conversion (``submissions/smarts_compat.py``) on sample
+"""The in-sandbox SMARTS 2022 conversion (``agent_runtime/smarts_compat.py``) on sample
 observations: attribute access, numpy arrays, SMARTS's heading frame both ways, per-step
 ``distance_travelled``."""
 
@@ -10,12 +10,12 @@ import math
 import numpy as np
 import pytest
 
-from submissions.sample import sample_observation
-from submissions.smarts_compat import (
+from agent_runtime.smarts_compat import (
     SmartsAdapter,
     from_smarts_heading,
     to_smarts_heading,
 )
+from submissions.sample import sample_observation
 
 
 @pytest.mark.parametrize(

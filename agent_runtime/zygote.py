@@ -1,8 +1,8 @@
-"""The warm agent parent (``runner.py --zygote``): one per submission and evaluating process,
+"""The warm agent parent (``main.py --zygote``): one per submission and evaluating process,
 forking a fresh agent for every episode inside the same sandbox.
 
 Standard library plus numpy only, no import of this project: it runs in the sandbox next to
-``runner.py``. It imports the runtime's libraries ``policy.py`` names (numpy, and whatever the
+``main.py``. It imports the runtime's libraries ``policy.py`` names (numpy, and whatever the
 image ships), never the participant's own code: ``policy.py``, the submission's modules and its
 dependency folder are imported by each child. So nothing a participant wrote runs in the parent,
 and each episode's agent starts from the same state.
@@ -137,7 +137,7 @@ class Zygote:
         return clean
 
     def child(self, data: int, lifeline: int, log: int) -> None:
-        """The episode's agent: what ``runner.py`` does without ``--zygote``. Never returns."""
+        """The episode's agent: what ``main.py`` does without ``--zygote``. Never returns."""
         code = 1
         try:
             os.setsid()

@@ -1,4 +1,4 @@
-"""The agent runner: the one program that runs inside the sandbox.
+"""The agent runtime's entry point: the one program started inside the sandbox.
 
 It imports the participant's ``policy.py`` (working directory = the submission folder), builds
 ``Policy()`` and then answers the evaluator over a framed protocol until told to close. The
@@ -7,14 +7,14 @@ length followed by the payload. Evaluator -> agent payloads are pickles (the age
 host), except the binary ``act`` frames of ``observation_format: arrays``; agent -> evaluator
 payloads are UTF-8 JSON (the host trusts nothing the agent sends).
 
-Standard library plus numpy only, and no import of this project: the sandbox holds just this file,
-the submission and its dependency folder.
+Standard library plus numpy only, and no import of this project: the sandbox holds just this
+folder (``agent_runtime/``), the submission and its dependency folder.
 
 The protocol stream is a private copy of the original stdout (or a unix socket with ``--socket``);
 file descriptor 1 is pointed at stderr before the policy is imported, so a policy's ``print`` and
 anything its libraries write to stdout land in the log, never in the protocol.
 
-With ``--zygote`` the runner is a warm parent instead (``docs/protocol.md``, "Warm agents"): it
+With ``--zygote`` it is a warm parent instead (``docs/protocol.md``, "Warm agents"): it
 imports the runtime's libraries once and, for each episode, forks a child that receives that
 episode's channels over the control socket, imports ``policy.py`` and serves it as above. The
 zygote itself never runs the participant's code.

@@ -1,12 +1,12 @@
 """Driving SMARTS 2022 observations and actions for agents written against SMARTS.
 
-Used inside the sandbox by ``submissions/runner.py`` when ``agent.yaml`` says
+Used inside the sandbox by ``agent_runtime/main.py`` when ``agent.yaml`` says
 ``observation_format: smarts2022``: each native observation dict (agent interface spec)
 becomes an attribute-access object with SMARTS's field names and numpy arrays, headings in
 SMARTS's frame (0 = +y north, counter-clockwise), ``distance_travelled`` per step; a TargetPose
 action's heading is turned back into ours. ``docs/smarts-compat.md`` lists every field.
 
-Standard library plus numpy only, and no import of this project (it runs next to the runner).
+Standard library plus numpy only, and no import of this project (it runs beside ``main.py``).
 """
 
 from __future__ import annotations
