@@ -16,7 +16,7 @@ from arena.config import get_settings
 from server.models import Submission
 from server.status import SubmissionStatus
 from tests.server.builders import make_team, queued_submission, seed_scored
-from tests.server.test_evaluation_flow import run_everything, start
+from tests.server.worker.test_evaluation_flow import run_everything, start
 
 runner = CliRunner()
 

@@ -9,7 +9,7 @@ import pytest
 from typer.testing import CliRunner
 
 from arena.cli import app
-from tests.server.test_browser import CHROMIUM, CHROMIUM_ARGS
+from tests.server.api.test_browser import CHROMIUM, CHROMIUM_ARGS
 
 
 def replay(record, suite, *args):

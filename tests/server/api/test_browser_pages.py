@@ -20,10 +20,10 @@ from server.core.db import Database
 from server.core.migrate import upgrade_database
 from server.models import EvaluationRun, ScenarioResult, Submission, Track, utcnow
 from server.status import RunStatus, SubmissionStatus
+from tests.server.api.test_browser import CHROMIUM, CHROMIUM_ARGS
 from tests.server.builders import make_team, queued_submission, seed_scored
 from tests.server.live import api_server
 from tests.server.service_stack import shared_dir
-from tests.server.test_browser import CHROMIUM, CHROMIUM_ARGS
 
 pytestmark = pytest.mark.skipif(
     not CHROMIUM.exists(), reason="needs Debian's chromium (apt-get install chromium)"

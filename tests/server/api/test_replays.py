@@ -16,11 +16,11 @@ from server.core.artifacts import artifact_store
 from server.core.db import Database
 from server.core.migrate import upgrade_database
 from server.models import ScenarioResult, Submission
+from tests.server.api.test_browser import CHROMIUM
+from tests.server.api.test_browser_pages import DESKTOP, PHONE, browser, offline_page, shoot
 from tests.server.builders import bearer, make_team, seed_scored
 from tests.server.live import api_server
 from tests.server.service_stack import shared_dir
-from tests.server.test_browser import CHROMIUM
-from tests.server.test_browser_pages import DESKTOP, PHONE, browser, offline_page, shoot
 from tests.sim.builders import recorded_episode
 
 __all__ = ["browser"]  # the Chromium fixture, shared with the other page tests

@@ -10,7 +10,7 @@ from server.models import EvaluationRun, Submission
 from server.services import evaluation
 from server.status import RunStatus, SubmissionStatus
 from tests.server.builders import make_team, queued_submission, scenario_ids
-from tests.server.test_evaluation_flow import claim, start
+from tests.server.worker.test_evaluation_flow import claim, start
 
 TORCH = (
     "Traceback (most recent call last):\n"
