@@ -33,7 +33,7 @@ def test_junction_areas_are_valid_polygons_keeping_all_the_area(broken):
     road, shape = broken
     assert road.junction_polygons
     assert all(isinstance(p, Polygon) and p.is_valid for p in road.junction_polygons)
-    outline = shapely.make_valid(Polygon(np.array(shape) + (400.0, 0.0)))
+    outline = shapely.make_valid(Polygon(np.add(shape, (400.0, 0.0))))
     kept = shapely.unary_union(road.junction_polygons)
     assert kept.area == pytest.approx(outline.area)  # buffer(0) drops a bow tie's lobe
     assert road.in_junction(400.0 + 6.0, 2.0) == outline.contains(shapely.Point(406.0, 2.0))

@@ -88,8 +88,8 @@ def test_labels_at_one_spot_are_stacked_apart():
 
 @pytest.fixture(scope="module")
 def broken_junctions(episode, tmp_path_factory):
-    """The episode with its map's two junctions given invalid outlines (a bow tie, two lobes touching), as
-    real CommonRoad intersections give them."""
+    """The episode with its map's two junctions given invalid outlines (a bow tie, two lobes
+    touching), as real CommonRoad intersections give them."""
     import shutil
 
     from tests.sim.builders import INVALID_JUNCTION_SHAPES, with_junction_shape
