@@ -1,27 +1,32 @@
 """`arena dataset build`: recorded and naturalistic replays -> a Minari offline-RL dataset.
 
-Sources: the naturalistic scenes (one episode per ego choice of every scene, see
-:mod:`scenarios.replay.naturalistic`) and the non-reactive replays of the public set (our SUMO
-recordings). Scenes that a hidden suite used (its manifest's ``naturalistic_scenes``, matched by
-sha256) are left out. ``DIR/dataset-manifest.json`` says which scenes and vehicles it holds.
+Sources: the corpus scenes (one episode per recorded vehicle that finishes its mission, once
+per vehicle however many scene files it appears in, see :mod:`scenarios.replay.corpus`) and the
+non-reactive replays of the public set (our SUMO recordings). A scene sharing a file or a single
+recorded vehicle with a hidden suite (its manifest's ``naturalistic_scenes``) is left out.
+``DIR/dataset-manifest.json`` says which scenes and vehicles it holds, which it left out and
+skipped, and why.
 """
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import tempfile
 import warnings
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from arena.errors import ArenaError
 from arena.scenario import DataLabel, load_scenario
 from scenarios.dataset.collect import Episode, collect
 from scenarios.dataset.features import ACTION_SIZE, OBS_SIZE
-from scenarios.replay.naturalistic import ego_choices, load_scenes, scene_net, write_naturalistic
+from scenarios.replay.corpus import Corpus, CorpusScene, read_corpus
+from scenarios.replay.naturalistic import write_naturalistic
+from scenarios.replay.tracks import TrackIndex
 
 DATASET_ID = "driving-arena/replays-v0"
 MANIFEST = "dataset-manifest.json"
@@ -30,28 +35,78 @@ MANIFEST = "dataset-manifest.json"
 TRANSITIONS = "transitions.npz"
 
 
-def hidden_scene_hashes(suite_dir: Path | None) -> set[str]:
-    if suite_dir is None:
-        return set()
-    manifest = json.loads((Path(suite_dir) / "manifest.json").read_text())
-    return {s["sha256"] for s in manifest.get("naturalistic_scenes", [])}
+class DatasetError(ArenaError, ValueError):
+    """A dataset build that would write nothing useful; the message says why."""
+
+
+@dataclass(frozen=True)
+class HiddenTracks:
+    """What a built suite used of a corpus (its manifest's ``naturalistic_scenes``): scene files
+    by sha256 and every recorded vehicle's poses by recording location."""
+
+    hashes: frozenset[str]
+    by_location: dict[str, TrackIndex]
+
+    @classmethod
+    def read(cls, suite_dir: Path | None) -> HiddenTracks:
+        if suite_dir is None:
+            return cls(frozenset(), {})
+        path = Path(suite_dir) / "manifest.json"
+        if not path.is_file():
+            raise DatasetError(f"{suite_dir}: not a built suite (no manifest.json)")
+        scenes = json.loads(path.read_text()).get("naturalistic_scenes") or []
+        by_location: dict[str, TrackIndex] = {}
+        for s in scenes:
+            index = by_location.setdefault(s.get("location", s.get("scene", "")), TrackIndex())
+            for track in s.get("tracks", ()):
+                index.add((s.get("scene"), track["vehicle"]), track["poses"])
+        return cls(frozenset(s["sha256"] for s in scenes), by_location)
+
+    def shared(self, scene: CorpusScene) -> str | None:
+        """Why ``scene`` must stay out of a dataset (it or one of its vehicles is in the
+        suite), or None."""
+        if scene.sha256() in self.hashes:
+            return "the suite used this file"
+        index = self.by_location.get(scene.location)
+        if index is None:
+            return None
+        for vehicle, poses in scene.tracks().items():
+            same = index.same_vehicle(poses)
+            if same:
+                hidden_scene, hidden_vehicle = sorted(same)[0]
+                return (
+                    f"vehicle {vehicle} is vehicle {hidden_vehicle} of {hidden_scene}, "
+                    "which the suite used"
+                )
+        return None
 
 
 def _sources(
-    scenes_dir: Path | None, public_dir: Path | None, excluded: set[str], work: Path, cache: Path
-) -> tuple[list[tuple[Path, dict]], list[str]]:
-    """(scenario folder, manifest facts) per source scenario, and the scene files left out."""
+    corpus: Corpus | None, public_dir: Path | None, hidden: HiddenTracks, work: Path
+) -> tuple[list[tuple[Path, dict]], list[dict]]:
+    """(scenario folder, manifest facts) per source scenario, and the scene files left out
+    (file and reason)."""
     out, left_out = [], []
-    if scenes_dir is not None:
-        for scene in load_scenes(scenes_dir):
-            if hashlib.sha256(scene.source_file.read_bytes()).hexdigest() in excluded:
-                left_out.append(scene.source_file.name)
+    if corpus is not None:
+        seen: set = set()  # vehicle identities already an episode (scenes of one recording)
+        for s in corpus.scenes:
+            reason = hidden.shared(s)
+            if reason is not None:
+                left_out.append({"file": s.scene.source_file.name, "reason": reason})
                 continue
-            net = scene_net(scene, cache)
-            for ego in ego_choices(scene, net):
-                folder = work / f"{scene.name}_{ego.vehicle_id}"
-                write_naturalistic(folder, folder.name, scene, ego, net, seed=0)
-                facts = {"source": "NGSIM", "scene": scene.name, "vehicle": ego.vehicle_id}
+            for ego in s.egos:
+                identity = corpus.identity[(s.scene.name, ego.vehicle_id)]
+                if identity in seen:
+                    continue
+                seen.add(identity)
+                folder = work / f"{s.scene.name}_{ego.vehicle_id}"
+                write_naturalistic(folder, folder.name, s.scene, ego, s.net, seed=0)
+                facts = {
+                    "source": s.scene.provenance.source,
+                    "label": s.scene.provenance.label.value,
+                    "scene": s.scene.name,
+                    "vehicle": ego.vehicle_id,
+                }
                 out.append((folder, facts))
     if public_dir is not None:
         for folder in sorted(p for p in Path(public_dir).iterdir() if p.is_dir()):
@@ -68,23 +123,41 @@ def build_dataset(
     public_dir: Path | None,
     exclude_suite: Path | None = None,
     progress: Callable[[str], None] = lambda _: None,
+    *,
+    label: DataLabel | None = None,
+    licence: Path | None = None,
+    jobs: int = 1,
+    on_sources: Callable[[int], None] = lambda _: None,
 ) -> dict:
     """Write the Minari dataset :data:`DATASET_ID` under ``out`` (its ``MINARI_DATASETS_PATH``)
-    plus ``out/dataset-manifest.json``; returns the manifest."""
+    plus ``out/dataset-manifest.json``; returns the manifest. ``progress`` is told each scene
+    file read and each scenario collected; ``on_sources`` how many scenarios will be."""
     import gymnasium as gym
     import minari
     from minari.data_collector import EpisodeBuffer
 
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    excluded = hidden_scene_hashes(exclude_suite)
+    out = Path(out).resolve()  # minari resolves its own path against another folder
+    hidden = HiddenTracks.read(exclude_suite)
+    corpus = (
+        read_corpus(
+            scenes_dir,
+            Path(cache_dir) / "naturalistic",
+            label=label,
+            licence=licence,
+            jobs=jobs,
+            progress=progress,
+        )
+        if scenes_dir is not None
+        else None
+    )
     rows: list[dict] = []
     buffers = []
     episodes: list[Episode] = []
     with tempfile.TemporaryDirectory(prefix="arena-dataset-") as tmp:
-        sources, left_out = _sources(
-            scenes_dir, public_dir, excluded, Path(tmp), Path(cache_dir) / "naturalistic"
-        )
+        sources, left_out = _sources(corpus, public_dir, hidden, Path(tmp))
+        if not sources:
+            raise DatasetError(_nothing_left(corpus, left_out))
+        on_sources(len(sources))
         for folder, facts in sources:
             for episode in collect(folder):
                 episodes.append(episode)
@@ -99,6 +172,7 @@ def build_dataset(
                     }
                 )
             progress(folder.name)
+    out.mkdir(parents=True, exist_ok=True)
     os.environ["MINARI_DATASETS_PATH"] = str(out)  # where minari writes and looks up datasets
     if DATASET_ID in minari.list_local_datasets():
         minari.delete_dataset(DATASET_ID)
@@ -111,12 +185,26 @@ def build_dataset(
         "dataset_id": DATASET_ID,
         "episodes": rows,
         "excluded_scenes": left_out,
+        "skipped_scenes": [{"file": k.file, "reason": k.reason} for k in corpus.skipped]
+        if corpus is not None
+        else [],
+        "rejected_vehicles": corpus.rejected() if corpus is not None else {},
         "observation_size": OBS_SIZE,
         "action_size": ACTION_SIZE,
     }
     write_transitions(out / TRANSITIONS, episodes)
     (out / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
     return manifest
+
+
+def _nothing_left(corpus: Corpus | None, left_out: list[dict]) -> str:
+    if corpus is None:
+        return "no source: give a scenes folder or include the public replays"
+    return (
+        f"no episode left: {len(left_out)} scene files share vehicles with the excluded suite, "
+        f"{len(corpus.skipped)} are unusable, {corpus.rejected() or 'no'} vehicles rejected "
+        "(a dataset needs scenes the hidden suite did not use)"
+    )
 
 
 def write_transitions(path: Path, episodes: list[Episode]) -> None:

@@ -28,11 +28,15 @@ from sim.trajectories import Trajectory
 STEP_S = 0.1  # [s]
 FORMATS = ("2018b", "2020a")
 SPEED_LIMIT_SIGNS = ("R2-1", "274")  # US and German maximum-speed signs
-DEFAULT_SPEED_LIMIT = 29.0576  # [m/s] 65 mph, US-101's posted limit, where a lanelet has none
+# Where a lanelet has no limit of its own [m/s]: 65 mph (US-101's posted limit) on highways; on
+# a scene tagged urban, 50 km/h, the common built-up-area limit (a US city street is posted at
+# 25-35 mph, 40-56 km/h).
+DEFAULT_SPEED_LIMIT = 29.0576
+URBAN_SPEED_LIMIT = 13.8889
 
 
 class CommonRoadImportError(ValueError):
-    pass
+    """A file that is not a usable CommonRoad scenario; the message names the file and problem."""
 
 
 @dataclass(frozen=True)
@@ -67,6 +71,10 @@ class CommonRoadScene:
     dt: float  # [s]
     lanelets: tuple[Lanelet, ...]
     trajectories: tuple[Trajectory, ...]  # resampled to STEP_S
+    source: str  # the file's own ``source`` attribute, e.g. "Next Generation Simulation (NGSIM)"
+    tags: frozenset[str]  # scenario tags: "urban", "interstate", ...
+    # Obstacles that have no recorded trajectory (set-based occupancies, a single state).
+    untracked: int = 0
 
 
 def read_commonroad(path: Path) -> list[Trajectory]:
@@ -90,20 +98,36 @@ def read_scene(path: Path) -> CommonRoadScene:
         raise CommonRoadImportError(
             f"{path}: CommonRoad format {version!r} is not supported (known: {', '.join(FORMATS)})"
         )
+    tags = frozenset(root.get("tags", "").split()) | {t.tag for t in root.findall("scenarioTags/*")}
+    default_limit = URBAN_SPEED_LIMIT if "urban" in tags else DEFAULT_SPEED_LIMIT
     try:
         dt = float(root.get("timeStepSize", ""))
         signs = _speed_signs(root)
-        lanelets = tuple(_lanelet(el, signs) for el in root.iter("lanelet") if el.find("leftBound"))
+        lanelets = tuple(
+            _lanelet(el, signs, default_limit)
+            for el in root.iter("lanelet")
+            if el.find("leftBound") is not None
+        )
         obstacles = [
             el
             for el in root
             if el.tag == "dynamicObstacle"
             or (el.tag == "obstacle" and el.findtext("role") == "dynamic")
         ]
-        trajectories = tuple(t for t in (_trajectory(el, dt) for el in obstacles) if t is not None)
+        read = [_trajectory(el, dt) for el in obstacles]
     except (ValueError, TypeError, AttributeError) as exc:
         raise CommonRoadImportError(f"{path}: malformed CommonRoad {version}: {exc}") from exc
-    return CommonRoadScene(root.get("benchmarkID", path.stem), version, dt, lanelets, trajectories)
+    trajectories = tuple(t for t in read if t is not None)
+    return CommonRoadScene(
+        root.get("benchmarkID", path.stem),
+        version,
+        dt,
+        lanelets,
+        trajectories,
+        source=root.get("source", ""),
+        tags=tags,
+        untracked=len(read) - len(trajectories),
+    )
 
 
 def _points(bound: ET.Element | None, what: str) -> np.ndarray:
@@ -133,7 +157,7 @@ def _speed_signs(root: ET.Element) -> dict[int, float]:
     return out
 
 
-def _lanelet(el: ET.Element, signs: dict[int, float]) -> Lanelet:
+def _lanelet(el: ET.Element, signs: dict[int, float], default_limit: float) -> Lanelet:
     lid = int(el.get("id"))
     left = _points(el.find("leftBound"), f"lanelet {lid} leftBound")
     right = _points(el.find("rightBound"), f"lanelet {lid} rightBound")
@@ -150,7 +174,7 @@ def _lanelet(el: ET.Element, signs: dict[int, float]) -> Lanelet:
         _refs(el, "successor"),
         _same_direction(el, "adjacentLeft"),
         _same_direction(el, "adjacentRight"),
-        min(limits) if limits else DEFAULT_SPEED_LIMIT,
+        min(limits) if limits else default_limit,
     )
 
 
@@ -158,7 +182,7 @@ def _state(el: ET.Element) -> tuple[float, float, float, float, float]:
     """(time step, x, y, orientation, velocity) of a state; velocity 0 where absent."""
     point = el.find("position/point")
     if point is None:
-        raise ValueError("a state without an exact position")
+        raise ValueError(f"a state at time step {el.findtext('time/exact')} has no exact position")
     return (
         float(el.findtext("time/exact")),
         float(point.findtext("x")),
@@ -169,11 +193,17 @@ def _state(el: ET.Element) -> tuple[float, float, float, float, float]:
 
 
 def _trajectory(obstacle: ET.Element, dt: float) -> Trajectory | None:
+    """The obstacle's recorded trajectory; None for one without (an occupancy set, one state)."""
     oid = obstacle.get("id")
     initial = obstacle.find("initialState")
     if initial is None:
         raise ValueError(f"obstacle {oid} has no initialState")
-    states = [_state(initial), *(_state(s) for s in obstacle.findall("trajectory/state"))]
+    if obstacle.find("trajectory") is None:
+        return None
+    try:
+        states = [_state(initial), *(_state(s) for s in obstacle.findall("trajectory/state"))]
+    except (ValueError, TypeError, AttributeError) as exc:
+        raise ValueError(f"obstacle {oid}: {exc}") from exc
     if len(states) < 2:
         return None
     arr = np.array(sorted(states))
