@@ -14,7 +14,12 @@ import sumolib
 
 from arena.scenario import DataLabel, load_scenario
 from scenarios.replay.builder import EXPERT_FILE
-from scenarios.replay.commonroad import CommonRoadImportError, read_scene
+from scenarios.replay.commonroad import (
+    DEFAULT_SPEED_LIMIT,
+    URBAN_SPEED_LIMIT,
+    CommonRoadImportError,
+    read_scene,
+)
 from scenarios.replay.lanelet_net import build_lanelet_net, lanelet_edges
 from scenarios.replay.map_match import MAX_ANGLE_RAD, REACH_M, fit_trajectory
 from scenarios.replay.naturalistic import (
@@ -46,7 +51,9 @@ MAX_ANGLE_OUTSIDE_JUNCTIONS = math.radians(20.0)
 def nets(scenes_dir, tmp_path_factory) -> dict[str, tuple]:
     cache = tmp_path_factory.mktemp("naturalistic-cache")
     out = {}
-    for scene in load_scenes(scenes_dir):
+    folder = load_scenes(scenes_dir)
+    assert not folder.skipped
+    for scene in folder.scenes:
         out[scene.source_file.name] = (scene, scene_net(scene, cache))
     return out
 
@@ -100,6 +107,17 @@ def test_2018b_reads_dynamic_obstacles_and_lanelet_speed_limits(tmp_path):
     assert np.allclose(lanelet.centre, [[0, 0], [50, 0]])
     (tr,) = scene.trajectories  # the static obstacle is no trajectory
     assert tr.vehicle_id == "cr8" and np.allclose(tr.x, [1.0, 2.0]) and tr.length == 4.2
+
+
+def test_lanelets_without_a_limit_get_the_highway_or_urban_default(tmp_path):
+    no_limit = CR2018B.replace("<speedLimit>13.4112</speedLimit>", "")
+    (tmp_path / "highway.xml").write_text(no_limit)
+    (tmp_path / "urban.xml").write_text(
+        no_limit.replace("timeStepSize=", 'tags="urban" timeStepSize=')
+    )
+    assert read_scene(tmp_path / "highway.xml").lanelets[0].speed_limit == DEFAULT_SPEED_LIMIT
+    assert read_scene(tmp_path / "urban.xml").lanelets[0].speed_limit == URBAN_SPEED_LIMIT
+    assert pytest.approx(50 / 3.6) == URBAN_SPEED_LIMIT
 
 
 def test_malformed_scenes_are_rejected_naming_file_and_problem(tmp_path):
