@@ -42,36 +42,32 @@ class DatasetError(ArenaError, ValueError):
 @dataclass(frozen=True)
 class HiddenTracks:
     """What a built suite used of a corpus (its manifest's ``naturalistic_scenes``): scene files
-    by sha256 and every recorded vehicle's poses by recording location."""
+    by sha256 and every recorded vehicle's poses (matched whatever the file's name says)."""
 
     hashes: frozenset[str]
-    by_location: dict[str, TrackIndex]
+    tracks: TrackIndex
 
     @classmethod
     def read(cls, suite_dir: Path | None) -> HiddenTracks:
         if suite_dir is None:
-            return cls(frozenset(), {})
+            return cls(frozenset(), TrackIndex())
         path = Path(suite_dir) / "manifest.json"
         if not path.is_file():
             raise DatasetError(f"{suite_dir}: not a built suite (no manifest.json)")
         scenes = json.loads(path.read_text()).get("naturalistic_scenes") or []
-        by_location: dict[str, TrackIndex] = {}
+        tracks = TrackIndex()
         for s in scenes:
-            index = by_location.setdefault(s.get("location", s.get("scene", "")), TrackIndex())
             for track in s.get("tracks", ()):
-                index.add((s.get("scene"), track["vehicle"]), track["poses"])
-        return cls(frozenset(s["sha256"] for s in scenes), by_location)
+                tracks.add((s.get("scene"), track["vehicle"]), track["poses"])
+        return cls(frozenset(s["sha256"] for s in scenes), tracks)
 
     def shared(self, scene: CorpusScene) -> str | None:
         """Why ``scene`` must stay out of a dataset (it or one of its vehicles is in the
         suite), or None."""
         if scene.sha256() in self.hashes:
             return "the suite used this file"
-        index = self.by_location.get(scene.location)
-        if index is None:
-            return None
         for vehicle, poses in scene.tracks().items():
-            same = index.same_vehicle(poses)
+            same = self.tracks.same_vehicle(poses)
             if same:
                 hidden_scene, hidden_vehicle = sorted(same)[0]
                 return (

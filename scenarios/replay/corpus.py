@@ -112,12 +112,11 @@ def read_corpus(
 
 
 def _identities(scenes: list[CorpusScene]) -> dict[TrackKey, TrackKey]:
-    """One key per recorded vehicle across scenes of one recording location: a vehicle seen in
-    several scenes gets the key of its first sighting."""
-    indexes: dict[str, TrackIndex] = {}
+    """One key per recorded vehicle: a vehicle seen in several scenes (of one recording, or a
+    copy of a file under another name) gets the key of its first sighting."""
+    index = TrackIndex()
     identity: dict[TrackKey, TrackKey] = {}
     for s in scenes:
-        index = indexes.setdefault(s.location, TrackIndex())
         for vehicle, poses in s.tracks().items():
             key = (s.scene.name, vehicle)
             same = index.same_vehicle(poses)
