@@ -130,10 +130,25 @@ def read_scene(path: Path) -> CommonRoadScene:
     )
 
 
+def _number(el: ET.Element, path: str, what: str) -> float:
+    """The number at ``path`` under ``el``; a missing or non-numeric field raises ValueError
+    naming ``what`` and the field."""
+    text = el.findtext(path)
+    if text is None:
+        raise ValueError(f"{what} has no <{path}>")
+    try:
+        return float(text)
+    except ValueError:
+        raise ValueError(f"{what}: <{path}> is {text.strip()!r}, not a number") from None
+
+
 def _points(bound: ET.Element | None, what: str) -> np.ndarray:
     if bound is None:
         raise ValueError(f"missing {what}")
-    pts = [(float(p.findtext("x")), float(p.findtext("y"))) for p in bound.findall("point")]
+    pts = [
+        (_number(p, "x", f"{what} point"), _number(p, "y", f"{what} point"))
+        for p in bound.findall("point")
+    ]
     if len(pts) < 2:
         raise ValueError(f"{what} has fewer than two points")
     return np.array(pts)
@@ -153,7 +168,8 @@ def _speed_signs(root: ET.Element) -> dict[int, float]:
     for sign in root.iter("trafficSign"):
         for element in sign.findall("trafficSignElement"):
             if element.findtext("trafficSignID") in SPEED_LIMIT_SIGNS:
-                out[int(sign.get("id"))] = float(element.findtext("additionalValue"))
+                what = f"speed limit sign {sign.get('id')}"
+                out[int(sign.get("id"))] = _number(element, "additionalValue", what)
     return out
 
 
@@ -165,7 +181,7 @@ def _lanelet(el: ET.Element, signs: dict[int, float], default_limit: float) -> L
         raise ValueError(f"lanelet {lid}: bounds of {len(left)} and {len(right)} points")
     limits = [signs[r] for r in _refs(el, "trafficSignRef") if r in signs]
     if el.findtext("speedLimit") is not None:
-        limits.append(float(el.findtext("speedLimit")))
+        limits.append(_number(el, "speedLimit", f"lanelet {lid}"))
     return Lanelet(
         lid,
         left,
@@ -180,15 +196,17 @@ def _lanelet(el: ET.Element, signs: dict[int, float], default_limit: float) -> L
 
 def _state(el: ET.Element) -> tuple[float, float, float, float, float]:
     """(time step, x, y, orientation, velocity) of a state; velocity 0 where absent."""
+    what = f"the state at time step {el.findtext('time/exact')}"
     point = el.find("position/point")
     if point is None:
-        raise ValueError(f"a state at time step {el.findtext('time/exact')} has no exact position")
+        raise ValueError(f"{what} has no exact <position/point>")
+    velocity = el.find("velocity/exact")
     return (
-        float(el.findtext("time/exact")),
-        float(point.findtext("x")),
-        float(point.findtext("y")),
-        float(el.findtext("orientation/exact")),
-        float(el.findtext("velocity/exact") or 0.0),
+        _number(el, "time/exact", "a state"),
+        _number(point, "x", what),
+        _number(point, "y", what),
+        _number(el, "orientation/exact", what),
+        _number(el, "velocity/exact", what) if velocity is not None else 0.0,
     )
 
 
@@ -210,8 +228,8 @@ def _trajectory(obstacle: ET.Element, dt: float) -> Trajectory | None:
     t = arr[:, 0] * dt
     heading = np.unwrap(arr[:, 3])
     rect = obstacle.find("shape/rectangle")
-    length = float(rect.findtext("length")) if rect is not None else 4.5
-    width = float(rect.findtext("width")) if rect is not None else 1.8
+    length = _number(rect, "length", f"obstacle {oid} rectangle") if rect is not None else 4.5
+    width = _number(rect, "width", f"obstacle {oid} rectangle") if rect is not None else 1.8
     grid = np.round(np.arange(t[0], t[-1] + 1e-9, STEP_S), 1)
     h = np.interp(grid, t, heading)
     return Trajectory(

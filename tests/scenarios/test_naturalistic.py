@@ -130,6 +130,20 @@ def test_malformed_scenes_are_rejected_naming_file_and_problem(tmp_path):
     (tmp_path / "roadless.xml").write_text(CR2018B.split("<lanelet")[0] + "</commonRoad>")
     with pytest.raises(NaturalisticImportError, match=r"roadless\.xml.*no road"):
         load_scene(tmp_path / "roadless.xml")
+    # The refusal names the obstacle or lanelet and the field.
+    (tmp_path / "speed.xml").write_text(
+        CR2018B.replace("<exact>10</exact>", "<exact>fast</exact>", 1)
+    )
+    with pytest.raises(CommonRoadImportError, match=r"obstacle 8: .*<velocity/exact> is 'fast'"):
+        read_scene(tmp_path / "speed.xml")
+    (tmp_path / "nox.xml").write_text(CR2018B.replace("<x>2</x>", "", 1))
+    with pytest.raises(
+        CommonRoadImportError, match=r"obstacle 8: the state at time step 1 has no <x>"
+    ):
+        read_scene(tmp_path / "nox.xml")
+    (tmp_path / "limit.xml").write_text(CR2018B.replace("13.4112", "fast"))
+    with pytest.raises(CommonRoadImportError, match=r"lanelet 5: <speedLimit> is 'fast'"):
+        read_scene(tmp_path / "limit.xml")
     (tmp_path / "notes.txt").write_text("x")
     with pytest.raises(NaturalisticImportError, match=r"notes\.txt"):
         load_scene(tmp_path / "notes.txt")
