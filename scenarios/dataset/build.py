@@ -176,7 +176,7 @@ def build_dataset(
     with warnings.catch_warnings():
         # minari warns about optional metadata we have none of (permalink, e-mail, eval env).
         warnings.filterwarnings("ignore", category=UserWarning, module="minari")
-        _create(minari, buffers, space)
+        _create(minari, buffers, space, sorted({row["source"] for row in rows}))
     manifest = {
         "dataset_id": DATASET_ID,
         "episodes": rows,
@@ -235,7 +235,7 @@ def _buffer(cls, index: int, episode: Episode):
     )
 
 
-def _create(minari, buffers: list, space) -> None:
+def _create(minari, buffers: list, space, sources: list[str]) -> None:
     import gymnasium as gym
 
     minari.create_dataset_from_buffers(
@@ -246,8 +246,8 @@ def _create(minari, buffers: list, space) -> None:
         algorithm_name="log replay expert",
         author="Driving Arena",
         description=(
-            "Driving Arena replays: NGSIM (via CommonRoad, TU Munich, BSD 3-Clause; roads partly "
-            "(c) OpenStreetMap contributors, ODbL) and SUMO-recorded traffic. See docs/dataset.md."
+            f"Driving Arena replays from: {', '.join(sources)}. Each episode's source and scene "
+            "are in dataset-manifest.json; licences and attribution in docs/dataset.md."
         ),
         data_format="hdf5",
     )
