@@ -40,7 +40,7 @@ KIND_SCENE = {
 NATURALISTIC_KINDS = tuple(
     f"{prefix}_{kind}"
     for prefix in ("ngsim", "corpus")
-    for kind in ("cruise", "lane_change", "left_turn", "right_turn")
+    for kind in ("cruise", "lane_change", "merge", "left_turn", "right_turn")
 )
 
 

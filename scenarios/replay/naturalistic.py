@@ -11,6 +11,7 @@ solve the scenario). Scenario folders carry the source's licence and attribution
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections import Counter
 from collections.abc import Sequence
@@ -76,7 +77,7 @@ class NaturalisticScene:
 @dataclass(frozen=True)
 class Ego:
     vehicle_id: str
-    kind: str  # cruise, lane_change, left_turn, right_turn
+    kind: str  # cruise, lane_change, merge, left_turn, right_turn
     route: tuple[str, ...]
 
 
@@ -187,14 +188,25 @@ def scene_net(scene: NaturalisticScene, cache_dir: Path) -> Path:
     return build_lanelet_net(scene.name, scene.lanelets, Path(cache_dir) / "naturalistic")
 
 
-def _kind(tr: Trajectory, route: tuple[str, ...], fits) -> str:
+def _kind(tr: Trajectory, route: tuple[str, ...], fits, net: sumolib.net.Net) -> str:
+    """The manoeuvre: a turn by the heading change, a merge when the route joins a road from a
+    narrower side road (an on-ramp), a lane change when it drove more lanes than edges."""
     turn = float(np.unwrap(tr.heading)[-1] - np.unwrap(tr.heading)[0])
     if turn > TURN_RAD:
         return "left_turn"
     if turn < -TURN_RAD:
         return "right_turn"
+    if any(_joins_from_the_side(net, a, b) for a, b in itertools.pairwise(route)):
+        return "merge"
     lanes = {(f.lane.edge_id, f.lane.index) for f in fits if not f.lane.is_internal}
     return "lane_change" if len(lanes) > len(route) else "cruise"
+
+
+def _joins_from_the_side(net: sumolib.net.Net, edge: str, nxt: str) -> bool:
+    """Whether ``edge`` feeds ``nxt`` beside a wider road that feeds it too."""
+    ours = net.getEdge(edge)
+    feeders = [e for e in net.getEdge(nxt).getIncoming() if e.getID() != edge]
+    return any(e.getLaneNumber() > ours.getLaneNumber() for e in feeders)
 
 
 def collides(ego: Trajectory, others: Sequence[Trajectory]) -> str | None:
@@ -270,7 +282,7 @@ def screen_egos(scene: NaturalisticScene, net_path: Path) -> tuple[list[Ego], Co
         if reason is not None:
             rejected[reason] += 1
             continue
-        out.append(Ego(tr.vehicle_id, _kind(tr, route, fits), route))
+        out.append(Ego(tr.vehicle_id, _kind(tr, route, fits, net), route))
     return out, rejected
 
 

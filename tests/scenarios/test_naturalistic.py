@@ -4,6 +4,7 @@ every scene gives naturalistic replays the log replay expert solves."""
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from pathlib import Path
@@ -34,7 +35,7 @@ from scenarios.replay.naturalistic import (
 from scenarios.verify import verify_scenario
 from sim.road.lane import angle_between
 from sim.road.network import RoadNetwork
-from sim.trajectories import read_trajectories
+from sim.trajectories import Trajectory, read_trajectories
 
 # file -> (format, recorded vehicles), as PROVENANCE.md lists them
 SHIPPED = {
@@ -317,3 +318,29 @@ def test_a_track1_agent_drives_the_imported_maps(naturalistic_scenarios, tmp_pat
         assert not result.simulator_error, (folder.name, result.simulator_error)
         reached += result.agents[0].reached_goal
     assert reached >= 1
+
+
+def test_a_vehicle_joining_from_the_slip_road_is_a_merge(nets):
+    """US-101's slip road (lanelet 15) joins the main road's rightmost lane (lanelet 16): a
+    vehicle driven along them at 10 m/s is a merge; the recorded main-road vehicles are not."""
+    scene, net_path = nets["USA_US101-4_1_T-1.xml"]
+    by_id = {lanelet.id: lanelet for lanelet in scene.lanelets}
+    line = np.concatenate([by_id[15].centre, by_id[16].centre[1:]])
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(line, axis=0).T))])
+    along = np.arange(5.0, s[-1] - 5.0, 1.0)  # [m] one step of 0.1 s at 10 m/s each
+    x, y = np.interp(along, s, line[:, 0]), np.interp(along, s, line[:, 1])
+    heading = np.arctan2(np.gradient(y), np.gradient(x))
+    merger = Trajectory(
+        "merger",
+        np.round(np.arange(len(x)) * 0.1, 1),
+        x,
+        y,
+        heading,
+        np.full(len(x), 10.0),
+        4.5,
+        1.8,
+    )
+    alone = dataclasses.replace(scene, trajectories=(merger,))
+    (ego,) = ego_choices(alone, net_path)
+    assert ego.kind == "merge" and len(ego.route) == 2
+    assert "merge" not in {e.kind for e in ego_choices(scene, net_path)}

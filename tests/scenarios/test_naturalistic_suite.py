@@ -17,6 +17,7 @@ from arena.cli import app
 from arena.config import get_settings
 from arena.scenario import DataLabel, Family, load_scenario
 from scenarios.generators import Spec
+from scenarios.picture import draw_scenario
 from scenarios.replay.corpus import read_corpus
 from scenarios.replay.naturalistic import ATTRIBUTION_FILE, collides, load_scene
 from scenarios.replay.naturalistic_pool import NaturalisticPool
@@ -126,6 +127,7 @@ def test_rows_are_filled_by_kind_and_the_recorded_driver_solves_every_mission(hi
     assert {e["variant"].split("_", 1)[1] for e in from_corpus} >= {"cruise", "lane_change"}
     for e in from_corpus:
         assert verify_scenario(hidden_corpus / e["id"], hidden_corpus.parent).solved, e["id"]
+        assert "<polygon" in draw_scenario(hidden_corpus / e["id"])  # every map draws
 
 
 def test_no_recorded_vehicle_is_the_mission_of_two_scenarios(hidden_corpus):
