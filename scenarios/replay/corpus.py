@@ -113,13 +113,29 @@ def read_corpus(
 
 def _identities(scenes: list[CorpusScene]) -> dict[TrackKey, TrackKey]:
     """One key per recorded vehicle: a vehicle seen in several scenes (of one recording, or a
-    copy of a file under another name) gets the key of its first sighting."""
+    copy of a file under another name) gets one key, the smallest of its sightings. Sightings
+    link transitively: a long scene can tie together two that do not overlap."""
     index = TrackIndex()
-    identity: dict[TrackKey, TrackKey] = {}
+    parent: dict[TrackKey, TrackKey] = {}
+    files: dict[TrackKey, set[str]] = {}  # per root: the scenes its sightings are in
+
+    def root(key: TrackKey) -> TrackKey:
+        while parent[key] != key:
+            parent[key] = parent[parent[key]]
+            key = parent[key]
+        return key
+
     for s in scenes:
         for vehicle, poses in s.tracks().items():
             key = (s.scene.name, vehicle)
-            same = index.same_vehicle(poses)
-            identity[key] = min((identity[k] for k in same), default=key)
+            parent[key], files[key] = key, {s.scene.name}
+            for other in sorted(index.same_vehicle(poses)):
+                a, b = sorted((root(key), root(other)))
+                # Two obstacles of one file are two vehicles, however alike (simulated traffic
+                # drives identical paths at identical speeds): never join them, not even
+                # through a third scene.
+                if a != b and not files[a] & files[b]:
+                    parent[b] = a
+                    files[a] |= files.pop(b)
             index.add(key, poses)
-    return identity
+    return {key: root(key) for key in parent}
