@@ -67,9 +67,13 @@ def provenance(
 
 def attribution(prov: Provenance, scene: str, file: str, vehicle_id: str) -> str:
     """Provenance and licence text shipped in every scenario folder cut from a corpus scene."""
-    kind = "naturalistic driving data" if prov.label is DataLabel.naturalistic else "traffic"
+    kind = (
+        "naturalistic driving data"
+        if prov.label is DataLabel.naturalistic
+        else "recorded traffic, not naturalistic"
+    )
     lines = [
-        f"# Source: {prov.source} {kind}\n",
+        f"# Source: {prov.source} ({kind})\n",
         f"Scene `{scene}` (file `{file}`); the mission vehicle replaces recorded vehicle "
         f"`{vehicle_id}`.\n",
     ]
