@@ -22,7 +22,7 @@ def _console():
     return Console()
 
 
-def _progress():
+def progress_bar():
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     return Progress(
@@ -114,7 +114,7 @@ def build(
     else:
         suite_seed = _hidden_seed(seed, dev)
     total = len(SUITES[suite.value]())
-    with _progress() as progress:
+    with progress_bar() as progress:
         corpus = None
         if naturalistic_dir is not None:
             try:
@@ -150,10 +150,10 @@ def build(
             f"({sum(e.label == 'naturalistic' for e in from_corpus)} naturalistic), cut from "
             f"{len(manifest.naturalistic_scenes or ())} scene files"
         )
-        _print_corpus_report(manifest.naturalistic_skipped, manifest.naturalistic_rejected)
+        print_corpus_report(manifest.naturalistic_skipped, manifest.naturalistic_rejected)
 
 
-def _print_corpus_report(skipped, rejected) -> None:
+def print_corpus_report(skipped, rejected) -> None:
     """The scene files a build skipped with their reasons, and the rejected vehicles."""
     console = _console()
     for s in skipped or ():
@@ -246,7 +246,7 @@ def verify(
 
     suite = _suite(directory)
     ids = [s.id for s in suite.scenarios if not only or s.id in only]
-    with _progress() as progress:
+    with progress_bar() as progress:
         task = progress.add_task("verifying", total=len(ids), current="")
         results = verify_suite(
             suite.root, ids, jobs, lambda r: progress.update(task, advance=1, current=r.scenario_id)

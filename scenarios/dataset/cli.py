@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from scenarios.cli import CorpusLabel, CorpusLicence, Jobs, _print_corpus_report, _progress
+from scenarios.cli import CorpusLabel, CorpusLicence, Jobs, print_corpus_report, progress_bar
 
 app = typer.Typer(no_args_is_help=True)
 
@@ -50,7 +50,7 @@ def build(
         files = len(scene_files(scenes))
     except NaturalisticImportError as exc:
         raise typer.BadParameter(str(exc), param_hint="--scenes") from exc
-    with _progress() as progress:
+    with progress_bar() as progress:
         reading = progress.add_task("reading scenes", total=files, current="")
         collecting = progress.add_task("collecting episodes", total=None, current="")
 
@@ -83,4 +83,4 @@ def build(
     )
     for left in manifest["excluded_scenes"]:
         console.print(f"left out {left['file']}: {left['reason']}", markup=False)
-    _print_corpus_report(manifest["skipped_scenes"], manifest["rejected_vehicles"])
+    print_corpus_report(manifest["skipped_scenes"], manifest["rejected_vehicles"])
