@@ -15,6 +15,7 @@ import os
 import tempfile
 import warnings
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -127,7 +128,8 @@ def build_dataset(
 ) -> dict:
     """Write the Minari dataset :data:`DATASET_ID` under ``out`` (its ``MINARI_DATASETS_PATH``)
     plus ``out/dataset-manifest.json``; returns the manifest. ``progress`` is told each scene
-    file read and each scenario collected; ``on_sources`` how many scenarios will be."""
+    file read and each scenario collected; ``on_sources`` how many scenarios will be. ``jobs``
+    scene files are read and scenarios collected at once."""
     import gymnasium as gym
     import minari
     from minari.data_collector import EpisodeBuffer
@@ -154,20 +156,12 @@ def build_dataset(
         if not sources:
             raise DatasetError(_nothing_left(corpus, left_out))
         on_sources(len(sources))
-        for folder, facts in sources:
-            for episode in collect(folder):
-                episodes.append(episode)
-                buffers.append(_buffer(EpisodeBuffer, len(buffers), episode))
-                rows.append(
-                    {
-                        "episode": len(rows),
-                        "scenario": episode.scenario_id,
-                        "agent": episode.agent_id,
-                        "steps": len(episode.actions),
-                        **facts,
-                    }
-                )
-            progress(folder.name)
+        # Each episode runs in its own simulator process: threads only wait for them.
+        with ThreadPoolExecutor(max_workers=jobs) as pool:
+            collected = pool.map(collect, [folder for folder, _ in sources])
+            for (folder, facts), folder_episodes in zip(sources, collected, strict=True):
+                _add(folder_episodes, facts, episodes, buffers, rows, EpisodeBuffer)
+                progress(folder.name)
     out.mkdir(parents=True, exist_ok=True)
     os.environ["MINARI_DATASETS_PATH"] = str(out)  # where minari writes and looks up datasets
     if DATASET_ID in minari.list_local_datasets():
@@ -191,6 +185,22 @@ def build_dataset(
     write_transitions(out / TRANSITIONS, episodes)
     (out / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
     return manifest
+
+
+def _add(new: list[Episode], facts: dict, episodes: list, buffers: list, rows: list, cls) -> None:
+    """Append ``new`` episodes of one scenario with their manifest rows (``facts``)."""
+    for episode in new:
+        episodes.append(episode)
+        buffers.append(_buffer(cls, len(buffers), episode))
+        rows.append(
+            {
+                "episode": len(rows),
+                "scenario": episode.scenario_id,
+                "agent": episode.agent_id,
+                "steps": len(episode.actions),
+                **facts,
+            }
+        )
 
 
 def _nothing_left(corpus: Corpus | None, left_out: list[dict]) -> str:

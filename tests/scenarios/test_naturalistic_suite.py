@@ -152,8 +152,10 @@ def test_split_recording_files_are_one_recording_sharing_vehicles(corpus_dir, ca
         assert int(vehicle[2:]) == int(first_vehicle[2:]) + 900000  # how the split renumbered
     assert recording_location("USA_Split-1_2_T-1") == "USA_Split-1"
     # A copy of a file under another name holds the same vehicles, whatever it is called.
-    copies = {k: v for k, v in merged.items() if k[0] == "DEU_Sim-1_1_T-1"}
-    assert len(copies) == 12 and all(v == ("USA_Truck-1_1_T-1", k[1]) for k, v in copies.items())
+    copies = [k for k in corpus.identity if k[0] == "DEU_Sim-1_1_T-1"]
+    assert len(copies) == 12
+    for key in copies:
+        assert corpus.identity[key] == corpus.identity[("USA_Truck-1_1_T-1", key[1])]
     # Vehicles following each other in one lane are not merged: every vehicle of one file is
     # its own identity.
     for s in corpus.scenes:
