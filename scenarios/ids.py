@@ -4,8 +4,10 @@ public scenario never equals a hidden one and the hidden seed cannot be recovere
 from __future__ import annotations
 
 import hashlib
+from typing import TYPE_CHECKING
 
-from scenarios.generators import Spec
+if TYPE_CHECKING:  # a type only: ids stay importable without the generators
+    from scenarios.generators import Spec
 
 
 def derive_seed(suite: str, suite_seed: int, *parts: object) -> int:
