@@ -50,7 +50,8 @@ class SuiteManifest(BaseModel):
     netconvert: str | None = None  # the netconvert that built the maps (builds are byte-exact)
     scenarios: tuple[ManifestEntry, ...]
     # A build with --naturalistic-dir: the scene files its scenarios were cut from (name, file,
-    # sha256, recording location, every recorded vehicle's moving poses), the files it skipped
+    # sha256, recording location, source; their vehicles' poses are beside the manifest in
+    # naturalistic-tracks.json), the files it skipped
     # (file, reason) and how many recorded vehicles it rejected as missions, per reason.
     naturalistic_scenes: tuple[dict[str, Any], ...] | None = None
     naturalistic_skipped: tuple[dict[str, str], ...] | None = None

@@ -8,6 +8,7 @@ The hidden seed itself is never written anywhere: the manifest carries its finge
 
 from __future__ import annotations
 
+import json
 import shutil
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -21,7 +22,7 @@ from scenarios.generators import GENERATORS, MapLibrary, Spec
 from scenarios.ids import derive_seed, scenario_id, seed_fingerprint
 from scenarios.maps import netconvert_version
 from scenarios.replay.builder import Candidate, candidates, write_replay
-from scenarios.replay.naturalistic_pool import NaturalisticPool
+from scenarios.replay.naturalistic_pool import TRACKS_FILE, NaturalisticPool
 from scenarios.replay.recorder import Recording
 from scenarios.replay.scenes import SCENES, recorded
 from scenarios.variants import KIND_SCENE, VARIANTS
@@ -225,6 +226,8 @@ def build_suite(
         seed=seed if suite == "public" else None,
         seed_fingerprint=None if suite == "public" else seed_fingerprint(seed),
     )
+    if natural is not None:
+        (out / TRACKS_FILE).write_text(json.dumps(natural.track_list()) + "\n")
     write_manifest(out, manifest)
     return manifest
 

@@ -27,6 +27,7 @@ from scenarios.dataset.collect import Episode, collect
 from scenarios.dataset.features import ACTION_SIZE, OBS_SIZE
 from scenarios.replay.corpus import Corpus, CorpusScene, read_corpus
 from scenarios.replay.naturalistic import write_naturalistic
+from scenarios.replay.naturalistic_pool import TRACKS_FILE
 from scenarios.replay.tracks import TrackIndex
 
 DATASET_ID = "driving-arena/replays-v0"
@@ -42,8 +43,9 @@ class DatasetError(ArenaError, ValueError):
 
 @dataclass(frozen=True)
 class HiddenTracks:
-    """What a built suite used of a corpus (its manifest's ``naturalistic_scenes``): scene files
-    by sha256 and every recorded vehicle's poses (matched whatever the file's name says)."""
+    """What a built suite used of a corpus: scene files by sha256 (its manifest's
+    ``naturalistic_scenes``) and every recorded vehicle's poses (its ``TRACKS_FILE``), matched
+    whatever a file's name says."""
 
     hashes: frozenset[str]
     tracks: TrackIndex
@@ -56,10 +58,13 @@ class HiddenTracks:
         if not path.is_file():
             raise DatasetError(f"{suite_dir}: not a built suite (no manifest.json)")
         scenes = json.loads(path.read_text()).get("naturalistic_scenes") or []
+        # Suites built before vehicles were listed have no tracks file: files by sha256 only.
+        tracks_path = Path(suite_dir) / TRACKS_FILE
+        per_scene = json.loads(tracks_path.read_text()) if tracks_path.is_file() else {}
         tracks = TrackIndex()
-        for s in scenes:
-            for track in s.get("tracks", ()):
-                tracks.add((s.get("scene"), track["vehicle"]), track["poses"])
+        for scene, scene_tracks in per_scene.items():
+            for track in scene_tracks:
+                tracks.add((scene, track["vehicle"]), track["poses"])
         return cls(frozenset(s["sha256"] for s in scenes), tracks)
 
     def shared(self, scene: CorpusScene) -> str | None:

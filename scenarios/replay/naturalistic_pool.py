@@ -17,6 +17,8 @@ from scenarios.ids import derive_seed, scenario_id
 from scenarios.replay.corpus import Corpus, CorpusScene, TrackKey, read_corpus
 from scenarios.replay.naturalistic import Ego, NaturalisticImportError, write_naturalistic
 
+TRACKS_FILE = "naturalistic-tracks.json"  # in a built suite's folder, beside manifest.json
+
 
 @dataclass
 class NaturalisticPool:
@@ -89,8 +91,7 @@ class NaturalisticPool:
         return scenario, s.scene.provenance.source
 
     def scene_list(self) -> list[dict]:
-        """The scenes the suite's scenarios were cut from, each with every recorded vehicle's
-        moving poses: what a dataset build must not contain (``--exclude-suite``)."""
+        """The scenes the suite's scenarios were cut from (for the manifest)."""
         return [
             {
                 "scene": s.scene.name,
@@ -98,13 +99,24 @@ class NaturalisticPool:
                 "sha256": s.sha256(),
                 "location": s.location,
                 "source": s.scene.provenance.source,
-                "tracks": [
-                    {"vehicle": vehicle, "poses": [list(p) for p in poses]}
-                    for vehicle, poses in s.tracks().items()
-                ],
             }
-            for s in sorted(self.used_scenes.values(), key=lambda s: s.scene.source_file.name)
+            for s in self._used()
         ]
+
+    def track_list(self) -> dict[str, list[dict]]:
+        """Every recorded vehicle's moving poses per scene of :meth:`scene_list`: what a
+        dataset build must not contain (``--exclude-suite``), beside the manifest (:data:
+        `TRACKS_FILE`) so the manifest every evaluation reads stays small."""
+        return {
+            s.scene.name: [
+                {"vehicle": vehicle, "poses": [list(p) for p in poses]}
+                for vehicle, poses in s.tracks().items()
+            ]
+            for s in self._used()
+        }
+
+    def _used(self) -> list[CorpusScene]:
+        return sorted(self.used_scenes.values(), key=lambda s: s.scene.source_file.name)
 
     def skipped_list(self) -> list[dict]:
         return [{"file": s.file, "reason": s.reason} for s in self.corpus.skipped]

@@ -24,7 +24,7 @@ from scenarios.generators import Spec
 from scenarios.replay.builder import EXPERT_FILE
 from scenarios.replay.corpus import read_corpus
 from scenarios.replay.naturalistic import ego_choices, load_scene, scene_net, write_naturalistic
-from scenarios.replay.naturalistic_pool import NaturalisticPool
+from scenarios.replay.naturalistic_pool import TRACKS_FILE, NaturalisticPool
 from sim.trajectories import read_trajectories
 from tests.scenarios import corpus_builders as cb
 
@@ -148,12 +148,14 @@ def _dataset(out: str | Path, scenes: Path, *args: str, tmp_path: Path, public: 
 
 
 def _suite_from(folder: Path, out: Path, cache: Path, rows: int) -> Path:
-    """A suite manifest as a build writes it, from ``rows`` cruise missions of ``folder``."""
+    """A suite's manifest and tracks file as a build writes them, from ``rows`` cruise missions
+    of ``folder``."""
     pool = NaturalisticPool.load(folder, "hidden", 7, cache)
     cruise = Spec(Family.replay, "cruise", None, 1, False)
     for i in range(rows):
         pool.write(out, "hidden", i, cruise, 1)
     (out / "manifest.json").write_text(json.dumps({"naturalistic_scenes": pool.scene_list()}))
+    (out / TRACKS_FILE).write_text(json.dumps(pool.track_list()))
     return out
 
 

@@ -6,6 +6,7 @@ two scenarios, rows are filled by kind, and provenance comes from the files."""
 
 from __future__ import annotations
 
+import json
 import shutil
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -20,7 +21,7 @@ from scenarios.generators import Spec
 from scenarios.picture import draw_scenario
 from scenarios.replay.corpus import read_corpus
 from scenarios.replay.naturalistic import ATTRIBUTION_FILE, collides, load_scene
-from scenarios.replay.naturalistic_pool import NaturalisticPool
+from scenarios.replay.naturalistic_pool import TRACKS_FILE, NaturalisticPool
 from scenarios.replay.tracks import TrackIndex, recording_location, track_poses
 from scenarios.suites import REPLAYS
 from scenarios.verify import verify_scenario
@@ -229,7 +230,7 @@ def test_the_seed_draws_from_all_candidates(corpus_dir, cache_dir, tmp_path):
     assert drawn(5) != drawn(6)
 
 
-def test_manifest_lists_exactly_the_scenes_used_with_their_tracks(hidden_corpus):
+def test_manifest_lists_exactly_the_scenes_used_with_their_tracks(hidden_corpus, corpus_dir):
     listed = manifest(hidden_corpus)["naturalistic_scenes"]
     used = {
         load_scenario(hidden_corpus / e["id"]).id
@@ -239,8 +240,14 @@ def test_manifest_lists_exactly_the_scenes_used_with_their_tracks(hidden_corpus)
     assert used
     files = {s["file"] for s in listed}
     assert not files & set(BROKEN)
+    tracks = json.loads((hidden_corpus / TRACKS_FILE).read_text())
+    assert set(tracks) == {s["scene"] for s in listed}
     for s in listed:
-        assert s["location"] and s["tracks"] and all(t["poses"] for t in s["tracks"][:1])
+        assert s["location"] and "tracks" not in s  # the manifest stays small
+        scene = load_scene(corpus_dir / s["file"])
+        assert {t["vehicle"] for t in tracks[s["scene"]]} == {
+            t.vehicle_id for t in scene.trajectories
+        }
     assert len(listed) <= len(used)
 
 
