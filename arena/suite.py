@@ -12,6 +12,7 @@ import json
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 from pydantic import BaseModel, ConfigDict, ValidationError
 
@@ -48,21 +49,35 @@ class SuiteManifest(BaseModel):
     suite: str
     netconvert: str | None = None  # the netconvert that built the maps (builds are byte-exact)
     scenarios: tuple[ManifestEntry, ...]
-    # Scene files a build with --naturalistic-dir read: name, file and sha256 of each.
-    naturalistic_scenes: tuple[dict[str, str], ...] | None = None
+    # A build with --naturalistic-dir: the scene files its scenarios were cut from (name, file,
+    # sha256, recording location, source; their vehicles' poses are beside the manifest in
+    # naturalistic-tracks.json), the files it skipped
+    # (file, reason) and how many recorded vehicles it rejected as missions, per reason.
+    naturalistic_scenes: tuple[dict[str, Any], ...] | None = None
+    naturalistic_skipped: tuple[dict[str, str], ...] | None = None
+    naturalistic_rejected: dict[str, int] | None = None
     seed: int | None = None  # public suites only
     seed_fingerprint: str | None = None  # hidden suites: the seed itself is never written
 
     def to_json(self) -> str:
         """The manifest as the builds write it: optional fields only where they are set."""
         data = self.model_dump(
-            mode="json", exclude={"naturalistic_scenes", "seed", "seed_fingerprint"}
+            mode="json",
+            exclude={
+                "naturalistic_scenes",
+                "naturalistic_skipped",
+                "naturalistic_rejected",
+                "seed",
+                "seed_fingerprint",
+            },
         )
         for entry in data["scenarios"]:
             if entry["source"] is None:
                 del entry["source"]
         if self.naturalistic_scenes is not None:
             data["naturalistic_scenes"] = list(self.naturalistic_scenes)
+            data["naturalistic_skipped"] = list(self.naturalistic_skipped or ())
+            data["naturalistic_rejected"] = dict(self.naturalistic_rejected or {})
         if self.seed is not None:
             data["seed"] = self.seed
         if self.seed_fingerprint is not None:

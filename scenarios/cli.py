@@ -22,7 +22,7 @@ def _console():
     return Console()
 
 
-def _progress():
+def progress_bar():
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     return Progress(
@@ -58,6 +58,33 @@ def _hidden_seed(seed: int | None, dev: bool) -> int:
     )
 
 
+class Label(StrEnum):
+    """What an organiser states of a corpus's traffic (overrides the files' own ``source``)."""
+
+    naturalistic = "naturalistic"  # recorded real traffic
+    recorded = "recorded"  # a simulator's traffic
+
+
+CorpusLabel = Annotated[
+    Label | None,
+    typer.Option(
+        "--label",
+        help="The corpus's traffic is naturalistic (real) or recorded (a simulator's); by "
+        "default read from each file's `source` (simulators are never naturalistic).",
+    ),
+]
+CorpusLicence = Annotated[
+    Path | None,
+    typer.Option(
+        "--licence",
+        exists=True,
+        dir_okay=False,
+        help="Licence file of the corpus (default: LICENSE.txt / LICENSE beside the scenes).",
+    ),
+]
+Jobs = Annotated[int, typer.Option("--jobs", min=1, help="Processes reading scene files.")]
+
+
 @app.command()
 def build(
     out: Annotated[Path, typer.Option(help="Folder to write the suite into (replaced).")],
@@ -68,13 +95,17 @@ def build(
         Path | None,
         typer.Option(
             "--naturalistic-dir",
-            help="Folder of CommonRoad .xml / NGSIM .csv scenes to cut one-agent replays from.",
+            help="Folder of CommonRoad .xml / NGSIM CSV scenes to cut one-agent replays from.",
         ),
     ] = None,
+    label: CorpusLabel = None,
+    licence: CorpusLicence = None,
+    jobs: Jobs = 1,
 ) -> None:
     """Build the hidden suite (128 scenarios) or the public set into OUT with a manifest.json."""
-    from scenarios.replay.naturalistic import NaturalisticImportError
-    from scenarios.suites import PUBLIC_SEED, SUITES, build_suite
+    from arena.scenario import DataLabel
+    from scenarios.replay.naturalistic import NaturalisticImportError, scene_files
+    from scenarios.suites import PUBLIC_SEED, SUITES, CorpusOptions, build_suite
 
     if suite is SuiteName.public:
         if seed is not None or dev:
@@ -83,7 +114,21 @@ def build(
     else:
         suite_seed = _hidden_seed(seed, dev)
     total = len(SUITES[suite.value]())
-    with _progress() as progress:
+    with progress_bar() as progress:
+        corpus = None
+        if naturalistic_dir is not None:
+            try:
+                files = len(scene_files(naturalistic_dir))
+            except NaturalisticImportError as exc:
+                raise typer.BadParameter(str(exc), param_hint="--naturalistic-dir") from exc
+            reading = progress.add_task("reading scenes", total=files, current="")
+            corpus = CorpusOptions(
+                naturalistic_dir,
+                DataLabel(label.value) if label else None,
+                licence,
+                jobs,
+                lambda name: progress.update(reading, advance=1, current=name),
+            )
         task = progress.add_task(f"building {suite.value}", total=total, current="")
         try:
             manifest = build_suite(
@@ -92,21 +137,35 @@ def build(
                 out,
                 _cache_dir(),
                 lambda sid: progress.update(task, advance=1, current=sid),
-                naturalistic_dir=naturalistic_dir,
+                naturalistic_dir=corpus,
             )
         except NaturalisticImportError as exc:
             raise typer.BadParameter(str(exc), param_hint="--naturalistic-dir") from exc
-    _console().print(f"wrote {len(manifest.scenarios)} scenarios and manifest.json to {out}")
+    console = _console()
+    console.print(f"wrote {len(manifest.scenarios)} scenarios and manifest.json to {out}")
     if naturalistic_dir is not None:
-        natural = sum(e.label == "naturalistic" for e in manifest.scenarios)
-        _console().print(f"{natural} of them naturalistic, from {naturalistic_dir}")
+        from_corpus = [e for e in manifest.scenarios if e.source is not None]
+        console.print(
+            f"{len(from_corpus)} of them from {naturalistic_dir} "
+            f"({sum(e.label == 'naturalistic' for e in from_corpus)} naturalistic), cut from "
+            f"{len(manifest.naturalistic_scenes or ())} scene files"
+        )
+        print_corpus_report(manifest.naturalistic_skipped, manifest.naturalistic_rejected)
+
+
+def print_corpus_report(skipped, rejected) -> None:
+    """The scene files a build skipped with their reasons, and the rejected vehicles."""
+    console = _console()
+    for s in skipped or ():
+        console.print(f"skipped {s['file']}: {s['reason']}", markup=False, highlight=False)
+    if rejected:
+        counts = ", ".join(f"{n} {reason}" for reason, n in rejected.items())
+        console.print(f"recorded vehicles not used as missions: {counts}")
 
 
 @app.command("list")
 def list_(
-    directory: Annotated[
-        str, typer.Argument(help="A built suite folder, or `public` / `hidden`.")
-    ],
+    directory: Annotated[str, typer.Argument(help="A built suite folder, or `public` / `hidden`.")],
     as_json: Annotated[bool, typer.Option("--json", help="The rows as a JSON list.")] = False,
 ) -> None:
     """The scenarios of a built suite: a table on a terminal, tab-separated lines in a pipe."""
@@ -175,9 +234,7 @@ def show(
 
 @app.command()
 def verify(
-    directory: Annotated[
-        str, typer.Argument(help="A built suite folder, or `public` / `hidden`.")
-    ],
+    directory: Annotated[str, typer.Argument(help="A built suite folder, or `public` / `hidden`.")],
     jobs: Annotated[int, typer.Option(help="Episodes run in parallel.", min=1)] = 1,
     only: Annotated[list[str] | None, typer.Option(help="Verify just these ids.")] = None,
 ) -> None:
@@ -189,7 +246,7 @@ def verify(
 
     suite = _suite(directory)
     ids = [s.id for s in suite.scenarios if not only or s.id in only]
-    with _progress() as progress:
+    with progress_bar() as progress:
         task = progress.add_task("verifying", total=len(ids), current="")
         results = verify_suite(
             suite.root, ids, jobs, lambda r: progress.update(task, advance=1, current=r.scenario_id)

@@ -8,7 +8,7 @@ The hidden seed itself is never written anywhere: the manifest carries its finge
 
 from __future__ import annotations
 
-import hashlib
+import json
 import shutil
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -19,10 +19,10 @@ import numpy as np
 from arena.scenario import DataLabel, Family, Scenario, content_hash
 from arena.suite import ManifestEntry, SuiteManifest, write_manifest
 from scenarios.generators import GENERATORS, MapLibrary, Spec
+from scenarios.ids import derive_seed, scenario_id, seed_fingerprint
 from scenarios.maps import netconvert_version
 from scenarios.replay.builder import Candidate, candidates, write_replay
-from scenarios.replay.naturalistic import SOURCE as NATURALISTIC_SOURCE
-from scenarios.replay.naturalistic_pool import NaturalisticPool
+from scenarios.replay.naturalistic_pool import TRACKS_FILE, NaturalisticPool
 from scenarios.replay.recorder import Recording
 from scenarios.replay.scenes import SCENES, recorded
 from scenarios.variants import KIND_SCENE, VARIANTS
@@ -33,6 +33,8 @@ BUBBLE_RADIUS = 40.0  # [m]
 
 F = Family
 LOW_MID = ("low", "mid")
+
+
 # Reactive composition (scenario spec, "Reactive scenarios (71)").
 def every_variant(family: Family) -> tuple[str, ...]:
     """The family's variants in the order of the variant table (suite ids depend on it)."""
@@ -93,28 +95,6 @@ def public_specs() -> list[Spec]:
 SUITES: dict[str, Callable[[], list[Spec]]] = {"hidden": hidden_specs, "public": public_specs}
 
 
-def derive_seed(suite: str, suite_seed: int, *parts: object) -> int:
-    """A 31-bit seed (SUMO takes int32) from a domain-separated hash."""
-    text = "/".join(["driving-arena", suite, str(suite_seed), *map(str, parts)])
-    return int.from_bytes(hashlib.sha256(text.encode()).digest()[:4], "big") & 0x7FFFFFFF
-
-
-def seed_fingerprint(seed: int) -> str:
-    return hashlib.sha256(f"driving-arena/seed-fingerprint/{seed}".encode()).hexdigest()[:16]
-
-
-def scenario_id(suite: str, index: int, spec: Spec) -> str:
-    parts = [f"{suite[0]}{index:03d}"]
-    if not spec.variant.startswith(spec.family.value):
-        parts.append(spec.family.value)
-    parts.append(spec.variant)
-    if spec.volume:
-        parts.append(spec.volume)
-    if spec.agents > 1:
-        parts.append(f"{spec.agents}agents")
-    return "_".join(parts)
-
-
 MAX_TAKES_PER_SCENE = 4  # recordings of one scene per build before giving up on a kind
 
 
@@ -159,22 +139,46 @@ class _ReplayPool:
         return rec, candidates(rec, info, scene, SCENES[scene].duration_s)
 
 
+@dataclass(frozen=True)
+class CorpusOptions:
+    """An organiser's folder of CommonRoad / NGSIM CSV scenes for a suite build, with what they
+    state of its provenance (``label``, a ``licence`` file) and how many processes read it."""
+
+    folder: Path
+    label: DataLabel | None = None
+    licence: Path | None = None
+    jobs: int = 1
+    progress: Callable[[str], None] = lambda _: None  # told each scene file read
+
+
 def build_suite(
     suite: str,
     seed: int,
     out: Path,
     cache_dir: Path,
     progress: Callable[[str], None] = lambda _: None,
-    naturalistic_dir: Path | None = None,
+    naturalistic_dir: Path | CorpusOptions | None = None,
 ) -> SuiteManifest:
     """Write every scenario of ``suite`` under ``out`` plus ``manifest.json``; returns the
     manifest. ``out`` is replaced. With ``naturalistic_dir`` (a folder of CommonRoad / NGSIM CSV
-    scenes) the one-agent non-reactive replays are naturalistic while its ego choices last."""
+    scenes) the one-agent non-reactive replay rows of each kind are drawn from its recorded
+    vehicles of that kind while they last (:mod:`scenarios.replay.naturalistic_pool`)."""
     specs = SUITES[suite]()
-    # Read every scene before touching ``out``: a malformed file fails the build up front.
+    if isinstance(naturalistic_dir, Path):
+        naturalistic_dir = CorpusOptions(naturalistic_dir)
+    # Read every scene before touching ``out``: a folder with no usable mission fails up front.
     natural = (
-        NaturalisticPool.load(naturalistic_dir, suite, seed, cache_dir)
-        if naturalistic_dir
+        NaturalisticPool.load(
+            naturalistic_dir.folder,
+            suite,
+            seed,
+            cache_dir,
+            label=naturalistic_dir.label,
+            licence=naturalistic_dir.licence,
+            jobs=naturalistic_dir.jobs,
+            progress=naturalistic_dir.progress,
+        )
+        if naturalistic_dir is not None
         else None
     )
     if out.exists():
@@ -189,8 +193,8 @@ def build_suite(
         rng = np.random.default_rng(scenario_seed)
         folder = out / sid
         if natural is not None and natural.takes(spec):
-            scenario = natural.write(out, suite, index, scenario_seed)
-            entries.append(manifest_entry(scenario, out / scenario.id))
+            scenario, source = natural.write(out, suite, index, spec, scenario_seed)
+            entries.append(manifest_entry(scenario, out / scenario.id, source))
             progress(scenario.id)
             continue
         if spec.family is F.replay:
@@ -217,14 +221,18 @@ def build_suite(
         netconvert=netconvert_version(),
         scenarios=tuple(entries),
         naturalistic_scenes=natural.scene_list() if natural is not None else None,
+        naturalistic_skipped=natural.skipped_list() if natural is not None else None,
+        naturalistic_rejected=natural.corpus.rejected() if natural is not None else None,
         seed=seed if suite == "public" else None,
         seed_fingerprint=None if suite == "public" else seed_fingerprint(seed),
     )
+    if natural is not None:
+        (out / TRACKS_FILE).write_text(json.dumps(natural.track_list()) + "\n")
     write_manifest(out, manifest)
     return manifest
 
 
-def manifest_entry(scenario: Scenario, folder: Path) -> ManifestEntry:
+def manifest_entry(scenario: Scenario, folder: Path, source: str | None = None) -> ManifestEntry:
     return ManifestEntry(
         id=scenario.id,
         family=scenario.family,
@@ -235,5 +243,5 @@ def manifest_entry(scenario: Scenario, folder: Path) -> ManifestEntry:
         hash=content_hash(folder),
         label=scenario.label,
         unsolvable_reason=scenario.unsolvable_reason,
-        source=NATURALISTIC_SOURCE if scenario.label is DataLabel.naturalistic else None,
+        source=source,
     )

@@ -35,9 +35,12 @@ KIND_SCENE = {
     "left_turn": "cross",
     "urban": "urban",
 }
-# Naturalistic replays (scenarios/replay/naturalistic.py): the manoeuvre of the removed vehicle.
+# Replays cut from an organiser's corpus (scenarios/replay/naturalistic.py): the manoeuvre of the
+# removed vehicle, prefixed ``ngsim_`` for NGSIM scenes and ``corpus_`` for other sources.
 NATURALISTIC_KINDS = tuple(
-    f"ngsim_{kind}" for kind in ("cruise", "lane_change", "left_turn", "right_turn")
+    f"{prefix}_{kind}"
+    for prefix in ("ngsim", "corpus")
+    for kind in ("cruise", "lane_change", "merge", "left_turn", "right_turn")
 )
 
 

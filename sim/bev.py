@@ -20,12 +20,11 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 import shapely
-from shapely.geometry import MultiPolygon, Polygon
 
 from sim.geometry import box_corners
 from sim.interface import AgentInterface
 from sim.road import RoadNetwork
-from sim.road.network import lane_surface
+from sim.road.network import lane_surface, polygon_parts
 from sim.vehicles import VehicleStates
 
 RASTER_NAMES = ("drivable_area_grid_map", "occupancy_grid_map", "top_down_rgb")
@@ -85,8 +84,7 @@ class _WorldLayers:
 
     def fill(self, layer: np.ndarray, geometry, value: int) -> None:
         """Fill a (multi)polygon's exteriors with ``value`` and cut its holes back out."""
-        polygons = geometry.geoms if isinstance(geometry, MultiPolygon) else [geometry]
-        polygons = [p for p in polygons if isinstance(p, Polygon) and not p.is_empty]
+        polygons = polygon_parts(geometry)
         outer = [self.to_px(np.asarray(p.exterior.coords)) for p in polygons]
         holes = [self.to_px(np.asarray(r.coords)) for p in polygons for r in p.interiors]
         if outer:

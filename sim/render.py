@@ -186,6 +186,7 @@ class RoadGeometry:
 def road_geometry(road: RoadNetwork, stop_lanes: tuple[str, ...] = ()) -> RoadGeometry:
     """Junctions, lane surfaces (shoulders apart), dashed lane dividers and solid road edges, and
     a stop line across the end of each lane in ``stop_lanes``."""
+    # RoadNetwork keeps junction areas as simple polygons, whatever shapes its file held.
     junctions = [np.asarray(polygon.exterior.coords) for polygon in road.junction_polygons]
     junctions += [
         lane_outline(lane.centreline, lane.width)

@@ -1,27 +1,34 @@
 """`arena dataset build`: recorded and naturalistic replays -> a Minari offline-RL dataset.
 
-Sources: the naturalistic scenes (one episode per ego choice of every scene, see
-:mod:`scenarios.replay.naturalistic`) and the non-reactive replays of the public set (our SUMO
-recordings). Scenes that a hidden suite used (its manifest's ``naturalistic_scenes``, matched by
-sha256) are left out. ``DIR/dataset-manifest.json`` says which scenes and vehicles it holds.
+Sources: the corpus scenes (one episode per recorded vehicle that finishes its mission, once
+per vehicle however many scene files it appears in, see :mod:`scenarios.replay.corpus`) and the
+non-reactive replays of the public set (our SUMO recordings). A scene sharing a file or a single
+recorded vehicle with a hidden suite (its manifest's ``naturalistic_scenes``) is left out.
+``DIR/dataset-manifest.json`` says which scenes and vehicles it holds, which it left out and
+skipped, and why.
 """
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import tempfile
 import warnings
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from arena.errors import ArenaError
 from arena.scenario import DataLabel, load_scenario
 from scenarios.dataset.collect import Episode, collect
 from scenarios.dataset.features import ACTION_SIZE, OBS_SIZE
-from scenarios.replay.naturalistic import ego_choices, load_scenes, scene_net, write_naturalistic
+from scenarios.replay.corpus import Corpus, CorpusScene, read_corpus
+from scenarios.replay.naturalistic import write_naturalistic
+from scenarios.replay.naturalistic_pool import TRACKS_FILE
+from scenarios.replay.tracks import TrackIndex
 
 DATASET_ID = "driving-arena/replays-v0"
 MANIFEST = "dataset-manifest.json"
@@ -30,28 +37,78 @@ MANIFEST = "dataset-manifest.json"
 TRANSITIONS = "transitions.npz"
 
 
-def hidden_scene_hashes(suite_dir: Path | None) -> set[str]:
-    if suite_dir is None:
-        return set()
-    manifest = json.loads((Path(suite_dir) / "manifest.json").read_text())
-    return {s["sha256"] for s in manifest.get("naturalistic_scenes", [])}
+class DatasetError(ArenaError, ValueError):
+    """A dataset build that would write nothing useful; the message says why."""
+
+
+@dataclass(frozen=True)
+class HiddenTracks:
+    """What a built suite used of a corpus: scene files by sha256 (its manifest's
+    ``naturalistic_scenes``) and every recorded vehicle's poses (its ``TRACKS_FILE``), matched
+    whatever a file's name says."""
+
+    hashes: frozenset[str]
+    tracks: TrackIndex
+
+    @classmethod
+    def read(cls, suite_dir: Path | None) -> HiddenTracks:
+        if suite_dir is None:
+            return cls(frozenset(), TrackIndex())
+        path = Path(suite_dir) / "manifest.json"
+        if not path.is_file():
+            raise DatasetError(f"{suite_dir}: not a built suite (no manifest.json)")
+        scenes = json.loads(path.read_text()).get("naturalistic_scenes") or []
+        # Suites built before vehicles were listed have no tracks file: files by sha256 only.
+        tracks_path = Path(suite_dir) / TRACKS_FILE
+        per_scene = json.loads(tracks_path.read_text()) if tracks_path.is_file() else {}
+        tracks = TrackIndex()
+        for scene, scene_tracks in per_scene.items():
+            for track in scene_tracks:
+                tracks.add((scene, track["vehicle"]), track["poses"])
+        return cls(frozenset(s["sha256"] for s in scenes), tracks)
+
+    def shared(self, scene: CorpusScene) -> str | None:
+        """Why ``scene`` must stay out of a dataset (it or one of its vehicles is in the
+        suite), or None."""
+        if scene.sha256() in self.hashes:
+            return "the suite used this file"
+        for vehicle, poses in scene.tracks().items():
+            same = self.tracks.same_vehicle(poses)
+            if same:
+                hidden_scene, hidden_vehicle = sorted(same)[0]
+                return (
+                    f"vehicle {vehicle} is vehicle {hidden_vehicle} of {hidden_scene}, "
+                    "which the suite used"
+                )
+        return None
 
 
 def _sources(
-    scenes_dir: Path | None, public_dir: Path | None, excluded: set[str], work: Path, cache: Path
-) -> tuple[list[tuple[Path, dict]], list[str]]:
-    """(scenario folder, manifest facts) per source scenario, and the scene files left out."""
+    corpus: Corpus | None, public_dir: Path | None, hidden: HiddenTracks, work: Path
+) -> tuple[list[tuple[Path, dict]], list[dict]]:
+    """(scenario folder, manifest facts) per source scenario, and the scene files left out
+    (file and reason)."""
     out, left_out = [], []
-    if scenes_dir is not None:
-        for scene in load_scenes(scenes_dir):
-            if hashlib.sha256(scene.source_file.read_bytes()).hexdigest() in excluded:
-                left_out.append(scene.source_file.name)
+    if corpus is not None:
+        seen: set = set()  # vehicle identities already an episode (scenes of one recording)
+        for s in corpus.scenes:
+            reason = hidden.shared(s)
+            if reason is not None:
+                left_out.append({"file": s.scene.source_file.name, "reason": reason})
                 continue
-            net = scene_net(scene, cache)
-            for ego in ego_choices(scene, net):
-                folder = work / f"{scene.name}_{ego.vehicle_id}"
-                write_naturalistic(folder, folder.name, scene, ego, net, seed=0)
-                facts = {"source": "NGSIM", "scene": scene.name, "vehicle": ego.vehicle_id}
+            for ego in s.egos:
+                identity = corpus.identity[(s.scene.name, ego.vehicle_id)]
+                if identity in seen:
+                    continue
+                seen.add(identity)
+                folder = work / f"{s.scene.name}_{ego.vehicle_id}"
+                write_naturalistic(folder, folder.name, s.scene, ego, s.net, seed=0)
+                facts = {
+                    "source": s.scene.provenance.source,
+                    "label": s.scene.provenance.label.value,
+                    "scene": s.scene.name,
+                    "vehicle": ego.vehicle_id,
+                }
                 out.append((folder, facts))
     if public_dir is not None:
         for folder in sorted(p for p in Path(public_dir).iterdir() if p.is_dir()):
@@ -68,37 +125,49 @@ def build_dataset(
     public_dir: Path | None,
     exclude_suite: Path | None = None,
     progress: Callable[[str], None] = lambda _: None,
+    *,
+    label: DataLabel | None = None,
+    licence: Path | None = None,
+    jobs: int = 1,
+    on_sources: Callable[[int], None] = lambda _: None,
 ) -> dict:
     """Write the Minari dataset :data:`DATASET_ID` under ``out`` (its ``MINARI_DATASETS_PATH``)
-    plus ``out/dataset-manifest.json``; returns the manifest."""
+    plus ``out/dataset-manifest.json``; returns the manifest. ``progress`` is told each scene
+    file read and each scenario collected; ``on_sources`` how many scenarios will be. ``jobs``
+    scene files are read and scenarios collected at once."""
     import gymnasium as gym
     import minari
     from minari.data_collector import EpisodeBuffer
 
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    excluded = hidden_scene_hashes(exclude_suite)
+    out = Path(out).resolve()  # minari resolves its own path against another folder
+    hidden = HiddenTracks.read(exclude_suite)
+    corpus = (
+        read_corpus(
+            scenes_dir,
+            Path(cache_dir) / "naturalistic",
+            label=label,
+            licence=licence,
+            jobs=jobs,
+            progress=progress,
+        )
+        if scenes_dir is not None
+        else None
+    )
     rows: list[dict] = []
     buffers = []
     episodes: list[Episode] = []
     with tempfile.TemporaryDirectory(prefix="arena-dataset-") as tmp:
-        sources, left_out = _sources(
-            scenes_dir, public_dir, excluded, Path(tmp), Path(cache_dir) / "naturalistic"
-        )
-        for folder, facts in sources:
-            for episode in collect(folder):
-                episodes.append(episode)
-                buffers.append(_buffer(EpisodeBuffer, len(buffers), episode))
-                rows.append(
-                    {
-                        "episode": len(rows),
-                        "scenario": episode.scenario_id,
-                        "agent": episode.agent_id,
-                        "steps": len(episode.actions),
-                        **facts,
-                    }
-                )
-            progress(folder.name)
+        sources, left_out = _sources(corpus, public_dir, hidden, Path(tmp))
+        if not sources:
+            raise DatasetError(_nothing_left(corpus, left_out))
+        on_sources(len(sources))
+        # Each episode runs in its own simulator process: threads only wait for them.
+        with ThreadPoolExecutor(max_workers=jobs) as pool:
+            collected = pool.map(collect, [folder for folder, _ in sources])
+            for (folder, facts), folder_episodes in zip(sources, collected, strict=True):
+                _add(folder_episodes, facts, episodes, buffers, rows, EpisodeBuffer)
+                progress(folder.name)
+    out.mkdir(parents=True, exist_ok=True)
     os.environ["MINARI_DATASETS_PATH"] = str(out)  # where minari writes and looks up datasets
     if DATASET_ID in minari.list_local_datasets():
         minari.delete_dataset(DATASET_ID)
@@ -106,17 +175,47 @@ def build_dataset(
     with warnings.catch_warnings():
         # minari warns about optional metadata we have none of (permalink, e-mail, eval env).
         warnings.filterwarnings("ignore", category=UserWarning, module="minari")
-        _create(minari, buffers, space)
+        _create(minari, buffers, space, sorted({row["source"] for row in rows}))
     manifest = {
         "dataset_id": DATASET_ID,
         "episodes": rows,
         "excluded_scenes": left_out,
+        "skipped_scenes": [{"file": k.file, "reason": k.reason} for k in corpus.skipped]
+        if corpus is not None
+        else [],
+        "rejected_vehicles": corpus.rejected() if corpus is not None else {},
         "observation_size": OBS_SIZE,
         "action_size": ACTION_SIZE,
     }
     write_transitions(out / TRANSITIONS, episodes)
     (out / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
     return manifest
+
+
+def _add(new: list[Episode], facts: dict, episodes: list, buffers: list, rows: list, cls) -> None:
+    """Append ``new`` episodes of one scenario with their manifest rows (``facts``)."""
+    for episode in new:
+        episodes.append(episode)
+        buffers.append(_buffer(cls, len(buffers), episode))
+        rows.append(
+            {
+                "episode": len(rows),
+                "scenario": episode.scenario_id,
+                "agent": episode.agent_id,
+                "steps": len(episode.actions),
+                **facts,
+            }
+        )
+
+
+def _nothing_left(corpus: Corpus | None, left_out: list[dict]) -> str:
+    if corpus is None:
+        return "no source: give a scenes folder or include the public replays"
+    return (
+        f"no episode left: {len(left_out)} scene files share vehicles with the excluded suite, "
+        f"{len(corpus.skipped)} are unusable, {corpus.rejected() or 'no'} vehicles rejected "
+        "(a dataset needs scenes the hidden suite did not use)"
+    )
 
 
 def write_transitions(path: Path, episodes: list[Episode]) -> None:
@@ -151,7 +250,7 @@ def _buffer(cls, index: int, episode: Episode):
     )
 
 
-def _create(minari, buffers: list, space) -> None:
+def _create(minari, buffers: list, space, sources: list[str]) -> None:
     import gymnasium as gym
 
     minari.create_dataset_from_buffers(
@@ -162,8 +261,8 @@ def _create(minari, buffers: list, space) -> None:
         algorithm_name="log replay expert",
         author="Driving Arena",
         description=(
-            "Driving Arena replays: NGSIM (via CommonRoad, TU Munich, BSD 3-Clause; roads partly "
-            "(c) OpenStreetMap contributors, ODbL) and SUMO-recorded traffic. See docs/dataset.md."
+            f"Driving Arena replays from: {', '.join(sources)}. Each episode's source and scene "
+            "are in dataset-manifest.json; licences and attribution in docs/dataset.md."
         ),
         data_format="hdf5",
     )

@@ -28,11 +28,15 @@ from sim.trajectories import Trajectory
 STEP_S = 0.1  # [s]
 FORMATS = ("2018b", "2020a")
 SPEED_LIMIT_SIGNS = ("R2-1", "274")  # US and German maximum-speed signs
-DEFAULT_SPEED_LIMIT = 29.0576  # [m/s] 65 mph, US-101's posted limit, where a lanelet has none
+# Where a lanelet has no limit of its own [m/s]: 65 mph (US-101's posted limit) on highways; on
+# a scene tagged urban, 50 km/h, the common built-up-area limit (a US city street is posted at
+# 25-35 mph, 40-56 km/h).
+DEFAULT_SPEED_LIMIT = 29.0576
+URBAN_SPEED_LIMIT = 13.8889
 
 
 class CommonRoadImportError(ValueError):
-    pass
+    """A file that is not a usable CommonRoad scenario; the message names the file and problem."""
 
 
 @dataclass(frozen=True)
@@ -67,6 +71,10 @@ class CommonRoadScene:
     dt: float  # [s]
     lanelets: tuple[Lanelet, ...]
     trajectories: tuple[Trajectory, ...]  # resampled to STEP_S
+    source: str  # the file's own ``source`` attribute, e.g. "Next Generation Simulation (NGSIM)"
+    tags: frozenset[str]  # scenario tags: "urban", "interstate", ...
+    # Obstacles that have no recorded trajectory (set-based occupancies, a single state).
+    untracked: int = 0
 
 
 def read_commonroad(path: Path) -> list[Trajectory]:
@@ -90,26 +98,57 @@ def read_scene(path: Path) -> CommonRoadScene:
         raise CommonRoadImportError(
             f"{path}: CommonRoad format {version!r} is not supported (known: {', '.join(FORMATS)})"
         )
+    tags = frozenset(root.get("tags", "").split()) | {t.tag for t in root.findall("scenarioTags/*")}
+    default_limit = URBAN_SPEED_LIMIT if "urban" in tags else DEFAULT_SPEED_LIMIT
     try:
         dt = float(root.get("timeStepSize", ""))
         signs = _speed_signs(root)
-        lanelets = tuple(_lanelet(el, signs) for el in root.iter("lanelet") if el.find("leftBound"))
+        lanelets = tuple(
+            _lanelet(el, signs, default_limit)
+            for el in root.iter("lanelet")
+            if el.find("leftBound") is not None
+        )
         obstacles = [
             el
             for el in root
             if el.tag == "dynamicObstacle"
             or (el.tag == "obstacle" and el.findtext("role") == "dynamic")
         ]
-        trajectories = tuple(t for t in (_trajectory(el, dt) for el in obstacles) if t is not None)
+        read = [_trajectory(el, dt) for el in obstacles]
     except (ValueError, TypeError, AttributeError) as exc:
         raise CommonRoadImportError(f"{path}: malformed CommonRoad {version}: {exc}") from exc
-    return CommonRoadScene(root.get("benchmarkID", path.stem), version, dt, lanelets, trajectories)
+    trajectories = tuple(t for t in read if t is not None)
+    return CommonRoadScene(
+        root.get("benchmarkID", path.stem),
+        version,
+        dt,
+        lanelets,
+        trajectories,
+        source=root.get("source", ""),
+        tags=tags,
+        untracked=len(read) - len(trajectories),
+    )
+
+
+def _number(el: ET.Element, path: str, what: str) -> float:
+    """The number at ``path`` under ``el``; a missing or non-numeric field raises ValueError
+    naming ``what`` and the field."""
+    text = el.findtext(path)
+    if text is None:
+        raise ValueError(f"{what} has no <{path}>")
+    try:
+        return float(text)
+    except ValueError:
+        raise ValueError(f"{what}: <{path}> is {text.strip()!r}, not a number") from None
 
 
 def _points(bound: ET.Element | None, what: str) -> np.ndarray:
     if bound is None:
         raise ValueError(f"missing {what}")
-    pts = [(float(p.findtext("x")), float(p.findtext("y"))) for p in bound.findall("point")]
+    pts = [
+        (_number(p, "x", f"{what} point"), _number(p, "y", f"{what} point"))
+        for p in bound.findall("point")
+    ]
     if len(pts) < 2:
         raise ValueError(f"{what} has fewer than two points")
     return np.array(pts)
@@ -129,11 +168,12 @@ def _speed_signs(root: ET.Element) -> dict[int, float]:
     for sign in root.iter("trafficSign"):
         for element in sign.findall("trafficSignElement"):
             if element.findtext("trafficSignID") in SPEED_LIMIT_SIGNS:
-                out[int(sign.get("id"))] = float(element.findtext("additionalValue"))
+                what = f"speed limit sign {sign.get('id')}"
+                out[int(sign.get("id"))] = _number(element, "additionalValue", what)
     return out
 
 
-def _lanelet(el: ET.Element, signs: dict[int, float]) -> Lanelet:
+def _lanelet(el: ET.Element, signs: dict[int, float], default_limit: float) -> Lanelet:
     lid = int(el.get("id"))
     left = _points(el.find("leftBound"), f"lanelet {lid} leftBound")
     right = _points(el.find("rightBound"), f"lanelet {lid} rightBound")
@@ -141,7 +181,7 @@ def _lanelet(el: ET.Element, signs: dict[int, float]) -> Lanelet:
         raise ValueError(f"lanelet {lid}: bounds of {len(left)} and {len(right)} points")
     limits = [signs[r] for r in _refs(el, "trafficSignRef") if r in signs]
     if el.findtext("speedLimit") is not None:
-        limits.append(float(el.findtext("speedLimit")))
+        limits.append(_number(el, "speedLimit", f"lanelet {lid}"))
     return Lanelet(
         lid,
         left,
@@ -150,38 +190,46 @@ def _lanelet(el: ET.Element, signs: dict[int, float]) -> Lanelet:
         _refs(el, "successor"),
         _same_direction(el, "adjacentLeft"),
         _same_direction(el, "adjacentRight"),
-        min(limits) if limits else DEFAULT_SPEED_LIMIT,
+        min(limits) if limits else default_limit,
     )
 
 
 def _state(el: ET.Element) -> tuple[float, float, float, float, float]:
     """(time step, x, y, orientation, velocity) of a state; velocity 0 where absent."""
+    what = f"the state at time step {el.findtext('time/exact')}"
     point = el.find("position/point")
     if point is None:
-        raise ValueError("a state without an exact position")
+        raise ValueError(f"{what} has no exact <position/point>")
+    velocity = el.find("velocity/exact")
     return (
-        float(el.findtext("time/exact")),
-        float(point.findtext("x")),
-        float(point.findtext("y")),
-        float(el.findtext("orientation/exact")),
-        float(el.findtext("velocity/exact") or 0.0),
+        _number(el, "time/exact", "a state"),
+        _number(point, "x", what),
+        _number(point, "y", what),
+        _number(el, "orientation/exact", what),
+        _number(el, "velocity/exact", what) if velocity is not None else 0.0,
     )
 
 
 def _trajectory(obstacle: ET.Element, dt: float) -> Trajectory | None:
+    """The obstacle's recorded trajectory; None for one without (an occupancy set, one state)."""
     oid = obstacle.get("id")
     initial = obstacle.find("initialState")
     if initial is None:
         raise ValueError(f"obstacle {oid} has no initialState")
-    states = [_state(initial), *(_state(s) for s in obstacle.findall("trajectory/state"))]
+    if obstacle.find("trajectory") is None:
+        return None
+    try:
+        states = [_state(initial), *(_state(s) for s in obstacle.findall("trajectory/state"))]
+    except (ValueError, TypeError, AttributeError) as exc:
+        raise ValueError(f"obstacle {oid}: {exc}") from exc
     if len(states) < 2:
         return None
     arr = np.array(sorted(states))
     t = arr[:, 0] * dt
     heading = np.unwrap(arr[:, 3])
     rect = obstacle.find("shape/rectangle")
-    length = float(rect.findtext("length")) if rect is not None else 4.5
-    width = float(rect.findtext("width")) if rect is not None else 1.8
+    length = _number(rect, "length", f"obstacle {oid} rectangle") if rect is not None else 4.5
+    width = _number(rect, "width", f"obstacle {oid} rectangle") if rect is not None else 1.8
     grid = np.round(np.arange(t[0], t[-1] + 1e-9, STEP_S), 1)
     h = np.interp(grid, t, heading)
     return Trajectory(

@@ -11,13 +11,17 @@ solve the scenario). Scenario folders carry the source's licence and attribution
 
 from __future__ import annotations
 
+import itertools
 import math
+from collections import Counter
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import sumolib
 
+from arena.errors import ArenaError
 from arena.scenario import (
     GOAL_RADIUS_M,
     DataLabel,
@@ -29,11 +33,17 @@ from arena.scenario import (
     VehicleDims,
 )
 from scenarios.replay.builder import EXPERT_FILE, TAIL_S, _crop
-from scenarios.replay.commonroad import CommonRoadImportError, Lanelet, read_scene
+from scenarios.replay.commonroad import (
+    DEFAULT_SPEED_LIMIT,
+    CommonRoadImportError,
+    Lanelet,
+    read_scene,
+)
 from scenarios.replay.geometry import boxes_overlap
 from scenarios.replay.lanelet_net import build_lanelet_net
 from scenarios.replay.map_match import driven_route, fit_trajectory
 from scenarios.replay.ngsim import NgsimFormatError, read_ngsim
+from scenarios.replay.provenance import Provenance, attribution, provenance
 from scenarios.writer import TRAJECTORIES_FILE, write_scenario
 from sim.road.network import RoadNetwork
 from sim.trajectories import Trajectory, write_trajectories
@@ -42,11 +52,11 @@ MIN_PATH_S = 2.0  # [s] shorter recordings are no task
 MIN_TRAVEL_M = 3 * GOAL_RADIUS_M  # [m] start to goal, so a mission never starts inside its goal
 TURN_RAD = math.radians(45.0)
 ATTRIBUTION_FILE = "ATTRIBUTION.md"
-SOURCE = "NGSIM"
 NGSIM_LANE_WIDTH = 12 * 0.3048  # [m] the US-101 / I-80 lanes are 12 ft wide
+SCENE_SUFFIXES = (".xml", ".csv")
 
 
-class NaturalisticImportError(ValueError):
+class NaturalisticImportError(ArenaError, ValueError):
     """A scene file that cannot be used; the message names the file and the problem."""
 
 
@@ -56,24 +66,53 @@ class NaturalisticScene:
     source_file: Path
     lanelets: tuple[Lanelet, ...]
     trajectories: tuple[Trajectory, ...]
+    provenance: Provenance
+
+    @property
+    def variant_prefix(self) -> str:
+        """``ngsim`` for NGSIM scenes (scenario variants ``ngsim_cruise`` ...), else ``corpus``."""
+        return "ngsim" if self.provenance.source == "NGSIM" else "corpus"
 
 
 @dataclass(frozen=True)
 class Ego:
     vehicle_id: str
-    kind: str  # cruise, lane_change, left_turn, right_turn
+    kind: str  # cruise, lane_change, merge, left_turn, right_turn
     route: tuple[str, ...]
 
 
-def load_scene(path: Path) -> NaturalisticScene:
+@dataclass(frozen=True)
+class Skipped:
+    """A scene file a corpus build could not use, and why."""
+
+    file: str
+    reason: str
+
+
+@dataclass(frozen=True)
+class SceneFolder:
+    scenes: list[NaturalisticScene]  # usable scenes, in file-name order
+    skipped: list[Skipped]
+
+
+def load_scene(
+    path: Path, label: DataLabel | None = None, licence: Path | None = None
+) -> NaturalisticScene:
+    """One scene file; provenance from the file and the licence file beside it unless
+    ``label`` / ``licence`` say otherwise. An unusable file raises
+    :class:`NaturalisticImportError` naming it and the problem."""
     path = Path(path)
     try:
         if path.suffix.lower() == ".xml":
             cr = read_scene(path)
-            scene = NaturalisticScene(cr.benchmark_id, path, cr.lanelets, cr.trajectories)
+            prov = provenance(cr.source, path.parent, label=label, licence=licence)
+            scene = NaturalisticScene(cr.benchmark_id, path, cr.lanelets, cr.trajectories, prov)
+            untracked = cr.untracked
         elif path.suffix.lower() == ".csv":
             trajectories = tuple(read_ngsim(path))
-            scene = NaturalisticScene(path.stem, path, ngsim_lanelets(path), trajectories)
+            prov = provenance("", path.parent, csv=True, label=label, licence=licence)
+            scene = NaturalisticScene(path.stem, path, ngsim_lanelets(path), trajectories, prov)
+            untracked = 0
         else:
             raise NaturalisticImportError(f"{path}: not a CommonRoad .xml or NGSIM .csv scene")
     except (CommonRoadImportError, NgsimFormatError) as exc:
@@ -81,19 +120,33 @@ def load_scene(path: Path) -> NaturalisticScene:
     if not scene.lanelets:
         raise NaturalisticImportError(f"{path}: the scene has no road (no lanelets)")
     if not scene.trajectories:
-        raise NaturalisticImportError(f"{path}: the scene has no recorded vehicle trajectory")
+        what = f" ({untracked} obstacles without one, e.g. occupancy sets)" if untracked else ""
+        raise NaturalisticImportError(f"{path}: the scene has no recorded vehicle trajectory{what}")
     return scene
 
 
-def load_scenes(folder: Path) -> list[NaturalisticScene]:
-    """Every ``.xml`` / ``.csv`` scene of ``folder`` in name order (other files are ignored)."""
+def scene_files(folder: Path) -> list[Path]:
+    """Every ``.xml`` / ``.csv`` file of ``folder`` in name order (other files are ignored)."""
     folder = Path(folder)
     if not folder.is_dir():
         raise NaturalisticImportError(f"{folder}: not a folder of naturalistic scenes")
-    files = sorted(p for p in folder.iterdir() if p.suffix.lower() in (".xml", ".csv"))
+    files = sorted(p for p in folder.iterdir() if p.suffix.lower() in SCENE_SUFFIXES)
     if not files:
         raise NaturalisticImportError(f"{folder}: holds no CommonRoad .xml or NGSIM .csv scene")
-    return [load_scene(p) for p in files]
+    return files
+
+
+def load_scenes(
+    folder: Path, label: DataLabel | None = None, licence: Path | None = None
+) -> SceneFolder:
+    """Every usable scene of ``folder``; a file that cannot be used is skipped with its reason."""
+    scenes, skipped = [], []
+    for path in scene_files(folder):
+        try:
+            scenes.append(load_scene(path, label, licence))
+        except NaturalisticImportError as exc:
+            skipped.append(Skipped(path.name, str(exc).removeprefix(f"{path}: ")))
+    return SceneFolder(scenes, skipped)
 
 
 def ngsim_lanelets(path: Path) -> tuple[Lanelet, ...]:
@@ -125,7 +178,7 @@ def ngsim_lanelets(path: Path) -> tuple[Lanelet, ...]:
                 successors=(),
                 adjacent_left=lane_id - 1 if lane_id > 1 else None,
                 adjacent_right=lane_id + 1 if lane_id < n else None,
-                speed_limit=29.0576,  # [m/s] 65 mph
+                speed_limit=DEFAULT_SPEED_LIMIT,
             )
         )
     return tuple(out)
@@ -135,86 +188,113 @@ def scene_net(scene: NaturalisticScene, cache_dir: Path) -> Path:
     return build_lanelet_net(scene.name, scene.lanelets, Path(cache_dir) / "naturalistic")
 
 
-def _kind(tr: Trajectory, route: tuple[str, ...], fits) -> str:
+def _kind(tr: Trajectory, route: tuple[str, ...], fits, net: sumolib.net.Net) -> str:
+    """The manoeuvre: a turn by the heading change, a merge when the route joins a road from a
+    narrower side road (an on-ramp), a lane change when it drove more lanes than edges."""
     turn = float(np.unwrap(tr.heading)[-1] - np.unwrap(tr.heading)[0])
     if turn > TURN_RAD:
         return "left_turn"
     if turn < -TURN_RAD:
         return "right_turn"
+    if any(_joins_from_the_side(net, a, b) for a, b in itertools.pairwise(route)):
+        return "merge"
     lanes = {(f.lane.edge_id, f.lane.index) for f in fits if not f.lane.is_internal}
     return "lane_change" if len(lanes) > len(route) else "cruise"
 
 
-def _collides(ego: Trajectory, others: list[Trajectory]) -> bool:
+def _joins_from_the_side(net: sumolib.net.Net, edge: str, nxt: str) -> bool:
+    """Whether ``edge`` feeds ``nxt`` beside a wider road that feeds it too."""
+    ours = net.getEdge(edge)
+    feeders = [e for e in net.getEdge(nxt).getIncoming() if e.getID() != edge]
+    return any(e.getLaneNumber() > ours.getLaneNumber() for e in feeders)
+
+
+def collides(ego: Trajectory, others: Sequence[Trajectory]) -> str | None:
+    """The id of the first recorded vehicle whose box overlaps ``ego``'s box at a common time,
+    boxes of any length (a 20 m truck too); None when there is none."""
     for other in others:
         common = np.intersect1d(np.round(ego.time, 1), np.round(other.time, 1))
         if len(common) == 0:
             continue
         ia = np.round((common - ego.time[0]) / 0.1).astype(int)
         ib = np.round((common - other.time[0]) / 0.1).astype(int)
-        near = np.hypot(ego.x[ia] - other.x[ib], ego.y[ia] - other.y[ib]) < 8.0
+        # Boxes farther apart than their half diagonals together cannot touch.
+        reach = (math.hypot(ego.length, ego.width) + math.hypot(other.length, other.width)) / 2
+        near = np.hypot(ego.x[ia] - other.x[ib], ego.y[ia] - other.y[ib]) <= reach
         if not near.any():
             continue
         ia, ib = ia[near], ib[near]
-        a = np.column_stack(
-            [
-                ego.x[ia],
-                ego.y[ia],
-                ego.heading[ia],
-                np.full(len(ia), ego.length),
-                np.full(len(ia), ego.width),
-            ]
-        )
-        b = np.column_stack(
-            [
-                other.x[ib],
-                other.y[ib],
-                other.heading[ib],
-                np.full(len(ib), other.length),
-                np.full(len(ib), other.width),
-            ]
-        )
-        if boxes_overlap(a, b).any():
-            return True
-    return False
+        if boxes_overlap(_boxes(ego, ia), _boxes(other, ib)).any():
+            return other.vehicle_id
+    return None
+
+
+def _boxes(tr: Trajectory, frames: np.ndarray) -> np.ndarray:
+    """(n, 5) boxes [x, y, heading, length, width] of ``tr`` at ``frames``."""
+    n = len(frames)
+    return np.column_stack(
+        [
+            tr.x[frames],
+            tr.y[frames],
+            tr.heading[frames],
+            np.full(n, tr.length),
+            np.full(n, tr.width),
+        ]
+    )
+
+
+# Why a recorded vehicle makes no mission (counted per reason by a corpus build).
+REJECTIONS = {
+    "short": f"recorded for less than {MIN_PATH_S} s or travels less than {MIN_TRAVEL_M} m",
+    "off_lanes": "a recorded pose fits no lane of the built map",
+    "off_road": "its recorded centre leaves the built road surface",
+    "starts_in_junction": "it starts inside a junction",
+    "collision": "its recorded box overlaps another recorded vehicle's",
+}
+
+
+def screen_egos(scene: NaturalisticScene, net_path: Path) -> tuple[list[Ego], Counter]:
+    """Every recorded vehicle of ``scene`` whose recorded drive finishes its mission on our map
+    by the checks of an evaluation (on the road surface, no collision), in vehicle-id order;
+    and how many were rejected per reason of :data:`REJECTIONS`."""
+    road = RoadNetwork.load(net_path)
+    net = sumolib.net.readNet(str(net_path), withInternal=False)
+    out: list[Ego] = []
+    rejected: Counter = Counter()
+    for tr in sorted(scene.trajectories, key=lambda t: t.vehicle_id):
+        reason = None
+        fits, route = None, None
+        if tr.time[-1] - tr.time[0] < MIN_PATH_S - 1e-6 or (
+            math.hypot(tr.x[-1] - tr.x[0], tr.y[-1] - tr.y[0]) < MIN_TRAVEL_M
+        ):
+            reason = "short"
+        else:
+            fits = fit_trajectory(road, tr)
+            route = driven_route(net, fits)
+            if route is None:
+                reason = "off_lanes"
+            elif not all(road.is_on_road(x, y) for x, y in zip(tr.x, tr.y, strict=True)):
+                reason = "off_road"
+            elif _starts_in_junction(road, tr):
+                reason = "starts_in_junction"
+            elif collides(tr, [o for o in scene.trajectories if o.vehicle_id != tr.vehicle_id]):
+                reason = "collision"
+        if reason is not None:
+            rejected[reason] += 1
+            continue
+        out.append(Ego(tr.vehicle_id, _kind(tr, route, fits, net), route))
+    return out, rejected
+
+
+def _starts_in_junction(road: RoadNetwork, tr: Trajectory) -> bool:
+    x, y, h = float(tr.x[0]), float(tr.y[0]), float(tr.heading[0])
+    near = road.nearest_lane(x, y, h)
+    return near.lane.is_internal or road.in_junction(x, y, near)
 
 
 def ego_choices(scene: NaturalisticScene, net_path: Path) -> list[Ego]:
-    """Every recorded vehicle of ``scene`` that makes a solvable mission, in vehicle-id order."""
-    road = RoadNetwork.load(net_path)
-    net = sumolib.net.readNet(str(net_path), withInternal=False)
-    out = []
-    for tr in sorted(scene.trajectories, key=lambda t: t.vehicle_id):
-        if tr.time[-1] - tr.time[0] < MIN_PATH_S - 1e-6:
-            continue
-        if math.hypot(tr.x[-1] - tr.x[0], tr.y[-1] - tr.y[0]) < MIN_TRAVEL_M:
-            continue
-        fits = fit_trajectory(road, tr)
-        route = driven_route(net, fits)
-        if route is None:
-            continue
-        others = [o for o in scene.trajectories if o.vehicle_id != tr.vehicle_id]
-        if _collides(tr, others):
-            continue
-        out.append(Ego(tr.vehicle_id, _kind(tr, route, fits), route))
-    return out
-
-
-def attribution(scene: NaturalisticScene, vehicle_id: str) -> str:
-    """Provenance and licence text shipped in every naturalistic scenario folder."""
-    licence = scene.source_file.parent / "LICENSE.txt"
-    text = (
-        f"# Source: {SOURCE} naturalistic driving data\n\n"
-        f"Scene `{scene.name}` (file `{scene.source_file.name}`); the mission vehicle replaces "
-        f"recorded vehicle `{vehicle_id}`.\n\n"
-        "- Trajectories: NGSIM, US Department of Transportation (public domain).\n"
-        "- CommonRoad conversion and road geometry: Technical University of Munich, BSD 3-Clause "
-        "(below); road geometry partly derived from OpenStreetMap: "
-        "(c) OpenStreetMap contributors (ODbL).\n"
-    )
-    if licence.exists():
-        text += "\n## Licence\n\n" + licence.read_text()
-    return text
+    """Every recorded vehicle of ``scene`` that makes a solvable mission (:func:`screen_egos`)."""
+    return screen_egos(scene, net_path)[0]
 
 
 def write_naturalistic(
@@ -251,19 +331,21 @@ def write_naturalistic(
         folder / EXPERT_FILE,
         [Trajectory("Agent_0", me.time, me.x, me.y, me.heading, me.speed, me.length, me.width)],
     )
-    (folder / ATTRIBUTION_FILE).write_text(attribution(scene, ego.vehicle_id))
+    (folder / ATTRIBUTION_FILE).write_text(
+        attribution(scene.provenance, scene.name, scene.source_file.name, ego.vehicle_id)
+    )
     scenario = Scenario(
         id=scenario_id,
         family=Family.replay,
-        variant=f"ngsim_{ego.kind}",
+        variant=f"{scene.variant_prefix}_{ego.kind}",
         volume=None,
         agents=1,
         reactive=False,
         seed=seed,
         map="map.net.xml",
         missions=(mission,),
-        traffic=ReplayTraffic(trajectories=TRAJECTORIES_FILE, label=DataLabel.naturalistic),
-        label=DataLabel.naturalistic,
+        traffic=ReplayTraffic(trajectories=TRAJECTORIES_FILE, label=scene.provenance.label),
+        label=scene.provenance.label,
     )
     return write_scenario(folder, scenario, net_path)
 

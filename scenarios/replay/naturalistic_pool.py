@@ -1,75 +1,122 @@
-"""The naturalistic replays of a suite build: every ego choice of every scene in an organiser's
-folder, handed out without reuse in a seeded order that alternates between scenes."""
+"""The corpus replays of a suite build: the one-agent non-reactive replay rows of each kind
+(cruise, lane change, turns) are filled from the ego choices of that kind of every usable scene of
+an organiser's folder, drawn by the suite seed; a recorded vehicle is the mission of at most one
+scenario, whichever scene files it appears in. Rows no candidate fits keep our SUMO replays."""
 
 from __future__ import annotations
 
-import hashlib
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from arena.scenario import Family, Scenario
+from arena.scenario import DataLabel, Family, Scenario
 from scenarios.generators import Spec
-from scenarios.replay.naturalistic import (
-    Ego,
-    NaturalisticScene,
-    ego_choices,
-    load_scenes,
-    scene_net,
-    write_naturalistic,
-)
+from scenarios.ids import derive_seed, scenario_id
+from scenarios.replay.corpus import Corpus, CorpusScene, TrackKey, read_corpus
+from scenarios.replay.naturalistic import Ego, NaturalisticImportError, write_naturalistic
+
+TRACKS_FILE = "naturalistic-tracks.json"  # in a built suite's folder, beside manifest.json
 
 
 @dataclass
 class NaturalisticPool:
-    scenes: list[NaturalisticScene]
-    nets: dict[str, Path]
-    queue: list[tuple[NaturalisticScene, Ego]]  # next ego choices to hand out, first first
+    corpus: Corpus
+    rng: np.random.Generator
+    by_kind: dict[str, list[tuple[CorpusScene, Ego]]]  # candidates in file and vehicle order
+    used_vehicles: set[TrackKey] = field(default_factory=set)  # identities already missions
+    used_scenes: dict[str, CorpusScene] = field(default_factory=dict)
 
     @classmethod
-    def load(cls, folder: Path, suite: str, seed: int, cache_dir: Path) -> NaturalisticPool:
-        from scenarios.suites import derive_seed  # suites imports this module
-
-        scenes = load_scenes(folder)
+    def load(
+        cls,
+        folder: Path,
+        suite: str,
+        seed: int,
+        cache_dir: Path,
+        *,
+        label: DataLabel | None = None,
+        licence: Path | None = None,
+        jobs: int = 1,
+        progress: Callable[[str], None] = lambda _: None,
+    ) -> NaturalisticPool:
+        """Read ``folder``; fails only when no scene of it gives a single usable mission."""
+        corpus = read_corpus(
+            folder, cache_dir, label=label, licence=licence, jobs=jobs, progress=progress
+        )
+        if corpus.candidates() == 0:
+            why = "; ".join(f"{s.file}: {s.reason}" for s in corpus.skipped[:10])
+            raise NaturalisticImportError(
+                f"{folder}: no usable mission in {len(corpus.scenes)} usable of "
+                f"{len(corpus.scenes) + len(corpus.skipped)} scene files "
+                f"(rejected vehicles: {corpus.rejected() or 'none'}; skipped: {why or 'none'})"
+            )
+        by_kind: dict[str, list[tuple[CorpusScene, Ego]]] = {}
+        for s in corpus.scenes:
+            for ego in s.egos:
+                by_kind.setdefault(ego.kind, []).append((s, ego))
         rng = np.random.default_rng(derive_seed(suite, seed, "naturalistic"))
-        nets, per_scene = {}, []
-        for scene in scenes:
-            nets[scene.name] = scene_net(scene, cache_dir)
-            egos = ego_choices(scene, nets[scene.name])
-            per_scene.append([(scene, egos[i]) for i in rng.permutation(len(egos))])
-        # Round robin over scenes, so a short suite still samples every scene.
-        queue = [
-            rows[k]
-            for k in range(max(map(len, per_scene), default=0))
-            for rows in per_scene
-            if k < len(rows)
+        return cls(corpus, rng, by_kind)
+
+    def _free(self, kind: str) -> list[tuple[CorpusScene, Ego]]:
+        return [
+            (s, ego)
+            for s, ego in self.by_kind.get(kind, ())
+            if self.corpus.identity[(s.scene.name, ego.vehicle_id)] not in self.used_vehicles
         ]
-        return cls(scenes, nets, queue)
 
     def takes(self, spec: Spec) -> bool:
-        """Whether this pool fills ``spec``: a one-agent non-reactive replay, while egos last."""
+        """Whether this pool fills ``spec``: a one-agent non-reactive replay of a kind it has an
+        unused vehicle of."""
         return (
             spec.family is Family.replay
             and not spec.reactive
             and spec.agents == 1
-            and bool(self.queue)
+            and bool(self._free(spec.variant))
         )
 
-    def write(self, out: Path, suite: str, index: int, seed: int) -> Scenario:
-        from scenarios.suites import scenario_id
-
-        scene, ego = self.queue.pop(0)
-        sid = scenario_id(suite, index, Spec(Family.replay, f"ngsim_{ego.kind}", None, 1, False))
-        return write_naturalistic(out / sid, sid, scene, ego, self.nets[scene.name], seed)
+    def write(
+        self, out: Path, suite: str, index: int, spec: Spec, seed: int
+    ) -> tuple[Scenario, str]:
+        """Row ``index`` (``spec``) from a candidate of its kind drawn by the seed: the scenario
+        and its provenance source."""
+        free = self._free(spec.variant)
+        s, ego = free[int(self.rng.integers(len(free)))]
+        self.used_vehicles.add(self.corpus.identity[(s.scene.name, ego.vehicle_id)])
+        self.used_scenes[s.scene.name] = s
+        variant = f"{s.scene.variant_prefix}_{ego.kind}"
+        sid = scenario_id(suite, index, Spec(Family.replay, variant, None, 1, False))
+        scenario = write_naturalistic(out / sid, sid, s.scene, ego, s.net, seed)
+        return scenario, s.scene.provenance.source
 
     def scene_list(self) -> list[dict]:
-        """Which scene files the build read (name and sha256), for the manifest."""
+        """The scenes the suite's scenarios were cut from (for the manifest)."""
         return [
             {
-                "scene": s.name,
-                "file": s.source_file.name,
-                "sha256": hashlib.sha256(s.source_file.read_bytes()).hexdigest(),
+                "scene": s.scene.name,
+                "file": s.scene.source_file.name,
+                "sha256": s.sha256(),
+                "location": s.location,
+                "source": s.scene.provenance.source,
             }
-            for s in self.scenes
+            for s in self._used()
         ]
+
+    def track_list(self) -> dict[str, list[dict]]:
+        """Every recorded vehicle's moving poses per scene of :meth:`scene_list`: what a
+        dataset build must not contain (``--exclude-suite``), beside the manifest (:data:
+        `TRACKS_FILE`) so the manifest every evaluation reads stays small."""
+        return {
+            s.scene.name: [
+                {"vehicle": vehicle, "poses": [list(p) for p in poses]}
+                for vehicle, poses in s.tracks().items()
+            ]
+            for s in self._used()
+        }
+
+    def _used(self) -> list[CorpusScene]:
+        return sorted(self.used_scenes.values(), key=lambda s: s.scene.source_file.name)
+
+    def skipped_list(self) -> list[dict]:
+        return [{"file": s.file, "reason": s.reason} for s in self.corpus.skipped]

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import shapely
-from shapely.geometry import LineString, Polygon
+from shapely.geometry import GeometryCollection, LineString, MultiPolygon, Polygon
 from shapely.geometry.base import BaseGeometry
 
 from sim.road.lane import Lane, angle_between
@@ -39,16 +39,25 @@ class LanePosition:
 
 
 class RoadNetwork:
-    """Lanes (``lanes``: id -> :class:`Lane`), junction areas (``junction_polygons``) and the
+    """Lanes (``lanes``: id -> :class:`Lane`), junction areas (``junction_polygons``: valid simple
+    polygons only, whatever shapes the network file holds) and the
     drivable area (union of every lane surface and junction area) of a SUMO network.
 
     Build with :meth:`load`. Queries: :meth:`nearest_lane` (one point, heading-aware),
     :meth:`nearest_lanes` (many points, vectorised), :meth:`is_on_road`, :meth:`in_junction`.
     """
 
-    def __init__(self, lanes: dict[str, Lane], junction_polygons: list[Polygon]) -> None:
+    def __init__(self, lanes: dict[str, Lane], junction_polygons: list[BaseGeometry]) -> None:
         self.lanes = lanes
-        self.junction_polygons = junction_polygons
+        # Every consumer (drawing, rasters, in_junction) may rely on plain polygons.
+        self.junction_polygons = [
+            part
+            for area in junction_polygons
+            for part in polygon_parts(shapely.make_valid(area))
+            # A degenerate outline (a dead end's is a line) has no area to drive on; an invalid
+            # one (a bow tie) has an area only once repaired.
+            if part.area > 1e-6
+        ]
         self.edges: dict[str, list[Lane]] = {}
         for lane in lanes.values():
             self.edges.setdefault(lane.edge_id, []).append(lane)
@@ -57,10 +66,12 @@ class RoadNetwork:
         self._lane_list = list(lanes.values())
         self._build_segment_index()
         self.drivable_area: BaseGeometry = shapely.unary_union(
-            [lane_surface(lane) for lane in self._lane_list] + junction_polygons
+            [lane_surface(lane) for lane in self._lane_list] + self.junction_polygons
         )
         shapely.prepare(self.drivable_area)
-        self._junction_area = shapely.unary_union(junction_polygons) if junction_polygons else None
+        self._junction_area = (
+            shapely.unary_union(self.junction_polygons) if self.junction_polygons else None
+        )
         self._seg_clearance: dict[int, float] = {}  # see _junction_clearance
         if self._junction_area is not None:
             shapely.prepare(self._junction_area)
@@ -100,11 +111,9 @@ class RoadNetwork:
                     successors=_successors(lane),
                 )
         junctions = [
-            Polygon(node.getShape())
-            for node in net.getNodes()
-            if len(node.getShape()) >= 3 and Polygon(node.getShape()).area > 1e-6
+            Polygon(node.getShape()) for node in net.getNodes() if len(node.getShape()) >= 3
         ]
-        return cls(lanes, [p if p.is_valid else p.buffer(0) for p in junctions])
+        return cls(lanes, junctions)
 
     def _build_segment_index(self) -> None:
         p0, p1, lane_idx, s0 = [], [], [], []
@@ -257,6 +266,17 @@ def _well_inside(position: LanePosition) -> bool:
         position.distance < 0.45 * lane.width - _SURFACE_MARGIN
         and _SURFACE_MARGIN < position.s < lane.length - _SURFACE_MARGIN
     )
+
+
+def polygon_parts(geometry: BaseGeometry) -> list[Polygon]:
+    """The non-empty polygons of any geometry: itself, the members of a MultiPolygon, the
+    polygonal pieces of a GeometryCollection (a repaired self-intersecting shape is any of
+    these); lines and points have no area and are dropped."""
+    if isinstance(geometry, Polygon):
+        return [geometry] if not geometry.is_empty else []
+    if isinstance(geometry, (MultiPolygon, GeometryCollection)):
+        return [part for piece in geometry.geoms for part in polygon_parts(piece)]
+    return []
 
 
 def lane_surface(lane: Lane) -> Polygon:

@@ -6,19 +6,27 @@ from __future__ import annotations
 import hashlib
 import json
 import shutil
+from pathlib import Path
 
 import minari  # the dev extra installs it: no silent skip in CI
 import numpy as np
+import pytest
 from typer.testing import CliRunner
 
 from arena.cli import app
+from arena.config import get_settings
+from arena.scenario import Family
 from arena.suite import SHIPPED_PUBLIC_DIR
 from scenarios.dataset.build import DATASET_ID, MANIFEST, TRANSITIONS
 from scenarios.dataset.collect import collect
 from scenarios.dataset.features import ACTION_SIZE, OBS_SIZE, to_target_pose
+from scenarios.generators import Spec
 from scenarios.replay.builder import EXPERT_FILE
+from scenarios.replay.corpus import read_corpus
 from scenarios.replay.naturalistic import ego_choices, load_scene, scene_net, write_naturalistic
+from scenarios.replay.naturalistic_pool import TRACKS_FILE, NaturalisticPool
 from sim.trajectories import read_trajectories
+from tests.scenarios import corpus_builders as cb
 
 runner = CliRunner()
 KEPT, HIDDEN = "USA_US101-3_3_T-1.xml", "USA_Peach-4_8_T-1.xml"
@@ -61,7 +69,7 @@ def test_dataset_loads_with_minari_and_leaves_out_hidden_scenes(tmp_path, scenes
     get_settings.cache_clear()
     assert result.exit_code == 0, result.output
     manifest = json.loads((out / MANIFEST).read_text())
-    assert manifest["excluded_scenes"] == [HIDDEN]
+    assert manifest["excluded_scenes"] == [{"file": HIDDEN, "reason": "the suite used this file"}]
     episodes = manifest["episodes"]
     natural = [e for e in episodes if e["source"] == "NGSIM"]
     assert {e["scene"] for e in natural} == {KEPT.removesuffix(".xml")}
@@ -119,3 +127,90 @@ def test_actions_reproduce_the_recorded_motion(tmp_path, scenes_dir):
             nx, ny, nh = episode.poses[t + 1]
             assert abs(x - nx) < 0.01 and abs(y - ny) < 0.01
             assert abs((h - nh + np.pi) % (2 * np.pi) - np.pi) < 0.01
+
+
+def _dataset(out: str | Path, scenes: Path, *args: str, tmp_path: Path, public: bool = False):
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("ARENA_DATA_DIR", str(tmp_path / "data"))
+        mp.setenv("MINARI_DATASETS_PATH", str(tmp_path / "elsewhere"))
+        get_settings.cache_clear()
+        result = runner.invoke(
+            app,
+            [
+                *("dataset", "build", "--out", str(out), "--scenes", str(scenes)),
+                "--public" if public else "--no-public",
+                *args,
+            ],
+            env={"COLUMNS": "400"},
+        )
+    get_settings.cache_clear()
+    return result
+
+
+def _suite_from(folder: Path, out: Path, cache: Path, rows: int) -> Path:
+    """A suite's manifest and tracks file as a build writes them, from ``rows`` cruise missions
+    of ``folder``."""
+    pool = NaturalisticPool.load(folder, "hidden", 7, cache)
+    cruise = Spec(Family.replay, "cruise", None, 1, False)
+    for i in range(rows):
+        pool.write(out, "hidden", i, cruise, 1)
+    (out / "manifest.json").write_text(json.dumps({"naturalistic_scenes": pool.scene_list()}))
+    (out / TRACKS_FILE).write_text(json.dumps(pool.track_list()))
+    return out
+
+
+def test_a_scene_sharing_one_vehicle_with_the_suite_is_left_out(tmp_path, scenes_dir, monkeypatch):
+    """The suite used the first file of a recording cut in two; the second shares vehicles
+    under other ids and clock, and never enters the dataset. Output under a relative path."""
+    hidden_scenes, scenes = tmp_path / "hidden-scenes", tmp_path / "scenes"
+    hidden_scenes.mkdir()
+    scenes.mkdir()
+    first, second = cb.split_recording(scenes_dir / cb.HIGHWAY, scenes, "USA_Split-1", (30, 70))
+    shutil.copy(first, hidden_scenes / first.name)
+    shutil.copy(scenes_dir / KEPT, scenes / KEPT)
+    suite = _suite_from(hidden_scenes, tmp_path / "suite", tmp_path / "cache", rows=2)
+    monkeypatch.chdir(tmp_path)
+    result = _dataset("dataset", scenes, "--exclude-suite", str(suite), tmp_path=tmp_path)
+    assert result.exit_code == 0, result.output
+    manifest = json.loads((tmp_path / "dataset" / MANIFEST).read_text())
+    left = {e["file"]: e["reason"] for e in manifest["excluded_scenes"]}
+    assert left[first.name] == "the suite used this file"
+    assert "which the suite used" in left[second.name] and "vehicle cr900" in left[second.name]
+    assert {e["scene"] for e in manifest["episodes"]} == {KEPT.removesuffix(".xml")}
+    assert (tmp_path / "dataset" / DATASET_ID / "data" / "main_data.hdf5").is_file()
+    assert f"left out {second.name}: vehicle" in "".join(result.output.split("\n"))
+
+
+def test_excluding_everything_fails_instead_of_writing_an_empty_dataset(tmp_path, scenes_dir):
+    scenes = tmp_path / "scenes"
+    scenes.mkdir()
+    shutil.copy(scenes_dir / KEPT, scenes / KEPT)
+    suite = _suite_from(scenes, tmp_path / "suite", tmp_path / "cache", rows=1)
+    result = _dataset(
+        tmp_path / "dataset", scenes, "--exclude-suite", str(suite), tmp_path=tmp_path
+    )
+    assert result.exit_code == 2
+    assert "no episode left: 1 scene files share vehicles with the excluded suite" in " ".join(
+        result.output.replace("│", "").split()
+    )
+    assert not (tmp_path / "dataset" / MANIFEST).exists()
+
+
+def test_unusable_files_are_skipped_and_one_vehicle_is_one_episode(tmp_path, scenes_dir):
+    scenes = tmp_path / "scenes"
+    scenes.mkdir()
+    cb.split_recording(scenes_dir / cb.HIGHWAY, scenes, "USA_Split-1", (30, 70))
+    cb.without_trajectories(scenes_dir / cb.HIGHWAY, scenes / "USA_Empty-1_1_T-1.xml")
+    cb.malformed(scenes / "broken.xml")
+    result = _dataset(tmp_path / "dataset", scenes, "--jobs", "2", tmp_path=tmp_path)
+    assert result.exit_code == 0, result.output
+    manifest = json.loads((tmp_path / "dataset" / MANIFEST).read_text())
+    assert {s["file"] for s in manifest["skipped_scenes"]} == {
+        "USA_Empty-1_1_T-1.xml",
+        "broken.xml",
+    }
+    corpus = read_corpus(scenes, tmp_path / "cache")
+    identities = [corpus.identity[(e["scene"], e["vehicle"])] for e in manifest["episodes"]]
+    assert len(identities) == len(set(identities))
+    assert len(identities) < corpus.candidates()  # the second file's copies were left out
+    assert manifest["rejected_vehicles"].get("short", 0) > 0

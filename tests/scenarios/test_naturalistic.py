@@ -4,6 +4,7 @@ every scene gives naturalistic replays the log replay expert solves."""
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from pathlib import Path
@@ -14,7 +15,12 @@ import sumolib
 
 from arena.scenario import DataLabel, load_scenario
 from scenarios.replay.builder import EXPERT_FILE
-from scenarios.replay.commonroad import CommonRoadImportError, read_scene
+from scenarios.replay.commonroad import (
+    DEFAULT_SPEED_LIMIT,
+    URBAN_SPEED_LIMIT,
+    CommonRoadImportError,
+    read_scene,
+)
 from scenarios.replay.lanelet_net import build_lanelet_net, lanelet_edges
 from scenarios.replay.map_match import MAX_ANGLE_RAD, REACH_M, fit_trajectory
 from scenarios.replay.naturalistic import (
@@ -29,7 +35,7 @@ from scenarios.replay.naturalistic import (
 from scenarios.verify import verify_scenario
 from sim.road.lane import angle_between
 from sim.road.network import RoadNetwork
-from sim.trajectories import read_trajectories
+from sim.trajectories import Trajectory, read_trajectories
 
 # file -> (format, recorded vehicles), as PROVENANCE.md lists them
 SHIPPED = {
@@ -46,7 +52,9 @@ MAX_ANGLE_OUTSIDE_JUNCTIONS = math.radians(20.0)
 def nets(scenes_dir, tmp_path_factory) -> dict[str, tuple]:
     cache = tmp_path_factory.mktemp("naturalistic-cache")
     out = {}
-    for scene in load_scenes(scenes_dir):
+    folder = load_scenes(scenes_dir)
+    assert not folder.skipped
+    for scene in folder.scenes:
         out[scene.source_file.name] = (scene, scene_net(scene, cache))
     return out
 
@@ -102,6 +110,17 @@ def test_2018b_reads_dynamic_obstacles_and_lanelet_speed_limits(tmp_path):
     assert tr.vehicle_id == "cr8" and np.allclose(tr.x, [1.0, 2.0]) and tr.length == 4.2
 
 
+def test_lanelets_without_a_limit_get_the_highway_or_urban_default(tmp_path):
+    no_limit = CR2018B.replace("<speedLimit>13.4112</speedLimit>", "")
+    (tmp_path / "highway.xml").write_text(no_limit)
+    (tmp_path / "urban.xml").write_text(
+        no_limit.replace("timeStepSize=", 'tags="urban" timeStepSize=')
+    )
+    assert read_scene(tmp_path / "highway.xml").lanelets[0].speed_limit == DEFAULT_SPEED_LIMIT
+    assert read_scene(tmp_path / "urban.xml").lanelets[0].speed_limit == URBAN_SPEED_LIMIT
+    assert pytest.approx(50 / 3.6) == URBAN_SPEED_LIMIT
+
+
 def test_malformed_scenes_are_rejected_naming_file_and_problem(tmp_path):
     (tmp_path / "uneven.xml").write_text(CR2018B.replace("<point><x>50</x><y>-2</y></point>", ""))
     with pytest.raises(CommonRoadImportError, match=r"uneven\.xml.*lanelet 5"):
@@ -112,6 +131,20 @@ def test_malformed_scenes_are_rejected_naming_file_and_problem(tmp_path):
     (tmp_path / "roadless.xml").write_text(CR2018B.split("<lanelet")[0] + "</commonRoad>")
     with pytest.raises(NaturalisticImportError, match=r"roadless\.xml.*no road"):
         load_scene(tmp_path / "roadless.xml")
+    # The refusal names the obstacle or lanelet and the field.
+    (tmp_path / "speed.xml").write_text(
+        CR2018B.replace("<exact>10</exact>", "<exact>fast</exact>", 1)
+    )
+    with pytest.raises(CommonRoadImportError, match=r"obstacle 8: .*<velocity/exact> is 'fast'"):
+        read_scene(tmp_path / "speed.xml")
+    (tmp_path / "nox.xml").write_text(CR2018B.replace("<x>2</x>", "", 1))
+    with pytest.raises(
+        CommonRoadImportError, match=r"obstacle 8: the state at time step 1 has no <x>"
+    ):
+        read_scene(tmp_path / "nox.xml")
+    (tmp_path / "limit.xml").write_text(CR2018B.replace("13.4112", "fast"))
+    with pytest.raises(CommonRoadImportError, match=r"lanelet 5: <speedLimit> is 'fast'"):
+        read_scene(tmp_path / "limit.xml")
     (tmp_path / "notes.txt").write_text("x")
     with pytest.raises(NaturalisticImportError, match=r"notes\.txt"):
         load_scene(tmp_path / "notes.txt")
@@ -285,3 +318,29 @@ def test_a_track1_agent_drives_the_imported_maps(naturalistic_scenarios, tmp_pat
         assert not result.simulator_error, (folder.name, result.simulator_error)
         reached += result.agents[0].reached_goal
     assert reached >= 1
+
+
+def test_a_vehicle_joining_from_the_slip_road_is_a_merge(nets):
+    """US-101's slip road (lanelet 15) joins the main road's rightmost lane (lanelet 16): a
+    vehicle driven along them at 10 m/s is a merge; the recorded main-road vehicles are not."""
+    scene, net_path = nets["USA_US101-4_1_T-1.xml"]
+    by_id = {lanelet.id: lanelet for lanelet in scene.lanelets}
+    line = np.concatenate([by_id[15].centre, by_id[16].centre[1:]])
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(line, axis=0).T))])
+    along = np.arange(5.0, s[-1] - 5.0, 1.0)  # [m] one step of 0.1 s at 10 m/s each
+    x, y = np.interp(along, s, line[:, 0]), np.interp(along, s, line[:, 1])
+    heading = np.arctan2(np.gradient(y), np.gradient(x))
+    merger = Trajectory(
+        "merger",
+        np.round(np.arange(len(x)) * 0.1, 1),
+        x,
+        y,
+        heading,
+        np.full(len(x), 10.0),
+        4.5,
+        1.8,
+    )
+    alone = dataclasses.replace(scene, trajectories=(merger,))
+    (ego,) = ego_choices(alone, net_path)
+    assert ego.kind == "merge" and len(ego.route) == 2
+    assert "merge" not in {e.kind for e in ego_choices(scene, net_path)}

@@ -1,89 +1,259 @@
-"""`arena scenarios build --suite hidden --naturalistic-dir DIR`: the hidden suite's one-agent
-replays come from the organiser's scenes; a malformed scene file stops the build, named."""
+"""`arena scenarios build --suite hidden --naturalistic-dir DIR` over a generated corpus of the
+shipped scenes mixed with broken files, one recording split into two overlapping scene files, a
+scene of simulated traffic and a scene with a 20 m truck: unusable files are skipped with their
+reason, every mission is one its recorded driver finishes, no recorded vehicle is the mission of
+two scenarios, rows are filled by kind, and provenance comes from the files."""
 
 from __future__ import annotations
 
-import hashlib
+import json
 import shutil
+import xml.etree.ElementTree as ET
+from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
 
 from arena.cli import app
 from arena.config import get_settings
-from arena.scenario import DataLabel, load_scenario
-from scenarios.suites import build_suite
+from arena.scenario import DataLabel, Family, load_scenario
+from scenarios.generators import Spec
+from scenarios.picture import draw_scenario
+from scenarios.replay.corpus import read_corpus
+from scenarios.replay.naturalistic import ATTRIBUTION_FILE, collides, load_scene
+from scenarios.replay.naturalistic_pool import TRACKS_FILE, NaturalisticPool
+from scenarios.replay.tracks import TrackIndex, recording_location, track_poses
+from scenarios.suites import REPLAYS
+from scenarios.verify import verify_scenario
+from sim.trajectories import read_trajectories
+from tests.scenarios import corpus_builders as cb
 from tests.scenarios.conftest import manifest
 
 runner = CliRunner()
+SIMULATED = "OpenStreetMaps, SUMO Traffic Simulator"
+BROKEN = {
+    "USA_Empty-1_1_T-1.xml": "no recorded vehicle trajectory (22 obstacles without one",
+    "broken.xml": "not a readable CommonRoad scenario",
+    "old.xml": "CommonRoad format '2017a' is not supported",
+}
+
+
+def _first_vehicle(path: Path) -> str:
+    root = ET.parse(path).getroot()
+    return next(o.get("id") for o in root if o.tag in ("obstacle", "dynamicObstacle"))
 
 
 @pytest.fixture(scope="module")
-def hidden_natural(tmp_path_factory, cache_dir, scenes_dir):
-    out = tmp_path_factory.mktemp("hidden-natural") / "suite"
-    build_suite(
-        "hidden", get_settings().development_seed, out, cache_dir, naturalistic_dir=scenes_dir
+def corpus_dir(tmp_path_factory, scenes_dir) -> Path:
+    folder = tmp_path_factory.mktemp("corpus")
+    for name in ("USA_Lanker-1_1_T-1.xml", "USA_Peach-4_8_T-1.xml", "LICENSE.txt"):
+        shutil.copy(scenes_dir / name, folder / name)
+    cb.split_recording(scenes_dir / cb.HIGHWAY, folder, "USA_Split-1", (30, 70))
+    truck_car = _first_vehicle(scenes_dir / cb.HIGHWAY_2018)
+    cb.with_truck_ahead(scenes_dir / cb.HIGHWAY_2018, folder / "USA_Truck-1_1_T-1.xml", truck_car)
+    cb.copy_scene(
+        scenes_dir / cb.HIGHWAY_2018, folder / "sim.xml", "DEU_Sim-1_1_T-1", source=SIMULATED
     )
+    cb.without_trajectories(scenes_dir / cb.HIGHWAY, folder / "USA_Empty-1_1_T-1.xml")
+    cb.malformed(folder / "broken.xml")
+    cb.unsupported_version(scenes_dir / cb.HIGHWAY, folder / "old.xml")
+    return folder
+
+
+@pytest.fixture(scope="module")
+def hidden_corpus(tmp_path_factory, cache_dir, corpus_dir) -> Path:
+    root = tmp_path_factory.mktemp("hidden-corpus")
+    out = root / "suite"
+    # The CLI's cache (ARENA_DATA_DIR/cache/scenarios) is the session's, so recordings are shared.
+    (root / "data" / "cache").mkdir(parents=True)
+    (root / "data" / "cache" / "scenarios").symlink_to(cache_dir)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("ARENA_DATA_DIR", str(root / "data"))
+        get_settings.cache_clear()
+        result = runner.invoke(
+            app,
+            [
+                *("scenarios", "build", "--suite", "hidden", "--dev", "--out", str(out)),
+                *("--naturalistic-dir", str(corpus_dir), "--jobs", "2"),
+            ],
+            env={"COLUMNS": "400"},
+        )
+    get_settings.cache_clear()
+    assert result.exit_code == 0, result.output
+    (out / "build-output.txt").write_text(result.output)
     return out
 
 
-def test_hidden_suite_draws_its_one_agent_replays_from_the_scenes(hidden_natural):
-    entries = manifest(hidden_natural)["scenarios"]
-    assert len(entries) == 128 and sum(e["reactive"] for e in entries) == 71
-    natural = [e for e in entries if e["label"] == "naturalistic"]
-    # 51 one-agent non-reactive replay rows; the shipped scenes hold 52 ego choices.
-    assert len(natural) == 51
-    assert all(
-        e["family"] == "replay"
-        and not e["reactive"]
-        and e["agents"] == 1
-        and e["variant"].startswith("ngsim_")
-        and e["source"] == "NGSIM"
-        for e in natural
-    )
-    recorded = [e for e in entries if e["label"] == "recorded"]
-    assert {(e["agents"], e["reactive"]) for e in recorded} == {(2, False), (1, True)}
-    assert all("source" not in e for e in entries if e["label"] != "naturalistic")
-    starts = set()
-    for e in natural:
-        scenario = load_scenario(hidden_natural / e["id"])
-        assert scenario.label is DataLabel.naturalistic
-        assert scenario.traffic.label is DataLabel.naturalistic
-        assert (hidden_natural / e["id"] / "ATTRIBUTION.md").exists()
-        starts.add((scenario.missions[0].start, scenario.missions[0].goal.position))
-    assert len(starts) == len(natural)  # no ego choice used twice
+def test_unusable_files_are_skipped_and_named_with_their_reason(hidden_corpus):
+    skipped = {s["file"]: s["reason"] for s in manifest(hidden_corpus)["naturalistic_skipped"]}
+    assert set(skipped) == set(BROKEN)
+    for file, reason in BROKEN.items():
+        assert reason in skipped[file]
+    output = (hidden_corpus / "build-output.txt").read_text()
+    for file, reason in BROKEN.items():
+        assert f"skipped {file}: " in output and reason in output
 
 
-def test_manifest_names_the_scene_files_read(hidden_natural, scenes_dir):
-    listed = manifest(hidden_natural)["naturalistic_scenes"]
-    assert sorted(s["file"] for s in listed) == sorted(p.name for p in scenes_dir.glob("*.xml"))
-    for s in listed:
-        assert s["sha256"] == hashlib.sha256((scenes_dir / s["file"]).read_bytes()).hexdigest()
-
-
-def test_build_rejects_a_malformed_scene_naming_file_and_problem(tmp_path, scenes_dir):
+def test_a_folder_without_a_usable_mission_fails_naming_every_file(tmp_path, scenes_dir):
     folder = tmp_path / "scenes"
-    shutil.copytree(scenes_dir, folder)
-    text = (folder / "USA_Peach-4_8_T-1.xml").read_text()
-    (folder / "USA_Peach-4_8_T-1.xml").write_text(text.replace("<x>", "<x>abc", 1))
+    folder.mkdir()
+    cb.without_trajectories(scenes_dir / cb.HIGHWAY, folder / "USA_Empty-1_1_T-1.xml")
+    cb.malformed(folder / "broken.xml")
     out = tmp_path / "hidden"
     result = runner.invoke(
         app,
-        [
-            "scenarios",
-            "build",
-            "--suite",
-            "hidden",
-            "--dev",
-            "--out",
-            str(out),
-            "--naturalistic-dir",
-            str(folder),
-        ],
+        ["scenarios", "build", "--dev", "--out", str(out), "--naturalistic-dir", str(folder)],
         env={"COLUMNS": "400"},
     )
-    assert result.exit_code != 0
-    text = "".join(result.output.replace("│", "").split())  # undo rich's error box wrapping
-    assert "USA_Peach-4_8_T-1.xml:malformedCommonRoad2020a" in text
-    assert "couldnotconvertstringtofloat:'abc" in text  # the problem
+    assert result.exit_code == 2
+    text = "".join(result.output.replace("│", "").split())
+    assert "nousablemissionin0usableof2scenefiles" in text
+    assert "USA_Empty-1_1_T-1.xml:thescenehasnorecordedvehicletrajectory" in text
+    assert "broken.xml:notareadableCommonRoadscenario" in text
     assert not out.exists()
+
+
+def test_rows_are_filled_by_kind_and_the_recorded_driver_solves_every_mission(hidden_corpus):
+    entries = manifest(hidden_corpus)["scenarios"]
+    assert len(entries) == 128 and sum(e["reactive"] for e in entries) == 71
+    from_corpus = [e for e in entries if "source" in e]
+    assert len(from_corpus) >= 20
+    rows = [e for e in entries if e["family"] == "replay" and not e["reactive"]]
+    # Each row keeps its kind: a corpus mission of kind K only in a row of kind K.
+    kinds = [kind for kind, agents, count in REPLAYS for _ in range(count)]
+    assert len(rows) == len(kinds)
+    for row, kind in zip(rows, kinds, strict=True):
+        if "source" in row:
+            assert row["variant"].split("_", 1)[1] == kind, row
+    assert {e["variant"].split("_", 1)[1] for e in from_corpus} >= {"cruise", "lane_change"}
+    for e in from_corpus:
+        assert verify_scenario(hidden_corpus / e["id"], hidden_corpus.parent).solved, e["id"]
+        assert "<polygon" in draw_scenario(hidden_corpus / e["id"])  # every map draws
+
+
+def test_no_recorded_vehicle_is_the_mission_of_two_scenarios(hidden_corpus):
+    """The split recording's two files share 16 vehicles under other ids and clocks."""
+    index = TrackIndex()
+    for e in manifest(hidden_corpus)["scenarios"]:
+        if "source" not in e:
+            continue
+        expert = read_trajectories(hidden_corpus / e["id"] / "expert.csv")["Agent_0"]
+        poses = track_poses(expert)
+        assert not index.same_vehicle(poses), e["id"]
+        index.add(e["id"], poses)
+
+
+def test_split_recording_files_are_one_recording_sharing_vehicles(corpus_dir, cache_dir):
+    corpus = read_corpus(corpus_dir, cache_dir / "naturalistic")
+    merged = {k: v for k, v in corpus.identity.items() if k != v}
+    split = {k: v for k, v in merged.items() if k[0].startswith("USA_Split")}
+    assert len(split) >= 10
+    for (scene, vehicle), (first_scene, first_vehicle) in split.items():
+        assert (scene, first_scene) == ("USA_Split-1_2_T-1", "USA_Split-1_1_T-1")
+        assert int(vehicle[2:]) == int(first_vehicle[2:]) + 900000  # how the split renumbered
+    assert recording_location("USA_Split-1_2_T-1") == "USA_Split-1"
+    # A copy of a file under another name holds the same vehicles, whatever it is called.
+    copies = [k for k in corpus.identity if k[0] == "DEU_Sim-1_1_T-1"]
+    assert len(copies) == 12
+    for key in copies:
+        assert corpus.identity[key] == corpus.identity[("USA_Truck-1_1_T-1", key[1])]
+    # Vehicles following each other in one lane are not merged: every vehicle of one file is
+    # its own identity.
+    for s in corpus.scenes:
+        own = [corpus.identity[(s.scene.name, t.vehicle_id)] for t in s.scene.trajectories]
+        assert len(set(own)) == len(own)
+
+
+def test_a_long_truck_overlapping_a_car_rejects_both(corpus_dir, scenes_dir, cache_dir):
+    car = "cr" + _first_vehicle(scenes_dir / cb.HIGHWAY_2018)
+    scene = load_scene(corpus_dir / "USA_Truck-1_1_T-1.xml")
+    truck = next(t for t in scene.trajectories if t.length == 20.0)
+    by_id = {t.vehicle_id: t for t in scene.trajectories}
+    assert collides(by_id[car], [truck]) == truck.vehicle_id
+    corpus = read_corpus(corpus_dir, cache_dir / "naturalistic")
+    (s,) = [s for s in corpus.scenes if s.scene.name == "USA_Truck-1_1_T-1"]
+    assert s.rejected.get("collision", 0) >= 2
+    assert {car, truck.vehicle_id}.isdisjoint(e.vehicle_id for e in s.egos)
+
+
+def test_provenance_comes_from_the_file(hidden_corpus):
+    entries = manifest(hidden_corpus)["scenarios"]
+    sources = {e["source"] for e in entries if "source" in e}
+    assert "NGSIM" in sources
+    for e in entries:
+        if "source" not in e:
+            continue
+        scenario = load_scenario(hidden_corpus / e["id"])
+        text = (hidden_corpus / e["id"] / ATTRIBUTION_FILE).read_text()
+        if e["source"] == "NGSIM":
+            assert scenario.label is DataLabel.naturalistic and e["variant"].startswith("ngsim_")
+            assert "## Licence" in text and "BSD" in text  # LICENSE.txt beside the scenes
+        else:
+            assert e["source"] == SIMULATED and e["variant"].startswith("corpus_")
+            assert scenario.label is DataLabel.recorded
+            assert scenario.traffic.label is DataLabel.recorded
+
+
+def test_attribution_says_below_only_with_a_licence_and_label_overrides(tmp_path, scenes_dir):
+    folder = tmp_path / "nolicence"
+    folder.mkdir()
+    cb.copy_scene(
+        scenes_dir / cb.HIGHWAY_2018, folder / "a.xml", "DEU_Sim-2_1_T-1", source=SIMULATED
+    )
+    scene = load_scene(folder / "a.xml")
+    assert scene.provenance.label is DataLabel.recorded and scene.provenance.licence is None
+    from scenarios.replay.provenance import attribution
+
+    text = attribution(scene.provenance, scene.name, "a.xml", "cr1")
+    assert "below" not in text and "No licence file came with the scene" in text
+    licence = tmp_path / "TERMS.txt"
+    licence.write_text("Terms of the organiser's data.")
+    stated = load_scene(folder / "a.xml", DataLabel.naturalistic, licence)
+    assert stated.provenance.label is DataLabel.naturalistic
+    text = attribution(stated.provenance, stated.name, "a.xml", "cr1")
+    assert "below" in text and text.endswith("Terms of the organiser's data.")
+
+
+def test_the_seed_draws_from_all_candidates(corpus_dir, cache_dir, tmp_path):
+    cruise = Spec(Family.replay, "cruise", None, 1, False)
+
+    def drawn(seed: int) -> list[tuple[str, str]]:
+        pool = NaturalisticPool.load(corpus_dir, "hidden", seed, cache_dir / "naturalistic")
+        out = []
+        for i in range(8):
+            scenario, _ = pool.write(tmp_path / str(seed), "hidden", i, cruise, 1)
+            out.append(scenario.missions[0].start)
+        assert len(pool.used_scenes) > 1  # not the first file's vehicles one after another
+        return out
+
+    assert drawn(5) == drawn(5)
+    assert drawn(5) != drawn(6)
+
+
+def test_manifest_lists_exactly_the_scenes_used_with_their_tracks(hidden_corpus, corpus_dir):
+    listed = manifest(hidden_corpus)["naturalistic_scenes"]
+    used = {
+        load_scenario(hidden_corpus / e["id"]).id
+        for e in manifest(hidden_corpus)["scenarios"]
+        if "source" in e
+    }
+    assert used
+    files = {s["file"] for s in listed}
+    assert not files & set(BROKEN)
+    tracks = json.loads((hidden_corpus / TRACKS_FILE).read_text())
+    assert set(tracks) == {s["scene"] for s in listed}
+    for s in listed:
+        assert s["location"] and "tracks" not in s  # the manifest stays small
+        scene = load_scene(corpus_dir / s["file"])
+        assert {t["vehicle"] for t in tracks[s["scene"]]} == {
+            t.vehicle_id for t in scene.trajectories
+        }
+    assert len(listed) <= len(used)
+
+
+def test_build_output_counts_rejected_vehicles(hidden_corpus):
+    rejected = manifest(hidden_corpus)["naturalistic_rejected"]
+    assert rejected.get("collision", 0) >= 2 and rejected.get("short", 0) > 0
+    assert (
+        "recorded vehicles not used as missions" in (hidden_corpus / "build-output.txt").read_text()
+    )

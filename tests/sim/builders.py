@@ -4,6 +4,7 @@ file and a ``scenario.json`` per ``arena/scenario.py``."""
 from __future__ import annotations
 
 import subprocess
+import xml.etree.ElementTree as ET
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -191,3 +192,35 @@ def recorded_episode(root: Path) -> tuple[Path, Path]:
     interface = AgentInterface(action_space=ActionSpace.TargetPose)
     run_episode(folder, agent, interface, record_path=record)
     return folder.parent, record
+
+
+# Junction outlines a network file may hold that are not valid polygons: repairing them gives a
+# MultiPolygon, a polygon with a line sticking out (GeometryCollection) or a polygon with a hole.
+INVALID_JUNCTION_SHAPES: dict[str, list[tuple[float, float]]] = {
+    "bow_tie": [(-8, -8), (8, 8), (8, -8), (-8, 8)],
+    "two_lobes_touching": [(-8, 0), (0, 8), (0, 0), (8, 8), (8, -8), (0, 0), (0, -8)],
+    "spike": [(-8, -8), (8, -8), (8, 8), (0, 8), (0, 20), (0, 8), (-8, 8)],
+    "ring": [
+        (-8, -8),
+        (8, -8),
+        (8, 8),
+        (-8, 8),
+        (-8, -8),
+        (-4, -4),
+        (-4, 4),
+        (4, 4),
+        (4, -4),
+        (-4, -4),
+    ],
+}
+
+
+def with_junction_shape(net_path: Path, junction_id: str, shape: list[tuple[float, float]]) -> Path:
+    """Rewrite the outline of junction ``junction_id`` of a SUMO network file in place to
+    ``shape`` [m] around the junction's centre."""
+    tree = ET.parse(net_path)
+    node = tree.getroot().find(f"junction[@id='{junction_id}']")
+    cx, cy = float(node.get("x")), float(node.get("y"))
+    node.set("shape", " ".join(f"{cx + x:.2f},{cy + y:.2f}" for x, y in shape))
+    tree.write(net_path)
+    return net_path

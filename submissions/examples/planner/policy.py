@@ -96,9 +96,20 @@ class Path:
         dx, dy = self.xy[j] - self.xy[i]
         return math.atan2(dy, dx) if (dx or dy) else float(self.heading[i])
 
-    def on_route(self, route: set[str]) -> bool:
-        edges = {lane.rsplit("_", 1)[0] for lane in set(self.lane_ids) if not lane.startswith(":")}
-        return edges <= route
+    def on_route(self, route: tuple[str, ...]) -> bool:
+        """Whether the path follows ``route``: every road on it is a route road up to the
+        route's last one. Past that it may go anywhere: a route cut from a recording ends where
+        the recording did, mid-map, and the road beyond leads to the goal as well as any."""
+        roads = route[-1:]
+        for lane in self.lane_ids:
+            if lane.startswith(":"):
+                continue
+            edge = lane.rsplit("_", 1)[0]
+            if edge in roads:
+                return True
+            if edge not in route:
+                return False
+        return True
 
     def point(self, s: float) -> tuple[float, float, float]:
         """(x, y, heading) at arc length ``s``; straight extension beyond both ends."""
@@ -225,7 +236,7 @@ class AgentPlanner:
         x, y = float(ego["position"][0]), float(ego["position"][1])
         heading, speed = float(ego["heading"]), float(ego["speed"])
         length, width = float(ego["bounding_box"][0]), float(ego["bounding_box"][1])
-        route = set(ego["mission"]["route"])
+        route = tuple(ego["mission"]["route"])
         paths = [Path(p) for p in obs.get("waypoint_paths") or [] if len(p) >= 2]
         paths = [p for p in paths if p.on_route(route)]
         if not paths:

@@ -84,3 +84,40 @@ def test_labels_at_one_spot_are_stacked_apart():
         for b in [*boxes[i + 1 :], car]:
             assert a[2] <= b[0] or b[2] <= a[0] or a[3] <= b[1] or b[3] <= a[1], (a, b)
     assert boxes[3][3] < 50  # alone: right above its anchor
+
+
+@pytest.fixture(scope="module")
+def broken_junctions(episode, tmp_path_factory):
+    """The episode with its map's two junctions given invalid outlines (a bow tie, two lobes
+    touching), as real CommonRoad intersections give them."""
+    import shutil
+
+    from tests.sim.builders import INVALID_JUNCTION_SHAPES, with_junction_shape
+
+    suite, record = episode
+    copy = tmp_path_factory.mktemp("broken") / "suite"
+    shutil.copytree(suite, copy)
+    net = next(copy.glob("*/*.net.xml"))
+    with_junction_shape(net, "w", INVALID_JUNCTION_SHAPES["bow_tie"])
+    with_junction_shape(net, "e", INVALID_JUNCTION_SHAPES["two_lobes_touching"])
+    return copy, record
+
+
+@pytest.mark.parametrize("fmt", ["svg", "html", "gif", "mp4"])
+def test_every_format_draws_a_map_with_invalid_junction_outlines(broken_junctions, fmt, tmp_path):
+    suite, record = broken_junctions
+    out = tmp_path / f"e.{fmt}"
+    replay(record, suite, "--format", fmt, "--out", str(out))
+    assert out.stat().st_size > 1000
+    if fmt == "html":  # the junctions are in the page's map
+        assert '"junctions": [[' in out.read_text() or '"junctions":[[' in out.read_text()
+
+
+def test_scenarios_show_draws_a_map_with_invalid_junction_outlines(broken_junctions, tmp_path):
+    suite, _ = broken_junctions
+    out = tmp_path / "s.svg"
+    result = CliRunner().invoke(
+        app, ["scenarios", "show", str(next(suite.iterdir())), "--out", str(out)]
+    )
+    assert result.exit_code == 0, result.output
+    assert out.read_text().count("<polygon") > 2

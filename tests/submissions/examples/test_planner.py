@@ -146,6 +146,23 @@ def test_path_projection_and_goal_offset_on_an_arc():
     assert path.goal_offset(ix, iy) == pytest.approx(3.2, abs=0.3)
 
 
+def test_planner_drives_on_when_the_route_ends_before_the_road_does():
+    """A route cut from a recording ends mid-map: the paths run on past its last road (onto
+    ``f``). They still lead to the goal, so the planner follows them instead of braking."""
+    module = _policy_module()
+    obs = observation(8.0, [], goal=(40.0, 0.0))
+    for path in obs["waypoint_paths"]:
+        for w in path[45:]:
+            w["lane_id"] = w["lane_id"].replace("e_", "f_")
+    braking = (8.0 - module.B_MAX * module.DT) * module.DT  # [m] one step of hard braking
+    pose = module.Policy().act({"Agent_0": obs})["Agent_0"]
+    assert pose[0] > 0.8  # one step at 8 m/s or more
+    # A path leaving the route before its last road is still no path to follow.
+    obs["ego_vehicle_state"]["mission"]["route"] = ["e", "g"]
+    pose = module.Policy().act({"Agent_0": obs})["Agent_0"]
+    assert pose[0] == pytest.approx(braking)
+
+
 def test_planner_agent_uses_the_interface_of_its_agent_yaml():
     assert planner_interface().action_space is ActionSpace.TargetPose
     agent = PlannerAgent()

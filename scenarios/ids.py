@@ -1,0 +1,32 @@
+"""Names and seeds of a suite's rows: domain-separated hashes of (suite, suite seed, row), so a
+public scenario never equals a hidden one and the hidden seed cannot be recovered from a build."""
+
+from __future__ import annotations
+
+import hashlib
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # a type only: ids stay importable without the generators
+    from scenarios.generators import Spec
+
+
+def derive_seed(suite: str, suite_seed: int, *parts: object) -> int:
+    """A 31-bit seed (SUMO takes int32) from a domain-separated hash."""
+    text = "/".join(["driving-arena", suite, str(suite_seed), *map(str, parts)])
+    return int.from_bytes(hashlib.sha256(text.encode()).digest()[:4], "big") & 0x7FFFFFFF
+
+
+def seed_fingerprint(seed: int) -> str:
+    return hashlib.sha256(f"driving-arena/seed-fingerprint/{seed}".encode()).hexdigest()[:16]
+
+
+def scenario_id(suite: str, index: int, spec: Spec) -> str:
+    parts = [f"{suite[0]}{index:03d}"]
+    if not spec.variant.startswith(spec.family.value):
+        parts.append(spec.family.value)
+    parts.append(spec.variant)
+    if spec.volume:
+        parts.append(spec.volume)
+    if spec.agents > 1:
+        parts.append(f"{spec.agents}agents")
+    return "_".join(parts)

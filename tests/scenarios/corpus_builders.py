@@ -1,0 +1,117 @@
+"""Generated CommonRoad corpora for build tests: the shipped scenes copied and altered (no real
+data beyond the four shipped scenes). Each builder writes one file and returns its path."""
+
+from __future__ import annotations
+
+import copy
+import math
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+HIGHWAY = "USA_US101-4_1_T-1.xml"  # 2020a, 22 vehicles over 10 s
+HIGHWAY_2018 = "USA_US101-3_3_T-1.xml"  # 2018b, 12 vehicles, lane changes
+_ID_SHIFT = 900000  # obstacle ids of a second scene of one recording: unlike the first's
+
+
+def _obstacles(root: ET.Element) -> list[ET.Element]:
+    return [
+        el
+        for el in root
+        if el.tag == "dynamicObstacle"
+        or (el.tag == "obstacle" and el.findtext("role") == "dynamic")
+    ]
+
+
+def _states(obstacle: ET.Element) -> list[ET.Element]:
+    return [obstacle.find("initialState"), *obstacle.findall("trajectory/state")]
+
+
+def _write(root: ET.Element, path: Path) -> Path:
+    ET.ElementTree(root).write(path, encoding="unicode", xml_declaration=True)
+    return path
+
+
+def copy_scene(src: Path, out: Path, benchmark_id: str | None = None, **attrs: str) -> Path:
+    """``src`` as ``out`` with a new benchmark id and other root attributes (e.g. ``source``)."""
+    root = ET.parse(src).getroot()
+    if benchmark_id is not None:
+        root.set("benchmarkID", benchmark_id)
+    for key, value in attrs.items():
+        root.set(key, value)
+    return _write(root, out)
+
+
+def without_trajectories(src: Path, out: Path) -> Path:
+    """Every vehicle reduced to its initial state and a set-based occupancy (a prediction
+    benchmark): nothing recorded to replay."""
+    root = ET.parse(src).getroot()
+    root.set("benchmarkID", out.stem)
+    for obstacle in _obstacles(root):
+        trajectory = obstacle.find("trajectory")
+        obstacle.remove(trajectory)
+        occupancy = ET.SubElement(obstacle, "occupancySet")
+        ET.SubElement(ET.SubElement(occupancy, "occupancy"), "time").text = "1"
+    return _write(root, out)
+
+
+def split_recording(src: Path, folder: Path, location: str, cut: tuple[int, int]) -> list[Path]:
+    """One recording cut into two scenes ``<location>_1_T-1`` (steps 0..cut[1]) and
+    ``<location>_2_T-1`` (steps cut[0].., its clock restarting at 0 and its obstacle ids
+    renumbered), overlapping between the cuts, as CommonRoad cuts NGSIM recordings."""
+    first, last = cut
+    out = []
+    for part, (lo, hi, shift) in enumerate([(0, last, 0), (first, 10**9, first)], start=1):
+        root = ET.parse(src).getroot()
+        name = f"{location}_{part}_T-1"
+        root.set("benchmarkID", name)
+        for obstacle in _obstacles(root):
+            kept = [s for s in _states(obstacle) if lo <= int(s.findtext("time/exact")) <= hi]
+            if len(kept) < 2:
+                root.remove(obstacle)
+                continue
+            for s in kept:
+                s.find("time/exact").text = str(int(s.findtext("time/exact")) - shift)
+            initial = obstacle.find("initialState")
+            trajectory = obstacle.find("trajectory")
+            for s in list(trajectory):
+                trajectory.remove(s)
+            initial_index = list(obstacle).index(initial)
+            obstacle.remove(initial)
+            new_initial = copy.deepcopy(kept[0])
+            new_initial.tag = "initialState"
+            obstacle.insert(initial_index, new_initial)
+            trajectory.extend(kept[1:])
+            if part == 2:
+                obstacle.set("id", str(int(obstacle.get("id")) + _ID_SHIFT))
+        out.append(_write(root, folder / f"{name}.xml"))
+    return out
+
+
+def with_truck_ahead(src: Path, out: Path, vehicle: str, gap_m: float = 9.0) -> Path:
+    """``src`` plus a 20 m truck whose centre drives ``gap_m`` ahead of recorded vehicle
+    ``vehicle`` (id without the ``cr`` prefix) along its heading: their boxes overlap at every
+    step though the centres are farther apart than a car's length."""
+    root = ET.parse(src).getroot()
+    root.set("benchmarkID", out.stem)
+    original = next(o for o in _obstacles(root) if o.get("id") == vehicle)
+    truck = copy.deepcopy(original)
+    truck.set("id", str(int(vehicle) + _ID_SHIFT))
+    truck.find("type").text = "truck"
+    truck.find("shape/rectangle/length").text = "20.0"
+    truck.find("shape/rectangle/width").text = "2.6"
+    for s in _states(truck):
+        h = float(s.findtext("orientation/exact"))
+        point = s.find("position/point")
+        point.find("x").text = f"{float(point.findtext('x')) + gap_m * math.cos(h):.4f}"
+        point.find("y").text = f"{float(point.findtext('y')) + gap_m * math.sin(h):.4f}"
+    root.insert(list(root).index(original) + 1, truck)
+    return _write(root, out)
+
+
+def malformed(out: Path) -> Path:
+    out.write_text("<commonRoad commonRoadVersion='2020a'><lanelet id='1'><leftBound>")
+    return out
+
+
+def unsupported_version(src: Path, out: Path) -> Path:
+    return copy_scene(src, out, out.stem, commonRoadVersion="2017a")

@@ -1,0 +1,69 @@
+"""Which recorded vehicles are one: matched by coinciding moving poses at one constant frame
+offset, across files of one recording (other ids, other clocks), never within one file."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from arena.scenario import DataLabel
+from scenarios.replay.corpus import CorpusScene, _identities
+from scenarios.replay.naturalistic import NaturalisticScene
+from scenarios.replay.provenance import Provenance
+from scenarios.replay.tracks import TrackIndex, track_poses
+from sim.trajectories import Trajectory
+
+
+def drive(vid: str, x0: float, frames: range, speed: float = 10.0, t0: int = 0) -> Trajectory:
+    """A vehicle near y = 0 at about ``x0 + speed * t`` over the recording's ``frames``, seen
+    through a scene clock starting at recording frame ``t0``."""
+    t = np.array(frames, float) * 0.1
+    x = x0 + speed * t + np.sin(t) * 0.3  # not quite constant speed: real traffic
+    return Trajectory(
+        vid,
+        np.round(t - t0 * 0.1, 1),
+        x,
+        0.01 * np.sin(7 * t),
+        np.zeros(len(t)),
+        np.full(len(t), speed),
+        4.5,
+        1.8,
+    )
+
+
+def scene(name: str, *tracks: Trajectory) -> CorpusScene:
+    prov = Provenance(DataLabel.naturalistic, "NGSIM", "", None)
+    return CorpusScene(NaturalisticScene(name, Path(name), (), tracks, prov), Path(), (), {})
+
+
+def test_the_same_vehicle_through_two_clocks_is_one_and_a_follower_is_not():
+    leader = drive("a", 0.0, range(0, 80))
+    same_later = drive("b", 0.0, range(40, 120), t0=40)  # file 2: frames from 40, clock at 0
+    index = TrackIndex()
+    index.add("leader", track_poses(leader))
+    assert index.same_vehicle(track_poses(same_later)) == {"leader"}
+    # A follower on the same line 20 m behind passes the same points, but not at one offset
+    # of frames (its speed varies out of phase with the leader's).
+    follower = drive("c", -20.0, range(0, 80))
+    follower = Trajectory(
+        "c",
+        follower.time,
+        follower.x + 0.3 * np.sin(follower.time * 2.3),
+        follower.y,
+        follower.heading,
+        follower.speed,
+        4.5,
+        1.8,
+    )
+    assert index.same_vehicle(track_poses(follower)) == set()
+
+
+def test_identities_link_scenes_transitively_but_never_two_vehicles_of_one_file():
+    first = drive("1", 0.0, range(0, 50))
+    middle = drive("2", 0.0, range(30, 130), t0=30)
+    last = drive("3", 0.0, range(110, 200), t0=110)  # overlaps the middle one only
+    twin = drive("9", 0.0, range(0, 50))  # an identical track of the first file: simulated
+    identity = _identities([scene("A_1", first, twin), scene("A_2", middle), scene("A_3", last)])
+    assert identity[("A_3", "3")] == identity[("A_2", "2")] == identity[("A_1", "1")]
+    assert identity[("A_1", "9")] != identity[("A_1", "1")]
