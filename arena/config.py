@@ -11,8 +11,12 @@ from enum import StrEnum
 from functools import lru_cache
 from pathlib import Path
 
-from pydantic import Field
+from typing import Annotated
+
+from pydantic import BeforeValidator, Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
+
+from arena.seeds import parse_seed
 
 
 class SandboxKind(StrEnum):
@@ -28,6 +32,12 @@ class ArtifactBackend(StrEnum):
     folder = "folder"
     # The database: workers on several machines share nothing but it and the broker.
     database = "database"
+
+
+def _seed_or_none(value: object) -> object:
+    if value is None or value == "":
+        return None
+    return parse_seed(value) if isinstance(value, str | int) else value
 
 
 class Settings(BaseSettings):
@@ -47,7 +57,8 @@ class Settings(BaseSettings):
     # Scenario suites.
     development_seed: int = 20221128
     # The organisers' secret seed for the hidden suite; never committed, only set in deployment.
-    hidden_seed: int | None = None
+    # A number or a passphrase (arena/seeds.py: how to pick a strong one).
+    hidden_seed: Annotated[int | None, BeforeValidator(_seed_or_none)] = None
     hidden_suite_dir: Path | None = None
     public_suite_dir: Path | None = None
     # The naturalistic scenes (CommonRoad NGSIM); None: the shipped

@@ -261,7 +261,7 @@ def replay(
     from evaluator.replay.export import find_record, write_replay
     from evaluator.replay.model import ReplayError
 
-    console = Console(stderr=True)
+    console = make_console(stderr=True)
     try:
         record = find_record(source, scenario_id)
         out = out or Path(f"{scenario_id or record.stem}.{fmt.value}")

@@ -26,14 +26,13 @@ def build(
     ] = None,
 ) -> None:
     """Replays -> a Minari dataset (observations, actions, rewards, terminations) in OUT."""
-    from rich.console import Console
-
     from arena.config import get_settings
     from arena.suite import public_suite_dir
+    from arena.terminal import make_console
     from scenarios.dataset.build import build_dataset
     from scenarios.replay.naturalistic import NaturalisticImportError, shipped_scenes_dir
 
-    console = Console()
+    console = make_console()
     settings = get_settings()
     try:
         manifest = build_dataset(
