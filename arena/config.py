@@ -10,7 +10,6 @@ from __future__ import annotations
 from enum import StrEnum
 from functools import lru_cache
 from pathlib import Path
-
 from typing import Annotated
 
 from pydantic import BeforeValidator, Field

@@ -77,7 +77,8 @@ def test_show_reactive_scenario_simulates_to_the_step(tmp_path):
 
 def test_an_empty_seed_is_refused_with_what_a_seed_may_be(tmp_path):
     result = runner.invoke(
-        app, ["scenarios", "build", "--suite", "hidden", "--seed", " ", "--out", str(tmp_path / "h")]
+        app,
+        ["scenarios", "build", "--suite", "hidden", "--seed", " ", "--out", str(tmp_path / "h")],
     )
     assert result.exit_code != 0
     assert "number or a passphrase" in result.output
