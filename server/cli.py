@@ -41,9 +41,14 @@ class _Context:
         from arena.config import get_settings
         from server.core.artifacts import artifact_store
         from server.core.db import Database
+        from server.core.migrate import DatabaseNotReady, check_database_ready
         from server.core.queue import TaskQueue
 
         self.settings = get_settings()
+        try:
+            check_database_ready(self.settings.resolved_database_url)
+        except DatabaseNotReady as exc:
+            raise _fail(exc) from None
         self.db = Database(self.settings.resolved_database_url)
         self.queue = TaskQueue(self.settings)
         self.store = artifact_store(self.settings, self.db)
@@ -580,7 +585,7 @@ def phases_set(
         clear_dates=open_ended,
     )
     ctx = _Context()
-    phase = _run(lambda: phases.set_phase(ctx.db, name, changes))
+    phase = _run(lambda: phases.set_phase(ctx.db, ctx.settings, name, changes))
     console.print(f"phase [bold]{phase.name}[/bold] saved")
     per_scenario = phases.episodes_per_scenario(phase, ctx.settings)
     if per_scenario > 1:

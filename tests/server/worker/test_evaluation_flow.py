@@ -291,7 +291,7 @@ def test_each_episode_of_a_reactive_scenario_is_a_claim_of_its_own(db, settings,
     from server.services import phases
     from server.services.errors import NotFound
 
-    phases.set_phase(db, "final", phases.PhaseChanges(episodes_per_scenario=2))
+    phases.set_phase(db, settings, "final", phases.PhaseChanges(episodes_per_scenario=2))
     plan = start(db, settings, submission_id)
     ids = sorted({e.scenario_id for e in plan.episodes})
     assert sorted(plan.episodes) == [Episode(sid, k) for sid in ids for k in (0, 1)]
