@@ -107,6 +107,9 @@ class Settings(BaseSettings):
     # A claim's lease [s]: renewed every third of it; a dead worker's scenario is re-sent after
     # at most this plus one reaper interval.
     lease_seconds: int = 30
+    # A submission queued, training or running longer than this [s] is listed by
+    # `arena admin status` as overdue.
+    overdue_after_s: float = Field(default=3600.0, gt=0)
     scoring_profile: str = "driving-smarts-2022"
     jobs: int = Field(default=2, ge=1)
     # Prefix on every broker key, so several deployments (or test sessions) can share one Redis.

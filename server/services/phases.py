@@ -158,8 +158,7 @@ def set_phase(db: Database, settings: Settings, name: str, changes: PhaseChanges
         1 <= changes.episodes_per_scenario <= MAX_EPISODES_PER_SCENARIO
     ):
         raise InvalidInput(
-            "episodes: how often each reactive scenario runs, 1 to "
-            f"{MAX_EPISODES_PER_SCENARIO}"
+            f"episodes: how often each reactive scenario runs, 1 to {MAX_EPISODES_PER_SCENARIO}"
         )
     if changes.scoring_profile is not None:
         try:

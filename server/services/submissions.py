@@ -29,7 +29,13 @@ from server.schemas import (
     SubmissionSummary,
     TrainingProgress,
 )
-from server.services.errors import Conflict, InvalidUpload, NotFound, QuotaExceeded
+from server.services.errors import (
+    Conflict,
+    InvalidInput,
+    InvalidUpload,
+    NotFound,
+    QuotaExceeded,
+)
 from server.services.evaluation import bump_leaderboard, cancel_run, lock
 from server.services.phases import (
     DEFAULT_PHASE,
@@ -360,8 +366,18 @@ def cancel(db: Database, queue: TaskQueue, submission_id: int) -> Submission:
 
 
 def disqualify(db: Database, queue: TaskQueue, submission_id: int, reason: str) -> Submission:
+    """Take a submission off the leaderboard for good, telling its team why (``reason`` is
+    required: a bare "disqualified" leaves the team guessing)."""
+    reason = reason.strip()
+    if not reason:
+        raise InvalidInput("give the reason the team is shown (--reason)")
     with db.session() as session:
         submission = lock(session, Submission, submission_id)
+        if submission.status == S.disqualified:
+            raise Conflict(
+                f"submission {submission_id} is already disqualified "
+                f"(reason: {submission.status_reason or 'none given'})"
+            )
         submission.status = advance(submission.status, S.disqualified, SUBMISSION_MOVES)
         submission.status_reason = reason
         submission.finished_at = submission.finished_at or utcnow()

@@ -261,8 +261,12 @@ def test_rerun_is_a_new_attempt_and_the_old_score_stands_meanwhile(db, settings,
 def test_rescore_recomputes_from_stored_results(db, settings, submission_id):
     plan = start(db, settings, submission_id)
     run_everything(db, settings, plan)
-    assert admin.rescore_targets(db, submission_id) == [plan.run_id]
-    metrics = admin.rescore_run(db, DatabaseStore(db), plan.run_id, "driving-smarts-2022")
+    targets = admin.rescore_targets(db, settings, submission_id=submission_id)
+    assert [(t.run_id, t.submission_id, t.phase) for t in targets] == [
+        (plan.run_id, submission_id, "final")
+    ]
+    profile, metrics = admin.rescore_run(db, settings, DatabaseStore(db), plan.run_id)
+    assert profile == "driving-smarts-2022"
     assert metrics["completion"] == 0.0 and metrics["time"] == 100.0
     with db.session() as session:
         assert session.get(EvaluationRun, plan.run_id).score.profile == "driving-smarts-2022"
