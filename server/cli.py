@@ -200,12 +200,12 @@ def submissions_show(
     ] = False,
 ) -> None:
     """Everything about a submission, including per-scenario results (organisers only)."""
-    from server.services import submissions
+    from server.services import standing, submissions
 
     ctx = _Context()
     with ctx.db.read_session() as session:
         submission = _run(lambda: submissions.get_submission(session, submission_id))
-        view = submissions.detail(session, submission)
+        view = standing.team_view(session, ctx.settings, submission)
         runs = [
             (
                 run.attempt,
@@ -242,7 +242,9 @@ def submissions_show(
         ("phase", view.phase),
         ("status", f"{view.status} {view.status_reason}".strip()),
         ("progress", f"{view.progress.done}/{view.progress.total}"),
-        ("submitted", f"{view.created_at:%Y-%m-%d %H:%M:%S}"),
+        ("submitted", _at(view.created_at)),
+        ("timings", _timings(view)),
+        ("rank", _rank_text(view.standing)),
         ("file", f"sha256 {view.file_sha256}, {view.file_size} bytes"),
         (
             "metrics",
@@ -257,6 +259,29 @@ def submissions_show(
     for attempt, status, worker, profile, error, results in runs:
         title = f"attempt {attempt}: {status} ({profile}) {worker or ''} {error or ''}".strip()
         print_rows(console, columns, results, title=title, numeric=("episode", "steps"))
+
+
+def _timings(view) -> str:
+    took = "" if view.duration_s is None else f", took {_duration(view.duration_s)}"
+    return (
+        f"queued {_at(view.queued_at)}, started {_at(view.started_at)}, "
+        f"finished {_at(view.finished_at)}{took}"
+    )
+
+
+def _duration(seconds: float) -> str:
+    minutes, secs = divmod(round(seconds), 60)
+    hours, minutes = divmod(minutes, 60)
+    return f"{hours}h{minutes:02d}m{secs:02d}s" if hours else f"{minutes}m{secs:02d}s"
+
+
+def _rank_text(standing) -> str:
+    if standing is None or standing.rank is None:
+        return "not ranked"
+    return (
+        f"team ranks {standing.rank} of {standing.teams_ranked} "
+        f"(with submission {standing.ranked_submission_id})"
+    )
 
 
 def _interval_text(interval) -> str:

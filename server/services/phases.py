@@ -124,6 +124,26 @@ def misconfigured(session: Session, settings: Settings) -> dict[str, str]:
     return problems
 
 
+def state(phase: Phase, moment: datetime) -> str:
+    if phase.starts_at is not None and moment < phase.starts_at:
+        return "not yet open"
+    return "open" if is_open(phase, moment) else "closed"
+
+
+def what_is_hidden(phase: Phase) -> str:
+    """Said up front on a hidden phase's pages: what the team does not see, and why."""
+    if team_sees_everything(phase):
+        return ""
+    return (
+        f"The {phase.name} phase runs on a secret scenario suite: you see the four metrics, "
+        "their interval, per-family figures and failure counts. Scenario ids, per-scenario "
+        "results, replays and everything your agent printed go to the organisers only, so "
+        "that the ranking measures how an agent drives in scenarios it has never seen, not "
+        "how well it was tuned to them. Evaluate on the public scenarios (the validation "
+        "phase, or `arena evaluate` locally) to see everything."
+    )
+
+
 def team_sees_everything(phase: Phase) -> bool:
     return phase.visibility is Visibility.full
 

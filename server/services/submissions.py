@@ -267,12 +267,23 @@ def _summary_fields(submission: Submission, run: EvaluationRun | None, done: int
         "method_name": submission.method_name,
         "status": submission.status,
         "created_at": submission.created_at,
+        "queued_at": submission.queued_at,
+        "started_at": submission.started_at,
+        "finished_at": submission.finished_at,
+        "duration_s": _duration_s(submission),
         "progress": Progress(done=done, total=run.episode_count if run else 0),
         "metrics": Metrics.model_validate(score) if score is not None else None,
         "completion_interval": completion_interval(score),
         # Of the run whose progress is shown: what the progress counts.
         "episodes_per_scenario": run.episodes_per_scenario if run is not None else 1,
     }
+
+
+def _duration_s(submission: Submission) -> float | None:
+    if submission.started_at is None:
+        return None
+    end = submission.finished_at or utcnow()
+    return max(0.0, (end - submission.started_at).total_seconds())
 
 
 def completion_interval(score: Score | None) -> CompletionInterval | None:
