@@ -97,6 +97,22 @@ class Standing(Schema):
     daily_quota: int
 
 
+class Allowance(Schema):
+    """Uploads a team has left today in one phase and track."""
+
+    phase: PhaseWindow
+    track: Track
+    tries_left_today: int
+    daily_quota: int
+
+
+class TeamStatus(Schema):
+    """The caller's team and what it may still upload today, per phase and track."""
+
+    team: str
+    allowances: list[Allowance]
+
+
 class SubmissionDetail(SubmissionSummary):
     description: str
     status_reason: str

@@ -7,13 +7,17 @@ from __future__ import annotations
 from sqlalchemy.orm import Session
 
 from arena.config import Settings
-from server.models import Submission, utcnow
-from server.schemas import PhaseWindow, Standing, SubmissionDetail
+from server.models import Submission, Team, utcnow
+from server.schemas import Allowance, PhaseWindow, Standing, SubmissionDetail, TeamStatus
 from server.services import leaderboard, phases, submissions
+from server.tracks import Track
 
 
 def phase_window(session: Session, name: str) -> PhaseWindow:
-    phase = phases.get_phase(session, name)
+    return _window(phases.get_phase(session, name))
+
+
+def _window(phase) -> PhaseWindow:
     return PhaseWindow(
         name=phase.name,
         visibility=str(phase.visibility),
@@ -50,3 +54,20 @@ def team_view(session: Session, settings: Settings, submission: Submission) -> S
             "standing": standing(session, settings, submission),
         }
     )
+
+
+def team_status(session: Session, settings: Settings, team: Team) -> TeamStatus:
+    """Uploads left today in every phase and track (0 where a phase is not open)."""
+    moment = utcnow()
+    allowances = []
+    for phase in phases.list_phases(session):
+        quota = phases.daily_quota(phase, settings)
+        for track in Track:
+            used = submissions.quota_used(session, team.id, phase.name, track, moment)
+            left = max(0, quota - used) if phases.is_open(phase, moment) else 0
+            allowances.append(
+                Allowance(
+                    phase=_window(phase), track=track, tries_left_today=left, daily_quota=quota
+                )
+            )
+    return TeamStatus(team=team.name, allowances=allowances)

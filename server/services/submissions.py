@@ -282,6 +282,8 @@ def _summary_fields(submission: Submission, run: EvaluationRun | None, done: int
 def _duration_s(submission: Submission) -> float | None:
     if submission.started_at is None:
         return None
+    if submission.finished_at is None and submission.status not in ACTIVE_SUBMISSION:
+        return None  # finished before finish times were kept
     end = submission.finished_at or utcnow()
     return max(0.0, (end - submission.started_at).total_seconds())
 
