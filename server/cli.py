@@ -402,6 +402,22 @@ def rescore(
     )
 
 
+@admin_app.command("compare")
+def compare(
+    a: SubmissionId,
+    b: SubmissionId,
+    as_json: Annotated[bool, typer.Option("--json", help="The comparison as JSON.")] = False,
+) -> None:
+    """Two submissions side by side (hidden phases included): metrics with B - A and whether the
+    completion intervals overlap, per family, and the episodes that ended differently."""
+    from evaluator.compare import print_comparison
+    from server.services import admin
+
+    ctx = _Context()
+    sides = [_run(lambda sid=sid: admin.comparison_side(ctx.db, sid)) for sid in (a, b)]
+    print_comparison(console, *sides, as_json=as_json)
+
+
 @admin_app.command("rerun")
 def rerun(submission_id: SubmissionId) -> None:
     """Simulate a scored or failed submission again, as a new attempt."""

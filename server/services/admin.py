@@ -11,12 +11,14 @@ from sqlalchemy import func, select
 from arena.config import Settings
 from arena.episodes import Episode
 from arena.outcome import FINISHED, ScenarioStatus
-from evaluator.scoring import ProfileError, ScoringProfile, load_profile
+from evaluator.compare import Side, outcome_text
+from evaluator.scoring import Interval, ProfileError, ScoringProfile, load_profile
+from evaluator.scoring import Metrics as ScoringMetrics
 from server.core.artifacts import ArtifactStore
 from server.core.db import Database
 from server.core.queue import BROKER_ERRORS, TaskQueue
 from server.models import EvaluationRun, Submission, utcnow
-from server.services import evaluation, phases, scoring, training
+from server.services import evaluation, phases, scoring, submissions, training
 from server.services.errors import Conflict, InvalidInput, NotFound
 from server.services.evaluation import RunPlan, lock
 from server.status import (
@@ -227,6 +229,43 @@ def rescore_run(
         run.scoring_version = str(profile.version)
         evaluation.write_score(session, run, run_score, profile.name, str(profile.version))
         return profile.name, run_score.metrics
+
+
+def comparison_side(db: Database, submission_id: int) -> Side:
+    """A submission's standing evaluation as one side of ``arena admin compare``: its metrics,
+    interval, families and every episode's outcome (hidden phases included: organisers only)."""
+    with db.read_session() as session:
+        submission = session.get(Submission, submission_id)
+        if submission is None:
+            raise NotFound(f"no submission {submission_id}")
+        run = submissions.current_run(submission)
+        if run is None or run.score is None:
+            raise Conflict(f"submission {submission_id} is {submission.status}: no score yet")
+        score = run.score
+        outcomes = {
+            Episode(result.scenario_id, result.episode).name: outcome_text(
+                [result.reason] if result.reason else [], str(result.status)
+            )
+            for result in run.results
+        }
+        metrics = ScoringMetrics(
+            **{name: getattr(score, name) for name in ("completion", "time", "humanness", "rules")}
+        )
+        interval = submissions.completion_interval(score)
+        return Side(
+            label=f"submission {submission.id} of {submission.team.name} ({submission.phase}, "
+            f"attempt {run.attempt}, {submission.method_name})",
+            metrics=metrics,
+            interval=Interval(interval.low, interval.high) if interval else None,
+            families={
+                family: ScoringMetrics(
+                    **{k: values.get(k) for k in ("completion", "time", "humanness", "rules")}
+                )
+                for family, values in score.families.items()
+            },
+            outcomes=outcomes,
+            suite=run.manifest_sha256,
+        )
 
 
 @dataclass(frozen=True)

@@ -306,3 +306,24 @@ def test_delete_a_team_and_a_phase_says_what_goes_and_asks(arena, db, settings):
     assert "phase validation: 1 submission(s)" in arena("phases", "delete", "validation", "--yes")
     assert "validation" not in arena("phases", "list")
     assert "no team named 'alpha'" in arena("teams", "delete", "alpha", "--yes", ok=False)
+
+
+def test_compare_two_submissions_of_a_hidden_phase(arena, db, settings):
+    team, _ = make_team(db, "alpha")
+    worse = queued_submission(db, team)
+    run_everything(db, settings, start(db, settings, worse), success=False)
+    better = queued_submission(db, team)
+    run_everything(db, settings, start(db, settings, better), success=True)
+    output = arena("compare", str(worse), str(better))
+    assert f"A: submission {worse} of alpha (final, attempt 1" in output
+    lines = [line.split("\t") for line in output.splitlines()]
+    assert next(row for row in lines if row[0] == "completion")[1:] == [
+        "1.0000",
+        "0.0000",
+        "-1.0000",
+    ]
+    assert "3 episode(s) ended differently" in output
+    document = json.loads(arena("compare", str(worse), str(better), "--json"))
+    assert {row["b"] for row in document["differing_outcomes"]} == {"reached_goal"}
+    queued = queued_submission(db, team)
+    assert "no score yet" in arena("compare", str(worse), str(queued), ok=False)
