@@ -148,7 +148,9 @@ def train(
     ] = None,
 ) -> None:
     """Run train.py in the sandbox exactly as the service does (Track 2); then
-    `arena evaluate PATH --model OUT`.
+    `arena evaluate PATH --model OUT`. Its output (the tail the service keeps too) is printed
+    and saved beside the model as OUT.train.log, never inside it: the model folder is what is
+    evaluated and hashed.
 
     Exits 1 when the training failed (its named reason and log tail are printed), 2 when it
     could not run."""
@@ -185,13 +187,18 @@ def train(
     except ArenaError as exc:
         console.print(f"[bold red]error:[/] {escape(str(exc))}")
         raise typer.Exit(2) from None
+    log_file = out.parent / f"{out.name}.train.log"
+    log_file.write_text(result.log)
+    console.print(escape(result.log), highlight=False, markup=False)
     if not result.ok:
-        console.print(escape(result.log), highlight=False)
         console.print(f"[bold red]{result.failure}[/]: {escape(result.detail)}")
+        console.print(f"train.py's output: {escape(str(log_file))}")
         raise typer.Exit(1)
     console.print(
         f"trained in {result.elapsed_s:.1f} s: {result.output_bytes} bytes in {out}; "
-        f"now `arena evaluate {path} --model {out}`"
+        f"train.py's output in {log_file}; now `arena evaluate {path} --model {out}`",
+        markup=False,
+        highlight=False,
     )
 
 
