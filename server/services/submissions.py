@@ -31,6 +31,7 @@ from server.schemas import (
 )
 from server.services.errors import (
     Conflict,
+    Forbidden,
     InvalidInput,
     InvalidUpload,
     NotFound,
@@ -39,10 +40,12 @@ from server.services.errors import (
 from server.services.evaluation import bump_leaderboard, cancel_run, lock
 from server.services.phases import (
     DEFAULT_PHASE,
+    PhaseMisconfigured,
     check_open,
     check_team_may_see_output,
     daily_quota,
     get_phase,
+    phase_setup,
 )
 from server.services.training import cancel_trainings, shown_training
 from server.status import (
@@ -97,6 +100,14 @@ def check_quota(
     except NotFound as exc:
         raise InvalidUpload(f"phase: {exc.message}") from None
     check_open(definition, moment)
+    try:  # nothing could evaluate it: refused before it costs the team a try
+        phase_setup(definition, settings)
+    except PhaseMisconfigured as exc:
+        log.error("upload to a broken phase refused: %s", exc.message)
+        raise Forbidden(
+            f"phase {phase!r} cannot evaluate submissions right now (the organisers' setup of "
+            "it is broken; they are told by `arena admin status`); try again later"
+        ) from None
     limit = daily_quota(definition, settings)
     if quota_used(session, team_id, phase, track, moment) >= limit:
         raise QuotaExceeded(

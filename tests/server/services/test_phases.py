@@ -84,10 +84,21 @@ def test_the_daily_quota_is_per_phase(client, db, keep_lane_zip, set_phase):
     assert upload(client, token, keep_lane_zip, phase="validation").status_code == 201
 
 
-def test_submit_page_offers_the_open_phases(client, db, set_phase):
-    set_phase("validation", ends_at=utcnow() - timedelta(hours=1))
+def test_submit_page_offers_the_open_phases_and_says_when_the_others_open(client, db, set_phase):
+    """A closed phase stays on the form, disabled, with its date: it does not just vanish."""
+    ended = (utcnow() - timedelta(hours=1)).replace(second=0, microsecond=0)
+    set_phase("validation", ends_at=ended)
     page = client.get("/submit").text
-    assert 'value="final"' in page and 'value="validation"' not in page
+    assert '<option value="final" selected>' in page
+    assert (
+        f'<option value="validation" disabled>validation: closed {ended:%Y-%m-%d %H:%M} UTC' in page
+    )
+    later = (utcnow() + timedelta(days=3)).replace(second=0, microsecond=0)
+    set_phase("final", starts_at=later)
+    page = client.get("/submit").text
+    opens = f"final: opens {later:%Y-%m-%d %H:%M} UTC"
+    assert f'<option value="final" selected disabled>{opens}' in page
+    assert "No phase is open for submissions right now." in page
 
 
 def finished_submission(db, settings, phase: str) -> int:
@@ -106,9 +117,7 @@ def token_of(db, submission_id) -> str:
         return teams.rotate_token(session, team)
 
 
-def test_a_hidden_phase_gives_the_team_no_agent_output_and_no_scenario_detail(
-    client, db, settings
-):
+def test_a_hidden_phase_gives_the_team_no_agent_output_and_no_scenario_detail(client, db, settings):
     submission_id = finished_submission(db, settings, "final")
     headers = bearer(token_of(db, submission_id))
     logs = client.get(f"/api/v1/submissions/{submission_id}/logs", headers=headers)
@@ -214,3 +223,17 @@ def test_a_phase_broken_after_it_was_set_fails_its_runs_with_a_reason(db, settin
         assert "organisers" in submission.status_reason
         assert str(settings.hidden_suite_dir) not in submission.status_reason  # a hidden path
         assert set(phases.misconfigured(session, settings)) == {"validation", "final"}
+
+
+def test_an_upload_to_a_broken_phase_is_refused_and_costs_nothing(
+    client, db, settings, keep_lane_zip
+):
+    import shutil
+
+    _, token = make_team(db, "alpha")
+    shutil.rmtree(settings.hidden_suite_dir)
+    response = upload(client, token, keep_lane_zip)
+    assert response.status_code == 403
+    assert "cannot evaluate submissions right now" in response.json()["detail"]
+    assert str(settings.hidden_suite_dir) not in response.json()["detail"]
+    assert client.get("/api/v1/submissions", headers=bearer(token)).json() == []
