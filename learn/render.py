@@ -63,4 +63,3 @@ def _other_agents(sim, agent_id: str) -> VehicleStates:
         np.array([v.mission.vehicle.width for v in live]),
         ["" for _ in live],
     )
-
