@@ -37,6 +37,7 @@ pytestmark = pytest.mark.skipif(
     not CHROMIUM.exists(), reason="needs Debian's chromium (apt-get install chromium)"
 )
 ADMIN = "admin-token-for-the-phone-pages"
+SITE_KEYS = ("final", "validation", "running", "training", "queued", "scenario")
 FAMILIES = {
     name: {"scenarios": 9, "completion": 0.25, "time": 716.1, "humanness": 0.5, "rules": 0.125}
     for name in ("cruise", "cut_in", "left_turn_t", "merge", "overtake", "naturalistic_replay")
@@ -178,12 +179,11 @@ def open_page(browser, site, path: str, viewport: dict):  # noqa: F811 (fixture 
     return page
 
 
-@pytest.mark.parametrize(
-    "name",
-    list(
-        pages({k: 0 for k in ("final", "validation", "running", "training", "queued", "scenario")})
-    ),
-)
+# The page names, for the test ids (the paths need the served site's ids).
+PAGE_NAMES = list(pages(dict.fromkeys(SITE_KEYS, 0)))
+
+
+@pytest.mark.parametrize("name", PAGE_NAMES)
 def test_no_page_scrolls_sideways_on_a_phone(site, browser, name):  # noqa: F811
     path = pages(site)[name]
     for label, viewport in (("phone", PHONE), ("desktop", DESKTOP)):
