@@ -10,9 +10,12 @@ from __future__ import annotations
 from enum import StrEnum
 from functools import lru_cache
 from pathlib import Path
+from typing import Annotated
 
-from pydantic import Field
+from pydantic import BeforeValidator, Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
+
+from arena.seeds import parse_seed
 
 
 class SandboxKind(StrEnum):
@@ -28,6 +31,12 @@ class ArtifactBackend(StrEnum):
     folder = "folder"
     # The database: workers on several machines share nothing but it and the broker.
     database = "database"
+
+
+def _seed_or_none(value: object) -> object:
+    if value is None or value == "":
+        return None
+    return parse_seed(value) if isinstance(value, str | int) else value
 
 
 class Settings(BaseSettings):
@@ -47,7 +56,8 @@ class Settings(BaseSettings):
     # Scenario suites.
     development_seed: int = 20221128
     # The organisers' secret seed for the hidden suite; never committed, only set in deployment.
-    hidden_seed: int | None = None
+    # A number or a passphrase (arena/seeds.py: how to pick a strong one).
+    hidden_seed: Annotated[int | None, BeforeValidator(_seed_or_none)] = None
     hidden_suite_dir: Path | None = None
     public_suite_dir: Path | None = None
     # The naturalistic scenes (CommonRoad NGSIM); None: the shipped
@@ -97,6 +107,9 @@ class Settings(BaseSettings):
     # A claim's lease [s]: renewed every third of it; a dead worker's scenario is re-sent after
     # at most this plus one reaper interval.
     lease_seconds: int = 30
+    # A submission queued, training or running longer than this [s] is listed by
+    # `arena admin status` as overdue.
+    overdue_after_s: float = Field(default=3600.0, gt=0)
     scoring_profile: str = "driving-smarts-2022"
     jobs: int = Field(default=2, ge=1)
     # Prefix on every broker key, so several deployments (or test sessions) can share one Redis.

@@ -3,6 +3,10 @@
 On a terminal a listing is a Rich table that folds long cells instead of cutting them; piped or
 redirected it is one plain tab-separated line per row (header first), never wrapped at 80
 columns, so ``grep``, ``cut`` and ``awk`` work on it. ``--json`` prints the rows as a JSON list.
+
+Every Rich console of the project comes from :func:`make_console`: Rich assumes 80 columns when
+it cannot ask a terminal, and then crops panels and tables; ours lay out at :data:`PIPE_WIDTH`
+(wide enough that nothing real is cut) and never wrap a printed line.
 """
 
 from __future__ import annotations
@@ -15,13 +19,16 @@ from rich.console import Console
 from rich.table import Table
 
 Cell = str | int | float | None
+# Columns a console lays out in when it writes to a pipe or file: a panel (Panel.fit) or table is
+# as wide as its content, and its content never meets the edge.
+PIPE_WIDTH = 4096
 
 
 def make_console(*, stderr: bool = False) -> Console:
-    """A console that does not wrap its lines when it is not a terminal."""
+    """A console that neither wraps nor crops when it is not a terminal."""
     console = Console(stderr=stderr)
     if not console.is_terminal:
-        console = Console(stderr=stderr, soft_wrap=True)
+        console = Console(stderr=stderr, soft_wrap=True, width=PIPE_WIDTH)
     return console
 
 

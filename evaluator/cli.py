@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -148,7 +148,9 @@ def train(
     ] = None,
 ) -> None:
     """Run train.py in the sandbox exactly as the service does (Track 2); then
-    `arena evaluate PATH --model OUT`.
+    `arena evaluate PATH --model OUT`. Its output (the tail the service keeps too) is printed
+    and saved beside the model as OUT.train.log, never inside it: the model folder is what is
+    evaluated and hashed.
 
     Exits 1 when the training failed (its named reason and log tail are printed), 2 when it
     could not run."""
@@ -185,14 +187,44 @@ def train(
     except ArenaError as exc:
         console.print(f"[bold red]error:[/] {escape(str(exc))}")
         raise typer.Exit(2) from None
+    log_file = out.parent / f"{out.name}.train.log"
+    log_file.write_text(result.log)
+    console.print(escape(result.log), highlight=False, markup=False)
     if not result.ok:
-        console.print(escape(result.log), highlight=False)
         console.print(f"[bold red]{result.failure}[/]: {escape(result.detail)}")
+        console.print(f"train.py's output: {escape(str(log_file))}")
         raise typer.Exit(1)
     console.print(
         f"trained in {result.elapsed_s:.1f} s: {result.output_bytes} bytes in {out}; "
-        f"now `arena evaluate {path} --model {out}`"
+        f"train.py's output in {log_file}; now `arena evaluate {path} --model {out}`",
+        markup=False,
+        highlight=False,
     )
+
+
+@app.command()
+def compare(
+    a: Annotated[Path, typer.Argument(help="A results folder of `arena evaluate` (A).")],
+    b: Annotated[Path, typer.Argument(help="Another results folder (B).")],
+    as_json: Annotated[bool, typer.Option("--json", help="The comparison as JSON.")] = False,
+) -> None:
+    """Two results folders side by side: the four metrics with B - A and whether the completion
+    intervals overlap, per family, and the episodes that ended differently. (Two submissions of
+    the service: `arena admin compare ID ID`.)"""
+    from evaluator.compare import print_comparison, side_of_summary
+    from evaluator.summary import SUMMARY_FILE, read_summary
+
+    console = make_console()
+    sides = []
+    for folder in (a, b):
+        if not (folder / SUMMARY_FILE).is_file():
+            console.print(
+                f"[bold red]error:[/] {escape(str(folder))} has no {SUMMARY_FILE} (give the "
+                "folder `arena evaluate` printed as 'results in ...')"
+            )
+            raise typer.Exit(2)
+        sides.append(side_of_summary(str(folder), read_summary(folder)))
+    print_comparison(console, *sides, as_json=as_json)
 
 
 @app.command()
@@ -261,7 +293,7 @@ def replay(
     from evaluator.replay.export import find_record, write_replay
     from evaluator.replay.model import ReplayError
 
-    console = Console(stderr=True)
+    console = make_console(stderr=True)
     try:
         record = find_record(source, scenario_id)
         out = out or Path(f"{scenario_id or record.stem}.{fmt.value}")
@@ -317,7 +349,8 @@ def _episodes(summary: Summary) -> list[tuple[str, object]]:
 
 
 class _RichProgress:
-    """Episodes done/total, failures so far and ETA, on the console given."""
+    """Episodes done/total, agent failures and driving outcomes so far (a resumed run's earlier
+    episodes counted too) and ETA, on the console given."""
 
     def __init__(self, console: Console) -> None:
         from rich.progress import (
@@ -333,30 +366,37 @@ class _RichProgress:
             TextColumn("[bold]evaluating"),
             BarColumn(),
             MofNCompleteColumn(),
-            TextColumn("failures {task.fields[failures]}  uncharged {task.fields[uncharged]}"),
+            TextColumn(
+                "agent failures {task.fields[faults]}  goal not reached {task.fields[missed]}"
+                "  uncharged {task.fields[uncharged]}"
+            ),
             TimeElapsedColumn(),
             TextColumn("ETA"),
             TimeRemainingColumn(),
             console=console,
         )
         self.task = None
-        self.failures = 0
-        self.uncharged = 0
+        self.counts = {"faults": 0, "missed": 0, "uncharged": 0}
 
-    def started(self, total: int, already_done: int) -> None:
+    def started(self, total: int, done: Sequence[ScenarioOutcome]) -> None:
+        for outcome in done:
+            self._count(outcome)
         self.bar.start()
-        self.task = self.bar.add_task(
-            "evaluating", total=total, completed=already_done, failures=0, uncharged=0
-        )
+        self.task = self.bar.add_task("evaluating", total=total, completed=len(done), **self.counts)
 
-    def finished(self, outcome: ScenarioOutcome) -> None:
+    def _count(self, outcome: ScenarioOutcome) -> None:
         from arena.outcome import ScenarioStatus
 
         if outcome.status != ScenarioStatus.done:
-            self.uncharged += 1
+            self.counts["uncharged"] += 1
+        elif is_agent_fault(outcome.agents):
+            self.counts["faults"] += 1
         elif not all(agent.reached_goal for agent in outcome.agents):
-            self.failures += 1
-        self.bar.update(self.task, advance=1, failures=self.failures, uncharged=self.uncharged)
+            self.counts["missed"] += 1
+
+    def finished(self, outcome: ScenarioOutcome) -> None:
+        self._count(outcome)
+        self.bar.update(self.task, advance=1, **self.counts)
 
     def stop(self) -> None:
         self.bar.stop()
@@ -386,27 +426,27 @@ def _report(
     for entry in summary.scenarios:
         if entry.metrics is not None:
             counts[entry.family] = counts.get(entry.family, 0) + 1
-    rows = [("all", sum(counts.values()), summary.metrics)]
-    rows += [(family, counts[family], m) for family, m in summary.families.items()]
+    rows = [("all", sum(counts.values()), summary.metrics, "")]
+    rows += [(family, counts[family], m, "") for family, m in summary.families.items()]
+    columns = ("set", "scenarios", "completion", "time", "humanness", "rules")
     if per_scenario:
+        columns += ("outcome",)
         rows += [
-            (entry.id if entry.metrics else f"{entry.id} ({entry.status})", 1, entry.metrics)
-            for entry in summary.scenarios
+            (entry.id, 1, entry.metrics, _scenario_outcome(entry)) for entry in summary.scenarios
         ]
     print_rows(
         console,
-        ("set", "scenarios", "completion", "time", "humanness", "rules"),
-        [(name, n, *format_metrics(metrics)) for name, n, metrics in rows],
+        columns,
+        [
+            (name, n, *format_metrics(metrics), *((outcome or "-",) if per_scenario else ()))
+            for name, n, metrics, outcome in rows
+        ],
         title=f"{summary.suite} - scoring profile {profile.name} v{profile.version}",
         numeric=("scenarios", "completion", "time", "humanness", "rules"),
     )
     console.print("All four are errors: smaller is better.", style="dim")
     _print_interval(summary, console)
-    for name, episode in _episodes(summary):
-        failed = [a for a in episode.agents if not a.reached_goal]
-        if failed:
-            reasons = ", ".join(describe_end(a) for a in failed)
-            console.print(f"[yellow]failed[/] {name}: {reasons}")
+    _print_outcomes(summary, console)
     for scenario_id in summary.uncharged:
         entry = next(e for e in summary.scenarios if e.id == scenario_id)
         error = escape(str(entry.error))
@@ -414,6 +454,42 @@ def _report(
     if not summary.complete and not could_not_start(summary):
         console.print("[bold yellow]incomplete:[/] re-run with the same --out to finish")
     console.print(f"results in {results_dir} (agent logs in {results_dir / 'logs'})")
+
+
+def _scenario_outcome(entry) -> str:
+    """How a scenario ended, for --per-scenario: each episode's agents' reasons, or the status
+    of a scenario that was not charged."""
+    from evaluator.compare import outcome_text
+    from evaluator.runner.results import stored_episodes
+
+    texts = [
+        outcome_text([a.reason for a in episode.agents], str(episode.status))
+        for _, episode in stored_episodes(entry)
+    ]
+    return "; ".join(texts)
+
+
+def _print_outcomes(summary: Summary, console: Console) -> None:
+    """Each episode that did not reach its goal, saying whether the agent failed as a program
+    (its fault: exit code 1) or drove into a driving outcome (a collision, off road: scored,
+    not an error of the program), with the totals."""
+    reached = driving = faults = 0
+    for name, episode in _episodes(summary):
+        missed = [a for a in episode.agents if not a.reached_goal]
+        if not missed:
+            reached += episode.status == "done"
+            continue
+        reasons = ", ".join(describe_end(a) for a in missed)
+        if is_agent_fault(missed):
+            faults += 1
+            console.print(f"[red]agent failure[/] {name}: {reasons}")
+        else:
+            driving += 1
+            console.print(f"[yellow]goal not reached[/] {name}: {reasons}")
+    console.print(
+        f"episodes: {reached} reached the goal, {driving} ended by a driving outcome, "
+        f"{faults} by an agent failure, {len(summary.uncharged)} not charged"
+    )
 
 
 def _print_interval(summary: Summary, console: Console) -> None:

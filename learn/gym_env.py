@@ -18,7 +18,7 @@ from learn.session import (
     check_simulator_mode,
     open_simulator,
 )
-from learn.spaces import action_space, observation_space
+from learn.spaces import ENV_DEFAULT_ACTION_SPACE, action_space, observation_space
 from sim.interface import AgentInterface
 
 MAX_STEPS_REASON = "max_episode_steps"
@@ -71,23 +71,29 @@ class DrivingArenaEnv(gym.Env):
     scoring profile whose terms go into ``info``) and ``traffic_seed`` (``"scenario"``: the
     scenario's own seed, as evaluation uses; ``"random"``: drawn from the reset seed) and
     ``simulator`` (where the simulator runs: ``"auto"``, ``"in_process"`` or ``"subprocess"``,
-    see :func:`learn.session.open_simulator`).
+    see :func:`learn.session.open_simulator`) and ``render_mode`` (``"rgb_array"``: ``render()``
+    returns a top-down picture around the agent with its goal, :mod:`learn.render`; for
+    ``gymnasium.wrappers.RecordVideo``).
     """
 
-    metadata = {"render_modes": []}  # noqa: RUF012 - gymnasium's class attribute
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 10}  # noqa: RUF012 - gymnasium's
 
     def __init__(
         self,
         suite: str | Path = "public",
         scenario: str | Path | None = None,
         *,
-        action_space: str = "TargetPose",
+        action_space: str = ENV_DEFAULT_ACTION_SPACE,
         reward_fn: RewardFn | None = None,
         profile: str | None = None,
         traffic_seed: str = "scenario",
         simulator: SimulatorMode = "auto",
+        render_mode: str | None = None,
         **interface_options: Any,
     ) -> None:
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            raise ValueError(f"render_mode is 'rgb_array' or None, not {render_mode!r}")
+        self.render_mode = render_mode
         self.interface = AgentInterface(action_space=action_space, **interface_options)
         self.scenarios = scenario_dirs(suite, scenario, agents=(1, 1))
         self.observation_space = observation_space(self.interface)
@@ -96,7 +102,10 @@ class DrivingArenaEnv(gym.Env):
         if traffic_seed not in ("scenario", "random"):
             raise ValueError("traffic_seed is 'scenario' or 'random'")
         self.traffic_seed = traffic_seed
-        self._config = Config(self.interface, _profile_name(profile))
+        self._config = Config(
+            self.interface, _profile_name(profile), render=render_mode == "rgb_array"
+        )
+        self._picture: np.ndarray | None = None
         check_simulator_mode(simulator)
         self._simulator_mode = simulator
         self._simulator: Simulator | None = None  # opened at the first reset
@@ -106,6 +115,7 @@ class DrivingArenaEnv(gym.Env):
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
         super().reset(seed=seed)
         reply = start_episode(self, options)
+        self._picture = reply.picture
         self._agent_id, obs = next(iter(reply.observations.items()))
         self._state = EpisodeState(reply)
         info = {
@@ -119,10 +129,18 @@ class DrivingArenaEnv(gym.Env):
         if self._state is None or self._simulator is None:
             raise RuntimeError("reset() before step()")
         reply = self._simulator.step({self._agent_id: np.asarray(action).tolist()})
+        self._picture = reply.picture
         out = step_outcome(self._agent_id, reply, self._state, self.reward_fn)
         if out[2] or out[3]:
             self._state = None  # stepping on needs a reset
         return out
+
+    def render(self) -> np.ndarray | None:
+        """The top-down picture (H, W, 3) uint8 of the last reset or step, with
+        ``render_mode="rgb_array"``; None otherwise."""
+        if self.render_mode != "rgb_array" or self._picture is None:
+            return None
+        return np.asarray(self._picture).copy()
 
     def close(self) -> None:
         if self._simulator is not None:

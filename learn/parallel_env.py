@@ -16,7 +16,7 @@ from learn.gym_env import EpisodeState, start_episode, step_outcome
 from learn.reward import RewardFn, default_reward
 from learn.scenarios import scenario_dirs
 from learn.session import Config, Simulator, SimulatorMode, check_simulator_mode
-from learn.spaces import action_space, observation_space
+from learn.spaces import ENV_DEFAULT_ACTION_SPACE, action_space, observation_space
 from sim.interface import AgentInterface
 
 
@@ -35,7 +35,7 @@ class DrivingArenaParallelEnv(ParallelEnv):
         scenario: str | Path | None = None,
         *,
         agents: tuple[int, int] = (1, 3),
-        action_space: str = "TargetPose",
+        action_space: str = ENV_DEFAULT_ACTION_SPACE,
         reward_fn: RewardFn | None = None,
         profile: str | None = None,
         traffic_seed: str = "scenario",

@@ -22,6 +22,7 @@ SIMULATOR_MODES = ("auto", "in_process", "subprocess")
 class Config:
     interface: Any  # sim.interface.AgentInterface
     profile: str  # scoring profile whose terms go into info
+    render: bool = False  # a top-down picture with every reply (render_mode="rgb_array")
 
 
 @dataclass
@@ -39,6 +40,8 @@ class Reply:
     done: bool = False  # the episode is over for everyone
     scenario_id: str = ""
     step: int = 0
+    # Top-down RGB (learn.render) around the first mission agent, when the config renders.
+    picture: Any = None
 
 
 class Simulator(Protocol):
@@ -67,6 +70,7 @@ class SimulatorSession:
         self._encoders: dict[str, Any] = {}
         self._packed = packed
         self.sim = None
+        self._view = None  # learn.render.TopView of the episode, when rendering
 
     def reset(self, scenario_dir: str, seed: int | None) -> Reply:
         from arena.scenario import load_scenario
@@ -76,6 +80,10 @@ class SimulatorSession:
         folder = Path(scenario_dir)
         scenario = load_scenario(folder)
         self.sim = Simulation(scenario, folder, self.config.interface, seed)
+        if self.config.render:
+            from learn.render import TopView
+
+            self._view = TopView(self.sim)
         obs = self.sim.reset()
         reply = Reply(observations={}, scenario_id=scenario.id)
         # Agents that enter later are waited for: the episode starts with the first one live.
@@ -111,6 +119,8 @@ class SimulatorSession:
         reply.ids = {k: _ids(o) for k, o in obs.items()}
         reply.done = self.sim.done
         reply.step = self.sim.step_count
+        if self._view is not None and self.sim.vehicles:
+            reply.picture = self._view.picture(self.sim, self.sim.vehicles[0].id)
         if reply.done:  # SUMO's one slot per process is free between episodes
             self._end_episode()
         return reply
@@ -129,6 +139,7 @@ class SimulatorSession:
 
     def _end_episode(self) -> None:
         self._encoders.clear()
+        self._view = None
         if self.sim is not None:
             self.sim.close()
             self.sim = None

@@ -32,6 +32,13 @@ def _dict_space(tree: dict) -> spaces.Dict:
     )
 
 
+# The environments' default: a random sample of it drives along the lane at some speed, where
+# TargetPose (agent.yaml's default: a pose in the map frame) would sample points anywhere in a
+# map-sized box. A policy trained with it says `action_space: LaneWithContinuousSpeed` in its
+# agent.yaml.
+ENV_DEFAULT_ACTION_SPACE = ActionSpace.LaneWithContinuousSpeed.value
+
+
 def action_space(space: ActionSpace) -> spaces.Box:
     """The Box of one action space, bounded where the simulator clips (``sim/vehicle``)."""
     reach = LIMITS.max_speed * 0.5  # [m] a generous bound on one step's displacement

@@ -17,9 +17,9 @@ class SuiteName(StrEnum):
 
 
 def _console():
-    from rich.console import Console
+    from arena.terminal import make_console
 
-    return Console()
+    return make_console()
 
 
 def progress_bar():
@@ -41,12 +41,16 @@ def _cache_dir() -> Path:
     return get_settings().resolved_data_dir / "cache" / "scenarios"
 
 
-def _hidden_seed(seed: int | None, dev: bool) -> int:
+def _hidden_seed(seed: str | None, dev: bool) -> int:
     from arena.config import get_settings
+    from arena.seeds import SeedError, parse_seed
 
     settings = get_settings()
     if seed is not None:
-        return seed
+        try:
+            return parse_seed(seed)
+        except SeedError as exc:
+            raise typer.BadParameter(str(exc), param_hint="--seed") from None
     if settings.hidden_seed is not None:
         return settings.hidden_seed
     if dev:
@@ -89,7 +93,14 @@ Jobs = Annotated[int, typer.Option("--jobs", min=1, help="Processes reading scen
 def build(
     out: Annotated[Path, typer.Option(help="Folder to write the suite into (replaced).")],
     suite: Annotated[SuiteName, typer.Option(help="Which suite.")] = SuiteName.hidden,
-    seed: Annotated[int | None, typer.Option(help="Hidden suite seed (secret).")] = None,
+    seed: Annotated[
+        str | None,
+        typer.Option(
+            help="Hidden suite seed (secret): a number or a passphrase (sha256 gives the number); "
+            "pick 128 random bits, e.g. `python3 -c 'import secrets; "
+            "print(secrets.token_urlsafe(24))'`."
+        ),
+    ] = None,
     dev: Annotated[bool, typer.Option(help="Hidden suite from the development seed.")] = False,
     naturalistic_dir: Annotated[
         Path | None,

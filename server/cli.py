@@ -9,7 +9,6 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.table import Table
 
 from arena.terminal import make_console, print_rows
 from server.tracks import Track
@@ -41,9 +40,14 @@ class _Context:
         from arena.config import get_settings
         from server.core.artifacts import artifact_store
         from server.core.db import Database
+        from server.core.migrate import DatabaseNotReady, check_database_ready
         from server.core.queue import TaskQueue
 
         self.settings = get_settings()
+        try:
+            check_database_ready(self.settings.resolved_database_url)
+        except DatabaseNotReady as exc:
+            raise _fail(exc) from None
         self.db = Database(self.settings.resolved_database_url)
         self.queue = TaskQueue(self.settings)
         self.store = artifact_store(self.settings, self.db)
@@ -169,11 +173,12 @@ def submissions_list(
         return
     print_rows(
         console,
-        ("id", "team", "track", "method", "status", "progress", "completion", "time"),
+        ("id", "team", "phase", "track", "method", "status", "progress", "completion", "time"),
         [
             (
                 r.id,
                 r.team,
+                r.phase,
                 r.track,
                 r.method_name,
                 _status_text(r, rerunning),
@@ -195,12 +200,12 @@ def submissions_show(
     ] = False,
 ) -> None:
     """Everything about a submission, including per-scenario results (organisers only)."""
-    from server.services import submissions
+    from server.services import standing, submissions
 
     ctx = _Context()
     with ctx.db.read_session() as session:
         submission = _run(lambda: submissions.get_submission(session, submission_id))
-        view = submissions.detail(session, submission)
+        view = standing.team_view(session, ctx.settings, submission)
         runs = [
             (
                 run.attempt,
@@ -234,9 +239,12 @@ def submissions_show(
     m = view.metrics
     for name, value in (
         ("submission", f"{view.id} by {view.team}: {view.method_name} ({view.track})"),
+        ("phase", view.phase),
         ("status", f"{view.status} {view.status_reason}".strip()),
         ("progress", f"{view.progress.done}/{view.progress.total}"),
-        ("submitted", f"{view.created_at:%Y-%m-%d %H:%M:%S}"),
+        ("submitted", _at(view.created_at)),
+        ("timings", _timings(view)),
+        ("rank", _rank_text(view.standing)),
         ("file", f"sha256 {view.file_sha256}, {view.file_size} bytes"),
         (
             "metrics",
@@ -251,6 +259,29 @@ def submissions_show(
     for attempt, status, worker, profile, error, results in runs:
         title = f"attempt {attempt}: {status} ({profile}) {worker or ''} {error or ''}".strip()
         print_rows(console, columns, results, title=title, numeric=("episode", "steps"))
+
+
+def _timings(view) -> str:
+    took = "" if view.duration_s is None else f", took {_duration(view.duration_s)}"
+    return (
+        f"queued {_at(view.queued_at)}, started {_at(view.started_at)}, "
+        f"finished {_at(view.finished_at)}{took}"
+    )
+
+
+def _duration(seconds: float) -> str:
+    minutes, secs = divmod(round(seconds), 60)
+    hours, minutes = divmod(minutes, 60)
+    return f"{hours}h{minutes:02d}m{secs:02d}s" if hours else f"{minutes}m{secs:02d}s"
+
+
+def _rank_text(standing) -> str:
+    if standing is None or standing.rank is None:
+        return "not ranked"
+    return (
+        f"team ranks {standing.rank} of {standing.teams_ranked} "
+        f"(with submission {standing.ranked_submission_id})"
+    )
 
 
 def _interval_text(interval) -> str:
@@ -288,9 +319,9 @@ def submissions_cancel(submission_id: SubmissionId) -> None:
 @submissions_app.command("disqualify")
 def submissions_disqualify(
     submission_id: SubmissionId,
-    reason: Annotated[str, typer.Option(help="Shown to the team.")] = "",
+    reason: Annotated[str, typer.Option(help="Why: shown to the team (required).")],
 ) -> None:
-    """Take a submission off the leaderboard for good."""
+    """Take a submission off the leaderboard for good, telling its team why."""
     from server.services import submissions
 
     ctx = _Context()
@@ -300,7 +331,8 @@ def submissions_disqualify(
 
 @submissions_app.command("requeue")
 def submissions_requeue(submission_id: SubmissionId) -> None:
-    """Send an unfinished submission's work again (lost messages, dead worker)."""
+    """Send an unfinished submission's lost work again (lost messages, dead worker); an
+    evaluation a worker is still renewing is healthy and is left alone."""
     from server.services import admin
 
     ctx = _Context()
@@ -316,34 +348,74 @@ def rescore(
         int | None, typer.Argument(help="Submission id.", min=1, max=MAX_ID)
     ] = None,
     all_: Annotated[bool, typer.Option("--all", help="Every scored submission.")] = False,
-    profile: Annotated[str | None, typer.Option(help="Scoring profile name.")] = None,
+    phase: Annotated[str | None, typer.Option(help="Every scored submission of a phase.")] = None,
+    profile: Annotated[
+        str | None,
+        typer.Option(
+            help="With --phase: make this the phase's scoring profile and re-score all of it "
+            "(a leaderboard never ranks one submission by other formulas than the rest)."
+        ),
+    ] = None,
 ) -> None:
-    """Recompute scores from the stored episode records (no simulation)."""
+    """Recompute scores from the stored episode records (no simulation), each with the scoring
+    profile of its phase."""
     from rich.progress import Progress
 
     from server.services import admin
 
-    if (submission_id is None) == (not all_):
-        raise typer.BadParameter("give one submission id or --all")
+    if sum((submission_id is not None, all_, phase is not None)) != 1:
+        raise typer.BadParameter("give one of: a submission id, --phase NAME, --all")
     ctx = _Context()
-    if profile is not None:
-        _run(lambda: admin.scoring_profile(profile))
-    runs = admin.rescore_targets(ctx.db, None if all_ else submission_id)
-    if not runs:
+    targets = _run(
+        lambda: admin.rescore_targets(
+            ctx.db, ctx.settings, submission_id=submission_id, phase=phase, profile=profile
+        )
+    )
+    if not targets:
         raise _fail(ValueError("no scored evaluation to re-score"))
-    table = Table("run", "completion", "time", "humanness", "rules")
-    with Progress(console=console) as progress:
-        task = progress.add_task("re-scoring", total=len(runs))
-        for run_id in runs:
-            metrics = _run(
-                lambda run_id=run_id: admin.rescore_run(ctx.db, ctx.store, run_id, profile)
+    if profile is not None:
+        console.print(f"phase [bold]{phase}[/bold] is now scored with profile {profile}")
+    rows = []
+    with Progress(console=console, transient=True) as progress:
+        task = progress.add_task("re-scoring", total=len(targets))
+        for target in targets:
+            used, metrics = _run(
+                lambda target=target: admin.rescore_run(
+                    ctx.db, ctx.settings, ctx.store, target.run_id
+                )
             )
-            table.add_row(
-                str(run_id),
-                *(_metric(metrics[k]) for k in ("completion", "time", "humanness", "rules")),
+            rows.append(
+                (
+                    target.submission_id,
+                    target.attempt,
+                    target.phase,
+                    used,
+                    *(_metric(metrics[k]) for k in ("completion", "time", "humanness", "rules")),
+                )
             )
             progress.advance(task)
-    console.print(table)
+    print_rows(
+        console,
+        ("submission", "attempt", "phase", "profile", "completion", "time", "humanness", "rules"),
+        rows,
+        numeric=("submission", "attempt", "completion", "time", "humanness", "rules"),
+    )
+
+
+@admin_app.command("compare")
+def compare(
+    a: SubmissionId,
+    b: SubmissionId,
+    as_json: Annotated[bool, typer.Option("--json", help="The comparison as JSON.")] = False,
+) -> None:
+    """Two submissions side by side (hidden phases included): metrics with B - A and whether the
+    completion intervals overlap, per family, and the episodes that ended differently."""
+    from evaluator.compare import print_comparison
+    from server.services import admin
+
+    ctx = _Context()
+    sides = [_run(lambda sid=sid: admin.comparison_side(ctx.db, sid)) for sid in (a, b)]
+    print_comparison(console, *sides, as_json=as_json)
 
 
 @admin_app.command("rerun")
@@ -391,11 +463,12 @@ def model(
 
 @admin_app.command("status")
 def status() -> None:
-    """Queue depth, workers, submissions by status and runs whose lease expired."""
+    """Queue depth, workers, submissions by status, runs whose lease expired, submissions
+    waiting longer than ARENA_OVERDUE_AFTER_S, and phases nothing can be evaluated in."""
     from server.services import admin
 
     ctx = _Context()
-    state = admin.service_status(ctx.db, ctx.queue)
+    state = admin.service_status(ctx.db, ctx.settings, ctx.queue)
     depth = "broker unreachable" if state.queue_depth is None else state.queue_depth
     console.print(f"queue depth: {depth}")
     if state.workers is None:
@@ -403,19 +476,50 @@ def status() -> None:
     else:
         console.print(f"workers ({len(state.workers)}): {', '.join(state.workers) or 'none'}")
     console.print(f"running evaluations: {state.running_runs}")
-    table = Table("submission status", "submissions", title="submissions by status")
-    for name, count in state.submissions.items():
-        table.add_row(name, str(count))
-    console.print(table)
+    print_rows(
+        console,
+        ("submission status", "submissions"),
+        list(state.submissions.items()),
+        title="submissions by status",
+        numeric=("submissions",),
+    )
+    if state.broken_phases:
+        print_rows(
+            console,
+            ("phase", "cannot evaluate because"),
+            list(state.broken_phases.items()),
+            title="BROKEN PHASES: fix with `arena admin phases set`",
+        )
+    else:
+        console.print("broken phases: none")
     if state.stuck_runs:
-        stuck = Table("run", "submission", "worker", "lease expired at", title="stuck runs")
-        for run in state.stuck_runs:
-            stuck.add_row(
-                str(run.run_id), str(run.submission_id), run.worker, str(run.lease_expires_at)
-            )
-        console.print(stuck)
+        print_rows(
+            console,
+            ("run", "submission", "worker", "lease expired at"),
+            [
+                (run.run_id, run.submission_id, run.worker, _at(run.lease_expires_at))
+                for run in state.stuck_runs
+            ],
+            title="stuck runs",
+            numeric=("run", "submission"),
+        )
     else:
         console.print("stuck runs: none")
+    limit = ctx.settings.overdue_after_s
+    if state.overdue:
+        print_rows(
+            console,
+            ("submission", "team", "phase", "status", "since"),
+            [(o.submission_id, o.team, o.phase, o.status, _at(o.since)) for o in state.overdue],
+            title=f"overdue (in the same state for more than {limit:.0f} s)",
+            numeric=("submission",),
+        )
+    else:
+        console.print(f"overdue (same state for more than {limit:.0f} s): none")
+
+
+def _at(moment) -> str:
+    return "-" if moment is None else f"{moment:%Y-%m-%d %H:%M:%S} UTC"
 
 
 @leaderboard_app.command("export")
@@ -519,21 +623,24 @@ def phases_list() -> None:
     with ctx.db.read_session() as session:
         rows = phases.list_phases(session)
     moment = utcnow()
-    table = Table(
-        "phase", "suite", "visibility", "starts", "ends", "daily quota", "episodes", "open"
+    print_rows(
+        console,
+        ("phase", "suite", "visibility", "starts", "ends", "daily quota", "episodes", "open"),
+        [
+            (
+                phase.name,
+                phase.suite,
+                str(phase.visibility),
+                f"{phase.starts_at:%Y-%m-%d %H:%M}" if phase.starts_at else "-",
+                f"{phase.ends_at:%Y-%m-%d %H:%M}" if phase.ends_at else "-",
+                phases.daily_quota(phase, ctx.settings),
+                phases.episodes_per_scenario(phase, ctx.settings),
+                "yes" if phases.is_open(phase, moment) else "no",
+            )
+            for phase in rows
+        ],
+        numeric=("daily quota", "episodes"),
     )
-    for phase in rows:
-        table.add_row(
-            phase.name,
-            phase.suite,
-            phase.visibility,
-            f"{phase.starts_at:%Y-%m-%d %H:%M}" if phase.starts_at else "-",
-            f"{phase.ends_at:%Y-%m-%d %H:%M}" if phase.ends_at else "-",
-            str(phases.daily_quota(phase, ctx.settings)),
-            str(phases.episodes_per_scenario(phase, ctx.settings)),
-            "yes" if phases.is_open(phase, moment) else "no",
-        )
-    console.print(table)
     console.print(
         "episodes: of each reactive scenario, each with other traffic; an evaluation takes about "
         "that many times as long as with one",
@@ -580,8 +687,48 @@ def phases_set(
         clear_dates=open_ended,
     )
     ctx = _Context()
-    phase = _run(lambda: phases.set_phase(ctx.db, name, changes))
+    phase = _run(lambda: phases.set_phase(ctx.db, ctx.settings, name, changes))
     console.print(f"phase [bold]{phase.name}[/bold] saved")
     per_scenario = phases.episodes_per_scenario(phase, ctx.settings)
     if per_scenario > 1:
         console.print(phases.episodes_cost(per_scenario))
+
+
+@phases_app.command("delete")
+def phases_delete(
+    name: Annotated[str, typer.Argument(help="The phase.")],
+    yes: Annotated[bool, typer.Option("--yes", help="Do not ask for confirmation.")] = False,
+) -> None:
+    """Delete a phase and every submission made in it (uploads, results, scores, records)."""
+    from server.services import removal
+
+    ctx = _Context()
+    with ctx.db.read_session() as session:
+        preview = _run(lambda: removal.phase_removal(session, name))
+    _confirm(preview, yes)
+    done = _run(lambda: removal.remove_phase(ctx.db, ctx.store, name))
+    console.print(f"deleted {done.describe()}", markup=False, highlight=False)
+
+
+@teams_app.command("delete")
+def teams_delete(
+    name: Annotated[str, typer.Argument(help="The team.")],
+    yes: Annotated[bool, typer.Option("--yes", help="Do not ask for confirmation.")] = False,
+) -> None:
+    """Delete a team, its tokens and every submission it made (uploads, results, scores,
+    records, trained models)."""
+    from server.services import removal
+
+    ctx = _Context()
+    with ctx.db.read_session() as session:
+        preview = _run(lambda: removal.team_removal(session, name))
+    _confirm(preview, yes)
+    done = _run(lambda: removal.remove_team(ctx.db, ctx.store, name))
+    console.print(f"deleted {done.describe()}", markup=False, highlight=False)
+
+
+def _confirm(preview, yes: bool) -> None:
+    console.print(f"this deletes {preview.describe()}", markup=False, highlight=False)
+    if not yes and not typer.confirm("delete for good?", default=False):
+        console.print("nothing deleted")
+        raise typer.Exit(1)

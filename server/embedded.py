@@ -104,9 +104,7 @@ def _die_with_parent() -> None:
 
 def _start_child(command: list[str], env: dict) -> subprocess.Popen:
     # A session of its own, so stopping it reaches its children (simulators, agents) too.
-    return subprocess.Popen(
-        command, env=env, start_new_session=True, preexec_fn=_die_with_parent
-    )
+    return subprocess.Popen(command, env=env, start_new_session=True, preexec_fn=_die_with_parent)
 
 
 def _lock_data_folder(data: Path):
@@ -190,26 +188,36 @@ def _public_suite(console: Console, settings: Settings, env: dict) -> Path:
 
 
 def _hidden_suite(console: Console, settings: Settings, env: dict) -> Path:
-    from arena.suite import hidden_suite_dir
+    from arena.suite import hidden_suite_dir, load_suite
+    from scenarios.suites import seed_fingerprint
 
     folder = hidden_suite_dir(settings)
     if (folder / "manifest.json").exists():
         console.print(f"hidden suite: {folder}")
+        # Said at every start, not only the first: a demo folder must not drift into a
+        # competition unnoticed.
+        built_from = load_suite(folder).manifest.seed_fingerprint
+        if built_from == seed_fingerprint(settings.development_seed):
+            _warn_development_seed(console, settings.development_seed)
         return folder
     seed = settings.hidden_seed
     if seed is None:
         seed = settings.development_seed
-        console.print(
-            Panel.fit(
-                "No secret seed is configured (ARENA_HIDDEN_SEED): the hidden suite is built from "
-                f"the PUBLIC DEVELOPMENT SEED {seed}.\nAnyone can rebuild these scenarios. Fine "
-                "for a demo, never for a competition.",
-                title="[bold red]WARNING[/bold red]",
-                border_style="red",
-            )
-        )
+        _warn_development_seed(console, seed)
     _build_suite(console, env, "hidden", folder, seed)
     return folder
+
+
+def _warn_development_seed(console: Console, seed: int) -> None:
+    console.print(
+        Panel.fit(
+            "No secret seed is configured (ARENA_HIDDEN_SEED): the hidden suite is built from "
+            f"the PUBLIC DEVELOPMENT SEED {seed}.\nAnyone can rebuild these scenarios. Fine "
+            "for a demo, never for a competition.",
+            title="[bold red]WARNING[/bold red]",
+            border_style="red",
+        )
+    )
 
 
 def _demo_team_token(settings: Settings, name: str) -> str:

@@ -47,6 +47,11 @@ class SubmissionSummary(Schema):
     method_name: str
     status: SubmissionStatus
     created_at: datetime
+    queued_at: datetime | None = None
+    started_at: datetime | None = None  # the first evaluation (or training) began
+    finished_at: datetime | None = None
+    # [s] from start to finish, or so far while it trains or runs; None before it starts.
+    duration_s: float | None = None
     progress: Progress
     metrics: Metrics | None
     # None until scored (and for scores from before intervals existed).
@@ -68,6 +73,46 @@ class TrainingProgress(Schema):
     model_size: int  # [bytes]
 
 
+class PhaseWindow(Schema):
+    """The phase a submission was made in, as its team sees it."""
+
+    name: str
+    visibility: str  # full: everything per scenario; hidden: metrics and counts only
+    starts_at: datetime | None  # None: open from the start
+    ends_at: datetime | None  # None: never closes
+    state: str  # "open", "closed" or "not yet open"
+    # What the team does not see in this phase, and why ("" in a phase of full visibility).
+    hidden: str
+
+
+class Standing(Schema):
+    """Where the team stands in the submission's phase and track."""
+
+    # The team's place on the leaderboard (its best scored submission); None: not ranked yet.
+    rank: int | None
+    teams_ranked: int
+    ranked_submission_id: int | None  # the team's submission that holds that place
+    tied_with: list[int]  # ranks whose completion interval overlaps the team's
+    tries_left_today: int  # uploads left in this phase and track until 00:00 UTC
+    daily_quota: int
+
+
+class Allowance(Schema):
+    """Uploads a team has left today in one phase and track."""
+
+    phase: PhaseWindow
+    track: Track
+    tries_left_today: int
+    daily_quota: int
+
+
+class TeamStatus(Schema):
+    """The caller's team and what it may still upload today, per phase and track."""
+
+    team: str
+    allowances: list[Allowance]
+
+
 class SubmissionDetail(SubmissionSummary):
     description: str
     status_reason: str
@@ -80,6 +125,8 @@ class SubmissionDetail(SubmissionSummary):
     # ids of the hidden suite are never shown to participants; these counts are.
     failure_reasons: dict[str, dict[str, int]]
     training: TrainingProgress | None = None  # offline (Track 2) submissions
+    phase_window: PhaseWindow | None = None
+    standing: Standing | None = None
 
 
 class ScenarioLog(Schema):

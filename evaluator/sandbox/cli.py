@@ -5,11 +5,12 @@ from __future__ import annotations
 from typing import Annotated
 
 import typer
-from rich.console import Console
+
+from arena.terminal import make_console
 
 sandbox_app = typer.Typer(no_args_is_help=True)
-console = Console()
-errors = Console(stderr=True)
+console = make_console()
+errors = make_console(stderr=True)
 
 
 @sandbox_app.command("build-image")

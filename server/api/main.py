@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from server.api.routes import admin, health, leaderboard, metrics, scenarios, submissions
+from server.api.routes import admin, health, leaderboard, metrics, scenarios, submissions, team
 
 api_router = APIRouter(prefix="/api/v1")
-for module in (submissions, leaderboard, scenarios, health, metrics, admin):
+for module in (submissions, team, leaderboard, scenarios, health, metrics, admin):
     api_router.include_router(module.router)

@@ -4,21 +4,26 @@ trained model for audit, service status."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from datetime import datetime
+from datetime import datetime, timedelta
 
 from sqlalchemy import func, select
 
 from arena.config import Settings
-from evaluator.scoring import ProfileError, ScoringProfile, load_profile
+from arena.episodes import Episode
+from arena.outcome import FINISHED, ScenarioStatus
+from evaluator.compare import Side, outcome_text
+from evaluator.scoring import Interval, ProfileError, ScoringProfile, load_profile
+from evaluator.scoring import Metrics as ScoringMetrics
 from server.core.artifacts import ArtifactStore
 from server.core.db import Database
 from server.core.queue import BROKER_ERRORS, TaskQueue
 from server.models import EvaluationRun, Submission, utcnow
-from server.services import evaluation, scoring, training
+from server.services import evaluation, phases, scoring, submissions, training
 from server.services.errors import Conflict, InvalidInput, NotFound
 from server.services.evaluation import RunPlan, lock
 from server.status import (
     ACTIVE_RUN,
+    ACTIVE_SUBMISSION,
     ACTIVE_TRAINING,
     SUBMISSION_MOVES,
     RunStatus,
@@ -28,8 +33,12 @@ from server.status import (
 
 
 def requeue(db: Database, settings: Settings, queue: TaskQueue, submission_id: int) -> str:
-    """Send an unfinished submission's work again (after lost messages or a dead worker).
-    Safe to repeat: tasks skip what is already done."""
+    """Send an unfinished submission's lost work again (after lost messages or a dead worker).
+
+    Only work nobody is doing: an evaluation whose lease a worker keeps renewing is healthy and
+    is refused (re-sending it would only pile duplicates on the queue); of a stalled one, only
+    the episodes neither finished nor held by a live claim go out again. Safe to repeat: tasks
+    skip what is already done."""
     with db.session() as session:
         submission = lock(session, Submission, submission_id)
         plan = None
@@ -52,9 +61,7 @@ def requeue(db: Database, settings: Settings, queue: TaskQueue, submission_id: i
                     f"submission {submission_id} is {submission.status} with no evaluation in "
                     "progress; use rerun for a new attempt"
                 )
-            pending = evaluation.pending_episodes(runs[-1])
-            runs[-1].lease_expires_at = evaluation.lease_until(settings)
-            plan = RunPlan(run_id=runs[-1].id, episodes=pending, aggregate=not pending)
+            plan = _lost_work(settings, runs[-1], submission_id)
     if training_id is not None:
         queue.train(training_id)
         return "training re-sent"
@@ -63,8 +70,32 @@ def requeue(db: Database, settings: Settings, queue: TaskQueue, submission_id: i
         return "evaluation queued"
     queue.send(plan)
     if plan.episodes:
-        return f"{len(plan.episodes)} episode(s) re-sent"
+        return f"{len(plan.episodes)} episode(s) re-sent (neither finished nor held by a worker)"
     return "aggregation re-sent"
+
+
+def _lost_work(settings: Settings, run: EvaluationRun, submission_id: int) -> RunPlan:
+    moment = utcnow()
+    if run.lease_expires_at is not None and run.lease_expires_at > moment:
+        done = sum(r.status in FINISHED for r in run.results)
+        raise Conflict(
+            f"submission {submission_id}: its evaluation (run {run.id}, {run.status}, "
+            f"{done}/{run.episode_count} episodes done) is alive: a worker renewed it within "
+            f"the last {settings.lease_seconds} s, so nothing is lost and nothing is re-sent. "
+            "Work a dead worker held is re-sent by the reaper; requeue again if its lease runs "
+            "out and it still does not move"
+        )
+    held = set()
+    for result in run.results:
+        if result.status != ScenarioStatus.running:
+            continue
+        if result.worker and result.lease_expires_at and result.lease_expires_at > moment:
+            held.add(Episode(result.scenario_id, result.episode))
+        else:  # a dead worker's claim: released, so the re-sent task can take it
+            result.worker, result.lease_expires_at = "", None
+    pending = tuple(e for e in evaluation.pending_episodes(run) if e not in held)
+    run.lease_expires_at = evaluation.lease_until(settings)
+    return RunPlan(run_id=run.id, episodes=pending, aggregate=not pending and not held)
 
 
 def rerun(db: Database, settings: Settings, queue: TaskQueue, submission_id: int) -> int:
@@ -118,36 +149,123 @@ def scoring_profile(name: str) -> ScoringProfile:
         raise InvalidInput(str(exc)) from exc
 
 
-def rescore_targets(db: Database, submission_id: int | None) -> list[int]:
-    """Run ids to re-score: the given submission's scored runs, or every scored run."""
+@dataclass(frozen=True)
+class RescoreTarget:
+    run_id: int
+    submission_id: int
+    attempt: int
+    phase: str
+
+
+def rescore_targets(
+    db: Database,
+    settings: Settings,
+    *,
+    submission_id: int | None = None,
+    phase: str | None = None,
+    profile: str | None = None,
+) -> list[RescoreTarget]:
+    """Scored runs to re-score: one submission's, one phase's, or (neither given) every one.
+
+    A run is always scored by its phase's profile, so a leaderboard never ranks one submission
+    by other formulas than the rest. ``profile`` therefore changes a whole phase: it is set as
+    the phase's profile (``phase`` required) and every scored run of the phase is re-scored."""
+    if profile is not None:
+        if phase is None or submission_id is not None:
+            raise InvalidInput(
+                "--profile changes the formulas a whole phase is ranked by: give --phase NAME "
+                "(alone), and every scored submission of that phase is re-scored with it. One "
+                "submission scored by other formulas than the rest of its leaderboard would be "
+                "ranked unfairly"
+            )
+        scoring_profile(profile)
+        phases.set_phase(db, settings, phase, phases.PhaseChanges(scoring_profile=profile))
     with db.read_session() as session:
-        query = select(EvaluationRun.id).where(EvaluationRun.status == RunStatus.scored)
+        if phase is not None:
+            phases.get_phase(session, phase)
+        query = (
+            select(
+                EvaluationRun.id,
+                EvaluationRun.submission_id,
+                EvaluationRun.attempt,
+                Submission.phase,
+            )
+            .join(Submission, Submission.id == EvaluationRun.submission_id)
+            .where(EvaluationRun.status == RunStatus.scored)
+        )
         if submission_id is not None:
+            if session.get(Submission, submission_id) is None:
+                raise NotFound(f"no submission {submission_id}")
             query = query.where(EvaluationRun.submission_id == submission_id)
-        return list(session.scalars(query.order_by(EvaluationRun.id)))
+        if phase is not None:
+            query = query.where(Submission.phase == phase)
+        rows = session.execute(query.order_by(EvaluationRun.id)).all()
+        return [RescoreTarget(*row) for row in rows]
 
 
 def rescore_run(
-    db: Database, store: ArtifactStore, run_id: int, profile_name: str | None
-) -> dict[str, float]:
-    """Recompute a scored run from its stored records (no simulation)."""
+    db: Database, settings: Settings, store: ArtifactStore, run_id: int
+) -> tuple[str, dict[str, float]]:
+    """Recompute a scored run from its stored records (no simulation) with its phase's profile;
+    returns the profile's name and the metrics."""
     with db.session() as session:
         run = lock(session, EvaluationRun, run_id)
         if run.status != RunStatus.scored:
             raise Conflict(f"run {run_id} is {run.status}; only scored runs can be re-scored")
-        profile = scoring_profile(profile_name or run.scoring_profile)
+        phase = phases.get_phase(session, run.submission.phase)
+        profile = scoring_profile(phases.scoring_profile(phase, settings))
         summary = scoring.run_summary(run, profile, store)
         if summary.uncharged:
             raise Conflict(
-                f"run {run_id}: the records of {', '.join(summary.uncharged)} cannot be scored"
+                f"submission {run.submission_id} (run {run_id}): the records of "
+                f"{', '.join(summary.uncharged)} cannot be scored"
             )
         run_score = scoring.run_score(summary)
         if run_score is None:
-            raise Conflict(f"run {run_id} has no charged scenario to score")
+            raise Conflict(
+                f"submission {run.submission_id} (run {run_id}) has no charged scenario to score"
+            )
         run.scoring_profile = profile.name
         run.scoring_version = str(profile.version)
         evaluation.write_score(session, run, run_score, profile.name, str(profile.version))
-        return run_score.metrics
+        return profile.name, run_score.metrics
+
+
+def comparison_side(db: Database, submission_id: int) -> Side:
+    """A submission's standing evaluation as one side of ``arena admin compare``: its metrics,
+    interval, families and every episode's outcome (hidden phases included: organisers only)."""
+    with db.read_session() as session:
+        submission = session.get(Submission, submission_id)
+        if submission is None:
+            raise NotFound(f"no submission {submission_id}")
+        run = submissions.current_run(submission)
+        if run is None or run.score is None:
+            raise Conflict(f"submission {submission_id} is {submission.status}: no score yet")
+        score = run.score
+        outcomes = {
+            Episode(result.scenario_id, result.episode).name: outcome_text(
+                [result.reason] if result.reason else [], str(result.status)
+            )
+            for result in run.results
+        }
+        metrics = ScoringMetrics(
+            **{name: getattr(score, name) for name in ("completion", "time", "humanness", "rules")}
+        )
+        interval = submissions.completion_interval(score)
+        return Side(
+            label=f"submission {submission.id} of {submission.team.name} ({submission.phase}, "
+            f"attempt {run.attempt}, {submission.method_name})",
+            metrics=metrics,
+            interval=Interval(interval.low, interval.high) if interval else None,
+            families={
+                family: ScoringMetrics(
+                    **{k: values.get(k) for k in ("completion", "time", "humanness", "rules")}
+                )
+                for family, values in score.families.items()
+            },
+            outcomes=outcomes,
+            suite=run.manifest_sha256,
+        )
 
 
 @dataclass(frozen=True)
@@ -159,15 +277,29 @@ class StuckRun:
 
 
 @dataclass(frozen=True)
+class Overdue:
+    """A submission in one state longer than ``ARENA_OVERDUE_AFTER_S``."""
+
+    submission_id: int
+    team: str
+    phase: str
+    status: str
+    since: datetime
+
+
+@dataclass(frozen=True)
 class ServiceStatus:
     queue_depth: int | None
     workers: list[str] | None
     submissions: dict[str, int]
     running_runs: int
     stuck_runs: list[StuckRun]
+    overdue: list[Overdue]
+    # Phases nothing can be evaluated in, with why.
+    broken_phases: dict[str, str]
 
 
-def service_status(db: Database, queue: TaskQueue) -> ServiceStatus:
+def service_status(db: Database, settings: Settings, queue: TaskQueue) -> ServiceStatus:
     with db.read_session() as session:
         counts = dict(
             session.execute(
@@ -184,6 +316,8 @@ def service_status(db: Database, queue: TaskQueue) -> ServiceStatus:
             if run.lease_expires_at is not None and run.lease_expires_at < moment
         ]
         running = sum(run.status == RunStatus.running for run in active)
+        overdue = _overdue(session, moment - timedelta(seconds=settings.overdue_after_s))
+        broken = phases.misconfigured(session, settings)
     try:
         depth = queue.depth()
         workers = queue.workers()
@@ -195,4 +329,32 @@ def service_status(db: Database, queue: TaskQueue) -> ServiceStatus:
         submissions={str(status): counts.get(status, 0) for status in SubmissionStatus},
         running_runs=running,
         stuck_runs=stuck,
+        overdue=overdue,
+        broken_phases=broken,
     )
+
+
+def _overdue(session, before: datetime) -> list[Overdue]:
+    """Submissions waiting (queued since, or training / running since they started) longer
+    than they should: whatever the reason, an organiser should look."""
+    rows = session.scalars(
+        select(Submission)
+        .where(Submission.status.in_(list(ACTIVE_SUBMISSION)))
+        .order_by(Submission.id)
+    )
+    late = []
+    for submission in rows:
+        since = submission.started_at or submission.queued_at or submission.created_at
+        if submission.status in (SubmissionStatus.received, SubmissionStatus.queued):
+            since = submission.queued_at or submission.created_at
+        if since < before:
+            late.append(
+                Overdue(
+                    submission.id,
+                    submission.team.name,
+                    submission.phase,
+                    str(submission.status),
+                    since,
+                )
+            )
+    return late

@@ -7,6 +7,7 @@ Callers send the tasks these functions ask for only after the function's transac
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 from datetime import timedelta
 from pathlib import Path
@@ -45,6 +46,8 @@ from server.status import (
     advance,
 )
 from server.tracks import Track
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -86,7 +89,7 @@ def lease_until(settings: Settings):
     return now() + timedelta(seconds=settings.lease_seconds)
 
 
-def _suite(folder: Path) -> Suite:
+def _suite(folder: Path) -> Suite:  # a run's own suite, fixed when it was created
     try:
         return load_suite(folder)
     except SuiteError as exc:
@@ -101,10 +104,8 @@ def create_run(
 ) -> RunPlan:
     """A new attempt on the suite of the submission's phase; every episode of it still to run.
     ``training``: the trained output it evaluates (offline submissions)."""
-    phase = phases.get_phase(session, submission.phase)
-    suite = _suite(phases.suite_dir(phase, settings))
-    profile = load_profile(phases.scoring_profile(phase, settings))
-    per_scenario = phases.episodes_per_scenario(phase, settings)
+    setup = phases.phase_setup(phases.get_phase(session, submission.phase), settings)
+    suite, profile, per_scenario = setup.suite, setup.profile, setup.episodes_per_scenario
     episodes = episodes_of(suite.scenarios, per_scenario)
     attempt = 1 + (
         session.scalar(
@@ -138,9 +139,28 @@ def start_evaluation(session: Session, settings: Settings, submission_id: int) -
     submission = lock(session, Submission, submission_id)
     if submission.status != SubmissionStatus.queued:
         return None
+    try:
+        phases.phase_setup(phases.get_phase(session, submission.phase), settings)
+    except (phases.PhaseMisconfigured, NotFound) as exc:
+        cannot_start(submission, exc.message)
+        return None
     submission.status = advance(submission.status, SubmissionStatus.running, SUBMISSION_MOVES)
     submission.started_at = now()
     return create_run(session, settings, submission)
+
+
+def cannot_start(submission: Submission, detail: str) -> None:
+    """Fail a submission whose phase cannot start an evaluation, at once and saying so: left
+    queued, the reaper would re-send it forever. The team's reason names no suite path (a
+    hidden suite's place is the organisers'); the organisers read the detail in the log and in
+    ``arena admin status``."""
+    log.error("submission %d cannot start: %s", submission.id, detail)
+    submission.status = advance(submission.status, SubmissionStatus.failed, SUBMISSION_MOVES)
+    submission.finished_at = now()
+    submission.status_reason = (
+        f"cannot be evaluated: the organisers' setup of phase {submission.phase!r} is broken "
+        "(they are told); ask them to re-run it once fixed"
+    )
 
 
 def rerun(session: Session, settings: Settings, submission_id: int) -> RunPlan:

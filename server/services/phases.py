@@ -11,13 +11,16 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from arena.config import Settings
-from arena.suite import resolve_suite
-from evaluator.scoring import ProfileError, load_profile
+from arena.errors import SuiteError
+from arena.suite import Suite, load_suite, resolve_suite
+from evaluator.scoring import ProfileError, ScoringProfile, load_profile
 from server.core.db import Database
 from server.models import Phase, Visibility, utcnow
-from server.services.errors import Forbidden, InvalidInput, NotFound
+from server.services.errors import Conflict, Forbidden, InvalidInput, NotFound
 
 DEFAULT_PHASE = "final"
+# Episodes of each reactive scenario a phase may ask for: each multiplies an evaluation's cost.
+MAX_EPISODES_PER_SCENARIO = 64
 
 
 def get_phase(session: Session, name: str) -> Phase:
@@ -80,6 +83,67 @@ def episodes_cost(per_scenario: int) -> str:
     )
 
 
+class PhaseMisconfigured(Conflict):
+    """A phase whose suite or scoring profile cannot be used: nothing can be evaluated in it
+    until an organiser fixes it (``arena admin phases set``)."""
+
+
+@dataclass(frozen=True)
+class PhaseSetup:
+    """What an evaluation in a phase runs on, every part checked to load."""
+
+    suite: Suite
+    profile: ScoringProfile
+    episodes_per_scenario: int
+
+
+def phase_setup(phase: Phase, settings: Settings) -> PhaseSetup:
+    """The phase's suite, profile and episode count, loaded; :class:`PhaseMisconfigured` (saying
+    which part and why) if one of them cannot be used."""
+    try:
+        suite = load_suite(suite_dir(phase, settings))
+    except SuiteError as exc:
+        raise PhaseMisconfigured(f"phase {phase.name!r}: suite {phase.suite!r}: {exc}") from None
+    if not suite.scenarios:
+        raise PhaseMisconfigured(f"phase {phase.name!r}: suite {phase.suite!r} has no scenarios")
+    try:
+        profile = load_profile(scoring_profile(phase, settings))
+    except ProfileError as exc:
+        raise PhaseMisconfigured(f"phase {phase.name!r}: {exc}") from None
+    return PhaseSetup(suite, profile, episodes_per_scenario(phase, settings))
+
+
+def misconfigured(session: Session, settings: Settings) -> dict[str, str]:
+    """Every phase that cannot start an evaluation, with why (``arena admin status``)."""
+    problems = {}
+    for phase in list_phases(session):
+        try:
+            phase_setup(phase, settings)
+        except PhaseMisconfigured as exc:
+            problems[phase.name] = exc.message
+    return problems
+
+
+def state(phase: Phase, moment: datetime) -> str:
+    if phase.starts_at is not None and moment < phase.starts_at:
+        return "not yet open"
+    return "open" if is_open(phase, moment) else "closed"
+
+
+def what_is_hidden(phase: Phase) -> str:
+    """Said up front on a hidden phase's pages: what the team does not see, and why."""
+    if team_sees_everything(phase):
+        return ""
+    return (
+        f"The {phase.name} phase runs on a secret scenario suite: you see the four metrics, "
+        "their interval, per-family figures and failure counts. Scenario ids, per-scenario "
+        "results, replays and everything your agent printed go to the organisers only, so "
+        "that the ranking measures how an agent drives in scenarios it has never seen, not "
+        "how well it was tuned to them. Evaluate on the public scenarios (the validation "
+        "phase, or `arena evaluate` locally) to see everything."
+    )
+
+
 def team_sees_everything(phase: Phase) -> bool:
     return phase.visibility is Visibility.full
 
@@ -104,12 +168,18 @@ class PhaseChanges:
     clear_dates: bool = False  # open-ended again: no start and no end
 
 
-def set_phase(db: Database, name: str, changes: PhaseChanges) -> Phase:
-    """Create the phase ``name`` or change the given fields of it."""
+def set_phase(db: Database, settings: Settings, name: str, changes: PhaseChanges) -> Phase:
+    """Create the phase ``name`` or change the given fields of it. The phase as it would be after
+    the change is checked whole (suite loads, profile exists, dates ordered, counts in range)
+    before anything is saved: a phase nothing can be evaluated in is never stored."""
     if changes.daily_quota is not None and changes.daily_quota < 0:
         raise InvalidInput("daily quota: a number of submissions, 0 or more")
-    if changes.episodes_per_scenario is not None and changes.episodes_per_scenario < 1:
-        raise InvalidInput("episodes: how often each reactive scenario runs, 1 or more")
+    if changes.episodes_per_scenario is not None and not (
+        1 <= changes.episodes_per_scenario <= MAX_EPISODES_PER_SCENARIO
+    ):
+        raise InvalidInput(
+            f"episodes: how often each reactive scenario runs, 1 to {MAX_EPISODES_PER_SCENARIO}"
+        )
     if changes.scoring_profile is not None:
         try:
             load_profile(changes.scoring_profile)
@@ -139,6 +209,10 @@ def set_phase(db: Database, name: str, changes: PhaseChanges) -> Phase:
             phase.scoring_profile = changes.scoring_profile
         if phase.starts_at and phase.ends_at and phase.ends_at <= phase.starts_at:
             raise InvalidInput("the phase must end after it starts")
+        try:
+            phase_setup(phase, settings)
+        except PhaseMisconfigured as exc:
+            raise InvalidInput(f"{exc.message}; nothing saved") from None
         session.flush()
         session.expunge(phase)
         return phase

@@ -29,14 +29,23 @@ from server.schemas import (
     SubmissionSummary,
     TrainingProgress,
 )
-from server.services.errors import Conflict, InvalidUpload, NotFound, QuotaExceeded
+from server.services.errors import (
+    Conflict,
+    Forbidden,
+    InvalidInput,
+    InvalidUpload,
+    NotFound,
+    QuotaExceeded,
+)
 from server.services.evaluation import bump_leaderboard, cancel_run, lock
 from server.services.phases import (
     DEFAULT_PHASE,
+    PhaseMisconfigured,
     check_open,
     check_team_may_see_output,
     daily_quota,
     get_phase,
+    phase_setup,
 )
 from server.services.training import cancel_trainings, shown_training
 from server.status import (
@@ -91,6 +100,14 @@ def check_quota(
     except NotFound as exc:
         raise InvalidUpload(f"phase: {exc.message}") from None
     check_open(definition, moment)
+    try:  # nothing could evaluate it: refused before it costs the team a try
+        phase_setup(definition, settings)
+    except PhaseMisconfigured as exc:
+        log.error("upload to a broken phase refused: %s", exc.message)
+        raise Forbidden(
+            f"phase {phase!r} cannot evaluate submissions right now (the organisers' setup of "
+            "it is broken; they are told by `arena admin status`); try again later"
+        ) from None
     limit = daily_quota(definition, settings)
     if quota_used(session, team_id, phase, track, moment) >= limit:
         raise QuotaExceeded(
@@ -261,12 +278,25 @@ def _summary_fields(submission: Submission, run: EvaluationRun | None, done: int
         "method_name": submission.method_name,
         "status": submission.status,
         "created_at": submission.created_at,
+        "queued_at": submission.queued_at,
+        "started_at": submission.started_at,
+        "finished_at": submission.finished_at,
+        "duration_s": _duration_s(submission),
         "progress": Progress(done=done, total=run.episode_count if run else 0),
         "metrics": Metrics.model_validate(score) if score is not None else None,
         "completion_interval": completion_interval(score),
         # Of the run whose progress is shown: what the progress counts.
         "episodes_per_scenario": run.episodes_per_scenario if run is not None else 1,
     }
+
+
+def _duration_s(submission: Submission) -> float | None:
+    if submission.started_at is None:
+        return None
+    if submission.finished_at is None and submission.status not in ACTIVE_SUBMISSION:
+        return None  # finished before finish times were kept
+    end = submission.finished_at or utcnow()
+    return max(0.0, (end - submission.started_at).total_seconds())
 
 
 def completion_interval(score: Score | None) -> CompletionInterval | None:
@@ -360,8 +390,18 @@ def cancel(db: Database, queue: TaskQueue, submission_id: int) -> Submission:
 
 
 def disqualify(db: Database, queue: TaskQueue, submission_id: int, reason: str) -> Submission:
+    """Take a submission off the leaderboard for good, telling its team why (``reason`` is
+    required: a bare "disqualified" leaves the team guessing)."""
+    reason = reason.strip()
+    if not reason:
+        raise InvalidInput("give the reason the team is shown (--reason)")
     with db.session() as session:
         submission = lock(session, Submission, submission_id)
+        if submission.status == S.disqualified:
+            raise Conflict(
+                f"submission {submission_id} is already disqualified "
+                f"(reason: {submission.status_reason or 'none given'})"
+            )
         submission.status = advance(submission.status, S.disqualified, SUBMISSION_MOVES)
         submission.status_reason = reason
         submission.finished_at = submission.finished_at or utcnow()

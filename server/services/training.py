@@ -20,7 +20,8 @@ from server.core.queue import RunPlan
 from server.models import Submission, TrainingJob
 from server.models import utcnow as now
 from server.services.errors import Conflict
-from server.services.evaluation import create_run, lease_until, lock
+from server.services.evaluation import cannot_start, create_run, lease_until, lock
+from server.services.phases import PhaseMisconfigured
 from server.status import (
     ACTIVE_RUN,
     ACTIVE_TRAINING,
@@ -205,7 +206,12 @@ def record_trained(
         submission.status = advance(submission.status, S.running, SUBMISSION_MOVES)
     elif submission.status not in (S.scored, S.failed):  # cancelled or disqualified
         return None
-    return create_run(session, settings, submission, training=job)
+    try:
+        return create_run(session, settings, submission, training=job)
+    except PhaseMisconfigured as exc:
+        if submission.status == S.running:
+            cannot_start(submission, exc.message)
+        return None
 
 
 def record_failed(

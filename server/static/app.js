@@ -3,6 +3,7 @@
 const Arena = (() => {
   const API = "/api/v1";
   const TOKEN_KEY = "arena-token";
+  const ADMIN_TOKEN_KEY = "arena-admin-token";
   const $ = (id) => document.getElementById(id);
   const headers = (token) => ({ Authorization: `Bearer ${token}` });
   const FINISHED = ["scored", "failed", "cancelled", "disqualified"];
@@ -16,9 +17,27 @@ const Arena = (() => {
     }
   }
 
+  // Uploads left today in the chosen phase and track (needs the team token in this tab).
+  async function triesLeft() {
+    const token = $("token").value.trim();
+    if (!token) { $("tries-left").hidden = true; return; }
+    const response = await fetch(`${API}/team`, { headers: headers(token) });
+    if (!response.ok) { $("tries-left").hidden = true; return; }
+    const status = await response.json();
+    const allowance = status.allowances.find(
+      (a) => a.phase.name === $("phase").value && a.track === $("track").value);
+    if (!allowance) { $("tries-left").hidden = true; return; }
+    $("tries-left").textContent = `Team ${status.team}: ${allowance.tries_left_today} of ` +
+      `${allowance.daily_quota} uploads left today in ${allowance.phase.name} / ` +
+      `${allowance.track} (the count resets at 00:00 UTC).`;
+    $("tries-left").hidden = false;
+  }
+
   function submitForm() {
     const form = $("submit-form");
     $("token").value = sessionStorage.getItem(TOKEN_KEY) || "";
+    for (const id of ["phase", "track", "token"]) $(id).addEventListener("change", triesLeft);
+    triesLeft();
     form.addEventListener("submit", async (event) => {
       event.preventDefault();
       const token = $("token").value.trim();
@@ -36,7 +55,9 @@ const Arena = (() => {
           method: "POST", headers: headers(token), body: data,
         });
         if (!response.ok) {
-          $("submit-status").textContent = `Rejected (${response.status}).`;
+          // The message says what to fix; a bare status code above it says nothing more.
+          $("submit-status").textContent = response.status >= 500
+            ? "The service failed to take the upload; please try again later." : "";
           $("submit-error").textContent = await errorText(response);
           $("submit-error").hidden = false;
           return;
@@ -85,21 +106,83 @@ const Arena = (() => {
     return div.innerHTML;
   }
 
+  function duration(seconds) {
+    if (seconds === null || seconds === undefined) return "";
+    const s = Math.round(seconds);
+    if (s < 60) return `${s} s`;
+    if (s < 3600) return `${Math.floor(s / 60)} min ${s % 60} s`;
+    return `${Math.floor(s / 3600)} h ${Math.round((s % 3600) / 60)} min`;
+  }
+
+  function renderPhase(s) {
+    const p = s.phase_window;
+    $("phase-name").textContent = s.phase;
+    if (!p) return;
+    $("phase-hidden").textContent = p.hidden;
+    $("phase-hidden").hidden = !p.hidden;
+    const opens = p.starts_at ? `opened ${when(p.starts_at)} UTC` : "open from the start";
+    const closes = p.ends_at
+      ? `${p.state === "closed" ? "closed" : "closes"} ${when(p.ends_at)} UTC` : "never closes";
+    $("phase-dates").textContent = p.state === "not yet open"
+      ? `Phase ${p.name} opens ${when(p.starts_at)} UTC.`
+      : `Phase ${p.name}: ${opens}, ${closes}.`;
+    // What a hidden phase withholds is said above; the empty expander would only repeat it.
+    $("logs-box").hidden = Boolean(p.hidden);
+  }
+
+  function renderTimings(s) {
+    const parts = [`submitted ${when(s.created_at)}`];
+    if (s.queued_at) parts.push(`queued ${when(s.queued_at)}`);
+    if (s.started_at) parts.push(`started ${when(s.started_at)}`);
+    if (s.finished_at) parts.push(`finished ${when(s.finished_at)}`);
+    if (s.duration_s !== null && s.duration_s !== undefined) {
+      parts.push(`${s.finished_at ? "took" : "running for"} ${duration(s.duration_s)}`);
+    }
+    $("timings").textContent = `${parts.join(" · ")} (UTC)`;
+  }
+
+  function renderStanding(s) {
+    const st = s.standing;
+    $("standing").hidden = !st;
+    if (!st) return;
+    const board = `the ${s.phase} leaderboard (${s.track})`;
+    let text = st.rank === null ? `Your team is not ranked on ${board} yet.`
+      : `Your team holds rank ${st.rank} of ${st.teams_ranked} on ${board}` +
+        (st.ranked_submission_id === s.id ? " with this submission"
+          : ` with submission ${st.ranked_submission_id}`) +
+        (st.tied_with.length ? ` (statistically tied with rank ${st.tied_with.join(" and ")})`
+          : "") + ".";
+    text += ` ${st.tries_left_today} of ${st.daily_quota} uploads left today in this phase.`;
+    $("standing").textContent = text;
+  }
+
+  function progressText(s) {
+    // An offline submission trains before it has anything to count.
+    if (!s.progress.total) {
+      if (s.status === "training") return "training: the evaluation starts when it has trained";
+      if (s.status === "queued" || s.status === "received") return "queued: waiting for a worker";
+      return s.status === "running" ? "starting the evaluation" : "";
+    }
+    const left = s.status === "running" ? timeLeft(s.progress) : "";
+    // Several episodes per reactive scenario: the progress counts episodes, and says the cost.
+    const unit = s.episodes_per_scenario > 1
+      ? `episodes (${s.episodes_per_scenario} of each reactive scenario)` : "scenarios";
+    return `${s.progress.done} / ${s.progress.total} ${unit}${left ? ` · ${left}` : ""}`;
+  }
+
   function render(s, metrics) {
     $("submission").hidden = false;
     $("method").textContent = s.method_name;
     $("track").textContent = s.track;
+    renderPhase(s);
+    renderTimings(s);
+    renderStanding(s);
     $("status").textContent = s.status;
     $("status").className = `status-${s.status}`;
     $("status-reason").textContent = s.status_reason || "";
     const pct = s.progress.total ? (100 * s.progress.done) / s.progress.total : 0;
     $("progress-bar").style.width = `${pct}%`;
-    const left = s.status === "running" ? timeLeft(s.progress) : "";
-    // Several episodes per reactive scenario: the progress counts episodes, and says the cost.
-    const unit = s.episodes_per_scenario > 1
-      ? `episodes (${s.episodes_per_scenario} of each reactive scenario)` : "scenarios";
-    $("progress-text").textContent =
-      `${s.progress.done} / ${s.progress.total} ${unit}${left ? ` · ${left}` : ""}`;
+    $("progress-text").textContent = progressText(s);
     $("cancel").hidden = !["received", "queued", "training", "running"].includes(s.status);
     renderTraining(s.training, s.status);
     for (const metric of metrics) {
@@ -178,19 +261,21 @@ const Arena = (() => {
       `<code>${escape(e.scenario_id)}</code></span></li>`).join("");
   }
 
-  // The replay page: the team's own episode needs the token this tab holds.
-  function replayPage(url, needsToken) {
+  // The replay page: the team's own episode needs the team token this tab holds; an
+  // organiser's view of any episode the admin token (kept apart, never sent as a team's).
+  function replayPage(url, tokenKind) {
     const root = $("replay");
-    let token = sessionStorage.getItem(TOKEN_KEY);
-    const load = () => ArenaReplay.mount(root, { url, token: needsToken ? token : null });
+    const key = tokenKind === "admin" ? ADMIN_TOKEN_KEY : TOKEN_KEY;
+    let token = tokenKind ? sessionStorage.getItem(key) : null;
+    const load = () => ArenaReplay.mount(root, { url, token });
     $("token-form").addEventListener("submit", (event) => {
       event.preventDefault();
       token = $("token").value.trim();
-      sessionStorage.setItem(TOKEN_KEY, token);
+      sessionStorage.setItem(key, token);
       $("token-form").hidden = true;
       load();
     });
-    if (needsToken && !token) {
+    if (tokenKind && !token) {
       root.innerHTML = "";
       $("token-form").hidden = false;
     } else {
@@ -301,13 +386,14 @@ const Arena = (() => {
       }
       $("mine").querySelector("tbody").innerHTML = rows.map((s) => `<tr data-id="${s.id}">` +
         `<td><a href="/submissions/${s.id}">${s.id}</a></td>` +
-        `<td>${escape(s.method_name)}</td><td>${escape(s.track)}</td>` +
+        `<td class="wrap">${escape(s.method_name)}</td><td>${escape(s.phase)}</td>` +
+        `<td>${escape(s.track)}</td>` +
         `<td class="status-${s.status}">${escape(s.status)}` +
         (["queued", "running"].includes(s.status) && s.progress.total
           ? ` ${s.progress.done}/${s.progress.total}` : "") + `</td>` +
         metrics.map((m) => `<td class="num">${s.metrics ? fmt(m, s.metrics[m]) : "–"}</td>`)
           .join("") +
-        `<td>${when(s.created_at)}</td>` +
+        `<td>${when(s.created_at)}</td><td class="num">${duration(s.duration_s)}</td>` +
         `<td><a href="#" class="download" data-id="${s.id}">zip</a></td></tr>`).join("");
       for (const link of document.querySelectorAll("a.download")) {
         link.addEventListener("click", (event) => {

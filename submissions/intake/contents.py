@@ -7,7 +7,9 @@ syntax tree searched for a ``Policy`` definition, and ``agent.yaml`` is parsed w
 from __future__ import annotations
 
 import ast
+import difflib
 import zipfile
+from enum import Enum
 
 import yaml
 from pydantic import ValidationError
@@ -109,11 +111,34 @@ def load_interface(archive: zipfile.ZipFile) -> AgentInterface:
     try:
         return AgentInterface.model_validate(data)
     except ValidationError as error:
-        problems = "; ".join(
-            f"{'.'.join(str(p) for p in e['loc']) or 'agent.yaml'}: {e['msg']}"
-            for e in error.errors()
-        )
+        problems = "; ".join(_problem(e) for e in error.errors())
         raise IntakeError(AGENT_YAML, "agent-yaml", problems) from error
+
+
+def _problem(error) -> str:
+    """One validation error of agent.yaml, with the nearest allowed key or value for a typo."""
+    where = ".".join(str(p) for p in error["loc"]) or "agent.yaml"
+    if error["type"] == "extra_forbidden":
+        key = str(error["loc"][-1])
+        allowed = sorted(AgentInterface.model_fields)
+        return (
+            f"{where}: unknown option{_did_you_mean(key, allowed)} (options: {', '.join(allowed)})"
+        )
+    if error["type"] == "enum" and error["loc"]:
+        field = AgentInterface.model_fields.get(str(error["loc"][0]))
+        if (
+            field is not None
+            and isinstance(field.annotation, type)
+            and issubclass(field.annotation, Enum)
+        ):
+            allowed = [member.value for member in field.annotation]
+            return f"{where}: {error['msg']}{_did_you_mean(str(error['input']), allowed)}"
+    return f"{where}: {error['msg']}"
+
+
+def _did_you_mean(word: str, allowed: list[str]) -> str:
+    close = difflib.get_close_matches(word, allowed, n=1, cutoff=0.6)
+    return f"; did you mean {close[0]!r}?" if close else ""
 
 
 def load_explanation(archive: zipfile.ZipFile) -> str | None:

@@ -83,3 +83,22 @@ def test_the_four_actions_map_onto_lane_with_continuous_speed(example) -> None:
     assert to_action(0, 8.0) == [0.0, 0.0]
     assert to_action(1, 8.0) == [10.0, 0.0] and to_action(1, 11.5) == [12.0, 0.0]
     assert to_action(2, 8.0) == [8.0, 1.0] and to_action(3, 1.0) == [3.0, -1.0]
+
+
+def test_training_logs_episode_statistics_and_exports_without_warnings(
+    example, short_road, recwarn
+) -> None:
+    """Monitor-style statistics: every episode's reward, length and end reason in a CSV (and in
+    PPO's log); the ONNX export prints no deprecation warning."""
+    import csv
+
+    out = short_road.parent / "stats"
+    example["train"].train(96, out, suite=str(short_road), n_steps=32)
+    rows = []
+    for rank in (0, 1):
+        lines = (out / f"monitor-{rank}.monitor.csv").read_text().splitlines()
+        rows += list(csv.DictReader(lines[1:]))  # the first line is Monitor's JSON header
+    assert rows, "no episode finished"
+    assert {"r", "l", "t", "done_reason"} <= set(rows[0])
+    assert all(int(row["l"]) > 0 for row in rows)
+    assert not [w for w in recwarn if "ONNX" in str(w.message) or "removed" in str(w.message)]

@@ -2,6 +2,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import sys
 
 from typer.testing import CliRunner
 
@@ -9,6 +10,7 @@ from arena.cli import app
 from arena.suite import SHIPPED_PUBLIC_DIR
 
 runner = CliRunner()
+ARENA_COMMAND = [sys.executable, "-c", "from arena.cli import app; app()"]
 
 
 def test_build_hidden_refuses_without_a_seed(tmp_path, monkeypatch):
@@ -73,3 +75,36 @@ def test_show_reactive_scenario_simulates_to_the_step(tmp_path):
     result = runner.invoke(app, ["scenarios", "show", sid, "--step", "60", "--out", str(svg)])
     assert result.exit_code == 0, result.output
     assert "step 60" in svg.read_text()
+
+
+def test_an_empty_seed_is_refused_with_what_a_seed_may_be(tmp_path):
+    result = runner.invoke(
+        app,
+        ["scenarios", "build", "--suite", "hidden", "--seed", " ", "--out", str(tmp_path / "h")],
+    )
+    assert result.exit_code != 0
+    assert "number or a passphrase" in result.output
+
+
+def test_verify_in_a_pipe_is_not_cut_at_80_columns(tmp_path):
+    """Output piped (`arena scenarios verify ... | tee log`): each row whole on one line."""
+    import os
+    import subprocess
+
+    suite = tmp_path / "public"
+    shutil.copytree(SHIPPED_PUBLIC_DIR, suite)
+    longest = max((p.name for p in suite.iterdir() if p.is_dir()), key=len)
+    env = {k: v for k, v in os.environ.items() if k != "COLUMNS"}
+    done = subprocess.run(
+        [*ARENA_COMMAND, "scenarios", "verify", str(suite), "--only", longest],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stderr
+    row = next(
+        line for line in done.stdout.splitlines() if line.startswith("│") and longest in line
+    )
+    assert "…" not in done.stdout
+    assert row.split("│")[1].strip() == longest  # the id cell whole, on its own line

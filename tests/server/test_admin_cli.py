@@ -76,8 +76,9 @@ def test_submissions_list_show_cancel_disqualify_requeue(arena, db):
     listing = arena("submissions", "list")
     # Not a terminal: a header and one tab-separated line per submission, nothing wrapped.
     lines = listing.splitlines()
-    assert lines[0].split("\t")[:5] == ["id", "team", "track", "method", "status"]
-    assert [line.split("\t")[4] for line in lines[1:]] == ["scored", "queued"]
+    assert lines[0].split("\t")[:6] == ["id", "team", "phase", "track", "method", "status"]
+    assert [line.split("\t")[5] for line in lines[1:]] == ["scored", "queued"]
+    assert [line.split("\t")[2] for line in lines[1:]] == ["final", "final"]
     listed = json.loads(arena("submissions", "list", "--json"))
     assert [(row["id"], row["status"]) for row in listed] == [
         (scored, "scored"),
@@ -103,14 +104,15 @@ def test_rescore_rerun_and_export(arena, db, settings):
     team, _ = make_team(db, "alpha")
     sid = queued_submission(db, team)
     run_everything(db, settings, start(db, settings, sid))
-    output = arena("rescore", str(sid), "--profile", "driving-smarts-2022")
+    output = arena("rescore", str(sid))
     assert "100.0000" in output  # time of three successes at step 100
     arena("rescore", "--all")
-    assert "unknown scoring profile" in arena("rescore", "--all", "--profile", "nope", ok=False)
+    refused = arena("rescore", "--phase", "final", "--profile", "nope", ok=False)
+    assert "unknown scoring profile" in refused
     assert "attempt 2 queued" in arena("rerun", str(sid))
     # The old score stands meanwhile; the list says a re-run is going on, not just "scored".
     row = arena("submissions", "list").splitlines()[1].split("\t")
-    assert (row[4], row[5]) == ("scored (re-run running)", "0/3")
+    assert (row[5], row[6]) == ("scored (re-run running)", "0/3")
     rows = list(csv.DictReader(io.StringIO(arena("leaderboard", "export"))))
     assert [(row["team"], float(row["completion"])) for row in rows] == [("alpha", 0.0)]
 
@@ -155,8 +157,173 @@ def test_phases_set_episodes_says_the_cost_and_list_shows_it(arena, client):
     output = arena("phases", "set", "final", "--episodes", "3")
     assert "3 episodes per reactive scenario: evaluation takes about 3 times as long" in output
     listing = arena("phases", "list")
-    final = next(line for line in listing.splitlines() if "final" in line)
-    assert " 3 " in final
-    assert "1 or more" in arena("phases", "set", "final", "--episodes", "0", ok=False)
+    final = next(line for line in listing.splitlines() if line.startswith("final"))
+    assert final.split("\t")[6] == "3"
+    assert "1 to 64" in arena("phases", "set", "final", "--episodes", "0", ok=False)
     page = client.get("/submit").text
     assert "3 episodes per reactive scenario: evaluation takes about 3 times as long" in page
+
+
+def test_without_a_database_admin_says_what_to_do_and_creates_nothing(tmp_path, monkeypatch):
+    """No ARENA_DATA_DIR: a message naming `arena up` and the settings, no ./.arena/arena.db, no
+    traceback; a database file without the schema is named as not migrated."""
+    for name in ("DATA_DIR", "DATABASE_URL", "BROKER_URL"):
+        monkeypatch.delenv(f"ARENA_{name}", raising=False)
+    monkeypatch.chdir(tmp_path)
+    get_settings.cache_clear()
+    try:
+        for args in (("teams", "list"), ("status",), ("submissions", "list")):
+            result = runner.invoke(app, ["admin", *args])
+            assert result.exit_code == 1
+            assert "no database at" in result.output and "arena up" in result.output
+            assert "ARENA_DATA_DIR" in result.output and "ARENA_DATABASE_URL" in result.output
+            assert "Traceback" not in result.output and len(result.output.splitlines()) <= 3
+        assert not (tmp_path / ".arena").exists()
+        (tmp_path / ".arena").mkdir()
+        (tmp_path / ".arena" / "arena.db").write_bytes(b"")
+        result = runner.invoke(app, ["admin", "teams", "list"])
+        assert result.exit_code == 1 and "not migrated" in result.output
+        assert "arena admin db upgrade" in result.output
+    finally:
+        get_settings.cache_clear()
+
+
+def test_a_phase_on_a_missing_suite_is_refused_and_nothing_saved(arena):
+    refused = arena("phases", "set", "warmup", "--suite", "nonexistent", ok=False)
+    assert "suite 'nonexistent'" in refused and "nothing saved" in refused
+    assert "warmup" not in arena("phases", "list")
+    assert "1 to 64" in arena("phases", "set", "final", "--episodes", "1000", ok=False)
+    assert "end after it starts" in arena(
+        "phases", "set", "final", "--starts", "2030-01-02", "--ends", "2030-01-01", ok=False
+    )
+    assert "unknown scoring profile" in arena("phases", "set", "final", "--profile", "x", ok=False)
+
+
+def test_status_lists_overdue_work_and_broken_phases(arena, db, settings, monkeypatch):
+    from datetime import timedelta
+
+    from server.models import utcnow
+
+    team, _ = make_team(db, "alpha")
+    late = queued_submission(db, team)
+    with db.session() as session:
+        session.get(Submission, late).queued_at = utcnow() - timedelta(hours=2)
+    queued_submission(db, team)  # queued just now: not overdue
+    output = arena("status")
+    assert "broken phases: none" in output
+    overdue = output.split("# overdue")[1].splitlines()[2:]  # after the title and header
+    assert [line.split("\t")[:4] for line in overdue] == [[str(late), "alpha", "final", "queued"]]
+    import shutil
+
+    shutil.rmtree(settings.hidden_suite_dir)
+    output = arena("status")
+    assert "BROKEN PHASES" in output and "final\tphase 'final': suite 'hidden'" in output
+
+
+def test_disqualify_needs_a_reason_and_says_when_already_done(arena, db):
+    team, _ = make_team(db, "alpha")
+    scored = seed_scored(db, team, (0.5, 400.0, 0.1, 0.0))
+    assert "Missing option '--reason'" in arena("submissions", "disqualify", str(scored), ok=False)
+    blank = arena("submissions", "disqualify", str(scored), "--reason", " ", ok=False)
+    assert "give the reason the team is shown" in blank
+    arena("submissions", "disqualify", str(scored), "--reason", "copied code")
+    again = arena("submissions", "disqualify", str(scored), "--reason", "again", ok=False)
+    assert "already disqualified (reason: copied code)" in again
+
+
+def test_rescore_with_another_profile_is_for_a_whole_phase(arena, db, settings):
+    team, _ = make_team(db, "alpha")
+    first = queued_submission(db, team)
+    run_everything(db, settings, start(db, settings, first))
+    second = queued_submission(db, team)
+    run_everything(db, settings, start(db, settings, second))
+    refused = arena("rescore", str(first), "--profile", "driving-smarts-2022", ok=False)
+    assert "give --phase NAME" in refused and "ranked unfairly" in refused
+    assert "give --phase" in arena("rescore", "--all", "--profile", "driving-smarts-2022", ok=False)
+    output = arena("rescore", "--phase", "final", "--profile", "driving-smarts-2022")
+    assert "phase final is now scored with profile driving-smarts-2022" in output
+    rows = [line.split("\t") for line in output.splitlines() if line[:1].isdigit()]
+    # Submission ids, not run ids; every submission of the phase, by the same profile.
+    assert [(row[0], row[2], row[3]) for row in rows] == [
+        (str(first), "final", "driving-smarts-2022"),
+        (str(second), "final", "driving-smarts-2022"),
+    ]
+    assert arena("rescore", str(second)).splitlines()[-1].startswith(f"{second}\t1\tfinal\t")
+
+
+def test_requeue_leaves_a_healthy_evaluation_alone_and_resends_only_lost_work(arena, db, settings):
+    from datetime import timedelta
+
+    from sqlalchemy import select, update
+
+    from server.models import EvaluationRun, ScenarioResult, utcnow
+    from tests.server.builders import scenario_ids
+    from tests.server.worker.test_evaluation_flow import claim
+
+    team, _ = make_team(db, "alpha")
+    sid = queued_submission(db, team)
+    plan = start(db, settings, sid)
+    held, *rest = scenario_ids(plan)
+    claim(db, settings, plan.run_id, held)
+    refused = arena("submissions", "requeue", str(sid), ok=False)
+    assert "is alive" in refused and "nothing is re-sent" in refused
+    # The run's lease ran out (no worker renewed it) but one claim is still live: only the
+    # episodes nobody holds go out again.
+    with db.session() as session:
+        session.execute(
+            update(EvaluationRun).values(lease_expires_at=utcnow() - timedelta(seconds=1))
+        )
+    assert f"{len(rest)} episode(s) re-sent" in arena("submissions", "requeue", str(sid))
+    with db.session() as session:
+        claim_row = session.scalar(select(ScenarioResult).where(ScenarioResult.scenario_id == held))
+        assert claim_row.worker == "w1"  # the live claim is untouched
+        session.execute(
+            update(EvaluationRun).values(lease_expires_at=utcnow() - timedelta(seconds=1))
+        )
+        claim_row.lease_expires_at = utcnow() - timedelta(seconds=1)
+    assert f"{len(rest) + 1} episode(s) re-sent" in arena("submissions", "requeue", str(sid))
+
+
+def test_delete_a_team_and_a_phase_says_what_goes_and_asks(arena, db, settings):
+    team, _ = make_team(db, "alpha")
+    other, _ = make_team(db, "beta")
+    sid = queued_submission(db, team)
+    run_everything(db, settings, start(db, settings, sid))
+    kept = seed_scored(db, other, (0.5, 400.0, 0.1, 0.0), phase="validation")
+    result = runner.invoke(app, ["admin", "teams", "delete", "alpha"], input="n\n")
+    assert result.exit_code == 1 and "nothing deleted" in result.output
+    assert "team alpha: 1 submission(s) with their uploads, 1 evaluation(s)" in result.output
+    assert "3 episode result(s)" in result.output and "1 API token(s)" in result.output
+    assert "alpha" in arena("teams", "list")
+    result = runner.invoke(app, ["admin", "teams", "delete", "alpha"], input="y\n")
+    assert result.exit_code == 0 and "deleted team alpha" in result.output
+    assert "alpha" not in arena("teams", "list")
+    with db.session() as session:
+        assert session.get(Submission, sid) is None
+        assert session.get(Submission, kept) is not None
+    refused = arena("phases", "delete", "final", "--yes", ok=False)
+    assert "cannot be deleted" in refused
+    assert "phase validation: 1 submission(s)" in arena("phases", "delete", "validation", "--yes")
+    assert "validation" not in arena("phases", "list")
+    assert "no team named 'alpha'" in arena("teams", "delete", "alpha", "--yes", ok=False)
+
+
+def test_compare_two_submissions_of_a_hidden_phase(arena, db, settings):
+    team, _ = make_team(db, "alpha")
+    worse = queued_submission(db, team)
+    run_everything(db, settings, start(db, settings, worse), success=False)
+    better = queued_submission(db, team)
+    run_everything(db, settings, start(db, settings, better), success=True)
+    output = arena("compare", str(worse), str(better))
+    assert f"A: submission {worse} of alpha (final, attempt 1" in output
+    lines = [line.split("\t") for line in output.splitlines()]
+    assert next(row for row in lines if row[0] == "completion")[1:] == [
+        "1.0000",
+        "0.0000",
+        "-1.0000",
+    ]
+    assert "3 episode(s) ended differently" in output
+    document = json.loads(arena("compare", str(worse), str(better), "--json"))
+    assert {row["b"] for row in document["differing_outcomes"]} == {"reached_goal"}
+    queued = queued_submission(db, team)
+    assert "no score yet" in arena("compare", str(worse), str(queued), ok=False)

@@ -189,3 +189,21 @@ def test_a_zip_failing_extraction_installs_no_requirements(tmp_path: Path) -> No
     assert not (tmp_path / "sub").exists()
     deps = settings.resolved_data_dir / "deps"
     assert not deps.exists() or not any(deps.iterdir())
+
+
+@pytest.mark.parametrize(
+    ("yaml_text", "suggestion"),
+    [
+        ("action_spce: TargetPose\n", "did you mean 'action_space'?"),
+        ("observation_raduis: 50\n", "did you mean 'observation_radius'?"),
+        ("action_space: TargetPos\n", "did you mean 'TargetPose'?"),
+    ],
+)
+def test_a_typo_in_agent_yaml_gets_the_nearest_allowed_name(
+    tmp_path: Path, settings, yaml_text, suggestion
+) -> None:
+    upload = write_zip(tmp_path / "a.zip", with_policy(**{"agent.yaml": yaml_text}))
+    with pytest.raises(IntakeError) as caught:
+        prepare_submission(upload, tmp_path / "sub", settings)
+    assert suggestion in str(caught.value)
+    assert "Extra inputs are not permitted" not in str(caught.value)

@@ -46,9 +46,7 @@ def replay(
 ) -> dict:
     """Any episode of any submission, hidden phases included."""
     submission = submissions.get_submission(session, submission_id)
-    return replays.submission_replay(
-        session, settings, db, submission, scenario_id, organiser=True
-    )
+    return replays.submission_replay(session, settings, db, submission, scenario_id, organiser=True)
 
 
 @router.post("/submissions/{submission_id}/disqualify", response_model=SubmissionSummary)
@@ -56,8 +54,9 @@ def disqualify(
     submission_id: SubmissionId,
     db: DatabaseDep,
     queue: QueueDep,
-    reason: Annotated[str, Body(embed=True)] = "",
+    reason: Annotated[str, Body(embed=True, min_length=1, max_length=2000)],
 ) -> SubmissionSummary:
+    """Take a submission off the leaderboard for good; ``reason`` is shown to its team."""
     submissions.disqualify(db, queue, submission_id, reason)
     with db.read_session() as session:
         return submissions.summary(session, submissions.get_submission(session, submission_id))
@@ -107,10 +106,17 @@ def trained_model(submission_id: SubmissionId, db: DatabaseDep, settings: Settin
 
 @router.post("/submissions/{submission_id}/rescore")
 async def rescore(
-    submission_id: SubmissionId, db: DatabaseDep, profile: str | None = None
+    submission_id: SubmissionId, db: DatabaseDep, settings: SettingsDep
 ) -> dict[str, dict[str, float]]:
-    runs = admin.rescore_targets(db, submission_id)
-    return {
-        str(run_id): await run_in_threadpool(admin.rescore_run, db, run_id, profile)
-        for run_id in runs
-    }
+    """Re-score the submission's scored attempts with its phase's profile; keyed by attempt.
+    (A phase's profile changes with `arena admin rescore --phase NAME --profile P`, which
+    re-scores the whole phase: one submission is never ranked by other formulas.)"""
+    from server.core.artifacts import artifact_store
+
+    store = artifact_store(settings, db)
+    targets = admin.rescore_targets(db, settings, submission_id=submission_id)
+    scored = {}
+    for target in targets:
+        _, metrics = await run_in_threadpool(admin.rescore_run, db, settings, store, target.run_id)
+        scored[str(target.attempt)] = metrics
+    return scored

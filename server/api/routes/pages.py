@@ -20,6 +20,7 @@ from server.api.deps import (
     SessionDep,
     SettingsDep,
 )
+from server.models import utcnow
 from server.services import phases, scenarios
 from server.services.errors import NotFound
 from server.services.leaderboard import METRICS
@@ -58,15 +59,23 @@ def leaderboard_page(
 
 @router.get("/submit", response_class=HTMLResponse)
 def submit_page(request: Request, session: SessionDep, settings: SettingsDep) -> HTMLResponse:
-    open_phases = phases.open_phases(session)
-    episodes = {p.name: phases.episodes_per_scenario(p, settings) for p in open_phases}
+    # Every phase, a closed or future one too (disabled, saying when): a phase that just
+    # vanished from the form would leave a team guessing.
+    moment = utcnow()
+    known = phases.list_phases(session)
+    episodes = {p.name: phases.episodes_per_scenario(p, settings) for p in known}
+    default = DEFAULT_PHASE
+    if not any(p.name == default and phases.is_open(p, moment) for p in known):
+        default = next((p.name for p in known if phases.is_open(p, moment)), DEFAULT_PHASE)
     return templates.TemplateResponse(
         request,
         "submit.html",
         {
             "tracks": list(Track),
-            "phases": open_phases,
-            "default_phase": DEFAULT_PHASE,
+            "phases": known,
+            "states": {p.name: phases.state(p, moment) for p in known},
+            "any_open": any(phases.is_open(p, moment) for p in known),
+            "default_phase": default,
             # Said before the upload: several episodes multiply the time to a score.
             "costs": {name: phases.episodes_cost(n) for name, n in episodes.items() if n > 1},
         },
@@ -102,9 +111,32 @@ def submission_replay_page(
             "scenario_id": scenario_id,
             "what": f"Submission {submission_id}: your agent's episode.",
             "api_url": f"/api/v1/submissions/{submission_id}/replays/{scenario_id}",
-            "needs_token": True,
+            "token": "team",
             "back_url": f"/submissions/{submission_id}",
             "back_label": f"submission {submission_id}",
+        },
+    )
+
+
+@router.get("/admin/submissions/{submission_id}/replays/{scenario_id}", response_class=HTMLResponse)
+def admin_replay_page(
+    request: Request,
+    submission_id: Annotated[int, PathParam(ge=1, le=MAX_ROW_ID)],
+    scenario_id: ScenarioId,
+) -> HTMLResponse:
+    """Any episode of any submission, hidden phases included, for an organiser: the data comes
+    from the admin API with the admin token typed into this tab (scenario ids are listed by
+    `arena admin submissions show ID`)."""
+    return templates.TemplateResponse(
+        request,
+        "replay.html",
+        {
+            "scenario_id": scenario_id,
+            "what": f"Submission {submission_id}, seen as an organiser (hidden phases included).",
+            "api_url": f"/api/v1/admin/submissions/{submission_id}/replays/{scenario_id}",
+            "token": "admin",
+            "back_url": "/",
+            "back_label": "leaderboard",
         },
     )
 
@@ -128,7 +160,7 @@ def public_replay_page(request: Request, scenario_id: ScenarioId) -> HTMLRespons
             "what": "The expert's drive through this public scenario (the reference planner, or "
             "the recorded driver of a replay).",
             "api_url": f"/api/v1/scenarios/public/{scenario_id}/replay",
-            "needs_token": False,
+            "token": None,
             "back_url": "/scenarios",
             "back_label": "public scenarios",
         },

@@ -17,7 +17,7 @@ from server.api.deps import (
 )
 from server.api.upload import receive_form
 from server.schemas import SubmissionDetail, SubmissionLogs, SubmissionSummary
-from server.services import downloads, replays, submissions
+from server.services import downloads, replays, standing, submissions
 from server.services.errors import InvalidUpload
 from server.services.phases import DEFAULT_PHASE
 from server.tracks import Track
@@ -59,7 +59,8 @@ async def create_submission(
     finally:
         form.file_path.unlink(missing_ok=True)
     with db.read_session() as session:
-        return submissions.detail(session, submissions.get_submission(session, created.id))
+        submission = submissions.get_submission(session, created.id)
+        return standing.team_view(session, settings, submission)
 
 
 @router.get("", response_model=list[SubmissionSummary])
@@ -69,8 +70,12 @@ def list_submissions(session: SessionDep, team: CurrentTeam) -> list[SubmissionS
 
 
 @router.get("/{submission_id}", response_model=SubmissionDetail)
-def get_submission(session: SessionDep, submission: OwnedSubmission) -> SubmissionDetail:
-    return submissions.detail(session, submission)
+def get_submission(
+    session: SessionDep, settings: SettingsDep, submission: OwnedSubmission
+) -> SubmissionDetail:
+    """Status, timings, scores, the phase (dates, what it hides) and where the team stands
+    (rank, uploads left today)."""
+    return standing.team_view(session, settings, submission)
 
 
 @router.get("/{submission_id}/logs", response_model=SubmissionLogs, responses=errors(403))
@@ -98,11 +103,16 @@ def get_replay(
     response_class=Response,
     responses={200: {"content": {"application/zip": {}}}},
 )
-def download_submission(session: SessionDep, submission: OwnedSubmission) -> Response:
+def download_submission(
+    session: SessionDep, settings: SettingsDep, db: DatabaseDep, submission: OwnedSubmission
+) -> Response:
     """A zip of what the team may see: ``submission.json`` (status, scores, failure counts),
+    the zip the team uploaded (``upload/agent.zip``), and in a phase of full visibility
     ``logs.json`` and ``logs/<family>-<k>.txt`` per finished scenario."""
+    from server.core.artifacts import artifact_store
+
     return Response(
-        downloads.submission_zip(session, submission),
+        downloads.submission_zip(session, settings, artifact_store(settings, db), submission),
         media_type="application/zip",
         headers={
             "Content-Disposition": f'attachment; filename="{downloads.download_name(submission)}"'

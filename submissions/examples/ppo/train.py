@@ -7,13 +7,15 @@ Stable-Baselines3 PPO on CPU, two environments (each its own simulator process),
 from the public set's single-agent scenarios; ``--seed`` makes a run reproducible. Writes
 ``policy.onnx`` (inputs ``image`` (n, 3, 64, 64) uint8 and ``vector`` (n, 4) float32, output the
 four action logits) into ``--out``; ``policy.py`` runs it with onnxruntime. Not used in the
-sandbox (it needs this project, torch and stable-baselines3).
+sandbox (it needs this project, torch and stable-baselines3). Episode statistics (reward,
+length, how it ended) go to ``--out``/``monitor-<rank>.monitor.csv`` and PPO's log.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 from pathlib import Path
 
 import gymnasium as gym
@@ -59,11 +61,19 @@ class BaselineInputs(gym.Wrapper):
         return features(obs), reward, terminated, truncated, info
 
 
-def make_env(suite: str, rank: int, seed: int):
+def make_env(suite: str, rank: int, seed: int, log_dir: Path | None = None):
+    """One training environment. Wrapped in Stable-Baselines3's ``Monitor``: PPO's log then
+    shows the mean episode reward and length (``rollout/ep_rew_mean``, ``ep_len_mean``), and
+    with ``log_dir`` every episode's reward, length and time go to ``monitor-<rank>.csv``."""
+
     def make():
+        from stable_baselines3.common.monitor import Monitor
+
         from learn.gym_env import DrivingArenaEnv
 
         env = BaselineInputs(DrivingArenaEnv(suite, traffic_seed="random", **AGENT_OPTIONS))
+        filename = None if log_dir is None else str(log_dir / f"monitor-{rank}")
+        env = Monitor(env, filename, info_keywords=("done_reason",))
         env.reset(seed=seed + rank)
         return env
 
@@ -95,15 +105,25 @@ def export_onnx(model, path: Path) -> None:
 
 
 def _export(torch, module, image, vector, path: Path) -> None:
-    torch.onnx.export(
-        module,
-        (image, vector),
-        str(path),
-        input_names=["image", "vector"],
-        output_names=["logits"],
-        dynamic_axes={"image": {0: "n"}, "vector": {0: "n"}, "logits": {0: "n"}},
-        dynamo=False,  # the TorchScript exporter needs no extra package
-    )
+    # The TorchScript exporter needs no extra package (the torch.export one needs onnxscript)
+    # and gives the graph policy.py runs; torch 2.9+ warns at every call that it is no longer
+    # the default, which tells the user nothing to act on: those two warnings only are muted.
+    with warnings.catch_warnings():
+        warnings.filterwarnings(
+            "ignore", message=".*legacy TorchScript-based ONNX export", category=DeprecationWarning
+        )
+        warnings.filterwarnings(
+            "ignore", message="The feature will be removed", category=DeprecationWarning
+        )
+        torch.onnx.export(
+            module,
+            (image, vector),
+            str(path),
+            input_names=["image", "vector"],
+            output_names=["logits"],
+            dynamic_axes={"image": {0: "n"}, "vector": {0: "n"}, "logits": {0: "n"}},
+            dynamo=False,
+        )
 
 
 def train(
@@ -147,7 +167,8 @@ def train(
     torch.set_num_threads(1)  # the simulators need the other core
     # DummyVecEnv is enough: the first env simulates in this process, the second in a child of
     # its own (libsumo holds one simulation per process; learn.session.open_simulator).
-    envs = DummyVecEnv([make_env(suite, rank, seed) for rank in range(2)])
+    out.mkdir(parents=True, exist_ok=True)
+    envs = DummyVecEnv([make_env(suite, rank, seed, out) for rank in range(2)])
     model = PPO(
         "MultiInputPolicy",
         envs,
@@ -164,7 +185,6 @@ def train(
         model.learn(total_timesteps=timesteps, callback=WallBudget())
     finally:
         envs.close()
-    out.mkdir(parents=True, exist_ok=True)
     model.save(out / "ppo_model.zip")  # for re-exporting or training on; not in the submission
     path = out / "policy.onnx"
     export_onnx(model, path)

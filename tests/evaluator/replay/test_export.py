@@ -18,16 +18,53 @@ def replay(record, suite, *args):
     return result
 
 
-def test_gif_has_one_frame_per_drawn_step_and_the_vehicles_move(episode, tmp_path):
+def test_gif_has_one_frame_per_drawn_step_ends_on_the_last_and_the_vehicles_move(
+    episode, tmp_path
+):
+    from PIL import Image
+
+    from evaluator.replay.frames import HOLD_LAST_MS, frames
+    from evaluator.replay.model import load_replay
+
     suite, record = episode
     out = tmp_path / "e.gif"
     replay(record, suite, "--format", "gif", "--every", "3", "--out", str(out))
     assert out.read_bytes()[:6] == b"GIF89a"
-    ok, animation = cv2.imreadanimation(str(out))
-    assert ok and len(animation.frames) == 20  # 60 steps, every 3rd
-    assert set(animation.durations) == {300}  # [ms]: 3 steps of 0.1 s
-    first, last = animation.frames[0], animation.frames[-1]
-    assert first.shape == last.shape and np.abs(first.astype(int) - last).sum() > 0
+    gif = Image.open(out)
+    assert gif.n_frames == 21  # 60 steps, every 3rd (0..57), and the last one (59)
+    durations = []
+    pictures = []
+    for k in range(gif.n_frames):
+        gif.seek(k)
+        durations.append(gif.info["duration"])
+        pictures.append(np.asarray(gif.convert("RGB")).astype(int))
+    assert durations == [300] * 20 + [HOLD_LAST_MS]  # [ms]: 3 steps of 0.1 s; the end held
+    assert np.abs(pictures[0] - pictures[-1]).sum() > 0
+    # What is stored is the drawing, to a palette's rounding: the terminal step included.
+    drawn = list(frames(load_replay(record, suite), 3))
+    last = cv2.cvtColor(drawn[-1], cv2.COLOR_BGR2RGB).astype(int)
+    assert np.abs(pictures[-1] - last).mean() < 3
+
+
+def test_a_gif_is_small(episode, tmp_path):
+    """6 s of episode at 10 frames per second, 640 px wide: OpenCV's writer took 3.5 MB."""
+    suite, record = episode
+    out = tmp_path / "e.gif"
+    replay(record, suite, "--format", "gif", "--out", str(out))
+    assert out.stat().st_size < 400_000
+
+
+def test_a_goal_out_of_view_is_pointed_at():
+    from evaluator.replay.frames import FramePainter
+
+    painter = FramePainter.__new__(FramePainter)
+    painter.width, painter.road_height, painter.scale = 640, 400, 640 / 110.0
+    image = np.zeros((400, 640, 3), np.uint8)
+    painter._goal_pointer(image, np.array([0.0, 0.0]), np.array([500.0, 0.0]))
+    assert image[:, 560:].any() and not image[:, :300].any()  # at the right edge, towards it
+    nothing = np.zeros_like(image)
+    painter._goal_pointer(nothing, np.array([0.0, 0.0]), np.array([10.0, 0.0]))
+    assert not nothing.any()  # in view: the goal circle says it
 
 
 def test_mp4_has_every_step(episode, tmp_path):

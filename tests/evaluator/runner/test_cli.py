@@ -25,26 +25,68 @@ SUITE = Suite(
 )
 
 
-@pytest.fixture
-def results(tmp_path):
+def write_results(folder, specs) -> Path:
     outcomes = []
-    for scenario_id, spec in (
-        ("a", AgentSpec(drive(300, lane_offset=0.5), done_step=300)),
-        ("b", AgentSpec(drive(120), reason="collision")),
-    ):
-        path = record_path(tmp_path, scenario_id)
+    for scenario_id, spec in specs:
+        path = record_path(folder, scenario_id)
         path.parent.mkdir(parents=True, exist_ok=True)
         write_record(path, scenario_id, [spec])
         outcomes.append(ScenarioOutcome(scenario_id, ScenarioStatus.done, 0, (), path))
-    write_summary(score_outcomes(outcomes, SUITE, load_profile(), submission="s" * 64), tmp_path)
-    return tmp_path
+    write_summary(score_outcomes(outcomes, SUITE, load_profile(), submission="s" * 64), folder)
+    return folder
+
+
+@pytest.fixture
+def results(tmp_path):
+    return write_results(
+        tmp_path,
+        (
+            ("a", AgentSpec(drive(300, lane_offset=0.5), done_step=300)),
+            ("b", AgentSpec(drive(120), reason="collision")),
+        ),
+    )
 
 
 def test_score_prints_the_metrics_table_and_failures(results):
     result = CliRunner().invoke(app, ["score", str(results)])
     assert result.exit_code == 0, result.output
     assert "completion" in result.output and "merge" in result.output
-    assert "b: Agent_0 collision at step 120" in result.output
+    # A collision is a driving outcome, not a failure of the program.
+    assert "goal not reached b: Agent_0 collision at step 120" in result.output
+    assert "agent failure" not in result.output.replace("0 by an agent failure", "")
+    assert "episodes: 1 reached the goal, 1 ended by a driving outcome, 0 by an agent failure" in (
+        result.output
+    )
+
+
+def test_compare_two_results_folders_side_by_side(results, tmp_path):
+    other = write_results(
+        tmp_path / "other",
+        (
+            ("a", AgentSpec(drive(250), done_step=250)),
+            ("b", AgentSpec(drive(200), done_step=200)),
+        ),
+    )
+    result = CliRunner().invoke(app, ["compare", str(results), str(other)])
+    assert result.exit_code == 0, result.output
+    lines = [line.split("\t") for line in result.output.splitlines()]
+    completion = next(row for row in lines if row[0] == "completion")
+    assert completion == ["completion", "0.5000", "0.0000", "-0.5000"]
+    assert any(row[0] == "completion 95% interval" for row in lines)
+    merge = next(row for row in lines if row[0] == "merge")
+    assert merge[1:3] == ["1.0000", "0.0000"]
+    # Only the episode that ended differently: b collided in A, reached its goal in B.
+    assert "1 episode(s) ended differently" in result.output
+    assert ["b", "collision", "reached_goal"] in lines
+    assert not any(row[0] == "a" and len(row) == 3 for row in lines)
+    document = json.loads(
+        CliRunner().invoke(app, ["compare", str(results), str(other), "--json"]).stdout
+    )
+    assert document["differing_outcomes"] == [
+        {"episode": "b", "a": "collision", "b": "reached_goal"}
+    ]
+    missing = CliRunner().invoke(app, ["compare", str(results), str(tmp_path / "nope")])
+    assert missing.exit_code == 2 and "has no summary.json" in missing.output
 
 
 def test_score_json_is_the_rewritten_summary(results):
@@ -78,4 +120,25 @@ def test_score_per_scenario_adds_a_row_per_scenario(results):
     # Not a terminal: one tab-separated line per row.
     rows = [line.split("\t") for line in detailed.output.splitlines() if line.startswith("b\t")]
     assert len(rows) == 1 and rows[0][2:4] == ["1.0000", "800.0"]
+    assert rows[0][-1] == "collision"  # the reason column
     assert not [line for line in plain.output.splitlines() if line.startswith("b\t")]
+
+
+def test_a_resumed_runs_progress_counts_the_episodes_it_kept():
+    """`failures 0` above 19 failed lines was a resumed run counting from zero."""
+    from arena.outcome import AgentOutcome
+    from arena.terminal import make_console
+    from evaluator.cli import _RichProgress
+
+    def outcome(name, reason, status=ScenarioStatus.done):
+        agent = AgentOutcome(
+            id="Agent_0", reached_goal=reason == "reached_goal", reason=reason, steps=5, done_step=5
+        )
+        return ScenarioOutcome(name, status, 5, (agent,), None)
+
+    progress = _RichProgress(make_console())
+    kept = [outcome("a", "collision"), outcome("b", "agent_error"), outcome("c", "reached_goal")]
+    progress.started(5, kept)
+    progress.finished(outcome("d", "step_timeout"))
+    progress.stop()
+    assert progress.counts == {"faults": 2, "missed": 1, "uncharged": 0}

@@ -212,8 +212,8 @@ def test_episodes_repeat_reactive_scenarios_with_other_traffic(public_suite, tmp
     assert twice.episodes_per_scenario == 2
 
     class Count:
-        def started(self, total, already_done):
-            self.total, self.already_done = total, already_done
+        def started(self, total, done):
+            self.total, self.already_done = total, len(done)
 
         def finished(self, outcome):
             self.ran = (outcome.scenario_id, outcome.episode)

@@ -76,7 +76,7 @@ class Policy:
         result.output.replace("\n", " ")
     )
     # The step in the summary line is the step in the log.
-    line = next(x for x in result.output.splitlines() if x.startswith("failed p000"))
+    line = next(x for x in result.output.splitlines() if x.startswith("agent failure p000"))
     log = (tmp_path / "out" / "logs" / "p000_left_turn_t_low.txt").read_text()
     assert line.split(": ", 1)[1] in log
 

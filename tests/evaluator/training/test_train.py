@@ -145,3 +145,35 @@ def test_a_missing_dataset_is_named(tmp_path, settings):
     submission = trainer(tmp_path, settings, GOOD)
     with pytest.raises(DatasetError, match="arena dataset build"):
         train(submission, tmp_path / "nowhere", tmp_path / "out", settings=settings)
+
+
+def test_arena_train_keeps_train_py_output_on_success(tmp_path, dataset):
+    """Printed and saved beside the model (never inside it: the model folder is evaluated)."""
+    from typer.testing import CliRunner
+
+    from arena.cli import app
+
+    folder = tmp_path / "src"
+    folder.mkdir()
+    (folder / "policy.py").write_text(policy_source())
+    (folder / "train.py").write_text(textwrap.dedent(GOOD))
+    tmp_path.chmod(0o755)
+    out = tmp_path / "model"
+    result = CliRunner().invoke(
+        app,
+        [
+            "train",
+            str(folder),
+            "--dataset",
+            str(dataset),
+            "--out",
+            str(out),
+            "--sandbox",
+            "process",
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    assert "rows 50" in result.output
+    assert "rows 50" in (tmp_path / "model.train.log").read_text()
+    assert not (out / "model.train.log").exists()
+    assert "model.train.log" in result.output.replace("\n", "")

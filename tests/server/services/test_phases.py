@@ -37,8 +37,12 @@ def upload(client, token, payload: bytes, **fields):
     )
 
 
-def set_phase(db, name, **changes):
-    phases.set_phase(db, name, phases.PhaseChanges(**changes))
+@pytest.fixture
+def set_phase(db, settings):
+    def change(name, **changes):
+        return phases.set_phase(db, settings, name, phases.PhaseChanges(**changes))
+
+    return change
 
 
 def test_upload_names_its_phase_and_defaults_to_final(client, db, keep_lane_zip):
@@ -55,24 +59,24 @@ def test_unknown_phase_is_refused_naming_the_phases(client, db, keep_lane_zip):
     assert "validation, final" in response.json()["detail"]
 
 
-def test_uploads_outside_a_phase_are_refused_saying_when(client, db, keep_lane_zip):
+def test_uploads_outside_a_phase_are_refused_saying_when(client, db, keep_lane_zip, set_phase):
     _, token = make_team(db, "alpha")
     later = (utcnow() + timedelta(days=2)).replace(second=0, microsecond=0)
-    set_phase(db, "final", starts_at=later)
+    set_phase("final", starts_at=later)
     response = upload(client, token, keep_lane_zip)
     assert response.status_code == 403
     assert f"opens for submissions at {later:%Y-%m-%d %H:%M} UTC" in response.json()["detail"]
-    set_phase(db, "validation", ends_at=utcnow() - timedelta(hours=1))
+    set_phase("validation", ends_at=utcnow() - timedelta(hours=1))
     response = upload(client, token, keep_lane_zip, phase="validation")
     assert response.status_code == 403
     assert "closed for submissions" in response.json()["detail"]
-    set_phase(db, "final", clear_dates=True)
+    set_phase("final", clear_dates=True)
     assert upload(client, token, keep_lane_zip).status_code == 201
 
 
-def test_the_daily_quota_is_per_phase(client, db, keep_lane_zip):
+def test_the_daily_quota_is_per_phase(client, db, keep_lane_zip, set_phase):
     _, token = make_team(db, "alpha")
-    set_phase(db, "final", daily_quota=1)
+    set_phase("final", daily_quota=1)
     assert upload(client, token, keep_lane_zip).status_code == 201
     refused = upload(client, token, keep_lane_zip)
     assert refused.status_code == 429
@@ -80,10 +84,21 @@ def test_the_daily_quota_is_per_phase(client, db, keep_lane_zip):
     assert upload(client, token, keep_lane_zip, phase="validation").status_code == 201
 
 
-def test_submit_page_offers_the_open_phases(client, db):
-    set_phase(db, "validation", ends_at=utcnow() - timedelta(hours=1))
+def test_submit_page_offers_the_open_phases_and_says_when_the_others_open(client, db, set_phase):
+    """A closed phase stays on the form, disabled, with its date: it does not just vanish."""
+    ended = (utcnow() - timedelta(hours=1)).replace(second=0, microsecond=0)
+    set_phase("validation", ends_at=ended)
     page = client.get("/submit").text
-    assert 'value="final"' in page and 'value="validation"' not in page
+    assert '<option value="final" selected>' in page
+    assert (
+        f'<option value="validation" disabled>validation: closed {ended:%Y-%m-%d %H:%M} UTC' in page
+    )
+    later = (utcnow() + timedelta(days=3)).replace(second=0, microsecond=0)
+    set_phase("final", starts_at=later)
+    page = client.get("/submit").text
+    opens = f"final: opens {later:%Y-%m-%d %H:%M} UTC"
+    assert f'<option value="final" selected disabled>{opens}' in page
+    assert "No phase is open for submissions right now." in page
 
 
 def finished_submission(db, settings, phase: str) -> int:
@@ -102,9 +117,7 @@ def token_of(db, submission_id) -> str:
         return teams.rotate_token(session, team)
 
 
-def test_a_hidden_phase_gives_the_team_no_agent_output_and_no_scenario_detail(
-    client, db, settings
-):
+def test_a_hidden_phase_gives_the_team_no_agent_output_and_no_scenario_detail(client, db, settings):
     submission_id = finished_submission(db, settings, "final")
     headers = bearer(token_of(db, submission_id))
     logs = client.get(f"/api/v1/submissions/{submission_id}/logs", headers=headers)
@@ -168,15 +181,59 @@ def test_leaderboards_are_per_phase(client, db):
     assert (body["phase"], [e["team"] for e in body["entries"]]) == ("validation", ["beta"])
 
 
-def test_admin_phase_changes_are_checked(db):
+def test_admin_phase_changes_are_checked(db, set_phase):
     from server.services.errors import InvalidInput
 
     with pytest.raises(InvalidInput, match="end after it starts"):
-        set_phase(db, "final", starts_at=utcnow(), ends_at=utcnow() - timedelta(days=1))
+        set_phase("final", starts_at=utcnow(), ends_at=utcnow() - timedelta(days=1))
     with pytest.raises(InvalidInput, match="unknown scoring profile"):
-        set_phase(db, "final", scoring_profile="no-such-profile")
+        set_phase("final", scoring_profile="no-such-profile")
     with pytest.raises(InvalidInput, match="needs --suite"):
-        set_phase(db, "warmup")
-    set_phase(db, "warmup", suite="public", daily_quota=2)
+        set_phase("warmup")
+    with pytest.raises(InvalidInput, match=r"suite 'nonexistent'.*nothing saved"):
+        set_phase("warmup", suite="nonexistent")
+    with pytest.raises(InvalidInput, match="1 to 64"):
+        set_phase("final", episodes_per_scenario=65)
+    with pytest.raises(InvalidInput, match="suite '/no/such/folder'"):
+        set_phase("final", suite="/no/such/folder")
+    set_phase("warmup", suite="public", daily_quota=2)
     with db.session() as session:
         assert [p.name for p in phases.list_phases(session)] == ["validation", "final", "warmup"]
+        assert phases.get_phase(session, "final").suite == "hidden"  # the refused change
+
+
+def test_a_phase_broken_after_it_was_set_fails_its_runs_with_a_reason(db, settings, tmp_path):
+    """A suite folder removed after the phase was set: the queued submission fails at once with
+    a reason (never re-sent forever), and the phase is listed as misconfigured."""
+    import shutil
+
+    from server.models import Submission
+    from server.services import evaluation
+    from server.status import SubmissionStatus
+
+    shutil.rmtree(settings.hidden_suite_dir)
+    team_id, _ = make_team(db, "alpha")
+    submission_id = queued_submission(db, team_id)
+    with db.session() as session:
+        assert evaluation.start_evaluation(session, settings, submission_id) is None
+    with db.session() as session:
+        submission = session.get(Submission, submission_id)
+        assert submission.status == SubmissionStatus.failed
+        assert "phase 'final'" in submission.status_reason
+        assert "organisers" in submission.status_reason
+        assert str(settings.hidden_suite_dir) not in submission.status_reason  # a hidden path
+        assert set(phases.misconfigured(session, settings)) == {"validation", "final"}
+
+
+def test_an_upload_to_a_broken_phase_is_refused_and_costs_nothing(
+    client, db, settings, keep_lane_zip
+):
+    import shutil
+
+    _, token = make_team(db, "alpha")
+    shutil.rmtree(settings.hidden_suite_dir)
+    response = upload(client, token, keep_lane_zip)
+    assert response.status_code == 403
+    assert "cannot evaluate submissions right now" in response.json()["detail"]
+    assert str(settings.hidden_suite_dir) not in response.json()["detail"]
+    assert client.get("/api/v1/submissions", headers=bearer(token)).json() == []

@@ -261,8 +261,12 @@ def test_rerun_is_a_new_attempt_and_the_old_score_stands_meanwhile(db, settings,
 def test_rescore_recomputes_from_stored_results(db, settings, submission_id):
     plan = start(db, settings, submission_id)
     run_everything(db, settings, plan)
-    assert admin.rescore_targets(db, submission_id) == [plan.run_id]
-    metrics = admin.rescore_run(db, DatabaseStore(db), plan.run_id, "driving-smarts-2022")
+    targets = admin.rescore_targets(db, settings, submission_id=submission_id)
+    assert [(t.run_id, t.submission_id, t.phase) for t in targets] == [
+        (plan.run_id, submission_id, "final")
+    ]
+    profile, metrics = admin.rescore_run(db, settings, DatabaseStore(db), plan.run_id)
+    assert profile == "driving-smarts-2022"
     assert metrics["completion"] == 0.0 and metrics["time"] == 100.0
     with db.session() as session:
         assert session.get(EvaluationRun, plan.run_id).score.profile == "driving-smarts-2022"
@@ -291,7 +295,7 @@ def test_each_episode_of_a_reactive_scenario_is_a_claim_of_its_own(db, settings,
     from server.services import phases
     from server.services.errors import NotFound
 
-    phases.set_phase(db, "final", phases.PhaseChanges(episodes_per_scenario=2))
+    phases.set_phase(db, settings, "final", phases.PhaseChanges(episodes_per_scenario=2))
     plan = start(db, settings, submission_id)
     ids = sorted({e.scenario_id for e in plan.episodes})
     assert sorted(plan.episodes) == [Episode(sid, k) for sid in ids for k in (0, 1)]

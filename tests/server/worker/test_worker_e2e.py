@@ -384,7 +384,7 @@ def test_several_episodes_per_scenario_through_the_worker(stack_settings, suite,
     )
     interval = local.completion_interval()
     db = Database(stack_settings.database_url)
-    phases.set_phase(db, "final", phases.PhaseChanges(episodes_per_scenario=2))
+    phases.set_phase(db, stack_settings, "final", phases.PhaseChanges(episodes_per_scenario=2))
     _, token = make_team(db, "keep-lane-team")
     worker = start_worker(stack_settings, tmp_path / "worker.log")
     try:

@@ -1,0 +1,73 @@
+"""Where a team stands: its submission's phase (dates, what is hidden), its place on the
+leaderboard and the uploads it has left today. Shown on the submission page, in the API's
+detail and in the download, so a team never has to guess."""
+
+from __future__ import annotations
+
+from sqlalchemy.orm import Session
+
+from arena.config import Settings
+from server.models import Submission, Team, utcnow
+from server.schemas import Allowance, PhaseWindow, Standing, SubmissionDetail, TeamStatus
+from server.services import leaderboard, phases, submissions
+from server.tracks import Track
+
+
+def phase_window(session: Session, name: str) -> PhaseWindow:
+    return _window(phases.get_phase(session, name))
+
+
+def _window(phase) -> PhaseWindow:
+    return PhaseWindow(
+        name=phase.name,
+        visibility=str(phase.visibility),
+        starts_at=phase.starts_at,
+        ends_at=phase.ends_at,
+        state=phases.state(phase, utcnow()),
+        hidden=phases.what_is_hidden(phase),
+    )
+
+
+def standing(session: Session, settings: Settings, submission: Submission) -> Standing:
+    phase = phases.get_phase(session, submission.phase)
+    board = leaderboard.compute(session, submission.track, submission.phase)
+    ours = next((e for e in board.entries if e.team == submission.team.name), None)
+    quota = phases.daily_quota(phase, settings)
+    used = submissions.quota_used(
+        session, submission.team_id, submission.phase, submission.track, utcnow()
+    )
+    return Standing(
+        rank=ours.rank if ours else None,
+        teams_ranked=len(board.entries),
+        ranked_submission_id=ours.submission_id if ours else None,
+        tied_with=ours.tied_with if ours else [],
+        tries_left_today=max(0, quota - used),
+        daily_quota=quota,
+    )
+
+
+def team_view(session: Session, settings: Settings, submission: Submission) -> SubmissionDetail:
+    """The detail its team sees, with the phase and where the team stands."""
+    return submissions.detail(session, submission).model_copy(
+        update={
+            "phase_window": phase_window(session, submission.phase),
+            "standing": standing(session, settings, submission),
+        }
+    )
+
+
+def team_status(session: Session, settings: Settings, team: Team) -> TeamStatus:
+    """Uploads left today in every phase and track (0 where a phase is not open)."""
+    moment = utcnow()
+    allowances = []
+    for phase in phases.list_phases(session):
+        quota = phases.daily_quota(phase, settings)
+        for track in Track:
+            used = submissions.quota_used(session, team.id, phase.name, track, moment)
+            left = max(0, quota - used) if phases.is_open(phase, moment) else 0
+            allowances.append(
+                Allowance(
+                    phase=_window(phase), track=track, tries_left_today=left, daily_quota=quota
+                )
+            )
+    return TeamStatus(team=team.name, allowances=allowances)

@@ -1,0 +1,271 @@
+"""Every page at phone width (390 px) in Chromium: no horizontal page scroll (wide tables scroll
+in their own box), screenshots at phone and desktop width in ``ARENA_SCREENSHOTS`` when set.
+And what a team must always see on them: the phase (dates, what a hidden phase hides, up front),
+timings, rank and interval, uploads left today, a training submission said as training."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from datetime import timedelta
+
+import pytest
+
+from arena.config import Settings
+from arena.suite import SHIPPED_PUBLIC_DIR, load_suite
+from server.core.db import Database
+from server.core.migrate import upgrade_database
+from server.models import Phase, Submission, TrainingJob, Visibility, utcnow
+from server.status import SubmissionStatus, TrainingStatus
+from server.tracks import Track
+from tests.server.api.test_browser import CHROMIUM
+from tests.server.api.test_browser_pages import (
+    DESKTOP,
+    PHONE,
+    TRACEBACK,
+    add_results,
+    browser,  # noqa: F401 (fixture)
+    offline_page,
+    running_submission,
+    shoot,
+)
+from tests.server.builders import make_team, queued_submission, seed_scored
+from tests.server.live import api_server
+from tests.server.service_stack import shared_dir
+
+pytestmark = pytest.mark.skipif(
+    not CHROMIUM.exists(), reason="needs Debian's chromium (apt-get install chromium)"
+)
+ADMIN = "admin-token-for-the-phone-pages"
+SITE_KEYS = ("final", "validation", "running", "training", "queued", "scenario")
+FAMILIES = {
+    name: {"scenarios": 9, "completion": 0.25, "time": 716.1, "humanness": 0.5, "rules": 0.125}
+    for name in ("cruise", "cut_in", "left_turn_t", "merge", "overtake", "naturalistic_replay")
+}
+
+
+def training_submission(db, team_id: int) -> int:
+    with db.session() as session:
+        submission = Submission(
+            team_id=team_id,
+            phase="validation",
+            track=Track.offline,
+            method_name="offline learner",
+            file_sha256="0" * 64,
+            file_size=1,
+            upload_key="submissions/none/upload.zip",
+            status=SubmissionStatus.training,
+            queued_at=utcnow() - timedelta(minutes=3),
+            started_at=utcnow() - timedelta(minutes=2),
+        )
+        session.add(submission)
+        session.flush()
+        session.add(
+            TrainingJob(
+                submission_id=submission.id,
+                attempt=1,
+                status=TrainingStatus.training,
+                elapsed_s=95.0,
+                log_tail="epoch 3/10 loss 0.41\n",
+            )
+        )
+        return submission.id
+
+
+@pytest.fixture(scope="module")
+def site(tmp_path_factory):
+    """A served API with one team's submissions in every state and phase, a closed phase and a
+    phase that opens later."""
+    root = shared_dir("arena-phone-")
+    settings = Settings(
+        _env_file=None,
+        data_dir=root / "data",
+        hidden_suite_dir=SHIPPED_PUBLIC_DIR,
+        admin_token=ADMIN,
+    )
+    (root / "data").mkdir()
+    upgrade_database(settings.resolved_database_url)
+    db = Database(settings.resolved_database_url)
+    with db.session() as session:
+        session.add(
+            Phase(
+                name="warmup",
+                suite="public",
+                visibility=Visibility.full,
+                starts_at=utcnow() - timedelta(days=20),
+                ends_at=utcnow() - timedelta(days=10),
+            )
+        )
+        session.add(
+            Phase(
+                name="bonus-round-with-a-long-name",
+                suite="public",
+                visibility=Visibility.hidden,
+                starts_at=utcnow() + timedelta(days=10),
+            )
+        )
+    team_id, token = make_team(db, "a-team-with-a-rather-long-name-for-a-phone")
+    other_id, _ = make_team(db, "other")
+    final = seed_scored(
+        db,
+        team_id,
+        (0.25, 716.1, 0.5, 0.125),
+        method_name="a method with a long descriptive name, version 12",
+        interval=(0.1, 0.4),
+        families=FAMILIES,
+    )
+    seed_scored(db, other_id, (0.1, 600.0, 0.2, 0.1), interval=(0.02, 0.2), families=FAMILIES)
+    validation = seed_scored(
+        db,
+        team_id,
+        (1.0, 800.0, None, None),
+        phase="validation",
+        interval=(1.0, 1.0),
+        families=FAMILIES,
+    )
+    scenario = load_suite(SHIPPED_PUBLIC_DIR).scenarios[0].id
+    add_results(db, validation, [("cruise", "done", "agent_error", TRACEBACK)] * 3)
+    running = running_submission(db, team_id, total=10)
+    training = training_submission(db, team_id)
+    queued = queued_submission(db, team_id)
+    db.dispose()
+    log = tmp_path_factory.mktemp("phone") / "api.log"
+    with api_server(settings, log) as (url, _):
+        yield {
+            "url": url,
+            "token": token,
+            "final": final,
+            "validation": validation,
+            "running": running,
+            "training": training,
+            "queued": queued,
+            "scenario": scenario,
+        }
+    shutil.rmtree(root, ignore_errors=True)
+
+
+def pages(site) -> dict[str, str]:
+    """Every page of the site (name -> path)."""
+    scenario = site["scenario"]
+    return {
+        "leaderboard": "/",
+        "leaderboard-validation": "/?phase=validation",
+        "submit": "/submit",
+        "scenarios": "/scenarios",
+        "scenario-replay": f"/scenarios/{scenario}/replay",
+        "mine": "/my-submissions",
+        "submission-final": f"/submissions/{site['final']}",
+        "submission-validation": f"/submissions/{site['validation']}",
+        "submission-running": f"/submissions/{site['running']}",
+        "submission-training": f"/submissions/{site['training']}",
+        "submission-queued": f"/submissions/{site['queued']}",
+        "submission-replay": f"/submissions/{site['validation']}/replays/h000",
+        "admin-replay": f"/admin/submissions/{site['final']}/replays/{scenario}",
+        "guide-agent-interface": "/guide/agent-interface",
+        "guide-submissions": "/guide/submissions",
+        "guide-scoring": "/guide/scoring",
+        "docs": "/docs",
+    }
+
+
+def open_page(browser, site, path: str, viewport: dict):  # noqa: F811 (fixture name)
+    page = offline_page(browser, site["url"], viewport)
+    page.goto(f"{site['url']}/my-submissions")
+    page.evaluate(f"sessionStorage.setItem('arena-token', {json.dumps(site['token'])})")
+    page.evaluate(f"sessionStorage.setItem('arena-admin-token', {json.dumps(ADMIN)})")
+    page.goto(f"{site['url']}{path}")
+    page.wait_for_load_state("networkidle")
+    page.wait_for_timeout(300)  # the pages render what they fetched
+    return page
+
+
+# The page names, for the test ids (the paths need the served site's ids).
+PAGE_NAMES = list(pages(dict.fromkeys(SITE_KEYS, 0)))
+
+
+@pytest.mark.parametrize("name", PAGE_NAMES)
+def test_no_page_scrolls_sideways_on_a_phone(site, browser, name):  # noqa: F811
+    path = pages(site)[name]
+    for label, viewport in (("phone", PHONE), ("desktop", DESKTOP)):
+        page = open_page(browser, site, path, viewport)
+        width = page.evaluate("document.documentElement.scrollWidth")
+        inner = page.evaluate("window.innerWidth")
+        shoot(page, f"{name}-{label}")
+        assert width <= inner, f"{path} at {label} width: {width} px wide in {inner} px"
+        assert page.refused == []
+        page.close()
+
+
+def test_a_team_sees_phase_timings_rank_and_what_is_hidden(site, browser):  # noqa: F811
+    from playwright.sync_api import expect
+
+    page = open_page(browser, site, f"/submissions/{site['final']}", PHONE)
+    expect(page.locator("#phase-name")).to_have_text("final")
+    # Up front, not inside an expander: what the hidden phase hides and why.
+    hidden = page.locator("#phase-hidden")
+    expect(hidden).to_be_visible()
+    expect(hidden).to_contain_text("secret scenario suite")
+    assert hidden.evaluate("e => e.closest('details') === null")
+    expect(page.locator("#standing")).to_contain_text("rank 2 of 2")
+    expect(page.locator("#standing")).to_contain_text("left today")
+    expect(page.locator("#completion-interval")).to_have_text("[0.1000, 0.4000]")
+    expect(page.locator("#timings")).to_contain_text("started")
+    expect(page.locator("#timings")).not_to_contain_text("running for")  # it is scored
+    page.goto(f"{site['url']}/submissions/{site['training']}")
+    expect(page.locator("#progress-text")).to_contain_text("training")
+    expect(page.locator("#progress-text")).not_to_contain_text("0 / 0")
+    page.goto(f"{site['url']}/my-submissions")
+    rows = page.locator("#mine tbody tr")
+    expect(rows).to_have_count(5)
+    expect(page.locator("#mine thead")).to_contain_text("Phase")
+    expect(rows.last).to_contain_text("final")
+    page.close()
+
+
+def test_the_submit_form_says_every_phase_its_dates_and_tries_left(site, browser):  # noqa: F811
+    from playwright.sync_api import expect
+
+    page = open_page(browser, site, "/submit", PHONE)
+    options = page.locator("#phase option")
+    texts = options.all_inner_texts()
+    assert any(t.startswith("warmup") and "closed" in t for t in texts), texts
+    assert any(t.startswith("bonus-round") and "opens" in t for t in texts), texts
+    closed = page.locator("#phase option[value='warmup']")
+    assert closed.get_attribute("disabled") is not None
+    expect(page.locator("#tries-left")).to_contain_text("left today")
+    page.close()
+
+
+def test_a_refused_upload_shows_the_message_without_a_raw_status(site, browser, tmp_path):  # noqa: F811
+    from playwright.sync_api import expect
+
+    bad = tmp_path / "not-a-zip.zip"
+    bad.write_bytes(b"this is not a zip")
+    page = open_page(browser, site, "/submit", DESKTOP)
+    page.fill("#token", site["token"])
+    page.fill("#method_name", "m")
+    page.set_input_files("#file", str(bad))
+    page.click("#submit-button")
+    expect(page.locator("#submit-error")).to_be_visible()
+    assert "422" not in page.locator("#submit-status").inner_text()
+    assert "Rejected" not in page.locator("#submit-status").inner_text()
+    page.close()
+
+
+def test_an_organiser_watches_a_hidden_phase_episode(site, browser):  # noqa: F811
+    from playwright.sync_api import expect
+
+    path = f"/admin/submissions/{site['final']}/replays/{site['scenario']}"
+    page = offline_page(browser, site["url"], DESKTOP)
+    page.goto(f"{site['url']}{path}")
+    expect(page.locator("#token-form")).to_be_visible()
+    expect(page.locator("#token-form label")).to_contain_text("Admin token")
+    page.fill("#token", "wrong")
+    page.click("#token-form button")
+    expect(page.locator("#replay")).to_contain_text("admin token required")
+    # With the admin token the admin API answers for a hidden-phase submission (a team's
+    # token gets 403 there): here it has no recorded episode to show.
+    page.evaluate(f"sessionStorage.setItem('arena-admin-token', {json.dumps(ADMIN)})")
+    page.reload()
+    expect(page.locator("#replay")).to_contain_text("has no recorded episode")
+    page.close()
