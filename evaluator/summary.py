@@ -10,10 +10,13 @@ import json
 import os
 from pathlib import Path
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict
 
 from arena.outcome import AgentOutcome, ScenarioStatus
 from evaluator.scoring import Interval, Metrics, bootstrap_interval
+from evaluator.scoring.profile import Averaging
+from evaluator.scoring.significance import MetricSamples
 
 SUMMARY_FILE = "summary.json"
 
@@ -91,6 +94,32 @@ class Summary(Frozen):
         scenario was charged."""
         samples = self.completion_samples()
         return bootstrap_interval(samples) if samples else None
+
+    def metric_samples(self, averaging: Averaging) -> MetricSamples | None:
+        """Each charged scenario's values in each of its episodes, what rank ranges resample
+        (``docs/scoring.md``); None when no scenario was charged. Humanness and rules come back
+        as sums over what the profile's ``averaging`` weighs (agent-steps, or the agent-episodes
+        that drove), so the suite's ratio of sums is rebuilt exactly."""
+        scenarios = {}
+        for entry in self.scenarios:
+            if entry.status != ScenarioStatus.done or entry.metrics is None:
+                continue
+            rows = []
+            for episode in entry.episodes or (entry,):
+                steps = [agent.steps for agent in episode.agents]
+                weight = sum(steps) if averaging is Averaging.agent_step else sum(map(bool, steps))
+                metrics = episode.metrics
+                rows.append(
+                    [
+                        metrics.completion,
+                        metrics.time,
+                        (metrics.humanness or 0.0) * weight,
+                        (metrics.rules or 0.0) * weight,
+                        weight,
+                    ]
+                )
+            scenarios[entry.id] = np.array(rows, dtype=float)
+        return MetricSamples(suite=self.manifest_hash, scenarios=scenarios) if scenarios else None
 
 
 def write_summary(summary: Summary, results_dir: Path) -> Path:
