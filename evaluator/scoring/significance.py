@@ -8,9 +8,12 @@ two-stage bootstrap as :func:`evaluator.scoring.interval.bootstrap_interval`), a
 resample the two entries are compared by the hierarchy itself. The fraction of resamples one
 entry comes out ahead is the probability that it beats the other.
 
-Entries evaluated on the same suite are resampled *paired*: one draw of scenarios (and of episode
-indices) serves every entry, so a scenario that is hard for everyone moves every entry alike and
-only the differences between agents remain. Entries on different suites are drawn independently.
+Entries evaluated on the same suite are resampled *paired*: the draws come from the suite and its
+scenario ids alone, so one draw of scenarios (and of episode indices) serves every entry, a
+scenario that is hard for everyone moves every entry alike, and only the differences between
+agents remain. Entries on different suites are drawn independently. Within a scenario run several
+times, each drawn scenario takes one of ``EPISODE_POOL`` resamples of its episodes, made once per
+entry (the second stage, at the cost of one gather per resample whatever the episode count).
 
 An entry's rank range runs from one plus the number of entries that beat it significantly to the
 number of entries minus those it beats significantly: entries whose difference is not
@@ -90,73 +93,46 @@ def _metrics(sums: np.ndarray, counts: np.ndarray) -> np.ndarray:
         return np.stack([completion, time, sums[:, 2] / weight, sums[:, 3] / weight], axis=1)
 
 
-def _seed(suite: str, seed: int) -> list[int]:
-    return [seed, int.from_bytes(hashlib.sha256(suite.encode()).digest()[:8], "big")]
-
-
 def replicates(
-    entries: Sequence[MetricSamples], *, resamples: int = RESAMPLES, seed: int = BOOTSTRAP_SEED
-) -> list[np.ndarray]:
-    """Each entry's four metrics on each bootstrap resample, a ``(resamples, 4)`` array; NaN
-    where a resample drew none of the entry's scenarios (humanness and rules also where no agent
-    drove). The same entries always give the same replicates."""
-    out: list[np.ndarray | None] = [None] * len(entries)
-    by_suite: dict[str, list[int]] = {}
-    for position, entry in enumerate(entries):
-        by_suite.setdefault(entry.suite, []).append(position)
-    for suite, members in by_suite.items():
-        universe = sorted({sid for m in members for sid in entries[m].scenarios})
-        column = {sid: i for i, sid in enumerate(universe)}
-        most = max(len(rows) for m in members for rows in entries[m].scenarios.values())
-        rng = np.random.default_rng(_seed(suite, seed))
-        # Stage two, drawn once per suite as uniforms so entries with as many episodes of a
-        # scenario draw the same episode indices (paired): a pool of episode resamples per
-        # scenario, of which each drawn scenario then takes one.
-        pool_uniform = rng.random((len(universe), EPISODE_POOL, most))
-        tables = [_table(entries[m], column, pool_uniform) for m in members]
-        parts: list[list[np.ndarray]] = [[] for _ in members]
-        for start in range(0, resamples, _CHUNK):
-            size = min(_CHUNK, resamples - start)
-            # Stage one: the scenarios, shared by every entry of the suite (paired).
-            drawn = rng.integers(0, len(universe), size=(size, len(universe)))
-            pick = rng.integers(0, EPISODE_POOL, size=(size, len(universe)))
-            for part, table in zip(parts, tables, strict=True):
-                part.append(_resampled(table, drawn, pick))
-        for m, part in zip(members, parts, strict=True):
-            out[m] = np.concatenate(part)
-    return out  # type: ignore[return-value]
+    samples: MetricSamples, *, resamples: int = RESAMPLES, seed: int = BOOTSTRAP_SEED
+) -> np.ndarray:
+    """The entry's four metrics on each bootstrap resample, a ``(resamples, 4)`` array
+    (humanness and rules NaN where no agent drove). A pure function of the samples: the draws
+    come from the suite and its scenario ids alone, so every entry on the same suite gets the
+    same draws (paired) and an entry's replicates can be kept for as long as its score."""
+    universe = sorted(samples.scenarios)
+    key = "\n".join([samples.suite, *universe]).encode()
+    stream = [seed, int.from_bytes(hashlib.sha256(key).digest()[:8], "big")]
+    draws = np.random.default_rng(stream)
+    pool = _episode_pool(samples, universe, np.random.default_rng([*stream, 1]))
+    parts = []
+    for start in range(0, resamples, _CHUNK):
+        size = min(_CHUNK, resamples - start)
+        # Stage one: the scenarios; stage two: one of each drawn scenario's episode resamples.
+        drawn = draws.integers(0, len(universe), size=(size, len(universe)))
+        pick = draws.integers(0, EPISODE_POOL, size=(size, len(universe)))
+        parts.append(_metrics(pool[drawn, pick].sum(axis=1), np.array([len(universe)])))
+    return np.concatenate(parts)
 
 
-@dataclass(frozen=True)
-class _Table:
-    row_of: np.ndarray  # (universe,) the entry's row of each universe scenario, -1 if absent
-    pool: np.ndarray  # (rows, EPISODE_POOL, 5) means over resampled episodes of each scenario
-
-
-def _table(entry: MetricSamples, column: Mapping[str, int], pool_uniform: np.ndarray) -> _Table:
-    rows = list(entry.scenarios.values())
+def _episode_pool(
+    samples: MetricSamples, universe: Sequence[str], rng: np.random.Generator
+) -> np.ndarray:
+    """``(scenarios, EPISODE_POOL, 5)``: means of each scenario's fields over resampled
+    episodes. Drawn as uniforms, so entries with as many episodes of a scenario draw the same
+    episode indices (paired)."""
+    rows = [samples.scenarios[sid] for sid in universe]
     counts = np.array([len(r) for r in rows])
-    values = np.zeros((len(rows), counts.max(), len(SAMPLE_FIELDS)))
-    row_of = np.full(len(column), -1)
-    columns = np.empty(len(rows), int)
-    for i, (sid, r) in enumerate(entry.scenarios.items()):
+    slots = counts.max()
+    values = np.zeros((len(rows), slots, len(SAMPLE_FIELDS)))
+    for i, r in enumerate(rows):
         values[i, : len(r)] = r
-        columns[i] = column[sid]
-        row_of[column[sid]] = i
-    slots = values.shape[1]
-    n = counts[:, None, None]  # (rows, 1, 1)
-    episode = np.floor(pool_uniform[columns, :, :slots] * n).astype(int)  # (rows, pool, slots)
-    picked = values[np.arange(len(rows))[:, None, None], episode]  # (rows, pool, slots, 5)
+    n = counts[:, None, None]
+    uniform = rng.random((len(rows), EPISODE_POOL, slots))
+    episode = np.floor(uniform * n).astype(int)  # (scenarios, pool, slots)
+    picked = values[np.arange(len(rows))[:, None, None], episode]  # (scenarios, pool, slots, 5)
     mask = (np.arange(slots) < n)[..., None]
-    return _Table(row_of, np.where(mask, picked, 0.0).sum(axis=2) / n)
-
-
-def _resampled(table: _Table, drawn: np.ndarray, pick: np.ndarray) -> np.ndarray:
-    rows = table.row_of[drawn]  # (size, universe)
-    present = rows >= 0
-    means = table.pool[np.where(present, rows, 0), pick]  # (size, universe, 5)
-    sums = (means * present[..., None]).sum(axis=1)
-    return _metrics(sums, present.sum(axis=1))
+    return np.where(mask, picked, 0.0).sum(axis=2) / n
 
 
 def _standing(reps: np.ndarray) -> np.ndarray:
@@ -187,21 +163,21 @@ def _standing(reps: np.ndarray) -> np.ndarray:
 
 def beat_matrix(reps: Sequence[np.ndarray | None]) -> np.ndarray:
     """``p[i, j]``: the chance entry i ranks ahead of entry j by the scoring hierarchy, over the
-    resamples (a full tie is half a win; so is a resample where either drew none of its
-    scenarios); NaN where either has no replicates."""
+    resamples (a full tie is half a win); NaN where either has no replicates."""
     n = len(reps)
     p = np.full((n, n), np.nan)
     known = [i for i, r in enumerate(reps) if r is not None]
     if len(known) < 2:
         return p
-    stacked = np.stack([reps[i] for i in known])  # (known, resamples, 4)
-    places = _standing(stacked)
-    defined = ~np.isnan(stacked[..., 0])
-    for row, i in enumerate(known):
-        both = defined[row] & defined
-        wins = np.where(both, (places[row] < places) + 0.5 * (places[row] == places), 0.5)
-        p[i, known] = wins.mean(axis=-1)
-        p[i, i] = np.nan
+    places = _standing(np.stack([reps[i] for i in known])).astype(np.int32)  # (known, resamples)
+    resamples = places.shape[1]
+    for row, i in enumerate(known[:-1]):
+        later = places[row + 1 :]
+        ahead = np.count_nonzero(places[row] < later, axis=-1)
+        tied = np.count_nonzero(places[row] == later, axis=-1)
+        chance = (ahead + 0.5 * tied) / resamples
+        p[i, known[row + 1 :]] = chance
+        p[known[row + 1 :], i] = 1.0 - chance
     return p
 
 
@@ -216,18 +192,20 @@ def rank_ranges(
     significantly when it comes out ahead in at least ``1 - (1 - level) / 2`` of the resamples
     (a two-sided test at ``level``). An entry without samples (scored before they were kept)
     cannot be compared: it keeps its own rank and no range crosses it."""
-    known = [i for i, s in enumerate(samples) if s is not None]
-    reps: list[np.ndarray | None] = [None] * len(samples)
-    for i, r in zip(
-        known,
-        replicates([samples[i] for i in known], resamples=resamples, seed=seed),
-        strict=True,
-    ):
-        reps[i] = r
+    reps = [
+        None if s is None else replicates(s, resamples=resamples, seed=seed) for s in samples
+    ]
+    return ranges_from_replicates(reps, level=level)
+
+
+def ranges_from_replicates(
+    reps: Sequence[np.ndarray | None], *, level: float = LEVEL
+) -> list[RankRange]:
+    """:func:`rank_ranges` from each entry's :func:`replicates` (None: no samples)."""
     raw = beat_matrix(reps)
-    n = len(samples)
+    n = len(reps)
     # Entries on either side of one without samples are decided in the leaderboard's order.
-    unknown = np.array([s is None for s in samples])
+    unknown = np.array([r is None for r in reps], dtype=bool)
     segment = np.where(unknown, n + 1 + np.arange(n), np.cumsum(unknown))
     order = np.arange(n)[:, None] < np.arange(n)[None, :]  # order[j, i]: j is above i
     p = np.where(segment[:, None] == segment[None, :], raw, order.astype(float))
