@@ -278,6 +278,10 @@ class Score(Base):
     completion_low: Mapped[float | None] = mapped_column(Float)
     completion_high: Mapped[float | None] = mapped_column(Float)
     families: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    # Per scenario, each episode's values (evaluator/scoring/significance.py MetricSamples): what
+    # the leaderboard's rank ranges resample. NULL for scores written before they were kept.
+    # Deferred: only the leaderboard reads it, and only for scores it has not resampled yet.
+    samples: Mapped[dict[str, Any] | None] = mapped_column(deferred=True)
     profile: Mapped[str] = mapped_column(String(64))
     profile_version: Mapped[str] = mapped_column(String(32), default="")
     computed_at: Mapped[datetime] = mapped_column(default=utcnow)

@@ -108,6 +108,14 @@ class LeaderboardEntry(Schema):
     # Ranks of the neighbours (just above, just below) whose completion interval overlaps this
     # one's: statistically tied, their order may be chance.
     tied_with: list[int]
+    # Ranks this entry could hold: entries whose difference is not significant share them
+    # (docs/scoring.md, "Rank ranges"); rank_range is "2-4", or "3" when the rank is certain.
+    rank_low: int
+    rank_high: int
+    rank_range: str
+    # The chance this entry ranks ahead of the entry just below it over the bootstrap
+    # resamples; None for the last entry and next to a score without per-episode values.
+    beats_next: float | None
     episodes_per_scenario: int
     families: dict[str, FamilyMetrics]
 

@@ -192,9 +192,7 @@ def rank_ranges(
     significantly when it comes out ahead in at least ``1 - (1 - level) / 2`` of the resamples
     (a two-sided test at ``level``). An entry without samples (scored before they were kept)
     cannot be compared: it keeps its own rank and no range crosses it."""
-    reps = [
-        None if s is None else replicates(s, resamples=resamples, seed=seed) for s in samples
-    ]
+    reps = [None if s is None else replicates(s, resamples=resamples, seed=seed) for s in samples]
     return ranges_from_replicates(reps, level=level)
 
 

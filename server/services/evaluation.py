@@ -403,6 +403,7 @@ def write_score(
             families=run_score.families,
             completion_low=run_score.completion_interval.low,
             completion_high=run_score.completion_interval.high,
+            samples=run_score.samples,
             **run_score.metrics,
         )
     )

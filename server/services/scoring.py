@@ -17,7 +17,7 @@ from arena.episodes import Episode
 from arena.outcome import FINISHED, AgentOutcome, DoneReason, ScenarioStatus
 from arena.suite import load_suite
 from evaluator.runner import ScenarioOutcome, score_outcomes
-from evaluator.scoring import Interval, ScoringProfile
+from evaluator.scoring import Interval, ScoringProfile, load_profile
 from evaluator.summary import Summary
 from server.core.artifacts import ArtifactStore, MissingArtifact
 from server.models import EvaluationRun, ScenarioResult
@@ -29,6 +29,7 @@ class RunScore:
     metrics: dict[str, float]
     families: dict[str, dict[str, Any]]  # family -> the four metrics and "scenarios" (count)
     completion_interval: Interval
+    samples: dict[str, Any]  # MetricSamples.to_json(): what rank ranges resample
 
 
 def result_values(
@@ -111,8 +112,10 @@ def run_score(summary: Summary) -> RunScore | None:
         family: metrics.model_dump() | {"scenarios": counts[family]}
         for family, metrics in summary.families.items()
     }
+    samples = summary.metric_samples(load_profile(summary.profile.name).averaging)
     return RunScore(
         metrics=summary.metrics.model_dump(),
         families=families,
         completion_interval=summary.completion_interval(),
+        samples=samples.to_json(),
     )

@@ -6,6 +6,7 @@ import json
 from datetime import datetime, timedelta
 from pathlib import Path
 
+from evaluator.scoring import MetricSamples
 from server.core.db import Database
 from server.models import EvaluationRun, Phase, Score, Submission, Visibility, utcnow
 from server.services import evaluation, teams
@@ -63,9 +64,10 @@ def seed_scored(
     status: SubmissionStatus = SubmissionStatus.scored,
     phase: str = "final",
     interval: tuple[float, float] | None = None,
+    samples: MetricSamples | None = None,
 ) -> int:
-    """A submission with one scored run and its score (completion interval ``interval``), as
-    if a worker had evaluated it."""
+    """A submission with one scored run and its score (completion interval ``interval``,
+    per-episode values ``samples``), as if a worker had evaluated it."""
     created_at = created_at or utcnow()
     with db.session() as session:
         submission = Submission(
@@ -100,6 +102,7 @@ def seed_scored(
                 families=families or {},
                 completion_low=interval[0] if interval else None,
                 completion_high=interval[1] if interval else None,
+                samples=samples.to_json() if samples is not None else None,
                 **dict(zip(METRICS, metrics, strict=True)),
             )
         )

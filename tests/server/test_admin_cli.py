@@ -113,6 +113,8 @@ def test_rescore_rerun_and_export(arena, db, settings):
     assert (row[4], row[5]) == ("scored (re-run running)", "0/3")
     rows = list(csv.DictReader(io.StringIO(arena("leaderboard", "export"))))
     assert [(row["team"], float(row["completion"])) for row in rows] == [("alpha", 0.0)]
+    # Alone on the board: its rank is certain and there is no neighbour to beat.
+    assert (rows[0]["rank_range"], rows[0]["beats_next"]) == ("1", "")
 
 
 def test_status_reports_queue_and_stuck_runs(arena, db):
