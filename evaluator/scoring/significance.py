@@ -105,13 +105,17 @@ def replicates(
     stream = [seed, int.from_bytes(hashlib.sha256(key).digest()[:8], "big")]
     draws = np.random.default_rng(stream)
     pool = _episode_pool(samples, universe, np.random.default_rng([*stream, 1]))
+    # (5, scenarios x pool): each field's values contiguous, so a resample's sum is a gather
+    # and a sum along the last axis.
+    fields = np.ascontiguousarray(pool.reshape(-1, len(SAMPLE_FIELDS)).T)
     parts = []
     for start in range(0, resamples, _CHUNK):
         size = min(_CHUNK, resamples - start)
-        # Stage one: the scenarios; stage two: one of each drawn scenario's episode resamples.
-        drawn = draws.integers(0, len(universe), size=(size, len(universe)))
-        pick = draws.integers(0, EPISODE_POOL, size=(size, len(universe)))
-        parts.append(_metrics(pool[drawn, pick].sum(axis=1), np.array([len(universe)])))
+        # Stage one, a scenario, and stage two, one of its episode resamples, in one uniform
+        # draw over (scenario, pool slot) pairs.
+        flat = draws.integers(0, len(universe) * EPISODE_POOL, size=(size, len(universe)))
+        sums = np.stack([values[flat].sum(axis=1) for values in fields], axis=1)
+        parts.append(_metrics(sums, np.array([len(universe)])))
     return np.concatenate(parts)
 
 
@@ -119,20 +123,22 @@ def _episode_pool(
     samples: MetricSamples, universe: Sequence[str], rng: np.random.Generator
 ) -> np.ndarray:
     """``(scenarios, EPISODE_POOL, 5)``: means of each scenario's fields over resampled
-    episodes. Drawn as uniforms, so entries with as many episodes of a scenario draw the same
-    episode indices (paired)."""
+    episodes (a scenario run once: its one episode throughout). Drawn as uniforms, so entries
+    with as many episodes of a scenario draw the same episode indices (paired)."""
     rows = [samples.scenarios[sid] for sid in universe]
     counts = np.array([len(r) for r in rows])
     slots = counts.max()
-    values = np.zeros((len(rows), slots, len(SAMPLE_FIELDS)))
-    for i, r in enumerate(rows):
-        values[i, : len(r)] = r
-    n = counts[:, None, None]
     uniform = rng.random((len(rows), EPISODE_POOL, slots))
-    episode = np.floor(uniform * n).astype(int)  # (scenarios, pool, slots)
-    picked = values[np.arange(len(rows))[:, None, None], episode]  # (scenarios, pool, slots, 5)
-    mask = (np.arange(slots) < n)[..., None]
-    return np.where(mask, picked, 0.0).sum(axis=2) / n
+    pool = np.empty((len(rows), EPISODE_POOL, len(SAMPLE_FIELDS)))
+    for n in np.unique(counts):
+        (members,) = np.nonzero(counts == n)
+        values = np.stack([rows[i] for i in members])  # (members, n, 5)
+        if n == 1:
+            pool[members] = values
+            continue
+        episode = np.floor(uniform[members, :, :n] * n).astype(np.intp)  # (members, pool, n)
+        pool[members] = values[np.arange(len(members))[:, None, None], episode].mean(axis=2)
+    return pool
 
 
 def _standing(reps: np.ndarray) -> np.ndarray:

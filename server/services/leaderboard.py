@@ -196,7 +196,8 @@ class LeaderboardCache:
 
     Workers in other processes bump the counter when they write a score; this process looks at it
     at most every ``recheck_s`` seconds, so a new score shows within that delay and a burst of
-    requests costs no database work at all.
+    requests costs no database work at all. While one request recomputes a board, the others are
+    served the board it replaces (only the very first computation of a board is waited for).
     """
 
     def __init__(self, db: Database, recheck_s: float = 1.0) -> None:
@@ -218,7 +219,12 @@ class LeaderboardCache:
         if cached is not None:
             return cached
         moment = time.monotonic()
-        with self._lock:
+        stale = self._cached.get((phase, track))
+        if not self._lock.acquire(blocking=stale is None):
+            # Another request is re-ranking (a new score resamples its entry): the board it
+            # replaces is served meanwhile, so a burst never queues behind the computation.
+            return stale
+        try:
             cached = self._cached.get((phase, track))
             if cached is not None and time.monotonic() - cached.checked_at < self.recheck_s:
                 return cached
@@ -233,3 +239,5 @@ class LeaderboardCache:
                     cached.checked_at = moment
             self._cached[(phase, track)] = cached
             return cached
+        finally:
+            self._lock.release()

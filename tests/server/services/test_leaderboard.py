@@ -200,3 +200,13 @@ def test_a_scored_run_keeps_the_values_its_metrics_are_built_from(db, settings):
         stored = (score.completion, score.time, score.humanness, score.rules)
     assert len(samples.scenarios) == 3
     assert np.allclose(samples.metrics(), np.array(stored, dtype=float), equal_nan=True)
+
+
+def test_while_a_board_is_recomputed_the_previous_one_is_served(settings, db):
+    team, _ = make_team(db, "a")
+    cache = LeaderboardCache(db, recheck_s=0)
+    assert cache.get(Track.freestyle).board.entries == []
+    seed_scored(db, team, (0.5, 500.0, 0.2, 0.0))
+    with cache._lock:  # another request is computing
+        assert cache.get(Track.freestyle).board.entries == []
+    assert [e.team for e in cache.get(Track.freestyle).board.entries] == ["a"]
