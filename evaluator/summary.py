@@ -14,6 +14,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict
 
 from arena.outcome import AgentOutcome, ScenarioStatus
+from evaluator.provenance import Manifest
 from evaluator.scoring import Interval, Metrics, bootstrap_interval
 from evaluator.scoring.profile import Averaging
 from evaluator.scoring.significance import MetricSamples
@@ -66,13 +67,18 @@ class Summary(Frozen):
     uncharged: tuple[str, ...]  # scenario ids excluded from N (our failures)
     scenarios: tuple[ScenarioEntry, ...]
     episodes_per_scenario: int = 1  # of each reactive scenario (arena.episodes)
+    # What the results depend on (evaluator/provenance.py); written by `arena evaluate`.
+    manifest: Manifest | None = None
 
     def to_dict(self) -> dict:
         """The JSON shape: with one episode per scenario, exactly the shape from before episodes
-        existed (no ``episodes_per_scenario``, no per-scenario ``episodes``)."""
+        existed (no ``episodes_per_scenario``, no per-scenario ``episodes``); ``manifest`` only
+        when there is one."""
         data = self.model_dump(mode="json")
         if self.episodes_per_scenario == 1:
             del data["episodes_per_scenario"]
+        if self.manifest is None:
+            del data["manifest"]
         for entry in data["scenarios"]:
             if entry["episodes"] is None:
                 del entry["episodes"]

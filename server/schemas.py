@@ -6,6 +6,7 @@ from datetime import datetime
 
 from pydantic import BaseModel, ConfigDict
 
+from evaluator.provenance import PublicManifest
 from server.status import SubmissionStatus, TrainingStatus
 from server.tracks import Track
 
@@ -80,6 +81,10 @@ class SubmissionDetail(SubmissionSummary):
     # ids of the hidden suite are never shown to participants; these counts are.
     failure_reasons: dict[str, dict[str, int]]
     training: TrainingProgress | None = None  # offline (Track 2) submissions
+    # The score's reproducibility manifest as the team may see it (evaluator/provenance.py
+    # Manifest.public: no hidden scenario ids or seeds); None before a score, or for a score
+    # written before manifests existed.
+    manifest: PublicManifest | None = None
 
 
 class ScenarioLog(Schema):

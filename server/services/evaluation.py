@@ -404,6 +404,7 @@ def write_score(
             completion_low=run_score.completion_interval.low,
             completion_high=run_score.completion_interval.high,
             samples=run_score.samples,
+            manifest=scoring.run_manifest(run, profile, version).model_dump(mode="json"),
             **run_score.metrics,
         )
     )
