@@ -356,6 +356,62 @@ def rerun(submission_id: SubmissionId) -> None:
     console.print(f"submission {submission_id}: attempt {attempt} queued")
 
 
+@admin_app.command("audit")
+def audit(
+    submission_id: Annotated[
+        int | None, typer.Argument(help="Submission id.", min=1, max=MAX_ID)
+    ] = None,
+    sample: Annotated[
+        int | None,
+        typer.Option(
+            "--sample", min=1, max=1000, help="Audit N random leaderboard entries (nightly)."
+        ),
+    ] = None,
+) -> None:
+    """Re-run scored submissions from their manifests: bit-identical, or the first record that
+    differs. Refuses, naming them, when the manifest's components differ here. Exits 1 unless
+    every audit is bit-identical."""
+    from rich.progress import Progress
+
+    from server.services import audit as audits
+
+    if (submission_id is None) == (sample is None):
+        raise typer.BadParameter("give one submission id or --sample N")
+    ctx = _Context()
+    targets = [submission_id] if sample is None else audits.sample(ctx.db, sample)
+    if not targets:
+        raise _fail(ValueError("no leaderboard entry to audit"))
+    clean = True
+    for target in targets:
+        with Progress(console=console, transient=True) as bar:
+            task = bar.add_task(f"submission {target}", total=None)
+
+            def step(done: int, total: int, task=task, bar=bar) -> None:
+                bar.update(task, completed=done, total=total)
+
+            report = _run(
+                lambda target=target, step=step: audits.audit(
+                    ctx.db, ctx.settings, ctx.store, target, progress=step
+                )
+            )
+        clean &= report.identical
+        if report.refused:
+            console.print(f"submission {target}: refused, the manifest's components differ:")
+            for component in report.refused:
+                console.print(f"  {component}", markup=False, highlight=False)
+        elif report.difference is not None:
+            console.print(
+                f"submission {target}: differs after {report.compared} episode(s): "
+                f"{report.difference}",
+                markup=False,
+                highlight=False,
+            )
+        else:
+            console.print(f"submission {target}: bit-identical ({report.compared} episodes)")
+    if not clean:
+        raise typer.Exit(1)
+
+
 @admin_app.command("retrain")
 def retrain(submission_id: SubmissionId) -> None:
     """Train a scored or failed offline submission again, from scratch, then evaluate it."""
