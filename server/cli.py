@@ -586,7 +586,8 @@ def phases_list() -> None:
             f"{phase.starts_at:%Y-%m-%d %H:%M}" if phase.starts_at else "-",
             f"{phase.ends_at:%Y-%m-%d %H:%M}" if phase.ends_at else "-",
             str(phases.daily_quota(phase, ctx.settings)),
-            str(phases.episodes_per_scenario(phase, ctx.settings)),
+            str(phases.episodes_per_scenario(phase, ctx.settings))
+            + ("+" if phase.adaptive_target is not None else ""),
             "yes" if phases.is_open(phase, moment) else "no",
         )
     console.print(table)
@@ -595,6 +596,10 @@ def phases_list() -> None:
         "that many times as long as with one",
         style="dim",
     )
+    for phase in rows:
+        adaptive = phases.adaptive_cost(phase, ctx.settings)
+        if adaptive is not None:
+            console.print(f"{phase.name} (+): {adaptive}", markup=False)
 
 
 @phases_app.command("set")
@@ -618,6 +623,22 @@ def phases_set(
     open_ended: Annotated[
         bool, typer.Option("--open-ended", help="No start and no end date.")
     ] = False,
+    adaptive_target: Annotated[
+        float | None,
+        typer.Option(
+            help="Adaptive evaluation: add rounds of --episodes episodes per reactive scenario "
+            "while completion's 95% interval half-width is above this (with --max-episodes)."
+        ),
+    ] = None,
+    max_episodes: Annotated[
+        int | None, typer.Option(help="Adaptive evaluation: the most episodes per scenario.")
+    ] = None,
+    fixed_episodes: Annotated[
+        bool, typer.Option("--fixed-episodes", help="Turn adaptive evaluation off.")
+    ] = False,
+    dry_run: Annotated[
+        bool, typer.Option("--dry-run", help="Say what the phase would cost; save nothing.")
+    ] = False,
 ) -> None:
     """Create a phase or change some of its settings."""
     from server.models import Visibility
@@ -634,10 +655,17 @@ def phases_set(
         scoring_profile=profile,
         episodes_per_scenario=episodes,
         clear_dates=open_ended,
+        adaptive_target=adaptive_target,
+        max_episodes=max_episodes,
+        fixed_episodes=fixed_episodes,
     )
     ctx = _Context()
-    phase = _run(lambda: phases.set_phase(ctx.db, name, changes))
-    console.print(f"phase [bold]{phase.name}[/bold] saved")
+    phase = _run(lambda: phases.set_phase(ctx.db, name, changes, dry_run=dry_run))
+    outcome = "unchanged (dry run)" if dry_run else "saved"
+    console.print(f"phase [bold]{phase.name}[/bold] {outcome}")
     per_scenario = phases.episodes_per_scenario(phase, ctx.settings)
-    if per_scenario > 1:
+    adaptive = phases.adaptive_cost(phase, ctx.settings)
+    if adaptive is not None:
+        console.print(adaptive, markup=False)
+    elif per_scenario > 1:
         console.print(phases.episodes_cost(per_scenario))

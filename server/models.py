@@ -123,6 +123,11 @@ class Phase(Base):
     scoring_profile: Mapped[str | None] = mapped_column(String(64))  # None: the setting's
     # Episodes of each reactive scenario (arena/episodes.py); None: the setting's.
     episodes_per_scenario: Mapped[int | None] = mapped_column(Integer)
+    # Adaptive evaluation (docs/scoring.md): rounds of episodes_per_scenario more episodes until
+    # completion's 95% interval has a half-width at most adaptive_target, up to max_episodes per
+    # reactive scenario. None: a fixed count.
+    adaptive_target: Mapped[float | None] = mapped_column(Float)
+    max_episodes: Mapped[int | None] = mapped_column(Integer)
 
 
 class Submission(Base):
@@ -212,6 +217,11 @@ class EvaluationRun(Base):
     episode_count: Mapped[int] = mapped_column(Integer)
     # Fixed when the run is made: a later change to the phase does not change a run under way.
     episodes_per_scenario: Mapped[int] = mapped_column(Integer, default=1, server_default="1")
+    # The phase's adaptive evaluation when the run was made (None: fixed): each round adds
+    # episode_round episodes per reactive scenario; episodes_per_scenario counts those so far.
+    adaptive_target: Mapped[float | None] = mapped_column(Float)
+    max_episodes: Mapped[int | None] = mapped_column(Integer)
+    episode_round: Mapped[int] = mapped_column(Integer, default=1, server_default="1")
     scoring_profile: Mapped[str] = mapped_column(String(64))
     scoring_version: Mapped[str] = mapped_column(String(32), default="")
     worker: Mapped[str] = mapped_column(String(255), default="")

@@ -11,6 +11,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from arena.config import Settings
+from arena.errors import ArenaError
 from arena.suite import resolve_suite
 from evaluator.scoring import ProfileError, load_profile
 from server.core.db import Database
@@ -18,6 +19,8 @@ from server.models import Phase, Visibility, utcnow
 from server.services.errors import Forbidden, InvalidInput, NotFound
 
 DEFAULT_PHASE = "final"
+# The most episodes of one reactive scenario an adaptive phase may run.
+MAX_EPISODES = 100
 
 
 def get_phase(session: Session, name: str) -> Phase:
@@ -80,6 +83,20 @@ def episodes_cost(per_scenario: int) -> str:
     )
 
 
+def adaptive_cost(phase: Phase, settings: Settings) -> str | None:
+    """What an adaptive phase's evaluation costs (None for a fixed count), said before it is
+    chosen and wherever it is shown."""
+    if phase.adaptive_target is None or phase.max_episodes is None:
+        return None
+    first = episodes_per_scenario(phase, settings)
+    return (
+        f"adaptive: {first} episode(s) per reactive scenario, then {first} more per round while "
+        f"completion's 95% interval is wider than +/-{phase.adaptive_target:g}, up to "
+        f"{phase.max_episodes}: evaluation takes {first} to {phase.max_episodes} times as long "
+        "as with one episode each"
+    )
+
+
 def team_sees_everything(phase: Phase) -> bool:
     return phase.visibility is Visibility.full
 
@@ -102,14 +119,40 @@ class PhaseChanges:
     scoring_profile: str | None = None
     episodes_per_scenario: int | None = None
     clear_dates: bool = False  # open-ended again: no start and no end
+    # Adaptive evaluation: both together; fixed_episodes turns it off again.
+    adaptive_target: float | None = None
+    max_episodes: int | None = None
+    fixed_episodes: bool = False
 
 
-def set_phase(db: Database, name: str, changes: PhaseChanges) -> Phase:
-    """Create the phase ``name`` or change the given fields of it."""
+class _DryRun(ArenaError):
+    """Carries a phase changed in a transaction that is then rolled back."""
+
+    def __init__(self, phase: Phase) -> None:
+        super().__init__("dry run")
+        self.phase = phase
+
+
+def set_phase(db: Database, name: str, changes: PhaseChanges, *, dry_run: bool = False) -> Phase:
+    """Create the phase ``name`` or change the given fields of it; ``dry_run``: the phase as it
+    would be (to say what it would cost), nothing saved."""
+    try:
+        return _set_phase(db, name, changes, dry_run)
+    except _DryRun as done:
+        return done.phase
+
+
+def _set_phase(db: Database, name: str, changes: PhaseChanges, dry_run: bool) -> Phase:
     if changes.daily_quota is not None and changes.daily_quota < 0:
         raise InvalidInput("daily quota: a number of submissions, 0 or more")
     if changes.episodes_per_scenario is not None and changes.episodes_per_scenario < 1:
         raise InvalidInput("episodes: how often each reactive scenario runs, 1 or more")
+    if (changes.adaptive_target is None) != (changes.max_episodes is None):
+        raise InvalidInput("adaptive evaluation needs both a target half-width and a cap")
+    if changes.adaptive_target is not None and not 0 < changes.adaptive_target < 1:
+        raise InvalidInput("adaptive target: completion's interval half-width, between 0 and 1")
+    if changes.max_episodes is not None and not 1 <= changes.max_episodes <= MAX_EPISODES:
+        raise InvalidInput(f"max episodes: per reactive scenario, 1 to {MAX_EPISODES}")
     if changes.scoring_profile is not None:
         try:
             load_profile(changes.scoring_profile)
@@ -137,8 +180,18 @@ def set_phase(db: Database, name: str, changes: PhaseChanges) -> Phase:
                 setattr(phase, field, value)
         if changes.scoring_profile is not None:
             phase.scoring_profile = changes.scoring_profile
+        if changes.fixed_episodes:
+            phase.adaptive_target = phase.max_episodes = None
+        if changes.adaptive_target is not None:
+            phase.adaptive_target = changes.adaptive_target
+            phase.max_episodes = changes.max_episodes
+        first = phase.episodes_per_scenario
+        if phase.max_episodes is not None and first is not None and phase.max_episodes < first:
+            raise InvalidInput("max episodes must be at least the episodes of the first round")
         if phase.starts_at and phase.ends_at and phase.ends_at <= phase.starts_at:
             raise InvalidInput("the phase must end after it starts")
         session.flush()
         session.expunge(phase)
+        if dry_run:
+            raise _DryRun(phase)  # rolls the transaction back
         return phase

@@ -162,3 +162,19 @@ def test_phases_set_episodes_says_the_cost_and_list_shows_it(arena, client):
     assert "1 or more" in arena("phases", "set", "final", "--episodes", "0", ok=False)
     page = client.get("/submit").text
     assert "3 episodes per reactive scenario: evaluation takes about 3 times as long" in page
+
+
+def test_phases_set_adaptive_says_the_cost_before_and_after_and_list_shows_it(arena, db):
+    cost = (
+        "adaptive: 2 episode(s) per reactive scenario, then 2 more per round while completion's "
+        "95% interval is wider than +/-0.05, up to 20: evaluation takes 2 to 20 times as long"
+    )
+    args = ("phases", "set", "final", "--episodes", "2", "--adaptive-target", "0.05")
+    preview = arena(*args, "--max-episodes", "20", "--dry-run")
+    assert cost in " ".join(preview.split()) and "unchanged (dry run)" in preview
+    assert "adaptive" not in arena("phases", "list")
+    assert cost in " ".join(arena(*args, "--max-episodes", "20").split())
+    assert f"final (+): {cost}" in " ".join(arena("phases", "list").split())
+    assert "both" in arena(*args, ok=False)
+    arena("phases", "set", "final", "--fixed-episodes")
+    assert "adaptive" not in arena("phases", "list")
