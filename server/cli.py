@@ -578,6 +578,7 @@ def phases_list() -> None:
     table = Table(
         "phase", "suite", "visibility", "starts", "ends", "daily quota", "episodes", "open"
     )
+    released = [phase.name for phase in rows if phase.released_at is not None]
     for phase in rows:
         table.add_row(
             phase.name,
@@ -596,10 +597,27 @@ def phases_list() -> None:
         "that many times as long as with one",
         style="dim",
     )
+    if released:
+        console.print(f"released (suite downloadable, episodes visible): {', '.join(released)}")
     for phase in rows:
         adaptive = phases.adaptive_cost(phase, ctx.settings)
         if adaptive is not None:
             console.print(f"{phase.name} (+): {adaptive}", markup=False)
+
+
+@phases_app.command("release")
+def phases_release(name: Annotated[str, typer.Argument(help="A phase that has closed.")]) -> None:
+    """After a phase closes: make its suite downloadable and let every team watch its own
+    episodes of it (refused while the phase is open)."""
+    from server.services import release
+
+    ctx = _Context()
+    phase = _run(lambda: release.release_phase(ctx.db, name))
+    console.print(
+        f"phase [bold]{phase.name}[/bold] released at {phase.released_at:%Y-%m-%d %H:%M} UTC: "
+        f"its suite is at /api/v1/scenarios/released/{phase.name}.zip and every team can watch "
+        "its own episodes"
+    )
 
 
 @phases_app.command("set")

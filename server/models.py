@@ -128,6 +128,9 @@ class Phase(Base):
     # reactive scenario. None: a fixed count.
     adaptive_target: Mapped[float | None] = mapped_column(Float)
     max_episodes: Mapped[int | None] = mapped_column(Integer)
+    # When the organisers released the closed phase (arena admin phases release): its suite is
+    # downloadable and every team sees its own episodes. None: nothing changes.
+    released_at: Mapped[datetime | None]
 
 
 class Submission(Base):

@@ -98,7 +98,8 @@ def adaptive_cost(phase: Phase, settings: Settings) -> str | None:
 
 
 def team_sees_everything(phase: Phase) -> bool:
-    return phase.visibility is Visibility.full
+    """A phase of full visibility, or one the organisers released after it closed."""
+    return phase.visibility is Visibility.full or phase.released_at is not None
 
 
 def check_team_may_see_output(phase: Phase) -> None:

@@ -178,3 +178,12 @@ def test_phases_set_adaptive_says_the_cost_before_and_after_and_list_shows_it(ar
     assert "both" in arena(*args, ok=False)
     arena("phases", "set", "final", "--fixed-episodes")
     assert "adaptive" not in arena("phases", "list")
+
+
+def test_phases_release_waits_for_the_close_and_list_says_it(arena):
+    refused = arena("phases", "release", "final", ok=False)
+    assert "has no end date" in refused and "Traceback" not in refused
+    arena("phases", "set", "final", "--ends", "2020-01-01T00:00")
+    done = " ".join(arena("phases", "release", "final").split())
+    assert "released" in done and "/api/v1/scenarios/released/final.zip" in done
+    assert "released (suite downloadable, episodes visible): final" in arena("phases", "list")
