@@ -479,6 +479,10 @@ def leaderboard_export(
     track: Annotated[Track, typer.Option(help="Which track's leaderboard.")] = Track.freestyle,
     phase: Annotated[str, typer.Option(help="Which phase's leaderboard.")] = "final",
     out: Annotated[Path | None, typer.Option(help="File to write (default: stdout).")] = None,
+    gap_from: Annotated[
+        str | None,
+        typer.Option(help="Add each entry's generalisation gap to this phase (e.g. validation)."),
+    ] = None,
 ) -> None:
     """The leaderboard of one phase and track as CSV."""
     from server.services import leaderboard, phases
@@ -486,7 +490,11 @@ def leaderboard_export(
     ctx = _Context()
     with ctx.db.read_session() as session:
         _run(lambda: phases.get_phase(session, phase))
-        text = leaderboard.to_csv(leaderboard.compute(session, track, phase))
+        board = leaderboard.compute(session, track, phase)
+        if gap_from is not None:
+            _run(lambda: phases.get_phase(session, gap_from))
+            board = leaderboard.with_gap(board, leaderboard.compute(session, track, gap_from))
+        text = leaderboard.to_csv(board)
     if out is None:
         typer.echo(text, nl=False)
         return

@@ -102,6 +102,13 @@ class SubmissionLogs(Schema):
     scenarios: list[ScenarioLog]
 
 
+class GeneralisationGap(Schema):
+    phase: str  # the phase compared with
+    submission_id: int  # the team's entry there
+    metrics: Metrics  # that entry's metrics
+    difference: Metrics  # this entry's minus those (None where either is not measured)
+
+
 class LeaderboardEntry(Schema):
     rank: int
     team: str
@@ -123,12 +130,16 @@ class LeaderboardEntry(Schema):
     beats_next: float | None
     episodes_per_scenario: int
     families: dict[str, FamilyMetrics]
+    # With ?gap_from=PHASE: this entry's metrics minus its team's entry in that phase (positive:
+    # worse here, e.g. on the hidden suite than on the public one); None without one there.
+    gap: GeneralisationGap | None = None
 
 
 class Leaderboard(Schema):
     phase: str
     track: Track
     entries: list[LeaderboardEntry]
+    gap_from: str | None = None  # the phase the generalisation gaps are measured against
 
 
 class PublicScenario(Schema):

@@ -33,7 +33,13 @@ from server.models import (
     Team,
     Track,
 )
-from server.schemas import FamilyMetrics, Leaderboard, LeaderboardEntry, Metrics
+from server.schemas import (
+    FamilyMetrics,
+    GeneralisationGap,
+    Leaderboard,
+    LeaderboardEntry,
+    Metrics,
+)
 from server.services.phases import DEFAULT_PHASE, get_phase
 from server.services.submissions import completion_interval
 from server.status import RunStatus, SubmissionStatus
@@ -133,6 +139,37 @@ def compute(
     return Leaderboard(phase=phase, track=track, entries=entries)
 
 
+def with_gap(board: Leaderboard, reference: Leaderboard) -> Leaderboard:
+    """``board`` with each entry's generalisation gap: its metrics minus those of its team's
+    entry on ``reference`` (another phase's board of the same track; overfitting to a public
+    suite shows as a positive gap on the hidden one)."""
+    theirs = {entry.team: entry for entry in reference.entries}
+
+    def gap(entry: LeaderboardEntry) -> GeneralisationGap | None:
+        other = theirs.get(entry.team)
+        if other is None:
+            return None
+        difference = {
+            name: None
+            if getattr(entry.metrics, name) is None or getattr(other.metrics, name) is None
+            else getattr(entry.metrics, name) - getattr(other.metrics, name)
+            for name in METRICS
+        }
+        return GeneralisationGap(
+            phase=reference.phase,
+            submission_id=other.submission_id,
+            metrics=other.metrics,
+            difference=Metrics(**difference),
+        )
+
+    return board.model_copy(
+        update={
+            "gap_from": reference.phase,
+            "entries": [e.model_copy(update={"gap": gap(e)}) for e in board.entries],
+        }
+    )
+
+
 def generation(session: Session) -> int:
     return (
         session.scalar(select(LeaderboardGeneration.value).where(LeaderboardGeneration.id == 1))
@@ -142,6 +179,10 @@ def generation(session: Session) -> int:
 
 def _csv_value(value: float | None) -> str:
     return "" if value is None else repr(value)
+
+
+def _gap(entry: LeaderboardEntry, name: str) -> float | None:
+    return None if entry.gap is None else getattr(entry.gap.difference, name)
 
 
 def to_csv(board: Leaderboard) -> str:
@@ -160,6 +201,7 @@ def to_csv(board: Leaderboard) -> str:
             "completion_low",
             "completion_high",
             "tied_with",
+            *([f"gap_{name}" for name in METRICS] if board.gap_from else []),
         ]
     )
     for entry in board.entries:
@@ -178,6 +220,11 @@ def to_csv(board: Leaderboard) -> str:
                     for bound in ("low", "high")
                 ),
                 " ".join(str(rank) for rank in entry.tied_with),
+                *(
+                    [_csv_value(_gap(entry, name)) for name in METRICS]
+                    if board.gap_from
+                    else []
+                ),
             ]
         )
     return out.getvalue()

@@ -187,3 +187,13 @@ def test_phases_release_waits_for_the_close_and_list_says_it(arena):
     done = " ".join(arena("phases", "release", "final").split())
     assert "released" in done and "/api/v1/scenarios/released/final.zip" in done
     assert "released (suite downloadable, episodes visible): final" in arena("phases", "list")
+
+
+def test_leaderboard_export_with_the_generalisation_gap(arena, db):
+    team, _ = make_team(db, "a")
+    seed_scored(db, team, (0.5, 400.0, 0.5, 0.1), phase="final")
+    seed_scored(db, team, (0.25, 300.0, 0.5, 0.1), phase="validation")
+    text = arena("leaderboard", "export", "--gap-from", "validation")
+    rows = list(csv.DictReader(io.StringIO(text)))
+    assert (rows[0]["team"], float(rows[0]["gap_completion"])) == ("a", 0.25)
+    assert "no phase 'nope'" in arena("leaderboard", "export", "--gap-from", "nope", ok=False)

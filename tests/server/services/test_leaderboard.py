@@ -210,3 +210,48 @@ def test_while_a_board_is_recomputed_the_previous_one_is_served(settings, db):
     with cache._lock:  # another request is computing
         assert cache.get(Track.freestyle).board.entries == []
     assert [e.team for e in cache.get(Track.freestyle).board.entries] == ["a"]
+
+
+def test_the_generalisation_gap_to_another_phase(client, db):
+    """Teams with entries in both phases get final minus validation; others none; JSON, CSV,
+    page."""
+    a, b = make_team(db, "a")[0], make_team(db, "b")[0]
+    seed_scored(db, a, (0.25, 400.0, 0.5, 0.1), phase="final")
+    seed_scored(db, a, (0.0, 300.0, 0.25, None), phase="validation")
+    seed_scored(db, b, (0.5, 500.0, 0.5, 0.1), phase="final")
+    response = client.get(
+        "/api/v1/leaderboard", params={"phase": "final", "gap_from": "validation"}
+    )
+    body = response.json()
+    assert body["gap_from"] == "validation"
+    first, second = body["entries"]
+    assert first["gap"]["difference"] == {
+        "completion": 0.25,
+        "time": 100.0,
+        "humanness": 0.25,
+        "rules": None,  # not measured in validation
+    }
+    assert first["gap"]["metrics"]["completion"] == 0.0 and second["gap"] is None
+    assert "gap" not in board(client)[0] or board(client)[0]["gap"] is None
+
+    rows = list(
+        csv.DictReader(
+            io.StringIO(
+                client.get(
+                    "/api/v1/leaderboard.csv", params={"phase": "final", "gap_from": "validation"}
+                ).text
+            )
+        )
+    )
+    assert (rows[0]["gap_completion"], rows[0]["gap_rules"], rows[1]["gap_time"]) == (
+        "0.25",
+        "",
+        "",
+    )
+    assert "gap_completion" not in client.get("/api/v1/leaderboard.csv").text
+
+    page = client.get("/", params={"phase": "final", "gap_from": "validation"}).text
+    assert "gap vs validation" in page and "+0.2500" in page
+    assert "gap vs" not in client.get("/", params={"phase": "final"}).text.split("<table")[1]
+    unknown = client.get("/api/v1/leaderboard", params={"phase": "final", "gap_from": "nope"})
+    assert unknown.status_code == 404
