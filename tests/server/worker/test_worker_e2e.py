@@ -422,6 +422,47 @@ def test_several_episodes_per_scenario_through_the_worker(stack_settings, suite,
     db.dispose()
 
 
+def test_adaptive_rounds_through_the_worker_match_a_fixed_evaluation(
+    stack_settings, suite, tmp_path
+):
+    """An adaptive phase whose target is never met: the worker's aggregation sends rounds of one
+    episode per reactive scenario up to the cap, and the score is exactly the local evaluation's
+    with that many episodes (same seeds, same results)."""
+    from evaluator.runner import evaluate
+    from server.models import EvaluationRun
+    from server.services import phases
+    from tests.server.builders import pack_example
+
+    local = evaluate(
+        pack_example("keep_lane", tmp_path),
+        suite,
+        out_dir=tmp_path / "local",
+        jobs=2,
+        sandbox="bubblewrap",
+        episodes_per_scenario=3,
+    )
+    db = Database(stack_settings.database_url)
+    changes = phases.PhaseChanges(episodes_per_scenario=1, adaptive_target=1e-6, max_episodes=3)
+    phases.set_phase(db, "final", changes)
+    _, token = make_team(db, "adaptive-team")
+    worker = start_worker(stack_settings, tmp_path / "worker.log")
+    try:
+        with api_server(stack_settings, tmp_path / "api.log") as (url, _):
+            sid = upload_example(url, token, "keep_lane", tmp_path)
+            body = wait_finished(url, token, sid)
+    finally:
+        stop(worker)
+    reactive = [s for s in SCENARIOS if "replay" not in s]
+    assert body["status"] == "scored", body
+    assert body["episodes_per_scenario"] == 3
+    assert body["progress"]["total"] == 3 * len(reactive) + 1
+    assert body["metrics"] == local.metrics.model_dump()
+    with db.session() as session:
+        (run,) = session.scalars(select(EvaluationRun)).all()
+        assert (run.episode_round, run.max_episodes) == (1, 3)
+    db.dispose()
+
+
 def test_audit_reruns_a_score_bit_identically_and_names_what_differs(
     stack_settings, tmp_path, monkeypatch
 ):
