@@ -246,11 +246,33 @@ def submissions_show(
             f"time {m.time:.1f}, humanness {_metric(m.humanness)}, rules {_metric(m.rules)}",
         ),
         ("episodes", f"{view.episodes_per_scenario} per reactive scenario"),
+        *_manifest_rows(view.manifest),
     ):
         console.print(f"{name}: {value}", markup=False, highlight=False)
     for attempt, status, worker, profile, error, results in runs:
         title = f"attempt {attempt}: {status} ({profile}) {worker or ''} {error or ''}".strip()
         print_rows(console, columns, results, title=title, numeric=("episode", "steps"))
+
+
+def _manifest_rows(manifest) -> list[tuple[str, str]]:
+    """The reproducibility manifest, in the lines of `submissions show` (docs/scoring.md)."""
+    if manifest is None:
+        return [("manifest", "- (scored before manifests were kept)")]
+    software = "; ".join(
+        f"arena {e.arena}, Python {e.python}, numpy {e.numpy}, SUMO {e.sumo}, {e.sandbox}"
+        + (f", image {e.agent_image}" if e.agent_image else "")
+        for e in manifest.environments
+    )
+    return [
+        (
+            "manifest",
+            f"suite {manifest.suite} {manifest.suite_hash[:12]}, "
+            f"{len(manifest.scenario_hashes)} scenarios, seeds {manifest.seeds_sha256[:12]}, "
+            f"profile {manifest.profile} v{manifest.profile_version}, "
+            f"model {manifest.model or '-'}",
+        ),
+        ("software", software or "-"),
+    ]
 
 
 def _interval_text(interval) -> str:

@@ -164,7 +164,7 @@ def test_phases_set_episodes_says_the_cost_and_list_shows_it(arena, client):
     assert "3 episodes per reactive scenario: evaluation takes about 3 times as long" in page
 
 
-def test_phases_set_adaptive_says_the_cost_before_and_after_and_list_shows_it(arena, db):
+def test_phases_set_adaptive_says_the_cost_before_and_after_and_list_shows_it(arena, client):
     cost = (
         "adaptive: 2 episode(s) per reactive scenario, then 2 more per round while completion's "
         "95% interval is wider than +/-0.05, up to 20: evaluation takes 2 to 20 times as long"
@@ -175,6 +175,7 @@ def test_phases_set_adaptive_says_the_cost_before_and_after_and_list_shows_it(ar
     assert "adaptive" not in arena("phases", "list")
     assert cost in " ".join(arena(*args, "--max-episodes", "20").split())
     assert f"final (+): {cost}" in " ".join(arena("phases", "list").split())
+    assert cost.replace("'", "&#39;") in " ".join(client.get("/submit").text.split())
     assert "both" in arena(*args, ok=False)
     arena("phases", "set", "final", "--fixed-episodes")
     assert "adaptive" not in arena("phases", "list")
@@ -197,3 +198,16 @@ def test_leaderboard_export_with_the_generalisation_gap(arena, db):
     rows = list(csv.DictReader(io.StringIO(text)))
     assert (rows[0]["team"], float(rows[0]["gap_completion"])) == ("a", 0.25)
     assert "no phase 'nope'" in arena("leaderboard", "export", "--gap-from", "nope", ok=False)
+
+
+def test_submissions_show_prints_the_manifest(arena, db, settings):
+    from tests.server.services.test_manifest import run_with_pins
+
+    team, _ = make_team(db, "alpha")
+    sid = queued_submission(db, team)
+    run_with_pins(db, settings, sid)
+    shown = " ".join(arena("submissions", "show", str(sid)).split())
+    assert "3 scenarios" in shown and "profile driving-smarts-2022 v1" in shown
+    assert "arena 0.1.0, Python 3.11.7, numpy 2.4.6, SUMO 1.28.0, docker, image sha256:" in shown
+    document = json.loads(arena("submissions", "show", str(sid), "--json"))
+    assert document["manifest"]["environments"][0]["sumo"] == "1.28.0"

@@ -72,7 +72,11 @@ def submit_page(request: Request, session: SessionDep, settings: SettingsDep) ->
             "phases": open_phases,
             "default_phase": DEFAULT_PHASE,
             # Said before the upload: several episodes multiply the time to a score.
-            "costs": {name: phases.episodes_cost(n) for name, n in episodes.items() if n > 1},
+            "costs": {
+                p.name: phases.adaptive_cost(p, settings) or phases.episodes_cost(episodes[p.name])
+                for p in open_phases
+                if episodes[p.name] > 1 or p.adaptive_target is not None
+            },
         },
     )
 
