@@ -296,8 +296,8 @@ class Score(Base):
     # Deferred: only the leaderboard reads it, and only for scores it has not resampled yet.
     samples: Mapped[dict[str, Any] | None] = mapped_column(deferred=True)
     # The reproducibility manifest (evaluator/provenance.py Manifest): what the score depends on.
-    # NULL for scores written before manifests existed.
-    manifest: Mapped[dict[str, Any] | None]
+    # NULL for scores written before manifests existed. Deferred: the leaderboard never reads it.
+    manifest: Mapped[dict[str, Any] | None] = mapped_column(deferred=True)
     profile: Mapped[str] = mapped_column(String(64))
     profile_version: Mapped[str] = mapped_column(String(32), default="")
     computed_at: Mapped[datetime] = mapped_column(default=utcnow)
