@@ -10,10 +10,14 @@ import json
 import os
 from pathlib import Path
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict
 
 from arena.outcome import AgentOutcome, ScenarioStatus
+from evaluator.provenance import Manifest
 from evaluator.scoring import Interval, Metrics, bootstrap_interval
+from evaluator.scoring.profile import Averaging
+from evaluator.scoring.significance import MetricSamples
 
 SUMMARY_FILE = "summary.json"
 
@@ -63,13 +67,18 @@ class Summary(Frozen):
     uncharged: tuple[str, ...]  # scenario ids excluded from N (our failures)
     scenarios: tuple[ScenarioEntry, ...]
     episodes_per_scenario: int = 1  # of each reactive scenario (arena.episodes)
+    # What the results depend on (evaluator/provenance.py); written by `arena evaluate`.
+    manifest: Manifest | None = None
 
     def to_dict(self) -> dict:
         """The JSON shape: with one episode per scenario, exactly the shape from before episodes
-        existed (no ``episodes_per_scenario``, no per-scenario ``episodes``)."""
+        existed (no ``episodes_per_scenario``, no per-scenario ``episodes``); ``manifest`` only
+        when there is one."""
         data = self.model_dump(mode="json")
         if self.episodes_per_scenario == 1:
             del data["episodes_per_scenario"]
+        if self.manifest is None:
+            del data["manifest"]
         for entry in data["scenarios"]:
             if entry["episodes"] is None:
                 del entry["episodes"]
@@ -91,6 +100,32 @@ class Summary(Frozen):
         scenario was charged."""
         samples = self.completion_samples()
         return bootstrap_interval(samples) if samples else None
+
+    def metric_samples(self, averaging: Averaging) -> MetricSamples | None:
+        """Each charged scenario's values in each of its episodes, what rank ranges resample
+        (``docs/scoring.md``); None when no scenario was charged. Humanness and rules come back
+        as sums over what the profile's ``averaging`` weighs (agent-steps, or the agent-episodes
+        that drove), so the suite's ratio of sums is rebuilt exactly."""
+        scenarios = {}
+        for entry in self.scenarios:
+            if entry.status != ScenarioStatus.done or entry.metrics is None:
+                continue
+            rows = []
+            for episode in entry.episodes or (entry,):
+                steps = [agent.steps for agent in episode.agents]
+                weight = sum(steps) if averaging is Averaging.agent_step else sum(map(bool, steps))
+                metrics = episode.metrics
+                rows.append(
+                    [
+                        metrics.completion,
+                        metrics.time,
+                        (metrics.humanness or 0.0) * weight,
+                        (metrics.rules or 0.0) * weight,
+                        weight,
+                    ]
+                )
+            scenarios[entry.id] = np.array(rows, dtype=float)
+        return MetricSamples(suite=self.manifest_hash, scenarios=scenarios) if scenarios else None
 
 
 def write_summary(summary: Summary, results_dir: Path) -> Path:

@@ -254,6 +254,7 @@ def submissions_show(
             f"time {m.time:.1f}, humanness {_metric(m.humanness)}, rules {_metric(m.rules)}",
         ),
         ("episodes", f"{view.episodes_per_scenario} per reactive scenario"),
+        *_manifest_rows(view.manifest),
     ):
         console.print(f"{name}: {value}", markup=False, highlight=False)
     for attempt, status, worker, profile, error, results in runs:
@@ -282,6 +283,25 @@ def _rank_text(standing) -> str:
         f"team ranks {standing.rank} of {standing.teams_ranked} "
         f"(with submission {standing.ranked_submission_id})"
     )
+def _manifest_rows(manifest) -> list[tuple[str, str]]:
+    """The reproducibility manifest, in the lines of `submissions show` (docs/scoring.md)."""
+    if manifest is None:
+        return [("manifest", "- (scored before manifests were kept)")]
+    software = "; ".join(
+        f"arena {e.arena}, Python {e.python}, numpy {e.numpy}, SUMO {e.sumo}, {e.sandbox}"
+        + (f", image {e.agent_image}" if e.agent_image else "")
+        for e in manifest.environments
+    )
+    return [
+        (
+            "manifest",
+            f"suite {manifest.suite} {manifest.suite_hash[:12]}, "
+            f"{len(manifest.scenario_hashes)} scenarios, seeds {manifest.seeds_sha256[:12]}, "
+            f"profile {manifest.profile} v{manifest.profile_version}, "
+            f"model {manifest.model or '-'}",
+        ),
+        ("software", software or "-"),
+    ]
 
 
 def _interval_text(interval) -> str:
@@ -428,6 +448,62 @@ def rerun(submission_id: SubmissionId) -> None:
     console.print(f"submission {submission_id}: attempt {attempt} queued")
 
 
+@admin_app.command("audit")
+def audit(
+    submission_id: Annotated[
+        int | None, typer.Argument(help="Submission id.", min=1, max=MAX_ID)
+    ] = None,
+    sample: Annotated[
+        int | None,
+        typer.Option(
+            "--sample", min=1, max=1000, help="Audit N random leaderboard entries (nightly)."
+        ),
+    ] = None,
+) -> None:
+    """Re-run scored submissions from their manifests: bit-identical, or the first record that
+    differs. Refuses, naming them, when the manifest's components differ here. Exits 1 unless
+    every audit is bit-identical."""
+    from rich.progress import Progress
+
+    from server.services import audit as audits
+
+    if (submission_id is None) == (sample is None):
+        raise typer.BadParameter("give one submission id or --sample N")
+    ctx = _Context()
+    targets = [submission_id] if sample is None else audits.sample(ctx.db, sample)
+    if not targets:
+        raise _fail(ValueError("no leaderboard entry to audit"))
+    clean = True
+    for target in targets:
+        with Progress(console=console, transient=True) as bar:
+            task = bar.add_task(f"submission {target}", total=None)
+
+            def step(done: int, total: int, task=task, bar=bar) -> None:
+                bar.update(task, completed=done, total=total)
+
+            report = _run(
+                lambda target=target, step=step: audits.audit(
+                    ctx.db, ctx.settings, ctx.store, target, progress=step
+                )
+            )
+        clean &= report.identical
+        if report.refused:
+            console.print(f"submission {target}: refused, the manifest's components differ:")
+            for component in report.refused:
+                console.print(f"  {component}", markup=False, highlight=False)
+        elif report.difference is not None:
+            console.print(
+                f"submission {target}: differs after {report.compared} episode(s): "
+                f"{report.difference}",
+                markup=False,
+                highlight=False,
+            )
+        else:
+            console.print(f"submission {target}: bit-identical ({report.compared} episodes)")
+    if not clean:
+        raise typer.Exit(1)
+
+
 @admin_app.command("retrain")
 def retrain(submission_id: SubmissionId) -> None:
     """Train a scored or failed offline submission again, from scratch, then evaluate it."""
@@ -527,6 +603,10 @@ def leaderboard_export(
     track: Annotated[Track, typer.Option(help="Which track's leaderboard.")] = Track.freestyle,
     phase: Annotated[str, typer.Option(help="Which phase's leaderboard.")] = "final",
     out: Annotated[Path | None, typer.Option(help="File to write (default: stdout).")] = None,
+    gap_from: Annotated[
+        str | None,
+        typer.Option(help="Add each entry's generalisation gap to this phase (e.g. validation)."),
+    ] = None,
 ) -> None:
     """The leaderboard of one phase and track as CSV."""
     from server.services import leaderboard, phases
@@ -534,7 +614,11 @@ def leaderboard_export(
     ctx = _Context()
     with ctx.db.read_session() as session:
         _run(lambda: phases.get_phase(session, phase))
-        text = leaderboard.to_csv(leaderboard.compute(session, track, phase))
+        board = leaderboard.compute(session, track, phase)
+        if gap_from is not None:
+            _run(lambda: phases.get_phase(session, gap_from))
+            board = leaderboard.with_gap(board, leaderboard.compute(session, track, gap_from))
+        text = leaderboard.to_csv(board)
     if out is None:
         typer.echo(text, nl=False)
         return
@@ -634,17 +718,40 @@ def phases_list() -> None:
                 f"{phase.starts_at:%Y-%m-%d %H:%M}" if phase.starts_at else "-",
                 f"{phase.ends_at:%Y-%m-%d %H:%M}" if phase.ends_at else "-",
                 phases.daily_quota(phase, ctx.settings),
-                phases.episodes_per_scenario(phase, ctx.settings),
+                f"{phases.episodes_per_scenario(phase, ctx.settings)}"
+                + ("+" if phase.adaptive_target is not None else ""),
                 "yes" if phases.is_open(phase, moment) else "no",
             )
             for phase in rows
         ],
         numeric=("daily quota", "episodes"),
     )
+    released = [phase.name for phase in rows if phase.released_at is not None]
     console.print(
         "episodes: of each reactive scenario, each with other traffic; an evaluation takes about "
         "that many times as long as with one",
         style="dim",
+    )
+    if released:
+        console.print(f"released (suite downloadable, episodes visible): {', '.join(released)}")
+    for phase in rows:
+        adaptive = phases.adaptive_cost(phase, ctx.settings)
+        if adaptive is not None:
+            console.print(f"{phase.name} (+): {adaptive}", markup=False)
+
+
+@phases_app.command("release")
+def phases_release(name: Annotated[str, typer.Argument(help="A phase that has closed.")]) -> None:
+    """After a phase closes: make its suite downloadable and let every team watch its own
+    episodes of it (refused while the phase is open)."""
+    from server.services import release
+
+    ctx = _Context()
+    phase = _run(lambda: release.release_phase(ctx.db, name))
+    console.print(
+        f"phase [bold]{phase.name}[/bold] released at {phase.released_at:%Y-%m-%d %H:%M} UTC: "
+        f"its suite is at /api/v1/scenarios/released/{phase.name}.zip and every team can watch "
+        "its own episodes"
     )
 
 
@@ -669,6 +776,22 @@ def phases_set(
     open_ended: Annotated[
         bool, typer.Option("--open-ended", help="No start and no end date.")
     ] = False,
+    adaptive_target: Annotated[
+        float | None,
+        typer.Option(
+            help="Adaptive evaluation: add rounds of --episodes episodes per reactive scenario "
+            "while completion's 95% interval half-width is above this (with --max-episodes)."
+        ),
+    ] = None,
+    max_episodes: Annotated[
+        int | None, typer.Option(help="Adaptive evaluation: the most episodes per scenario.")
+    ] = None,
+    fixed_episodes: Annotated[
+        bool, typer.Option("--fixed-episodes", help="Turn adaptive evaluation off.")
+    ] = False,
+    dry_run: Annotated[
+        bool, typer.Option("--dry-run", help="Say what the phase would cost; save nothing.")
+    ] = False,
 ) -> None:
     """Create a phase or change some of its settings."""
     from server.models import Visibility
@@ -685,12 +808,19 @@ def phases_set(
         scoring_profile=profile,
         episodes_per_scenario=episodes,
         clear_dates=open_ended,
+        adaptive_target=adaptive_target,
+        max_episodes=max_episodes,
+        fixed_episodes=fixed_episodes,
     )
     ctx = _Context()
-    phase = _run(lambda: phases.set_phase(ctx.db, ctx.settings, name, changes))
-    console.print(f"phase [bold]{phase.name}[/bold] saved")
+    phase = _run(lambda: phases.set_phase(ctx.db, ctx.settings, name, changes, dry_run=dry_run))
+    outcome = "unchanged (dry run)" if dry_run else "saved"
+    console.print(f"phase [bold]{phase.name}[/bold] {outcome}")
     per_scenario = phases.episodes_per_scenario(phase, ctx.settings)
-    if per_scenario > 1:
+    adaptive = phases.adaptive_cost(phase, ctx.settings)
+    if adaptive is not None:
+        console.print(adaptive, markup=False)
+    elif per_scenario > 1:
         console.print(phases.episodes_cost(per_scenario))
 
 

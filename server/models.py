@@ -123,6 +123,14 @@ class Phase(Base):
     scoring_profile: Mapped[str | None] = mapped_column(String(64))  # None: the setting's
     # Episodes of each reactive scenario (arena/episodes.py); None: the setting's.
     episodes_per_scenario: Mapped[int | None] = mapped_column(Integer)
+    # Adaptive evaluation (docs/scoring.md): rounds of episodes_per_scenario more episodes until
+    # completion's 95% interval has a half-width at most adaptive_target, up to max_episodes per
+    # reactive scenario. None: a fixed count.
+    adaptive_target: Mapped[float | None] = mapped_column(Float)
+    max_episodes: Mapped[int | None] = mapped_column(Integer)
+    # When the organisers released the closed phase (arena admin phases release): its suite is
+    # downloadable and every team sees its own episodes. None: nothing changes.
+    released_at: Mapped[datetime | None]
 
 
 class Submission(Base):
@@ -212,6 +220,11 @@ class EvaluationRun(Base):
     episode_count: Mapped[int] = mapped_column(Integer)
     # Fixed when the run is made: a later change to the phase does not change a run under way.
     episodes_per_scenario: Mapped[int] = mapped_column(Integer, default=1, server_default="1")
+    # The phase's adaptive evaluation when the run was made (None: fixed): each round adds
+    # episode_round episodes per reactive scenario; episodes_per_scenario counts those so far.
+    adaptive_target: Mapped[float | None] = mapped_column(Float)
+    max_episodes: Mapped[int | None] = mapped_column(Integer)
+    episode_round: Mapped[int] = mapped_column(Integer, default=1, server_default="1")
     scoring_profile: Mapped[str] = mapped_column(String(64))
     scoring_version: Mapped[str] = mapped_column(String(32), default="")
     worker: Mapped[str] = mapped_column(String(255), default="")
@@ -278,6 +291,13 @@ class Score(Base):
     completion_low: Mapped[float | None] = mapped_column(Float)
     completion_high: Mapped[float | None] = mapped_column(Float)
     families: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    # Per scenario, each episode's values (evaluator/scoring/significance.py MetricSamples): what
+    # the leaderboard's rank ranges resample. NULL for scores written before they were kept.
+    # Deferred: only the leaderboard reads it, and only for scores it has not resampled yet.
+    samples: Mapped[dict[str, Any] | None] = mapped_column(deferred=True)
+    # The reproducibility manifest (evaluator/provenance.py Manifest): what the score depends on.
+    # NULL for scores written before manifests existed. Deferred: the leaderboard never reads it.
+    manifest: Mapped[dict[str, Any] | None] = mapped_column(deferred=True)
     profile: Mapped[str] = mapped_column(String(64))
     profile_version: Mapped[str] = mapped_column(String(32), default="")
     computed_at: Mapped[datetime] = mapped_column(default=utcnow)

@@ -6,6 +6,7 @@ from datetime import datetime
 
 from pydantic import BaseModel, ConfigDict
 
+from evaluator.provenance import PublicManifest
 from server.status import SubmissionStatus, TrainingStatus
 from server.tracks import Track
 
@@ -127,6 +128,10 @@ class SubmissionDetail(SubmissionSummary):
     training: TrainingProgress | None = None  # offline (Track 2) submissions
     phase_window: PhaseWindow | None = None
     standing: Standing | None = None
+    # The score's reproducibility manifest as the team may see it (evaluator/provenance.py
+    # Manifest.public: no hidden scenario ids or seeds); None before a score, or for a score
+    # written before manifests existed.
+    manifest: PublicManifest | None = None
 
 
 class ScenarioLog(Schema):
@@ -144,6 +149,13 @@ class SubmissionLogs(Schema):
     scenarios: list[ScenarioLog]
 
 
+class GeneralisationGap(Schema):
+    phase: str  # the phase compared with
+    submission_id: int  # the team's entry there
+    metrics: Metrics  # that entry's metrics
+    difference: Metrics  # this entry's minus those (None where either is not measured)
+
+
 class LeaderboardEntry(Schema):
     rank: int
     team: str
@@ -155,14 +167,26 @@ class LeaderboardEntry(Schema):
     # Ranks of the neighbours (just above, just below) whose completion interval overlaps this
     # one's: statistically tied, their order may be chance.
     tied_with: list[int]
+    # Ranks this entry could hold: entries whose difference is not significant share them
+    # (docs/scoring.md, "Rank ranges"); rank_range is "2-4", or "3" when the rank is certain.
+    rank_low: int
+    rank_high: int
+    rank_range: str
+    # The chance this entry ranks ahead of the entry just below it over the bootstrap
+    # resamples; None for the last entry and next to a score without per-episode values.
+    beats_next: float | None
     episodes_per_scenario: int
     families: dict[str, FamilyMetrics]
+    # With ?gap_from=PHASE: this entry's metrics minus its team's entry in that phase (positive:
+    # worse here, e.g. on the hidden suite than on the public one); None without one there.
+    gap: GeneralisationGap | None = None
 
 
 class Leaderboard(Schema):
     phase: str
     track: Track
     entries: list[LeaderboardEntry]
+    gap_from: str | None = None  # the phase the generalisation gaps are measured against
 
 
 class PublicScenario(Schema):

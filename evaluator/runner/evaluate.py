@@ -27,6 +27,7 @@ from arena.errors import ArenaError
 from arena.outcome import ScenarioStatus
 from arena.suite import Suite, load_suite
 from evaluator.failures import FAIL_FAST_AFTER, never_started
+from evaluator.provenance import EpisodeRun, Manifest, distinct, manifest_of
 from evaluator.runner.results import (
     LOGS_DIR,
     RECORDS_DIR,
@@ -100,7 +101,8 @@ def evaluate(
             discard_results(out_dir)
         (out_dir / RECORDS_DIR).mkdir(parents=True, exist_ok=True)
         (out_dir / LOGS_DIR).mkdir(exist_ok=True)
-        run = ResultsFolder(out_dir, suite, scoring_profile, identity, episodes_per_scenario)
+        pins = (submission.sha256, _model_digest(model_dir))
+        run = ResultsFolder(out_dir, suite, scoring_profile, identity, episodes_per_scenario, pins)
         todo = run.resume()
         if progress:
             progress.started(len(run.episodes), list(run.outcomes.values()))
@@ -163,6 +165,12 @@ def _with_model(submission, model_dir: Path):
         raise ResultsDirError(f"the model folder {model_dir} does not exist (run `arena train`)")
     pair = hashlib.sha256(f"{submission.sha256}:{folder_digest(model_dir)}".encode())
     return dataclasses.replace(submission, model_dir=model_dir.resolve()), pair.hexdigest()
+
+
+def _model_digest(model_dir: Path | None) -> str | None:
+    from evaluator.training import folder_digest
+
+    return folder_digest(Path(model_dir)) if model_dir is not None else None
 
 
 def discard_results(out_dir: Path) -> None:
@@ -229,11 +237,16 @@ class ResultsFolder:
         profile: ScoringProfile,
         submission: str,
         episodes_per_scenario: int = 1,
+        pins: tuple[str, str | None] | None = None,
     ) -> None:
+        """``pins``: the sha256 of the submission's zip and of its trained model (or None), for
+        the reproducibility manifest (``submission`` is the identity of the pair)."""
         self.out_dir = out_dir
         self.suite = suite
         self.profile = profile
         self.submission = submission
+        self.pins = pins or (submission, None)
+        self.previous: Manifest | None = None  # of the episodes a previous run finished
         self.episodes_per_scenario = episodes_per_scenario
         self.episodes = episodes_of(suite.scenarios, episodes_per_scenario)
         self.outcomes: dict[Episode, ScenarioOutcome] = {}
@@ -255,6 +268,7 @@ class ResultsFolder:
                     f"(submission {previous.submission[:12]}, suite {previous.suite}); "
                     "use a fresh --out, or --force to replace them"
                 )
+            self.previous = previous.manifest
             for entry in previous.scenarios:
                 for key, episode in stored_episodes(entry):
                     if is_finished(key, episode, self.out_dir):
@@ -284,6 +298,34 @@ class ResultsFolder:
             self.timings[key.name] = round(outcome.wall_time_s, 3)
             (self.out_dir / LOGS_DIR / f"{key.name}.txt").write_text(outcome.log)
 
+    def _manifest(self) -> Manifest:
+        """The manifest of the finished episodes; those a previous run finished keep the seeds
+        and environments it recorded."""
+        before = self.previous.scenarios if self.previous is not None else {}
+
+        def seed(outcome: ScenarioOutcome) -> int | None:
+            if outcome.seed is not None:
+                return outcome.seed
+            seeds = before[outcome.scenario_id].seeds if outcome.scenario_id in before else ()
+            return seeds[outcome.episode] if outcome.episode < len(seeds) else None
+
+        manifest = manifest_of(
+            self.suite,
+            [
+                EpisodeRun(o.scenario_id, o.episode, seed(o), o.environment)
+                for o in self.outcomes.values()
+            ],
+            submission=self.pins[0],
+            model=self.pins[1],
+            episodes_per_scenario=self.episodes_per_scenario,
+            profile=self.profile.name,
+            profile_version=str(self.profile.version),
+        )
+        if self.previous is None:
+            return manifest
+        environments = distinct([*self.previous.environments, *manifest.environments])
+        return manifest.model_copy(update={"environments": environments})
+
     def summary(self) -> Summary:
         """Write ``summary.json`` (and the timings) as they are now, and return the summary."""
         with self.lock:
@@ -299,6 +341,7 @@ class ResultsFolder:
             running=self.running,
             cache=self.cache,
         )
+        summary = summary.model_copy(update={"manifest": self._manifest()})
         write_summary(summary, self.out_dir)
         (self.out_dir / TIMINGS_FILE).write_text(json.dumps(self.timings, indent=2) + "\n")
         return summary

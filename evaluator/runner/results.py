@@ -206,7 +206,7 @@ def score_results_dir(results_dir: Path, profile: ScoringProfile) -> Summary:
         if episode.status in FINISHED
     ]
     running = [key for key, episode in episodes if episode.status == ScenarioStatus.running]
-    return score_outcomes(
+    summary = score_outcomes(
         outcomes,
         suite,
         profile,
@@ -214,6 +214,11 @@ def score_results_dir(results_dir: Path, profile: ScoringProfile) -> Summary:
         episodes_per_scenario=stored.episodes_per_scenario,
         running=running,
     )
+    if stored.manifest is None:
+        return summary
+    # The same runs, scored by this profile: only the manifest's profile changes.
+    pinned = {"profile": profile.name, "profile_version": str(profile.version)}
+    return summary.model_copy(update={"manifest": stored.manifest.model_copy(update=pinned)})
 
 
 def stored_episodes(entry: ScenarioEntry) -> list[tuple[Episode, ScenarioEntry | EpisodeEntry]]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import time
 import uuid
 from collections.abc import Iterator
@@ -16,6 +17,7 @@ from arena.outcome import AgentOutcome, DoneReason, ScenarioStatus
 from arena.record_format import RECORD_SUFFIX
 from arena.scenario import load_scenario
 from evaluator.failures import describe_end
+from evaluator.provenance import Environment, environment
 
 if TYPE_CHECKING:
     from evaluator.sandbox.warm import ForkedAgent
@@ -96,6 +98,8 @@ class ScenarioOutcome:
     attempts: int = 1
     wall_time_s: float = 0.0
     episode: int = 0  # which episode of the scenario (arena.episodes)
+    seed: int | None = None  # the SUMO traffic seed it ran with
+    environment: Environment | None = None  # the software it ran under (evaluator.provenance)
 
     @property
     def key(self) -> Episode:
@@ -162,6 +166,7 @@ def run_scenario(
     record_path = Path(records_dir) / f"{key.name}{RECORD_SUFFIX}"
     record_path.parent.mkdir(parents=True, exist_ok=True)
     run_key = run_key or new_run_key()
+    seed = traffic_seed(scenario.id, scenario.seed, episode)
     started = time.monotonic()
     logs = []
     for attempt in range(1, SIMULATOR_ATTEMPTS + 1):
@@ -173,13 +178,17 @@ def run_scenario(
                 factory,
                 submission.interface,
                 record_path=record_path,
-                seed=traffic_seed(scenario.id, scenario.seed, episode),
+                seed=seed,
                 episode_timeout_s=get_settings().episode_timeout_s,
             )
         logs.append(_log_text(result, attempt, key))
         lost_sandbox = any(a.reason is DoneReason.sandbox_error for a in result.agents)
         if result.simulator_error is None and not lost_sandbox:
-            return _outcome(result, record_path, "\n".join(logs), attempt, started, episode)
+            return dataclasses.replace(
+                _outcome(result, record_path, "\n".join(logs), attempt, started, episode),
+                seed=seed,
+                environment=environment(kind.value, get_settings()),
+            )
         # The episode's process died, SUMO failed, or a sandbox ended before our runner started
         # in it (killed from outside, the daemon failed): none of it is the agent's doing, so
         # the episode runs again. Its agent's sandbox may never have been closed.

@@ -13,6 +13,7 @@ from evaluator.scoring.interval import Interval, bootstrap_interval, tied_neighb
 from evaluator.scoring.profile import DEFAULT_PROFILE, ProfileError, ScoringProfile, load_profile
 from evaluator.scoring.ranking import rank, rank_key
 from evaluator.scoring.record import EpisodeRecord, load_record
+from evaluator.scoring.significance import MetricSamples, RankRange, rank_ranges
 from evaluator.scoring.suite import Metrics, aggregate, by_family, scenario_metrics
 
 __all__ = [
@@ -20,8 +21,10 @@ __all__ = [
     "EpisodeRecord",
     "EpisodeScore",
     "Interval",
+    "MetricSamples",
     "Metrics",
     "ProfileError",
+    "RankRange",
     "ScoringProfile",
     "aggregate",
     "bootstrap_interval",
@@ -31,6 +34,7 @@ __all__ = [
     "mean_score",
     "rank",
     "rank_key",
+    "rank_ranges",
     "scenario_metrics",
     "score_episode",
     "score_without_record",

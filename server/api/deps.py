@@ -112,3 +112,12 @@ PhaseQuery = Annotated[
     str,
     Query(max_length=32, pattern=r"^[A-Za-z0-9_-]+$", description="The competition phase."),
 ]
+GapQuery = Annotated[
+    str | None,
+    Query(
+        max_length=32,
+        pattern=r"^[A-Za-z0-9_-]+$",
+        description="Another phase (e.g. validation): each entry's generalisation gap to its "
+        "team's entry there.",
+    ),
+]

@@ -123,6 +123,9 @@ def create_run(
         manifest_sha256=suite.sha256,
         episode_count=len(episodes),
         episodes_per_scenario=per_scenario,
+        adaptive_target=phase.adaptive_target,
+        max_episodes=phase.max_episodes if phase.adaptive_target is not None else None,
+        episode_round=per_scenario,
         scoring_profile=profile.name,
         scoring_version=str(profile.version),
         lease_expires_at=lease_until(settings),
@@ -423,6 +426,8 @@ def write_score(
             families=run_score.families,
             completion_low=run_score.completion_interval.low,
             completion_high=run_score.completion_interval.high,
+            samples=run_score.samples,
+            manifest=scoring.run_manifest(run, profile, version).model_dump(mode="json"),
             **run_score.metrics,
         )
     )

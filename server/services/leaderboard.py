@@ -2,9 +2,10 @@
 scoring spec.
 
 The ordering rule lives in :func:`evaluator.scoring.rank` (lexicographic on the four errors, full
-ties to the earlier submission) and the statistical ties in
-:func:`evaluator.scoring.tied_neighbours`; this module only chooses the candidates and caches the
-result.
+ties to the earlier submission), the statistical ties in :func:`evaluator.scoring.tied_neighbours`
+and the rank ranges in :mod:`evaluator.scoring.significance`; this module only chooses the
+candidates and caches the result (and each score's bootstrap replicates, which never change while
+the score stands).
 """
 
 from __future__ import annotations
@@ -14,12 +15,15 @@ import io
 import threading
 import time
 from dataclasses import dataclass
+from datetime import datetime
 
+import numpy as np
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from evaluator.scoring import Interval, rank, tied_neighbours
+from evaluator.scoring import Interval, MetricSamples, rank, tied_neighbours
 from evaluator.scoring import Metrics as ScoringMetrics
+from evaluator.scoring.significance import ranges_from_replicates, replicates
 from server.core.db import Database
 from server.models import (
     EvaluationRun,
@@ -29,15 +33,50 @@ from server.models import (
     Team,
     Track,
 )
-from server.schemas import FamilyMetrics, Leaderboard, LeaderboardEntry, Metrics
+from server.schemas import (
+    FamilyMetrics,
+    GeneralisationGap,
+    Leaderboard,
+    LeaderboardEntry,
+    Metrics,
+)
 from server.services.phases import DEFAULT_PHASE, get_phase
 from server.services.submissions import completion_interval
 from server.status import RunStatus, SubmissionStatus
 
 METRICS = ("completion", "time", "humanness", "rules")
 
+# A score's bootstrap replicates (None: scored before per-episode values were kept), by score id
+# and when it was computed (a re-score writes a new row).
+Replicates = dict[tuple[int, datetime], "np.ndarray | None"]
 
-def compute(session: Session, track: Track, phase: str = DEFAULT_PHASE) -> Leaderboard:
+
+def _replicates(session: Session, scores: list[Score], known: Replicates) -> list:
+    """Each score's replicates, from ``known`` or resampled from its stored samples; ``known``
+    is left holding exactly these scores' (a replaced score's drop out)."""
+    used = {(s.id, s.computed_at) for s in scores}
+    for key in [key for key in known if key not in used]:
+        del known[key]
+    missing = [s.id for s in scores if (s.id, s.computed_at) not in known]
+    if missing:
+        query = select(Score.id, Score.samples).where(Score.id.in_(missing))
+        stored = {score_id: samples for score_id, samples in session.execute(query)}
+        for score in scores:
+            if score.id in stored:
+                samples = stored[score.id]
+                known[(score.id, score.computed_at)] = (
+                    None if samples is None else replicates(MetricSamples.from_json(samples))
+                )
+    return [known[(s.id, s.computed_at)] for s in scores]
+
+
+def compute(
+    session: Session,
+    track: Track,
+    phase: str = DEFAULT_PHASE,
+    known: Replicates | None = None,
+) -> Leaderboard:
+    """The board; ``known`` keeps scores' bootstrap replicates between calls."""
     rows = session.execute(
         select(
             Submission, Team.name, EvaluationRun.attempt, Score, EvaluationRun.episodes_per_scenario
@@ -71,6 +110,8 @@ def compute(session: Session, track: Track, phase: str = DEFAULT_PHASE) -> Leade
         best_per_team.setdefault(row[1], row)
     intervals = [completion_interval(row[3]) for row in best_per_team.values()]
     ties = tied_neighbours([Interval(i.low, i.high) if i is not None else None for i in intervals])
+    scores = [row[3] for row in best_per_team.values()]
+    ranges = ranges_from_replicates(_replicates(session, scores, {} if known is None else known))
     entries = [
         LeaderboardEntry(
             rank=position,
@@ -81,17 +122,52 @@ def compute(session: Session, track: Track, phase: str = DEFAULT_PHASE) -> Leade
             metrics=Metrics.model_validate(score),
             completion_interval=interval,
             tied_with=[other + 1 for other in tied],
+            rank_low=ranks.low,
+            rank_high=ranks.high,
+            rank_range=ranks.label,
+            beats_next=ranks.beats_next,
             episodes_per_scenario=episodes,
             families={
                 family: FamilyMetrics.model_validate(values)
                 for family, values in score.families.items()
             },
         )
-        for position, ((submission, team, _, score, episodes), interval, tied) in enumerate(
-            zip(best_per_team.values(), intervals, ties, strict=True), start=1
+        for position, ((submission, team, _, score, episodes), interval, tied, ranks) in enumerate(
+            zip(best_per_team.values(), intervals, ties, ranges, strict=True), start=1
         )
     ]
     return Leaderboard(phase=phase, track=track, entries=entries)
+
+
+def with_gap(board: Leaderboard, reference: Leaderboard) -> Leaderboard:
+    """``board`` with each entry's generalisation gap: its metrics minus those of its team's
+    entry on ``reference`` (another phase's board of the same track; overfitting to a public
+    suite shows as a positive gap on the hidden one)."""
+    theirs = {entry.team: entry for entry in reference.entries}
+
+    def gap(entry: LeaderboardEntry) -> GeneralisationGap | None:
+        other = theirs.get(entry.team)
+        if other is None:
+            return None
+        difference = {
+            name: None
+            if getattr(entry.metrics, name) is None or getattr(other.metrics, name) is None
+            else getattr(entry.metrics, name) - getattr(other.metrics, name)
+            for name in METRICS
+        }
+        return GeneralisationGap(
+            phase=reference.phase,
+            submission_id=other.submission_id,
+            metrics=other.metrics,
+            difference=Metrics(**difference),
+        )
+
+    return board.model_copy(
+        update={
+            "gap_from": reference.phase,
+            "entries": [e.model_copy(update={"gap": gap(e)}) for e in board.entries],
+        }
+    )
 
 
 def generation(session: Session) -> int:
@@ -105,12 +181,18 @@ def _csv_value(value: float | None) -> str:
     return "" if value is None else repr(value)
 
 
+def _gap(entry: LeaderboardEntry, name: str) -> float | None:
+    return None if entry.gap is None else getattr(entry.gap.difference, name)
+
+
 def to_csv(board: Leaderboard) -> str:
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
     writer.writerow(
         [
             "rank",
+            "rank_range",
+            "beats_next",
             "team",
             "submission_id",
             "method_name",
@@ -119,12 +201,15 @@ def to_csv(board: Leaderboard) -> str:
             "completion_low",
             "completion_high",
             "tied_with",
+            *([f"gap_{name}" for name in METRICS] if board.gap_from else []),
         ]
     )
     for entry in board.entries:
         writer.writerow(
             [
                 entry.rank,
+                entry.rank_range,
+                _csv_value(entry.beats_next),
                 entry.team,
                 entry.submission_id,
                 entry.method_name,
@@ -135,6 +220,11 @@ def to_csv(board: Leaderboard) -> str:
                     for bound in ("low", "high")
                 ),
                 " ".join(str(rank) for rank in entry.tied_with),
+                *(
+                    [_csv_value(_gap(entry, name)) for name in METRICS]
+                    if board.gap_from
+                    else []
+                ),
             ]
         )
     return out.getvalue()
@@ -153,13 +243,15 @@ class LeaderboardCache:
 
     Workers in other processes bump the counter when they write a score; this process looks at it
     at most every ``recheck_s`` seconds, so a new score shows within that delay and a burst of
-    requests costs no database work at all.
+    requests costs no database work at all. While one request recomputes a board, the others are
+    served the board it replaces (only the very first computation of a board is waited for).
     """
 
     def __init__(self, db: Database, recheck_s: float = 1.0) -> None:
         self.db = db
         self.recheck_s = recheck_s
         self._cached: dict[tuple[str, Track], _Cached] = {}
+        self._replicates: dict[tuple[str, Track], Replicates] = {}
         self._lock = threading.Lock()
 
     def fresh(self, track: Track, phase: str = DEFAULT_PHASE) -> _Cached | None:
@@ -174,7 +266,12 @@ class LeaderboardCache:
         if cached is not None:
             return cached
         moment = time.monotonic()
-        with self._lock:
+        stale = self._cached.get((phase, track))
+        if not self._lock.acquire(blocking=stale is None):
+            # Another request is re-ranking (a new score resamples its entry): the board it
+            # replaces is served meanwhile, so a burst never queues behind the computation.
+            return stale
+        try:
             cached = self._cached.get((phase, track))
             if cached is not None and time.monotonic() - cached.checked_at < self.recheck_s:
                 return cached
@@ -182,9 +279,12 @@ class LeaderboardCache:
                 get_phase(session, phase)  # an unknown phase is a 404, never cached
                 current = generation(session)
                 if cached is None or cached.generation != current:
-                    board = compute(session, track, phase)
+                    known = self._replicates.setdefault((phase, track), {})
+                    board = compute(session, track, phase, known)
                     cached = _Cached(current, moment, board, board.model_dump_json().encode())
                 else:
                     cached.checked_at = moment
             self._cached[(phase, track)] = cached
             return cached
+        finally:
+            self._lock.release()

@@ -11,7 +11,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from arena.config import Settings
-from arena.errors import SuiteError
+from arena.errors import ArenaError, SuiteError
 from arena.suite import Suite, load_suite, resolve_suite
 from evaluator.scoring import ProfileError, ScoringProfile, load_profile
 from server.core.db import Database
@@ -19,7 +19,8 @@ from server.models import Phase, Visibility, utcnow
 from server.services.errors import Conflict, Forbidden, InvalidInput, NotFound
 
 DEFAULT_PHASE = "final"
-# Episodes of each reactive scenario a phase may ask for: each multiplies an evaluation's cost.
+# Episodes of each reactive scenario a phase may ask for, fixed or adaptive: each multiplies an
+# evaluation's cost.
 MAX_EPISODES_PER_SCENARIO = 64
 
 
@@ -144,8 +145,23 @@ def what_is_hidden(phase: Phase) -> str:
     )
 
 
+def adaptive_cost(phase: Phase, settings: Settings) -> str | None:
+    """What an adaptive phase's evaluation costs (None for a fixed count), said before it is
+    chosen and wherever it is shown."""
+    if phase.adaptive_target is None or phase.max_episodes is None:
+        return None
+    first = episodes_per_scenario(phase, settings)
+    return (
+        f"adaptive: {first} episode(s) per reactive scenario, then {first} more per round while "
+        f"completion's 95% interval is wider than +/-{phase.adaptive_target:g}, up to "
+        f"{phase.max_episodes}: evaluation takes {first} to {phase.max_episodes} times as long "
+        "as with one episode each"
+    )
+
+
 def team_sees_everything(phase: Phase) -> bool:
-    return phase.visibility is Visibility.full
+    """A phase of full visibility, or one the organisers released after it closed."""
+    return phase.visibility is Visibility.full or phase.released_at is not None
 
 
 def check_team_may_see_output(phase: Phase) -> None:
@@ -166,12 +182,36 @@ class PhaseChanges:
     scoring_profile: str | None = None
     episodes_per_scenario: int | None = None
     clear_dates: bool = False  # open-ended again: no start and no end
+    # Adaptive evaluation: both together; fixed_episodes turns it off again.
+    adaptive_target: float | None = None
+    max_episodes: int | None = None
+    fixed_episodes: bool = False
 
 
-def set_phase(db: Database, settings: Settings, name: str, changes: PhaseChanges) -> Phase:
+class _DryRun(ArenaError):
+    """Carries a phase changed in a transaction that is then rolled back."""
+
+    def __init__(self, phase: Phase) -> None:
+        super().__init__("dry run")
+        self.phase = phase
+
+
+def set_phase(
+    db: Database, settings: Settings, name: str, changes: PhaseChanges, *, dry_run: bool = False
+) -> Phase:
     """Create the phase ``name`` or change the given fields of it. The phase as it would be after
     the change is checked whole (suite loads, profile exists, dates ordered, counts in range)
-    before anything is saved: a phase nothing can be evaluated in is never stored."""
+    before anything is saved: a phase nothing can be evaluated in is never stored. ``dry_run``:
+    the phase as it would be (to say what it would cost), nothing saved."""
+    try:
+        return _set_phase(db, settings, name, changes, dry_run)
+    except _DryRun as done:
+        return done.phase
+
+
+def _set_phase(
+    db: Database, settings: Settings, name: str, changes: PhaseChanges, dry_run: bool
+) -> Phase:
     if changes.daily_quota is not None and changes.daily_quota < 0:
         raise InvalidInput("daily quota: a number of submissions, 0 or more")
     if changes.episodes_per_scenario is not None and not (
@@ -180,6 +220,14 @@ def set_phase(db: Database, settings: Settings, name: str, changes: PhaseChanges
         raise InvalidInput(
             f"episodes: how often each reactive scenario runs, 1 to {MAX_EPISODES_PER_SCENARIO}"
         )
+    if (changes.adaptive_target is None) != (changes.max_episodes is None):
+        raise InvalidInput("adaptive evaluation needs both a target half-width and a cap")
+    if changes.adaptive_target is not None and not 0 < changes.adaptive_target < 1:
+        raise InvalidInput("adaptive target: completion's interval half-width, between 0 and 1")
+    if changes.max_episodes is not None and not (
+        1 <= changes.max_episodes <= MAX_EPISODES_PER_SCENARIO
+    ):
+        raise InvalidInput(f"max episodes: per reactive scenario, 1 to {MAX_EPISODES_PER_SCENARIO}")
     if changes.scoring_profile is not None:
         try:
             load_profile(changes.scoring_profile)
@@ -207,6 +255,14 @@ def set_phase(db: Database, settings: Settings, name: str, changes: PhaseChanges
                 setattr(phase, field, value)
         if changes.scoring_profile is not None:
             phase.scoring_profile = changes.scoring_profile
+        if changes.fixed_episodes:
+            phase.adaptive_target = phase.max_episodes = None
+        if changes.adaptive_target is not None:
+            phase.adaptive_target = changes.adaptive_target
+            phase.max_episodes = changes.max_episodes
+        first = phase.episodes_per_scenario
+        if phase.max_episodes is not None and first is not None and phase.max_episodes < first:
+            raise InvalidInput("max episodes must be at least the episodes of the first round")
         if phase.starts_at and phase.ends_at and phase.ends_at <= phase.starts_at:
             raise InvalidInput("the phase must end after it starts")
         try:
@@ -215,4 +271,6 @@ def set_phase(db: Database, settings: Settings, name: str, changes: PhaseChanges
             raise InvalidInput(f"{exc.message}; nothing saved") from None
         session.flush()
         session.expunge(phase)
+        if dry_run:
+            raise _DryRun(phase)  # rolls the transaction back
         return phase

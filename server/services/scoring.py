@@ -16,8 +16,9 @@ from typing import Any
 from arena.episodes import Episode
 from arena.outcome import FINISHED, AgentOutcome, DoneReason, ScenarioStatus
 from arena.suite import load_suite
+from evaluator.provenance import Environment, EpisodeRun, Manifest, manifest_of
 from evaluator.runner import ScenarioOutcome, score_outcomes
-from evaluator.scoring import Interval, ScoringProfile
+from evaluator.scoring import Interval, ScoringProfile, load_profile
 from evaluator.summary import Summary
 from server.core.artifacts import ArtifactStore, MissingArtifact
 from server.models import EvaluationRun, ScenarioResult
@@ -29,6 +30,7 @@ class RunScore:
     metrics: dict[str, float]
     families: dict[str, dict[str, Any]]  # family -> the four metrics and "scenarios" (count)
     completion_interval: Interval
+    samples: dict[str, Any]  # MetricSamples.to_json(): what rank ranges resample
 
 
 def result_values(
@@ -54,6 +56,11 @@ def result_values(
                 "attempts": outcome.attempts,
                 "wall_time_s": outcome.wall_time_s,
                 "error": outcome.error,
+                # What the reproducibility manifest pins (evaluator/provenance.py).
+                "seed": outcome.seed,
+                "environment": (
+                    outcome.environment.model_dump() if outcome.environment is not None else None
+                ),
             }
         ),
     }
@@ -76,6 +83,34 @@ def stored_outcome(result: ScenarioResult, store: ArtifactStore, scratch: Path) 
         agents=tuple(AgentOutcome(**agent) for agent in result.detail.get("agents", [])),
         record_path=path,
         error=result.detail.get("error"),
+        seed=result.detail.get("seed"),
+        environment=_environment(result),
+    )
+
+
+def _environment(result: ScenarioResult) -> Environment | None:
+    stored = result.detail.get("environment")
+    return Environment(**stored) if stored else None
+
+
+def run_manifest(run: EvaluationRun, profile: str, profile_version: str) -> Manifest:
+    """The reproducibility manifest of a finished run scored with ``profile``: the suite as it
+    is on disk now (the score is written from it), each episode's seed and environment as the
+    worker that ran it recorded them."""
+    episodes = [
+        EpisodeRun(r.scenario_id, r.episode, r.detail.get("seed"), _environment(r))
+        for r in run.results
+        if r.status in FINISHED
+    ]
+    training = run.training
+    return manifest_of(
+        load_suite(Path(run.suite_dir)),
+        episodes,
+        submission=run.submission.file_sha256,
+        model=training.model_sha256 if training is not None else None,
+        episodes_per_scenario=run.episodes_per_scenario,
+        profile=profile,
+        profile_version=profile_version,
     )
 
 
@@ -111,8 +146,10 @@ def run_score(summary: Summary) -> RunScore | None:
         family: metrics.model_dump() | {"scenarios": counts[family]}
         for family, metrics in summary.families.items()
     }
+    samples = summary.metric_samples(load_profile(summary.profile.name).averaging)
     return RunScore(
         metrics=summary.metrics.model_dump(),
         families=families,
         completion_interval=summary.completion_interval(),
+        samples=samples.to_json(),
     )

@@ -14,6 +14,7 @@ from sqlalchemy.orm import Session, selectinload
 
 from arena.config import Settings
 from arena.outcome import FINISHED, ScenarioStatus
+from evaluator.provenance import Manifest
 from server.core.artifacts import artifact_store
 from server.core.db import Database
 from server.core.queue import BROKER_ERRORS, TaskQueue, scenario_task_id
@@ -329,6 +330,9 @@ def detail(session: Session, submission: Submission) -> SubmissionDetail:
         },
         failure_reasons={family: reasons[family] for family in sorted(reasons)},
         training=_training(submission),
+        manifest=Manifest.model_validate(score.manifest).public()
+        if score is not None and score.manifest
+        else None,
     )
 
 

@@ -170,8 +170,36 @@ const Arena = (() => {
     return `${s.progress.done} / ${s.progress.total} ${unit}${left ? ` · ${left}` : ""}`;
   }
 
+  function renderManifest(manifest) {
+    // The reproducibility manifest (docs/api.md): what the score depends on, by version or sha256.
+    $("manifest-box").hidden = !manifest;
+    if (!manifest) return;
+    const env = manifest.environments.map((e) =>
+      `arena ${e.arena}, Python ${e.python}, numpy ${e.numpy}, SUMO ${e.sumo}, ${e.sandbox}` +
+      (e.agent_image ? `, image ${e.agent_image}` : "")).join("; ");
+    const rows = [
+      ["submission sha256", manifest.submission],
+      ["trained model sha256", manifest.model || "—"],
+      ["suite", `${manifest.suite} (manifest sha256 ${manifest.suite_hash})`],
+      ["scenarios", `${manifest.scenario_hashes.length}, seeds sha256 ${manifest.seeds_sha256}`],
+      ["episodes per reactive scenario", String(manifest.episodes_per_scenario)],
+      ["scoring profile", `${manifest.profile} v${manifest.profile_version}`],
+      ["software", env || "—"],
+    ];
+    const list = $("manifest");
+    list.replaceChildren();
+    for (const [name, value] of rows) {
+      const dt = document.createElement("dt");
+      dt.textContent = name;
+      const dd = document.createElement("dd");
+      dd.textContent = value;
+      list.append(dt, dd);
+    }
+  }
+
   function render(s, metrics) {
     $("submission").hidden = false;
+    renderManifest(s.manifest);
     $("method").textContent = s.method_name;
     $("track").textContent = s.track;
     renderPhase(s);

@@ -49,7 +49,7 @@ from server.core.celery_app import (
 )
 from server.core.db import get_database
 from server.core.queue import BROKER_ERRORS, TaskQueue
-from server.services import evaluation, training
+from server.services import adaptive, evaluation, training
 
 log = logging.getLogger(__name__)
 
@@ -221,7 +221,12 @@ def run_scenario(self, *, run_id: int, scenario_id: str, episode: int = 0) -> No
 @arena_task(TASK_AGGREGATE, time_limit=BOOKKEEPING_TIME_LIMIT_S)
 def aggregate_run(*, run_id: int) -> None:
     with get_database().session() as session:
-        evaluation.finish_run(session, _store(), run_id)
+        # An adaptive run whose interval is still too wide gets another round instead.
+        plan = adaptive.next_round(session, _store(), run_id)
+        if plan is None:
+            evaluation.finish_run(session, _store(), run_id)
+    if plan is not None:
+        _queue().send(plan)
 
 
 def _training_output(claim: training.TrainingClaim) -> Path:

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 from datetime import datetime, timedelta
 from pathlib import Path
 
+from evaluator.scoring import MetricSamples
 from server.core.db import Database
 from server.models import EvaluationRun, Phase, Score, Submission, Visibility, utcnow
 from server.services import evaluation, teams
@@ -30,7 +32,9 @@ def write_suite(root: Path, families: dict[str, int]) -> Path:
         for k in range(count):
             sid = f"hidden_{family}_{k}"
             (root / sid).mkdir(parents=True)
-            entries.append({"id": sid, "family": family, "hash": sid})
+            # A content hash like a real build's: it never spells the scenario's id.
+            digest = hashlib.sha256(sid.encode()).hexdigest()
+            entries.append({"id": sid, "family": family, "hash": digest})
     (root / "manifest.json").write_text(json.dumps({"suite": "hidden", "scenarios": entries}))
     return root
 
@@ -63,9 +67,10 @@ def seed_scored(
     status: SubmissionStatus = SubmissionStatus.scored,
     phase: str = "final",
     interval: tuple[float, float] | None = None,
+    samples: MetricSamples | None = None,
 ) -> int:
-    """A submission with one scored run and its score (completion interval ``interval``), as
-    if a worker had evaluated it."""
+    """A submission with one scored run and its score (completion interval ``interval``,
+    per-episode values ``samples``), as if a worker had evaluated it."""
     created_at = created_at or utcnow()
     with db.session() as session:
         submission = Submission(
@@ -100,6 +105,7 @@ def seed_scored(
                 families=families or {},
                 completion_low=interval[0] if interval else None,
                 completion_high=interval[1] if interval else None,
+                samples=samples.to_json() if samples is not None else None,
                 **dict(zip(METRICS, metrics, strict=True)),
             )
         )

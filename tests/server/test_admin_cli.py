@@ -115,6 +115,8 @@ def test_rescore_rerun_and_export(arena, db, settings):
     assert (row[5], row[6]) == ("scored (re-run running)", "0/3")
     rows = list(csv.DictReader(io.StringIO(arena("leaderboard", "export"))))
     assert [(row["team"], float(row["completion"])) for row in rows] == [("alpha", 0.0)]
+    # Alone on the board: its rank is certain and there is no neighbour to beat.
+    assert (rows[0]["rank_range"], rows[0]["beats_next"]) == ("1", "")
 
 
 def test_status_reports_queue_and_stuck_runs(arena, db):
@@ -327,3 +329,50 @@ def test_compare_two_submissions_of_a_hidden_phase(arena, db, settings):
     assert {row["b"] for row in document["differing_outcomes"]} == {"reached_goal"}
     queued = queued_submission(db, team)
     assert "no score yet" in arena("compare", str(worse), str(queued), ok=False)
+def test_phases_set_adaptive_says_the_cost_before_and_after_and_list_shows_it(arena, client):
+    cost = (
+        "adaptive: 2 episode(s) per reactive scenario, then 2 more per round while completion's "
+        "95% interval is wider than +/-0.05, up to 20: evaluation takes 2 to 20 times as long"
+    )
+    args = ("phases", "set", "final", "--episodes", "2", "--adaptive-target", "0.05")
+    preview = arena(*args, "--max-episodes", "20", "--dry-run")
+    assert cost in " ".join(preview.split()) and "unchanged (dry run)" in preview
+    assert "adaptive" not in arena("phases", "list")
+    assert cost in " ".join(arena(*args, "--max-episodes", "20").split())
+    assert f"final (+): {cost}" in " ".join(arena("phases", "list").split())
+    assert cost.replace("'", "&#39;") in " ".join(client.get("/submit").text.split())
+    assert "both" in arena(*args, ok=False)
+    arena("phases", "set", "final", "--fixed-episodes")
+    assert "adaptive" not in arena("phases", "list")
+
+
+def test_phases_release_waits_for_the_close_and_list_says_it(arena):
+    refused = arena("phases", "release", "final", ok=False)
+    assert "has no end date" in refused and "Traceback" not in refused
+    arena("phases", "set", "final", "--ends", "2020-01-01T00:00")
+    done = " ".join(arena("phases", "release", "final").split())
+    assert "released" in done and "/api/v1/scenarios/released/final.zip" in done
+    assert "released (suite downloadable, episodes visible): final" in arena("phases", "list")
+
+
+def test_leaderboard_export_with_the_generalisation_gap(arena, db):
+    team, _ = make_team(db, "a")
+    seed_scored(db, team, (0.5, 400.0, 0.5, 0.1), phase="final")
+    seed_scored(db, team, (0.25, 300.0, 0.5, 0.1), phase="validation")
+    text = arena("leaderboard", "export", "--gap-from", "validation")
+    rows = list(csv.DictReader(io.StringIO(text)))
+    assert (rows[0]["team"], float(rows[0]["gap_completion"])) == ("a", 0.25)
+    assert "no phase 'nope'" in arena("leaderboard", "export", "--gap-from", "nope", ok=False)
+
+
+def test_submissions_show_prints_the_manifest(arena, db, settings):
+    from tests.server.services.test_manifest import run_with_pins
+
+    team, _ = make_team(db, "alpha")
+    sid = queued_submission(db, team)
+    run_with_pins(db, settings, sid)
+    shown = " ".join(arena("submissions", "show", str(sid)).split())
+    assert "3 scenarios" in shown and "profile driving-smarts-2022 v1" in shown
+    assert "arena 0.1.0, Python 3.11.7, numpy 2.4.6, SUMO 1.28.0, docker, image sha256:" in shown
+    document = json.loads(arena("submissions", "show", str(sid), "--json"))
+    assert document["manifest"]["environments"][0]["sumo"] == "1.28.0"

@@ -14,6 +14,7 @@ from fastapi.templating import Jinja2Templates
 
 from server.api.deps import (
     MAX_ROW_ID,
+    GapQuery,
     LeaderboardDep,
     PhaseQuery,
     ScenarioId,
@@ -23,7 +24,7 @@ from server.api.deps import (
 from server.models import utcnow
 from server.services import phases, scenarios
 from server.services.errors import NotFound
-from server.services.leaderboard import METRICS
+from server.services.leaderboard import METRICS, with_gap
 from server.services.phases import DEFAULT_PHASE
 from server.tracks import Track
 
@@ -38,11 +39,14 @@ def leaderboard_page(
     session: SessionDep,
     track: Track = Track.freestyle,
     phase: PhaseQuery = DEFAULT_PHASE,
+    gap_from: GapQuery = None,
 ) -> HTMLResponse:
     known = phases.list_phases(session)
     if phase not in {p.name for p in known}:
         phase = DEFAULT_PHASE
     board = cache.get(track, phase).board
+    if gap_from in {p.name for p in known} - {phase}:
+        board = with_gap(board, cache.get(track, gap_from).board)
     families = sorted({family for entry in board.entries for family in entry.families})
     return templates.TemplateResponse(
         request,
@@ -77,7 +81,11 @@ def submit_page(request: Request, session: SessionDep, settings: SettingsDep) ->
             "any_open": any(phases.is_open(p, moment) for p in known),
             "default_phase": default,
             # Said before the upload: several episodes multiply the time to a score.
-            "costs": {name: phases.episodes_cost(n) for name, n in episodes.items() if n > 1},
+            "costs": {
+                p.name: phases.adaptive_cost(p, settings) or phases.episodes_cost(episodes[p.name])
+                for p in open_phases
+                if episodes[p.name] > 1 or p.adaptive_target is not None
+            },
         },
     )
 

@@ -3,13 +3,16 @@ watch."""
 
 from __future__ import annotations
 
-from fastapi import APIRouter
+from typing import Annotated
+
+from fastapi import APIRouter, Path
+from fastapi.responses import FileResponse
 from starlette.concurrency import run_in_threadpool
 
 from server.api.contract import errors
-from server.api.deps import DatabaseDep, ScenarioId, SettingsDep
+from server.api.deps import DatabaseDep, ScenarioId, SessionDep, SettingsDep
 from server.schemas import PublicScenario
-from server.services import replays, scenarios
+from server.services import release, replays, scenarios
 
 router = APIRouter(tags=["scenarios"])
 
@@ -26,3 +29,18 @@ async def public_replay(scenario_id: ScenarioId, settings: SettingsDep, db: Data
     """The expert's drive through a public scenario, to watch (the replay page's data). The
     first request simulates it (a few seconds); later ones read it back."""
     return await run_in_threadpool(replays.public_replay, settings, db, scenario_id)
+
+
+@router.get(
+    "/scenarios/released/{phase}.zip",
+    response_class=FileResponse,
+    responses={200: {"content": {"application/zip": {}}}, **errors(403, 404, 422)},
+)
+def released_suite(
+    session: SessionDep,
+    settings: SettingsDep,
+    phase: Annotated[str, Path(max_length=32, pattern=r"^[A-Za-z0-9_-]+$")],
+) -> FileResponse:
+    """The whole suite of a phase the organisers released after it closed (403 before)."""
+    path = release.released_suite(session, settings, phase)
+    return FileResponse(path, media_type="application/zip", filename=f"suite-{phase}.zip")

@@ -12,7 +12,9 @@ from pathlib import Path
 
 import pytest
 
+from arena.episodes import traffic_seed
 from arena.outcome import ScenarioStatus
+from arena.scenario import load_scenario
 from arena.suite import load_suite
 from evaluator.runner import evaluate, score_results_dir
 from evaluator.scoring import load_profile
@@ -71,6 +73,15 @@ def test_same_submission_twice_gives_identical_summary_and_records(public_suite,
         assert (tmp_path / "a" / record).read_bytes() == (tmp_path / "b" / record).read_bytes()
     # re-scoring the stored records reproduces the summary without simulating
     assert score_results_dir(tmp_path / "a", load_profile()) == second
+    # ...and its manifest: what the summary depends on, pinned.
+    manifest = first.manifest
+    assert manifest.suite_hash == first.manifest_hash
+    for scenario_id in ids:
+        seed = traffic_seed(scenario_id, load_scenario(public_suite / scenario_id).seed, 0)
+        assert manifest.scenarios[scenario_id].seeds == (seed,)
+    (environment,) = manifest.environments
+    assert environment.sandbox == TEST_SANDBOX.value
+    assert environment.python and environment.sumo != "unknown"
 
 
 def test_crash_in_one_scenario_still_scores_every_other(public_suite, tmp_path):

@@ -7,12 +7,15 @@ import csv
 import io
 from datetime import timedelta
 
+import numpy as np
+
 from server.core.queue import TaskQueue
 from server.models import utcnow
 from server.services import submissions
 from server.services.leaderboard import LeaderboardCache
 from server.status import SubmissionStatus
 from server.tracks import Track
+from tests.evaluator.scoring.builders import simulated
 from tests.server.builders import make_team, seed_scored
 
 
@@ -128,3 +131,127 @@ def test_intervals_are_shown_and_overlapping_neighbours_marked_tied(client, db):
         "0.2",
         "1",
     )
+
+
+def test_rank_ranges_share_ranks_the_bootstrap_cannot_tell_apart(client, db):
+    """Stored per-episode values decide the rank ranges: two equal agents share ranks 1-2,
+    a clearly worse one holds rank 3 alone; the chance to beat the neighbour is in the JSON,
+    the CSV and the page's hover text."""
+    rng = np.random.default_rng(11)
+    a, b = simulated(rng, 0.2, scenarios=60), simulated(rng, 0.2, scenarios=60)
+    worse = simulated(rng, 0.8, scenarios=60)
+    t0 = utcnow() - timedelta(hours=1)
+    for name, samples in (("a", a), ("b", b), ("worse", worse)):
+        seed_scored(
+            db, make_team(db, name)[0], tuple(samples.metrics()), samples=samples, created_at=t0
+        )
+    # One scored before per-episode values were kept: it keeps its own rank, unrangeable.
+    seed_scored(db, make_team(db, "old")[0], (0.95, 800.0, 0.5, 0.1), created_at=t0)
+    entries = board(client)
+    assert [e["team"] for e in entries][2:] == ["worse", "old"]
+    assert [e["rank_range"] for e in entries] == ["1-2", "1-2", "3", "4"]
+    assert [(e["rank_low"], e["rank_high"]) for e in entries] == [(1, 2), (1, 2), (3, 3), (4, 4)]
+    chances = [e["beats_next"] for e in entries]
+    assert 0.5 <= chances[0] < 0.975 and chances[1] > 0.975 and chances[2:] == [None, None]
+
+    rows = list(csv.DictReader(io.StringIO(client.get("/api/v1/leaderboard.csv").text)))
+    assert [row["rank_range"] for row in rows] == ["1-2", "1-2", "3", "4"]
+    assert float(rows[0]["beats_next"]) == chances[0] and rows[3]["beats_next"] == ""
+
+    page = client.get("/").text
+    assert page.count('class="rank-range"') == 4 + 1  # and the legend
+    assert f"ranks ahead of rank 2 in {100 * chances[0]:.1f}% of" in page
+
+
+def test_a_rescore_or_a_new_best_changes_the_ranges_and_the_cache_keeps_only_the_board(
+    settings, db
+):
+    rng = np.random.default_rng(12)
+    cache = LeaderboardCache(db, recheck_s=0)
+    a, b = simulated(rng, 0.2, scenarios=60), simulated(rng, 0.25, scenarios=60)
+    team_a, team_b = make_team(db, "a")[0], make_team(db, "b")[0]
+    first = seed_scored(db, team_a, tuple(a.metrics()), samples=a)
+    seed_scored(db, team_b, tuple(b.metrics()), samples=b)
+    assert [e.rank_range for e in cache.get(Track.freestyle).board.entries] == ["1-2", "1-2"]
+    # Team b's far better second submission replaces its first on the board.
+    better = simulated(rng, 0.0, scenarios=60)
+    seed_scored(db, team_b, tuple(better.metrics()), samples=better)
+    entries = cache.get(Track.freestyle).board.entries
+    assert [(e.team, e.rank_range) for e in entries] == [("b", "1"), ("a", "2")]
+    assert entries[1].submission_id == first
+    assert len(cache._replicates[("final", Track.freestyle)]) == 2
+
+
+def test_a_scored_run_keeps_the_values_its_metrics_are_built_from(db, settings):
+    """Through the real scoring path: the stored samples rebuild the stored metrics."""
+    from sqlalchemy import select
+
+    from evaluator.scoring import MetricSamples
+    from server.models import Score
+    from tests.server.builders import queued_submission
+    from tests.server.worker.test_evaluation_flow import run_everything, start
+
+    team, _ = make_team(db, "alpha")
+    sid = queued_submission(db, team)
+    run_everything(db, settings, start(db, settings, sid), success=False)
+    with db.read_session() as session:
+        score = session.scalar(select(Score))
+        samples = MetricSamples.from_json(score.samples)
+        stored = (score.completion, score.time, score.humanness, score.rules)
+    assert len(samples.scenarios) == 3
+    assert np.allclose(samples.metrics(), np.array(stored, dtype=float), equal_nan=True)
+
+
+def test_while_a_board_is_recomputed_the_previous_one_is_served(settings, db):
+    team, _ = make_team(db, "a")
+    cache = LeaderboardCache(db, recheck_s=0)
+    assert cache.get(Track.freestyle).board.entries == []
+    seed_scored(db, team, (0.5, 500.0, 0.2, 0.0))
+    with cache._lock:  # another request is computing
+        assert cache.get(Track.freestyle).board.entries == []
+    assert [e.team for e in cache.get(Track.freestyle).board.entries] == ["a"]
+
+
+def test_the_generalisation_gap_to_another_phase(client, db):
+    """Teams with entries in both phases get final minus validation; others none; JSON, CSV,
+    page."""
+    a, b = make_team(db, "a")[0], make_team(db, "b")[0]
+    seed_scored(db, a, (0.25, 400.0, 0.5, 0.1), phase="final")
+    seed_scored(db, a, (0.0, 300.0, 0.25, None), phase="validation")
+    seed_scored(db, b, (0.5, 500.0, 0.5, 0.1), phase="final")
+    response = client.get(
+        "/api/v1/leaderboard", params={"phase": "final", "gap_from": "validation"}
+    )
+    body = response.json()
+    assert body["gap_from"] == "validation"
+    first, second = body["entries"]
+    assert first["gap"]["difference"] == {
+        "completion": 0.25,
+        "time": 100.0,
+        "humanness": 0.25,
+        "rules": None,  # not measured in validation
+    }
+    assert first["gap"]["metrics"]["completion"] == 0.0 and second["gap"] is None
+    assert "gap" not in board(client)[0] or board(client)[0]["gap"] is None
+
+    rows = list(
+        csv.DictReader(
+            io.StringIO(
+                client.get(
+                    "/api/v1/leaderboard.csv", params={"phase": "final", "gap_from": "validation"}
+                ).text
+            )
+        )
+    )
+    assert (rows[0]["gap_completion"], rows[0]["gap_rules"], rows[1]["gap_time"]) == (
+        "0.25",
+        "",
+        "",
+    )
+    assert "gap_completion" not in client.get("/api/v1/leaderboard.csv").text
+
+    page = client.get("/", params={"phase": "final", "gap_from": "validation"}).text
+    assert "gap vs validation" in page and "+0.2500" in page
+    assert "gap vs" not in client.get("/", params={"phase": "final"}).text.split("<table")[1]
+    unknown = client.get("/api/v1/leaderboard", params={"phase": "final", "gap_from": "nope"})
+    assert unknown.status_code == 404

@@ -11,11 +11,13 @@ import uuid
 from pathlib import Path
 
 import httpx
+import numpy as np
 import pytest
 import redis
 from sqlalchemy import func, select
 
 from arena.config import ArtifactBackend, Settings
+from server.core.artifacts import artifact_store
 from server.core.db import Database
 from server.core.migrate import upgrade_database
 from server.models import ScenarioResult
@@ -417,4 +419,126 @@ def test_several_episodes_per_scenario_through_the_worker(stack_settings, suite,
         for scenario in local.scenarios
         for key, episode in stored_episodes(scenario)
     }
+    db.dispose()
+
+
+def test_adaptive_rounds_through_the_worker_match_a_fixed_evaluation(
+    stack_settings, suite, tmp_path
+):
+    """An adaptive phase whose target is never met: the worker's aggregation sends rounds of one
+    episode per reactive scenario up to the cap, and the score is exactly the local evaluation's
+    with that many episodes (same seeds, same results)."""
+    from evaluator.runner import evaluate
+    from server.models import EvaluationRun
+    from server.services import phases
+    from tests.server.builders import pack_example
+
+    local = evaluate(
+        pack_example("keep_lane", tmp_path),
+        suite,
+        out_dir=tmp_path / "local",
+        jobs=2,
+        sandbox="bubblewrap",
+        episodes_per_scenario=3,
+    )
+    db = Database(stack_settings.database_url)
+    changes = phases.PhaseChanges(episodes_per_scenario=1, adaptive_target=1e-6, max_episodes=3)
+    phases.set_phase(db, stack_settings, "final", changes)
+    _, token = make_team(db, "adaptive-team")
+    worker = start_worker(stack_settings, tmp_path / "worker.log")
+    try:
+        with api_server(stack_settings, tmp_path / "api.log") as (url, _):
+            sid = upload_example(url, token, "keep_lane", tmp_path)
+            body = wait_finished(url, token, sid)
+    finally:
+        stop(worker)
+    reactive = [s for s in SCENARIOS if "replay" not in s]
+    assert body["status"] == "scored", body
+    assert body["episodes_per_scenario"] == 3
+    assert body["progress"]["total"] == 3 * len(reactive) + 1
+    assert body["metrics"] == local.metrics.model_dump()
+    with db.session() as session:
+        (run,) = session.scalars(select(EvaluationRun)).all()
+        assert (run.episode_round, run.max_episodes) == (1, 3)
+    db.dispose()
+
+
+def test_audit_reruns_a_score_bit_identically_and_names_what_differs(
+    stack_settings, tmp_path, monkeypatch
+):
+    """`arena admin audit`: a score the worker made re-runs bit-identically from its manifest;
+    a manifest naming other software is refused, component named; a stored record that no
+    longer matches is reported as the first differing record."""
+    from typer.testing import CliRunner
+
+    from arena.cli import app
+    from arena.config import get_settings
+    from server.models import Score
+
+    db = Database(stack_settings.database_url)
+    _, token = make_team(db, "auditors")
+    worker = start_worker(stack_settings, tmp_path / "worker.log")
+    try:
+        with api_server(stack_settings, tmp_path / "api.log") as (url, _):
+            sid = upload_example(url, token, "keep_lane", tmp_path)
+            assert wait_finished(url, token, sid)["status"] == "scored"
+    finally:
+        stop(worker)
+    for name in (
+        "data_dir",
+        "database_url",
+        "broker_url",
+        "broker_key_prefix",
+        "hidden_suite_dir",
+        "public_suite_dir",
+        "sandbox",
+    ):
+        monkeypatch.setenv(f"ARENA_{name.upper()}", str(getattr(stack_settings, name)))
+    get_settings.cache_clear()
+    runner = CliRunner()
+
+    def audit(*args):
+        return runner.invoke(app, ["admin", "audit", *args])
+
+    try:
+        same = audit(str(sid))
+        assert same.exit_code == 0, same.output
+        assert f"submission {sid}: bit-identical ({len(SCENARIOS)} episodes)" in same.output
+        sampled = audit("--sample", "5")
+        assert sampled.exit_code == 0 and "bit-identical" in sampled.output
+
+        with db.session() as session:
+            score = session.scalar(select(Score))
+            original = score.manifest
+            environment = dict(original["environments"][0], sumo="0.0.1")
+            score.manifest = dict(original, environments=[environment])
+        refused = audit(str(sid))
+        assert refused.exit_code == 1
+        assert "refused" in refused.output and "environment.sumo" in refused.output
+        assert "-> 1." in refused.output  # what runs here, next to what the score ran with
+
+        with db.session() as session:
+            session.scalar(select(Score)).manifest = original
+            first = session.scalar(
+                select(ScenarioResult)
+                .where(ScenarioResult.record_key.is_not(None))
+                .order_by(ScenarioResult.scenario_id)
+            )
+            key = first.record_key
+        store = artifact_store(stack_settings, db)
+        altered = tmp_path / "altered.npz"
+        with np.load(store.fetch(key, tmp_path / "stored.npz")) as record:
+            arrays = {name: record[name] for name in record.files}
+        field = next(n for n, a in arrays.items() if a.dtype.kind == "f" and a.size)
+        arrays[field] = arrays[field].copy()
+        arrays[field].flat[0] += 1.0
+        np.savez(altered, **arrays)
+        store.put(key, altered)
+        differs = audit(str(sid))
+        assert differs.exit_code == 1
+        assert f"differs after 1 episode(s): {first.scenario_id}: record array '{field}'" in (
+            " ".join(differs.output.split())
+        )
+    finally:
+        get_settings.cache_clear()
     db.dispose()

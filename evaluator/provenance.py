@@ -1,0 +1,233 @@
+"""What a score depends on besides the agent: the reproducibility manifest.
+
+A score is reproducible when everything that went into it is pinned: the submission's bytes (and,
+on Track 2, the trained model's), the suite and each scenario's content, the traffic seed of every
+episode, the scoring profile, and the software that ran it (this project's version, Python,
+numpy, SUMO, the sandbox and the agent image). The manifest names each by version or sha256, so
+a re-run can first check it runs under the same conditions (:func:`differences`) and then compare
+records bit for bit.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import platform
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from functools import lru_cache
+from importlib import metadata
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict
+
+from arena.config import Settings
+from arena.scenario import content_hash
+from arena.suite import Suite
+
+PROJECT = "driving-arena"
+
+
+class Frozen(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+
+class Environment(Frozen):
+    """The software an episode ran under."""
+
+    arena: str  # this project's version
+    python: str
+    numpy: str
+    sumo: str
+    sandbox: str  # the backend that ran the agent: docker, bubblewrap or process
+    # Docker: the agent image's id (sha256); other backends run the agent on the worker's own
+    # runtime, which the versions above pin.
+    agent_image: str | None = None
+
+
+class ScenarioPin(Frozen):
+    hash: str  # sha256 of the scenario folder (arena.scenario.content_hash)
+    seeds: tuple[int, ...]  # the SUMO traffic seed of each episode (arena.episodes)
+
+
+class Manifest(Frozen):
+    """Everything a score depends on, by version or sha256."""
+
+    submission: str  # sha256 of the uploaded zip
+    model: str | None = None  # Track 2: sha256 of the trained model the agent ran with
+    suite: str
+    suite_hash: str  # sha256 of the suite's manifest.json
+    scenarios: dict[str, ScenarioPin]  # charged and uncharged alike, in manifest order
+    episodes_per_scenario: int = 1
+    profile: str
+    profile_version: str
+    # The distinct environments the episodes ran under: one when every worker was alike.
+    environments: tuple[Environment, ...]
+
+    def public(self) -> PublicManifest:
+        """What a team may see: no scenario ids and no seeds of a hidden suite, only their
+        digests (the scenario hashes, sorted, identify contents without naming them)."""
+        pins = sorted(self.scenarios.values(), key=_by_hash)
+        return PublicManifest(
+            **self.model_dump(exclude={"scenarios"}),
+            scenario_hashes=tuple(pin.hash for pin in pins),
+            seeds_sha256=_digest([[pin.hash, *pin.seeds] for pin in pins]),
+        )
+
+
+class PublicManifest(Frozen):
+    """:class:`Manifest` as a team sees it."""
+
+    submission: str
+    model: str | None
+    suite: str
+    suite_hash: str
+    scenario_hashes: tuple[str, ...]  # sorted
+    seeds_sha256: str  # over each scenario's hash and episode seeds
+    episodes_per_scenario: int
+    profile: str
+    profile_version: str
+    environments: tuple[Environment, ...]
+
+
+def _by_hash(pin: ScenarioPin) -> str:
+    return pin.hash
+
+
+def _digest(value: object) -> str:
+    return hashlib.sha256(repr(value).encode()).hexdigest()
+
+
+# Components a re-run must match before records are compared, each with what it covers.
+COMPONENTS = {
+    "submission": "the submission's bytes",
+    "model": "the trained model",
+    "suite_hash": "the suite manifest",
+    "scenarios": "the scenarios' contents or seeds",
+    "episodes_per_scenario": "the episodes per reactive scenario",
+    "profile": "the scoring profile",
+    "profile_version": "the scoring profile's version",
+}
+ENVIRONMENT_FIELDS = ("arena", "python", "numpy", "sumo", "sandbox", "agent_image")
+
+
+def differences(recorded: Manifest, current: Manifest) -> list[str]:
+    """The components of ``current`` that differ from ``recorded``, named (empty: the same
+    conditions). Environments differ when the re-run's is not among the recorded ones."""
+    names = [
+        f"{name} ({what}): {_short(getattr(recorded, name))} -> {_short(getattr(current, name))}"
+        for name, what in COMPONENTS.items()
+        if getattr(recorded, name) != getattr(current, name)
+    ]
+    for env in current.environments:
+        if env in recorded.environments:
+            continue
+        for field in ENVIRONMENT_FIELDS:
+            before = {getattr(e, field) for e in recorded.environments}
+            if getattr(env, field) not in before:
+                was = ", ".join(sorted(str(v) for v in before))
+                names.append(f"environment.{field}: {was} -> {getattr(env, field)}")
+    return names
+
+
+def _short(value: object) -> str:
+    text = str(value) if not isinstance(value, Mapping) else f"{len(value)} scenarios"
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def distinct(environments: Iterable[Environment | None]) -> tuple[Environment, ...]:
+    """Each environment once, in first-seen order (episodes without one are left out)."""
+    seen: list[Environment] = []
+    for env in environments:
+        if env is not None and env not in seen:
+            seen.append(env)
+    return tuple(seen)
+
+
+@dataclass(frozen=True)
+class EpisodeRun:
+    """What one finished episode tells the manifest."""
+
+    scenario_id: str
+    episode: int
+    seed: int | None  # None: an episode from before seeds were kept
+    environment: Environment | None
+
+
+def manifest_of(
+    suite: Suite,
+    episodes: Iterable[EpisodeRun],
+    *,
+    submission: str,
+    model: str | None,
+    episodes_per_scenario: int,
+    profile: str,
+    profile_version: str,
+) -> Manifest:
+    """The manifest of an evaluation of ``suite`` from its finished episodes: the seeds and
+    environments are what the episodes actually ran with."""
+    episodes = sorted(episodes, key=lambda e: (e.scenario_id, e.episode))
+    seeds: dict[str, list[int]] = {}
+    for run in episodes:
+        if run.seed is not None:
+            seeds.setdefault(run.scenario_id, []).append(run.seed)
+    return Manifest(
+        submission=submission,
+        model=model,
+        suite=suite.name,
+        suite_hash=suite.sha256,
+        scenarios={
+            entry.id: ScenarioPin(
+                hash=entry.hash or content_hash(suite.scenario_dir(entry.id)),
+                seeds=tuple(seeds.get(entry.id, ())),
+            )
+            for entry in suite.scenarios
+        },
+        episodes_per_scenario=episodes_per_scenario,
+        profile=profile,
+        profile_version=profile_version,
+        environments=distinct(run.environment for run in episodes),
+    )
+
+
+def environment(sandbox: str, settings: Settings) -> Environment:
+    """The environment an episode run now, here, with backend ``sandbox`` would have."""
+    image = _docker_image_id(settings.agent_image) if sandbox == "docker" else None
+    return _versions(sandbox, image)
+
+
+@lru_cache(maxsize=8)
+def _versions(sandbox: str, agent_image: str | None) -> Environment:
+    return Environment(
+        arena=_version(PROJECT),
+        python=platform.python_version(),
+        numpy=np.__version__,
+        sumo=_sumo_version(),
+        sandbox=sandbox,
+        agent_image=agent_image,
+    )
+
+
+def _version(distribution: str) -> str:
+    try:
+        return metadata.version(distribution)
+    except metadata.PackageNotFoundError:
+        return "unknown"
+
+
+def _sumo_version() -> str:
+    for distribution in ("eclipse-sumo", "libsumo"):
+        version = _version(distribution)
+        if version != "unknown":
+            return version
+    return "unknown"
+
+
+def _docker_image_id(image: str) -> str | None:
+    """The id (sha256 of its configuration) of the image, or None when Docker cannot say."""
+    import docker  # only where Docker is the backend
+    import docker.errors
+
+    try:
+        return docker.from_env().images.get(image).id
+    except docker.errors.DockerException:
+        return None

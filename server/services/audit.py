@@ -1,0 +1,257 @@
+"""Auditing a score: re-run a scored submission under its manifest and compare record by record.
+
+The manifest (evaluator/provenance.py) pins what the score depends on. An audit first rebuilds
+that manifest from what is here now: the stored upload's and model's bytes, the suite on disk,
+every episode's traffic seed, this machine's software. Any component that differs is named and
+nothing is re-run (a different SUMO would make a difference that says nothing about the score).
+Otherwise every scored episode runs again, in its sandbox, and its outcome and record are
+compared with the stored ones: bit-identical, or the first record that differs and where.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import random
+import tempfile
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from arena.config import SandboxKind, Settings
+from arena.episodes import Episode, traffic_seed
+from arena.errors import ArenaError
+from arena.outcome import FINISHED
+from arena.scenario import load_scenario
+from arena.suite import Suite, load_suite
+from evaluator.provenance import EpisodeRun, Manifest, differences, environment, manifest_of
+from evaluator.runner import ScenarioOutcome, run_scenario
+from server.core.artifacts import ArtifactStore, MissingArtifact
+from server.core.db import Database
+from server.models import Phase, ScenarioResult, Submission
+from server.services.errors import Conflict, NotFound
+from server.services.leaderboard import compute
+from server.services.submissions import current_run
+from server.status import RunStatus
+from server.tracks import Track
+
+
+@dataclass(frozen=True)
+class AuditReport:
+    submission_id: int
+    refused: tuple[str, ...] = ()  # the manifest components that differ: nothing was re-run
+    compared: int = 0  # episodes re-run and compared
+    difference: str | None = None  # the first record (or outcome) that differs, and where
+
+    @property
+    def identical(self) -> bool:
+        return not self.refused and self.difference is None
+
+
+@dataclass(frozen=True)
+class _Stored:
+    """A scored episode as the database keeps it."""
+
+    scenario_id: str
+    episode: int
+    status: str
+    agents: list[dict]
+    record_key: str | None
+
+
+@dataclass(frozen=True)
+class _Target:
+    submission_id: int
+    manifest: Manifest
+    suite_dir: Path
+    upload_key: str
+    model_key: str | None
+    episodes: tuple[_Stored, ...]
+
+
+def _target(session: Session, submission_id: int) -> _Target:
+    submission = session.get(Submission, submission_id)
+    if submission is None:
+        raise NotFound(f"no submission {submission_id}")
+    run = current_run(submission)
+    if run is None or run.status != RunStatus.scored or run.score is None:
+        raise Conflict(f"submission {submission_id} has no score to audit")
+    if not run.score.manifest:
+        raise Conflict(
+            f"submission {submission_id} was scored before manifests were kept: "
+            "`arena admin rerun` it first"
+        )
+    results = session.scalars(
+        select(ScenarioResult)
+        .where(ScenarioResult.run_id == run.id)
+        .order_by(ScenarioResult.scenario_id, ScenarioResult.episode)
+    )
+    return _Target(
+        submission_id=submission_id,
+        manifest=Manifest.model_validate(run.score.manifest),
+        suite_dir=Path(run.suite_dir),
+        upload_key=submission.upload_key,
+        model_key=run.training.model_key if run.training is not None else None,
+        episodes=tuple(
+            _Stored(r.scenario_id, r.episode, r.status, r.detail.get("agents", []), r.record_key)
+            for r in results
+            if r.status in FINISHED
+        ),
+    )
+
+
+def audit(
+    db: Database,
+    settings: Settings,
+    store: ArtifactStore,
+    submission_id: int,
+    *,
+    progress: Callable[[int, int], None] | None = None,
+) -> AuditReport:
+    """Re-run ``submission_id``'s scored episodes under its manifest; ``progress(done, total)``
+    after each episode."""
+    from evaluator import sandbox
+
+    with db.read_session() as session:
+        target = _target(session, submission_id)
+    recorded = target.manifest
+    try:
+        suite = load_suite(target.suite_dir)
+        kind = sandbox.check_service_kind(settings=settings)
+    except ArenaError as exc:
+        raise Conflict(f"cannot audit submission {submission_id} here: {exc}") from exc
+    with tempfile.TemporaryDirectory(prefix="arena-audit-") as tmp:
+        scratch = Path(tmp)
+        scratch.chmod(0o755)  # the sandbox user enters the prepared submission
+        upload = store.fetch(target.upload_key, scratch / "upload.zip")
+        model = (
+            store.fetch(target.model_key, scratch / "model.tar.gz") if target.model_key else None
+        )
+        here = environment(kind.value, settings)
+        current = manifest_of(
+            suite,
+            [EpisodeRun(e.scenario_id, e.episode, _seed(suite, e), here) for e in target.episodes],
+            submission=_sha256(upload),
+            model=_sha256(model) if model is not None else None,
+            episodes_per_scenario=recorded.episodes_per_scenario,
+            profile=recorded.profile,
+            profile_version=recorded.profile_version,
+        )
+        refused = differences(recorded, current)
+        if refused:
+            return AuditReport(submission_id, refused=tuple(refused))
+        return _rerun(target, suite, kind, settings, store, scratch, upload, model, progress)
+
+
+def _rerun(
+    target: _Target,
+    suite: Suite,
+    kind: SandboxKind,
+    settings: Settings,
+    store: ArtifactStore,
+    scratch: Path,
+    upload: Path,
+    model: Path | None,
+    progress: Callable[[int, int], None] | None,
+) -> AuditReport:
+    from evaluator.training import unpack_model
+    from submissions.intake import prepare_submission
+
+    submission = prepare_submission(upload, scratch / "prepared", settings)
+    if model is not None:
+        submission = dataclasses.replace(
+            submission, model_dir=unpack_model(model, scratch / "model")
+        )
+    for done, stored in enumerate(target.episodes, start=1):
+        outcome = run_scenario(
+            submission,
+            suite.scenario_dir(stored.scenario_id),
+            scratch / "records",
+            sandbox=kind,
+            episode=stored.episode,
+        )
+        name = Episode(stored.scenario_id, stored.episode).name
+        difference = _compare(stored, outcome, store, scratch / "stored" / f"{name}.npz")
+        if progress is not None:
+            progress(done, len(target.episodes))
+        if difference is not None:
+            return AuditReport(
+                target.submission_id, compared=done, difference=f"{name}: {difference}"
+            )
+    return AuditReport(target.submission_id, compared=len(target.episodes))
+
+
+def _compare(
+    stored: _Stored, outcome: ScenarioOutcome, store: ArtifactStore, scratch: Path
+) -> str | None:
+    """What differs between a stored episode and its re-run, or None."""
+    if str(outcome.status) != str(stored.status):
+        return f"status {stored.status} -> {outcome.status}"
+    agents = [agent.model_dump(mode="json") for agent in outcome.agents]
+    if agents != stored.agents:
+        return f"agent outcomes {stored.agents} -> {agents}"
+    if stored.record_key is None or outcome.record_path is None:
+        if (stored.record_key is None) != (outcome.record_path is None):
+            return "one run wrote a record, the other did not"
+        return None
+    try:
+        before = store.fetch(stored.record_key, scratch)
+    except MissingArtifact:
+        return f"the stored record {stored.record_key} is missing"
+    if before.read_bytes() == outcome.record_path.read_bytes():
+        return None
+    return "record " + _first_difference(before, outcome.record_path)
+
+
+def _first_difference(before: Path, after: Path) -> str:
+    with np.load(before, allow_pickle=False) as a, np.load(after, allow_pickle=False) as b:
+        for key in sorted(set(a.files) | set(b.files)):
+            if key not in a.files or key not in b.files:
+                return f"array {key!r} only in the {'re-run' if key in b.files else 'stored'} one"
+            x, y = a[key], b[key]
+            if x.shape != y.shape:
+                return f"array {key!r} shape {x.shape} -> {y.shape}"
+            differ = np.flatnonzero(~((x == y) | (_nan(x) & _nan(y))).reshape(-1))
+            if differ.size:
+                index = np.unravel_index(differ[0], x.shape)
+                return f"array {key!r} at {tuple(map(int, index))}: {x[index]!r} -> {y[index]!r}"
+    return "bytes differ (same arrays: the file's layout changed)"
+
+
+def _nan(values: np.ndarray) -> np.ndarray:
+    return (
+        np.isnan(values)
+        if np.issubdtype(values.dtype, np.floating)
+        else np.zeros(values.shape, bool)
+    )
+
+
+def _seed(suite: Suite, stored: _Stored) -> int:
+    entry = load_scenario(suite.scenario_dir(stored.scenario_id))
+    return traffic_seed(stored.scenario_id, entry.seed, stored.episode)
+
+
+def _sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with path.open("rb") as file:
+        for block in iter(lambda: file.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def sample(db: Database, count: int, rng: random.Random | None = None) -> list[int]:
+    """``count`` submissions drawn at random from every leaderboard (all phases and tracks)."""
+    with db.read_session() as session:
+        entries = sorted(
+            {
+                entry.submission_id
+                for phase in session.scalars(select(Phase.name))
+                for track in Track
+                for entry in compute(session, track, phase).entries
+            }
+        )
+    return sorted((rng or random.Random()).sample(entries, min(count, len(entries))))
