@@ -104,7 +104,8 @@ def create_run(
 ) -> RunPlan:
     """A new attempt on the suite of the submission's phase; every episode of it still to run.
     ``training``: the trained output it evaluates (offline submissions)."""
-    setup = phases.phase_setup(phases.get_phase(session, submission.phase), settings)
+    phase = phases.get_phase(session, submission.phase)
+    setup = phases.phase_setup(phase, settings)
     suite, profile, per_scenario = setup.suite, setup.profile, setup.episodes_per_scenario
     episodes = episodes_of(suite.scenarios, per_scenario)
     attempt = 1 + (

@@ -83,7 +83,7 @@ def submit_page(request: Request, session: SessionDep, settings: SettingsDep) ->
             # Said before the upload: several episodes multiply the time to a score.
             "costs": {
                 p.name: phases.adaptive_cost(p, settings) or phases.episodes_cost(episodes[p.name])
-                for p in open_phases
+                for p in known
                 if episodes[p.name] > 1 or p.adaptive_target is not None
             },
         },
