@@ -76,6 +76,7 @@ class LaunchSpec:
     labels: dict[str, str] = field(default_factory=dict)
     observation_format: str = "native"  # agent.yaml's, passed to the runner
     action_space: str = "TargetPose"
+    interface: str = ""  # agent.yaml's options as JSON, for formats that describe them (smarts2022)
     # A warm parent forking one agent per episode (evaluator.sandbox.warm) instead of the agent.
     zygote: bool = False
     instance: str = field(default_factory=lambda: uuid.uuid4().hex)
@@ -95,6 +96,7 @@ class LaunchSpec:
             labels=dict(labels or {}),
             observation_format=str(submission.interface.observation_format),
             action_space=str(submission.interface.action_space),
+            interface=submission.interface.model_dump_json(),
             model=submission.model_dir,
             **options,
         )
@@ -159,6 +161,7 @@ class LaunchSpec:
             self.observation_format,
             "--action-space",
             self.action_space,
+            *(["--interface", self.interface] if self.interface else []),
             *zygote,
         ]
 
