@@ -234,24 +234,37 @@ def test_nothing_naming_the_scenario_enters_the_sandbox(any_kind, settings, tmp)
 
 
 def test_one_agents_exception_fails_that_agent_only(any_kind, settings, labels, tmp) -> None:
-    """The policy raises on Agent_1's observation only: Agent_0 still gets its action, Agent_1
-    is reported failed with its traceback; when every agent raises, the whole agent fails."""
+    """The policy, looping over its agents, raises on Agent_1: Agent_1 is reported failed with
+    the traceback of that very exception, and Agent_0's action comes from a call holding every
+    other live agent together (never one agent alone). An exception no single agent can be
+    blamed for (raised with every agent in view) fails the whole agent with its own traceback."""
     act = """
-    if "Agent_1" in obs:
-        raise ValueError("cannot drive " + obs["Agent_1"]["ego_vehicle_state"]["id"])
-    return {k: [1.0, 0.0] for k in obs}
+    calls = getattr(self, "calls", [])
+    self.calls = calls + [sorted(obs)]
+    if obs.get("Agent_9"):
+        raise RuntimeError("looked at everyone: " + repr(self.calls))
+    out = {}
+    for agent_id, o in obs.items():
+        if agent_id == "Agent_1":
+            raise ValueError("cannot drive " + o["ego_vehicle_state"]["id"])
+        out[agent_id] = [1.0, 0.0, float(len(obs))]
+    return out
     """
     submission = agent(tmp, settings, act=act)
-    two = {"Agent_0": observation()["Agent_0"], "Agent_1": observation()["Agent_0"]}
-    two["Agent_1"] = {**two["Agent_1"], "ego_vehicle_state": {"id": "Agent_1"}}
+    one = observation()["Agent_0"]
+    three = {k: {**one, "ego_vehicle_state": {"id": k}} for k in ("Agent_0", "Agent_1", "Agent_2")}
     with start(submission, kind=any_kind, labels=labels, settings=settings) as handle:
         handle.reset()
         with pytest.raises(SomeAgentsFailed) as caught:
-            handle.act(two)
-        assert caught.value.actions == {"Agent_0": [1.0, 0.0]}
+            handle.act(three)
+        # The retry held Agent_0 and Agent_2 together.
+        assert caught.value.actions == {"Agent_0": [1.0, 0.0, 2.0], "Agent_2": [1.0, 0.0, 2.0]}
         assert list(caught.value.failed) == ["Agent_1"]
-        assert "ValueError: cannot drive Agent_1" in caught.value.failed["Agent_1"]
-        assert handle.act({"Agent_0": two["Agent_0"]}) == {"Agent_0": [1.0, 0.0]}
+        original = caught.value.failed["Agent_1"]
+        assert "ValueError: cannot drive Agent_1" in original and "KeyError" not in original
         with pytest.raises(AgentFailed) as whole:
-            handle.act({"Agent_1": two["Agent_1"]})
+            handle.act({"Agent_0": three["Agent_0"], "Agent_9": one})
         assert whole.value.reason is DoneReason.agent_error
+        assert "RuntimeError: looked at everyone" in whole.value.detail
+        # Every call held every live agent: never one alone.
+        assert "['Agent_0', 'Agent_1', 'Agent_2'], ['Agent_0', 'Agent_2']" in whole.value.detail
