@@ -66,6 +66,10 @@ class Simulation:
         self.scenario = scenario
         self.scenario_dir = Path(scenario_dir)
         self.interface = interface
+        # SMARTS's paths hold the waypoint level with the vehicle plus `lookahead` more (51 for
+        # its default 50); ours hold `waypoints_per_path` in all.
+        smarts = interface.observation_format == "smarts2022"
+        self._points_per_path = interface.waypoints_per_path + int(smarts)
         self.seed = scenario.seed if seed is None else seed
         self.dt = scenario.step_length
         # Parsed once by the evaluating process when given (sim.inputs), else read here.
@@ -406,7 +410,7 @@ class Simulation:
             v.pose.y,
             v.mission.route,
             self.interface.max_waypoint_paths,
-            self.interface.waypoints_per_path,
+            self._points_per_path,
         )
         return build_observation(
             vehicle=v,

@@ -158,7 +158,7 @@ def _junction_id(lane: Lane) -> str:
 
 def _path_from(road: RoadNetwork, lane: Lane, s: float, route: tuple[str, ...], n: int) -> list:
     path: list[dict] = []
-    first_s = math.ceil(s / WAYPOINT_SPACING - 1e-9) * WAYPOINT_SPACING
+    first_s = s  # the first waypoint is level with the vehicle
     for _ in range(_MAX_LANE_HOPS):
         points, on_lane = lane.waypoints_from(first_s, n - len(path))
         if path:
