@@ -130,21 +130,22 @@ class Lane:
         return self._waypoint_dicts(np.array([self.length]))[0]
 
     def _waypoint_dicts(self, s: np.ndarray) -> list[dict]:
-        # Plain floats first: rounding and boxing numpy scalars one by one costs several times
-        # more, for the same values.
-        xy = self.position_at(s).tolist()
+        # Rounded as arrays, then plain floats: paths are built afresh every step (they start
+        # at the vehicle), and rounding or boxing values one by one costs several times more.
+        xy = np.round(self.position_at(s), 4).tolist()
         heading = np.atleast_1d(self.heading_at(np.minimum(s, self.length - 1e-9))).tolist()
+        lane_id, index, width, limit = self.id, self.index, self.width, self.speed_limit
         return [
             {
-                "pos": [round(x, 4), round(y, 4)],
+                "pos": pos,
                 "heading": h,
-                "lane_id": self.id,
-                "lane_index": self.index,
-                "lane_width": self.width,
-                "speed_limit": self.speed_limit,
+                "lane_id": lane_id,
+                "lane_index": index,
+                "lane_width": width,
+                "speed_limit": limit,
                 "lane_offset": si,
             }
-            for (x, y), h, si in zip(xy, heading, s.tolist(), strict=True)
+            for pos, h, si in zip(xy, heading, s.tolist(), strict=True)
         ]
 
     @property

@@ -5,8 +5,9 @@ record byte and every observation value. The digests below were last taken when 
 began at the vehicle's own offset along its lane (level with it, as SMARTS documents; before,
 at the next whole metre): every observation changed, and the records of the agents that follow
 waypoints on the junction and curve (the planner on p000 and p020, keep-lane on p000); the
-random agents' and the replays' records are unchanged. A deliberate change of records or observations (new fields,
-other waypoints, other terminal steps) updates them in the same commit, saying why:
+random agents' and the replays' records are unchanged. A deliberate change of records or
+observations (new fields, other waypoints, other terminal steps) updates them in the same commit,
+saying why:
 ``python -m tests.sim.test_record_regression`` prints the current digests.
 
 The planner drives with the default observation; :data:`EXPECTED_INTERFACES` covers the other
