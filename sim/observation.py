@@ -33,6 +33,8 @@ def build_observation(
     waypoint_paths: list[list[dict]],
     interface: AgentInterface,
     rasters: dict[str, np.ndarray] | None = None,
+    lidar: dict[str, np.ndarray] | None = None,
+    road_waypoints: dict[str, list[list[dict]]] | None = None,
 ) -> dict:
     pose, k = vehicle.pose, vehicle.kinematics
     constant = vehicle.constant_observation or _constant_parts(vehicle)
@@ -71,6 +73,10 @@ def build_observation(
     for name in RASTERS:
         if getattr(interface, name):
             obs[name] = rasters[name] if rasters else None
+    if interface.lidar_point_cloud:
+        obs["lidar_point_cloud"] = lidar
+    if interface.road_waypoints:
+        obs["road_waypoints"] = road_waypoints
     return obs
 
 

@@ -13,7 +13,7 @@ import pytest
 
 from sim.road import RoadNetwork
 from sim.road.lane import WAYPOINT_SPACING
-from sim.road.waypoints import waypoint_paths
+from sim.road.waypoints import ROAD_WAYPOINTS_HORIZON, road_waypoints, waypoint_paths
 
 PUBLIC = Path(__file__).resolve().parents[2] / "scenarios" / "public"
 SCENARIOS = sorted(p.name for p in PUBLIC.iterdir() if (p / "scenario.json").exists())
@@ -152,3 +152,20 @@ def test_path_at_the_end_of_the_road_is_not_empty(past_end):
     paths = paths_at(road, x, y, lane.heading_end, ("s_in", "w_out"))
     assert paths and all(len(p) >= 1 for p in paths)
     assert paths[0][-1]["lane_id"].startswith("w_out")
+
+
+def test_road_waypoints_cover_every_lane_of_the_road_from_behind_the_vehicle():
+    """SMARTS's road_waypoints: lane id -> a path from 20 m behind the vehicle's offset on that
+    lane to 20 m ahead, for each lane of its road."""
+    road = road_of("p009_merge_2lane_low")
+    lane = road.lanes["merge_0"]
+    s = 60.0
+    x, y = (float(v) for v in lane.position_at(s))
+    position = road.nearest_lane(x, y, float(lane.heading_at(s)))
+    lanes = road_waypoints(road, position, x, y, ("ramp", "merge", "out"))
+    assert set(lanes) == {other.id for other in road.edges[lane.edge_id]}
+    (path,) = lanes["merge_0"]
+    horizon = ROAD_WAYPOINTS_HORIZON
+    assert len(path) == 2 * horizon + 1
+    assert path[0]["lane_offset"] == pytest.approx(s - horizon)
+    assert _spacings(path).min() == pytest.approx(WAYPOINT_SPACING, abs=1e-3)

@@ -21,4 +21,11 @@ class SaveGoal(gym.ObservationWrapper):
             # SMARTS's Heading and Waypoint methods, in SMARTS's frame.
             assert abs(first.relative_heading(ego.heading)) < 1.6
             assert ego.bounding_box.as_lwh[0] > 0
+            assert agent_obs.top_down_rgb.data.shape == (64, 64, 3)
+            assert agent_obs.top_down_rgb.metadata.resolution == 0.5
+            points, hits, rays = agent_obs.lidar_point_cloud
+            assert len(points) == len(hits) == len(rays) == 300
+            assert ego.lane_id in agent_obs.road_waypoints.lanes or ego.lane_id.startswith(":")
+            for neighbour in agent_obs.neighborhood_vehicle_states:
+                assert neighbour.lane_position is not None
         return obs
