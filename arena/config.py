@@ -63,7 +63,15 @@ class Settings(BaseSettings):
     # Debian mirror the offline agent image is bootstrapped from; empty: the host's apt sources.
     debian_mirror: str = ""
     init_timeout_s: float = 60.0
-    step_timeout_s: float = 1.0
+    # An act's limits (docs/protocol.md, "Time limits"): the agent's own CPU time, read from the
+    # host, so that a busy worker changes no score; the wall clock only as a generous backstop
+    # (an agent that sleeps or waits uses no CPU). Where no CPU meter exists, step_cpu_s
+    # applies to the wall clock.
+    step_cpu_s: float = 1.0
+    step_timeout_s: float = 30.0
+    # The agent CPU time one episode (every act together) may use; the episode's wall limit
+    # (simulator included) is episode_timeout_s.
+    episode_cpu_s: float = 600.0
     episode_timeout_s: float = 600.0
     agent_memory_bytes: int = 2 * 1024**3
     agent_cpus: float = 1.0

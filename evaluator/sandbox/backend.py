@@ -13,6 +13,7 @@ from typing import Protocol
 import agent_runtime
 from arena.config import SandboxKind, Settings
 from evaluator.sandbox.channel import Channel
+from evaluator.sandbox.cpu import CpuMeter
 
 # Every sandbox carries this label, so leftovers of a crashed worker are found and removed.
 SANDBOX_LABEL = "driving-arena.sandbox"
@@ -213,6 +214,9 @@ class Sandbox(Protocol):
 
     def logs(self) -> str:
         """The last ``agent_log_tail_bytes`` of its stdout/stderr."""
+
+    def cpu_meter(self) -> CpuMeter | None:
+        """How to read the CPU time it has used from the host (None: no way here)."""
 
 
 class Backend(Protocol):

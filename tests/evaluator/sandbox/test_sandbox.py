@@ -166,7 +166,12 @@ def test_auto_prefers_docker_and_the_service_refuses_process(settings) -> None:
 
 def test_bubblewrap_bounds_the_cpu_time_an_agent_burns(settings, labels, tmp) -> None:
     budget = settings.model_copy(
-        update={"init_timeout_s": 1.0, "episode_timeout_s": 1.0, "step_timeout_s": 30.0}
+        update={
+            "init_timeout_s": 1.0,
+            "episode_timeout_s": 1.0,
+            "step_timeout_s": 30.0,
+            "step_cpu_s": 30.0,
+        }
     )
     kind = usable(SandboxKind.bubblewrap, budget)
     spinner = agent(tmp, budget, act="while True: pass")
@@ -268,3 +273,53 @@ def test_one_agents_exception_fails_that_agent_only(any_kind, settings, labels, 
         assert "RuntimeError: looked at everyone" in whole.value.detail
         # Every call held every live agent: never one alone.
         assert "['Agent_0', 'Agent_1', 'Agent_2'], ['Agent_0', 'Agent_2']" in whole.value.detail
+
+
+def test_the_step_limit_counts_cpu_time_not_waiting(any_kind, settings, labels, tmp) -> None:
+    """An act that waits 1.5 s without computing is within a 1 s CPU limit (a busy worker or a
+    slow disk is not the agent's time); one that computes for 1.5 s is not, and is stopped by
+    its CPU time, not by the wall-clock backstop (whose message names no CPU)."""
+    limits = settings.model_copy(update={"step_cpu_s": 1.0, "step_timeout_s": 120.0})
+    act = """
+    if obs["Agent_0"]["step_count"] == 0:
+        time.sleep(1.5)
+    else:
+        began = time.process_time()
+        while time.process_time() - began < 1.5:
+            pass
+    return {k: [1.0, 0.0] for k in obs}
+    """
+    submission = agent(tmp, limits, act=act)
+    waiting = observation()
+    waiting["Agent_0"]["step_count"] = 0
+    with start(submission, kind=any_kind, labels=labels, settings=limits) as handle:
+        handle.reset()
+        assert handle.act(waiting) == {"Agent_0": [1.0, 0.0]}
+        with pytest.raises(AgentFailed) as caught:
+            handle.act(observation())
+        assert caught.value.reason is DoneReason.step_timeout
+        assert "s of CPU" in caught.value.detail
+
+
+def test_an_episode_has_a_cpu_budget(kind, settings, labels, tmp) -> None:
+    """Acts of 0.4 s of CPU each, under a 1 s step limit, exceed a 1 s episode budget at the
+    third; a reset starts the count again."""
+    limits = settings.model_copy(
+        update={"step_cpu_s": 1.0, "episode_cpu_s": 1.0, "step_timeout_s": 120.0}
+    )
+    act = """
+    began = time.process_time()
+    while time.process_time() - began < 0.4:
+        pass
+    return {k: [1.0, 0.0] for k in obs}
+    """
+    submission = agent(tmp, limits, act=act)
+    with start(submission, kind=kind, labels=labels, settings=limits) as handle:
+        handle.reset()
+        handle.act(observation())
+        handle.act(observation())
+        assert 0.75 < handle.episode_cpu_s < 1.0
+        with pytest.raises(AgentFailed) as caught:
+            handle.act(observation())
+        assert caught.value.reason is DoneReason.episode_timeout
+        assert "CPU this episode" in caught.value.detail
