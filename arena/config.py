@@ -78,6 +78,10 @@ class Settings(BaseSettings):
     agent_pids: int = 64
     agent_tmp_bytes: int = 64 * 1024**2
     agent_log_tail_bytes: int = 64 * 1024
+    # The sandbox's interpreter (the agent image's and bubblewrap's Debian bookworm python3):
+    # a submission's requirements are resolved to wheels for it, not for the host's Python.
+    agent_python_version: str = "3.11"
+    agent_glibc_version: str = "2.36"
     # Warm agents (docs/protocol.md): one sandbox per submission and evaluating process forks a
     # fresh agent for each episode; off: a new sandbox per episode. Idle ones close after this.
     warm_agents: bool = True

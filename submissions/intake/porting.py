@@ -8,6 +8,7 @@ wheel does, with a message naming the line and the versions that do have one.
 from __future__ import annotations
 
 import ast
+import platform
 import re
 import zipfile
 
@@ -54,7 +55,9 @@ def _defines(source: str, name: str) -> bool:
     )
 
 
-def explain_missing_wheel(error: IntakeError, requirements_text: str) -> IntakeError:
+def explain_missing_wheel(
+    error: IntakeError, requirements_text: str, python_version: str = "3.11"
+) -> IntakeError:
     """``error`` (pip found no wheel) restated: which line, which versions have a wheel, and
     what to do. The original error when pip's message names no distribution."""
     match = _NO_MATCH.search(error.message)
@@ -75,7 +78,8 @@ def explain_missing_wheel(error: IntakeError, requirements_text: str) -> IntakeE
     return IntakeError(
         where,
         "no-wheel",
-        f"{subject} has no wheel for CPython 3.11 on Linux x86-64, and only wheels are installed "
+        f"{subject} has no wheel for the sandbox's CPython {python_version} on Linux "
+        f"{platform.machine()}, and only wheels are installed "
         f"(no build code runs on our machines). {choice[0].upper()}{choice[1:]}, or remove "
         f"{listed} if the agent does not import it here: SMARTS 2022 requirement files list "
         "simulator packages (Panda3D, smarts) that a Driving Arena agent does not need.",

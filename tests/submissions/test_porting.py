@@ -76,6 +76,6 @@ def test_a_smarts_requirement_without_a_wheel_names_its_line_and_versions(tmp_pa
         prepare_submission(upload, tmp_path / "a", settings)
     error = caught.value
     assert (error.entry, error.rule) == ("requirements.txt:3", "no-wheel")
-    assert error.message.startswith("Panda3D==1.10.9 has no wheel for CPython 3.11")
+    assert error.message.startswith("Panda3D==1.10.9 has no wheel for the sandbox's CPython 3.11")
     assert "Pin a version that has one (1.10." in error.message
     assert "remove it" in error.message
