@@ -1,8 +1,8 @@
 """A submission written the way Driving SMARTS 2022 agents were (``ds2022_agent/``: ``smarts`` and
 ``gym`` imports, the kit's ``submitted_wrappers()`` with ``FormatObs`` / ``FormatAction`` and a
 wrapper of its own reading SMARTS's observation by attribute, ``numpy==1.23.5`` pinned and
-``np.float`` used) runs unmodified on public scenarios in each isolating sandbox, on the numpy it
-pinned (issue 24)."""
+``np.float`` used) runs unmodified on public scenarios in each sandbox, on the numpy it pinned
+(issue 24)."""
 
 from __future__ import annotations
 
@@ -37,6 +37,8 @@ def public_suite() -> Path:
     [
         pytest.param(SandboxKind.docker, marks=pytest.mark.docker, id="docker"),
         pytest.param(SandboxKind.bubblewrap, marks=pytest.mark.bwrap, id="bubblewrap"),
+        # Unisolated, but on the same interpreter and libraries where the machine has them.
+        pytest.param(SandboxKind.process, id="process"),
     ],
 )
 def test_a_ds2022_agent_runs_unmodified_on_the_numpy_it_pinned(kind, public_suite, tmp_path):
