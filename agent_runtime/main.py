@@ -125,9 +125,18 @@ def open_stream(socket_path: str | None) -> Stream:
     return stream
 
 
-def load_policy(submission: str, deps: str | None) -> object:
+def put_submission_first(submission: str, deps: str | None) -> None:
+    """The submission folder, then its installed requirements, ahead of everything the sandbox
+    ships: done before the runtime imports numpy, so a pinned numpy is the one loaded."""
+    for folder in reversed([submission, *([deps] if deps else [])]):
+        if folder not in sys.path:
+            sys.path.insert(0, folder)
+
+
+def load_policy(submission: str, deps: str | None) -> tuple[object, object]:
+    """The policy object and its module (which may define ``submitted_wrappers``)."""
     os.chdir(submission)
-    sys.path[:0] = [submission, *([deps] if deps else [])]
+    put_submission_first(submission, deps)
     spec = importlib.util.spec_from_file_location("policy", os.path.join(submission, "policy.py"))
     module = importlib.util.module_from_spec(spec)
     sys.modules["policy"] = module
@@ -135,7 +144,7 @@ def load_policy(submission: str, deps: str | None) -> object:
     policy = module.Policy()
     if not callable(getattr(policy, "act", None)):
         raise TypeError("Policy has no act(self, obs) method")
-    return policy
+    return policy, module
 
 
 def checked_act(act, obs: dict) -> dict:
@@ -147,32 +156,55 @@ def checked_act(act, obs: dict) -> dict:
     return actions
 
 
-def act_isolating_agents(act, obs: dict) -> dict:
-    """The ``actions`` message for ``obs``. When ``act`` raises an ordinary exception with
-    several agents in ``obs``, it is called again with each agent's observation alone: the
-    agents whose own call raises are listed under ``failed`` (id -> traceback) and end with
-    ``agent_error``; their team mates drive on with the actions of their own calls. One agent's
-    bad input then does not end the others (a policy is one function for every agent, so this
-    is the only way to tell whose it was). If every agent fails alone, or a single agent was
-    asked, the exception ends the whole agent as before. MemoryError and exits always do."""
-    try:
-        return {"type": "actions", "actions": checked_act(act, obs)}
-    except Exception as error:
-        if len(obs) < 2:
-            raise
-        first_error = error
-    actions, failed = {}, {}
-    for agent_id, agent_obs in obs.items():
+def act_all(act, obs: dict) -> dict:
+    """The ``actions`` message for ``obs``: ``act`` gets every live agent together, as SMARTS
+    passes them. When it raises an ordinary exception that :func:`blame` pins on one agent
+    (with others in ``obs``), that agent is listed under ``failed`` with its original traceback
+    and ends with ``agent_error``; ``act`` is then called again with the other agents together,
+    the observations SMARTS passes once an agent is gone. An exception no single agent can be
+    blamed for ends the whole agent with its own traceback, as do MemoryError and exits."""
+    failed = {}
+    while True:
         try:
-            own = checked_act(act, {agent_id: agent_obs})
+            actions = checked_act(act, obs)
         except Exception as error:
-            failed[agent_id] = "".join(traceback.format_exception(error))[-4000:]
+            culprit = blame(error, obs) if len(obs) > 1 else None
+            if culprit is None:
+                raise
+            failed[culprit] = "".join(traceback.format_exception(error))[-4000:]
+            obs = {agent_id: o for agent_id, o in obs.items() if agent_id != culprit}
             continue
-        if agent_id in own:
-            actions[agent_id] = own[agent_id]
-    if len(failed) == len(obs):
-        raise first_error
-    return {"type": "actions", "actions": actions, "failed": failed}
+        message = {"type": "actions", "actions": actions}
+        if failed:
+            message["failed"] = failed
+        return message
+
+
+def blame(error: BaseException, obs: dict) -> str | None:
+    """The one agent whose observation or id the policy held where ``error`` was raised: the
+    innermost frame of the policy's code whose local variables name exactly one agent of ``obs``
+    (a loop over ``obs.items()``, a per-agent helper). None when no frame does."""
+    ids = {agent_id: agent_id for agent_id in obs}
+    by_identity = {id(o): agent_id for agent_id, o in obs.items()}
+    frames = []
+    tb = error.__traceback__
+    while tb is not None:
+        frames.append(tb.tb_frame)
+        tb = tb.tb_next
+    here = os.path.dirname(os.path.abspath(__file__))
+    for frame in reversed(frames):
+        if os.path.dirname(os.path.abspath(frame.f_code.co_filename)) == here:
+            continue  # the runtime's own frames hold every agent
+        named = set()
+        for value in frame.f_locals.values():
+            if isinstance(value, str):
+                if value in ids:
+                    named.add(value)
+            elif id(value) in by_identity:
+                named.add(by_identity[id(value)])
+        if len(named) == 1:
+            return named.pop()
+    return None
 
 
 class ArrayObservations:
@@ -228,14 +260,16 @@ class ArrayObservations:
         return obs
 
 
-def load_adapter(observation_format: str, action_space: str):
-    """The converter for ``observation_format`` (None for ours)."""
+def load_adapter(observation_format: str, action_space: str, options: dict):
+    """The converter for ``observation_format`` (None for ours); ``options``: agent.yaml's."""
     if observation_format in PLAIN_FORMATS:
         return None
     module = sibling_module(COMPAT)
     if observation_format != module.FORMAT:
         raise ValueError(f"unknown observation_format {observation_format!r}")
-    return module.SmartsAdapter(action_space)
+    return module.SmartsAdapter(
+        action_space, int(options.get("img_pixels", 256)), float(options.get("img_meters", 64.0))
+    )
 
 
 def sibling_module(name: str):
@@ -252,6 +286,7 @@ def sibling_module(name: str):
 
 
 def serve(stream: Stream, policy: object, adapter=None) -> None:
+    """Answer act, reset and close messages with ``policy`` until close."""
     reset = getattr(policy, "reset", None)
     act = policy.act
     arrays = None  # the reader of arrays act frames, once the layout came
@@ -268,7 +303,7 @@ def serve(stream: Stream, policy: object, adapter=None) -> None:
                     obs = arrays.decode(body)
                 else:
                     obs = adapter.observations(body) if adapter else body
-                message = act_isolating_agents(act, obs)
+                message = act_all(act, obs)
                 if adapter:
                     message["actions"] = adapter.actions(message["actions"])
                 stream.send(message)
@@ -290,9 +325,87 @@ def serve(stream: Stream, policy: object, adapter=None) -> None:
             return
 
 
+class WrappedServer:
+    """Serves a competition-kit policy (``observation_format: smarts2022`` and a policy module
+    with ``submitted_wrappers()``) the way the 2022 evaluation ran it: its wrappers around an
+    environment whose ``step`` is our act exchange, and the loop ``obs = env.reset()``, then
+    ``obs, _, dones, _ = env.step(policy.act(obs))`` until ``dones["__all__"]``."""
+
+    def __init__(self, stream: Stream, policy, adapter, wrappers, options: dict, action_space):
+        self.stream = stream
+        self.policy = policy
+        self.adapter = adapter
+        self.wrappers = wrappers
+        self.options = options
+        self.action_space = action_space
+        self.pending = None  # the first observations of an episode, read before env.reset()
+        self.compat = sibling_module(COMPAT)
+
+    def serve(self) -> None:
+        env = None
+        try:
+            while True:
+                self.pending = self.first()
+                if env is None:  # wrappers learn the agent ids at construction, as in SMARTS
+                    interface = self.compat.agent_interface(self.options, self.action_space)
+                    env = self.compat.SandboxEnv(self, dict.fromkeys(self.pending, interface))
+                    for wrap in self.wrappers:
+                        env = wrap(env)
+                observations = env.reset()
+                while True:
+                    observations, _, dones, _ = env.step(self.policy.act(observations))
+                    if dones.get("__all__"):
+                        break
+        except Closed:
+            return
+        except BaseException as error:
+            self.stream.send(error_message(error))
+
+    def first(self) -> dict:
+        """The next episode's first observations (``reset`` and ``close`` answered on the way)."""
+        while True:
+            kind, body = self.stream.receive()
+            if kind == "act":
+                return self.adapter.observations(body)
+            self.episode_end(kind)
+
+    def episode_end(self, kind: str) -> None:
+        if kind == "close":
+            self.stream.send({"type": "done"})
+            raise Closed
+        if kind == "reset":
+            self.adapter.reset()
+            reset = getattr(self.policy, "reset", None)
+            if reset is not None:
+                reset()
+            self.stream.send({"type": "done"})
+
+    # SandboxEnv's side of the exchange.
+
+    def answer(self, actions) -> None:
+        if not isinstance(actions, dict):
+            raise TypeError(
+                "the wrapped environment's step needs a dict of agent id -> action, "
+                f"got {type(actions).__name__}"
+            )
+        self.stream.send({"type": "actions", "actions": self.adapter.actions(actions)})
+
+    def first_observations(self) -> dict:
+        pending, self.pending = self.pending, None
+        return pending if pending is not None else self.first()
+
+    def next(self) -> dict:
+        kind, body = self.stream.receive()
+        if kind == "act":
+            return self.adapter.observations(body)
+        self.episode_end(kind)
+        raise self.compat.EpisodeOver
+
+
 def run_agent(stream: Stream, args: argparse.Namespace, started: float) -> int:
     """One agent's life on ``stream``: hello, build the policy, ready, serve until close."""
-    import numpy
+    put_submission_first(args.submission, args.deps)
+    import numpy  # after the submission's folders: a numpy it installed is the one loaded
 
     stream.send(
         {
@@ -302,14 +415,20 @@ def run_agent(stream: Stream, args: argparse.Namespace, started: float) -> int:
             "numpy": numpy.__version__,
         }
     )
+    options = json.loads(args.interface or "{}")
     try:
-        adapter = load_adapter(args.observation_format, args.action_space)
-        policy = load_policy(args.submission, args.deps)
+        adapter = load_adapter(args.observation_format, args.action_space, options)
+        policy, module = load_policy(args.submission, args.deps)
+        hook = getattr(module, "submitted_wrappers", None) if adapter else None
+        wrappers = list(hook()) if callable(hook) else None
     except BaseException as error:
         stream.send(error_message(error))
         return 1
     stream.send({"type": "ready", "init_s": round(time.perf_counter() - started, 6)})
-    serve(stream, policy, adapter)
+    if wrappers is not None:
+        WrappedServer(stream, policy, adapter, wrappers, options, args.action_space).serve()
+    else:
+        serve(stream, policy, adapter)
     return 0
 
 
@@ -320,6 +439,7 @@ def main() -> int:
     parser.add_argument("--socket", help="unix socket to connect to instead of stdin/stdout")
     parser.add_argument("--observation-format", default="native", help="agent.yaml's choice")
     parser.add_argument("--action-space", default="TargetPose", help="agent.yaml's choice")
+    parser.add_argument("--interface", help="agent.yaml's options as JSON (smarts2022)")
     parser.add_argument("--zygote", action="store_true", help="fork one agent per episode")
     args = parser.parse_args()
     started = time.perf_counter()

@@ -1,10 +1,14 @@
 """Driving SMARTS 2022 observations and actions for agents written against SMARTS.
 
 Used inside the sandbox by ``agent_runtime/main.py`` when ``agent.yaml`` says
-``observation_format: smarts2022``: each native observation dict (agent interface spec)
-becomes an attribute-access object with SMARTS's field names and numpy arrays, headings in
-SMARTS's frame (0 = +y north, counter-clockwise), ``distance_travelled`` per step; a TargetPose
-action's heading is turned back into ours. ``docs/smarts-compat.md`` lists every field.
+``observation_format: smarts2022``: each native observation dict (``docs/agent-interface.md``)
+becomes SMARTS's own types (``smarts.core.sensors.Observation`` and the rest, from the compat
+package in ``compat/``, which this module puts on ``sys.path``), headings in SMARTS's frame
+(0 = +y north, counter-clockwise), ``distance_travelled`` per step, rasters as ``TopDownRGB`` /
+``OccupancyGridMap`` / ``DrivableAreaGridMap`` with their metadata; a TargetPose action's heading
+is turned back into ours. A policy module that defines ``submitted_wrappers()`` (the competition
+kit's hook) is served through those wrappers around :class:`SandboxEnv`, as the competition's
+evaluation did. ``docs/smarts-compat.md`` lists every field.
 
 Standard library plus numpy only, and no import of this project (it runs beside ``main.py``).
 """
@@ -12,168 +16,78 @@ Standard library plus numpy only, and no import of this project (it runs beside 
 from __future__ import annotations
 
 import math
-from typing import Any, NamedTuple
+import os
+import sys
+from typing import Any, ClassVar
 
 import numpy as np
 
 FORMAT = "smarts2022"
 TARGET_POSE_LENGTH = 4  # [x, y, heading, dt]: the only action with an absolute heading
+# The folder of the ``smarts`` and ``gym`` compat packages. Appended: a submission's own
+# (or its installed requirements') smarts or gym comes first.
+COMPAT_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "compat")
+if COMPAT_DIR not in sys.path:
+    sys.path.append(COMPAT_DIR)
+
+# After the path above: these are the compat package's (or the submission's own) modules.
+from smarts.core.agent_interface import (  # noqa: E402
+    OGM,
+    RGB,
+    AgentInterface,
+    Waypoints,
+)
+from smarts.core.agent_interface import DrivableAreaGridMap as DrivableAreaSetting  # noqa: E402
+from smarts.core.agent_interface import RoadWaypoints as RoadWaypointsSetting  # noqa: E402
+from smarts.core.controllers import ActionSpaceType  # noqa: E402
+from smarts.core.coordinates import Dimensions, Heading, Point, RefLinePoint  # noqa: E402
+from smarts.core.events import Collision, Events  # noqa: E402
+from smarts.core.plan import Mission, PositionalGoal, Start  # noqa: E402
+from smarts.core.road_map import make_waypoint  # noqa: E402
+from smarts.core.sensors import (  # noqa: E402
+    DrivableAreaGridMap,
+    EgoVehicleObservation,
+    GridMapMetadata,
+    Observation,
+    OccupancyGridMap,
+    RoadWaypoints,
+    TopDownRGB,
+    VehicleObservation,
+    Vias,
+)
+from smarts.zoo.agent_spec import AgentSpec  # noqa: E402
+
+HALF_PI = math.pi / 2
+TWO_PI = 2 * math.pi
 
 
 def to_smarts_heading(heading: float) -> float:
     """Ours (0 = +x east, CCW) [rad] -> SMARTS (0 = +y north, CCW), wrapped to [-pi, pi)."""
-    return (heading - math.pi / 2 + math.pi) % (2 * math.pi) - math.pi
+    return (heading - HALF_PI + math.pi) % TWO_PI - math.pi
 
 
 def from_smarts_heading(heading: float) -> float:
     """SMARTS (0 = +y north, CCW) [rad] -> ours (0 = +x east, CCW), wrapped to [-pi, pi)."""
-    return (heading + math.pi / 2 + math.pi) % (2 * math.pi) - math.pi
-
-
-class Heading(float):
-    """A heading [rad] in SMARTS's frame; a float, as SMARTS's ``Heading`` is."""
-
-
-class Dimensions(NamedTuple):
-    length: float  # [m]
-    width: float  # [m]
-    height: float  # [m]
-
-
-class RefLinePoint(NamedTuple):
-    s: float  # [m] along the lane
-    t: float  # [m] left of the lane centre
-    h: float = 0.0  # [m] height above the lane (always 0 here)
-
-
-class Collision(NamedTuple):
-    collidee_id: str
-    collidee_owner_id: str = ""  # unknown here
-
-
-class Events(NamedTuple):
-    collisions: list[Collision]
-    off_road: bool
-    off_route: bool
-    on_shoulder: bool
-    wrong_way: bool
-    not_moving: bool
-    reached_goal: bool
-    reached_max_episode_steps: bool
-    agents_alive_done: bool = False  # no agents_alive done criterion here
-
-
-class Start(NamedTuple):
-    position: np.ndarray  # (2,) [m]
-    heading: Heading
-
-
-class PositionalGoal(NamedTuple):
-    position: np.ndarray  # (3,) [m]
-    radius: float  # [m]
-
-
-class Mission(NamedTuple):
-    start: Start
-    goal: PositionalGoal
-    route: tuple[str, ...]  # edge ids (SMARTS: route_vias); ours, not SMARTS's
-
-
-class EgoVehicleObservation(NamedTuple):
-    id: str
-    position: np.ndarray  # (3,) [m]
-    bounding_box: Dimensions
-    heading: Heading
-    speed: float  # [m/s]
-    steering: float  # [rad]
-    yaw_rate: float  # [rad/s]
-    road_id: str
-    lane_id: str
-    lane_index: int
-    mission: Mission
-    linear_velocity: np.ndarray  # (3,) [m/s]
-    angular_velocity: np.ndarray  # (3,) [rad/s]
-    linear_acceleration: np.ndarray  # (3,) [m/s^2]
-    angular_acceleration: np.ndarray  # (3,) [rad/s^2]
-    linear_jerk: np.ndarray  # (3,) [m/s^3]
-    angular_jerk: np.ndarray  # (3,) [rad/s^3]
-    lane_position: RefLinePoint
-
-
-class VehicleObservation(NamedTuple):
-    id: str
-    position: np.ndarray  # (3,) [m]
-    bounding_box: Dimensions
-    heading: Heading
-    speed: float  # [m/s]
-    road_id: str
-    lane_id: str
-    lane_index: int
-    lane_position: RefLinePoint | None = None  # not computed for neighbours here
-
-
-class Waypoint(NamedTuple):
-    pos: np.ndarray  # (2,) [m]
-    heading: Heading
-    lane_id: str
-    lane_width: float  # [m]
-    speed_limit: float  # [m/s]
-    lane_index: int
-    lane_offset: float  # [m] along the lane
-
-
-class Observation(NamedTuple):
-    dt: float  # [s]
-    step_count: int
-    steps_completed: int
-    elapsed_sim_time: float  # [s]
-    events: Events
-    ego_vehicle_state: EgoVehicleObservation
-    under_this_agent_control: bool
-    neighborhood_vehicle_states: list[VehicleObservation]
-    waypoint_paths: list[list[Waypoint]]
-    distance_travelled: float  # [m] this step (SMARTS), not the running total
-    done: bool  # ours: the agent's last observation (SMARTS passes dones separately)
-    lidar_point_cloud: None = None
-    drivable_area_grid_map: Any = None
-    occupancy_grid_map: Any = None
-    top_down_rgb: Any = None
-    road_waypoints: None = None
-    via_data: None = None
-    signals: None = None
+    return (heading + HALF_PI + math.pi) % TWO_PI - math.pi
 
 
 def _vec3(values: list[float]) -> np.ndarray:
     return np.asarray(values, dtype=np.float64)
 
 
-def _ego(ego: dict) -> EgoVehicleObservation:
-    mission = ego["mission"]
+def _lane_position(values: list[float] | None) -> RefLinePoint | None:
+    return None if values is None else RefLinePoint(*values[:2])
+
+
+def _mission(mission: dict) -> Mission:
     sx, sy, start_heading = mission["start"]
     goal = mission["goal"]
-    return EgoVehicleObservation(
-        id=ego["id"],
-        position=_vec3(ego["position"]),
-        bounding_box=Dimensions(*ego["bounding_box"]),
-        heading=Heading(to_smarts_heading(ego["heading"])),
-        speed=ego["speed"],
-        steering=ego["steering"],
-        yaw_rate=ego["yaw_rate"],
-        road_id=ego["road_id"],
-        lane_id=ego["lane_id"],
-        lane_index=ego["lane_index"],
-        mission=Mission(
-            start=Start(np.array([sx, sy]), Heading(to_smarts_heading(start_heading))),
-            goal=PositionalGoal(np.array([*goal["position"], 0.0][:3]), goal["radius"]),
-            route=tuple(mission["route"]),
-        ),
-        linear_velocity=_vec3(ego["linear_velocity"]),
-        angular_velocity=_vec3(ego["angular_velocity"]),
-        linear_acceleration=_vec3(ego["linear_acceleration"]),
-        angular_acceleration=_vec3(ego["angular_acceleration"]),
-        linear_jerk=_vec3(ego["linear_jerk"]),
-        angular_jerk=_vec3(ego["angular_jerk"]),
-        lane_position=RefLinePoint(*ego["lane_position"][:2]),
+    route = tuple(mission["route"])
+    return Mission(
+        start=Start(np.array([sx, sy]), Heading(to_smarts_heading(start_heading))),
+        goal=PositionalGoal(Point(*goal["position"][:2], 0.0), goal["radius"]),
+        route_vias=route[1:-1],
+        route=route,
     )
 
 
@@ -187,45 +101,59 @@ def _neighbour(n: dict) -> VehicleObservation:
         road_id=n["road_id"],
         lane_id=n["lane_id"],
         lane_index=n["lane_index"],
+        lane_position=_lane_position(n.get("lane_position")),
     )
 
 
-def _path(path: list[dict]) -> list[Waypoint]:
+def _path(path: list[dict]) -> list:
     """One waypoint path, positions and headings converted for the whole path at once (a
     step's observation holds a few hundred waypoints)."""
     if not path:
         return []
     xy = np.array([w["pos"][:2] for w in path], dtype=np.float64)  # (n, 2) [m]
     ours = np.array([w["heading"] for w in path], dtype=np.float64)
-    headings = ((ours - math.pi / 2 + math.pi) % (2 * math.pi) - math.pi).tolist()
-    make = tuple.__new__  # skips NamedTuple's argument parsing; the fields are in order
+    headings = ((ours - HALF_PI + math.pi) % TWO_PI - math.pi).tolist()
     return [
-        make(
-            Waypoint,
-            (
-                xy[i],
-                Heading(h),
-                w["lane_id"],
-                w["lane_width"],
-                w["speed_limit"],
-                w["lane_index"],
-                w["lane_offset"],
-            ),
+        make_waypoint(
+            xy[i],
+            Heading(h),
+            w["lane_id"],
+            w["lane_width"],
+            w["speed_limit"],
+            w["lane_index"],
+            w["lane_offset"],
         )
         for i, (w, h) in enumerate(zip(path, headings, strict=True))
     ]
+
+
+def _lidar(lidar: dict | None):
+    """SMARTS's ``(point_cloud, hits, [(ray_origin, ray_end)])``: a miss's point is inf."""
+    if lidar is None:
+        return None
+    points = np.asarray(lidar["points"], dtype=np.float64)  # (rays, 3) [m]
+    hits = np.asarray(lidar["hits"], dtype=bool)
+    points[~hits] = np.inf
+    origins = np.asarray(lidar["origins"], dtype=np.float64)
+    ends = np.asarray(lidar["ends"], dtype=np.float64)
+    return list(points), hits.tolist(), list(zip(origins, ends, strict=True))
 
 
 class SmartsAdapter:
     """Converts one episode's observations and actions; remembers each agent's running distance
     to hand out per-step ``distance_travelled``. :meth:`reset` at every new episode."""
 
-    def __init__(self, action_space: str = "TargetPose") -> None:
+    def __init__(
+        self, action_space: str = "TargetPose", img_pixels: int = 256, img_meters: float = 64.0
+    ) -> None:
         self.action_space = action_space
+        self.resolution = img_meters / img_pixels  # [m/px]
         self._distance: dict[str, float] = {}  # agent id -> running total at its last step [m]
+        self._steps: dict[str, int] = {}  # agent id -> its steps so far
+        self._missions: dict[str, tuple[int, Mission]] = {}  # built once per episode
 
     def reset(self) -> None:
-        self._distance = {}
+        self._distance, self._steps, self._missions = {}, {}, {}
 
     def observations(self, obs: dict[str, dict]) -> dict[str, Observation]:
         return {agent_id: self.observation(agent_id, o) for agent_id, o in obs.items()}
@@ -234,11 +162,15 @@ class SmartsAdapter:
         total = o["distance_travelled"]
         step_distance = total - self._distance.get(agent_id, 0.0)
         self._distance[agent_id] = total
+        steps = self._steps.get(agent_id, -1) + 1
+        self._steps[agent_id] = steps
         ev = o["events"]
+        ego = o["ego_vehicle_state"]
+        rasters = self._rasters(o, ego)
         return Observation(
             dt=o["dt"],
             step_count=o["step_count"],
-            steps_completed=o["step_count"],
+            steps_completed=steps,
             elapsed_sim_time=o["elapsed_sim_time"],
             events=Events(
                 collisions=[Collision(c) for c in ev["collisions"]],
@@ -250,15 +182,78 @@ class SmartsAdapter:
                 reached_goal=ev["reached_goal"],
                 reached_max_episode_steps=ev["reached_max_episode_steps"],
             ),
-            ego_vehicle_state=_ego(o["ego_vehicle_state"]),
+            ego_vehicle_state=self._ego(agent_id, ego),
             under_this_agent_control=True,
             neighborhood_vehicle_states=[_neighbour(n) for n in o["neighborhood_vehicle_states"]],
             waypoint_paths=[_path(path) for path in o["waypoint_paths"]],
             distance_travelled=step_distance,
+            lidar_point_cloud=_lidar(o.get("lidar_point_cloud")),
+            road_waypoints=self._road_waypoints(o.get("road_waypoints")),
+            via_data=Vias(near_via_points=[], hit_via_points=[]),
             done=bool(o.get("done", False)),
-            drivable_area_grid_map=o.get("drivable_area_grid_map"),
-            occupancy_grid_map=o.get("occupancy_grid_map"),
-            top_down_rgb=o.get("top_down_rgb"),
+            **rasters,
+        )
+
+    def _ego(self, agent_id: str, ego: dict) -> EgoVehicleObservation:
+        mission = ego["mission"]
+        cached = self._missions.get(agent_id)
+        if cached is None or cached[0] != id(mission):
+            cached = (id(mission), _mission(mission))
+            self._missions[agent_id] = cached
+        return EgoVehicleObservation(
+            id=ego["id"],
+            position=_vec3(ego["position"]),
+            bounding_box=Dimensions(*ego["bounding_box"]),
+            heading=Heading(to_smarts_heading(ego["heading"])),
+            speed=ego["speed"],
+            steering=ego["steering"],
+            yaw_rate=ego["yaw_rate"],
+            road_id=ego["road_id"],
+            lane_id=ego["lane_id"],
+            lane_index=ego["lane_index"],
+            mission=cached[1],
+            linear_velocity=_vec3(ego["linear_velocity"]),
+            angular_velocity=_vec3(ego["angular_velocity"]),
+            linear_acceleration=_vec3(ego["linear_acceleration"]),
+            angular_acceleration=_vec3(ego["angular_acceleration"]),
+            linear_jerk=_vec3(ego["linear_jerk"]),
+            angular_jerk=_vec3(ego["angular_jerk"]),
+            lane_position=_lane_position(ego["lane_position"]),
+        )
+
+    def _rasters(self, o: dict, ego: dict) -> dict[str, Any]:
+        """The rasters the observation holds, with SMARTS's metadata: grid maps get a channel
+        axis (height, width, 1), as SMARTS's."""
+        out: dict[str, Any] = {}
+        kinds = (
+            ("top_down_rgb", TopDownRGB),
+            ("occupancy_grid_map", OccupancyGridMap),
+            ("drivable_area_grid_map", DrivableAreaGridMap),
+        )
+        for name, kind in kinds:
+            data = o.get(name)
+            if data is None:
+                continue
+            data = np.asarray(data)
+            if data.ndim == 2:
+                data = data[:, :, None]
+            metadata = GridMapMetadata(
+                created_at=round(o["elapsed_sim_time"] * 1000),
+                resolution=self.resolution,
+                width=data.shape[1],
+                height=data.shape[0],
+                camera_pos=tuple(float(v) for v in ego["position"][:3]),
+                camera_heading_in_degrees=math.degrees(to_smarts_heading(ego["heading"])),
+            )
+            out[name] = kind(metadata=metadata, data=data)
+        return out
+
+    @staticmethod
+    def _road_waypoints(lanes: dict[str, list[list[dict]]] | None) -> RoadWaypoints | None:
+        if lanes is None:
+            return None
+        return RoadWaypoints(
+            lanes={lane_id: [_path(p) for p in paths] for lane_id, paths in lanes.items()}
         )
 
     def actions(self, actions: dict[str, Any]) -> dict[str, Any]:
@@ -276,3 +271,82 @@ class SmartsAdapter:
                 values[2] = from_smarts_heading(values[2])
             out[agent_id] = values
         return out
+
+
+def agent_interface(options: dict[str, Any], action_space: str) -> AgentInterface:
+    """SMARTS's ``AgentInterface`` for the options ``agent.yaml`` chose (what wrappers read)."""
+    pixels = int(options.get("img_pixels", 256))
+    raster = {"width": pixels, "height": pixels}
+    raster["resolution"] = float(options.get("img_meters", 64.0)) / pixels
+    return AgentInterface(
+        action=ActionSpaceType[action_space],
+        neighborhood_vehicles=True,
+        waypoints=Waypoints(lookahead=int(options.get("waypoints_per_path", 50))),
+        road_waypoints=RoadWaypointsSetting() if options.get("road_waypoints") else False,
+        drivable_area_grid_map=(
+            DrivableAreaSetting(**raster) if options.get("drivable_area_grid_map") else False
+        ),
+        ogm=OGM(**raster) if options.get("occupancy_grid_map") else False,
+        rgb=RGB(**raster) if options.get("top_down_rgb") else False,
+        lidar=bool(options.get("lidar_point_cloud")),
+        accelerometer=True,
+    )
+
+
+class EpisodeOver(Exception):
+    """The evaluator ended the episode (a ``reset`` came where an ``act`` was awaited)."""
+
+
+class SandboxEnv:
+    """The environment a competition-kit policy's wrappers wrap: ``reset`` returns the first
+    observations of an episode, ``step(actions)`` hands the actions to the evaluator and returns
+    the next observations, with SMARTS's (rewards, dones, infos) beside them. ``io`` is the
+    runtime's side: ``io.first_observations()`` the episode's first observations,
+    ``io.answer(actions)`` sends actions, ``io.next()`` waits for the next act's observations
+    (converted by the adapter) or raises :class:`EpisodeOver`. When every agent of an act is
+    done the episode is over for the wrappers (``dones["__all__"]``) and the act is answered
+    here with no actions, as SMARTS asks for none after its last step."""
+
+    metadata: ClassVar[dict[str, Any]] = {"render.modes": []}
+    reward_range = (-float("inf"), float("inf"))
+    spec = None
+    action_space = None
+    observation_space = None
+
+    def __init__(self, io, interfaces: dict[str, AgentInterface]) -> None:
+        self.io = io
+        self.agent_interfaces = interfaces
+        self.agent_specs = {k: AgentSpec(interface=v) for k, v in interfaces.items()}
+        self.agent_ids = set(interfaces)
+
+    def reset(self, **kwargs) -> dict[str, Observation]:
+        return self.io.first_observations()
+
+    def step(self, actions: dict[str, Any]):
+        self.io.answer(actions)
+        try:
+            obs = self.io.next()
+        except EpisodeOver:
+            return {}, {}, {"__all__": True}, {}
+        dones = {agent_id: o.done for agent_id, o in obs.items()}
+        dones["__all__"] = bool(obs) and all(o.done for o in obs.values())
+        if dones["__all__"]:
+            self.io.answer({})
+        rewards = {agent_id: o.distance_travelled for agent_id, o in obs.items()}
+        infos = {
+            agent_id: {"score": o.distance_travelled, "env_obs": o} for agent_id, o in obs.items()
+        }
+        return obs, rewards, dones, infos
+
+    def seed(self, seed=None) -> list:
+        return [seed]
+
+    def render(self, mode: str = "human"):
+        return None
+
+    def close(self) -> None:
+        pass
+
+    @property
+    def unwrapped(self) -> SandboxEnv:
+        return self

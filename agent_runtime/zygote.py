@@ -57,21 +57,25 @@ class Zygote:
 
     def serve(self) -> int:
         started = time.perf_counter()
-        import numpy
+        # A submission that installs its own numpy gets it in its children: then the parent
+        # loads neither numpy nor anything built on it (the runtime's numpy would win there).
+        own_numpy = provides(self.args.deps, "numpy")
+        hello = {
+            "type": "hello",
+            "protocol": self.runner.PROTOCOL_VERSION,
+            "zygote": True,
+            "python": sys.version.split()[0],
+        }
+        if not own_numpy:
+            import numpy
 
-        self.stream.send(
-            {
-                "type": "hello",
-                "protocol": self.runner.PROTOCOL_VERSION,
-                "zygote": True,
-                "python": sys.version.split()[0],
-                "numpy": numpy.__version__,
-            }
-        )
+            hello["numpy"] = numpy.__version__
+        self.stream.send(hello)
         os.chdir("/")  # no library reads configuration from the submission folder here
-        if self.args.observation_format not in self.runner.PLAIN_FORMATS:
-            self.runner.sibling_module(self.runner.COMPAT)
-        preload_runtime_modules(self.args)
+        if not own_numpy:
+            if self.args.observation_format not in self.runner.PLAIN_FORMATS:
+                self.runner.sibling_module(self.runner.COMPAT)
+            preload_runtime_modules(self.args)
         # PID 1 ignores every signal it has no handler for, so only SIGCHLD (a wake-up) gets one;
         # Python's SIGINT handler would let a child end the parent with KeyboardInterrupt.
         signal.signal(signal.SIGINT, signal.SIG_DFL)
@@ -291,6 +295,13 @@ def set_dumpable(on: bool) -> None:
         import ctypes
 
         ctypes.CDLL(None).prctl(PR_SET_DUMPABLE, int(on), 0, 0, 0)
+
+
+def provides(folder: str | None, name: str) -> bool:
+    """Whether the dependency ``folder`` holds the top-level module ``name``."""
+    if not folder:
+        return False
+    return importlib.machinery.PathFinder.find_spec(name, [folder]) is not None
 
 
 def preload_runtime_modules(args) -> None:

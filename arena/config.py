@@ -73,13 +73,25 @@ class Settings(BaseSettings):
     # Debian mirror the offline agent image is bootstrapped from; empty: the host's apt sources.
     debian_mirror: str = ""
     init_timeout_s: float = 60.0
-    step_timeout_s: float = 1.0
+    # An act's limits (docs/protocol.md, "Time limits"): the agent's own CPU time, read from the
+    # host, so that a busy worker changes no score; the wall clock only as a generous backstop
+    # (an agent that sleeps or waits uses no CPU). Where no CPU meter exists, step_cpu_s
+    # applies to the wall clock.
+    step_cpu_s: float = 1.0
+    step_timeout_s: float = 30.0
+    # The agent CPU time one episode (every act together) may use; the episode's wall limit
+    # (simulator included) is episode_timeout_s.
+    episode_cpu_s: float = 600.0
     episode_timeout_s: float = 600.0
     agent_memory_bytes: int = 2 * 1024**3
     agent_cpus: float = 1.0
     agent_pids: int = 64
     agent_tmp_bytes: int = 64 * 1024**2
     agent_log_tail_bytes: int = 64 * 1024
+    # The sandbox's interpreter (the agent image's and bubblewrap's Debian bookworm python3):
+    # a submission's requirements are resolved to wheels for it, not for the host's Python.
+    agent_python_version: str = "3.11"
+    agent_glibc_version: str = "2.36"
     # Warm agents (docs/protocol.md): one sandbox per submission and evaluating process forks a
     # fresh agent for each episode; off: a new sandbox per episode. Idle ones close after this.
     warm_agents: bool = True

@@ -39,6 +39,15 @@ COLOURS: dict[str, tuple[int, int, int]] = {
     "mission_agent": (230, 170, 20),  # other mission vehicles
     "ego": (40, 200, 60),
 }
+# SMARTS's camera (observation_format: smarts2022): the road surface only, every agent's vehicle
+# red and traffic silver (SMARTS's SceneColors: Agent, SocialVehicle, Road).
+SMARTS_COLOURS: dict[str, tuple[int, int, int]] = {
+    "background": (0, 0, 0),
+    "road": (80, 80, 80),
+    "vehicle": (192, 192, 192),
+    "mission_agent": (210, 30, 30),
+    "ego": (210, 30, 30),
+}
 OCCUPIED = 255  # value of occupied / drivable cells in the grid maps
 _SHIFT = 4  # fixed-point bits for OpenCV polygon vertices (1/16 px precision)
 _MAX_LAYER_PIXELS = 80_000_000  # a larger map would need a coarser world layer
@@ -103,6 +112,8 @@ class BevRenderer:
         self.pixels = interface.img_pixels
         self.res = interface.img_pixels / interface.img_meters  # [px/m]
         self.mission_ids = frozenset(routes)
+        smarts = interface.observation_format == "smarts2022"
+        self.colours = SMARTS_COLOURS if smarts else COLOURS
         if not self.names:
             return
         # OpenCV's worker threads cost more CPU than they save on images this small (one render,
@@ -113,10 +124,10 @@ class BevRenderer:
         self._world = _WorldLayers(road, self.res, interface.img_meters)
         world = self._world
         base = np.zeros((*world.shape, 3), np.uint8)
-        base[world.drivable > 0] = COLOURS["road"]
+        base[world.drivable > 0] = self.colours["road"]
         self._base = base
         self._route_base: dict[str, np.ndarray] = {}
-        if "top_down_rgb" in self.names:
+        if "top_down_rgb" in self.names and not smarts:
             for agent_id, route in routes.items():
                 self._route_base[agent_id] = self._with_route(road, route)
             base[world.markings > 0] = COLOURS["lane_marking"]
@@ -178,7 +189,7 @@ class BevRenderer:
             layer = self._route_base.get(agent_id, self._base)
             rgb = cv2.warpAffine(layer, m, size, flags=flags)
             for box, kind in boxes:
-                cv2.fillPoly(rgb, [box], COLOURS[kind], cv2.LINE_8, _SHIFT)
+                cv2.fillPoly(rgb, [box], self.colours[kind], cv2.LINE_8, _SHIFT)
             out["top_down_rgb"] = rgb
         return out
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from enum import StrEnum
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 
 class ActionSpace(StrEnum):
@@ -56,3 +56,18 @@ class AgentInterface(BaseModel):
     # Neighbour slots of the fixed-shape observation (`observation_format: arrays`, the learn
     # environments): the nearest are kept. The native format lists every one in the radius.
     max_neighbours: int = Field(default=16, ge=1, le=64)
+    # SMARTS's lidar (300 rays of 20 m) and road waypoints (every lane of the ego's road, 20 m
+    # behind to 20 m ahead): docs/agent-interface.md. Not in the fixed-shape arrays format.
+    lidar_point_cloud: bool = False
+    road_waypoints: bool = False
+
+    @model_validator(mode="after")
+    def _arrays_have_fixed_parts_only(self) -> AgentInterface:
+        if self.observation_format is ObservationFormat.arrays and (
+            self.lidar_point_cloud or self.road_waypoints
+        ):
+            raise ValueError(
+                "lidar_point_cloud and road_waypoints are not part of observation_format: "
+                "arrays (use native or smarts2022)"
+            )
+        return self

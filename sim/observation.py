@@ -33,6 +33,8 @@ def build_observation(
     waypoint_paths: list[list[dict]],
     interface: AgentInterface,
     rasters: dict[str, np.ndarray] | None = None,
+    lidar: dict[str, np.ndarray] | None = None,
+    road_waypoints: dict[str, list[list[dict]]] | None = None,
 ) -> dict:
     pose, k = vehicle.pose, vehicle.kinematics
     constant = vehicle.constant_observation or _constant_parts(vehicle)
@@ -63,12 +65,18 @@ def build_observation(
             "angular_jerk": [0.0, 0.0, k.angular_jerk],
             "mission": constant["mission"],
         },
-        "neighborhood_vehicle_states": neighbour_states(neighbours, road),
+        "neighborhood_vehicle_states": neighbour_states(
+            neighbours, road, lane_positions=interface.observation_format == "smarts2022"
+        ),
         "waypoint_paths": waypoint_paths,
     }
     for name in RASTERS:
         if getattr(interface, name):
             obs[name] = rasters[name] if rasters else None
+    if interface.lidar_point_cloud:
+        obs["lidar_point_cloud"] = lidar
+    if interface.road_waypoints:
+        obs["road_waypoints"] = road_waypoints
     return obs
 
 
@@ -86,8 +94,13 @@ def _constant_parts(vehicle: MissionVehicle) -> dict:
     return vehicle.constant_observation
 
 
-def neighbour_states(neighbours: VehicleStates, road: RoadNetwork) -> list[dict]:
-    """Neighbour dicts; lanes SUMO did not report come from our nearest-lane query."""
+def neighbour_states(
+    neighbours: VehicleStates, road: RoadNetwork, *, lane_positions: bool = False
+) -> list[dict]:
+    """Neighbour dicts; lanes SUMO did not report come from our nearest-lane query. With
+    ``lane_positions`` each also has ``lane_position`` [s, t] [m] on its lane (SMARTS's
+    ``VehicleObservation.lane_position``; the smarts2022 format only, as it costs a projection
+    per neighbour and step)."""
     lanes = road.lanes
     unknown = [i for i, lane_id in enumerate(neighbours.lane_id) if lane_id not in lanes]
     guessed = {}
@@ -100,16 +113,18 @@ def neighbour_states(neighbours: VehicleStates, road: RoadNetwork) -> list[dict]
     ls, ws = neighbours.length.tolist(), neighbours.width.tolist()
     for i, vid in enumerate(neighbours.ids):
         lane = guessed[i] if unknown and i in guessed else lanes[neighbours.lane_id[i]]
-        out.append(
-            {
-                "id": vid,
-                "position": [xs[i], ys[i], 0.0],
-                "heading": hs[i],
-                "speed": vs[i],
-                "bounding_box": [ls[i], ws[i], DEFAULT_HEIGHT],
-                "road_id": lane.edge_id,
-                "lane_id": lane.id,
-                "lane_index": lane.index,
-            }
-        )
+        state = {
+            "id": vid,
+            "position": [xs[i], ys[i], 0.0],
+            "heading": hs[i],
+            "speed": vs[i],
+            "bounding_box": [ls[i], ws[i], DEFAULT_HEIGHT],
+            "road_id": lane.edge_id,
+            "lane_id": lane.id,
+            "lane_index": lane.index,
+        }
+        if lane_positions:
+            s, t, _ = lane.project(xs[i], ys[i])
+            state["lane_position"] = [s, t]
+        out.append(state)
     return out

@@ -28,12 +28,13 @@ from sim.bubble import ReactiveBubble
 from sim.events import NOT_MOVING_SPEED, NOT_MOVING_STEPS, Events, collisions, is_wrong_way
 from sim.events import reached_goal as within_goal
 from sim.interface import AgentInterface
+from sim.lidar import Lidar
 from sim.mission_vehicle import MissionVehicle, Status
 from sim.observation import build_observation
 from sim.record import EpisodeRecorder, RecordRow, write_npz
 from sim.replay import ReplayTable
 from sim.road import LanePosition, RoadNetwork
-from sim.road.waypoints import route_ahead, waypoint_paths
+from sim.road.waypoints import road_waypoints, route_ahead, waypoint_paths
 from sim.traffic import SumoTraffic
 from sim.triggers import CutInTriggers
 from sim.vehicle import DECODERS, ControlContext, InvalidAction, check_action
@@ -66,6 +67,10 @@ class Simulation:
         self.scenario = scenario
         self.scenario_dir = Path(scenario_dir)
         self.interface = interface
+        # SMARTS's paths hold the waypoint level with the vehicle plus `lookahead` more (51 for
+        # its default 50); ours hold `waypoints_per_path` in all.
+        smarts = interface.observation_format == "smarts2022"
+        self._points_per_path = interface.waypoints_per_path + int(smarts)
         self.seed = scenario.seed if seed is None else seed
         self.dt = scenario.step_length
         # Parsed once by the evaluating process when given (sim.inputs), else read here.
@@ -89,6 +94,7 @@ class Simulation:
         self.violations: dict[str, str] = {}
         self.recorder = EpisodeRecorder([m.agent_id for m in self._missions])
         self._bev = BevRenderer(self.road, interface, {m.agent_id: m.route for m in self._missions})
+        self._lidar = Lidar(self.road) if interface.lidar_point_cloud else None
 
     # --- lifecycle ---------------------------------------------------------------------------
 
@@ -406,7 +412,7 @@ class Simulation:
             v.pose.y,
             v.mission.route,
             self.interface.max_waypoint_paths,
-            self.interface.waypoints_per_path,
+            self._points_per_path,
         )
         return build_observation(
             vehicle=v,
@@ -419,6 +425,14 @@ class Simulation:
             waypoint_paths=paths,
             interface=self.interface,
             rasters=self._rasters(v, near),
+            lidar=self._lidar.scan(v.pose.x, v.pose.y, v.pose.heading, near)
+            if self._lidar
+            else None,
+            road_waypoints=(
+                road_waypoints(self.road, lane, v.pose.x, v.pose.y, v.mission.route)
+                if self.interface.road_waypoints
+                else None
+            ),
         )
 
     def _rasters(self, v: MissionVehicle, near: VehicleStates) -> dict[str, np.ndarray] | None:

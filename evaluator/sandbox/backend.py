@@ -13,6 +13,7 @@ from typing import Protocol
 import agent_runtime
 from arena.config import SandboxKind, Settings
 from evaluator.sandbox.channel import Channel
+from evaluator.sandbox.cpu import CpuMeter
 
 # Every sandbox carries this label, so leftovers of a crashed worker are found and removed.
 SANDBOX_LABEL = "driving-arena.sandbox"
@@ -76,6 +77,7 @@ class LaunchSpec:
     labels: dict[str, str] = field(default_factory=dict)
     observation_format: str = "native"  # agent.yaml's, passed to the runner
     action_space: str = "TargetPose"
+    interface: str = ""  # agent.yaml's options as JSON, for formats that describe them (smarts2022)
     # A warm parent forking one agent per episode (evaluator.sandbox.warm) instead of the agent.
     zygote: bool = False
     instance: str = field(default_factory=lambda: uuid.uuid4().hex)
@@ -95,6 +97,7 @@ class LaunchSpec:
             labels=dict(labels or {}),
             observation_format=str(submission.interface.observation_format),
             action_space=str(submission.interface.action_space),
+            interface=submission.interface.model_dump_json(),
             model=submission.model_dir,
             **options,
         )
@@ -159,6 +162,7 @@ class LaunchSpec:
             self.observation_format,
             "--action-space",
             self.action_space,
+            *(["--interface", self.interface] if self.interface else []),
             *zygote,
         ]
 
@@ -210,6 +214,9 @@ class Sandbox(Protocol):
 
     def logs(self) -> str:
         """The last ``agent_log_tail_bytes`` of its stdout/stderr."""
+
+    def cpu_meter(self) -> CpuMeter | None:
+        """How to read the CPU time it has used from the host (None: no way here)."""
 
 
 class Backend(Protocol):

@@ -33,6 +33,7 @@ from evaluator.sandbox.backend import (
     runtime_dir,
 )
 from evaluator.sandbox.channel import Channel, ChannelClosed, ChannelTimeout
+from evaluator.sandbox.cpu import CpuMeter, cgroup_meter
 
 SOCKET_MOUNT = "/run/arena"
 SOCKET_NAME = "agent.sock"
@@ -188,6 +189,16 @@ class DockerSandbox:
         if state["Running"] and not state["OOMKilled"]:
             return None
         return ExitStatus(state["ExitCode"], oom_killed=state["OOMKilled"])
+
+    def cpu_meter(self) -> CpuMeter | None:
+        """The container's own cgroup, found through its first process."""
+        import docker.errors
+
+        try:
+            pid = docker_client().api.inspect_container(self.container.id)["State"]["Pid"]
+        except docker.errors.DockerException:
+            return None
+        return cgroup_meter(pid) if pid else None
 
     def kill(self) -> None:
         import docker.errors

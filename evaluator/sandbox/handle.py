@@ -15,6 +15,7 @@ from arena.outcome import DoneReason
 from evaluator.sandbox.array_frames import ArrayFrames
 from evaluator.sandbox.backend import ExitStatus, Sandbox
 from evaluator.sandbox.channel import Channel, ChannelClosed, ChannelTimeout, ChannelViolation
+from evaluator.sandbox.cpu import CpuMeter
 from sim.agent import Observation, SomeAgentsFailed
 from sim.interface import AgentInterface, ObservationFormat
 
@@ -22,6 +23,8 @@ from sim.interface import AgentInterface, ObservationFormat
 CLOSE_GRACE_S = 1.0
 # How long to wait for a dead agent's exit status after its stream closed [s].
 EXIT_STATUS_WAIT_S = 2.0
+# How often the CPU an unanswered act has used is read while waiting for its answer [s].
+CPU_POLL_S = 0.25
 
 
 class AgentHandle:
@@ -38,8 +41,13 @@ class AgentHandle:
             if interface is not None and interface.observation_format is ObservationFormat.arrays
             else None
         )
+        self._step_cpu_s = settings.step_cpu_s
         self._step_timeout_s = settings.step_timeout_s
+        self._episode_cpu_s = settings.episode_cpu_s
         self._init_timeout_s = settings.init_timeout_s
+        self._meter: CpuMeter | None = None
+        self._cpu_mark: float | None = None  # the meter after the last answer [s]
+        self.episode_cpu_s = 0.0  # agent CPU time of this episode's acts so far [s]
         self._channel: Channel | None = None
         self._closed = False
         self.hello: dict[str, Any] = {}
@@ -62,18 +70,30 @@ class AgentHandle:
         )
         if self._arrays is not None:  # no answer: the runner keeps it for the act frames
             self._send("layout", self._arrays.layout.describe(), deadline, DoneReason.init_timeout)
+        self._meter = self._sandbox.cpu_meter()
 
     def reset(self) -> None:
         self._send("reset", None, time.monotonic() + self._init_timeout_s, DoneReason.init_timeout)
         self._expect("done", time.monotonic() + self._init_timeout_s, DoneReason.init_timeout)
+        self.episode_cpu_s = 0.0
+        self._cpu_mark = self._cpu_now()
 
     def act(self, obs: dict[str, Observation]) -> dict[str, Any]:
-        deadline = time.monotonic() + self._step_timeout_s
+        """The agent's actions for ``obs``, within the step's CPU limit (the wall clock where
+        no meter reads CPU) and the wall-clock backstop, and the episode's CPU budget."""
+        started = self._cpu_mark if self._cpu_mark is not None else self._cpu_now()
+        metered = started is not None
+        limit = self._step_timeout_s if metered else self._step_cpu_s
+        deadline = time.monotonic() + limit
         if self._arrays is None:
             self._send("act", obs, deadline, DoneReason.step_timeout)
         else:
             self._send_frame(self._arrays.frame(obs), deadline)
-        message = self._expect("actions", deadline, DoneReason.step_timeout)
+        message = self._expect(
+            "actions", deadline, DoneReason.step_timeout, cpu_from=started if metered else None
+        )
+        if metered:
+            self._charge(started)
         actions, failed = message.get("actions"), message.get("failed")
         if not isinstance(actions, dict) or not isinstance(failed, dict | None):
             self._fail(DoneReason.agent_error, "protocol violation: actions are not a dict")
@@ -126,16 +146,68 @@ class AgentHandle:
             raise AgentFailed(DoneReason.sandbox_error, "the agent was already closed")
         return self._channel
 
+    def _cpu_now(self) -> float | None:
+        return self._meter.seconds() if self._meter is not None else None
+
+    def _charge(self, started: float) -> None:
+        """Count the CPU the agent used since ``started`` (a meter reading) against the step's
+        limit and the episode's budget."""
+        now = self._cpu_now()
+        if now is None:
+            return
+        used = now - started
+        self._cpu_mark = now
+        self.episode_cpu_s += used
+        if used > self._step_cpu_s:
+            self._fail(
+                DoneReason.step_timeout,
+                f"one act used {used:.2f} s of CPU (limit {self._step_cpu_s:g} s)",
+            )
+        if self.episode_cpu_s > self._episode_cpu_s:
+            self._fail(
+                DoneReason.episode_timeout,
+                f"the agent used {self.episode_cpu_s:.1f} s of CPU this episode "
+                f"(limit {self._episode_cpu_s:g} s)",
+            )
+
+    def _receive(self, deadline: float, cpu_from: float | None) -> dict[str, Any]:
+        """The next message by ``deadline``; with ``cpu_from`` (a meter reading), also fail as
+        soon as the agent has used more CPU than one step may while we wait."""
+        assert self._channel is not None
+        if cpu_from is None:
+            return self._channel.receive(deadline)
+        while True:
+            try:
+                return self._channel.receive(min(deadline, time.monotonic() + CPU_POLL_S))
+            except ChannelTimeout:
+                if time.monotonic() >= deadline:
+                    raise
+            now = self._cpu_now()
+            if now is not None and now - cpu_from > self._step_cpu_s:
+                self._fail(
+                    DoneReason.step_timeout,
+                    f"one act used more than {self._step_cpu_s:g} s of CPU without answering",
+                )
+
     def _expect(
-        self, kind: str, deadline: float, late: DoneReason, *, startup: bool = False
+        self,
+        kind: str,
+        deadline: float,
+        late: DoneReason,
+        *,
+        startup: bool = False,
+        cpu_from: float | None = None,
     ) -> dict[str, Any]:
         assert self._channel is not None
         try:
-            message = self._channel.receive(deadline)
+            message = self._receive(deadline, cpu_from)
         except ChannelTimeout:
-            limit = (
-                self._step_timeout_s if late is DoneReason.step_timeout else self._init_timeout_s
-            )
+            if late is not DoneReason.step_timeout:
+                limit = self._init_timeout_s
+            elif cpu_from is None:
+                limit = self._step_cpu_s
+            else:
+                self._fail(late, f"no {kind} within {self._step_timeout_s:g} s of wall time")
             self._fail(late, f"no {kind} within {limit:g} s")
         except ChannelClosed:
             if startup:

@@ -3,10 +3,16 @@
 For participants trying their agent locally on a machine without Docker or bubblewrap, and as the
 baseline of the sandbox benchmark. It gives no isolation at all (the agent sees the whole host as
 the evaluating user), so the service refuses it: see :func:`evaluator.sandbox.check_service_kind`.
+
+The agent runs on the same interpreter as under bubblewrap and in the agent image when this
+machine has it (Debian's ``/usr/bin/python3`` with ``python3-numpy``), so it imports the same
+libraries there as in the other sandboxes; elsewhere on the evaluator's own Python, whose numpy
+and other packages may differ (the hello's versions in the log say which).
 """
 
 from __future__ import annotations
 
+import functools
 import os
 import subprocess
 import sys
@@ -21,6 +27,7 @@ from evaluator.sandbox.backend import (
     LaunchSpec,
     runtime_dir,
 )
+from evaluator.sandbox.bwrap_backend import RUNTIME_PYTHON
 from evaluator.sandbox.subprocess_sandbox import (
     LABELS_ENV,
     PopenSandbox,
@@ -59,7 +66,7 @@ class ProcessBackend:
         else:
             deps = ["--deps", str(spec.deps)] if spec.deps else []
             command = [
-                sys.executable,
+                agent_python(spec.settings.agent_python_version),
                 "-I",
                 "-B",
                 str(runtime_dir() / RUNTIME_MAIN),
@@ -93,3 +100,19 @@ class ProcessBackend:
 
     def cleanup(self, labels: dict[str, str]) -> int:
         return kill_labelled(labels)
+
+
+@functools.cache
+def agent_python(version: str) -> str:
+    """The sandboxes' interpreter when this machine has it at ``version`` with numpy, else ours."""
+    try:
+        probe = subprocess.run(
+            [str(RUNTIME_PYTHON), "-I", "-c", "import sys, numpy; print(sys.version[:5])"],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+    except (OSError, subprocess.TimeoutExpired):
+        return sys.executable
+    ok = probe.returncode == 0 and probe.stdout.strip().startswith(f"{version}.")
+    return str(RUNTIME_PYTHON) if ok else sys.executable

@@ -17,6 +17,7 @@ from pathlib import Path
 
 from evaluator.sandbox.backend import ExitStatus
 from evaluator.sandbox.channel import Channel
+from evaluator.sandbox.cpu import CpuMeter
 
 # Children carry their labels in this variable; cleanup finds them through /proc/<pid>/environ.
 LABELS_ENV = "DRIVING_ARENA_SANDBOX_LABELS"
@@ -143,6 +144,10 @@ class PopenSandbox:
 
     def logs(self) -> str:
         return self._stderr.text(wait=0.0 if self.process.poll() is None else 0.5)
+
+    def cpu_meter(self) -> CpuMeter:
+        """The process tree under the sandbox's root (no cgroup of its own)."""
+        return CpuMeter(root_pid=self.process.pid)
 
 
 def labelled_pids(labels: dict[str, str]) -> list[int]:

@@ -39,6 +39,7 @@ from evaluator.sandbox.channel import (
     ChannelTimeout,
     ChannelViolation,
 )
+from evaluator.sandbox.cpu import CpuMeter
 from evaluator.sandbox.handle import AgentHandle
 from evaluator.sandbox.subprocess_sandbox import LogTail
 from sim.interface import AgentInterface
@@ -63,6 +64,7 @@ class ForkedAgent:
     settings: Settings
     labels: dict[str, str] = field(default_factory=dict)
     interface: AgentInterface | None = None  # the submission's agent.yaml
+    meter: CpuMeter | None = None  # the zygote's sandbox: its idle parent uses no CPU
 
     def kill(self) -> None:
         """Ask the zygote to kill this agent (it may be gone already)."""
@@ -119,6 +121,9 @@ class ForkedSandbox:
     def logs(self) -> str:
         return self._stderr.text(wait=0.5 if self._status_read else 0.0)
 
+    def cpu_meter(self) -> CpuMeter | None:
+        return self._agent.meter
+
 
 def read_exit_status(lifeline: socket.socket) -> ExitStatus:
     """The zygote's ``exited`` frame; an unknown end when it died first."""
@@ -146,6 +151,7 @@ class WarmAgent:
         self.interface = interface  # the submission's agent.yaml, for its forked agents
         self.last_used = time.monotonic()
         self._closed = False
+        self.meter = sandbox.cpu_meter()
 
     @classmethod
     def start(
@@ -208,6 +214,7 @@ class WarmAgent:
             settings=settings,
             labels={SANDBOX_LABEL: "1", **labels},
             interface=self.interface,
+            meter=self.meter,
         )
 
     def wait_ready(self, timeout: float) -> bool:

@@ -33,8 +33,6 @@ class Lane:
     is_internal: bool
     is_shoulder: bool
     successors: list[str] = field(default_factory=list)  # lane ids reachable at the lane's end
-    # phase of the first waypoint [0.1 mm] -> waypoint dicts; see waypoints_from()
-    _waypoint_cache: dict[int, list[dict]] = field(default_factory=dict, init=False, repr=False)
 
     def __post_init__(self) -> None:
         pts = np.asarray(self.centreline, dtype=np.float64)
@@ -109,28 +107,22 @@ class Lane:
     @property
     def waypoints(self) -> list[dict]:
         """Waypoint dicts every :data:`WAYPOINT_SPACING` along the lane, from s = 0."""
-        return self._waypoints_with_phase(0.0)
+        return self._waypoint_dicts(np.arange(0.0, self.length, WAYPOINT_SPACING))
 
     def waypoints_from(self, first_s: float, limit: int) -> tuple[list[dict], int]:
         """Up to ``limit`` waypoint dicts at s = ``first_s`` + k * :data:`WAYPOINT_SPACING` [m],
         k >= 0, short of the lane's end; and how many such points the lane has in all.
 
-        A path crossing into this lane starts at the offset left over from the previous lane, so
-        the spacing stays even across the join. Points are built once per offset phase (the
-        few a lane is entered at) and shared by every observation: treat them as read-only.
+        A path starts level with the vehicle (``first_s`` is its own s) and one crossing into
+        this lane starts at the offset left over from the previous lane, so the spacing stays
+        even along the whole path. Built for each call: the first offset follows the vehicle.
         """
-        k0 = math.floor(first_s / WAYPOINT_SPACING + 1e-9)
-        phase = max(first_s - k0 * WAYPOINT_SPACING, 0.0)
-        points = self._waypoints_with_phase(phase)
-        return points[k0 : k0 + limit], max(len(points) - k0, 0)
-
-    def _waypoints_with_phase(self, phase: float) -> list[dict]:
-        key = math.floor(phase * 1e4 + 0.5)  # [0.1 mm]; round() is slow on the per-step path
-        cached = self._waypoint_cache.get(key)
-        if cached is None:
-            s = np.arange(key / 1e4, self.length, WAYPOINT_SPACING)
-            cached = self._waypoint_cache[key] = self._waypoint_dicts(s)
-        return cached
+        first_s = max(first_s, 0.0)
+        total = max(math.ceil((self.length - first_s) / WAYPOINT_SPACING - 1e-9), 0)
+        count = min(limit, total)
+        if count <= 0:
+            return [], total
+        return self._waypoint_dicts(first_s + WAYPOINT_SPACING * np.arange(count)), total
 
     @cached_property
     def end_waypoint(self) -> dict:
@@ -138,21 +130,22 @@ class Lane:
         return self._waypoint_dicts(np.array([self.length]))[0]
 
     def _waypoint_dicts(self, s: np.ndarray) -> list[dict]:
-        # Plain floats first: rounding and boxing numpy scalars one by one costs several times
-        # more, for the same values.
-        xy = self.position_at(s).tolist()
+        # Rounded as arrays, then plain floats: paths are built afresh every step (they start
+        # at the vehicle), and rounding or boxing values one by one costs several times more.
+        xy = np.round(self.position_at(s), 4).tolist()
         heading = np.atleast_1d(self.heading_at(np.minimum(s, self.length - 1e-9))).tolist()
+        lane_id, index, width, limit = self.id, self.index, self.width, self.speed_limit
         return [
             {
-                "pos": [round(x, 4), round(y, 4)],
+                "pos": pos,
                 "heading": h,
-                "lane_id": self.id,
-                "lane_index": self.index,
-                "lane_width": self.width,
-                "speed_limit": self.speed_limit,
+                "lane_id": lane_id,
+                "lane_index": index,
+                "lane_width": width,
+                "speed_limit": limit,
                 "lane_offset": si,
             }
-            for (x, y), h, si in zip(xy, heading, s.tolist(), strict=True)
+            for pos, h, si in zip(xy, heading, s.tolist(), strict=True)
         ]
 
     @property

@@ -29,6 +29,9 @@ _successor_cache: WeakKeyDictionary[RoadNetwork, dict[tuple[str, tuple[str, ...]
 )
 
 
+ROAD_WAYPOINTS_HORIZON = 20  # [m] SMARTS's default RoadWaypoints(horizon=20)
+
+
 def exit_edge(road: RoadNetwork, lane: Lane) -> str:
     """The normal edge a vehicle reaches from ``lane``: its own edge unless ``lane`` is a
     junction-internal lane, then the edge at the end of its chain of internal lanes."""
@@ -92,6 +95,27 @@ def waypoint_paths(
         s = position.s if lane is here else lane.project(x, y)[0]
         paths.append(_path_from(road, lane, s, route, per_path))
     return paths
+
+
+def road_waypoints(
+    road: RoadNetwork,
+    position: LanePosition,
+    x: float,
+    y: float,
+    route: tuple[str, ...],
+    horizon: int = ROAD_WAYPOINTS_HORIZON,
+) -> dict[str, list[list[dict]]]:
+    """SMARTS's ``road_waypoints``: for each lane of the vehicle's road (its junction lane in a
+    junction), lane id -> one path starting ``horizon`` [m] behind the vehicle's offset on that
+    lane (at the lane's start when nearer) and running ``2 * horizon`` waypoints on, 1 m apart,
+    along the route."""
+    here = position.lane
+    lanes = [here] if here.is_internal else road.edges[here.edge_id]
+    out = {}
+    for lane in lanes:
+        s = position.s if lane is here else lane.project(x, y)[0]
+        out[lane.id] = [_path_from(road, lane, max(s - horizon, 0.0), route, 2 * horizon + 1)]
+    return out
 
 
 def route_lane_in_junction(
@@ -158,7 +182,7 @@ def _junction_id(lane: Lane) -> str:
 
 def _path_from(road: RoadNetwork, lane: Lane, s: float, route: tuple[str, ...], n: int) -> list:
     path: list[dict] = []
-    first_s = math.ceil(s / WAYPOINT_SPACING - 1e-9) * WAYPOINT_SPACING
+    first_s = s  # the first waypoint is level with the vehicle
     for _ in range(_MAX_LANE_HOPS):
         points, on_lane = lane.waypoints_from(first_s, n - len(path))
         if path:

@@ -26,7 +26,7 @@ from submissions.intake.contents import (
 )
 from submissions.intake.dependencies import install_requirements
 from submissions.intake.pack import pack_folder
-from submissions.intake.porting import porting_notes
+from submissions.intake.porting import porting_notes, with_porting_notes
 
 __all__ = ["IntakeError", "PreparedSubmission", "check_zip", "pack_folder", "prepare_submission"]
 
@@ -63,12 +63,15 @@ def check_zip(path: Path, settings: Settings | None = None) -> CheckedZip:
     settings = settings or get_settings()
     with open_zip(path, settings) as archive:
         check_members(archive, Budget(settings), depth=0)
-        check_policy(archive)
-        trains = check_train_script(archive)
-        interface = load_interface(archive)
-        explanation = load_explanation(archive)
-        requirements = read_text(archive, REQUIREMENTS)
         notes = porting_notes(archive)
+        try:
+            check_policy(archive)
+            trains = check_train_script(archive)
+            interface = load_interface(archive)
+            explanation = load_explanation(archive)
+            requirements = read_text(archive, REQUIREMENTS)
+        except IntakeError as error:
+            raise with_porting_notes(error, notes) from error
     digest = hashlib.sha256()
     with path.open("rb") as handle:
         while chunk := handle.read(1024**2):
@@ -108,6 +111,9 @@ def prepare_submission(
         with open_zip(source, settings) as archive:
             extract(archive, dest, settings)
         deps_dir = install_requirements(checked.requirements or "", settings)
+    except IntakeError as error:
+        remove_tree(dest)
+        raise with_porting_notes(error, checked.notes) from error
     except BaseException:
         remove_tree(dest)
         raise

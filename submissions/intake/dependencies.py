@@ -2,12 +2,18 @@
 
 pip resolves on the host with ``--only-binary=:all:`` (an sdist would run its build code here) and
 then installs offline from the downloaded wheels with ``--target``; installing a wheel runs no code.
-Folders are shared by every submission with the same requirements, keyed by their hash.
+Both steps resolve for the **sandbox's** interpreter, not the host's: its Python version and
+glibc (``agent_python_version``, ``agent_glibc_version``), so the folder holds wheels the policy
+can import there; a set pip cannot satisfy together is refused with pip's own words naming the
+conflict. The sandbox puts this folder ahead of its own libraries (numpy included), so what the
+submission pins is what its policy imports. Folders are shared by every submission with the same
+requirements and target, keyed by their hash.
 """
 
 from __future__ import annotations
 
 import hashlib
+import platform
 import subprocess
 import sys
 import tempfile
@@ -45,9 +51,23 @@ def parse_requirements(text: str) -> list[str]:
     return sorted(lines)
 
 
-def requirements_key(requirements: list[str]) -> str:
-    tag = f"cp{sys.version_info.major}{sys.version_info.minor}"
-    return hashlib.sha256("\n".join([tag, *requirements]).encode()).hexdigest()[:32]
+def sandbox_target(settings: Settings) -> list[str]:
+    """pip's options selecting wheels for the sandbox's CPython and glibc on this machine's
+    architecture: every manylinux tag that glibc runs (pip does not widen a PEP 600 tag itself)."""
+    version = settings.agent_python_version
+    abi = "cp" + version.replace(".", "")
+    arch = platform.machine()
+    major, minor = (int(part) for part in settings.agent_glibc_version.split("."))
+    platforms = [f"manylinux_{major}_{m}_{arch}" for m in range(minor, 4, -1)]
+    platforms += [f"{legacy}_{arch}" for legacy in ("manylinux2014", "manylinux2010", "manylinux1")]
+    options = ["--python-version", version, "--implementation", "cp", "--abi", abi]
+    for name in platforms:
+        options += ["--platform", name]
+    return options
+
+
+def requirements_key(requirements: list[str], target: list[str]) -> str:
+    return hashlib.sha256("\n".join([*target, *requirements]).encode()).hexdigest()[:32]
 
 
 def install_requirements(text: str, settings: Settings) -> Path | None:
@@ -56,7 +76,8 @@ def install_requirements(text: str, settings: Settings) -> Path | None:
     if not requirements:
         return None
     cache = settings.resolved_data_dir / "deps"
-    target = cache / requirements_key(requirements)
+    sandbox = sandbox_target(settings)
+    target = cache / requirements_key(requirements, sandbox)
     if (target / COMPLETE_MARKER).is_file():
         return target
     cache.mkdir(parents=True, exist_ok=True)
@@ -66,13 +87,15 @@ def install_requirements(text: str, settings: Settings) -> Path | None:
         listed.write_text("\n".join(requirements) + "\n")
         wheels = work / "wheels"
         try:
+            download = ["download", "--only-binary=:all:", *sandbox, "--dest", str(wheels)]
             pip(
-                ["download", "--only-binary=:all:", "--dest", str(wheels), "-r", str(listed)],
+                [*download, "-r", str(listed)],
                 "no-wheel",
-                "could not be resolved to wheels (source distributions are not accepted)",
+                "could not be resolved to wheels for the sandbox's Python "
+                f"{settings.agent_python_version} (source distributions are not accepted)",
             )
         except IntakeError as error:
-            raise explain_missing_wheel(error, text) from error
+            raise explain_missing_wheel(error, text, settings.agent_python_version) from error
         installed = work / "deps"
         pip(
             [
@@ -80,6 +103,7 @@ def install_requirements(text: str, settings: Settings) -> Path | None:
                 "--no-index",
                 "--only-binary=:all:",
                 "--no-compile",
+                *sandbox,
                 "--find-links",
                 str(wheels),
                 "--target",

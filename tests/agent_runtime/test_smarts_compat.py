@@ -52,7 +52,7 @@ def test_observation_has_smarts_fields_numpy_arrays_and_north_zero_headings():
     assert wp.heading == pytest.approx(to_smarts_heading(wp0["heading"]))
     assert wp.lane_width == wp0["lane_width"] and wp.speed_limit == wp0["speed_limit"]
     assert obs.events.collisions == [] and obs.events.reached_goal is False
-    assert obs.steps_completed == native["step_count"]
+    assert obs.steps_completed == 0  # this agent's first observation
 
 
 def test_distance_travelled_is_per_step_and_restarts_with_the_episode():

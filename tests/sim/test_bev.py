@@ -10,8 +10,9 @@ import pytest
 import shapely
 
 from arena.scenario import load_scenario
-from sim.bev import COLOURS, OCCUPIED, BevRenderer, EgoPose
+from sim.bev import COLOURS, OCCUPIED, SMARTS_COLOURS, BevRenderer, EgoPose
 from sim.interface import ActionSpace, AgentInterface
+from sim.observation import neighbour_states
 from sim.road import RoadNetwork
 from sim.simulation import Simulation
 from sim.vehicles import VehicleStates
@@ -154,3 +155,35 @@ def test_only_the_requested_rasters_are_in_the_observation(tmp_path) -> None:
         sim.close()
     assert obs["top_down_rgb"].shape == (256, 256, 3)
     assert "occupancy_grid_map" not in obs and "drivable_area_grid_map" not in obs
+
+
+def test_smarts2022_images_use_smarts_colours_and_draw_the_road_only(junction_road) -> None:
+    """SMARTS's camera: road surface grey, every agent red (the ego too), traffic silver; no
+    route or lane markings. The native palette is untouched."""
+    smarts = BevRenderer(
+        junction_road, interface(observation_format="smarts2022"), {"Agent_0": (), "Agent_1": ()}
+    )
+    native = BevRenderer(junction_road, interface(), {"Agent_0": (), "Agent_1": ()})
+    ego = EgoPose(0.0, -60.0, math.pi / 2, 4.5, 1.8)
+    cars = states(("car", 0.0, -48.0, math.pi / 2), ("Agent_1", 0.0, -72.0, math.pi / 2))
+    rgb = smarts.render("Agent_0", ego, cars)["top_down_rgb"]
+    half, px = 128, round(12 * smarts.res)
+    assert tuple(rgb[half, half]) == (210, 30, 30)
+    assert tuple(rgb[half - px, half]) == (192, 192, 192)
+    assert tuple(rgb[half + px, half]) == (210, 30, 30)
+    colours = {tuple(c) for c in rgb.reshape(-1, 3)}
+    assert colours == set(SMARTS_COLOURS.values())
+    assert tuple(native.render("Agent_0", ego, cars)["top_down_rgb"][half, half]) == COLOURS["ego"]
+
+
+def test_smarts2022_neighbours_carry_their_lane_position(junction_road) -> None:
+    """SMARTS's VehicleObservation.lane_position: (s, t) on the neighbour's lane, the same
+    numbers the lane's own projection gives; the native format leaves it out."""
+    lane = next(lane for lane in junction_road.lanes.values() if not lane.is_internal)
+    x, y = lane.position_at(lane.length / 2)
+    cars = states(("car", float(x), float(y), float(lane.heading_at(lane.length / 2))))
+    (with_position,) = neighbour_states(cars, junction_road, lane_positions=True)
+    s, t, _ = junction_road.lanes[with_position["lane_id"]].project(float(x), float(y))
+    assert with_position["lane_position"] == pytest.approx([s, t])
+    assert abs(t) < 0.5 and s > 0
+    assert "lane_position" not in neighbour_states(cars, junction_road)[0]

@@ -2,10 +2,12 @@
 
 Speed work (bulk SUMO reads, vectorised geometry, leaner observation building) must keep every
 record byte and every observation value. The digests below were last taken when waypoint paths
-began to follow the mission route and a finishing agent began to get its last observation
-(``done``): the planner drives the junction and cut-in scenarios differently since; the replays'
-records are unchanged. A deliberate change of records or observations (new fields,
-other waypoints, other terminal steps) updates them in the same commit, saying why:
+began at the vehicle's own offset along its lane (level with it, as SMARTS documents; before,
+at the next whole metre): every observation changed, and the records of the agents that follow
+waypoints on the junction and curve (the planner on p000 and p020, keep-lane on p000); the
+random agents' and the replays' records are unchanged. A deliberate change of records or
+observations (new fields, other waypoints, other terminal steps) updates them in the same commit,
+saying why:
 ``python -m tests.sim.test_record_regression`` prints the current digests.
 
 The planner drives with the default observation; :data:`EXPECTED_INTERFACES` covers the other
@@ -36,28 +38,28 @@ from sim.interface import AgentInterface
 EXPECTED = {
     # SUMO traffic through a junction, one agent
     "p000_left_turn_t_low": (
-        "5b46ed7e93352bd05a6b70f76f55fb2c091c4c2da6bc0c0d23edf5fa5775c8a9",
-        "29b65e108a5269a9d1ae71d6dfde29bd3815410784ea6e3984ad4775c30d7a23",
+        "be997abcded3f7447b5550616348830e01b35660aa318dd18f158c6550cf9374",
+        "8b0f4bddfad8da2f1da06270084c6708448b70e9101575525af39ed154610d9d",
     ),
     # three agents sharing a curved road (neighbours include the other egos)
     "p020_cruise_3lane_curve_low_3agents": (
-        "e77b56709005dbce8860f06daf06c721c6cc470b8b01829f31111a85924621ed",
-        "c7bf2590138286ce2302d85fc19d7918d60720e068af38cdc38028169f81a5c6",
+        "6fdef3df4064ce8cb409d6d3ce16e04b31bc2bcdd5e6b707dbb6bff6eeb46c93",
+        "fcba62cba2c6b5a5c73a8f4eda939fc137f3cbbb8a0838b02fdc83f184e22120",
     ),
     # a scripted cut-in (triggers move SUMO vehicles)
     "p021_cut_in_3lane_mid": (
         "942c39d552eb9ed3dcfb16f4aa47ca7b7c1a85584437b6571b3bf361b272bd38",
-        "afd809104da35219a32974df9e8f5b1d895890e646f67cee31e94be012fbb722",
+        "89357323b1593f6dd11043b5a0b2602d15c406434e47e7d159417abd0e01c1a9",
     ),
     # replayed traffic inside a reactive bubble
     "p029_replay_i80_bubble": (
         "0fef460325a0bf42fd38f3240ae4b82f7e9eb5777424924886e85f1a817ecb04",
-        "2aa86be6a3c52149749fd31d3d5583ffbe99bd71fe2205a16048e90995697eef",
+        "651ad2804d6ac39abbe611cb54c7b63273780e6b6e47d08b9b97494f4773b9a6",
     ),
     # replayed traffic outside SUMO
     "p030_replay_cruise": (
         "000fbcab4b433e6bb42938d8ae635d4190d46e6cad1804022d729398910369e3",
-        "5524eeb164dc1f3ae09f85126293ff3eeb2519ba41e453831b345a7f15e19a4f",
+        "22c251855e5db5e518bf6aa5f301720268085028d3e551e8e44e90b9ce4d4d20",
     ),
 }
 
@@ -66,52 +68,52 @@ EXPECTED = {
 # as their dtype, shape and sha256)
 EXPECTED_INTERFACES = {
     ("p000_left_turn_t_low", "keep_lane_rasters"): (
-        "b1fccc80af54eb397a6da2480d542118c17decced3f9133c597c11ccce7df46e",
-        "825e9356056ae96077cdf4708c32368c05d82520871187a85501c545515a2bc3",
+        "0662bf08ab4d652516117c2d8c28f62cbf55387810ca11afbac7dc968b243468",
+        "3f347158c903fbc0dff64a05c9f8936ce25089b27207c0fb431a57d4f5bc89a8",
     ),
     ("p000_left_turn_t_low", "continuous_random"): (
         "e04754b7953ddbc0907a4ffdc1aa87595c78d38c1e32d688b61517d04a93ebb2",
-        "e4ff3a5d8f022dee1d44dc71ee83c4cd012b57cdedf48e8e7ee4c239cbba00ce",
+        "f4230616b635c54fc1ec194994c2ea4221cf8c59e861d1e126c4866c13163f61",
     ),
     ("p000_left_turn_t_low", "relative_random"): (
         "8e7ca6d63549313283f5fa3eab839f9a96a9492390cdf9e6c0905220a692f180",
-        "c1ba605ab3152c71ec5333573883e8ff0a5cef1a805787e47db8699574900735",
+        "c059202f8be634be486693d4a61ff55bd0d49283753ac1015fab142b81232a34",
     ),
     ("p020_cruise_3lane_curve_low_3agents", "keep_lane_rasters"): (
         "ad398df72e88d8d14a07194c3b416550a3ed2385e97e2a56fa8f3366ae67b0f5",
-        "807baa8fd5d59d15f6a705e24aaaafd6c707ac73099e8ff41b72336f843f2c13",
+        "201d7aa78b21fd11c2ff7d2c18ca9ae1f04ba48a6569ea6ac71070e68940abaf",
     ),
     ("p020_cruise_3lane_curve_low_3agents", "continuous_random"): (
         "7028497f54113f5dce5f998dbc78a1db7b4f8600a6ab2ac62762baee4dd21ef3",
-        "f049378f2d5a1905aaf1442f276345d8e7bd340cd7e1a82627751a0921519c51",
+        "1f25ed7cb534aec4d0316e1eb9ada84f3ae705824affcc5a411c7a8985415649",
     ),
     ("p020_cruise_3lane_curve_low_3agents", "relative_random"): (
         "ddd1b0c97ba347fc232eb2d13ca89b4b1a94f3544e40ca614854519f91e7eaf4",
-        "37e930c5eed010e1140b0c91c370a8878cd91d271571ef35466921ba51519c27",
+        "a2937ad7d48872bf042c6ba14f249dc7e6ef0666f95ab22e7f123e88936ac728",
     ),
     ("p029_replay_i80_bubble", "keep_lane_rasters"): (
         "dca8f0bdc5b93230da7290815869d9645de26ef1ed6fcfb49851b18fee5c1d62",
-        "eaee2e3e949169946906e6cf70f14fccb70a529ecd7e1897454f6e0189a32e85",
+        "2bd8dcec773faeadc2433a1077e4a6b027d8a8539522fe685c5f02fe61993287",
     ),
     ("p029_replay_i80_bubble", "continuous_random"): (
         "f44b9f92d40b86da0629e452fad19126c8cc23fc870309320a5ba970b4173d78",
-        "05361d515ba16d5835e37bf8bdffab6c1be32b4d4ee0de061ba862042854617a",
+        "2a457b62a3933e36a8fa7e2190f4a5edf6d24389806380bc4a8481cb34dba552",
     ),
     ("p029_replay_i80_bubble", "relative_random"): (
         "973c302620a60f01bd993c20a9f840798b401eac0bd672130d78bc144a95a7ad",
-        "d387fc0fcedf7f3d2cf48501662a43f87170b2a607827794b2ad6f42fea493ba",
+        "fffd9dfa31e56688dfdaf71b738ee6a6506efeeb37d28f160568307f42e86740",
     ),
     ("p030_replay_cruise", "keep_lane_rasters"): (
         "00adc231514de66a35730924261635d87962b3d5911b8c5f4d5289b49d9f7416",
-        "8a0ecc5053976abce4cd1c83e49a8923f653f8196aaa49dfbc17982cc5255a03",
+        "fa2387190e3362d7001f029969e57b99e75a83c4cf0176429bde3d84a5116dc6",
     ),
     ("p030_replay_cruise", "continuous_random"): (
         "78e192e1eebfcfe847bedd4e9d6f284245df6d41c9b171bacd270606278b2a63",
-        "99b41bac16cbefdb509d9c4ff6c240e1cb727398c87fb8d76bd9fce6fa231d96",
+        "9ba951582d47dbbee5f56943728fab472bde5320cc7f994f2118bc2c3ae0a971",
     ),
     ("p030_replay_cruise", "relative_random"): (
         "d3e22b03a7e03e9970ac9db049eca05b54eddc82de37a8cde58ca30b78dfe3d6",
-        "85dc9ed697685d21eeb200c5300405113b60bd60b7176345761cb09dbd9b4094",
+        "0efb00889da8055212225a52f217bddd1ed443537f7363cbce9df0fdd133fa90",
     ),
 }
 

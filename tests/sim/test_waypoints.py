@@ -13,7 +13,7 @@ import pytest
 
 from sim.road import RoadNetwork
 from sim.road.lane import WAYPOINT_SPACING
-from sim.road.waypoints import waypoint_paths
+from sim.road.waypoints import ROAD_WAYPOINTS_HORIZON, road_waypoints, waypoint_paths
 
 PUBLIC = Path(__file__).resolve().parents[2] / "scenarios" / "public"
 SCENARIOS = sorted(p.name for p in PUBLIC.iterdir() if (p / "scenario.json").exists())
@@ -118,14 +118,27 @@ def test_path_at_the_end_of_an_acceleration_lane_is_not_empty():
     road = road_of("p009_merge_2lane_low")
     lane = road.lanes["merge_0"]
     assert not lane.successors  # the acceleration lane ends
-    s = lane.length - 0.05  # past its last regular waypoint
+    for s in (lane.length - 0.05, lane.length):  # the last point is the vehicle's own
+        x, y = (float(v) for v in lane.position_at(s))
+        paths = paths_at(road, x, y, lane.heading_at(s), ("ramp", "merge", "out"))
+        assert all(paths)
+        mine = next(p for p in paths if p[0]["lane_id"] == "merge_0")
+        assert len(mine) == 1 and mine[0]["pos"] == pytest.approx(lane.position_at(s), abs=1e-3)
+
+
+@pytest.mark.parametrize("fraction", [0.0, 0.25, 0.5, 0.999])
+def test_the_first_waypoint_is_level_with_the_vehicle(fraction):
+    """As SMARTS documents: the path starts at the vehicle's own offset along its lane (not at
+    the next whole metre), and the rest follow 1 m apart from there."""
+    road = road_of("p009_merge_2lane_low")
+    lane = road.lanes["merge_0"]
+    s = 30.0 + fraction
     x, y = (float(v) for v in lane.position_at(s))
     paths = paths_at(road, x, y, lane.heading_at(s), ("ramp", "merge", "out"))
-    assert all(paths)
     mine = next(p for p in paths if p[0]["lane_id"] == "merge_0")
-    assert len(mine) == 1 and mine[0]["pos"] == pytest.approx(
-        lane.position_at(lane.length), abs=1e-3
-    )
+    assert mine[0]["lane_offset"] == pytest.approx(s)
+    assert mine[0]["pos"] == pytest.approx([x, y], abs=1e-3)
+    assert [w["lane_offset"] for w in mine[:5]] == pytest.approx([s + k for k in range(5)])
 
 
 @pytest.mark.parametrize("past_end", [0.05, 3.0])
@@ -139,3 +152,20 @@ def test_path_at_the_end_of_the_road_is_not_empty(past_end):
     paths = paths_at(road, x, y, lane.heading_end, ("s_in", "w_out"))
     assert paths and all(len(p) >= 1 for p in paths)
     assert paths[0][-1]["lane_id"].startswith("w_out")
+
+
+def test_road_waypoints_cover_every_lane_of_the_road_from_behind_the_vehicle():
+    """SMARTS's road_waypoints: lane id -> a path from 20 m behind the vehicle's offset on that
+    lane to 20 m ahead, for each lane of its road."""
+    road = road_of("p009_merge_2lane_low")
+    lane = road.lanes["merge_0"]
+    s = 60.0
+    x, y = (float(v) for v in lane.position_at(s))
+    position = road.nearest_lane(x, y, float(lane.heading_at(s)))
+    lanes = road_waypoints(road, position, x, y, ("ramp", "merge", "out"))
+    assert set(lanes) == {other.id for other in road.edges[lane.edge_id]}
+    (path,) = lanes["merge_0"]
+    horizon = ROAD_WAYPOINTS_HORIZON
+    assert len(path) == 2 * horizon + 1
+    assert path[0]["lane_offset"] == pytest.approx(s - horizon)
+    assert _spacings(path).min() == pytest.approx(WAYPOINT_SPACING, abs=1e-3)

@@ -57,3 +57,28 @@ def test_pip_noise_is_left_out_of_the_rejection():
         "none) / No matching distribution found for nope-pkg==9"
     )
     assert pip_error_summary("WARNING: x\nsomething broke\n") == "something broke"
+
+
+def test_requirements_resolve_for_the_sandbox_python_not_the_hosts(tmp_path: Path) -> None:
+    """numpy 1.23.5 has wheels for CPython 3.11 (the host's and the sandbox's) but none for
+    3.12: a sandbox on 3.12 refuses the pin, naming its Python, though the host could install it."""
+    requirements = {"requirements.txt": "numpy==1.23.5\n"}
+    upload = write_zip(tmp_path / "a.zip", with_policy(**requirements))
+    sandbox_311 = Settings(data_dir=tmp_path / "data")
+    installed = prepare_submission(upload, tmp_path / "a", sandbox_311)
+    assert installed.deps_dir is not None
+    assert (installed.deps_dir / "numpy-1.23.5.dist-info").is_dir()
+    sandbox_312 = Settings(data_dir=tmp_path / "data", agent_python_version="3.12")
+    with pytest.raises(IntakeError) as caught:
+        prepare_submission(upload, tmp_path / "b", sandbox_312)
+    assert caught.value.rule == "no-wheel" and "3.12" in str(caught.value)
+
+
+def test_requirements_that_conflict_are_refused_naming_the_conflict(tmp_path: Path) -> None:
+    settings = Settings(data_dir=tmp_path / "data")
+    text = "numpy==1.23.5\nnumpy>=2\n"
+    upload = write_zip(tmp_path / "a.zip", with_policy(**{"requirements.txt": text}))
+    with pytest.raises(IntakeError) as caught:
+        prepare_submission(upload, tmp_path / "a", settings)
+    assert "numpy==1.23.5" in str(caught.value) and "numpy>=2" in str(caught.value)
+    assert "conflicting" in str(caught.value)

@@ -76,6 +76,53 @@ def test_a_smarts_requirement_without_a_wheel_names_its_line_and_versions(tmp_pa
         prepare_submission(upload, tmp_path / "a", settings)
     error = caught.value
     assert (error.entry, error.rule) == ("requirements.txt:3", "no-wheel")
-    assert error.message.startswith("Panda3D==1.10.9 has no wheel for CPython 3.11")
+    assert error.message.startswith("Panda3D==1.10.9 has no wheel for the sandbox's CPython 3.11")
     assert "Pin a version that has one (1.10." in error.message
     assert "remove it" in error.message
+
+
+DS2022_POLICY = (
+    "import gym\nimport numpy as np\n"
+    "from smarts.core.utils.math import vec_to_radians\n"
+    "from smarts.core.smarts import SMARTS\n"
+    "from smarts.env.wrappers.format_obs import FormatObs\n\n"
+    "class Policy:\n"
+    "    def act(self, obs):\n"
+    "        return {k: np.array([0, 0], dtype=np.float) for k in obs}\n"
+)
+
+
+def test_what_ds2022_agents_needed_is_named(tmp_path: Path) -> None:
+    """The three published 2022 agents imported smarts and gym and used np.float: each gets a
+    note saying what to do, by observation format."""
+    settings = Settings(data_dir=tmp_path / "data")
+    native = check_zip(write_zip(tmp_path / "a.zip", {"policy.py": DS2022_POLICY}), settings)
+    text = " ".join(native.notes)
+    assert "smarts.core.utils.math" in text and "observation_format: smarts2022" in text
+    assert "imports gym" in text
+    assert "np.float" in text and "numpy==1.23.5" in text
+    smarts = check_zip(
+        write_zip(
+            tmp_path / "b.zip",
+            {
+                "policy.py": DS2022_POLICY,
+                "agent.yaml": "observation_format: smarts2022\n",
+                "requirements.txt": "numpy==1.23.5\n",
+            },
+        ),
+        settings,
+    )
+    (missing, gym_note) = smarts.notes  # np.float is fine with numpy 1.23.5 pinned
+    assert "smarts.core.smarts" in missing and "smarts.core.utils.math" not in missing
+    assert "gym 0.21" in gym_note
+
+
+def test_a_rejected_port_still_gets_its_notes(tmp_path: Path) -> None:
+    upload = write_zip(
+        tmp_path / "a.zip",
+        {"policy.py": DS2022_POLICY, "agent.yaml": "observation_format: smarts2022\nbogus: 1\n"},
+    )
+    with pytest.raises(IntakeError) as caught:
+        check_zip(upload, Settings(data_dir=tmp_path / "data"))
+    assert caught.value.entry == "agent.yaml"
+    assert "Porting note" in caught.value.message and "smarts.core.smarts" in caught.value.message

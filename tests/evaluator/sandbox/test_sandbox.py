@@ -166,7 +166,12 @@ def test_auto_prefers_docker_and_the_service_refuses_process(settings) -> None:
 
 def test_bubblewrap_bounds_the_cpu_time_an_agent_burns(settings, labels, tmp) -> None:
     budget = settings.model_copy(
-        update={"init_timeout_s": 1.0, "episode_timeout_s": 1.0, "step_timeout_s": 30.0}
+        update={
+            "init_timeout_s": 1.0,
+            "episode_timeout_s": 1.0,
+            "step_timeout_s": 30.0,
+            "step_cpu_s": 30.0,
+        }
     )
     kind = usable(SandboxKind.bubblewrap, budget)
     spinner = agent(tmp, budget, act="while True: pass")
@@ -234,24 +239,87 @@ def test_nothing_naming_the_scenario_enters_the_sandbox(any_kind, settings, tmp)
 
 
 def test_one_agents_exception_fails_that_agent_only(any_kind, settings, labels, tmp) -> None:
-    """The policy raises on Agent_1's observation only: Agent_0 still gets its action, Agent_1
-    is reported failed with its traceback; when every agent raises, the whole agent fails."""
+    """The policy, looping over its agents, raises on Agent_1: Agent_1 is reported failed with
+    the traceback of that very exception, and Agent_0's action comes from a call holding every
+    other live agent together (never one agent alone). An exception no single agent can be
+    blamed for (raised with every agent in view) fails the whole agent with its own traceback."""
     act = """
-    if "Agent_1" in obs:
-        raise ValueError("cannot drive " + obs["Agent_1"]["ego_vehicle_state"]["id"])
-    return {k: [1.0, 0.0] for k in obs}
+    calls = getattr(self, "calls", [])
+    self.calls = calls + [sorted(obs)]
+    if obs.get("Agent_9"):
+        raise RuntimeError("looked at everyone: " + repr(self.calls))
+    out = {}
+    for agent_id, o in obs.items():
+        if agent_id == "Agent_1":
+            raise ValueError("cannot drive " + o["ego_vehicle_state"]["id"])
+        out[agent_id] = [1.0, 0.0, float(len(obs))]
+    return out
     """
     submission = agent(tmp, settings, act=act)
-    two = {"Agent_0": observation()["Agent_0"], "Agent_1": observation()["Agent_0"]}
-    two["Agent_1"] = {**two["Agent_1"], "ego_vehicle_state": {"id": "Agent_1"}}
+    one = observation()["Agent_0"]
+    three = {k: {**one, "ego_vehicle_state": {"id": k}} for k in ("Agent_0", "Agent_1", "Agent_2")}
     with start(submission, kind=any_kind, labels=labels, settings=settings) as handle:
         handle.reset()
         with pytest.raises(SomeAgentsFailed) as caught:
-            handle.act(two)
-        assert caught.value.actions == {"Agent_0": [1.0, 0.0]}
+            handle.act(three)
+        # The retry held Agent_0 and Agent_2 together.
+        assert caught.value.actions == {"Agent_0": [1.0, 0.0, 2.0], "Agent_2": [1.0, 0.0, 2.0]}
         assert list(caught.value.failed) == ["Agent_1"]
-        assert "ValueError: cannot drive Agent_1" in caught.value.failed["Agent_1"]
-        assert handle.act({"Agent_0": two["Agent_0"]}) == {"Agent_0": [1.0, 0.0]}
+        original = caught.value.failed["Agent_1"]
+        assert "ValueError: cannot drive Agent_1" in original and "KeyError" not in original
         with pytest.raises(AgentFailed) as whole:
-            handle.act({"Agent_1": two["Agent_1"]})
+            handle.act({"Agent_0": three["Agent_0"], "Agent_9": one})
         assert whole.value.reason is DoneReason.agent_error
+        assert "RuntimeError: looked at everyone" in whole.value.detail
+        # Every call held every live agent: never one alone.
+        assert "['Agent_0', 'Agent_1', 'Agent_2'], ['Agent_0', 'Agent_2']" in whole.value.detail
+
+
+def test_the_step_limit_counts_cpu_time_not_waiting(any_kind, settings, labels, tmp) -> None:
+    """An act that waits 1.5 s without computing is within a 1 s CPU limit (a busy worker or a
+    slow disk is not the agent's time); one that computes for 1.5 s is not, and is stopped by
+    its CPU time, not by the wall-clock backstop (whose message names no CPU)."""
+    limits = settings.model_copy(update={"step_cpu_s": 1.0, "step_timeout_s": 120.0})
+    act = """
+    if obs["Agent_0"]["step_count"] == 0:
+        time.sleep(1.5)
+    else:
+        began = time.process_time()
+        while time.process_time() - began < 1.5:
+            pass
+    return {k: [1.0, 0.0] for k in obs}
+    """
+    submission = agent(tmp, limits, act=act)
+    waiting = observation()
+    waiting["Agent_0"]["step_count"] = 0
+    with start(submission, kind=any_kind, labels=labels, settings=limits) as handle:
+        handle.reset()
+        assert handle.act(waiting) == {"Agent_0": [1.0, 0.0]}
+        with pytest.raises(AgentFailed) as caught:
+            handle.act(observation())
+        assert caught.value.reason is DoneReason.step_timeout
+        assert "s of CPU" in caught.value.detail
+
+
+def test_an_episode_has_a_cpu_budget(kind, settings, labels, tmp) -> None:
+    """Acts of 0.4 s of CPU each, under a 1 s step limit, exceed a 1 s episode budget at the
+    third; a reset starts the count again."""
+    limits = settings.model_copy(
+        update={"step_cpu_s": 1.0, "episode_cpu_s": 1.0, "step_timeout_s": 120.0}
+    )
+    act = """
+    began = time.process_time()
+    while time.process_time() - began < 0.4:
+        pass
+    return {k: [1.0, 0.0] for k in obs}
+    """
+    submission = agent(tmp, limits, act=act)
+    with start(submission, kind=kind, labels=labels, settings=limits) as handle:
+        handle.reset()
+        handle.act(observation())
+        handle.act(observation())
+        assert 0.75 < handle.episode_cpu_s < 1.0
+        with pytest.raises(AgentFailed) as caught:
+            handle.act(observation())
+        assert caught.value.reason is DoneReason.episode_timeout
+        assert "CPU this episode" in caught.value.detail

@@ -1,0 +1,5 @@
+"""gym's error base."""
+
+
+class Error(Exception):
+    pass

@@ -1,0 +1,1 @@
+"""SMARTS core types an agent reads."""

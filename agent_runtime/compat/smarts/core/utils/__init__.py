@@ -1,0 +1,1 @@
+"""SMARTS utilities agents import."""

@@ -1,0 +1,1 @@
+"""SMARTS environments: only the wrappers of the competition kit here."""

@@ -1,0 +1,1 @@
+"""The competition kit's environment wrappers."""

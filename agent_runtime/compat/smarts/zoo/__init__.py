@@ -1,0 +1,1 @@
+"""SMARTS agent specs, as the zoo names them."""

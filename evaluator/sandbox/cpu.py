@@ -1,0 +1,111 @@
+"""The CPU time a sandbox has used, read from the host (never asked of the agent, which could lie).
+
+A step's limit counts the agent's CPU time, not the wall clock, so a score does not depend on how
+busy the worker was (``docs/protocol.md``, "Time limits"). Two ways to read it:
+
+- a **cgroup** of the sandbox's own (Docker): ``cpu.stat``'s ``usage_usec`` (cgroup v2) or
+  ``cpuacct.usage`` (v1), every process of the container together;
+- a **process tree** (bubblewrap and the plain process runner, which have no cgroup of their own):
+  user + system time of the sandbox's root process and every live descendant, plus what its
+  ended children left in their parents' ``cutime``/``cstime``.
+
+A :class:`CpuMeter` is a plain description (a file or a pid), so it travels with a forked agent
+into the episode process. A warm sandbox's meter counts its idle zygote too, which uses nothing
+while an episode runs.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+CGROUP_ROOT = Path("/sys/fs/cgroup")
+_TICKS = os.sysconf("SC_CLK_TCK")
+
+
+@dataclass(frozen=True)
+class CpuMeter:
+    cgroup_file: str | None = None  # cpu.stat (v2) or cpuacct.usage (v1)
+    root_pid: int | None = None
+
+    def seconds(self) -> float | None:
+        """CPU seconds used so far; None when it can no longer be read (the sandbox ended)."""
+        try:
+            if self.cgroup_file is not None:
+                return _cgroup_seconds(self.cgroup_file)
+            if self.root_pid is not None:
+                return _tree_seconds(self.root_pid)
+        except (OSError, ValueError, IndexError):
+            return None
+        return None
+
+
+def cgroup_meter(pid: int) -> CpuMeter | None:
+    """The meter of the cgroup ``pid`` runs in, or None when it runs in the root cgroup or has
+    no CPU accounting file."""
+    try:
+        lines = Path(f"/proc/{pid}/cgroup").read_text().splitlines()
+    except OSError:
+        return None
+    for line in lines:
+        _, controllers, path = line.split(":", 2)
+        relative = path.lstrip("/")
+        if not relative:
+            continue  # the root cgroup is the whole machine, not the sandbox
+        if controllers == "":  # cgroup v2
+            candidate = CGROUP_ROOT / relative / "cpu.stat"
+        elif "cpuacct" in controllers.split(","):
+            candidate = CGROUP_ROOT / controllers / relative / "cpuacct.usage"
+            if not candidate.exists():
+                candidate = CGROUP_ROOT / "cpu,cpuacct" / relative / "cpuacct.usage"
+        else:
+            continue
+        if candidate.is_file():
+            return CpuMeter(cgroup_file=str(candidate))
+    return None
+
+
+def _cgroup_seconds(path: str) -> float:
+    text = Path(path).read_text()
+    if path.endswith("cpuacct.usage"):
+        return int(text) / 1e9
+    for line in text.splitlines():
+        name, _, value = line.partition(" ")
+        if name == "usage_usec":
+            return int(value) / 1e6
+    raise ValueError(f"no usage_usec in {path}")
+
+
+def _tree_seconds(root: int) -> float:
+    ticks = 0
+    pending = [root]
+    seen = set()
+    while pending:
+        pid = pending.pop()
+        if pid in seen:
+            continue
+        seen.add(pid)
+        try:
+            stat = Path(f"/proc/{pid}/stat").read_text()
+        except OSError:
+            if pid == root:
+                raise
+            continue  # ended between the listing and now: its time is in its parent's cutime
+        fields = stat.rsplit(")", 1)[1].split()
+        # utime, stime, cutime, cstime are fields 14-17 of stat; 2 (comm) is cut off above.
+        ticks += sum(int(v) for v in fields[11:15])
+        for task in _tasks(pid):
+            try:
+                children = Path(f"/proc/{pid}/task/{task}/children").read_text().split()
+            except OSError:
+                continue
+            pending.extend(int(child) for child in children)
+    return ticks / _TICKS
+
+
+def _tasks(pid: int) -> list[str]:
+    try:
+        return os.listdir(f"/proc/{pid}/task")
+    except OSError:
+        return []
