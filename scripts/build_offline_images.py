@@ -1,0 +1,295 @@
+"""Build the images `docker-compose.yml` runs, offline: from Debian packages and local wheels.
+
+Where no container registry is reachable (CI, air-gapped hosts) `python:3.11-slim`,
+`postgres:16` and `redis:7` cannot be pulled. This builds stand-ins the way the agent runtime is
+built (`arena sandbox build-image`): one debootstrapped Debian root from the mirror of the host's
+apt sources (or ARENA_DEBIAN_MIRROR), `docker import`ed once, then
+
+* ``driving-arena-service:<tag>``: the project's own ``Dockerfile`` built on that root
+  (``--build-arg BASE_IMAGE``), its Python dependencies installed with ``--no-index`` from
+  wheels that ``pip wheel`` fetched on the host with the host's pip configuration;
+* ``driving-arena-postgres:<tag>``: Debian's PostgreSQL behind an entrypoint that does what the
+  official image's does with ``POSTGRES_USER`` / ``POSTGRES_PASSWORD`` / ``POSTGRES_DB``;
+* ``driving-arena-redis:<tag>``: Debian's Redis, started like the official image starts it.
+
+Every image is built only when missing (``--force`` rebuilds); the root tarball and the wheels
+are cached under the data dir, so the CPU-heavy steps run once per machine. Builds run with no
+network. Prints the image names, one ``role=image`` a line.
+
+    python3 scripts/build_offline_images.py [--tag compose-test] [--force]
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import shutil
+import subprocess
+import sys
+import tarfile
+import tempfile
+import tomllib
+from pathlib import Path
+
+import docker
+import docker.errors
+
+from arena.config import get_settings
+from evaluator.sandbox.image import build_rootfs_tarball, debian_mirror
+
+REPO = Path(__file__).resolve().parents[1]
+# One root for all three images (one debootstrap: it is the slow, CPU-heavy step). The libraries
+# are the ones the Dockerfile installs for libsumo and SUMO's binaries.
+ROOT_PACKAGES = (
+    "python3",
+    "python3-pip",
+    "python-is-python3",
+    "ca-certificates",
+    "libgl1",
+    "libx11-6",
+    "libxext6",
+    "libxrender1",
+    "libatomic1",
+    "libexpat1",
+    "zlib1g",
+    "postgresql",
+    "redis-server",
+)
+# What the submissions the deployment test uploads ask for in their requirements.txt: the
+# service resolves them at intake, from the image's wheelhouse (it has no index either).
+EXAMPLE_REQUIREMENTS = (REPO / "submissions" / "examples" / "ppo" / "requirements.txt",)
+
+SERVICE_BASE = """\
+FROM {root}
+COPY wheels /wheels
+# The image's Python is its own (as python:3.11-slim's is), and pip installs from /wheels only.
+RUN rm -f /usr/lib/python3*/EXTERNALLY-MANAGED \\
+    && printf '[global]\\nno-index = true\\nfind-links = /wheels\\n' > /etc/pip.conf
+"""
+
+POSTGRES = """\
+FROM {root}
+RUN ln -s "$(ls -d /usr/lib/postgresql/*/bin | tail -n 1)" /usr/lib/postgresql/bin
+ENV PATH=/usr/lib/postgresql/bin:/usr/local/bin:/usr/bin:/bin \\
+    PGDATA=/var/lib/postgresql/data
+COPY entrypoint.sh /usr/local/bin/docker-entrypoint.sh
+RUN chmod 755 /usr/local/bin/docker-entrypoint.sh
+VOLUME ["/var/lib/postgresql/data"]
+EXPOSE 5432
+STOPSIGNAL SIGINT
+ENTRYPOINT ["docker-entrypoint.sh"]
+CMD ["postgres"]
+"""
+
+# The official image's contract: on an empty data folder, initialise it with POSTGRES_USER (the
+# superuser), POSTGRES_PASSWORD and POSTGRES_DB, password authentication from every host; then
+# run the server as the postgres user.
+POSTGRES_ENTRYPOINT = """\
+#!/bin/sh
+set -eu
+mkdir -p "$PGDATA" /run/postgresql
+chown -R postgres:postgres "$PGDATA" /run/postgresql
+chmod 700 "$PGDATA"
+as_postgres() { setpriv --reuid=postgres --regid=postgres --init-groups "$@"; }
+user="${POSTGRES_USER:-postgres}"
+if [ ! -s "$PGDATA/PG_VERSION" ]; then
+  : "${POSTGRES_PASSWORD:?the postgres stand-in needs POSTGRES_PASSWORD}"
+  pwfile="$(mktemp)"
+  printf '%s\\n' "$POSTGRES_PASSWORD" > "$pwfile"
+  chown postgres "$pwfile"
+  as_postgres initdb -D "$PGDATA" -U "$user" --pwfile="$pwfile" \\
+    --auth-local=trust --auth-host=scram-sha-256 >/dev/null
+  rm -f "$pwfile"
+  echo "host all all all scram-sha-256" >> "$PGDATA/pg_hba.conf"
+  echo "listen_addresses = '*'" >> "$PGDATA/postgresql.conf"
+  db="${POSTGRES_DB:-$user}"
+  if [ "$db" != postgres ]; then
+    as_postgres pg_ctl -D "$PGDATA" -o "-c listen_addresses=''" -w start >/dev/null
+    as_postgres psql -v ON_ERROR_STOP=1 -U "$user" -d postgres -q -c "CREATE DATABASE \\"$db\\""
+    as_postgres pg_ctl -D "$PGDATA" -m fast -w stop >/dev/null
+  fi
+fi
+if [ "$1" = postgres ]; then
+  shift
+  exec setpriv --reuid=postgres --regid=postgres --init-groups postgres -D "$PGDATA" "$@"
+fi
+exec "$@"
+"""
+
+REDIS = """\
+FROM {root}
+COPY entrypoint.sh /usr/local/bin/docker-entrypoint.sh
+RUN chmod 755 /usr/local/bin/docker-entrypoint.sh && mkdir -p /data && chown redis:redis /data
+VOLUME ["/data"]
+WORKDIR /data
+EXPOSE 6379
+ENTRYPOINT ["docker-entrypoint.sh"]
+CMD ["redis-server"]
+"""
+
+# As the official image: without a configuration file Redis would refuse every client but
+# loopback (protected mode); the server runs as the redis user in /data.
+REDIS_ENTRYPOINT = """\
+#!/bin/sh
+set -eu
+if [ "$1" = redis-server ]; then
+  shift
+  set -- redis-server --protected-mode no "$@"
+  chown -R redis:redis /data
+  exec setpriv --reuid=redis --regid=redis --init-groups "$@"
+fi
+exec "$@"
+"""
+
+
+def log(message: str) -> None:
+    print(f"build-images: {message}", file=sys.stderr, flush=True)
+
+
+def image_names(tag: str) -> dict[str, str]:
+    return {
+        "root": f"driving-arena-compose-root:{tag}",
+        "service-base": f"driving-arena-service-base:{tag}",
+        "service": f"driving-arena-service:{tag}",
+        "postgres": f"driving-arena-postgres:{tag}",
+        "redis": f"driving-arena-redis:{tag}",
+    }
+
+
+def cache_dir() -> Path:
+    return get_settings().resolved_data_dir / "compose-images"
+
+
+def project_requirements() -> list[str]:
+    """The project's dependencies and build requirements, and the examples' requirements."""
+    pyproject = tomllib.loads((REPO / "pyproject.toml").read_text())
+    wanted = [*pyproject["project"]["dependencies"], *pyproject["build-system"]["requires"]]
+    wanted.append("wheel")  # older setuptools ask for it to build an editable install
+    for listed in EXAMPLE_REQUIREMENTS:
+        wanted += [line.strip() for line in listed.read_text().splitlines() if line.strip()]
+    return wanted
+
+
+def wheelhouse(force: bool) -> Path:
+    """Wheels of everything the image installs, fetched with the host's pip configuration."""
+    folder = cache_dir() / "wheels"
+    requirements = "\n".join(project_requirements()) + "\n"
+    listed = folder / "requirements.txt"
+    if not force and listed.is_file() and listed.read_text() == requirements:
+        return folder
+    shutil.rmtree(folder, ignore_errors=True)
+    folder.mkdir(parents=True)
+    log(f"pip wheel: {len(requirements.splitlines())} requirements into {folder}")
+    with tempfile.NamedTemporaryFile("w", suffix=".txt") as wanted:
+        wanted.write(requirements)
+        wanted.flush()
+        subprocess.run(
+            [sys.executable, "-m", "pip", "wheel", "-q", "--wheel-dir", str(folder), "-r", wanted.name],
+            check=True,
+        )
+    listed.write_text(requirements)
+    return folder
+
+
+def exists(client: docker.DockerClient, image: str) -> bool:
+    try:
+        client.images.get(image)
+    except docker.errors.ImageNotFound:
+        return False
+    return True
+
+
+def import_root(client: docker.DockerClient, image: str, force: bool) -> None:
+    tarball = cache_dir() / "root-bookworm.tar"
+    if force or not tarball.is_file():
+        build_rootfs_tarball(tarball, debian_mirror(get_settings()), log, packages=ROOT_PACKAGES)
+    repository, tag = image.split(":")
+    log(f"docker import {tarball.name} as {image}")
+    client.api.import_image_from_file(
+        str(tarball),
+        repository=repository,
+        tag=tag,
+        changes=["ENV PATH=/usr/local/bin:/usr/bin:/bin", "WORKDIR /"],
+    )
+
+
+def build(
+    client: docker.DockerClient,
+    image: str,
+    context: Path,
+    dockerfile: str = "Dockerfile",
+    buildargs: dict[str, str] | None = None,
+) -> None:
+    """``docker build`` with no network: everything comes from the context and the base."""
+    log(f"docker build {image}")
+    try:
+        client.images.build(
+            path=str(context),
+            dockerfile=dockerfile,
+            tag=image,
+            buildargs=buildargs or {},
+            network_mode="none",
+            rm=True,
+            forcerm=True,
+        )
+    except docker.errors.BuildError as error:
+        output = "".join(str(chunk.get("stream", chunk.get("error", ""))) for chunk in error.build_log)
+        raise SystemExit(f"docker build {image} failed:\n{output[-6000:]}") from error
+
+
+def build_from_text(
+    client: docker.DockerClient, image: str, dockerfile: str, files: dict[str, str | Path]
+) -> None:
+    """Build ``image`` from a Dockerfile text and a context of ``files`` (text, or a folder)."""
+    with tempfile.TemporaryDirectory(prefix="arena-image-", dir=cache_dir()) as tmp:
+        context = Path(tmp)
+        (context / "Dockerfile").write_text(dockerfile)
+        for name, content in files.items():
+            if isinstance(content, Path):
+                # Hard links: the wheelhouse is large and on the same file system.
+                shutil.copytree(content, context / name, copy_function=_link_or_copy)
+            else:
+                (context / name).write_text(content)
+        build(client, image, context)
+
+
+def _link_or_copy(source: str, target: str) -> None:
+    try:
+        Path(target).hardlink_to(source)
+    except OSError:
+        shutil.copy2(source, target)
+
+
+def build_images(tag: str, force: bool = False) -> dict[str, str]:
+    names = image_names(tag)
+    client = docker.from_env(timeout=1800)
+    cache_dir().mkdir(parents=True, exist_ok=True)
+    if force or not exists(client, names["root"]):
+        import_root(client, names["root"], force)
+    if force or not exists(client, names["service-base"]):
+        wheels = wheelhouse(force)
+        base = SERVICE_BASE.format(root=names["root"])
+        build_from_text(client, names["service-base"], base, {"wheels": wheels})
+    if force or not exists(client, names["postgres"]):
+        text = POSTGRES.format(root=names["root"])
+        build_from_text(client, names["postgres"], text, {"entrypoint.sh": POSTGRES_ENTRYPOINT})
+    if force or not exists(client, names["redis"]):
+        text = REDIS.format(root=names["root"])
+        build_from_text(client, names["redis"], text, {"entrypoint.sh": REDIS_ENTRYPOINT})
+    # The service image always: the project's code changes between runs (its dependencies are
+    # in the base, so this takes seconds).
+    build(client, names["service"], REPO, buildargs={"BASE_IMAGE": names["service-base"]})
+    return names
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--tag", default="compose-test", help="tag of every image built")
+    parser.add_argument("--force", action="store_true", help="rebuild everything")
+    arguments = parser.parse_args()
+    for role, image in build_images(arguments.tag, arguments.force).items():
+        print(f"{role}={image}")
+
+
+if __name__ == "__main__":
+    main()
