@@ -84,6 +84,11 @@ class Settings(BaseSettings):
     train_output_bytes: int = 512 * 1024**2
     # Pass the host's GPUs to the training container (Docker only; needs the NVIDIA toolkit).
     train_gpu: bool = False
+    # Snapshots of the output folder while train.py runs, in the artifact store: a training
+    # re-sent after its worker died resumes from the last (docs/dataset.md). Taken every this
+    # many seconds (0: never) when the folder changed and holds at most train_checkpoint_bytes.
+    train_checkpoint_interval_s: float = Field(default=60.0, ge=0)
+    train_checkpoint_bytes: int = 256 * 1024**2
 
     # Intake limits.
     max_zip_bytes: int = 100 * 1024**2

@@ -22,11 +22,9 @@ network. Prints the image names, one ``role=image`` a line.
 from __future__ import annotations
 
 import argparse
-import io
 import shutil
 import subprocess
 import sys
-import tarfile
 import tempfile
 import tomllib
 from pathlib import Path
@@ -184,7 +182,17 @@ def wheelhouse(force: bool) -> Path:
         wanted.write(requirements)
         wanted.flush()
         subprocess.run(
-            [sys.executable, "-m", "pip", "wheel", "-q", "--wheel-dir", str(folder), "-r", wanted.name],
+            [
+                sys.executable,
+                "-m",
+                "pip",
+                "wheel",
+                "-q",
+                "--wheel-dir",
+                str(folder),
+                "-r",
+                wanted.name,
+            ],
             check=True,
         )
     listed.write_text(requirements)
@@ -233,7 +241,9 @@ def build(
             forcerm=True,
         )
     except docker.errors.BuildError as error:
-        output = "".join(str(chunk.get("stream", chunk.get("error", ""))) for chunk in error.build_log)
+        output = "".join(
+            str(chunk.get("stream", chunk.get("error", ""))) for chunk in error.build_log
+        )
         raise SystemExit(f"docker build {image} failed:\n{output[-6000:]}") from error
 
 
