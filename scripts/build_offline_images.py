@@ -7,7 +7,8 @@ apt sources (or ARENA_DEBIAN_MIRROR), `docker import`ed once, then
 
 * ``driving-arena-service:<tag>``: the project's own ``Dockerfile`` built on that root
   (``--build-arg BASE_IMAGE``), its Python dependencies installed with ``--no-index`` from
-  wheels that ``pip wheel`` fetched on the host with the host's pip configuration;
+  wheels that ``pip download`` fetched on the host, with the host's pip configuration, for the
+  image's Python version;
 * ``driving-arena-postgres:<tag>``: Debian's PostgreSQL behind an entrypoint that does what the
   official image's does with ``POSTGRES_USER`` / ``POSTGRES_PASSWORD`` / ``POSTGRES_DB``;
 * ``driving-arena-redis:<tag>``: Debian's Redis, started like the official image starts it.
@@ -22,6 +23,7 @@ network. Prints the image names, one ``role=image`` a line.
 from __future__ import annotations
 
 import argparse
+import hashlib
 import shutil
 import subprocess
 import sys
@@ -57,8 +59,10 @@ ROOT_PACKAGES = (
 # service resolves them at intake, from the image's wheelhouse (it has no index either).
 EXAMPLE_REQUIREMENTS = (REPO / "submissions" / "examples" / "ppo" / "requirements.txt",)
 
+WHEELHOUSE_LABEL = "driving-arena.wheelhouse"
 SERVICE_BASE = """\
 FROM {root}
+LABEL {label}={digest}
 COPY wheels /wheels
 # The image's Python is its own (as python:3.11-slim's is), and pip installs from /wheels only.
 RUN rm -f /usr/lib/python3*/EXTERNALLY-MANAGED \\
@@ -168,35 +172,44 @@ def project_requirements() -> list[str]:
     return wanted
 
 
-def wheelhouse(force: bool) -> Path:
-    """Wheels of everything the image installs, fetched with the host's pip configuration."""
+def image_python(client: docker.DockerClient, root: str) -> str:
+    """The version of the image's Python (``3.11.2``): the wheels are resolved for it, whose
+    environment markers can differ from the host's (``python_full_version < "3.11.3"``)."""
+    output = client.containers.run(
+        root,
+        ["python3", "-c", "import platform; print(platform.python_version())"],
+        network_mode="none",
+        remove=True,
+    )
+    return output.decode().strip()
+
+
+def wheelhouse(python_version: str, force: bool) -> Path:
+    """Wheels of everything the image installs, resolved for its Python with the host's pip
+    configuration (binary wheels only: nothing is built)."""
     folder = cache_dir() / "wheels"
-    requirements = "\n".join(project_requirements()) + "\n"
+    requirements = "\n".join([f"# python {python_version}", *project_requirements()]) + "\n"
     listed = folder / "requirements.txt"
     if not force and listed.is_file() and listed.read_text() == requirements:
         return folder
     shutil.rmtree(folder, ignore_errors=True)
     folder.mkdir(parents=True)
-    log(f"pip wheel: {len(requirements.splitlines())} requirements into {folder}")
+    log(f"pip download: {len(requirements.splitlines()) - 1} requirements into {folder}")
     with tempfile.NamedTemporaryFile("w", suffix=".txt") as wanted:
         wanted.write(requirements)
         wanted.flush()
-        subprocess.run(
-            [
-                sys.executable,
-                "-m",
-                "pip",
-                "wheel",
-                "-q",
-                "--wheel-dir",
-                str(folder),
-                "-r",
-                wanted.name,
-            ],
-            check=True,
-        )
+        command = [sys.executable, "-m", "pip", "download", "-q", "--only-binary=:all:"]
+        command += ["--python-version", python_version, "--dest", str(folder), "-r", wanted.name]
+        subprocess.run(command, check=True)
     listed.write_text(requirements)
     return folder
+
+
+def label(client: docker.DockerClient, image: str, name: str) -> str | None:
+    try:
+        return (client.images.get(image).labels or {}).get(name)
+    except docker.errors.ImageNotFound:
+        return None
 
 
 def exists(client: docker.DockerClient, image: str) -> bool:
@@ -276,9 +289,11 @@ def build_images(tag: str, force: bool = False) -> dict[str, str]:
     cache_dir().mkdir(parents=True, exist_ok=True)
     if force or not exists(client, names["root"]):
         import_root(client, names["root"], force)
-    if force or not exists(client, names["service-base"]):
-        wheels = wheelhouse(force)
-        base = SERVICE_BASE.format(root=names["root"])
+    wheels = wheelhouse(image_python(client, names["root"]), force)
+    # Rebuilt whenever the wheelhouse changed (a dependency added to pyproject.toml).
+    wanted = hashlib.sha256((wheels / "requirements.txt").read_bytes()).hexdigest()
+    if force or label(client, names["service-base"], WHEELHOUSE_LABEL) != wanted:
+        base = SERVICE_BASE.format(root=names["root"], label=WHEELHOUSE_LABEL, digest=wanted)
         build_from_text(client, names["service-base"], base, {"wheels": wheels})
     if force or not exists(client, names["postgres"]):
         text = POSTGRES.format(root=names["root"])
