@@ -7,8 +7,8 @@ apt sources (or ARENA_DEBIAN_MIRROR), `docker import`ed once, then
 
 * ``driving-arena-service:<tag>``: the project's own ``Dockerfile`` built on that root
   (``--build-arg BASE_IMAGE``), its Python dependencies installed with ``--no-index`` from
-  wheels that ``pip download`` fetched on the host, with the host's pip configuration, for the
-  image's Python version;
+  wheels that ``pip download`` fetched on the host with the host's pip configuration (and
+  completed until the image's own pip resolves them);
 * ``driving-arena-postgres:<tag>``: Debian's PostgreSQL behind an entrypoint that does what the
   official image's does with ``POSTGRES_USER`` / ``POSTGRES_PASSWORD`` / ``POSTGRES_DB``;
 * ``driving-arena-redis:<tag>``: Debian's Redis, started like the official image starts it.
@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import hashlib
+import re
 import shutil
 import subprocess
 import sys
@@ -172,37 +173,62 @@ def project_requirements() -> list[str]:
     return wanted
 
 
-def image_python(client: docker.DockerClient, root: str) -> str:
-    """The version of the image's Python (``3.11.2``): the wheels are resolved for it, whose
-    environment markers can differ from the host's (``python_full_version < "3.11.3"``)."""
-    output = client.containers.run(
-        root,
-        ["python3", "-c", "import platform; print(platform.python_version())"],
-        network_mode="none",
-        remove=True,
-    )
-    return output.decode().strip()
-
-
-def wheelhouse(python_version: str, force: bool) -> Path:
-    """Wheels of everything the image installs, resolved for its Python with the host's pip
-    configuration (binary wheels only: nothing is built)."""
+def wheelhouse(client: docker.DockerClient, root: str, force: bool) -> Path:
+    """Wheels of everything the image installs, fetched with the host's pip configuration
+    (binary wheels only: nothing is built), then completed for the image's Python: environment
+    markers can ask more of it than of the host's (``python_full_version < "3.11.3"``)."""
     folder = cache_dir() / "wheels"
-    requirements = "\n".join([f"# python {python_version}", *project_requirements()]) + "\n"
+    requirements = "\n".join(project_requirements()) + "\n"
     listed = folder / "requirements.txt"
     if not force and listed.is_file() and listed.read_text() == requirements:
         return folder
     shutil.rmtree(folder, ignore_errors=True)
     folder.mkdir(parents=True)
-    log(f"pip download: {len(requirements.splitlines()) - 1} requirements into {folder}")
-    with tempfile.NamedTemporaryFile("w", suffix=".txt") as wanted:
-        wanted.write(requirements)
-        wanted.flush()
-        command = [sys.executable, "-m", "pip", "download", "-q", "--only-binary=:all:"]
-        command += ["--python-version", python_version, "--dest", str(folder), "-r", wanted.name]
-        subprocess.run(command, check=True)
+    log(f"pip download: {len(requirements.splitlines())} requirements into {folder}")
+    (folder / "wanted.txt").write_text(requirements)
+    download(folder, "-r", str(folder / "wanted.txt"))
+    for _ in range(MAX_COMPLETIONS):
+        missing = missing_in_image(client, root, folder)
+        if missing is None:
+            break
+        log(f"the image's Python also needs {missing}")
+        download(folder, "--no-deps", missing)
+    else:
+        raise SystemExit("the wheelhouse does not resolve in the image")
     listed.write_text(requirements)
     return folder
+
+
+MAX_COMPLETIONS = 20
+MISSING = re.compile(r"No matching distribution found for ([^;\s]+)")
+
+
+def download(folder: Path, *what: str) -> None:
+    command = [sys.executable, "-m", "pip", "download", "-q", "--only-binary=:all:"]
+    subprocess.run([*command, "--dest", str(folder), *what], check=True)
+
+
+def missing_in_image(client: docker.DockerClient, root: str, folder: Path) -> str | None:
+    """The first requirement the image's pip cannot resolve from ``folder``, or None."""
+    command = (
+        "pip download -q --no-index --find-links /wheels -d /tmp/resolved -r /wheels/wanted.txt"
+    )
+    try:
+        client.containers.run(
+            root,
+            ["sh", "-c", command],
+            network_mode="none",
+            volumes={str(folder): {"bind": "/wheels", "mode": "ro"}},
+            remove=True,
+            stderr=True,
+        )
+    except docker.errors.ContainerError as error:
+        output = error.stderr.decode(errors="replace") if error.stderr else ""
+        found = MISSING.search(output)
+        if found is None:
+            raise SystemExit(f"pip in the image failed:\n{output[-3000:]}") from error
+        return found.group(1)
+    return None
 
 
 def label(client: docker.DockerClient, image: str, name: str) -> str | None:
@@ -289,7 +315,7 @@ def build_images(tag: str, force: bool = False) -> dict[str, str]:
     cache_dir().mkdir(parents=True, exist_ok=True)
     if force or not exists(client, names["root"]):
         import_root(client, names["root"], force)
-    wheels = wheelhouse(image_python(client, names["root"]), force)
+    wheels = wheelhouse(client, names["root"], force)
     # Rebuilt whenever the wheelhouse changed (a dependency added to pyproject.toml).
     wanted = hashlib.sha256((wheels / "requirements.txt").read_bytes()).hexdigest()
     if force or label(client, names["service-base"], WHEELHOUSE_LABEL) != wanted:

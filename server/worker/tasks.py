@@ -190,6 +190,10 @@ def run_scenario(self, *, run_id: int, scenario_id: str, episode: int = 0) -> No
         job = evaluation.claim_scenario(session, settings, run_id, scenario_id, me, episode)
     if job is None:
         return
+    # Which worker ran what (claim > 1: an earlier claim's worker died or handed it back).
+    log.info(
+        "run %s: episode %d of %s claimed (claim %d)", run_id, episode, scenario_id, job.attempt
+    )
     if job.attempt > MAX_SCENARIO_ATTEMPTS:
         # Every worker that took this scenario died with it (or was killed): stop handing it out.
         outcome = _our_failure(job, "worker_lost", f"{job.attempt - 1} workers died running it")
