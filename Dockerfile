@@ -22,9 +22,13 @@ RUN dpkg-query -W $SYSTEM_LIBRARIES >/dev/null 2>&1 || { \
         && rm -rf /var/lib/apt/lists/*; }
 
 WORKDIR /app
-# Only what the service needs (no tests, benchmarks or local data); dependencies first so code
-# changes do not re-download them.
-COPY pyproject.toml README.md alembic.ini ./
+# Only what the service needs (no tests, benchmarks or local data). Dependencies first, from
+# pyproject.toml alone, so that a code change reuses their layer.
+COPY pyproject.toml ./
+RUN python -c "import tomllib; print(*tomllib.load(open('pyproject.toml', 'rb'))['project']['dependencies'], sep='\n')" > /tmp/requirements.txt \
+    && pip install --no-cache-dir -r /tmp/requirements.txt \
+    && rm -rf /root/.cache /tmp/requirements.txt
+COPY README.md alembic.ini ./
 COPY build_backend ./build_backend
 COPY migrations ./migrations
 COPY arena ./arena
@@ -36,7 +40,7 @@ COPY evaluator ./evaluator
 COPY server ./server
 COPY docs ./docs
 # Editable, so `arena admin db upgrade` finds alembic.ini and migrations/ next to the code.
-RUN pip install --no-cache-dir -e . && rm -rf /root/.cache
+RUN pip install --no-cache-dir --no-deps -e . && rm -rf /root/.cache
 
 RUN useradd --system --uid 1000 --home-dir /srv/arena arena \
     && mkdir -p /srv/arena && chown arena /srv/arena

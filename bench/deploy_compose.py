@@ -131,15 +131,24 @@ class Stack:
         return docker.from_env().containers.list(all=not running_only, filters=filters)
 
     def wait_workers(self) -> None:
-        """Until every worker logged that it is ready (Celery's ``ready.``)."""
+        """Until there are the wanted workers and every service with a health check (PostgreSQL,
+        Redis, the API, each worker: `celery inspect ping`) reports healthy."""
         deadline = time.monotonic() + UP_TIMEOUT_S
+        health: dict[str, str] = {}
         while time.monotonic() < deadline:
+            containers = self.containers()
+            for container in containers:
+                container.reload()
+            health = {
+                c.name: c.attrs["State"]["Health"]["Status"]
+                for c in containers
+                if "Health" in c.attrs["State"]
+            }
             workers = self.containers("worker")
-            ready = [c for c in workers if b"ready." in c.logs()]
-            if len(workers) == self.workers and len(ready) == self.workers:
+            if len(workers) == self.workers and all(v == "healthy" for v in health.values()):
                 return
             time.sleep(2)
-        raise SystemExit(f"not all {self.workers} workers became ready")
+        raise SystemExit(f"the services did not all become healthy: {health}")
 
     def agent_containers(self) -> list:
         """Running agent sandboxes of this deployment's workers (their data folder's label)."""

@@ -45,6 +45,7 @@ ROOT_PACKAGES = (
     "python3",
     "python3-pip",
     "python-is-python3",
+    "passwd",  # useradd, for the Dockerfile's service user
     "ca-certificates",
     "libgl1",
     "libx11-6",
@@ -60,10 +61,10 @@ ROOT_PACKAGES = (
 # service resolves them at intake, from the image's wheelhouse (it has no index either).
 EXAMPLE_REQUIREMENTS = (REPO / "submissions" / "examples" / "ppo" / "requirements.txt",)
 
-WHEELHOUSE_LABEL = "driving-arena.wheelhouse"
+# The digest of what an image was built from: a changed input rebuilds it.
+INPUTS_LABEL = "driving-arena.inputs"
 SERVICE_BASE = """\
 FROM {root}
-LABEL {label}={digest}
 COPY wheels /wheels
 # The image's Python is its own (as python:3.11-slim's is), and pip installs from /wheels only.
 RUN rm -f /usr/lib/python3*/EXTERNALLY-MANAGED \\
@@ -246,8 +247,8 @@ def exists(client: docker.DockerClient, image: str) -> bool:
     return True
 
 
-def import_root(client: docker.DockerClient, image: str, force: bool) -> None:
-    tarball = cache_dir() / "root-bookworm.tar"
+def import_root(client: docker.DockerClient, image: str, digest: str, force: bool) -> None:
+    tarball = cache_dir() / f"root-bookworm-{digest[:12]}.tar"
     if force or not tarball.is_file():
         build_rootfs_tarball(tarball, debian_mirror(get_settings()), log, packages=ROOT_PACKAGES)
     repository, tag = image.split(":")
@@ -256,7 +257,11 @@ def import_root(client: docker.DockerClient, image: str, force: bool) -> None:
         str(tarball),
         repository=repository,
         tag=tag,
-        changes=["ENV PATH=/usr/local/bin:/usr/bin:/bin", "WORKDIR /"],
+        changes=[
+            "ENV PATH=/usr/local/bin:/usr/bin:/bin",
+            "WORKDIR /",
+            f"LABEL {INPUTS_LABEL}={digest}",
+        ],
     )
 
 
@@ -287,12 +292,17 @@ def build(
 
 
 def build_from_text(
-    client: docker.DockerClient, image: str, dockerfile: str, files: dict[str, str | Path]
+    client: docker.DockerClient,
+    image: str,
+    dockerfile: str,
+    files: dict[str, str | Path],
+    digest: str,
 ) -> None:
-    """Build ``image`` from a Dockerfile text and a context of ``files`` (text, or a folder)."""
+    """Build ``image`` from a Dockerfile text and a context of ``files`` (text, or a folder),
+    labelled with the digest of its inputs."""
     with tempfile.TemporaryDirectory(prefix="arena-image-", dir=cache_dir()) as tmp:
         context = Path(tmp)
-        (context / "Dockerfile").write_text(dockerfile)
+        (context / "Dockerfile").write_text(f"{dockerfile}LABEL {INPUTS_LABEL}={digest}\n")
         for name, content in files.items():
             if isinstance(content, Path):
                 # Hard links: the wheelhouse is large and on the same file system.
@@ -309,26 +319,39 @@ def _link_or_copy(source: str, target: str) -> None:
         shutil.copy2(source, target)
 
 
+def digest_of(*parts: str) -> str:
+    return hashlib.sha256("\0".join(parts).encode()).hexdigest()
+
+
 def build_images(tag: str, force: bool = False) -> dict[str, str]:
+    """Each image is rebuilt when the digest of its inputs (packages, Dockerfile text, files,
+    wheels, the image below) differs from its label, or with ``force``."""
     names = image_names(tag)
     client = docker.from_env(timeout=1800)
     cache_dir().mkdir(parents=True, exist_ok=True)
-    if force or not exists(client, names["root"]):
-        import_root(client, names["root"], force)
+
+    def stale(role: str, digest: str) -> bool:
+        return force or label(client, names[role], INPUTS_LABEL) != digest
+
+    root = digest_of(*ROOT_PACKAGES)
+    if stale("root", root):
+        import_root(client, names["root"], root, force)
     wheels = wheelhouse(client, names["root"], force)
-    # Rebuilt whenever the wheelhouse changed (a dependency added to pyproject.toml).
-    wanted = hashlib.sha256((wheels / "requirements.txt").read_bytes()).hexdigest()
-    if force or label(client, names["service-base"], WHEELHOUSE_LABEL) != wanted:
-        base = SERVICE_BASE.format(root=names["root"], label=WHEELHOUSE_LABEL, digest=wanted)
-        build_from_text(client, names["service-base"], base, {"wheels": wheels})
-    if force or not exists(client, names["postgres"]):
-        text = POSTGRES.format(root=names["root"])
-        build_from_text(client, names["postgres"], text, {"entrypoint.sh": POSTGRES_ENTRYPOINT})
-    if force or not exists(client, names["redis"]):
-        text = REDIS.format(root=names["root"])
-        build_from_text(client, names["redis"], text, {"entrypoint.sh": REDIS_ENTRYPOINT})
+    for role, text, files in [
+        ("service-base", SERVICE_BASE, {"wheels": wheels}),
+        ("postgres", POSTGRES, {"entrypoint.sh": POSTGRES_ENTRYPOINT}),
+        ("redis", REDIS, {"entrypoint.sh": REDIS_ENTRYPOINT}),
+    ]:
+        dockerfile = text.format(root=names["root"])
+        contents = [
+            (w / "requirements.txt").read_text() if isinstance(w, Path) else w
+            for w in files.values()
+        ]
+        digest = digest_of(root, dockerfile, *contents)
+        if stale(role, digest):
+            build_from_text(client, names[role], dockerfile, files, digest)
     # The service image always: the project's code changes between runs (its dependencies are
-    # in the base, so this takes seconds).
+    # a cached layer, so this takes seconds when only code changed).
     build(client, names["service"], REPO, buildargs={"BASE_IMAGE": names["service-base"]})
     return names
 
