@@ -42,8 +42,10 @@ COPY docs ./docs
 # Editable, so `arena admin db upgrade` finds alembic.ini and migrations/ next to the code.
 RUN pip install --no-cache-dir --no-deps -e . && rm -rf /root/.cache
 
+# /var/lib/arena-api: the API's own scratch in docker-compose.yml (a volume starts with this
+# folder's owner).
 RUN useradd --system --uid 1000 --home-dir /srv/arena arena \
-    && mkdir -p /srv/arena && chown arena /srv/arena
+    && mkdir -p /srv/arena /var/lib/arena-api && chown arena /srv/arena /var/lib/arena-api
 VOLUME ["/srv/arena"]
 EXPOSE 8000
 

@@ -60,6 +60,11 @@ class Settings(BaseSettings):
     # Sandbox.
     sandbox: SandboxKind = SandboxKind.auto
     agent_image: str = "driving-arena-agent:latest"
+    # A folder at the same path for this process and for the Docker daemon, when the worker
+    # runs in a container and starts its agents beside it (docker-compose.yml): the agent
+    # runtime is copied there and the protocol sockets made there, since the daemon binds host
+    # paths. None: the worker runs on the daemon's host (the package and the temporary folder).
+    sandbox_shared_dir: Path | None = None
     # Debian mirror the offline agent image is bootstrapped from; empty: the host's apt sources.
     debian_mirror: str = ""
     init_timeout_s: float = 60.0
