@@ -57,6 +57,11 @@ ROOT_PACKAGES = (
     "postgresql",
     "redis-server",
 )
+# As python:3.11-slim's: the sbin folders too (useradd).
+ROOT_CHANGES = (
+    "ENV PATH=/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin",
+    "WORKDIR /",
+)
 # What the submissions the deployment test uploads ask for in their requirements.txt: the
 # service resolves them at intake, from the image's wheelhouse (it has no index either).
 EXAMPLE_REQUIREMENTS = (REPO / "submissions" / "examples" / "ppo" / "requirements.txt",)
@@ -248,7 +253,7 @@ def exists(client: docker.DockerClient, image: str) -> bool:
 
 
 def import_root(client: docker.DockerClient, image: str, digest: str, force: bool) -> None:
-    tarball = cache_dir() / f"root-bookworm-{digest[:12]}.tar"
+    tarball = cache_dir() / f"root-bookworm-{digest_of(*ROOT_PACKAGES)[:12]}.tar"
     if force or not tarball.is_file():
         build_rootfs_tarball(tarball, debian_mirror(get_settings()), log, packages=ROOT_PACKAGES)
     repository, tag = image.split(":")
@@ -257,11 +262,7 @@ def import_root(client: docker.DockerClient, image: str, digest: str, force: boo
         str(tarball),
         repository=repository,
         tag=tag,
-        changes=[
-            "ENV PATH=/usr/local/bin:/usr/bin:/bin",
-            "WORKDIR /",
-            f"LABEL {INPUTS_LABEL}={digest}",
-        ],
+        changes=[*ROOT_CHANGES, f"LABEL {INPUTS_LABEL}={digest}"],
     )
 
 
@@ -333,7 +334,7 @@ def build_images(tag: str, force: bool = False) -> dict[str, str]:
     def stale(role: str, digest: str) -> bool:
         return force or label(client, names[role], INPUTS_LABEL) != digest
 
-    root = digest_of(*ROOT_PACKAGES)
+    root = digest_of(*ROOT_PACKAGES, *ROOT_CHANGES)
     if stale("root", root):
         import_root(client, names["root"], root, force)
     wheels = wheelhouse(client, names["root"], force)
