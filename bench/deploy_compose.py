@@ -82,8 +82,9 @@ class Stack:
         self.admin_token = secrets.token_hex(16)
         self.override = root / "docker-compose.override.yml"
         self.override.write_text(override(images))
-        self.env = {
-            **os.environ,
+        # In a file of its own (--env-file): `docker-compose ... down` by hand finds it too.
+        self.env_file = root / "compose.env"
+        settings = {
             "POSTGRES_PASSWORD": secrets.token_hex(12),
             "ARENA_ADMIN_TOKEN": self.admin_token,
             "ARENA_HIDDEN_SEED": "1",
@@ -94,22 +95,31 @@ class Stack:
             "ARENA_JOBS": "1",
             "ARENA_DAILY_QUOTA": "10",
         }
+        self.env_file.write_text("".join(f"{k}={v}\n" for k, v in settings.items()))
+        self.env_file.chmod(0o600)
+        # The caller's environment would win over the file.
+        self.env = {k: v for k, v in os.environ.items() if k not in settings}
         self.url = f"http://127.0.0.1:{self.port}"
 
     def compose(self, *arguments: str, check: bool = True, capture: bool = False):
-        command = ["docker-compose", "-p", self.project, "--project-directory", str(REPO)]
-        command += ["-f", str(REPO / "docker-compose.yml"), "-f", str(self.override)]
         done = subprocess.run(
-            [*command, *arguments], env=self.env, text=True, capture_output=capture
+            [*self.command(), *arguments], env=self.env, text=True, capture_output=capture
         )
         if check and done.returncode != 0:
             detail = (done.stderr or "")[-4000:] if capture else ""
             raise SystemExit(f"docker-compose {' '.join(arguments)} failed: {detail}")
         return done
 
+    def command(self) -> list[str]:
+        command = ["docker-compose", "-p", self.project, "--project-directory", str(REPO)]
+        command += ["--env-file", str(self.env_file)]
+        return [*command, "-f", str(REPO / "docker-compose.yml"), "-f", str(self.override)]
+
     def up(self) -> float:
         started = time.monotonic()
-        self.compose("up", "-d", "--scale", f"worker={self.workers}")
+        if self.compose("up", "-d", "--scale", f"worker={self.workers}", check=False).returncode:
+            self.compose("logs", "--tail", "30", check=False)
+            raise SystemExit("docker-compose up failed (the services' logs above)")
         deadline = time.monotonic() + UP_TIMEOUT_S
         while time.monotonic() < deadline:
             try:
@@ -404,7 +414,7 @@ def main() -> None:
         )
     finally:
         if arguments.keep:
-            log(f"left running: docker-compose -p {stack.project} (data in {root})")
+            log(f"left running: {' '.join(stack.command())}")
         else:
             stack.compose("down", "--volumes", "--remove-orphans", check=False, capture=True)
             for container in stack.agent_containers():

@@ -91,8 +91,9 @@ CMD ["postgres"]
 """
 
 # The official image's contract: on an empty data folder, initialise it with POSTGRES_USER (the
-# superuser), POSTGRES_PASSWORD and POSTGRES_DB, password authentication from every host; then
-# run the server as the postgres user.
+# superuser), POSTGRES_PASSWORD and POSTGRES_DB, UTF-8 (a database in SQL_ASCII hands text to
+# psycopg as bytes), password authentication from every host; then run the server as the
+# postgres user.
 POSTGRES_ENTRYPOINT = """\
 #!/bin/sh
 set -eu
@@ -106,7 +107,7 @@ if [ ! -s "$PGDATA/PG_VERSION" ]; then
   pwfile="$(mktemp)"
   printf '%s\\n' "$POSTGRES_PASSWORD" > "$pwfile"
   chown postgres "$pwfile"
-  as_postgres initdb -D "$PGDATA" -U "$user" --pwfile="$pwfile" \\
+  as_postgres initdb -D "$PGDATA" -U "$user" --pwfile="$pwfile" -E UTF8 --locale=C.UTF-8 \\
     --auth-local=trust --auth-host=scram-sha-256 >/dev/null
   rm -f "$pwfile"
   echo "host all all all scram-sha-256" >> "$PGDATA/pg_hba.conf"
