@@ -227,8 +227,8 @@ def evaluate_locally(agent: str, suite: Path, out: Path) -> tuple[dict, float]:
     done = subprocess.run(
         [
             sys.executable,
-            "-m",
-            "arena.cli",
+            "-c",
+            "from arena.cli import app; app()",
             "evaluate",
             str(EXAMPLES / agent),
             "--suite",
