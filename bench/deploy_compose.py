@@ -7,6 +7,7 @@ example, three teams) through the API on a loopback port, and checks:
 
 * every submission is scored, with the metrics and per-scenario outcomes `arena evaluate` gives
   for the same agent on the same suite;
+* every agent container the workers started (through the host's Docker socket) has no network;
 * no scenario was recorded or simulated twice, and every worker ran part of the episodes;
 * `docker-compose stop` leaves no container of the project running and no agent container of
   its workers;
@@ -276,9 +277,13 @@ def submission(stack: Stack, submission_id: int) -> dict:
     return next(s for s in response.json() if s["id"] == submission_id)
 
 
-def wait_scored(stack: Stack, ids: list[int]) -> dict[int, dict]:
+def wait_scored(stack: Stack, ids: list[int], networks: dict[str, str]) -> dict[int, dict]:
+    """Until every submission finished; meanwhile the network of every agent container the
+    workers started is noted in ``networks`` (name -> network mode)."""
     deadline = time.monotonic() + SCORED_TIMEOUT_S
     while time.monotonic() < deadline:
+        for container in stack.agent_containers():
+            networks[container.name] = container.attrs["HostConfig"]["NetworkMode"]
         found = {i: submission(stack, i) for i in ids}
         finished = {i: s for i, s in found.items() if s["status"] in ("scored", "failed")}
         if len(finished) == len(ids):
@@ -335,8 +340,14 @@ def main() -> None:
             for token in tokens
             for agent in AGENTS
         }
-        scored = wait_scored(stack, list(uploaded))
+        networks: dict[str, str] = {}
+        scored = wait_scored(stack, list(uploaded), networks)
         wall_s = time.monotonic() - started
+        checks.check(
+            bool(networks) and set(networks.values()) == {"none"},
+            f"the workers' agent containers have no network ({len(networks)} seen: "
+            f"{Counter(networks.values())})",
+        )
         checks.check(
             all(s["status"] == "scored" for s in scored.values()),
             f"all {len(scored)} submissions scored "
