@@ -13,10 +13,11 @@ example, three teams) through the API on a loopback port, and checks:
   its workers;
 * a second `up` keeps the data (the same submissions, the same scores).
 
-It measures the capacity: CPU time per episode of each example (`arena evaluate` with one job in
-the bubblewrap sandbox, whose agent is a child process: simulator and agent are both counted)
-and the deployment's own throughput (episodes over the wall time of the compose run, per worker
-core). The hidden suite is a cut of the public set placed where the `suites` one-shot looks, so
+It measures the capacity as CPU time, which the other work on a shared machine does not
+inflate: the deployment's (every container of the project and every agent container its workers
+started, read from their cgroups while it scores: episodes per core-hour of the whole service),
+and each example's alone (`arena evaluate` with one job in the bubblewrap sandbox, in a cgroup of
+its own: simulator, agent and CLI start-up). The wall-time figure is printed beside them. The hidden suite is a cut of the public set placed where the `suites` one-shot looks, so
 that one-shot finds it built. Everything is removed at the end (`--keep` leaves the stack up).
 
     python3 bench/deploy_compose.py [--workers 3] [--tag compose-test] [--keep]
@@ -30,7 +31,6 @@ import argparse
 import json
 import os
 import re
-import resource
 import secrets
 import shutil
 import socket
@@ -221,35 +221,113 @@ def cut_suite(dest: Path) -> Path:
     return dest
 
 
+CGROUP = Path("/sys/fs/cgroup")
+
+
+def container_cpu_s(container_id: str) -> float | None:
+    """CPU time a container used so far [s], from its cgroup (v1 cpuacct or v2 cpu.stat);
+    None when it is gone or the layout is not one we know."""
+    v1 = CGROUP / "cpuacct" / "docker" / container_id / "cpuacct.usage"
+    v2 = [
+        CGROUP / "system.slice" / f"docker-{container_id}.scope" / "cpu.stat",
+        CGROUP / "docker" / container_id / "cpu.stat",
+    ]
+    try:
+        if v1.is_file():
+            return int(v1.read_text()) / 1e9
+        for path in v2:
+            if path.is_file():
+                stat = dict(line.split() for line in path.read_text().splitlines())
+                return int(stat["usage_usec"]) / 1e6
+    except (OSError, ValueError, KeyError):
+        return None
+    return None
+
+
+class DeploymentCpu:
+    """The CPU time the deployment's containers (services, workers and the agents they start)
+    used since :meth:`start`: sampled often, so an agent container removed between two samples
+    loses at most one interval of its time."""
+
+    def __init__(self, stack: Stack) -> None:
+        self.stack = stack
+        self.baseline: dict[str, float] = {}
+        self.latest: dict[str, float] = {}
+
+    def sample(self) -> None:
+        for container in [*self.stack.containers(), *self.stack.agent_containers()]:
+            used = container_cpu_s(container.id)
+            if used is not None:
+                self.latest[container.id] = max(used, self.latest.get(container.id, 0.0))
+
+    def start(self) -> None:
+        self.sample()
+        self.baseline = dict(self.latest)
+
+    def seconds(self) -> float:
+        return sum(used - self.baseline.get(cid, 0.0) for cid, used in self.latest.items())
+
+
+class CpuGroup:
+    """A cgroup of our own that a command and all its descendants run in: their CPU time, even
+    of processes nobody waits for (the simulator's forkserver children)."""
+
+    def __init__(self, name: str) -> None:
+        v1 = CGROUP / "cpuacct"
+        self.v1 = v1.is_dir() and (v1 / "cpuacct.usage").is_file()
+        self.path = (v1 if self.v1 else CGROUP) / name
+        self.path.mkdir()
+
+    def enter(self) -> None:  # in the child, before exec
+        (self.path / "cgroup.procs").write_text(str(os.getpid()))
+
+    def seconds(self) -> float:
+        if self.v1:
+            return int((self.path / "cpuacct.usage").read_text()) / 1e9
+        stat = dict(line.split() for line in (self.path / "cpu.stat").read_text().splitlines())
+        return int(stat["usage_usec"]) / 1e6
+
+    def remove(self) -> None:
+        for _ in range(50):  # its last processes may take a moment to exit
+            try:
+                self.path.rmdir()
+                return
+            except OSError:
+                time.sleep(0.2)
+
+
 def evaluate_locally(agent: str, suite: Path, out: Path) -> tuple[dict, float]:
     """`arena evaluate` of the example on the suite, one job, bubblewrap; (summary, CPU seconds
     of the CLI, its simulator and its agent processes)."""
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    done = subprocess.run(
-        [
-            sys.executable,
-            "-c",
-            "from arena.cli import app; app()",
-            "evaluate",
-            str(EXAMPLES / agent),
-            "--suite",
-            str(suite),
-            "--jobs",
-            "1",
-            "--sandbox",
-            "bubblewrap",
-            "--out",
-            str(out),
-            "--json",
-        ],
-        capture_output=True,
-        text=True,
-        env={**os.environ, "ARENA_DATA_DIR": str(out.parent / "local-data")},
-    )
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    group = CpuGroup(f"arena-deploy-bench-{os.getpid()}-{agent}")
+    try:
+        done = subprocess.run(
+            [
+                sys.executable,
+                "-c",
+                "from arena.cli import app; app()",
+                "evaluate",
+                str(EXAMPLES / agent),
+                "--suite",
+                str(suite),
+                "--jobs",
+                "1",
+                "--sandbox",
+                "bubblewrap",
+                "--out",
+                str(out),
+                "--json",
+            ],
+            capture_output=True,
+            text=True,
+            env={**os.environ, "ARENA_DATA_DIR": str(out.parent / "local-data")},
+            preexec_fn=group.enter,
+        )
+        cpu = group.seconds()
+    finally:
+        group.remove()
     if done.returncode not in (0, 1):
         raise SystemExit(f"arena evaluate {agent} failed:\n{done.stderr[-3000:]}")
-    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     return json.loads(done.stdout), cpu
 
 
@@ -277,18 +355,21 @@ def submission(stack: Stack, submission_id: int) -> dict:
     return next(s for s in response.json() if s["id"] == submission_id)
 
 
-def wait_scored(stack: Stack, ids: list[int], networks: dict[str, str]) -> dict[int, dict]:
+def wait_scored(
+    stack: Stack, ids: list[int], networks: dict[str, str], cpu: DeploymentCpu
+) -> dict[int, dict]:
     """Until every submission finished; meanwhile the network of every agent container the
-    workers started is noted in ``networks`` (name -> network mode)."""
+    workers started is noted in ``networks`` (name -> network mode) and ``cpu`` sampled."""
     deadline = time.monotonic() + SCORED_TIMEOUT_S
     while time.monotonic() < deadline:
         for container in stack.agent_containers():
             networks[container.name] = container.attrs["HostConfig"]["NetworkMode"]
         found = {i: submission(stack, i) for i in ids}
         finished = {i: s for i, s in found.items() if s["status"] in ("scored", "failed")}
+        cpu.sample()
         if len(finished) == len(ids):
             return finished
-        time.sleep(3)
+        time.sleep(1)
     raise SystemExit(f"not every submission finished in {SCORED_TIMEOUT_S} s")
 
 
@@ -334,6 +415,8 @@ def main() -> None:
             for i in range(TEAMS)
         ]
         zips = {agent: pack_folder(EXAMPLES / agent, root / f"{agent}.zip") for agent in AGENTS}
+        cpu = DeploymentCpu(stack)
+        cpu.start()
         started = time.monotonic()
         uploaded = {
             upload(stack.url, token, zips[agent], agent): agent
@@ -341,7 +424,7 @@ def main() -> None:
             for agent in AGENTS
         }
         networks: dict[str, str] = {}
-        scored = wait_scored(stack, list(uploaded), networks)
+        scored = wait_scored(stack, list(uploaded), networks, cpu)
         wall_s = time.monotonic() - started
         checks.check(
             bool(networks) and set(networks.values()) == {"none"},
@@ -410,18 +493,21 @@ def main() -> None:
         )
 
         episodes = len(rows)
-        cores = min(os.cpu_count() or 1, arguments.workers)
-        deployed = episodes / (wall_s / 3600) / cores
         for agent in AGENTS:
-            per_hour = 3600 / cpu_per_episode[agent]
             log(
-                f"{agent}: {cpu_per_episode[agent]:.1f} CPU s per episode "
-                f"= {per_hour:.0f} episodes per core-hour"
+                f"{agent} (arena evaluate, one job): {cpu_per_episode[agent]:.1f} CPU s per "
+                f"episode = {3600 / cpu_per_episode[agent]:.0f} episodes per core-hour"
             )
+        # The deployment's own figure: every container's CPU (workers and their simulators,
+        # agents, API, PostgreSQL, Redis) while it scored the six submissions.
+        deployment_cpu_s = cpu.seconds()
+        deployed = episodes / (deployment_cpu_s / 3600)
+        cores = min(os.cpu_count() or 1, arguments.workers)
         log(
-            f"deployment: {episodes} episodes in {wall_s:.0f} s on {cores} cores "
-            f"= {deployed:.0f} episodes per core-hour (load average "
-            f"{os.getloadavg()[0]:.1f}: the machine is shared)"
+            f"deployment: {episodes} episodes, {deployment_cpu_s:.0f} CPU s in all its "
+            f"containers = {deployed:.0f} episodes per core-hour; wall time {wall_s:.0f} s on "
+            f"{cores} cores = {episodes / (wall_s / 3600) / cores:.0f} per core-hour of wall "
+            f"time (load average {os.getloadavg()[0]:.1f}: the machine is shared)"
         )
     finally:
         if arguments.keep:
