@@ -17,8 +17,9 @@ It measures the capacity as CPU time, which the other work on a shared machine d
 inflate: the deployment's (every container of the project and every agent container its workers
 started, read from their cgroups while it scores: episodes per core-hour of the whole service),
 and each example's alone (`arena evaluate` with one job in the bubblewrap sandbox, in a cgroup of
-its own: simulator, agent and CLI start-up). The wall-time figure is printed beside them. The hidden suite is a cut of the public set placed where the `suites` one-shot looks, so
-that one-shot finds it built. Everything is removed at the end (`--keep` leaves the stack up).
+its own: simulator, agent and CLI start-up). The wall-time figure is printed beside them. The
+hidden suite is a cut of the public set placed where the `suites` one-shot looks, so that
+one-shot finds it built. Everything is removed at the end (`--keep` leaves the stack up).
 
     python3 bench/deploy_compose.py [--workers 3] [--tag compose-test] [--keep]
 
