@@ -416,8 +416,8 @@ def main() -> None:
             for i in range(TEAMS)
         ]
         zips = {agent: pack_folder(EXAMPLES / agent, root / f"{agent}.zip") for agent in AGENTS}
-        cpu = DeploymentCpu(stack)
-        cpu.start()
+        deployment = DeploymentCpu(stack)
+        deployment.start()
         started = time.monotonic()
         uploaded = {
             upload(stack.url, token, zips[agent], agent): agent
@@ -425,8 +425,9 @@ def main() -> None:
             for agent in AGENTS
         }
         networks: dict[str, str] = {}
-        scored = wait_scored(stack, list(uploaded), networks, cpu)
+        scored = wait_scored(stack, list(uploaded), networks, deployment)
         wall_s = time.monotonic() - started
+        deployment_cpu_s = deployment.seconds()
         checks.check(
             bool(networks) and set(networks.values()) == {"none"},
             f"the workers' agent containers have no network ({len(networks)} seen: "
@@ -501,7 +502,6 @@ def main() -> None:
             )
         # The deployment's own figure: every container's CPU (workers and their simulators,
         # agents, API, PostgreSQL, Redis) while it scored the six submissions.
-        deployment_cpu_s = cpu.seconds()
         deployed = episodes / (deployment_cpu_s / 3600)
         cores = min(os.cpu_count() or 1, arguments.workers)
         log(
