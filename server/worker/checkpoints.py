@@ -24,12 +24,8 @@ log = logging.getLogger(__name__)
 STORE_ERRORS = (OSError, SQLAlchemyError)
 
 
-def checkpoints_prefix(training_id: int) -> str:
-    return f"training/{training_id}/checkpoints"
-
-
 def checkpoint_key(training_id: int, claim: int) -> str:
-    return f"{checkpoints_prefix(training_id)}/claim-{claim}.tar.gz"
+    return f"training/{training_id}/checkpoints/claim-{claim}.tar.gz"
 
 
 class ClaimCheckpoints:
@@ -97,9 +93,12 @@ class ClaimCheckpoints:
                     log.warning("training %s: old checkpoint kept: %s", self.training_id, error)
 
 
-def discard(store: ArtifactStore, training_id: int) -> None:
-    """The training ended (trained or failed): its checkpoints are of no more use."""
+def discard(store: ArtifactStore, training_id: int, claim: int) -> None:
+    """Claim ``claim`` of the training ended it (trained or failed): its checkpoints and the
+    earlier claims' are of no more use. A later claim's are kept: if this claim was superseded
+    meanwhile, the live one still saves and resumes from its own."""
     try:
-        store.delete_prefix(checkpoints_prefix(training_id))
+        for earlier in range(1, claim + 1):
+            store.delete_prefix(checkpoint_key(training_id, earlier))
     except STORE_ERRORS as error:
         log.warning("checkpoints of training %s not removed: %s", training_id, error)

@@ -146,7 +146,7 @@ def train_submission(self, *, training_id: int) -> None:
     tail = _tail(result.log)
     if not result.ok:
         shutil.rmtree(_training_output(claim).parent, ignore_errors=True)
-        checkpoints.discard(_store(), claim.training_id)
+        checkpoints.discard(_store(), claim.training_id, claim.claim)
         with get_database().session() as session:
             training.record_failed(
                 session,
@@ -159,7 +159,7 @@ def train_submission(self, *, training_id: int) -> None:
             )
         return
     key, sha256, size = _store_model(claim)
-    checkpoints.discard(_store(), claim.training_id)
+    checkpoints.discard(_store(), claim.training_id, claim.claim)
     with get_database().session() as session:
         plan = training.record_trained(
             session,
@@ -298,7 +298,7 @@ def _training_failed(
 ) -> None:
     with get_database().session() as session:
         training.record_failed(session, claim, worker, failure=failure, error=error, ours=ours)
-    checkpoints.discard(_store(), claim.training_id)
+    checkpoints.discard(_store(), claim.training_id, claim.claim)
 
 
 def _hand_back_training(claim: training.TrainingClaim, worker: str) -> None:
