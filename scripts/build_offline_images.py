@@ -23,6 +23,7 @@ network. Prints the image names, one ``role=image`` a line.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import hashlib
 import re
 import shutil
@@ -354,8 +355,20 @@ def build_images(tag: str, force: bool = False) -> dict[str, str]:
             build_from_text(client, names[role], dockerfile, files, digest)
     # The service image always: the project's code changes between runs (its dependencies are
     # a cached layer, so this takes seconds when only code changed).
+    replaced = image_id(client, names["service"])
     build(client, names["service"], REPO, buildargs={"BASE_IMAGE": names["service-base"]})
+    if replaced not in (None, image_id(client, names["service"])):
+        # The previous build lost its tag: ours, and nothing else refers to it.
+        with contextlib.suppress(docker.errors.APIError):
+            client.images.remove(replaced)
     return names
+
+
+def image_id(client: docker.DockerClient, image: str) -> str | None:
+    try:
+        return client.images.get(image).id
+    except docker.errors.ImageNotFound:
+        return None
 
 
 def main() -> None:
