@@ -2,25 +2,37 @@
 #   docker build -t driving-arena:latest .
 # Agents never run in this image: the worker starts them in the agent runtime image
 # (Dockerfile.agent) through the host's Docker daemon. See docs/deployment.md.
-FROM python:3.11-slim
+# BASE_IMAGE: any Debian-based image with Python 3.11 and pip. Hosts without a registry build one
+# offline (scripts/build_offline_images.py: Debian packages, local wheels, no network).
+ARG BASE_IMAGE=python:3.11-slim
+FROM ${BASE_IMAGE}
 
 ENV PYTHONDONTWRITEBYTECODE=1 \
     PYTHONUNBUFFERED=1 \
     PIP_DISABLE_PIP_VERSION_CHECK=1 \
     ARENA_DATA_DIR=/srv/arena
 
-# libsumo and SUMO's binaries (from the eclipse-sumo wheel) link these system libraries.
-RUN apt-get update \
-    && DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends \
-        libgl1 libx11-6 libxext6 libxrender1 libatomic1 libexpat1 zlib1g \
-    && rm -rf /var/lib/apt/lists/*
+# libsumo and SUMO's binaries (from the eclipse-sumo wheel) link these system libraries
+# (installed unless the base has them already: an offline base cannot reach apt).
+ARG SYSTEM_LIBRARIES="libgl1 libx11-6 libxext6 libxrender1 libatomic1 libexpat1 zlib1g"
+RUN dpkg-query -W $SYSTEM_LIBRARIES >/dev/null 2>&1 || { \
+        apt-get update \
+        && DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends \
+            $SYSTEM_LIBRARIES \
+        && rm -rf /var/lib/apt/lists/*; }
 
 WORKDIR /app
-# Only what the service needs (no tests, benchmarks or local data); dependencies first so code
-# changes do not re-download them.
-COPY pyproject.toml README.md alembic.ini ./
+# Only what the service needs (no tests, benchmarks or local data). Dependencies first, from
+# pyproject.toml alone, so that a code change reuses their layer.
+COPY pyproject.toml ./
+RUN python -c "import tomllib; print(*tomllib.load(open('pyproject.toml', 'rb'))['project']['dependencies'], sep='\n')" > /tmp/requirements.txt \
+    && pip install --no-cache-dir -r /tmp/requirements.txt \
+    && rm -rf /root/.cache /tmp/requirements.txt
+COPY README.md alembic.ini ./
+COPY build_backend ./build_backend
 COPY migrations ./migrations
 COPY arena ./arena
+COPY agent_runtime ./agent_runtime
 COPY sim ./sim
 COPY scenarios ./scenarios
 COPY submissions ./submissions
@@ -28,10 +40,12 @@ COPY evaluator ./evaluator
 COPY server ./server
 COPY docs ./docs
 # Editable, so `arena admin db upgrade` finds alembic.ini and migrations/ next to the code.
-RUN pip install --no-cache-dir -e . && rm -rf /root/.cache
+RUN pip install --no-cache-dir --no-deps -e . && rm -rf /root/.cache
 
+# /var/lib/arena-api: the API's own scratch in docker-compose.yml (a volume starts with this
+# folder's owner).
 RUN useradd --system --uid 1000 --home-dir /srv/arena arena \
-    && mkdir -p /srv/arena && chown arena /srv/arena
+    && mkdir -p /srv/arena /var/lib/arena-api && chown arena /srv/arena /var/lib/arena-api
 VOLUME ["/srv/arena"]
 EXPOSE 8000
 

@@ -70,6 +70,11 @@ class Settings(BaseSettings):
     # Sandbox.
     sandbox: SandboxKind = SandboxKind.auto
     agent_image: str = "driving-arena-agent:latest"
+    # A folder at the same path for this process and for the Docker daemon, when the worker
+    # runs in a container and starts its agents beside it (docker-compose.yml): the agent
+    # runtime is copied there and the protocol sockets made there, since the daemon binds host
+    # paths. None: the worker runs on the daemon's host (the package and the temporary folder).
+    sandbox_shared_dir: Path | None = None
     # Debian mirror the offline agent image is bootstrapped from; empty: the host's apt sources.
     debian_mirror: str = ""
     init_timeout_s: float = 60.0
@@ -106,6 +111,11 @@ class Settings(BaseSettings):
     train_output_bytes: int = 512 * 1024**2
     # Pass the host's GPUs to the training container (Docker only; needs the NVIDIA toolkit).
     train_gpu: bool = False
+    # Snapshots of the output folder while train.py runs, in the artifact store: a training
+    # re-sent after its worker died resumes from the last (docs/dataset.md). Taken every this
+    # many seconds (0: never) when the folder changed and holds at most train_checkpoint_bytes.
+    train_checkpoint_interval_s: float = Field(default=60.0, ge=0)
+    train_checkpoint_bytes: int = 256 * 1024**2
 
     # Intake limits.
     max_zip_bytes: int = 100 * 1024**2

@@ -8,6 +8,7 @@ a unix socket in a per-agent folder mounted into it, so a step costs two socket 
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import os
 import select
 import shutil
@@ -18,7 +19,7 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
-from arena.config import SandboxKind, Settings
+from arena.config import SandboxKind, Settings, get_settings
 from arena.errors import SandboxUnavailable
 from evaluator.sandbox.backend import (
     DATASET_MOUNT,
@@ -51,8 +52,38 @@ SOCKET_DIR_PREFIX = "arena-agent-"
 ORPHAN_SOCKET_DIR_AGE_S = 60.0
 
 
-def socket_dir_for(instance: str) -> Path:
-    return Path(tempfile.gettempdir()) / f"{SOCKET_DIR_PREFIX}{instance}"
+def socket_dir_for(instance: str, settings: Settings | None = None) -> Path:
+    shared = (settings or get_settings()).sandbox_shared_dir
+    root = Path(tempfile.gettempdir()) if shared is None else shared
+    return root / f"{SOCKET_DIR_PREFIX}{instance}"
+
+
+def runtime_source(settings: Settings) -> Path:
+    """The agent runtime folder the daemon binds: the package itself, or, with
+    ``ARENA_SANDBOX_SHARED_DIR`` (a worker in a container), a copy of it there, one per content
+    (several workers and threads make it at once: each copies, then renames)."""
+    package = runtime_dir()
+    if settings.sandbox_shared_dir is None:
+        return package
+    digest = hashlib.sha256()
+    files = sorted(p for p in package.rglob("*.py") if "__pycache__" not in p.parts)
+    for path in files:
+        digest.update(str(path.relative_to(package)).encode() + b"\0" + path.read_bytes())
+    target = settings.sandbox_shared_dir / f"agent-runtime-{digest.hexdigest()[:16]}"
+    if not target.is_dir():
+        partial = Path(tempfile.mkdtemp(prefix=".agent-runtime-", dir=settings.sandbox_shared_dir))
+        for path in files:
+            (partial / path.relative_to(package)).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(path, partial / path.relative_to(package))
+        for folder in [partial, *(p for p in partial.rglob("*") if p.is_dir())]:
+            folder.chmod(0o755)
+        for path in partial.rglob("*.py"):
+            path.chmod(0o644)
+        try:
+            partial.rename(target)
+        except OSError:  # another process made it first
+            shutil.rmtree(partial, ignore_errors=True)
+    return target
 
 
 def remove_orphan_socket_dirs(live_instances: set[str]) -> None:
@@ -81,7 +112,7 @@ def container_options(spec: LaunchSpec, socket_dir: Path | None) -> dict[str, An
     settings = spec.settings
     volumes = {
         str(spec.submission): {"bind": SUBMISSION_MOUNT, "mode": "ro"},
-        str(runtime_dir()): {"bind": RUNTIME_MOUNT, "mode": "ro"},
+        str(runtime_source(settings)): {"bind": RUNTIME_MOUNT, "mode": "ro"},
     }
     if spec.deps:
         volumes[str(spec.deps)] = {"bind": DEPS_MOUNT, "mode": "ro"}
@@ -268,9 +299,10 @@ class DockerBackend:
             except docker.errors.DockerException as error:
                 raise SandboxUnavailable(f"cannot start the training container: {error}") from error
             return DockerSandbox(container, None, None, spec.settings.agent_log_tail_bytes)
-        socket_dir = socket_dir_for(spec.instance)
+        socket_dir = socket_dir_for(spec.instance, spec.settings)
         listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         try:
+            socket_dir.parent.mkdir(parents=True, exist_ok=True)
             socket_dir.mkdir(mode=0o700)
             path = socket_dir / SOCKET_NAME
             listener.bind(str(path))

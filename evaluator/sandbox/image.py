@@ -78,8 +78,14 @@ def image_exists(client, image: str) -> bool:
     return True
 
 
-def build_rootfs_tarball(target: Path, mirror: str, log: Callable[[str], None]) -> None:
-    """debootstrap a minimal root with python3 + numpy and write it as an uncompressed tar."""
+def build_rootfs_tarball(
+    target: Path,
+    mirror: str,
+    log: Callable[[str], None],
+    packages: tuple[str, ...] = PACKAGES,
+) -> None:
+    """debootstrap a minimal root with ``packages`` (the agent's: python3 + numpy) and write it
+    as an uncompressed tar."""
     if shutil.which("debootstrap") is None:
         raise SandboxUnavailable("debootstrap is not installed (apt-get install debootstrap)")
     target.parent.mkdir(parents=True, exist_ok=True)
@@ -89,7 +95,7 @@ def build_rootfs_tarball(target: Path, mirror: str, log: Callable[[str], None]) 
         command = [
             "debootstrap",
             "--variant=minbase",
-            f"--include={','.join(PACKAGES)}",
+            f"--include={','.join(packages)}",
             DEBIAN_SUITE,
             str(root),
             mirror,

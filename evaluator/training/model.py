@@ -58,9 +58,11 @@ def pack_model(folder: Path, archive: Path) -> str:
     with tarfile.open(fileobj=buffer, mode="w", format=tarfile.PAX_FORMAT) as tar:
         for path in regular_files(folder):
             info = tarfile.TarInfo(str(path.relative_to(folder)))
-            info.size = path.stat().st_size
             info.mode = 0o644
+            # The size of the file opened, not of the path: a checkpoint snapshot packs a folder
+            # whose files training may replace meanwhile (evaluator/training/checkpoint.py).
             with path.open("rb") as handle:
+                info.size = os.fstat(handle.fileno()).st_size
                 tar.addfile(info, handle)
     archive.parent.mkdir(parents=True, exist_ok=True)
     # No name and no time in the gzip header: the same files give the same bytes.

@@ -9,7 +9,6 @@ time and the log tail, and how it stops a run (its worker is shutting down, its 
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -19,12 +18,11 @@ from pathlib import Path
 from arena.config import SandboxKind, Settings, get_settings
 from arena.errors import DatasetError, IntakeError
 from evaluator.sandbox.backend import TRAIN_SCRIPT, ExitStatus
+from evaluator.training.checkpoint import hand_to_sandbox_user, restore
 from evaluator.training.model import output_bytes, regular_files
 
 # How often the run is looked at (exit, budget, output size) [s].
 POLL_S = 0.25
-# The sandbox user owns the output folder it writes (Docker and bubblewrap run as nobody).
-SANDBOX_UID = 65534
 
 
 class TrainFailure(StrEnum):
@@ -65,8 +63,11 @@ def train(
     settings: Settings | None = None,
     on_progress: Progress | None = None,
     progress_every_s: float = 2.0,
+    resume_from: Path | None = None,
 ) -> TrainingResult:
-    """Run ``submission``'s (a PreparedSubmission) ``train.py`` into the empty folder ``output``.
+    """Run ``submission``'s (a PreparedSubmission) ``train.py`` into the empty folder ``output``,
+    which first receives the snapshot ``resume_from`` (:mod:`evaluator.training.checkpoint`)
+    when the training resumes.
 
     ``on_progress(elapsed_s, log_tail)`` is called every ``progress_every_s``; returning False
     kills the run and raises :class:`TrainingStopped`. Raises
@@ -84,6 +85,8 @@ def train(
             "build --out DIR`)"
         )
     _writable_output(Path(output))
+    if resume_from is not None:
+        restore(resume_from, Path(output))
     cap = settings.train_output_bytes
     started = time.monotonic()
     box = sandbox.start_training(
@@ -125,10 +128,7 @@ def _writable_output(output: Path) -> None:
     output.mkdir(parents=True, exist_ok=True)
     if any(output.iterdir()):
         raise DatasetError(f"the output folder {output} is not empty")
-    if os.geteuid() == 0:
-        os.chown(output, SANDBOX_UID, SANDBOX_UID)
-    else:
-        output.chmod(0o777)  # the sandbox user is not us
+    hand_to_sandbox_user(output)
 
 
 def _ended(box, output: Path, started: float, failure: TrainFailure, detail: str):

@@ -50,6 +50,7 @@ from server.core.celery_app import (
 from server.core.db import get_database
 from server.core.queue import BROKER_ERRORS, TaskQueue
 from server.services import adaptive, evaluation, training
+from server.worker import checkpoints
 
 log = logging.getLogger(__name__)
 
@@ -145,6 +146,7 @@ def train_submission(self, *, training_id: int) -> None:
     tail = _tail(result.log)
     if not result.ok:
         shutil.rmtree(_training_output(claim).parent, ignore_errors=True)
+        checkpoints.discard(_store(), claim.training_id, claim.claim)
         with get_database().session() as session:
             training.record_failed(
                 session,
@@ -157,6 +159,7 @@ def train_submission(self, *, training_id: int) -> None:
             )
         return
     key, sha256, size = _store_model(claim)
+    checkpoints.discard(_store(), claim.training_id, claim.claim)
     with get_database().session() as session:
         plan = training.record_trained(
             session,
@@ -187,6 +190,10 @@ def run_scenario(self, *, run_id: int, scenario_id: str, episode: int = 0) -> No
         job = evaluation.claim_scenario(session, settings, run_id, scenario_id, me, episode)
     if job is None:
         return
+    # Which worker ran what (claim > 1: an earlier claim's worker died or handed it back).
+    log.info(
+        "run %s: episode %d of %s claimed (claim %d)", run_id, episode, scenario_id, job.attempt
+    )
     if job.attempt > MAX_SCENARIO_ATTEMPTS:
         # Every worker that took this scenario died with it (or was killed): stop handing it out.
         outcome = _our_failure(job, "worker_lost", f"{job.attempt - 1} workers died running it")
@@ -244,18 +251,25 @@ def _train(claim: training.TrainingClaim, worker: str):
         raise DatasetError("the service has no training dataset (ARENA_TRAIN_DATASET_DIR)")
     output = _training_output(claim)
     shutil.rmtree(output.parent, ignore_errors=True)  # an earlier claim's leftovers on this worker
+    saved = checkpoints.ClaimCheckpoints(
+        _store(), settings, claim.training_id, claim.claim, output, staging=output.parent
+    )
+    resume_from = saved.latest()
 
     def progress(elapsed_s: float, log_text: str) -> bool:
         if _shutting_down.is_set():
             return False
         try:
             with get_database().session() as session:
-                return training.heartbeat(
+                alive = training.heartbeat(
                     session, settings, claim, worker, elapsed_s, _tail(log_text)
                 )
         except SQLAlchemyError as exc:
             log.warning("training heartbeat of %s failed: %s", claim.training_id, exc)
             return True
+        if alive:  # only the live claim saves
+            saved.save_if_due()
+        return alive
 
     return train(
         _prepared(claim.upload_key),
@@ -266,6 +280,7 @@ def _train(claim: training.TrainingClaim, worker: str):
         settings=settings,
         on_progress=progress,
         progress_every_s=min(max(settings.lease_seconds / 3, 0.5), 5.0),
+        resume_from=resume_from,
     )
 
 
@@ -288,6 +303,7 @@ def _training_failed(
 ) -> None:
     with get_database().session() as session:
         training.record_failed(session, claim, worker, failure=failure, error=error, ours=ours)
+    checkpoints.discard(_store(), claim.training_id, claim.claim)
 
 
 def _hand_back_training(claim: training.TrainingClaim, worker: str) -> None:

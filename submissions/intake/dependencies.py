@@ -116,12 +116,18 @@ def install_requirements(text: str, settings: Settings) -> Path | None:
         )
         (installed / COMPLETE_MARKER).write_text("\n".join(requirements) + "\n")
         make_read_only(installed)
+        # Moving a folder to another parent rewrites its "..": it stays writable until then
+        # (root does not care; an unprivileged intake, such as the API's in docker-compose.yml,
+        # is refused otherwise).
+        installed.chmod(0o755)
         try:
             installed.rename(target)
         except OSError:
             # Another intake finished the same requirements first; theirs is as good as ours.
             if not (target / COMPLETE_MARKER).is_file():
                 raise
+        else:
+            target.chmod(0o555)
     return target
 
 

@@ -5,8 +5,10 @@ lane controller (``LaneWithContinuousSpeed``): cloning the lateral part of the a
 the road in every public scenario (errors compound where the replays never went).
 
 Reads ``$ARENA_DATASET_DIR/transitions.npz`` and writes ``$ARENA_MODEL_DIR/weights.npz``. A
-checkpoint after every epoch (``checkpoint.npz``) lets a run that was cut short resume where it
-stopped when it finds one in the output folder.
+checkpoint after every epoch (``checkpoint.npz``: weights and optimiser state) lets a run that was
+cut short resume where it stopped: the service saves ``ARENA_MODEL_DIR`` while training runs and a
+training re-sent after its worker died starts with the last save in it (docs/dataset.md). The
+checkpoint is written under another name and renamed, so a save never holds half of one.
 """
 
 import itertools
@@ -52,6 +54,12 @@ def gradients(params, cache, error):
     return grads
 
 
+def save_atomically(path, **arrays):
+    partial = path.with_name(f".{path.stem}.partial.npz")
+    np.savez(partial, **arrays)
+    os.replace(partial, path)
+
+
 def main():
     data = np.load(Path(os.environ["ARENA_DATASET_DIR"]) / "transitions.npz")
     out = Path(os.environ["ARENA_MODEL_DIR"])
@@ -69,6 +77,7 @@ def main():
     if checkpoint.exists():
         saved = np.load(checkpoint)
         params = {k: saved[k] for k in params}
+        moments = {k: (saved[f"m_{k}"], saved[f"v_{k}"]) for k in params}
         first_epoch, step = int(saved["epoch"]) + 1, int(saved["step"])
         print(f"resuming after epoch {first_epoch}", flush=True)
     started = time.monotonic()
@@ -90,7 +99,9 @@ def main():
             f"epoch {epoch + 1}/{EPOCHS} loss {loss:.4f} ({time.monotonic() - started:.0f} s)",
             flush=True,
         )
-        np.savez(checkpoint, epoch=epoch, step=step, **params)
+        optimiser = {f"m_{k}": m for k, (m, _) in moments.items()}
+        optimiser |= {f"v_{k}": v for k, (_, v) in moments.items()}
+        save_atomically(checkpoint, epoch=epoch, step=step, **params, **optimiser)
     np.savez(out / "weights.npz", x_mean=x_mean, x_std=x_std, y_mean=y_mean, y_std=y_std, **params)
     checkpoint.unlink(missing_ok=True)
     print("saved weights.npz", flush=True)

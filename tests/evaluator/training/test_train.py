@@ -12,6 +12,7 @@ import pytest
 from arena.config import SandboxKind, Settings
 from arena.errors import DatasetError
 from evaluator.training import TrainFailure, TrainingStopped, pack_model, train, unpack_model
+from evaluator.training.checkpoint import CheckpointWatch, SnapshotFailed, restore
 from submissions.intake import prepare_submission
 from tests.evaluator.sandbox.agents import policy_source
 from tests.evaluator.sandbox.conftest import ALL_KINDS, ISOLATING, usable
@@ -177,3 +178,53 @@ def test_arena_train_keeps_train_py_output_on_success(tmp_path, dataset):
     assert "rows 50" in (tmp_path / "model.train.log").read_text()
     assert not (out / "model.train.log").exists()
     assert "model.train.log" in result.output.replace("\n", "")
+
+
+# Resumes from what it finds in its output folder: rewrites one restored file, removes another.
+RESUMING = """
+import os, pathlib
+out = pathlib.Path(os.environ["ARENA_MODEL_DIR"])
+step_file = out / "ckpt" / "step.txt"
+step = int(step_file.read_text()) if step_file.exists() else 0
+print("resumed at", step, flush=True)
+step_file.write_text(str(step + 1))
+(out / "old.bin").unlink()
+(out / "weights.txt").write_text(f"trained from step {step}")
+"""
+
+
+def test_a_resumed_training_finds_the_snapshot_and_may_rewrite_it(
+    tmp_path, settings, dataset, any_kind
+):
+    earlier = tmp_path / "earlier"
+    (earlier / "ckpt").mkdir(parents=True)
+    (earlier / "ckpt" / "step.txt").write_text("41")
+    (earlier / "old.bin").write_bytes(b"x")
+    snapshot = tmp_path / "snapshot.tar.gz"
+    assert CheckpointWatch(earlier, interval_s=1, max_bytes=1024).snapshot(snapshot)
+    result, out = run(tmp_path, settings, dataset, any_kind, RESUMING, resume_from=snapshot)
+    assert result.ok, result
+    assert "resumed at 41" in result.log
+    assert (out / "ckpt" / "step.txt").read_text() == "42"
+    assert not (out / "old.bin").exists()
+
+
+def test_a_snapshot_is_taken_of_a_changed_folder_within_its_cap(tmp_path):
+    folder = tmp_path / "out"
+    folder.mkdir()
+    archive = tmp_path / "snapshot.tar.gz"
+    watch = CheckpointWatch(folder, interval_s=60, max_bytes=100)
+    assert not watch.due()  # not before its interval
+    assert not watch.snapshot(archive)  # nothing to save yet
+    (folder / "checkpoint.npz").write_bytes(b"epoch 1")
+    assert watch.snapshot(archive)
+    assert not watch.snapshot(tmp_path / "same.tar.gz") and not (tmp_path / "same.tar.gz").exists()
+    (folder / "checkpoint.npz").write_bytes(b"epoch 2, longer")
+    assert watch.snapshot(archive)
+    assert (restore(archive, tmp_path / "back") / "checkpoint.npz").read_bytes() == (
+        b"epoch 2, longer"
+    )
+    (folder / "checkpoint.npz").write_bytes(b"x" * 101)
+    with pytest.raises(SnapshotFailed, match="past the checkpoint cap of 100"):
+        watch.snapshot(tmp_path / "big.tar.gz")
+    assert not CheckpointWatch(folder, interval_s=0, max_bytes=100).due()  # 0: never

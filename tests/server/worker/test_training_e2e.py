@@ -1,7 +1,7 @@
 """Track 2 end to end with real processes: an offline submission uploaded over HTTP trains in
 the bubblewrap sandbox on a dataset of real replays, is evaluated with its trained output and
 ranked on the offline leaderboard; a training past its budget fails with its name; a worker
-killed while training loses nothing."""
+killed while training loses nothing: the training resumes from its last checkpoint."""
 
 from __future__ import annotations
 
@@ -19,9 +19,11 @@ from sqlalchemy import select
 
 from arena.config import Settings
 from arena.suite import SHIPPED_PUBLIC_DIR
+from server.core.artifacts import artifact_store
 from server.core.db import Database
 from server.core.migrate import upgrade_database
 from server.models import EvaluationRun, TrainingJob
+from server.worker.checkpoints import checkpoint_key
 from submissions.intake import pack_folder
 from tests.server.builders import EXAMPLES, bearer, make_team
 from tests.server.conftest import ADMIN_TOKEN, REDIS_URL, _create_pg_database, _drop_pg_database
@@ -77,6 +79,7 @@ def stack_settings(suite, dataset, broker_prefix):
         sandbox="bubblewrap",
         train_dataset_dir=dataset,
         train_timeout_s=25,
+        train_checkpoint_interval_s=1,
         lease_seconds=8,
         reaper_interval_s=2,
         daily_quota=10,
@@ -172,20 +175,47 @@ def test_offline_submission_trains_then_is_evaluated_and_ranked(stack_settings, 
     db.dispose()
 
 
-def test_a_worker_killed_while_training_loses_nothing(stack_settings, tmp_path):
+# The offline_bc example with an epoch that takes a quarter of a second (60 epochs: 15 s), so
+# that its worker can be killed mid-training.
+SLOW_EPOCHS = """\
+import runpy, time
+import numpy as np
+
+savez = np.savez
+
+
+def slow_savez(*args, **kwargs):
+    time.sleep(0.25)
+    savez(*args, **kwargs)
+
+
+np.savez = slow_savez
+runpy.run_path("bc_train.py", run_name="__main__")
+"""
+
+
+def test_a_worker_killed_while_training_resumes_from_its_last_checkpoint(stack_settings, tmp_path):
     db = Database(stack_settings.database_url)
+    store = artifact_store(stack_settings, db)
     _, token = make_team(db, "bc-team")
-    sleepy = "import runpy, time\ntime.sleep(6)\nrunpy.run_path('bc_train.py', run_name='__main__')"
     worker = start_worker(stack_settings, tmp_path / "worker1.log", concurrency=1)
     try:
         with api_server(stack_settings, tmp_path / "api.log") as (url, _):
-            sid = upload(url, token, offline_zip(tmp_path, sleepy), "sleepy bc")
+            sid = upload(url, token, offline_zip(tmp_path, SLOW_EPOCHS), "slow bc")
             wait_for_training(db, sid)
+            training_id = training_of(db, sid)
+            saved = checkpoint_key(training_id, claim=1)
+            wait_until(lambda: store.exists(saved), "no checkpoint was saved while training ran")
             stop(worker, signal.SIGKILL)
             worker = start_worker(stack_settings, tmp_path / "worker2.log", concurrency=1)
             body = wait_finished(url, token, sid, timeout_s=300)
             assert body["status"] == "scored", body
             assert body["training"]["status"] == "trained"
+            # The second claim's log: it started from the first one's checkpoint, not epoch 1.
+            log_tail = body["training"]["log_tail"]
+            resumed = [line for line in log_tail.splitlines() if line.startswith("resuming")]
+            assert resumed and int(resumed[0].split()[-1]) >= 1, log_tail
+            assert "epoch 1/" not in log_tail and "epoch 60/60" in log_tail
     finally:
         stop(worker)
     with db.session() as session:
@@ -193,7 +223,25 @@ def test_a_worker_killed_while_training_loses_nothing(stack_settings, tmp_path):
         assert [(j.attempt, j.claims, j.status) for j in jobs] == [(1, 2, "trained")]
         runs = session.scalars(select(EvaluationRun).where(EvaluationRun.submission_id == sid))
         assert len(runs.all()) == 1
+    # Once trained, its checkpoints are gone from the store: only the model stays.
+    assert not store.exists(saved) and not store.exists(checkpoint_key(training_id, claim=2))
     db.dispose()
+
+
+def training_of(db: Database, submission_id: int) -> int:
+    with db.session() as session:
+        return session.scalar(
+            select(TrainingJob.id).where(TrainingJob.submission_id == submission_id)
+        )
+
+
+def wait_until(condition, failure: str, timeout_s: float = 60) -> None:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if condition():
+            return
+        time.sleep(0.2)
+    raise AssertionError(failure)
 
 
 def wait_for_training(db: Database, submission_id: int, timeout_s: float = 60) -> None:
