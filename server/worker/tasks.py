@@ -50,6 +50,7 @@ from server.core.celery_app import (
 from server.core.db import get_database
 from server.core.queue import BROKER_ERRORS, TaskQueue
 from server.services import evaluation, training
+from server.services.storable import storable_text
 
 log = logging.getLogger(__name__)
 
@@ -363,8 +364,11 @@ def _log_tail(job: evaluation.ScenarioJob, outcome: ScenarioOutcome) -> str:
 
 
 def _tail(text: str) -> str:
+    """The last ``agent_log_tail_bytes`` of an agent's text, storable whatever it holds (lone
+    surrogates, NULs: a strict encode here crashed the task, an uncharged ``worker_lost``)."""
     tail_bytes = get_settings().agent_log_tail_bytes
-    return text.encode()[-tail_bytes:].decode("utf-8", "replace")
+    cut = text.encode("utf-8", "surrogatepass")[-tail_bytes:].decode("utf-8", "replace")
+    return storable_text(cut)
 
 
 _prepare_lock = threading.Lock()
