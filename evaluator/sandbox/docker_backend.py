@@ -114,7 +114,7 @@ def container_options(spec: LaunchSpec, socket_dir: Path | None) -> dict[str, An
         "nano_cpus": int(settings.agent_cpus * 1e9),
         "pids_limit": settings.agent_pids,
         "cap_drop": ["ALL"],
-        "security_opt": ["no-new-privileges"],
+        "security_opt": ["no-new-privileges", f"seccomp={spec.seccomp_profile()}"],
         "user": UNPRIVILEGED_USER,
         "ipc_mode": "none",
         "working_dir": SUBMISSION_MOUNT,
