@@ -233,6 +233,10 @@ class Backend(Protocol):
     def unavailable_reason(self, settings: Settings) -> str | None:
         """Why this backend cannot run here, or None when it can."""
 
+    def contract_gap(self, settings: Settings) -> str | None:
+        """Why it does not hold the sandbox contract here (docs/sandbox.md), so the service
+        refuses it, or None when it does (the one answer to what the service runs agents with)."""
+
     def launch(self, spec: LaunchSpec) -> Sandbox: ...
 
     def cleanup(self, labels: dict[str, str]) -> int:

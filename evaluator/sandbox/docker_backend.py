@@ -18,6 +18,7 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
+from agent_runtime import confine
 from arena.config import SandboxKind, Settings
 from arena.errors import SandboxUnavailable
 from evaluator.sandbox.backend import (
@@ -247,6 +248,11 @@ class DockerBackend:
         except docker.errors.ImageNotFound:
             return f"image {settings.agent_image} is missing (run `arena sandbox build-image`)"
         return None
+
+    def contract_gap(self, settings: Settings) -> str | None:
+        """A container holds every limit of the contract; only the filter needs a table for this
+        machine's architecture."""
+        return confine.supported()
 
     def launch(self, spec: LaunchSpec) -> DockerSandbox:
         import docker.errors
