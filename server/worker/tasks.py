@@ -15,13 +15,17 @@ stores the trained output and then fans out the evaluation of that output.
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
 import logging
 import os
+import pickle
 import shutil
 import socket
 import threading
 import time
 import traceback
+import uuid
 from contextlib import contextmanager
 from functools import lru_cache
 from pathlib import Path
@@ -316,8 +320,6 @@ def _our_failure(job: evaluation.ScenarioJob, reason: str, error: str) -> Scenar
 
 
 def _simulate(job: evaluation.ScenarioJob, run_key: str) -> ScenarioOutcome:
-    import dataclasses
-
     from evaluator.runner import run_scenario as run_one
 
     # This worker's own scratch folder, one per claim: an episode whose claim was superseded
@@ -372,6 +374,8 @@ def _tail(text: str) -> str:
 
 
 _prepare_lock = threading.Lock()
+# Beside each prepared submission: its PreparedSubmission, pickled.
+PREPARED_DESCRIPTION = "prepared.pickle"
 
 
 def _prepared(upload_key: str):
@@ -383,12 +387,41 @@ def _prepared(upload_key: str):
 @lru_cache(maxsize=4)
 def _prepare(upload_key: str):
     """The submission ready to run, prepared once per worker process from the zip in the
-    artifact store: a worker on another machine needs nothing but the database and broker."""
+    artifact store: a worker on another machine needs nothing but the database and broker.
+
+    Into a folder named after the zip's digest, made whole in a staging folder then renamed,
+    and never changed again: a warm agent binds it (its pool is keyed by that digest), so one
+    prepared again after this cache dropped it finds the same folder (the description beside it)
+    instead of deleting files under a live sandbox."""
     from submissions.intake import prepare_submission
 
-    folder = _scratch() / "submissions" / Path(upload_key).parent.name
-    zip_path = _store().fetch(upload_key, folder / "upload.zip")
-    return prepare_submission(zip_path, folder / "prepared", get_settings())
+    root = _scratch() / "submissions"
+    staging = root / f"staging-{uuid.uuid4().hex}"
+    try:
+        zip_path = _store().fetch(upload_key, staging / "upload.zip")
+        final = root / _file_sha256(zip_path)
+        described = final / PREPARED_DESCRIPTION
+        if not described.is_file():
+            prepared = prepare_submission(zip_path, staging / "prepared", get_settings())
+            (staging / PREPARED_DESCRIPTION).write_bytes(pickle.dumps(prepared))
+            try:
+                staging.rename(final)
+            except OSError:  # another thread of this process got there first: same content
+                if not described.is_file():
+                    raise
+        # Written by this process into its own scratch folder, which no sandbox can write.
+        prepared = pickle.loads(described.read_bytes())
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return dataclasses.replace(prepared, root=final / "prepared")
+
+
+def _file_sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as file:
+        while chunk := file.read(1 << 20):
+            digest.update(chunk)
+    return digest.hexdigest()
 
 
 def _model(model_key: str) -> Path:
@@ -399,13 +432,21 @@ def _model(model_key: str) -> Path:
 
 @lru_cache(maxsize=4)
 def _unpacked_model(model_key: str) -> Path:
-    import hashlib
-
+    """Unpacked once into a folder of its own, never changed again (as :func:`_prepare`)."""
     from evaluator.training import unpack_model
 
     folder = _scratch() / "models" / hashlib.sha256(model_key.encode()).hexdigest()[:16]
-    archive = _store().fetch(model_key, folder / "model.tar.gz")
-    return unpack_model(archive, folder / "model")
+    if (folder / "model").is_dir():
+        return folder / "model"
+    staging = folder.with_name(f"staging-{uuid.uuid4().hex}")
+    try:
+        archive = _store().fetch(model_key, staging / "model.tar.gz")
+        unpack_model(archive, staging / "model")
+        (staging / "model.tar.gz").unlink()
+        staging.rename(folder)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return folder / "model"
 
 
 @lru_cache(maxsize=1)
