@@ -126,6 +126,53 @@ def test_many_small_files_past_the_cap_are_stopped(tmp_path, settings, dataset, 
     assert result.elapsed_s < 15  # stopped while running, not at the budget
 
 
+@pytest.mark.parametrize(
+    ("script", "said"),
+    [
+        (  # 200,000 empty files passed the byte cap, and walking them starved the heartbeat
+            """
+            import os, time
+            out = os.environ['ARENA_MODEL_DIR']
+            for i in range(200_000):
+                open(f"{out}/{i}", "wb").close()
+            time.sleep(30)
+            """,
+            "more than",
+        ),
+        (
+            """
+            import os, time
+            path = os.environ['ARENA_MODEL_DIR']
+            for i in range(40):
+                path += '/d'
+                os.mkdir(path)
+            time.sleep(30)
+            """,
+            "nested deeper",
+        ),
+    ],
+    ids=["many empty files", "deep folders"],
+)
+def test_output_is_capped_in_entries_and_depth_without_delaying_progress(
+    tmp_path, settings, dataset, kind, script, said
+):
+    beats: list[float] = []
+
+    def progress(elapsed: float, log: str) -> bool:
+        beats.append(elapsed)
+        return True
+
+    few = settings.model_copy(update={"train_output_files": 1000, "train_output_depth": 8})
+    result, _ = run(
+        tmp_path, few, dataset, kind, script, on_progress=progress, progress_every_s=0.5
+    )
+    assert result.failure is TrainFailure.train_output_too_large, result
+    assert said in result.detail
+    assert result.elapsed_s < 15  # stopped while running, not at the budget
+    gaps = [later - earlier for earlier, later in zip(beats, beats[1:], strict=False)]
+    assert not gaps or max(gaps) < 2.0, gaps  # the progress report kept its rhythm
+
+
 def test_the_caller_can_stop_a_run(tmp_path, settings, dataset, kind):
     seen = []
 
