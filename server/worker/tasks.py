@@ -42,6 +42,7 @@ from sqlalchemy.exc import SQLAlchemyError
 
 from arena.config import get_settings
 from arena.errors import DatasetError, InfrastructureError
+from arena.suite import hidden_suite_dir
 from evaluator.runner.scenario import ScenarioOutcome
 from server.core.artifacts import ArtifactStore, artifact_store
 from server.core.celery_app import (
@@ -52,6 +53,7 @@ from server.core.celery_app import (
     TASK_TRAIN,
 )
 from server.core.db import get_database
+from server.core.permissions import close_service_folders
 from server.core.queue import BROKER_ERRORS, TaskQueue
 from server.services import evaluation, training
 from server.services.storable import storable_text
@@ -553,6 +555,13 @@ _shutting_down = threading.Event()
 @worker_shutting_down.connect
 def _hand_back_running_scenarios(**_: Any) -> None:
     _shutting_down.set()
+
+
+@worker_ready.connect
+def _close_service_folders(**_: Any) -> None:
+    """The data folder and the hidden suite, closed to the agents' uid (server.core.permissions)."""
+    settings = get_settings()
+    close_service_folders(settings.resolved_data_dir, hidden_suite_dir(settings))
 
 
 @worker_ready.connect
