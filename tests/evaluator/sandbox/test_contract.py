@@ -16,15 +16,29 @@ from arena.errors import AgentFailed
 from evaluator.sandbox import check_service_kind, start
 from tests.evaluator.sandbox.agents import agent, observation
 from tests.evaluator.sandbox.conftest import assert_clean_and_healthy
+from tests.evaluator.sandbox.test_warm import episode, zygote
 
 MiB = 1024**2
 
 
-def answer(kind, settings, labels, tmp, act: str, init: str = "pass") -> list[float]:
+def answer(
+    kind, settings, labels, tmp, act: str, init: str = "pass", warm: bool = False
+) -> list[float]:
+    """The agent's first action: in a sandbox of its own, or (``warm``) forked in a warm one
+    for its second episode (the first ran the same code, so nothing is new to the sandbox)."""
     submission = agent(tmp, settings, act=act, init=init)
     settings = settings.model_copy(update={"step_timeout_s": max(settings.step_timeout_s, 5.0)})
+    if warm:
+        with zygote(submission, kind, settings, labels) as parent:
+            episode(parent, settings)
+            return episode(parent, settings)[0]["Agent_0"]
     with start(submission, kind=kind, labels=labels, settings=settings) as handle:
         return handle.act(observation())["Agent_0"]
+
+
+@pytest.fixture(params=[False, True], ids=["cold", "warm"])
+def warm(request) -> bool:
+    return request.param
 
 
 def test_every_isolating_backend_here_is_one_the_service_accepts(kind, settings) -> None:
@@ -33,7 +47,9 @@ def test_every_isolating_backend_here_is_one_the_service_accepts(kind, settings)
     assert check_service_kind(kind, settings) is kind
 
 
-def test_memory_is_capped_for_all_processes_together(kind, settings, labels, tmp, good_agent):
+def test_memory_is_capped_for_all_processes_together(
+    kind, warm, settings, labels, tmp, good_agent
+):
     """Three children holding 300 MiB each against 512 MiB: not all three survive (under
     per-process RLIMIT_AS each child had the whole limit to itself)."""
     small = settings.model_copy(update={"agent_memory_bytes": 512 * MiB})
@@ -59,7 +75,7 @@ def test_memory_is_capped_for_all_processes_together(kind, settings, labels, tmp
     return {k: [float(holding), float(alive)] for k in obs}
     """
     try:
-        holding, alive = answer(kind, small, labels, tmp, act)
+        holding, alive = answer(kind, small, labels, tmp, act, warm=warm)
     except AgentFailed as failure:  # the OOM killer may pick the agent itself
         assert failure.reason.value in ("memory_limit", "agent_exited"), failure
     else:
@@ -123,7 +139,7 @@ def test_cpu_share_is_capped_for_the_whole_sandbox(kind, settings, labels, tmp) 
     assert cpu_s <= settings.agent_cpus * wall_s * 1.15 + 0.2, (cpu_s, wall_s)
 
 
-def test_dev_is_not_writable_and_shm_is_bounded(kind, settings, labels, tmp) -> None:
+def test_dev_is_not_writable_and_shm_is_bounded(kind, warm, settings, labels, tmp) -> None:
     """/dev was a writable tmpfs with no size limit under bubblewrap (2.5 GiB of host RAM)."""
     act = """
     try:
@@ -143,7 +159,7 @@ def test_dev_is_not_writable_and_shm_is_bounded(kind, settings, labels, tmp) -> 
             pass
     return {k: [dev, float(written)] for k in obs}
     """
-    dev, written_mib = answer(kind, settings, labels, tmp, act)
+    dev, written_mib = answer(kind, settings, labels, tmp, act, warm=warm)
     assert dev == 0.0
     assert written_mib * MiB <= settings.agent_tmp_bytes
 
@@ -163,8 +179,8 @@ return {k: [keyring, keyctl, userns, mount, filtered] for k in obs}
 """
 
 
-def test_seccomp_refuses_keyrings_and_new_namespaces(kind, settings, labels, tmp) -> None:
-    assert answer(kind, settings, labels, tmp, SYSCALL_PROBE) == [1.0] * 5
+def test_seccomp_refuses_keyrings_and_new_namespaces(kind, warm, settings, labels, tmp) -> None:
+    assert answer(kind, settings, labels, tmp, SYSCALL_PROBE, warm=warm) == [1.0] * 5
 
 
 def test_a_sandbox_too_big_to_start_is_the_agents(kind, settings, labels, tmp) -> None:
