@@ -33,8 +33,8 @@ def run_episode(
     step limit; write the record to ``record_path`` (always, even with no rows).
 
     Calls ``agent.reset()`` first and never ``agent.close()`` (the caller owns the agent). An
-    :class:`AgentFailed` (from ``reset`` or ``act``) ends every still-live agent with its reason; :class:`SomeAgentsFailed`
-    ends the agents it names with ``agent_error`` and the rest drive on; a bad action ends only its
+    :class:`AgentFailed` (from ``reset`` or ``act``) ends every still-live agent with its reason;
+    :class:`SomeAgentsFailed` ends the agents it names with ``agent_error`` and the rest drive on; a bad action ends only its
     agent (``invalid_action``); passing ``wall_timeout_s`` ends the rest with
     ``episode_timeout``. ``inputs`` are the scenario's files already parsed (:mod:`sim.inputs`).
     SUMO errors propagate (the isolated runner turns them into ``simulator_error``).
@@ -88,7 +88,7 @@ def run_episode(
 
 def _reset_agent(agent: Agent, sim: Simulation) -> str:
     """Reset the agent; a failure of its own (raising, timing out, exiting) ends every mission
-    with its reason, as in ``act``: the agent's, so charged. Why it failed, or "" when it did not."""
+    with its reason, as in ``act``: the agent's, so charged. Why it failed, or "" if it did not."""
     try:
         agent.reset()
     except SomeAgentsFailed as exc:  # a reset has no actions to keep: all of them failed

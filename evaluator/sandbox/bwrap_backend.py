@@ -27,6 +27,7 @@ from pathlib import Path
 from agent_runtime import confine
 from arena.config import SandboxKind, Settings
 from arena.errors import SandboxUnavailable
+from evaluator.sandbox import cgroup
 from evaluator.sandbox.backend import (
     DATASET_MOUNT,
     DEPS_MOUNT,
@@ -36,7 +37,6 @@ from evaluator.sandbox.backend import (
     LaunchSpec,
     runtime_dir,
 )
-from evaluator.sandbox import cgroup
 from evaluator.sandbox.subprocess_sandbox import (
     LABELS_ENV,
     PopenSandbox,
@@ -182,7 +182,9 @@ class BubblewrapBackend:
         if not isinstance(found, cgroup.Hierarchy):
             return None
         settings = spec.settings
-        limits = cgroup.Limits(settings.agent_memory_bytes, settings.agent_pids, settings.agent_cpus)
+        limits = cgroup.Limits(
+            settings.agent_memory_bytes, settings.agent_pids, settings.agent_cpus
+        )
         return cgroup.SandboxGroup.create(found, cgroup.GROUP_PREFIX + spec.instance, limits)
 
     @staticmethod

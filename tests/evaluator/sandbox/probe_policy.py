@@ -5,6 +5,7 @@ Each ``act`` answers one number per kind of state: 1.0 where a mark is found. Th
 episode looks before marking, the second after, so the test knows every probe can see a mark.
 """
 
+import contextlib
 import ctypes
 import os
 import socket
@@ -106,10 +107,8 @@ def look():
 
 
 def attempt(action):
-    try:
+    with contextlib.suppress(OSError):
         action()
-    except OSError:
-        pass
 
 
 def write(path, text="x"):
@@ -134,7 +133,7 @@ def leave_marks():
     os.environ["ARENA_MARK"] = "1"
     attempt(lambda: socket.sethostname("arena-mark"))
     ballast = bytearray(BALLAST_BYTES)
-    ballast[:: 4096] = b"x" * len(ballast[:: 4096])
+    ballast[::4096] = b"x" * len(ballast[::4096])
     del ballast
     if os.fork() == 0:  # a process that outlives the episode, holding an abstract socket
         os.setsid()

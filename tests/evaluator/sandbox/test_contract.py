@@ -47,9 +47,7 @@ def test_every_isolating_backend_here_is_one_the_service_accepts(kind, settings)
     assert check_service_kind(kind, settings) is kind
 
 
-def test_memory_is_capped_for_all_processes_together(
-    kind, warm, settings, labels, tmp, good_agent
-):
+def test_memory_is_capped_for_all_processes_together(kind, warm, settings, labels, tmp, good_agent):
     """Three children holding 300 MiB each against 512 MiB: not all three survive (under
     per-process RLIMIT_AS each child had the whole limit to itself)."""
     small = settings.model_copy(update={"agent_memory_bytes": 512 * MiB})

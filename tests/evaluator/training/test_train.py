@@ -3,6 +3,7 @@ good run whose output is packed and mounted read-only for its policy."""
 
 from __future__ import annotations
 
+import itertools
 import textwrap
 from pathlib import Path
 
@@ -169,7 +170,7 @@ def test_output_is_capped_in_entries_and_depth_without_delaying_progress(
     assert result.failure is TrainFailure.train_output_too_large, result
     assert said in result.detail
     assert result.elapsed_s < 15  # stopped while running, not at the budget
-    gaps = [later - earlier for earlier, later in zip(beats, beats[1:], strict=False)]
+    gaps = [later - earlier for earlier, later in itertools.pairwise(beats)]
     assert not gaps or max(gaps) < 2.0, gaps  # the progress report kept its rhythm
 
 

@@ -74,7 +74,9 @@ def test_agent_text_of_every_kind_is_recorded_and_the_run_aggregates(db, setting
                 error=text,
             )
             with db.session() as session:
-                evaluation.record_scenario(session, job, "w", outcome, _log_tail(job, outcome), None)
+                evaluation.record_scenario(
+                    session, job, "w", outcome, _log_tail(job, outcome), None
+                )
         with db.session() as session:
             evaluation.finish_run(session, DatabaseStore(db), plan.run_id)
             rows = session.scalars(
