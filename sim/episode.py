@@ -34,9 +34,10 @@ def run_episode(
 
     Calls ``agent.reset()`` first and never ``agent.close()`` (the caller owns the agent). An
     :class:`AgentFailed` (from ``reset`` or ``act``) ends every still-live agent with its reason;
-    :class:`SomeAgentsFailed` ends the agents it names with ``agent_error`` and the rest drive on; a bad action ends only its
-    agent (``invalid_action``); passing ``wall_timeout_s`` ends the rest with
-    ``episode_timeout``. ``inputs`` are the scenario's files already parsed (:mod:`sim.inputs`).
+    :class:`SomeAgentsFailed` ends the agents it names with ``agent_error`` and the rest drive on; a
+    bad action ends only its agent (``invalid_action``); passing ``wall_timeout_s`` ends the rest
+    with ``episode_timeout``. ``inputs`` are the scenario's files already parsed
+    (:mod:`sim.inputs`).
     SUMO errors propagate (the isolated runner turns them into ``simulator_error``).
     """
     started = time.monotonic()

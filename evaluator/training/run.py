@@ -3,8 +3,9 @@
 The sandbox is the evaluation's (same backend, memory and CPU limits, no network) with the dataset
 mounted read-only and the output folder writable. Here, on the host, the wall-time budget and the
 output's caps (bytes, entries, depth: a bounded walk) are watched while it runs, and its end is
-turned into a :class:`TrainingResult` whose ``failure`` is None or one named reason. ``on_progress`` is how a caller sees the elapsed
-time and the log tail, and how it stops a run (its worker is shutting down, its claim was lost).
+turned into a :class:`TrainingResult` whose ``failure`` is None or one named reason. ``on_progress``
+is how a caller sees the elapsed time and the log tail, and how it stops a run (its worker is
+shutting down, its claim was lost).
 """
 
 from __future__ import annotations
