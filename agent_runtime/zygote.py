@@ -48,6 +48,8 @@ FORK_FDS = 3  # protocol socket, lifeline, log
 PR_SET_DUMPABLE = 4
 # A child that could not make its episode new exits with this before any agent code runs.
 UNCONFINED_EXIT = 125
+PR_SET_NAME = 15
+HOLDER_NAME = b"arena-holder"  # the process keeping an episode's namespaces (hold_namespaces)
 
 
 class Zygote:
@@ -154,18 +156,21 @@ class Zygote:
         os.close(data)
         os.close(log)
         code = self.supervise(pid, lifeline)
-        try:
-            clean = self.reset_sandbox(pid) and code != UNCONFINED_EXIT
-        except Exception:
-            traceback.print_exc()
-            clean = False
-        if clean:  # before the exit status: the evaluator may fork again as soon as it has that
-            self.stream.send({"type": "ready"})
+        # The episode's end first: its namespaces are torn down with the holder, in
+        # reset_sandbox, while the evaluator already finishes the episode (it forks again only
+        # after "ready").
         status = {"type": "exited", "code": code, "oom": oom_kills() > oom_before}
         payload = json.dumps(status).encode()
         with contextlib.suppress(OSError):
             os.write(lifeline, len(payload).to_bytes(HEADER_SIZE, "big") + payload)
         os.close(lifeline)
+        try:
+            clean = self.reset_sandbox(pid) and code != UNCONFINED_EXIT
+        except Exception:
+            traceback.print_exc()
+            clean = False
+        if clean:
+            self.stream.send({"type": "ready"})
         return clean
 
     def child(self, data: int, lifeline: int, log: int) -> None:
@@ -186,6 +191,7 @@ class Zygote:
             if self.confine is not None:
                 try:
                     self.confine.fresh_episode(self.args.scratch_bytes)
+                    hold_namespaces()
                 except BaseException as error:
                     print(f"the sandbox could not make this episode new: {error!r}", flush=True)
                     code = UNCONFINED_EXIT
@@ -235,6 +241,26 @@ class Zygote:
         while reap(None) is not None:
             pass
         return True
+
+
+def hold_namespaces() -> None:
+    """Fork a process that only keeps the episode's namespaces alive, so that tearing them down
+    (several RCU grace periods: tens of ms on a busy host) happens when the parent kills it
+    after the episode, not when the agent exits while the evaluator waits for its end. It holds
+    no descriptor and runs nothing; an agent that kills it only brings the teardown back to its
+    own exit."""
+    if os.fork() != 0:
+        return
+    try:
+        os.closerange(0, os.sysconf("SC_OPEN_MAX"))
+        with contextlib.suppress(Exception):
+            import ctypes
+
+            ctypes.CDLL(None).prctl(PR_SET_NAME, HOLDER_NAME, 0, 0, 0)
+        while True:
+            signal.pause()
+    finally:
+        os._exit(0)
 
 
 def reap(pid: int | None) -> int | None:

@@ -98,15 +98,17 @@ class WarmAgents:
             warm.close()
 
     def _take(self, key: Key, submission, settings: Settings) -> WarmAgent | None:
-        with self._lock:
-            if key in self._cold:
-                return None
-            idle = self._idle.get(key, [])
-            while idle:
-                warm = idle.pop()
-                if warm.alive():
-                    return warm
-                warm.close()
+        while True:
+            with self._lock:
+                if key in self._cold:
+                    return None
+                idle = self._idle.get(key, [])
+                warm = idle.pop() if idle else None
+            if warm is None:
+                break
+            if warm.settled(KILL_WAIT_S):
+                return warm
+            warm.close()
         try:
             return WarmAgent.start(submission, key[2], settings, labels=self._labels)
         except SandboxUnavailable as error:
@@ -116,9 +118,9 @@ class WarmAgents:
             return None
 
     def _give_back(self, key: Key, warm: WarmAgent) -> None:
-        if not warm.wait_ready(KILL_WAIT_S):
-            warm.close()
-            return
+        """Back to the pool at once: the zygote ends the episode (kills what is left, tears down
+        its namespaces) while the evaluator goes on; the next lease waits for its ``ready``."""
+        warm.settling = True
         with self._lock:
             self._idle.setdefault(key, []).append(warm)
 

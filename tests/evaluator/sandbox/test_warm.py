@@ -30,7 +30,8 @@ global EPISODES
 EPISODES = globals().get('EPISODES', 0) + 1
 private = os.getppid() == 1  # the zygote is PID 1 of an isolating sandbox
 found_file = os.path.exists('/tmp/note') or os.path.exists('/tmp/locked')
-others = [p for p in os.listdir('/proc') if p.isdigit() and int(p) not in (1, os.getpid())]
+others = [p for p in os.listdir('/proc') if p.isdigit() and int(p) not in (1, os.getpid())
+          and open(f'/proc/{p}/comm').read().strip() != 'arena-holder']
 with open('/proc/sysvipc/shm') as table:
     segments = len(table.readlines()) - 1
 if private and EPISODES == 1:
