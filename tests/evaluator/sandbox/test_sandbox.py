@@ -5,6 +5,7 @@ from __future__ import annotations
 import base64
 import json
 import os
+import subprocess
 import shutil
 import time
 import uuid
@@ -239,3 +240,35 @@ def test_one_agents_exception_fails_that_agent_only(any_kind, settings, labels, 
         with pytest.raises(AgentFailed) as whole:
             handle.act({"Agent_1": two["Agent_1"]})
         assert whole.value.reason is DoneReason.agent_error
+
+
+def test_the_service_refuses_bubblewrap_that_cannot_cap_each_sandbox(settings) -> None:
+    """Where no control group per sandbox can be made (here: the cgroup hierarchies read-only in
+    a private mount namespace), bubblewrap would fall back to per-process rlimits; the service
+    refuses it and says why."""
+    usable(SandboxKind.bubblewrap, settings)
+    if os.geteuid() != 0:
+        pytest.skip("needs root to make a private mount namespace")
+    script = (
+        "from evaluator.sandbox import check_service_kind\n"
+        "from arena.errors import SandboxUnavailable\n"
+        "try:\n"
+        "    check_service_kind('bubblewrap')\n"
+        "    print('accepted')\n"
+        "except SandboxUnavailable as error:\n"
+        "    print(error)\n"
+    )
+    shell = (
+        "for m in $(awk '$3 ~ /^cgroup/ {print $2}' /proc/self/mounts); do "
+        "mount -o remount,ro,bind \"$m\"; done; exec python3 -c \"$0\""
+    )
+    done = subprocess.run(
+        ["unshare", "--mount", "--propagation", "private", "sh", "-c", shell, script],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "ARENA_DATA_DIR": str(settings.data_dir)},
+        timeout=120,
+    )
+    said = done.stdout.strip()
+    assert "cannot enforce per-sandbox limits" in said, (said, done.stderr[-2000:])
+    assert "cgroup" in said
