@@ -5,8 +5,8 @@ from __future__ import annotations
 import base64
 import json
 import os
-import subprocess
 import shutil
+import subprocess
 import time
 import uuid
 from pathlib import Path
