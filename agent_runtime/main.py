@@ -36,6 +36,7 @@ import traceback
 PROTOCOL_VERSION = 1
 COMPAT = "smarts_compat"  # observation converters, next to this file
 ZYGOTE = "zygote"  # the warm parent of --zygote, next to this file
+CONFINE = "confine"  # each warm episode's fresh namespaces and seccomp filter, next to this file
 HEADER = struct.Struct(">I")
 MAX_INCOMING_BYTES = 1 << 30
 # Formats the policy gets as the protocol delivers them; any other is converted (COMPAT).
@@ -441,6 +442,9 @@ def main() -> int:
     parser.add_argument("--action-space", default="TargetPose", help="agent.yaml's choice")
     parser.add_argument("--interface", help="agent.yaml's options as JSON (smarts2022)")
     parser.add_argument("--zygote", action="store_true", help="fork one agent per episode")
+    parser.add_argument(
+        "--scratch-bytes", type=int, default=64 << 20, help="each forked agent's /tmp, /dev/shm"
+    )
     args = parser.parse_args()
     started = time.perf_counter()
     stream = open_stream(args.socket)

@@ -10,14 +10,20 @@ and each episode's agent starts from the same state.
 For each ``fork`` request the control socket carries three descriptors (``SCM_RIGHTS``): the
 episode's protocol socket, its lifeline and its log. The child takes the protocol socket and the
 log (fds 1 and 2); the parent keeps the lifeline and, when it reads anything or the evaluator
-closes it, kills the child. After the child, the parent returns the sandbox to its starting state
-(every other process killed, ``/tmp`` and ``/dev/shm`` emptied, System V IPC objects removed),
-says ``{"type": "ready"}`` on the control socket, then writes ``{"type": "exited", "code": ...,
-"oom": ...}`` on the lifeline. That cleanup needs the parent to be the sandbox's PID 1 (Docker
-without ``--init``, ``bwrap --as-pid-1``), which also means that no signal from inside reaches it
-and that ``kill(-1)`` reaches everything else; under the unisolated ``process`` backend it only
-kills the child's process group. A sandbox it cannot bring back to that state (a file it cannot
-delete) is retired: the parent exits and the evaluator starts another.
+closes it, kills the child.
+
+Each episode starts in state made new for it, not in state cleaned up after the last one: in an
+isolating sandbox (the parent is its PID 1: Docker without ``--init``, ``bwrap --as-pid-1``) the
+child enters namespaces of its own and mounts its own ``/tmp``, ``/dev/shm`` and ``/dev/mqueue``
+(``confine.fresh_episode``), then installs the agents' seccomp filter, before any participant
+code. Whatever it writes vanishes with its last process, and after it the parent kills every
+process of the sandbox but itself (``kill(-1)`` from PID 1). The parent checks at start that a
+child can do this (else it refuses to serve and the evaluator runs the submission cold), says
+``{"type": "ready"}`` after each episode, then writes ``{"type": "exited", "code": ..., "oom":
+...}`` on the lifeline. Being PID 1 also means that no signal from inside reaches it. Under the
+unisolated ``process`` backend (a participant's local runs) it only kills the child's process
+group. A child that cannot make its episode new exits before any agent code with
+``UNCONFINED_EXIT`` and the parent retires: the evaluator starts another sandbox.
 """
 
 from __future__ import annotations
@@ -31,7 +37,6 @@ import json
 import os
 import pickle
 import select
-import shutil
 import signal
 import socket
 import sys
@@ -40,9 +45,11 @@ import traceback
 
 HEADER_SIZE = 4
 FORK_FDS = 3  # protocol socket, lifeline, log
-SCRATCH_DIRS = ("/tmp", "/dev/shm")
 PR_SET_DUMPABLE = 4
-IPC_RMID = 0
+# A child that could not make its episode new exits with this before any agent code runs.
+UNCONFINED_EXIT = 125
+PR_SET_NAME = 15
+HOLDER_NAME = b"arena-holder"  # the process keeping an episode's namespaces (hold_namespaces)
 
 
 class Zygote:
@@ -54,6 +61,7 @@ class Zygote:
         self.inbox = bytearray()
         self.fds: list[int] = []
         self.private = os.getpid() == 1  # its own pid namespace and /tmp: the sandbox is ours
+        self.confine = runner.sibling_module(runner.CONFINE) if self.private else None
 
     def serve(self) -> int:
         started = time.perf_counter()
@@ -76,6 +84,10 @@ class Zygote:
             if self.args.observation_format not in self.runner.PLAIN_FORMATS:
                 self.runner.sibling_module(self.runner.COMPAT)
             preload_runtime_modules(self.args)
+        unconfined = self.probe_fresh_episode()
+        if unconfined:
+            self.stream.send({"type": "error", "kind": "sandbox", "message": unconfined})
+            return 1
         # PID 1 ignores every signal it has no handler for, so only SIGCHLD (a wake-up) gets one;
         # Python's SIGINT handler would let a child end the parent with KeyboardInterrupt.
         signal.signal(signal.SIGINT, signal.SIG_DFL)
@@ -99,6 +111,28 @@ class Zygote:
                     os.close(fd)
                 if kind == "close":
                     return 0
+
+    def probe_fresh_episode(self) -> str | None:
+        """Why a child could not make its episode new here (tried in a child that runs nothing
+        else), or None when it can."""
+        if not self.private:
+            return None
+        sys.stderr.flush()
+        pid = os.fork()
+        if pid == 0:
+            code = 1
+            try:
+                self.confine.fresh_episode(self.args.scratch_bytes)
+                code = 0
+            except BaseException as error:
+                with contextlib.suppress(BaseException):
+                    print(f"confining an episode failed: {error!r}", file=sys.stderr, flush=True)
+            finally:
+                os._exit(code)
+        _, status = os.waitpid(pid, 0)
+        if os.waitstatus_to_exitcode(status) != 0:
+            return "a forked agent cannot get namespaces of its own in this sandbox (see its log)"
+        return None
 
     def receive(self) -> str:
         """The next control message's kind; descriptors that came with it land in ``self.fds``."""
@@ -126,18 +160,21 @@ class Zygote:
         os.close(data)
         os.close(log)
         code = self.supervise(pid, lifeline)
-        try:
-            clean = self.reset_sandbox(pid)
-        except Exception:
-            traceback.print_exc()
-            clean = False
-        if clean:  # before the exit status: the evaluator may fork again as soon as it has that
-            self.stream.send({"type": "ready"})
+        # The episode's end first: its namespaces are torn down with the holder, in
+        # reset_sandbox, while the evaluator already finishes the episode (it forks again only
+        # after "ready").
         status = {"type": "exited", "code": code, "oom": oom_kills() > oom_before}
         payload = json.dumps(status).encode()
         with contextlib.suppress(OSError):
             os.write(lifeline, len(payload).to_bytes(HEADER_SIZE, "big") + payload)
         os.close(lifeline)
+        try:
+            clean = self.reset_sandbox(pid) and code != UNCONFINED_EXIT
+        except Exception:
+            traceback.print_exc()
+            clean = False
+        if clean:
+            self.stream.send({"type": "ready"})
         return clean
 
     def child(self, data: int, lifeline: int, log: int) -> None:
@@ -155,10 +192,18 @@ class Zygote:
             os.dup2(log, 1)
             os.dup2(log, 2)
             os.close(log)
+            if self.confine is not None:
+                try:
+                    self.confine.fresh_episode(self.args.scratch_bytes)
+                    hold_namespaces()
+                except BaseException as error:
+                    print(f"the sandbox could not make this episode new: {error!r}", flush=True)
+                    code = UNCONFINED_EXIT
+                    raise
             stream = self.runner.Stream(data, data)
             code = self.runner.run_agent(stream, self.args, time.perf_counter())
         except BaseException:
-            code = 1
+            code = UNCONFINED_EXIT if code == UNCONFINED_EXIT else 1
         finally:
             with contextlib.suppress(BaseException):
                 sys.stderr.flush()
@@ -189,7 +234,8 @@ class Zygote:
                 return os.waitstatus_to_exitcode(status)
 
     def reset_sandbox(self, pid: int) -> bool:
-        """Bring the sandbox back to how the first episode found it; False if that failed."""
+        """End every process the episode left; False if that failed. Nothing else to undo: what
+        the agent could write lived in its own namespaces, gone with its last process."""
         if not self.private:
             with contextlib.suppress(ProcessLookupError, PermissionError):
                 os.killpg(pid, signal.SIGKILL)
@@ -198,8 +244,27 @@ class Zygote:
             os.kill(-1, signal.SIGKILL)  # from PID 1: every process of the sandbox but this one
         while reap(None) is not None:
             pass
-        clean = all(empty(folder) for folder in SCRATCH_DIRS)
-        return remove_ipc_objects() and clean
+        return True
+
+
+def hold_namespaces() -> None:
+    """Fork a process that only keeps the episode's namespaces alive, so that tearing them down
+    (several RCU grace periods: tens of ms on a busy host) happens when the parent kills it
+    after the episode, not when the agent exits while the evaluator waits for its end. It holds
+    no descriptor and runs nothing; an agent that kills it only brings the teardown back to its
+    own exit."""
+    if os.fork() != 0:
+        return
+    try:
+        os.closerange(0, os.sysconf("SC_OPEN_MAX"))
+        with contextlib.suppress(Exception):
+            import ctypes
+
+            ctypes.CDLL(None).prctl(PR_SET_NAME, HOLDER_NAME, 0, 0, 0)
+        while True:
+            signal.pause()
+    finally:
+        os._exit(0)
 
 
 def reap(pid: int | None) -> int | None:
@@ -221,62 +286,6 @@ def reap(pid: int | None) -> int | None:
             return code
         if ended == pid:
             code = os.waitstatus_to_exitcode(status)
-
-
-def empty(folder: str) -> bool:
-    """Delete what is in ``folder``; whether it is empty now."""
-    try:
-        entries = list(os.scandir(folder))
-    except OSError:
-        return True  # no such scratch folder in this sandbox
-    for entry in entries:
-        if entry.is_dir(follow_symlinks=False):
-            make_deletable(entry.path)
-            shutil.rmtree(entry.path, ignore_errors=True)
-        else:
-            with contextlib.suppress(OSError):
-                os.unlink(entry.path)
-    try:
-        return not os.listdir(folder)
-    except OSError:
-        return False
-
-
-def make_deletable(top: str) -> None:
-    """Give back the permissions the agent took from its own folders (same user: we may)."""
-    pending = [top]
-    while pending:
-        path = pending.pop()
-        with contextlib.suppress(OSError):
-            os.chmod(path, 0o700)
-            pending += [e.path for e in os.scandir(path) if e.is_dir(follow_symlinks=False)]
-
-
-def remove_ipc_objects() -> bool:
-    """Remove the System V shared memory, queues and semaphores the agent left; whether every
-    one is gone. They outlive processes, and /tmp is not the only place to leave a note."""
-    left = 0
-    for table in ("shm", "msg", "sem"):
-        try:
-            with open(f"/proc/sysvipc/{table}") as listing:
-                ids = [int(line.split()[1]) for line in listing.readlines()[1:] if line.strip()]
-        except OSError:
-            continue
-        if not ids:
-            continue
-        try:
-            import ctypes
-
-            libc = ctypes.CDLL(None, use_errno=True)
-        except (ImportError, OSError):
-            return False
-        for ident in ids:
-            if table == "sem":
-                failed = libc.semctl(ident, 0, IPC_RMID) != 0
-            else:
-                failed = getattr(libc, f"{table}ctl")(ident, IPC_RMID, None) != 0
-            left += failed
-    return left == 0
 
 
 def oom_kills() -> int:

@@ -109,6 +109,10 @@ class Settings(BaseSettings):
     train_dataset_dir: Path | None = None
     train_timeout_s: float = 1800.0
     train_output_bytes: int = 512 * 1024**2
+    # And in entries (files, folders, links) and folder depth: 200,000 empty files passed the
+    # byte cap, and walking them starved the lease heartbeat.
+    train_output_files: int = 10_000
+    train_output_depth: int = 16
     # Pass the host's GPUs to the training container (Docker only; needs the NVIDIA toolkit).
     train_gpu: bool = False
     # Snapshots of the output folder while train.py runs, in the artifact store: a training

@@ -25,6 +25,7 @@ from rich.console import Console
 from rich.panel import Panel
 
 from arena.config import Settings, get_settings
+from server.core.permissions import close_service_folders
 
 ARENA = [sys.executable, "-c", "from arena.cli import app; app()"]
 
@@ -51,7 +52,10 @@ def run_embedded(console: Console, *, host: str, port: int, demo_team: str) -> N
     upgrade_database(settings.resolved_database_url)
 
     env["ARENA_PUBLIC_SUITE_DIR"] = str(_public_suite(console, settings, env))
-    env["ARENA_HIDDEN_SUITE_DIR"] = str(_hidden_suite(console, settings, env))
+    hidden = _hidden_suite(console, settings, env)
+    env["ARENA_HIDDEN_SUITE_DIR"] = str(hidden)
+    for warning in close_service_folders(data, hidden):
+        console.print(f"[red]{warning}[/red]")
 
     from evaluator import sandbox
 

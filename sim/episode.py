@@ -33,10 +33,11 @@ def run_episode(
     step limit; write the record to ``record_path`` (always, even with no rows).
 
     Calls ``agent.reset()`` first and never ``agent.close()`` (the caller owns the agent). An
-    :class:`AgentFailed` ends every still-live agent with its reason; :class:`SomeAgentsFailed`
-    ends the agents it names with ``agent_error`` and the rest drive on; a bad action ends only its
-    agent (``invalid_action``); passing ``wall_timeout_s`` ends the rest with
-    ``episode_timeout``. ``inputs`` are the scenario's files already parsed (:mod:`sim.inputs`).
+    :class:`AgentFailed` (from ``reset`` or ``act``) ends every still-live agent with its reason;
+    :class:`SomeAgentsFailed` ends the agents it names with ``agent_error`` and the rest drive on; a
+    bad action ends only its agent (``invalid_action``); passing ``wall_timeout_s`` ends the rest
+    with ``episode_timeout``. ``inputs`` are the scenario's files already parsed
+    (:mod:`sim.inputs`).
     SUMO errors propagate (the isolated runner turns them into ``simulator_error``).
     """
     started = time.monotonic()
@@ -45,8 +46,8 @@ def run_episode(
     detail = ""
     try:
         obs = sim.reset()
-        agent.reset()
-        while not sim.done:
+        detail = _reset_agent(agent, sim)
+        while not sim.done:  # a failed reset ended every mission
             if wall_timeout_s is not None and time.monotonic() - started > wall_timeout_s:
                 sim.fail(DoneReason.episode_timeout)
                 detail = f"episode exceeded {wall_timeout_s:.0f} s wall time"
@@ -84,6 +85,23 @@ def run_episode(
         detail=detail,
         wall_time_s=time.monotonic() - started,
     )
+
+
+def _reset_agent(agent: Agent, sim: Simulation) -> str:
+    """Reset the agent; a failure of its own (raising, timing out, exiting) ends every mission
+    with its reason, as in ``act``: the agent's, so charged. Why it failed, or "" if it did not."""
+    try:
+        agent.reset()
+    except SomeAgentsFailed as exc:  # a reset has no actions to keep: all of them failed
+        sim.fail(DoneReason.agent_error)
+        return "\n".join(f"{k}: {v}" for k, v in exc.failed.items())[-4000:] or "reset failed"
+    except AgentFailed as exc:
+        sim.fail(exc.reason)
+        return exc.detail or str(exc)
+    except Exception as exc:  # an in-process policy's own bug is the agent's failure
+        sim.fail(DoneReason.agent_error)
+        return describe_exception(exc)
+    return ""
 
 
 def describe_exception(exc: BaseException) -> str:

@@ -221,9 +221,16 @@ def _child_main(
 def _close_agent(agent: Agent) -> str | None:
     # Closed first: a sandbox's log is complete once the agent has ended (read before, a line
     # the agent wrote just before its last answer could still be in the pipe).
-    agent.close()
+    failed = None
+    try:
+        agent.close()
+    except AgentFailed as exc:  # the episode is recorded; its agent's last failure is told
+        failed = f"closing the agent: {exc.reason.value}: {exc.detail or exc}"
     logs = getattr(agent, "logs", None)
-    return logs() if callable(logs) else None
+    text = logs() if callable(logs) else None
+    if failed is None:
+        return text
+    return f"{text}\n{failed}" if text else failed
 
 
 def _write_failed_start(scenario_dir, interface, record_path, seed, exc: AgentFailed, inputs):

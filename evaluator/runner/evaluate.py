@@ -151,7 +151,7 @@ def _warm_agents_of(submission) -> Iterator[None]:
     try:
         yield
     finally:
-        warm_agents().close(submission.root)
+        warm_agents().close(submission.sha256)
 
 
 def _with_model(submission, model_dir: Path):

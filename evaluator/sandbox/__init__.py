@@ -1,8 +1,10 @@
 """Running untrusted agents: :func:`start` one in a sandbox and drive it through an AgentHandle.
 
 Backends: ``docker`` (production), ``bubblewrap`` (hosts without Docker) and ``process`` (no
-isolation; participants' local runs only, refused by the service through
-:func:`check_service_kind`). ``auto`` means Docker when a daemon answers, else bubblewrap.
+isolation; participants' local runs only). The service runs agents only with a backend that holds
+the sandbox contract (docs/sandbox.md) on this machine: :func:`check_service_kind` asks each
+backend's ``contract_gap``, which refuses ``process`` always and bubblewrap where no control group
+per sandbox can be made. ``auto`` means Docker when a daemon answers, else bubblewrap.
 """
 
 from __future__ import annotations
@@ -15,7 +17,6 @@ from evaluator.sandbox.backend import Backend, LaunchSpec, Sandbox, Training
 from evaluator.sandbox.handle import AgentHandle
 
 __all__ = [
-    "SERVICE_KINDS",
     "AgentHandle",
     "backend",
     "check_service_kind",
@@ -25,10 +26,6 @@ __all__ = [
     "start",
     "start_training",
 ]
-
-# Kinds that isolate the agent; the only ones the service may evaluate with.
-SERVICE_KINDS = frozenset({SandboxKind.docker, SandboxKind.bubblewrap})
-
 
 # What starting an agent with each backend imports (its module and client library): a warm
 # parent process imports them once instead of every episode's process.
@@ -82,12 +79,14 @@ def resolve_kind(
 def check_service_kind(
     kind: SandboxKind | str | None = None, settings: Settings | None = None
 ) -> SandboxKind:
-    """The backend the service will use; refuses the unisolated ``process`` kind."""
+    """The backend the service will use: one that holds the sandbox contract here, or
+    :class:`SandboxUnavailable` saying why not."""
+    settings = settings or get_settings()
     resolved = resolve_kind(kind, settings)
-    if resolved not in SERVICE_KINDS:
+    gap = backend(resolved).contract_gap(settings)
+    if gap is not None:
         raise SandboxUnavailable(
-            f"the service never runs agents with sandbox {resolved.value!r}: it does not isolate "
-            "them; use docker or bubblewrap"
+            f"the service never runs agents with sandbox {resolved.value!r}: {gap}"
         )
     return resolved
 

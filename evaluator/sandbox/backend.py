@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Protocol
 
 import agent_runtime
+from agent_runtime import confine
 from arena.config import SandboxKind, Settings
 from evaluator.sandbox.channel import Channel
 from evaluator.sandbox.cpu import CpuMeter
@@ -120,6 +121,16 @@ class LaunchSpec:
             env[MODEL_ENV] = MODEL_MOUNT
         return env
 
+    def seccomp_program(self) -> bytes:
+        """The sandbox's seccomp filter (``agent_runtime/confine.py``): the agents' own, or for
+        a warm parent the same but for what it needs to make each episode new (its children
+        install the agents' filter before any participant code)."""
+        return confine.program(warm_parent=self.zygote)
+
+    def seccomp_profile(self) -> str:
+        """The same filter as a Docker seccomp profile."""
+        return confine.docker_profile(warm_parent=self.zygote)
+
     def cpu_seconds(self) -> float:
         """CPU time the sandbox may burn where no cgroup caps its share (bubblewrap)."""
         settings = self.settings
@@ -154,7 +165,11 @@ class LaunchSpec:
 
     def format_args(self) -> list[str]:
         """The runner's options beyond its folders: the observation format, warm mode."""
-        zygote = ["--zygote"] if self.zygote else []
+        zygote = (
+            ["--zygote", "--scratch-bytes", str(self.settings.agent_tmp_bytes)]
+            if self.zygote
+            else []
+        )
         if self.observation_format == "native":
             return zygote
         return [
@@ -224,6 +239,10 @@ class Backend(Protocol):
 
     def unavailable_reason(self, settings: Settings) -> str | None:
         """Why this backend cannot run here, or None when it can."""
+
+    def contract_gap(self, settings: Settings) -> str | None:
+        """Why it does not hold the sandbox contract here (docs/sandbox.md), so the service
+        refuses it, or None when it does (the one answer to what the service runs agents with)."""
 
     def launch(self, spec: LaunchSpec) -> Sandbox: ...
 

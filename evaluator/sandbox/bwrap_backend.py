@@ -1,9 +1,13 @@
 """The bubblewrap backend, for hosts without Docker.
 
-The agent gets empty namespaces of every kind (no network, its own pids), a root made of the host's
-``/usr`` bound read-only (Debian's ``python3`` with ``python3-numpy``: the same runtime as the
-agent image), a size-capped tmpfs ``/tmp``, and only its submission and dependency folders, bound
-read-only. Memory and process counts are capped with rlimits.
+The agent gets empty namespaces of every kind (no network, its own pids and user namespace), a
+root made of the host's ``/usr`` bound read-only (Debian's ``python3`` with ``python3-numpy``: the
+same runtime as the agent image), size-capped tmpfs ``/tmp`` and ``/dev/shm``, a read-only
+``/dev`` of the usual character devices, the seccomp filter of ``agent_runtime/confine.py``, and
+only its submission and dependency folders, bound read-only. Memory, processes and CPU share are
+those of a control group of its own (:mod:`evaluator.sandbox.cgroup`). Where no such group can be
+made the sandbox falls back to per-process rlimits, which do not hold the contract: the service
+refuses it then (:meth:`BubblewrapBackend.contract_gap`), local runs may still use it.
 
 When the evaluator is root, bubblewrap runs as the unprivileged uid 65534, so that the process
 limit holds (the kernel exempts root from it) and the agent is nobody on the host too. That uid
@@ -20,8 +24,10 @@ import subprocess
 import tempfile
 from pathlib import Path
 
+from agent_runtime import confine
 from arena.config import SandboxKind, Settings
 from arena.errors import SandboxUnavailable
+from evaluator.sandbox import cgroup
 from evaluator.sandbox.backend import (
     DATASET_MOUNT,
     DEPS_MOUNT,
@@ -102,6 +108,13 @@ class BubblewrapBackend:
             return f"{RUNTIME_PYTHON} has no numpy (apt-get install python3-numpy)"
         return None
 
+    def contract_gap(self, settings: Settings) -> str | None:
+        """Why bubblewrap here does not hold the sandbox contract (docs/sandbox.md), or None."""
+        reason = confine.supported() or cgroup.unavailable_reason()
+        if reason:
+            return f"bubblewrap here cannot enforce per-sandbox limits: {reason}"
+        return None
+
     def launch(self, spec: LaunchSpec) -> PopenSandbox:
         settings = spec.settings
         binds = {RUNTIME_MOUNT: runtime_dir(), SUBMISSION_MOUNT: spec.submission}
@@ -116,26 +129,41 @@ class BubblewrapBackend:
         stage, prefix = None, []
         if os.geteuid() == 0:
             stage, binds, prefix = staged(binds)
+        group = self._group(spec)
         control, child_end = control_pair(spec.zygote)
+        seccomp = seccomp_fd(spec.seccomp_program())
+        file_bytes = settings.train_output_bytes if training else None
+        if group is not None:
+            rlimits = rlimit_setter(None, None, file_bytes=file_bytes)
+
+            def preexec() -> None:
+                group.join()
+                rlimits()
+        else:  # per process only: local runs (the service refuses this, see contract_gap)
+            preexec = rlimit_setter(
+                settings.agent_memory_bytes,
+                settings.agent_pids,
+                cpu_seconds=spec.cpu_seconds(),
+                file_bytes=file_bytes,
+            )
         try:
             process = subprocess.Popen(
-                [*prefix, *self.command(spec, binds)],
+                [*prefix, *self.command(spec, binds, seccomp, group)],
                 **sandbox_streams(training, child_end),
                 cwd="/",
                 env={"PATH": os.defpath, LABELS_ENV: encode_labels(spec.all_labels)},
                 start_new_session=True,
-                preexec_fn=rlimit_setter(
-                    settings.agent_memory_bytes,
-                    settings.agent_pids,
-                    cpu_seconds=spec.cpu_seconds(),
-                    file_bytes=settings.train_output_bytes if training else None,
-                ),
+                pass_fds=(seccomp,),
+                preexec_fn=preexec,
             )
-        except OSError as error:
+        except (OSError, subprocess.SubprocessError) as error:
             if stage:
                 shutil.rmtree(stage, ignore_errors=True)
+            if group is not None:
+                group.remove()
             raise SandboxUnavailable(f"cannot start bubblewrap: {error}") from error
         finally:
+            os.close(seccomp)
             if child_end is not None:
                 os.close(child_end)
         return PopenSandbox(
@@ -144,10 +172,28 @@ class BubblewrapBackend:
             spec.instance_labels,
             cleanup=stage,
             control=control,
+            group=group,
         )
 
     @staticmethod
-    def command(spec: LaunchSpec, binds: dict[str, Path]) -> list[str]:
+    def _group(spec: LaunchSpec) -> cgroup.SandboxGroup | None:
+        """The sandbox's own control group, or None where none can be made."""
+        found = cgroup.hierarchy()
+        if not isinstance(found, cgroup.Hierarchy):
+            return None
+        settings = spec.settings
+        limits = cgroup.Limits(
+            settings.agent_memory_bytes, settings.agent_pids, settings.agent_cpus
+        )
+        return cgroup.SandboxGroup.create(found, cgroup.GROUP_PREFIX + spec.instance, limits)
+
+    @staticmethod
+    def command(
+        spec: LaunchSpec,
+        binds: dict[str, Path],
+        seccomp: int,
+        group: cgroup.SandboxGroup | None,
+    ) -> list[str]:
         settings = spec.settings
         mounts = []
         for target, source in binds.items():
@@ -158,6 +204,10 @@ class BubblewrapBackend:
             environment += ["--setenv", key, value]
         # A warm parent is the namespace's PID 1 itself: no signal from its children reaches it.
         as_pid_1 = ["--as-pid-1"] if spec.zygote else []
+        if spec.zygote and group is not None:
+            # Where it reads its OOM kills (agent_runtime/zygote.py oom_kills), read-only; its
+            # children see an empty folder there.
+            mounts += ["--ro-bind", str(group.memory_folder), group.memory_mount]
         return [
             "bwrap",
             "--unshare-all",
@@ -177,6 +227,12 @@ class BubblewrapBackend:
             "/proc",
             "--dev",
             "/dev",
+            "--remount-ro",
+            "/dev",
+            "--size",
+            str(settings.agent_tmp_bytes),
+            "--tmpfs",
+            "/dev/shm",
             "--size",
             str(settings.agent_tmp_bytes),
             "--tmpfs",
@@ -195,9 +251,21 @@ class BubblewrapBackend:
             LABELS_ENV,
             encode_labels(spec.all_labels),
             *environment,
+            "--seccomp",
+            str(seccomp),
             str(RUNTIME_PYTHON),
             *spec.python_args(),
         ]
 
     def cleanup(self, labels: dict[str, str]) -> int:
-        return kill_labelled(labels)
+        killed = kill_labelled(labels)
+        cgroup.remove_orphans()
+        return killed
+
+
+def seccomp_fd(program: bytes) -> int:
+    """A descriptor bubblewrap reads the filter from (``--seccomp``)."""
+    fd = os.memfd_create("arena-seccomp")
+    os.write(fd, program)
+    os.lseek(fd, 0, os.SEEK_SET)
+    return fd

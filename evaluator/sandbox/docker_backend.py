@@ -19,6 +19,7 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
+from agent_runtime import confine
 from arena.config import SandboxKind, Settings, get_settings
 from arena.errors import SandboxUnavailable
 from evaluator.sandbox.backend import (
@@ -146,7 +147,7 @@ def container_options(spec: LaunchSpec, socket_dir: Path | None) -> dict[str, An
         "nano_cpus": int(settings.agent_cpus * 1e9),
         "pids_limit": settings.agent_pids,
         "cap_drop": ["ALL"],
-        "security_opt": ["no-new-privileges"],
+        "security_opt": ["no-new-privileges", f"seccomp={spec.seccomp_profile()}"],
         "user": UNPRIVILEGED_USER,
         "ipc_mode": "none",
         "working_dir": SUBMISSION_MOUNT,
@@ -289,6 +290,11 @@ class DockerBackend:
         except docker.errors.ImageNotFound:
             return f"image {settings.agent_image} is missing (run `arena sandbox build-image`)"
         return None
+
+    def contract_gap(self, settings: Settings) -> str | None:
+        """A container holds every limit of the contract; only the filter needs a table for this
+        machine's architecture."""
+        return confine.supported()
 
     def launch(self, spec: LaunchSpec) -> DockerSandbox:
         import docker.errors

@@ -42,6 +42,9 @@ from evaluator.sandbox.subprocess_sandbox import (
 class ProcessBackend:
     kind = SandboxKind.process
 
+    def contract_gap(self, settings: Settings) -> str | None:
+        return "it does not isolate agents; use docker or bubblewrap"
+
     def unavailable_reason(self, settings: Settings) -> str | None:
         return None
 

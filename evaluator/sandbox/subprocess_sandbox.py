@@ -16,6 +16,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from evaluator.sandbox.backend import ExitStatus
+from evaluator.sandbox.cgroup import SandboxGroup
 from evaluator.sandbox.channel import Channel
 from evaluator.sandbox.cpu import CpuMeter
 
@@ -53,19 +54,21 @@ class LogTail:
 
 
 def rlimit_setter(
-    memory_bytes: int,
+    memory_bytes: int | None,
     processes: int | None,
     cpu_seconds: float | None = None,
     file_bytes: int | None = None,
 ) -> Callable[[], None]:
-    """A preexec function that caps address space, processes, CPU time, file size and core dumps.
+    """A preexec function that caps core dumps and, when given, address space, processes, CPU
+    time and file size: per process, so only where no control group caps the whole sandbox.
 
     Without cgroups there is no CPU share to cap, so the CPU time an agent may burn is bounded
     instead: start-up plus one episode's wall time on one CPU (SIGXCPU, then SIGKILL 5 s later).
     """
 
     def apply() -> None:
-        resource.setrlimit(resource.RLIMIT_AS, (memory_bytes, memory_bytes))
+        if memory_bytes is not None:
+            resource.setrlimit(resource.RLIMIT_AS, (memory_bytes, memory_bytes))
         resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
         if file_bytes is not None:
             resource.setrlimit(resource.RLIMIT_FSIZE, (file_bytes, file_bytes))
@@ -104,6 +107,7 @@ class PopenSandbox:
         labels: dict[str, str],
         cleanup: Path | None = None,
         control: socket.socket | None = None,
+        group: SandboxGroup | None = None,
     ) -> None:
         self.process = process
         # An agent's log is its stderr (stdout carries the protocol); a training run's is both.
@@ -112,6 +116,7 @@ class PopenSandbox:
         self._labels = labels
         self._cleanup = cleanup  # a folder of ours to delete once the sandbox is gone
         self.control = control  # a warm parent's socket (stdin and stdout), else pipes
+        self._group = group  # its control group, removed with it
 
     def connect(self, deadline: float) -> Channel:
         if self.control is not None:
@@ -123,7 +128,8 @@ class PopenSandbox:
             code = self.process.wait(timeout)
         except subprocess.TimeoutExpired:
             return None
-        return ExitStatus(code)
+        oom = self._group is not None and self._group.oom_kills() > 0
+        return ExitStatus(code, oom_killed=oom)
 
     def kill(self) -> None:
         if self.process.poll() is None:
@@ -133,6 +139,8 @@ class PopenSandbox:
         # What the agent forked inside its own session or pid namespace dies with the sandbox's
         # init a moment later; wait for that too, so nothing outlives kill().
         kill_labelled(self._labels)
+        if self._group is not None:
+            self._group.remove()
         for stream in (self.process.stdin, self.process.stdout, self.control):
             if stream is not None and stream is not self._log_pipe:
                 with contextlib.suppress(OSError):

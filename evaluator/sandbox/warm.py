@@ -152,6 +152,7 @@ class WarmAgent:
         self.last_used = time.monotonic()
         self._closed = False
         self.meter = sandbox.cpu_meter()
+        self.settling = False  # its last episode ended; its "ready" not read yet
 
     @classmethod
     def start(
@@ -225,6 +226,15 @@ class WarmAgent:
         except (ChannelClosed, ChannelTimeout, ChannelViolation):
             return False
         return message.get("type") == "ready"
+
+    def settled(self, timeout: float) -> bool:
+        """Whether it can fork now: its last episode's ``ready`` came (within ``timeout``
+        seconds) and it still waits for requests."""
+        if self.settling:
+            if not self.wait_ready(timeout):
+                return False
+            self.settling = False
+        return self.alive()
 
     def alive(self) -> bool:
         """Whether the zygote still waits for requests (it never writes on its own: anything

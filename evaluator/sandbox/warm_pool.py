@@ -24,8 +24,11 @@ from evaluator.sandbox.warm import KILL_WAIT_S, ForkedAgent, WarmAgent
 
 log = logging.getLogger(__name__)
 
-# (submission folder, trained model folder or None, sandbox kind)
-Key = tuple[Path, Path | None, SandboxKind]
+# (the submission zip's sha256, its trained model folder or None, sandbox kind): by content, so
+# that a submission prepared again (into another folder) finds its warm agent, and one prepared
+# elsewhere never borrows another's. The folders a warm agent binds are never changed under it
+# (a worker prepares each zip once, into a folder named after its digest).
+Key = tuple[str, Path | None, SandboxKind]
 
 
 class WarmAgents:
@@ -43,7 +46,7 @@ class WarmAgents:
         """A freshly forked agent of ``submission`` for one episode, or None when this
         submission runs cold. Raises nothing of the zygote's: it falls back to cold."""
         # A retrained model is another agent: it gets a zygote of its own.
-        key = (Path(submission.root), submission.model_dir, kind)
+        key = (submission.sha256, submission.model_dir, kind)
         self.close_idle(settings.warm_agent_idle_s)
         warm = self._take(key, submission, settings)
         if warm is None:
@@ -75,12 +78,13 @@ class WarmAgents:
             agent.kill()
         return len(chosen)
 
-    def close(self, root: Path | None = None) -> None:
-        """Close the idle warm agents of the submission at ``root`` (every one without)."""
+    def close(self, sha256: str | None = None) -> None:
+        """Close the idle warm agents of the submission whose zip has ``sha256`` (every one
+        without)."""
         with self._lock:
-            keys = [k for k in self._idle if root is None or k[0] == Path(root)]
+            keys = [k for k in self._idle if sha256 is None or k[0] == sha256]
             closing = [warm for key in keys for warm in self._idle.pop(key)]
-            self._cold -= {k for k in self._cold if root is None or k[0] == Path(root)}
+            self._cold -= {k for k in self._cold if sha256 is None or k[0] == sha256}
         for warm in closing:
             warm.close()
 
@@ -94,15 +98,17 @@ class WarmAgents:
             warm.close()
 
     def _take(self, key: Key, submission, settings: Settings) -> WarmAgent | None:
-        with self._lock:
-            if key in self._cold:
-                return None
-            idle = self._idle.get(key, [])
-            while idle:
-                warm = idle.pop()
-                if warm.alive():
-                    return warm
-                warm.close()
+        while True:
+            with self._lock:
+                if key in self._cold:
+                    return None
+                idle = self._idle.get(key, [])
+                warm = idle.pop() if idle else None
+            if warm is None:
+                break
+            if warm.settled(KILL_WAIT_S):
+                return warm
+            warm.close()
         try:
             return WarmAgent.start(submission, key[2], settings, labels=self._labels)
         except SandboxUnavailable as error:
@@ -112,9 +118,9 @@ class WarmAgents:
             return None
 
     def _give_back(self, key: Key, warm: WarmAgent) -> None:
-        if not warm.wait_ready(KILL_WAIT_S):
-            warm.close()
-            return
+        """Back to the pool at once: the zygote ends the episode (kills what is left, tears down
+        its namespaces) while the evaluator goes on; the next lease waits for its ``ready``."""
+        warm.settling = True
         with self._lock:
             self._idle.setdefault(key, []).append(warm)
 

@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 from arena.errors import ArenaError
-from evaluator.training.model import output_bytes, pack_model, regular_files, unpack_model
+from evaluator.training.model import output_usage, pack_model, regular_files, unpack_model
 
 # The sandbox user owns the output folder it writes (Docker and bubblewrap run as nobody).
 SANDBOX_UID = 65534
@@ -43,10 +43,13 @@ def folder_signature(folder: Path) -> tuple[tuple[str, int, int], ...]:
 class CheckpointWatch:
     """Decides when the output folder is worth a new snapshot, and takes it."""
 
-    def __init__(self, output: Path, *, interval_s: float, max_bytes: int) -> None:
+    def __init__(
+        self, output: Path, *, interval_s: float, max_bytes: int, max_entries: int
+    ) -> None:
         self.output = Path(output)
         self.interval_s = interval_s
         self.max_bytes = max_bytes
+        self.max_entries = max_entries
         self._last_signature: tuple = ()
         self._last_try = time.monotonic()
 
@@ -57,15 +60,20 @@ class CheckpointWatch:
         """Pack the folder into ``archive`` if it changed since the last snapshot; True when a
         new archive was written. Raises :class:`SnapshotFailed` (the next round tries again)."""
         self._last_try = time.monotonic()
+        # Measured first, by a walk bounded in entries: the signature below reads every file.
+        usage = output_usage(self.output, self.max_entries)
+        if usage.entries > self.max_entries:
+            raise SnapshotFailed(
+                f"the output folder holds more than {self.max_entries} entries: not saved"
+            )
+        if usage.bytes > self.max_bytes:
+            raise SnapshotFailed(
+                f"the output folder holds {usage.bytes} bytes, past the checkpoint cap of "
+                f"{self.max_bytes}: not saved"
+            )
         signature = folder_signature(self.output)
         if not signature or signature == self._last_signature:
             return False
-        size = output_bytes(self.output)
-        if size > self.max_bytes:
-            raise SnapshotFailed(
-                f"the output folder holds {size} bytes, past the checkpoint cap of "
-                f"{self.max_bytes}: not saved"
-            )
         try:
             pack_model(self.output, archive)
         except (OSError, tarfile.TarError) as error:

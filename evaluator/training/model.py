@@ -12,9 +12,57 @@ import hashlib
 import io
 import os
 import tarfile
+from dataclasses import dataclass
 from pathlib import Path
 
 MODEL_ARCHIVE = "model.tar.gz"
+
+
+@dataclass(frozen=True)
+class OutputUsage:
+    """What an output folder holds: bytes of its files, entries (files, folders, links) and the
+    depth of its deepest entry (1: directly in it). Counting stops past ``max_entries``."""
+
+    bytes: int
+    entries: int
+    depth: int
+
+    def over(self, max_bytes: int, max_entries: int, max_depth: int) -> str | None:
+        """Which cap it is past, said for the team, or None."""
+        if self.entries > max_entries:
+            return f"more than {max_entries} files and folders"
+        if self.depth > max_depth:
+            return f"folders nested deeper than {max_depth}"
+        if self.bytes > max_bytes:
+            return f"{self.bytes} bytes, past its cap of {max_bytes}"
+        return None
+
+
+def output_usage(folder: Path, max_entries: int) -> OutputUsage:
+    """Measure ``folder`` without following links; never looks at more than ``max_entries + 1``
+    entries, so a training that made millions costs the same as one that made a few."""
+    total = entries = deepest = 0
+    pending = [(folder, 1)]
+    while pending:
+        path, depth = pending.pop()
+        try:
+            listing = os.scandir(path)
+        except OSError:  # removed while we looked: training still runs
+            continue
+        with listing:
+            for entry in listing:
+                entries += 1
+                deepest = max(deepest, depth)
+                if entries > max_entries:
+                    return OutputUsage(total, entries, deepest)
+                try:
+                    if entry.is_dir(follow_symlinks=False):
+                        pending.append((Path(entry.path), depth + 1))
+                    elif entry.is_file(follow_symlinks=False):
+                        total += entry.stat(follow_symlinks=False).st_size
+                except OSError:
+                    continue
+    return OutputUsage(total, entries, deepest)
 
 
 def regular_files(folder: Path) -> list[Path]:
@@ -27,20 +75,6 @@ def regular_files(folder: Path) -> list[Path]:
             if path.is_file() and not path.is_symlink():
                 found.append(path)
     return found
-
-
-def output_bytes(folder: Path) -> int:
-    """The size of the files under ``folder`` [bytes]: what storing them would take (a sparse
-    file counts in full)."""
-    total = 0
-    for root, _, files in os.walk(folder):
-        for name in files:
-            try:
-                stat = (Path(root) / name).lstat()
-            except FileNotFoundError:  # removed while we looked: training still runs
-                continue
-            total += stat.st_size
-    return total
 
 
 def folder_digest(folder: Path) -> str:

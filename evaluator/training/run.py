@@ -2,9 +2,10 @@
 
 The sandbox is the evaluation's (same backend, memory and CPU limits, no network) with the dataset
 mounted read-only and the output folder writable. Here, on the host, the wall-time budget and the
-output's size cap are watched while it runs, and its end is turned into a :class:`TrainingResult`
-whose ``failure`` is None or one named reason. ``on_progress`` is how a caller sees the elapsed
-time and the log tail, and how it stops a run (its worker is shutting down, its claim was lost).
+output's caps (bytes, entries, depth: a bounded walk) are watched while it runs, and its end is
+turned into a :class:`TrainingResult` whose ``failure`` is None or one named reason. ``on_progress``
+is how a caller sees the elapsed time and the log tail, and how it stops a run (its worker is
+shutting down, its claim was lost).
 """
 
 from __future__ import annotations
@@ -19,17 +20,21 @@ from arena.config import SandboxKind, Settings, get_settings
 from arena.errors import DatasetError, IntakeError
 from evaluator.sandbox.backend import TRAIN_SCRIPT, ExitStatus
 from evaluator.training.checkpoint import hand_to_sandbox_user, restore
-from evaluator.training.model import output_bytes, regular_files
+from evaluator.training.model import OutputUsage, output_usage, regular_files
 
-# How often the run is looked at (exit, budget, output size) [s].
+# How often the run is looked at (exit, budget) [s].
 POLL_S = 0.25
+# How often its output is measured [s]: a bounded walk (train_output_files entries at most), so
+# neither it nor its frequency can delay the caller's progress report (the lease heartbeat).
+OUTPUT_CHECK_S = 1.0
 
 
 class TrainFailure(StrEnum):
     train_error = "train_error"  # train.py raised or exited non-zero
     train_timeout = "train_timeout"  # ran past ARENA_TRAIN_TIMEOUT_S
     train_memory_limit = "train_memory_limit"  # killed for, or failed on, its memory limit
-    train_output_too_large = "train_output_too_large"  # output past ARENA_TRAIN_OUTPUT_BYTES
+    # output past ARENA_TRAIN_OUTPUT_BYTES, _FILES or _DEPTH
+    train_output_too_large = "train_output_too_large"
     no_model_produced = "no_model_produced"  # exited 0 with no file in the output folder
 
 
@@ -87,12 +92,13 @@ def train(
     _writable_output(Path(output))
     if resume_from is not None:
         restore(resume_from, Path(output))
-    cap = settings.train_output_bytes
+    caps = _Caps.of(settings)
     started = time.monotonic()
     box = sandbox.start_training(
         submission, dataset, output, kind=kind, labels=labels, settings=settings
     )
     next_report = started + progress_every_s
+    next_check = started + OUTPUT_CHECK_S
     try:
         while (status := box.exit_status(POLL_S)) is None:
             now = time.monotonic()
@@ -104,22 +110,27 @@ def train(
                     started,
                     TrainFailure.train_timeout,
                     f"training ran past its budget of {settings.train_timeout_s:g} s",
+                    caps,
                 )
-            if output_bytes(output) > cap:
-                return _ended(
-                    box,
-                    output,
-                    started,
-                    TrainFailure.train_output_too_large,
-                    f"the output folder grew past its cap of {cap} bytes",
-                )
+            if now >= next_check:
+                next_check = now + OUTPUT_CHECK_S
+                past = caps.past(output)
+                if past:
+                    return _ended(
+                        box,
+                        output,
+                        started,
+                        TrainFailure.train_output_too_large,
+                        f"the output folder grew past its caps: {past}",
+                        caps,
+                    )
             if on_progress is not None and now >= next_report:
                 next_report = now + progress_every_s
                 if not on_progress(elapsed, box.logs()):
                     box.kill()
                     raise TrainingStopped
         box.kill()
-        return _judged(status, box.logs(), output, time.monotonic() - started, cap)
+        return _judged(status, box.logs(), output, time.monotonic() - started, caps)
     finally:
         box.kill()
 
@@ -131,17 +142,38 @@ def _writable_output(output: Path) -> None:
     hand_to_sandbox_user(output)
 
 
-def _ended(box, output: Path, started: float, failure: TrainFailure, detail: str):
+@dataclass(frozen=True)
+class _Caps:
+    bytes: int
+    entries: int
+    depth: int
+
+    @classmethod
+    def of(cls, settings: Settings) -> _Caps:
+        return cls(
+            settings.train_output_bytes, settings.train_output_files, settings.train_output_depth
+        )
+
+    def usage(self, output: Path) -> OutputUsage:
+        return output_usage(output, self.entries)
+
+    def past(self, output: Path) -> str | None:
+        return self.usage(output).over(self.bytes, self.entries, self.depth)
+
+
+def _ended(box, output: Path, started: float, failure: TrainFailure, detail: str, caps: _Caps):
     box.kill()
     return TrainingResult(
-        failure, detail, box.logs(), time.monotonic() - started, output_bytes(output)
+        failure, detail, box.logs(), time.monotonic() - started, caps.usage(output).bytes
     )
 
 
 def _judged(
-    status: ExitStatus, log: str, output: Path, elapsed_s: float, cap: int
+    status: ExitStatus, log: str, output: Path, elapsed_s: float, caps: _Caps
 ) -> TrainingResult:
-    size = output_bytes(output)
+    usage = caps.usage(output)
+    size = usage.bytes
+    cap = caps.bytes
 
     def result(failure: TrainFailure | None, detail: str = "") -> TrainingResult:
         return TrainingResult(failure, detail, log, elapsed_s, size)
@@ -160,11 +192,9 @@ def _judged(
                 f"train.py wrote a file past the output cap of {cap} bytes",
             )
         return result(TrainFailure.train_error, f"train.py {status.describe()}")
-    if size > cap:
-        return result(
-            TrainFailure.train_output_too_large,
-            f"the output folder holds {size} bytes, past its cap of {cap}",
-        )
+    past = usage.over(caps.bytes, caps.entries, caps.depth)
+    if past:
+        return result(TrainFailure.train_output_too_large, f"the output folder holds {past}")
     if not regular_files(output):
         return result(
             TrainFailure.no_model_produced,

@@ -13,7 +13,7 @@ from sqlalchemy import func, or_, select
 from sqlalchemy.orm import Session, selectinload
 
 from arena.config import Settings
-from arena.outcome import FINISHED, ScenarioStatus
+from arena.outcome import FINISHED, UNCHARGED, ScenarioStatus
 from evaluator.provenance import Manifest
 from server.core.artifacts import artifact_store
 from server.core.db import Database
@@ -47,6 +47,7 @@ from server.services.phases import (
     daily_quota,
     get_phase,
     phase_setup,
+    team_sees_everything,
 )
 from server.services.training import cancel_trainings, shown_training
 from server.status import (
@@ -310,8 +311,13 @@ def detail(session: Session, submission: Submission) -> SubmissionDetail:
     """Everything its own team may see. Never hands out hidden scenario ids."""
     run = current_run(submission)
     score = run.score if run is not None else None
+    results = run.results if run is not None else []
+    if failed_on_our_side_while_hidden(session, submission, results):
+        # The other episodes' per-family outcomes would tell the team about the hidden suite
+        # at no cost (the run is not charged): nothing per family until it is rerun and scored.
+        results, score = [], None
     reasons: dict[str, dict[str, int]] = {}
-    for result in run.results if run is not None else []:
+    for result in results:
         if result.status != ScenarioStatus.running and result.reason != "reached_goal":
             by_reason = reasons.setdefault(result.family, {})
             reason = result.reason or result.status
@@ -334,6 +340,16 @@ def detail(session: Session, submission: Submission) -> SubmissionDetail:
         if score is not None and score.manifest
         else None,
     )
+
+
+def failed_on_our_side_while_hidden(
+    session: Session, submission: Submission, results: list[ScenarioResult]
+) -> bool:
+    """Whether an episode of a run whose per-scenario results the team may not see ended on
+    our side (uncharged)."""
+    if not any(result.status in UNCHARGED for result in results):
+        return False
+    return not team_sees_everything(get_phase(session, submission.phase))
 
 
 def _training(submission: Submission) -> TrainingProgress | None:

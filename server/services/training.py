@@ -22,6 +22,7 @@ from server.models import utcnow as now
 from server.services.errors import Conflict
 from server.services.evaluation import cannot_start, create_run, lease_until, lock
 from server.services.phases import PhaseMisconfigured
+from server.services.storable import storable_text
 from server.status import (
     ACTIVE_RUN,
     ACTIVE_TRAINING,
@@ -158,7 +159,11 @@ def heartbeat(
     updated = session.execute(
         update(TrainingJob)
         .where(*_fence(claim, worker))
-        .values(lease_expires_at=lease_until(settings), elapsed_s=elapsed_s, log_tail=log_tail)
+        .values(
+            lease_expires_at=lease_until(settings),
+            elapsed_s=elapsed_s,
+            log_tail=storable_text(log_tail),
+        )
     )
     return updated.rowcount == 1
 
@@ -199,7 +204,7 @@ def record_trained(
     if job is None:
         return None
     job.status = advance(job.status, T.trained, TRAINING_MOVES)
-    job.elapsed_s, job.log_tail = elapsed_s, log_tail
+    job.elapsed_s, job.log_tail = elapsed_s, storable_text(log_tail)
     job.model_key, job.model_sha256, job.model_size = model_key, model_sha256, model_size
     submission = lock(session, Submission, claim.submission_id)
     if submission.status == S.training:
@@ -231,8 +236,9 @@ def record_failed(
     if job is None:
         return False
     job.status = advance(job.status, T.failed, TRAINING_MOVES)
+    error = storable_text(error)  # the training's own words, from its log
     job.failure, job.error = failure, error
-    job.elapsed_s, job.log_tail = elapsed_s, log_tail
+    job.elapsed_s, job.log_tail = elapsed_s, storable_text(log_tail)
     submission = lock(session, Submission, claim.submission_id)
     if submission.status == S.training:
         submission.status = advance(submission.status, S.failed, SUBMISSION_MOVES)

@@ -49,6 +49,7 @@ class ClaimCheckpoints:
             output,
             interval_s=settings.train_checkpoint_interval_s,
             max_bytes=settings.train_checkpoint_bytes,
+            max_entries=settings.train_output_files,
         )
         self._saved = False
 

@@ -15,13 +15,17 @@ stores the trained output and then fans out the evaluation of that output.
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
 import logging
 import os
+import pickle
 import shutil
 import socket
 import threading
 import time
 import traceback
+import uuid
 from contextlib import contextmanager
 from functools import lru_cache
 from pathlib import Path
@@ -38,6 +42,7 @@ from sqlalchemy.exc import SQLAlchemyError
 
 from arena.config import get_settings
 from arena.errors import DatasetError, InfrastructureError
+from arena.suite import hidden_suite_dir
 from evaluator.runner.scenario import ScenarioOutcome
 from server.core.artifacts import ArtifactStore, artifact_store
 from server.core.celery_app import (
@@ -48,8 +53,10 @@ from server.core.celery_app import (
     TASK_TRAIN,
 )
 from server.core.db import get_database
+from server.core.permissions import close_service_folders
 from server.core.queue import BROKER_ERRORS, TaskQueue
 from server.services import adaptive, evaluation, training
+from server.services.storable import storable_text
 from server.worker import checkpoints
 
 log = logging.getLogger(__name__)
@@ -336,8 +343,6 @@ def _our_failure(job: evaluation.ScenarioJob, reason: str, error: str) -> Scenar
 
 
 def _simulate(job: evaluation.ScenarioJob, run_key: str) -> ScenarioOutcome:
-    import dataclasses
-
     from evaluator.runner import run_scenario as run_one
 
     # This worker's own scratch folder, one per claim: an episode whose claim was superseded
@@ -384,11 +389,16 @@ def _log_tail(job: evaluation.ScenarioJob, outcome: ScenarioOutcome) -> str:
 
 
 def _tail(text: str) -> str:
+    """The last ``agent_log_tail_bytes`` of an agent's text, storable whatever it holds (lone
+    surrogates, NULs: a strict encode here crashed the task, an uncharged ``worker_lost``)."""
     tail_bytes = get_settings().agent_log_tail_bytes
-    return text.encode()[-tail_bytes:].decode("utf-8", "replace")
+    cut = text.encode("utf-8", "surrogatepass")[-tail_bytes:].decode("utf-8", "replace")
+    return storable_text(cut)
 
 
 _prepare_lock = threading.Lock()
+# Beside each prepared submission: its PreparedSubmission, pickled.
+PREPARED_DESCRIPTION = "prepared.pickle"
 
 
 def _prepared(upload_key: str):
@@ -400,12 +410,41 @@ def _prepared(upload_key: str):
 @lru_cache(maxsize=4)
 def _prepare(upload_key: str):
     """The submission ready to run, prepared once per worker process from the zip in the
-    artifact store: a worker on another machine needs nothing but the database and broker."""
+    artifact store: a worker on another machine needs nothing but the database and broker.
+
+    Into a folder named after the zip's digest, made whole in a staging folder then renamed,
+    and never changed again: a warm agent binds it (its pool is keyed by that digest), so one
+    prepared again after this cache dropped it finds the same folder (the description beside it)
+    instead of deleting files under a live sandbox."""
     from submissions.intake import prepare_submission
 
-    folder = _scratch() / "submissions" / Path(upload_key).parent.name
-    zip_path = _store().fetch(upload_key, folder / "upload.zip")
-    return prepare_submission(zip_path, folder / "prepared", get_settings())
+    root = _scratch() / "submissions"
+    staging = root / f"staging-{uuid.uuid4().hex}"
+    try:
+        zip_path = _store().fetch(upload_key, staging / "upload.zip")
+        final = root / _file_sha256(zip_path)
+        described = final / PREPARED_DESCRIPTION
+        if not described.is_file():
+            prepared = prepare_submission(zip_path, staging / "prepared", get_settings())
+            (staging / PREPARED_DESCRIPTION).write_bytes(pickle.dumps(prepared))
+            try:
+                staging.rename(final)
+            except OSError:  # another thread of this process got there first: same content
+                if not described.is_file():
+                    raise
+        # Written by this process into its own scratch folder, which no sandbox can write.
+        prepared = pickle.loads(described.read_bytes())
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return dataclasses.replace(prepared, root=final / "prepared")
+
+
+def _file_sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as file:
+        while chunk := file.read(1 << 20):
+            digest.update(chunk)
+    return digest.hexdigest()
 
 
 def _model(model_key: str) -> Path:
@@ -416,13 +455,21 @@ def _model(model_key: str) -> Path:
 
 @lru_cache(maxsize=4)
 def _unpacked_model(model_key: str) -> Path:
-    import hashlib
-
+    """Unpacked once into a folder of its own, never changed again (as :func:`_prepare`)."""
     from evaluator.training import unpack_model
 
     folder = _scratch() / "models" / hashlib.sha256(model_key.encode()).hexdigest()[:16]
-    archive = _store().fetch(model_key, folder / "model.tar.gz")
-    return unpack_model(archive, folder / "model")
+    if (folder / "model").is_dir():
+        return folder / "model"
+    staging = folder.with_name(f"staging-{uuid.uuid4().hex}")
+    try:
+        archive = _store().fetch(model_key, staging / "model.tar.gz")
+        unpack_model(archive, staging / "model")
+        (staging / "model.tar.gz").unlink()
+        staging.rename(folder)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return folder / "model"
 
 
 @lru_cache(maxsize=1)
@@ -529,6 +576,13 @@ _shutting_down = threading.Event()
 @worker_shutting_down.connect
 def _hand_back_running_scenarios(**_: Any) -> None:
     _shutting_down.set()
+
+
+@worker_ready.connect
+def _close_service_folders(**_: Any) -> None:
+    """The data folder and the hidden suite, closed to the agents' uid (server.core.permissions)."""
+    settings = get_settings()
+    close_service_folders(settings.resolved_data_dir, hidden_suite_dir(settings))
 
 
 @worker_ready.connect

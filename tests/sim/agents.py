@@ -107,3 +107,36 @@ class PreloadProbe:
         import sys
 
         return _PreloadReporter("wave" in sys.modules, gc.get_freeze_count() > 0)
+
+
+class _FailingAt(ScriptedAgent):
+    """Fails in ``reset`` or ``close`` as a sandboxed agent handle does (``AgentFailed``), or as
+    an in-process policy's own bug does (any exception)."""
+
+    def __init__(self, where: str, error: BaseException) -> None:
+        super().__init__(stand_still)
+        self.where, self.error = where, error
+
+    def reset(self) -> None:
+        if self.where == "reset":
+            raise self.error
+
+    def close(self) -> None:
+        if self.where == "close":
+            raise self.error
+
+
+def agent_whose_reset_times_out() -> ScriptedAgent:
+    return _FailingAt("reset", AgentFailed(DoneReason.init_timeout, "no done within 60 s"))
+
+
+def agent_whose_reset_exits() -> ScriptedAgent:
+    return _FailingAt("reset", AgentFailed(DoneReason.agent_exited, "exited with status 3"))
+
+
+def agent_whose_reset_raises() -> ScriptedAgent:
+    return _FailingAt("reset", ValueError("reset broken on purpose \ud800"))
+
+
+def agent_whose_close_fails() -> ScriptedAgent:
+    return _FailingAt("close", AgentFailed(DoneReason.agent_exited, "died while closing"))

@@ -7,6 +7,7 @@ from functools import partial
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from arena.outcome import DoneReason
 from sim.episode import run_episode
@@ -16,6 +17,10 @@ from tests.sim.agents import (
     PreloadProbe,
     ScriptedAgent,
     agent_that_times_out_at_init,
+    agent_whose_close_fails,
+    agent_whose_reset_exits,
+    agent_whose_reset_raises,
+    agent_whose_reset_times_out,
     crashing_agent,
     cruising_agent,
     hanging_agent,
@@ -79,6 +84,37 @@ def test_agent_failing_at_init_fails_every_agent_and_still_writes_the_record(tmp
     with np.load(record) as data:
         assert list(data["done_reason"]) == ["init_timeout"]
         assert data["x"].shape == (1, 0)
+
+
+@pytest.mark.parametrize(
+    ("factory", "reason"),
+    [
+        (agent_whose_reset_times_out, DoneReason.init_timeout),
+        (agent_whose_reset_exits, DoneReason.agent_exited),
+        (agent_whose_reset_raises, DoneReason.agent_error),
+    ],
+)
+def test_an_agent_failing_in_reset_is_charged_not_a_simulator_error(tmp_path, factory, reason):
+    """reset() raising, timing out or exiting is the agent's failure: every mission ends with
+    its reason and the record is written (it was a free simulator_error)."""
+    folder = make_scenario(tmp_path / "sc", ScenarioSpec())
+    record = tmp_path / "r.npz"
+    result = run_episode_isolated(folder, factory, AgentInterface(), record_path=record)
+    assert result.simulator_error is None, result.detail
+    assert [(a.reason, a.steps) for a in result.agents] == [(reason, 0)]
+    assert result.detail
+    with np.load(record) as data:
+        assert list(data["done_reason"]) == [reason.value]
+
+
+def test_an_agent_failing_in_close_keeps_its_episode(tmp_path):
+    folder = make_scenario(tmp_path / "sc", ScenarioSpec(max_episode_steps=5))
+    result = run_episode_isolated(
+        folder, agent_whose_close_fails, AgentInterface(), record_path=tmp_path / "r.npz"
+    )
+    assert result.simulator_error is None
+    assert result.steps == 5
+    assert "died while closing" in result.extra["agent_log"]
 
 
 def test_a_hung_episode_is_killed_at_the_hard_timeout(tmp_path):

@@ -6,6 +6,7 @@ import base64
 import json
 import os
 import shutil
+import subprocess
 import time
 import uuid
 from pathlib import Path
@@ -164,27 +165,6 @@ def test_auto_prefers_docker_and_the_service_refuses_process(settings) -> None:
     assert check_service_kind("auto", settings) is expected
 
 
-def test_bubblewrap_bounds_the_cpu_time_an_agent_burns(settings, labels, tmp) -> None:
-    budget = settings.model_copy(
-        update={
-            "init_timeout_s": 1.0,
-            "episode_timeout_s": 1.0,
-            "step_timeout_s": 30.0,
-            "step_cpu_s": 30.0,
-        }
-    )
-    kind = usable(SandboxKind.bubblewrap, budget)
-    spinner = agent(tmp, budget, act="while True: pass")
-    handle = start(spinner, kind=kind, labels=labels, settings=budget)
-    began = time.monotonic()
-    with pytest.raises(AgentFailed) as caught:
-        handle.act(observation())
-    assert caught.value.reason is DoneReason.agent_exited
-    assert "CPU time limit" in caught.value.detail
-    assert time.monotonic() - began < 15.0  # the 30 s step deadline did not have to fire
-    assert leftovers(kind, labels) == []
-
-
 def test_bubblewrap_agent_is_nobody_on_the_host(settings, labels, tmp) -> None:
     if os.geteuid() != 0:
         pytest.skip("only a root evaluator drops bubblewrap to uid 65534")
@@ -323,3 +303,35 @@ def test_an_episode_has_a_cpu_budget(kind, settings, labels, tmp) -> None:
             handle.act(observation())
         assert caught.value.reason is DoneReason.episode_timeout
         assert "CPU this episode" in caught.value.detail
+
+
+def test_the_service_refuses_bubblewrap_that_cannot_cap_each_sandbox(settings) -> None:
+    """Where no control group per sandbox can be made (here: the cgroup hierarchies read-only in
+    a private mount namespace), bubblewrap would fall back to per-process rlimits; the service
+    refuses it and says why."""
+    usable(SandboxKind.bubblewrap, settings)
+    if os.geteuid() != 0:
+        pytest.skip("needs root to make a private mount namespace")
+    script = (
+        "from evaluator.sandbox import check_service_kind\n"
+        "from arena.errors import SandboxUnavailable\n"
+        "try:\n"
+        "    check_service_kind('bubblewrap')\n"
+        "    print('accepted')\n"
+        "except SandboxUnavailable as error:\n"
+        "    print(error)\n"
+    )
+    shell = (
+        "for m in $(awk '$3 ~ /^cgroup/ {print $2}' /proc/self/mounts); do "
+        "mount -o remount,ro,bind \"$m\"; done; exec python3 -c \"$0\""
+    )
+    done = subprocess.run(
+        ["unshare", "--mount", "--propagation", "private", "sh", "-c", shell, script],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "ARENA_DATA_DIR": str(settings.data_dir)},
+        timeout=120,
+    )
+    said = done.stdout.strip()
+    assert "cannot enforce per-sandbox limits" in said, (said, done.stderr[-2000:])
+    assert "cgroup" in said

@@ -30,7 +30,8 @@ global EPISODES
 EPISODES = globals().get('EPISODES', 0) + 1
 private = os.getppid() == 1  # the zygote is PID 1 of an isolating sandbox
 found_file = os.path.exists('/tmp/note') or os.path.exists('/tmp/locked')
-others = [p for p in os.listdir('/proc') if p.isdigit() and int(p) not in (1, os.getpid())]
+others = [p for p in os.listdir('/proc') if p.isdigit() and int(p) not in (1, os.getpid())
+          and open(f'/proc/{p}/comm').read().strip() != 'arena-holder']
 with open('/proc/sysvipc/shm') as table:
     segments = len(table.readlines()) - 1
 if private and EPISODES == 1:
@@ -104,12 +105,13 @@ def test_forked_hostile_agent_fails_with_its_reason(
         agent_yaml=f"observation_format: {observation_format}\n",
     )
     with zygote(submission, kind, run_settings, labels) as warm:
-        with pytest.raises(AgentFailed) as caught:
-            episode(warm, run_settings)
-        failure = caught.value
-        assert failure.reason is case.reason, failure
-        if case.evidence:
-            assert any(text in failure.detail for text in case.evidence), failure.detail
+        for _ in range(2):  # and again: what the first episode did changes nothing
+            with pytest.raises(AgentFailed) as caught:
+                episode(warm, run_settings)
+            failure = caught.value
+            assert failure.reason is case.reason, failure
+            if case.evidence:
+                assert any(text in failure.detail for text in case.evidence), failure.detail
 
 
 def test_killing_its_parent_changes_nothing_when_forked(kind, settings, labels, tmp) -> None:

@@ -3,6 +3,7 @@ good run whose output is packed and mounted read-only for its policy."""
 
 from __future__ import annotations
 
+import itertools
 import textwrap
 from pathlib import Path
 
@@ -127,6 +128,53 @@ def test_many_small_files_past_the_cap_are_stopped(tmp_path, settings, dataset, 
     assert result.elapsed_s < 15  # stopped while running, not at the budget
 
 
+@pytest.mark.parametrize(
+    ("script", "said"),
+    [
+        (  # 200,000 empty files passed the byte cap, and walking them starved the heartbeat
+            """
+            import os, time
+            out = os.environ['ARENA_MODEL_DIR']
+            for i in range(200_000):
+                open(f"{out}/{i}", "wb").close()
+            time.sleep(30)
+            """,
+            "more than",
+        ),
+        (
+            """
+            import os, time
+            path = os.environ['ARENA_MODEL_DIR']
+            for i in range(40):
+                path += '/d'
+                os.mkdir(path)
+            time.sleep(30)
+            """,
+            "nested deeper",
+        ),
+    ],
+    ids=["many empty files", "deep folders"],
+)
+def test_output_is_capped_in_entries_and_depth_without_delaying_progress(
+    tmp_path, settings, dataset, kind, script, said
+):
+    beats: list[float] = []
+
+    def progress(elapsed: float, log: str) -> bool:
+        beats.append(elapsed)
+        return True
+
+    few = settings.model_copy(update={"train_output_files": 1000, "train_output_depth": 8})
+    result, _ = run(
+        tmp_path, few, dataset, kind, script, on_progress=progress, progress_every_s=0.5
+    )
+    assert result.failure is TrainFailure.train_output_too_large, result
+    assert said in result.detail
+    assert result.elapsed_s < 15  # stopped while running, not at the budget
+    gaps = [later - earlier for earlier, later in itertools.pairwise(beats)]
+    assert not gaps or max(gaps) < 2.0, gaps  # the progress report kept its rhythm
+
+
 def test_the_caller_can_stop_a_run(tmp_path, settings, dataset, kind):
     seen = []
 
@@ -201,7 +249,7 @@ def test_a_resumed_training_finds_the_snapshot_and_may_rewrite_it(
     (earlier / "ckpt" / "step.txt").write_text("41")
     (earlier / "old.bin").write_bytes(b"x")
     snapshot = tmp_path / "snapshot.tar.gz"
-    assert CheckpointWatch(earlier, interval_s=1, max_bytes=1024).snapshot(snapshot)
+    assert CheckpointWatch(earlier, interval_s=1, max_bytes=1024, max_entries=10).snapshot(snapshot)
     result, out = run(tmp_path, settings, dataset, any_kind, RESUMING, resume_from=snapshot)
     assert result.ok, result
     assert "resumed at 41" in result.log
@@ -213,7 +261,7 @@ def test_a_snapshot_is_taken_of_a_changed_folder_within_its_cap(tmp_path):
     folder = tmp_path / "out"
     folder.mkdir()
     archive = tmp_path / "snapshot.tar.gz"
-    watch = CheckpointWatch(folder, interval_s=60, max_bytes=100)
+    watch = CheckpointWatch(folder, interval_s=60, max_bytes=100, max_entries=10)
     assert not watch.due()  # not before its interval
     assert not watch.snapshot(archive)  # nothing to save yet
     (folder / "checkpoint.npz").write_bytes(b"epoch 1")
@@ -227,4 +275,5 @@ def test_a_snapshot_is_taken_of_a_changed_folder_within_its_cap(tmp_path):
     (folder / "checkpoint.npz").write_bytes(b"x" * 101)
     with pytest.raises(SnapshotFailed, match="past the checkpoint cap of 100"):
         watch.snapshot(tmp_path / "big.tar.gz")
-    assert not CheckpointWatch(folder, interval_s=0, max_bytes=100).due()  # 0: never
+    never = CheckpointWatch(folder, interval_s=0, max_bytes=100, max_entries=10)
+    assert not never.due()  # an interval of 0: never

@@ -237,3 +237,44 @@ def test_an_upload_to_a_broken_phase_is_refused_and_costs_nothing(
     assert "cannot evaluate submissions right now" in response.json()["detail"]
     assert str(settings.hidden_suite_dir) not in response.json()["detail"]
     assert client.get("/api/v1/submissions", headers=bearer(token)).json() == []
+
+
+@pytest.mark.parametrize("phase", ["final", "validation"])
+def test_a_run_that_failed_on_our_side_shows_nothing_per_family_in_a_hidden_phase(
+    client, db, settings, phase
+):
+    """One episode failing on our side (uncharged) makes the run fail; in a hidden phase the
+    other episodes' per-family outcomes stay unseen until the run is rerun and scored (they
+    were shown: a free look at the hidden suite)."""
+    from arena.outcome import AgentOutcome, ScenarioStatus
+    from evaluator.runner import ScenarioOutcome
+    from server.core.artifacts import DatabaseStore
+    from server.services import evaluation
+    from tests.server.builders import agent, scenario_ids
+
+    team_id, _ = make_team(db, f"ours-{phase}")
+    submission_id = queued_submission(db, team_id, phase=phase)
+    with db.session() as session:
+        plan = evaluation.start_evaluation(session, settings, submission_id)
+    for index, scenario_id in enumerate(scenario_ids(plan)):
+        with db.session() as session:
+            job = evaluation.claim_scenario(session, settings, plan.run_id, scenario_id, "w1")
+        ours = index == 0
+        outcome = ScenarioOutcome(
+            scenario_id=scenario_id,
+            status=ScenarioStatus.simulator_error if ours else ScenarioStatus.done,
+            steps=0,
+            agents=() if ours else (AgentOutcome(**agent(False)),),
+            record_path=None,
+            error="SUMO crashed" if ours else None,
+        )
+        with db.session() as session:
+            evaluation.record_scenario(session, job, "w1", outcome, "")
+    with db.session() as session:
+        evaluation.finish_run(session, DatabaseStore(db), plan.run_id)
+    headers = bearer(token_of(db, submission_id))
+    detail = client.get(f"/api/v1/submissions/{submission_id}", headers=headers).json()
+    if phase == "final":
+        assert detail["failure_reasons"] == {} and detail["families"] == {}
+    else:
+        assert "collision" in str(detail["failure_reasons"])

@@ -1,0 +1,80 @@
+"""A worker prepares each submission once into a folder named after its digest and never changes
+it; its warm agents are keyed by that digest.
+
+The reproduction: the worker kept 4 prepared submissions; when one was evicted and prepared again
+into the same folder, its idle warm sandbox still bound the deleted files, and every later
+episode was an ``agent_error`` charged to the team.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from arena.config import get_settings
+from evaluator import sandbox
+from evaluator.sandbox.warm_pool import WarmAgents
+from server.core.db import get_database
+from server.worker import tasks
+from submissions.intake.pack import pack_folder
+from submissions.sample import sample_observation
+
+POLICY = """
+class Policy:
+    def act(self, obs):
+        return {{k: [{value}.0, 0.0] for k in obs}}
+"""
+
+
+@pytest.fixture
+def worker_env(settings, db, monkeypatch):
+    """This process configured as a worker of the test's service (as ``arena worker`` is)."""
+    for name, value in {
+        "DATA_DIR": settings.data_dir,
+        "DATABASE_URL": settings.database_url,
+        "BROKER_URL": settings.broker_url,
+        "BROKER_KEY_PREFIX": settings.broker_key_prefix,
+    }.items():
+        monkeypatch.setenv(f"ARENA_{name}", str(value))
+    caches = (get_settings, get_database, tasks._store, tasks._prepare, tasks._sandbox_kind)
+    for cache in caches:
+        cache.cache_clear()
+    yield get_settings()
+    for cache in caches:
+        cache.cache_clear()
+
+
+def upload(tmp_path, value: int) -> str:
+    folder = tmp_path / f"agent{value}"
+    folder.mkdir()
+    (folder / "policy.py").write_text(POLICY.format(value=value))
+    key = f"uploads/{value}/upload.zip"
+    tasks._store().put(key, pack_folder(folder, tmp_path / f"agent{value}.zip"))
+    return key
+
+
+def act_once(pool: WarmAgents, submission, kind, settings) -> dict:
+    with pool.lease(submission, kind, {}, settings) as forked:
+        assert forked is not None, "the submission should run warm"
+        with forked.start() as handle:
+            handle.reset()
+            return handle.act(sample_observation())
+
+
+def test_a_submission_prepared_again_keeps_its_warm_agent_working(worker_env, tmp_path):
+    settings = worker_env
+    kind = sandbox.check_service_kind(settings=settings)
+    keys = [upload(tmp_path, value) for value in range(6)]
+    pool = WarmAgents()
+    try:
+        first = tasks._prepared(keys[0])
+        assert act_once(pool, first, kind, settings) == {"Agent_0": [0.0, 0.0]}
+        for key in keys[1:]:  # more than the worker keeps: the first is dropped
+            tasks._prepared(key)
+        again = tasks._prepared(keys[0])
+        assert again is not first  # prepared again...
+        assert again.root == first.root and again.sha256 == first.sha256  # ...into the same copy
+        assert (first.root / "policy.py").is_file()
+        # The idle warm agent of the first preparation serves the second.
+        assert act_once(pool, again, kind, settings) == {"Agent_0": [0.0, 0.0]}
+    finally:
+        pool.close()
