@@ -13,9 +13,9 @@ from pettingzoo import ParallelEnv
 
 from arena.scenario import load_scenario
 from learn.gym_env import EpisodeState, start_episode, step_outcome
+from learn.protocol import Config, Simulator, SimulatorMode, check_simulator_mode
 from learn.reward import RewardFn, default_reward
 from learn.scenarios import scenario_dirs
-from learn.session import Config, Simulator, SimulatorMode, check_simulator_mode
 from learn.spaces import action_space, observation_space
 from sim.interface import AgentInterface
 

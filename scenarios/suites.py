@@ -8,7 +8,6 @@ The hidden seed itself is never written anywhere: the manifest carries its finge
 
 from __future__ import annotations
 
-import hashlib
 import shutil
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -19,6 +18,7 @@ import numpy as np
 from arena.scenario import DataLabel, Family, Scenario, content_hash
 from arena.suite import ManifestEntry, SuiteManifest, write_manifest
 from scenarios.generators import GENERATORS, MapLibrary, Spec
+from scenarios.ids import derive_seed, scenario_id, seed_fingerprint
 from scenarios.maps import netconvert_version
 from scenarios.replay.builder import Candidate, candidates, write_replay
 from scenarios.replay.naturalistic import SOURCE as NATURALISTIC_SOURCE
@@ -33,6 +33,8 @@ BUBBLE_RADIUS = 40.0  # [m]
 
 F = Family
 LOW_MID = ("low", "mid")
+
+
 # Reactive composition (scenario spec, "Reactive scenarios (71)").
 def every_variant(family: Family) -> tuple[str, ...]:
     """The family's variants in the order of the variant table (suite ids depend on it)."""
@@ -91,28 +93,6 @@ def public_specs() -> list[Spec]:
 
 
 SUITES: dict[str, Callable[[], list[Spec]]] = {"hidden": hidden_specs, "public": public_specs}
-
-
-def derive_seed(suite: str, suite_seed: int, *parts: object) -> int:
-    """A 31-bit seed (SUMO takes int32) from a domain-separated hash."""
-    text = "/".join(["driving-arena", suite, str(suite_seed), *map(str, parts)])
-    return int.from_bytes(hashlib.sha256(text.encode()).digest()[:4], "big") & 0x7FFFFFFF
-
-
-def seed_fingerprint(seed: int) -> str:
-    return hashlib.sha256(f"driving-arena/seed-fingerprint/{seed}".encode()).hexdigest()[:16]
-
-
-def scenario_id(suite: str, index: int, spec: Spec) -> str:
-    parts = [f"{suite[0]}{index:03d}"]
-    if not spec.variant.startswith(spec.family.value):
-        parts.append(spec.family.value)
-    parts.append(spec.variant)
-    if spec.volume:
-        parts.append(spec.volume)
-    if spec.agents > 1:
-        parts.append(f"{spec.agents}agents")
-    return "_".join(parts)
 
 
 MAX_TAKES_PER_SCENE = 4  # recordings of one scene per build before giving up on a kind

@@ -11,6 +11,7 @@ import numpy as np
 
 from arena.scenario import Family, Scenario
 from scenarios.generators import Spec
+from scenarios.ids import derive_seed, scenario_id
 from scenarios.replay.naturalistic import (
     Ego,
     NaturalisticScene,
@@ -29,7 +30,6 @@ class NaturalisticPool:
 
     @classmethod
     def load(cls, folder: Path, suite: str, seed: int, cache_dir: Path) -> NaturalisticPool:
-        from scenarios.suites import derive_seed  # suites imports this module
 
         scenes = load_scenes(folder)
         rng = np.random.default_rng(derive_seed(suite, seed, "naturalistic"))
@@ -57,7 +57,6 @@ class NaturalisticPool:
         )
 
     def write(self, out: Path, suite: str, index: int, seed: int) -> Scenario:
-        from scenarios.suites import scenario_id
 
         scene, ego = self.queue.pop(0)
         sid = scenario_id(suite, index, Spec(Family.replay, f"ngsim_{ego.kind}", None, 1, False))

@@ -146,7 +146,7 @@ def train(
         checkpoints.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(1)  # the simulators need the other core
     # DummyVecEnv is enough: the first env simulates in this process, the second in a child of
-    # its own (libsumo holds one simulation per process; learn.session.open_simulator).
+    # its own (libsumo holds one simulation per process; learn.simulators.open_simulator).
     envs = DummyVecEnv([make_env(suite, rank, seed) for rank in range(2)])
     model = PPO(
         "MultiInputPolicy",
