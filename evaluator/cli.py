@@ -88,6 +88,7 @@ def evaluate(
 
     Exits 1 when a scenario failed for the agent's fault (an exception, a bad action, a timeout),
     2 when the evaluation could not run."""
+    # deferred: CLI start-up time
     from arena.config import get_settings
     from arena.errors import ArenaError
     from arena.suite import resolve_suite
@@ -152,8 +153,10 @@ def train(
 
     Exits 1 when the training failed (its named reason and log tail are printed), 2 when it
     could not run."""
+    # deferred: CLI start-up time
     import tempfile
 
+    # deferred: CLI start-up time
     from arena.config import get_settings
     from arena.errors import ArenaError
     from evaluator.training import train as run_training
@@ -205,6 +208,7 @@ def score(
     ] = False,
 ) -> None:
     """Re-score stored episode records (no simulation) and rewrite summary.json."""
+    # deferred: CLI start-up time
     from arena.config import get_settings
     from arena.errors import RecordError
     from evaluator.runner import score_results_dir
@@ -255,6 +259,7 @@ def replay(
 ) -> None:
     """Watch one episode: an animated page (open it in a browser), a GIF or MP4 video, or a still
     SVG picture, with the map, every vehicle, the ego's speed and its events."""
+    # deferred: CLI start-up time
     from arena.config import get_settings
     from arena.errors import RecordError, SuiteError
     from arena.suite import resolve_suite
@@ -284,6 +289,7 @@ class _FrameProgress:
     """A bar of frames drawn, shown once a video starts rendering."""
 
     def __init__(self, console: Console) -> None:
+        # deferred: CLI start-up time
         from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
 
         self.bar = Progress(
@@ -307,6 +313,7 @@ class _FrameProgress:
 
 def _episodes(summary: Summary) -> list[tuple[str, object]]:
     """Every episode of the summary with its name (the scenario id when it ran once)."""
+    # deferred: CLI start-up time
     from evaluator.runner.results import stored_episodes
 
     return [
@@ -320,6 +327,7 @@ class _RichProgress:
     """Episodes done/total, failures so far and ETA, on the console given."""
 
     def __init__(self, console: Console) -> None:
+        # deferred: CLI start-up time
         from rich.progress import (
             BarColumn,
             MofNCompleteColumn,
@@ -350,6 +358,7 @@ class _RichProgress:
         )
 
     def finished(self, outcome: ScenarioOutcome) -> None:
+        # deferred: CLI start-up time
         from arena.outcome import ScenarioStatus
 
         if outcome.status != ScenarioStatus.done:

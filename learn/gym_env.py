@@ -8,6 +8,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from evaluator.scoring import DEFAULT_PROFILE
 from learn.protocol import Config, Reply, Simulator, SimulatorMode, check_simulator_mode
 from learn.reward import RewardFn, RewardInput, default_reward
 from learn.scenarios import scenario_dirs
@@ -147,6 +148,4 @@ def _action_space(interface: AgentInterface) -> gym.spaces.Box:
 
 
 def _profile_name(profile: str | None) -> str:
-    from evaluator.scoring import DEFAULT_PROFILE
-
     return profile or DEFAULT_PROFILE

@@ -52,6 +52,7 @@ def write_replay(
     ``on_frames(total)`` returns what to call after each frame drawn (a progress bar)."""
     out = Path(out)
     if fmt is ReplayFormat.svg:
+        # deferred: CLI start-up (the CLI imports this module); each format loads its renderer
         from evaluator.replay_picture import episode_svg
         from evaluator.scoring.record import read_arrays, scalar
 
@@ -61,10 +62,12 @@ def write_replay(
         return out
     replay = load_replay(record, suite_dir)
     if fmt is ReplayFormat.html:
+        # deferred: CLI start-up (the CLI imports this module); each format loads its renderer
         from evaluator.replay.page import replay_html
 
         out.write_text(replay_html(replay))
         return out
+    # deferred: CLI start-up (the CLI imports this module); each format loads its renderer
     from evaluator.replay.frames import frame_count, frames, write_gif, write_mp4
 
     advance = on_frames(frame_count(replay, every))

@@ -175,6 +175,7 @@ def scenario_folder(suite_dir: Path | None, scenario_id: str) -> Path | None:
 
 
 def _road(scenario_dir: Path) -> RoadGeometry:
+    # deferred: CLI start-up (the CLI imports this module); the road needs the simulator
     from arena.scenario import load_scenario
     from scenarios.picture import stop_lanes
     from sim.render import road_geometry

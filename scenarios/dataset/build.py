@@ -71,6 +71,7 @@ def build_dataset(
 ) -> dict:
     """Write the Minari dataset :data:`DATASET_ID` under ``out`` (its ``MINARI_DATASETS_PATH``)
     plus ``out/dataset-manifest.json``; returns the manifest."""
+    # deferred: heavy optional dependencies (the dataset extra), loaded only when building
     import gymnasium as gym
     import minari
     from minari.data_collector import EpisodeBuffer
@@ -152,6 +153,7 @@ def _buffer(cls, index: int, episode: Episode):
 
 
 def _create(minari, buffers: list, space) -> None:
+    # deferred: heavy optional dependencies (the dataset extra), loaded only when building
     import gymnasium as gym
 
     minari.create_dataset_from_buffers(

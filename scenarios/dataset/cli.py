@@ -26,8 +26,10 @@ def build(
     ] = None,
 ) -> None:
     """Replays -> a Minari dataset (observations, actions, rewards, terminations) in OUT."""
+    # deferred: CLI start-up time
     from rich.console import Console
 
+    # deferred: CLI start-up time
     from arena.config import get_settings
     from arena.suite import public_suite_dir
     from scenarios.dataset.build import build_dataset

@@ -11,6 +11,7 @@ solve the scenario). Scenario folders carry the source's licence and attribution
 
 from __future__ import annotations
 
+import csv
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import sumolib
 
+from arena.config import get_settings
 from arena.scenario import (
     GOAL_RADIUS_M,
     DataLabel,
@@ -100,8 +102,6 @@ def ngsim_lanelets(path: Path) -> tuple[Lanelet, ...]:
     """NGSIM CSV has no road geometry: straight parallel 12 ft lanes along +x, one per
     ``Lane_ID`` (1 = leftmost, at y = 0 .. -12 ft, as :func:`read_ngsim` lays out ``Local_X``),
     spanning the recorded x range."""
-    import csv
-
     try:
         with open(path, newline="") as f:
             lane_ids = {int(float(row["Lane_ID"])) for row in csv.DictReader(f)}
@@ -272,8 +272,6 @@ def shipped_scenes_dir() -> Path:
     """The naturalistic scenes shipped with the package, with their licence and provenance:
     ``scenarios/data/naturalistic/commonroad-ngsim`` (setting ``ARENA_NATURALISTIC_DIR``
     overrides)."""
-    from arena.config import get_settings
-
     configured = get_settings().naturalistic_dir
     if configured is not None:
         return configured

@@ -30,7 +30,6 @@ class NaturalisticPool:
 
     @classmethod
     def load(cls, folder: Path, suite: str, seed: int, cache_dir: Path) -> NaturalisticPool:
-
         scenes = load_scenes(folder)
         rng = np.random.default_rng(derive_seed(suite, seed, "naturalistic"))
         nets, per_scene = {}, []
@@ -57,7 +56,6 @@ class NaturalisticPool:
         )
 
     def write(self, out: Path, suite: str, index: int, seed: int) -> Scenario:
-
         scene, ego = self.queue.pop(0)
         sid = scenario_id(suite, index, Spec(Family.replay, f"ngsim_{ego.kind}", None, 1, False))
         return write_naturalistic(out / sid, sid, scene, ego, self.nets[scene.name], seed)

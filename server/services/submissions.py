@@ -13,6 +13,7 @@ from sqlalchemy import func, or_, select
 from sqlalchemy.orm import Session, selectinload
 
 from arena.config import Settings
+from arena.errors import IntakeError
 from arena.outcome import FINISHED, ScenarioStatus
 from server.core.artifacts import artifact_store
 from server.core.db import Database
@@ -48,6 +49,8 @@ from server.status import (
     advance,
 )
 from server.tracks import Track
+from submissions.intake import prepare_submission
+from submissions.intake.archive import remove_tree
 
 S = SubmissionStatus
 log = logging.getLogger(__name__)
@@ -112,10 +115,6 @@ def accept_upload(
 
     The intake runs before anything is recorded, so a rejected zip leaves no trace and does not
     count towards the quota."""
-    from arena.errors import IntakeError
-    from submissions.intake import prepare_submission
-    from submissions.intake.archive import remove_tree
-
     method_name = new.method_name.strip()
     if not method_name or len(method_name) > 128:
         raise InvalidUpload("method_name: give the method a name of 1 to 128 characters")

@@ -61,6 +61,7 @@ class BaselineInputs(gym.Wrapper):
 
 def make_env(suite: str, rank: int, seed: int):
     def make():
+        # deferred: training-time dependencies, heavy; not needed to import the policy
         from learn.gym_env import DrivingArenaEnv
 
         env = BaselineInputs(DrivingArenaEnv(suite, traffic_seed="random", **AGENT_OPTIONS))
@@ -72,6 +73,7 @@ def make_env(suite: str, rank: int, seed: int):
 
 def export_onnx(model, path: Path) -> None:
     """The policy's action logits as an ONNX graph of (image uint8, vector float32)."""
+    # deferred: training-time dependencies, heavy; not needed to import the policy
     import torch
 
     policy = model.policy.to("cpu").eval()
@@ -121,8 +123,10 @@ def train(
     """Train for ``timesteps`` (or until ``minutes`` of wall time pass), export, return the
     ONNX file's path. With ``export_every``, also export ``checkpoints/policy_<steps>.onnx``
     every that many steps, to compare the stages of a run with ``arena evaluate``."""
+    # deferred: training-time dependencies, heavy; not needed to import the policy
     import time
 
+    # deferred: training-time dependencies, heavy; not needed to import the policy
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
