@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import json
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -14,6 +15,7 @@ from rich.console import Console
 from rich.markup import escape
 
 from arena.config import SandboxKind
+from arena.errors import ArenaError
 from arena.terminal import make_console, print_rows
 from evaluator.failures import (
     describe_end,
@@ -90,10 +92,8 @@ def evaluate(
     2 when the evaluation could not run."""
     # deferred: CLI start-up time
     from arena.config import get_settings
-    from arena.errors import ArenaError
     from arena.suite import resolve_suite
     from evaluator.runner import evaluate as run_evaluation
-    from evaluator.scoring import ProfileError
 
     settings = get_settings()
     console = make_console(stderr=as_json)
@@ -101,23 +101,21 @@ def evaluate(
     out = out or Path("arena-results") / path.stem
     progress = _RichProgress(console)
     try:
-        summary = run_evaluation(
-            path,
-            resolve_suite(suite, settings),
-            out_dir=out,
-            per_submission=per_submission,
-            force=force,
-            scenario_ids=scenario,
-            jobs=jobs or settings.jobs,
-            sandbox=sandbox or settings.sandbox,
-            profile=profile or settings.scoring_profile,
-            progress=progress,
-            episodes_per_scenario=episodes or settings.episodes_per_scenario,
-            model_dir=model,
-        )
-    except (ArenaError, ProfileError) as exc:
-        console.print(f"[bold red]error:[/] {escape(str(exc))}")
-        raise typer.Exit(2) from None
+        with _exit_on_error(console):
+            summary = run_evaluation(
+                path,
+                resolve_suite(suite, settings),
+                out_dir=out,
+                per_submission=per_submission,
+                force=force,
+                scenario_ids=scenario,
+                jobs=jobs or settings.jobs,
+                sandbox=sandbox or settings.sandbox,
+                profile=profile or settings.scoring_profile,
+                progress=progress,
+                episodes_per_scenario=episodes or settings.episodes_per_scenario,
+                model_dir=model,
+            )
     finally:
         progress.stop()
     if per_submission:
@@ -156,9 +154,7 @@ def train(
     # deferred: CLI start-up time
     import tempfile
 
-    # deferred: CLI start-up time
     from arena.config import get_settings
-    from arena.errors import ArenaError
     from evaluator.training import train as run_training
     from submissions.intake import prepare_submission
 
@@ -166,28 +162,24 @@ def train(
     if timeout is not None:
         settings = settings.model_copy(update={"train_timeout_s": timeout})
     console = make_console()
-    try:
-        with tempfile.TemporaryDirectory(prefix="arena-train-") as tmp:
-            Path(tmp).chmod(0o755)  # the sandbox user must enter the submission
-            submission = prepare_submission(path, Path(tmp) / "submission", settings)
-            with console.status("training") as status:
+    with _exit_on_error(console), tempfile.TemporaryDirectory(prefix="arena-train-") as tmp:
+        Path(tmp).chmod(0o755)  # the sandbox user must enter the submission
+        submission = prepare_submission(path, Path(tmp) / "submission", settings)
+        with console.status("training") as status:
 
-                def progress(elapsed: float, log: str) -> bool:
-                    last = log.strip().splitlines()[-1:] or [""]
-                    status.update(f"training {elapsed:.0f} s  {escape(last[0][:100])}")
-                    return True
+            def progress(elapsed: float, log: str) -> bool:
+                last = log.strip().splitlines()[-1:] or [""]
+                status.update(f"training {elapsed:.0f} s  {escape(last[0][:100])}")
+                return True
 
-                result = run_training(
-                    submission,
-                    dataset,
-                    out,
-                    kind=sandbox,
-                    settings=settings,
-                    on_progress=progress,
-                )
-    except ArenaError as exc:
-        console.print(f"[bold red]error:[/] {escape(str(exc))}")
-        raise typer.Exit(2) from None
+            result = run_training(
+                submission,
+                dataset,
+                out,
+                kind=sandbox,
+                settings=settings,
+                on_progress=progress,
+            )
     if not result.ok:
         console.print(escape(result.log), highlight=False)
         console.print(f"[bold red]{result.failure}[/]: {escape(result.detail)}")
@@ -210,22 +202,18 @@ def score(
     """Re-score stored episode records (no simulation) and rewrite summary.json."""
     # deferred: CLI start-up time
     from arena.config import get_settings
-    from arena.errors import RecordError
     from evaluator.runner import score_results_dir
-    from evaluator.scoring import ProfileError, load_profile
+    from evaluator.scoring import load_profile
     from evaluator.summary import SUMMARY_FILE, write_summary
 
     console = make_console(stderr=as_json)
     if not (results_dir / SUMMARY_FILE).exists():
         console.print(f"[bold red]error:[/] {escape(str(results_dir))} has no {SUMMARY_FILE}")
         raise typer.Exit(2)
-    try:
+    with _exit_on_error(console):
         summary = score_results_dir(
             results_dir, load_profile(profile or get_settings().scoring_profile)
         )
-    except (ProfileError, RecordError) as exc:
-        console.print(f"[bold red]error:[/] {escape(str(exc))}")
-        raise typer.Exit(2) from None
     write_summary(summary, results_dir)
     _report(summary, results_dir, console, as_json, per_scenario)
 
@@ -261,13 +249,11 @@ def replay(
     SVG picture, with the map, every vehicle, the ego's speed and its events."""
     # deferred: CLI start-up time
     from arena.config import get_settings
-    from arena.errors import RecordError, SuiteError
     from arena.suite import resolve_suite
     from evaluator.replay.export import find_record, write_replay
-    from evaluator.replay.model import ReplayError
 
     console = Console(stderr=True)
-    try:
+    with _exit_on_error(console):
         record = find_record(source, scenario_id)
         out = out or Path(f"{scenario_id or record.stem}.{fmt.value}")
         with _FrameProgress(console) as progress:
@@ -279,10 +265,18 @@ def replay(
                 every=every,
                 on_frames=progress.start,
             )
-    except (ReplayError, RecordError, SuiteError) as exc:
+    console.print(f"wrote {escape(str(out))}")
+
+
+@contextmanager
+def _exit_on_error(console: Console) -> Iterator[None]:
+    """Any error of ours (a bad suite, profile, record or submission; a sandbox that cannot
+    start) is one line on the console and exit code 2: the command could not run."""
+    try:
+        yield
+    except ArenaError as exc:
         console.print(f"[bold red]error:[/] {escape(str(exc))}")
         raise typer.Exit(2) from None
-    console.print(f"wrote {escape(str(out))}")
 
 
 class _FrameProgress:

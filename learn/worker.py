@@ -19,6 +19,7 @@ import traceback
 from pathlib import Path
 from typing import Any, BinaryIO
 
+from arena.errors import InfrastructureError
 from learn.protocol import Config, Reply
 from learn.session import SimulatorSession
 from sim.observation_arrays import ObservationLayout
@@ -27,7 +28,7 @@ HEADER = struct.Struct(">I")
 PROJECT_ROOT = Path(__file__).resolve().parents[1]
 
 
-class SimulatorError(RuntimeError):
+class SimulatorError(InfrastructureError, RuntimeError):
     """The simulator child failed (a SUMO error, or the child died)."""
 
 

@@ -37,7 +37,7 @@ from server.services.errors import NotFound
 ARENA = [sys.executable, "-c", "from arena.cli import app; app()"]
 
 
-class AlreadyServed(RuntimeError):
+class AlreadyServed(ArenaError, RuntimeError):
     """Another instance serves this data folder, or something else listens on the port."""
 
 

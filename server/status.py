@@ -12,6 +12,8 @@ from __future__ import annotations
 from enum import StrEnum
 from typing import TypeVar
 
+from arena.errors import ArenaError
+
 
 class SubmissionStatus(StrEnum):
     received = "received"
@@ -76,7 +78,7 @@ ACTIVE_RUN = frozenset({R.queued, R.running})
 ACTIVE_TRAINING = frozenset({T_.queued, T_.training})
 
 
-class IllegalTransition(ValueError):
+class IllegalTransition(ArenaError, ValueError):
     """A status change the state machine forbids (e.g. ``scored -> running``)."""
 
 

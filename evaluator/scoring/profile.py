@@ -19,12 +19,13 @@ from pydantic import (
     model_validator,
 )
 
+from arena.errors import ArenaError
 from evaluator.scoring.registry import get_term
 
 DEFAULT_PROFILE = "driving-smarts-2022"
 
 
-class ProfileError(ValueError):
+class ProfileError(ArenaError, ValueError):
     pass
 
 

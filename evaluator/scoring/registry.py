@@ -10,13 +10,14 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from arena.errors import ArenaError
 from evaluator.scoring import reference_terms, terms
 from evaluator.scoring.term import Term
 
 _TERMS: dict[str, Term] = {}
 
 
-class UnknownTermError(ValueError):
+class UnknownTermError(ArenaError, ValueError):
     pass
 
 

@@ -18,7 +18,7 @@ from enum import StrEnum
 from pathlib import Path
 
 from arena.config import SandboxKind, Settings, get_settings
-from arena.errors import DatasetError, IntakeError
+from arena.errors import ArenaError, DatasetError, IntakeError
 from evaluator import sandbox
 from evaluator.sandbox.backend import TRAIN_SCRIPT, ExitStatus
 from evaluator.training.model import output_bytes, regular_files
@@ -50,7 +50,7 @@ class TrainingResult:
         return self.failure is None
 
 
-class TrainingStopped(Exception):
+class TrainingStopped(ArenaError):
     """The caller's ``on_progress`` asked to stop: the sandbox was killed, nothing is judged."""
 
 

@@ -20,6 +20,7 @@ import numpy as np
 import sumolib
 
 from arena.config import get_settings
+from arena.errors import ArenaError
 from arena.scenario import (
     GOAL_RADIUS_M,
     DataLabel,
@@ -48,7 +49,7 @@ SOURCE = "NGSIM"
 NGSIM_LANE_WIDTH = 12 * 0.3048  # [m] the US-101 / I-80 lanes are 12 ft wide
 
 
-class NaturalisticImportError(ValueError):
+class NaturalisticImportError(ArenaError, ValueError):
     """A scene file that cannot be used; the message names the file and the problem."""
 
 
