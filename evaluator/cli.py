@@ -25,7 +25,7 @@ from evaluator.failures import (
     never_started,
     startup_error,
 )
-from evaluator.replay.export import ReplayFormat
+from evaluator.viewer.export import ReplayFormat
 
 if TYPE_CHECKING:
     from evaluator.runner import ScenarioOutcome
@@ -250,7 +250,7 @@ def replay(
     # deferred: CLI start-up time
     from arena.config import get_settings
     from arena.suite import resolve_suite
-    from evaluator.replay.export import find_record, write_replay
+    from evaluator.viewer.export import find_record, write_replay
 
     console = Console(stderr=True)
     with _exit_on_error(console):

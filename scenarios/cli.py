@@ -78,7 +78,7 @@ def build(
 ) -> None:
     """Build the hidden suite (128 scenarios) or the public set into OUT with a manifest.json."""
     # deferred: CLI start-up time
-    from scenarios.replay.naturalistic import NaturalisticImportError
+    from scenarios.recorded.naturalistic import NaturalisticImportError
     from scenarios.suites import PUBLIC_SEED, SUITES, build_suite
 
     if suite is SuiteName.public:

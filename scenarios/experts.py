@@ -12,7 +12,7 @@ from pathlib import Path
 import yaml
 
 from arena.scenario import load_scenario
-from scenarios.replay.builder import EXPERT_FILE
+from scenarios.recorded.builder import EXPERT_FILE
 from sim.interface import ActionSpace, AgentInterface
 from sim.trajectories import Trajectory, read_trajectories
 

@@ -9,13 +9,13 @@ import numpy as np
 
 from arena.scenario import ReplayTraffic, load_scenario
 from scenarios.netinfo import net_info
-from scenarios.replay.builder import EXPERT_FILE
+from scenarios.recorded.builder import EXPERT_FILE
+from sim.playback import ReplayTable
 from sim.render import EGO_COLOUR, GOAL_COLOUR, SvgCanvas, draw_road
-from sim.replay import ReplayTable
 from sim.road import RoadNetwork
 from sim.simulation import scene_states
 from sim.trajectories import read_trajectories
-from sim.vehicles import VehicleStates
+from sim.vehicle.states import VehicleStates
 
 
 def stop_lanes(net_path: Path) -> tuple[str, ...]:

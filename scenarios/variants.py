@@ -36,7 +36,7 @@ KIND_SCENE = {
     "left_turn": "cross",
     "urban": "urban",
 }
-# Naturalistic replays (scenarios/replay/naturalistic.py): the manoeuvre of the removed vehicle.
+# Naturalistic replays (scenarios/recorded/naturalistic.py): the manoeuvre of the removed vehicle.
 NATURALISTIC_KINDS = tuple(
     f"ngsim_{kind}" for kind in ("cruise", "lane_change", "left_turn", "right_turn")
 )

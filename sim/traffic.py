@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from arena.errors import InfrastructureError
-from sim.vehicles import VehicleStates
+from sim.vehicle.states import VehicleStates
 
 _open_instance: SumoTraffic | None = None
 

@@ -11,7 +11,7 @@ from sim.bev import BevRenderer, EgoPose
 from sim.interface import AgentInterface
 from sim.road import RoadNetwork
 from sim.road.lane import Lane
-from sim.vehicles import VehicleStates
+from sim.vehicle.states import VehicleStates
 
 SAMPLE_LANES = 4
 SAMPLE_LANE_WIDTH = 3.2  # [m]

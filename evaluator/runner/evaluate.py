@@ -34,10 +34,10 @@ from evaluator.runner.results import (
     RECORDS_DIR,
     ScoredEntry,
     is_finished,
+    outcome_from_results_dir,
     score_outcome,
     score_outcomes,
     stored_episodes,
-    stored_outcome,
 )
 from evaluator.runner.scenario import ScenarioOutcome, run_scenario
 from evaluator.sandbox import backend, resolve_kind
@@ -250,7 +250,7 @@ class ResultsFolder:
             for entry in previous.scenarios:
                 for key, episode in stored_episodes(entry):
                     if is_finished(key, episode, self.out_dir):
-                        self.outcomes[key] = stored_outcome(key, episode, self.out_dir)
+                        self.outcomes[key] = outcome_from_results_dir(key, episode, self.out_dir)
             timings = self.out_dir / TIMINGS_FILE
             if timings.exists():
                 self.timings = json.loads(timings.read_text())

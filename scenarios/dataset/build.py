@@ -1,7 +1,7 @@
 """`arena dataset build`: recorded and naturalistic replays -> a Minari offline-RL dataset.
 
 Sources: the naturalistic scenes (one episode per ego choice of every scene, see
-:mod:`scenarios.replay.naturalistic`) and the non-reactive replays of the public set (our SUMO
+:mod:`scenarios.recorded.naturalistic`) and the non-reactive replays of the public set (our SUMO
 recordings). Scenes that a hidden suite used (its manifest's ``naturalistic_scenes``, matched by
 sha256) are left out. ``DIR/dataset-manifest.json`` says which scenes and vehicles it holds.
 """
@@ -21,7 +21,7 @@ import numpy as np
 from arena.scenario import DataLabel, load_scenario
 from scenarios.dataset.collect import Episode, collect
 from scenarios.dataset.features import ACTION_SIZE, OBS_SIZE
-from scenarios.replay.naturalistic import ego_choices, load_scenes, scene_net, write_naturalistic
+from scenarios.recorded.naturalistic import ego_choices, load_scenes, scene_net, write_naturalistic
 
 DATASET_ID = "driving-arena/replays-v0"
 MANIFEST = "dataset-manifest.json"

@@ -33,7 +33,7 @@ def build(
     from arena.config import get_settings
     from arena.suite import public_suite_dir
     from scenarios.dataset.build import build_dataset
-    from scenarios.replay.naturalistic import NaturalisticImportError, shipped_scenes_dir
+    from scenarios.recorded.naturalistic import NaturalisticImportError, shipped_scenes_dir
 
     console = Console()
     settings = get_settings()

@@ -17,7 +17,7 @@ from sqlalchemy.orm import Session
 from arena.config import Settings
 from arena.errors import RecordError
 from arena.suite import public_suite_dir
-from evaluator.replay.model import load_replay
+from evaluator.viewer.model import load_replay
 from scenarios.verify import verify_scenario
 from server.core.artifacts import MissingArtifact, artifact_store
 from server.core.db import Database

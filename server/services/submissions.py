@@ -52,7 +52,6 @@ from server.tracks import Track
 from submissions.intake import prepare_submission
 from submissions.intake.archive import remove_tree
 
-S = SubmissionStatus
 log = logging.getLogger(__name__)
 
 
@@ -78,8 +77,13 @@ def quota_used(session: Session, team_id: int, phase: str, track: Track, moment:
             Submission.phase == phase,
             Submission.track == track,
             Submission.created_at >= day_start,
-            or_(Submission.status != S.failed, Submission.failed_on_our_side.is_(False)),
-            or_(Submission.status != S.cancelled, Submission.started_at.is_not(None)),
+            or_(
+                Submission.status != SubmissionStatus.failed,
+                Submission.failed_on_our_side.is_(False),
+            ),
+            or_(
+                Submission.status != SubmissionStatus.cancelled, Submission.started_at.is_not(None)
+            ),
         )
     )
 
@@ -161,11 +165,13 @@ def accept_upload(
                 file_sha256=prepared.sha256,
                 file_size=prepared.size,
                 upload_key=f"{prefix}/upload.zip",
-                status=S.received,
+                status=SubmissionStatus.received,
             )
             session.add(submission)
             session.flush()
-            submission.status = advance(submission.status, S.queued, SUBMISSION_MOVES)
+            submission.status = advance(
+                submission.status, SubmissionStatus.queued, SUBMISSION_MOVES
+            )
             submission.queued_at = utcnow()
     except BaseException:
         store.delete_prefix(prefix)
@@ -347,7 +353,7 @@ def cancel(db: Database, queue: TaskQueue, submission_id: int) -> Submission:
         submission = lock(session, Submission, submission_id)
         if submission.status not in ACTIVE_SUBMISSION:
             raise Conflict(f"submission {submission_id} is {submission.status}; cannot cancel")
-        submission.status = advance(submission.status, S.cancelled, SUBMISSION_MOVES)
+        submission.status = advance(submission.status, SubmissionStatus.cancelled, SUBMISSION_MOVES)
         submission.finished_at = utcnow()
         cancel_trainings(submission)
         unfinished: list[str] = []
@@ -361,7 +367,9 @@ def cancel(db: Database, queue: TaskQueue, submission_id: int) -> Submission:
 def disqualify(db: Database, queue: TaskQueue, submission_id: int, reason: str) -> Submission:
     with db.session() as session:
         submission = lock(session, Submission, submission_id)
-        submission.status = advance(submission.status, S.disqualified, SUBMISSION_MOVES)
+        submission.status = advance(
+            submission.status, SubmissionStatus.disqualified, SUBMISSION_MOVES
+        )
         submission.status_reason = reason
         submission.finished_at = submission.finished_at or utcnow()
         cancel_trainings(submission)

@@ -16,8 +16,8 @@ from arena.suite import SHIPPED_PUBLIC_DIR
 from scenarios.dataset.build import DATASET_ID, MANIFEST, TRANSITIONS
 from scenarios.dataset.collect import collect
 from scenarios.dataset.features import ACTION_SIZE, OBS_SIZE, to_target_pose
-from scenarios.replay.builder import EXPERT_FILE
-from scenarios.replay.naturalistic import ego_choices, load_scene, scene_net, write_naturalistic
+from scenarios.recorded.builder import EXPERT_FILE
+from scenarios.recorded.naturalistic import ego_choices, load_scene, scene_net, write_naturalistic
 from sim.trajectories import read_trajectories
 
 runner = CliRunner()

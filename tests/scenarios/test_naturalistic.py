@@ -13,11 +13,11 @@ import pytest
 import sumolib
 
 from arena.scenario import DataLabel, load_scenario
-from scenarios.replay.builder import EXPERT_FILE
-from scenarios.replay.commonroad import CommonRoadImportError, read_scene
-from scenarios.replay.lanelet_net import build_lanelet_net, lanelet_edges
-from scenarios.replay.map_match import MAX_ANGLE_RAD, REACH_M, fit_trajectory
-from scenarios.replay.naturalistic import (
+from scenarios.recorded.builder import EXPERT_FILE
+from scenarios.recorded.commonroad import CommonRoadImportError, read_scene
+from scenarios.recorded.lanelet_net import build_lanelet_net, lanelet_edges
+from scenarios.recorded.map_match import MAX_ANGLE_RAD, REACH_M, fit_trajectory
+from scenarios.recorded.naturalistic import (
     ATTRIBUTION_FILE,
     NaturalisticImportError,
     ego_choices,
@@ -243,7 +243,7 @@ def test_ngsim_csv_scene_gets_straight_lanes_and_solvable_scenarios(tmp_path):
 
 
 def _straight(lid, y_right, *, left=None, right=None):
-    from scenarios.replay.commonroad import Lanelet
+    from scenarios.recorded.commonroad import Lanelet
 
     return Lanelet(
         lid,

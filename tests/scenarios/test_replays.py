@@ -5,9 +5,9 @@ import pytest
 
 from arena.scenario import DataLabel, load_scenario
 from scenarios.maps import build_map
-from scenarios.replay.builder import EXPERT_FILE
-from scenarios.replay.geometry import boxes_overlap
-from scenarios.replay.recorder import record_scene
+from scenarios.recorded.builder import EXPERT_FILE
+from scenarios.recorded.geometry import boxes_overlap
+from scenarios.recorded.recorder import record_scene
 from scenarios.traffic import Flow, Routes, driver_types
 from scenarios.verify import verify_suite
 from sim.trajectories import read_trajectories

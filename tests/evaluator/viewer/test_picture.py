@@ -3,10 +3,10 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from evaluator.replay.export import ReplayFormat, find_record, write_replay
-from evaluator.replay.model import ReplayError
-from evaluator.replay_picture import TRAIL_COLOUR
 from evaluator.runner.results import record_path
+from evaluator.viewer.export import ReplayFormat, find_record, write_replay
+from evaluator.viewer.model import ReplayError
+from evaluator.viewer.picture import TRAIL_COLOUR
 from sim.render import ROAD_COLOUR
 from tests.evaluator.scoring.builders import AgentSpec, drive, write_record
 from tests.sim.builders import make_scenario

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from arena.errors import RecordError
-from evaluator.replay.model import VehicleKind, load_replay
 from evaluator.scoring.record import read_arrays
+from evaluator.viewer.model import VehicleKind, load_replay
 from tests.evaluator.scoring.builders import AgentSpec, drive, write_record
 
 

@@ -4,7 +4,7 @@ its start state, with its goal where it ended; every other vehicle replays its r
 reacts.
 
 A scene gives one scenario per *ego choice*: a recorded vehicle whose every pose fits a lane of
-the built map (:mod:`scenarios.replay.map_match`), whose path is long enough to be a task, and
+the built map (:mod:`scenarios.recorded.map_match`), whose path is long enough to be a task, and
 whose recorded box overlaps no other recorded vehicle's (the log replay expert must be able to
 solve the scenario). Scenario folders carry the source's licence and attribution.
 """
@@ -31,12 +31,12 @@ from arena.scenario import (
     Scenario,
     VehicleDims,
 )
-from scenarios.replay.builder import EXPERT_FILE, TAIL_S, _crop
-from scenarios.replay.commonroad import CommonRoadImportError, Lanelet, read_scene
-from scenarios.replay.geometry import boxes_overlap
-from scenarios.replay.lanelet_net import build_lanelet_net
-from scenarios.replay.map_match import driven_route, fit_trajectory
-from scenarios.replay.ngsim import NgsimFormatError, read_ngsim
+from scenarios.recorded.builder import EXPERT_FILE, TAIL_S, _crop
+from scenarios.recorded.commonroad import CommonRoadImportError, Lanelet, read_scene
+from scenarios.recorded.geometry import boxes_overlap
+from scenarios.recorded.lanelet_net import build_lanelet_net
+from scenarios.recorded.map_match import driven_route, fit_trajectory
+from scenarios.recorded.ngsim import NgsimFormatError, read_ngsim
 from scenarios.writer import TRAJECTORIES_FILE, write_scenario
 from sim.road.network import RoadNetwork
 from sim.trajectories import Trajectory, write_trajectories

@@ -73,7 +73,7 @@ def test_html_file_plays_offline_in_chromium(episode, tmp_path):
 
 
 def test_labels_at_one_spot_are_stacked_apart():
-    from evaluator.replay.frames import place_labels
+    from evaluator.viewer.frames import place_labels
 
     sizes = [(60, 10), (60, 10), (80, 10), (40, 10)]
     anchors = [(100.0, 100.0, 4.0), (100.0, 102.0, 4.0), (95.0, 100.0, 12.0), (300.0, 50.0, 4.0)]

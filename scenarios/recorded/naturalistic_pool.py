@@ -12,7 +12,7 @@ import numpy as np
 from arena.scenario import Family, Scenario
 from scenarios.generators import Spec
 from scenarios.ids import derive_seed, scenario_id
-from scenarios.replay.naturalistic import (
+from scenarios.recorded.naturalistic import (
     Ego,
     NaturalisticScene,
     ego_choices,
