@@ -58,7 +58,7 @@ class SimulatorSession:
         drove = sim.step(actions)
         obs = {k: o for k, o in drove.items() if not o["done"]}
         reply = Reply(observations={}, scenario_id=sim.scenario.id)
-        for v in sim.vehicle.states:
+        for v in sim.vehicles:
             if v.id in live_before and v.id not in obs:
                 reply.finished[v.id] = str(v.reason)
                 if v.id in drove:  # drove this step (not ended by an invalid action)
