@@ -43,6 +43,7 @@ def _boxes(tr, frames):
     )
 
 
+@pytest.mark.slow
 def test_replays_are_recorded_and_the_removed_paths_collide_with_nothing(hidden_dev):
     replays = [e for e in manifest(hidden_dev)["scenarios"] if e["family"] == "replay"]
     assert len(replays) == 58

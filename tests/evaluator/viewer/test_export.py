@@ -18,6 +18,7 @@ def replay(record, suite, *args):
     return result
 
 
+@pytest.mark.slow
 def test_gif_has_one_frame_per_drawn_step_and_the_vehicles_move(episode, tmp_path):
     suite, record = episode
     out = tmp_path / "e.gif"
@@ -30,6 +31,7 @@ def test_gif_has_one_frame_per_drawn_step_and_the_vehicles_move(episode, tmp_pat
     assert first.shape == last.shape and np.abs(first.astype(int) - last).sum() > 0
 
 
+@pytest.mark.slow
 def test_mp4_has_every_step(episode, tmp_path):
     suite, record = episode
     out = tmp_path / "e.mp4"
@@ -46,6 +48,7 @@ def test_results_folder_needs_a_known_scenario(tmp_path):
     assert result.exit_code == 2 and "no record for nope" in result.output
 
 
+@pytest.mark.browser
 @pytest.mark.skipif(not CHROMIUM.exists(), reason="needs Debian's chromium")
 def test_html_file_plays_offline_in_chromium(episode, tmp_path):
     from playwright.sync_api import expect, sync_playwright

@@ -12,6 +12,7 @@ from evaluator.viewer.model import VehicleKind, load_replay
 from tests.evaluator.scoring.builders import AgentSpec, drive, write_record
 
 
+@pytest.mark.slow
 def test_mission_agents_and_every_vehicle_they_saw_step_by_step(episode):
     suite, record = episode
     arrays = read_arrays(record)

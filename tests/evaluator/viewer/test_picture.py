@@ -45,6 +45,7 @@ def test_picture_shows_path_coloured_by_speed_trails_goal_and_collision(tmp_path
     assert "Agent_0: collision at step 40" in texts(root)
 
 
+@pytest.mark.slow
 def test_map_is_drawn_when_the_scenario_is_found(tmp_path):
     make_scenario(tmp_path / "suite" / "cut_in_1")
     crash_record(tmp_path / "results")
