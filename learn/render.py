@@ -13,7 +13,7 @@ import numpy as np
 
 from sim.bev import BevRenderer, EgoPose
 from sim.interface import AgentInterface
-from sim.vehicles import VehicleStates
+from sim.vehicle.states import VehicleStates
 
 RENDER_PIXELS = 400  # [px] square
 RENDER_METERS = 80.0  # [m] across

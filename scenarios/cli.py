@@ -17,12 +17,14 @@ class SuiteName(StrEnum):
 
 
 def _console():
+    # deferred: CLI start-up time
     from arena.terminal import make_console
 
     return make_console()
 
 
 def progress_bar():
+    # deferred: CLI start-up time
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     return Progress(
@@ -36,12 +38,14 @@ def progress_bar():
 
 
 def _cache_dir() -> Path:
+    # deferred: CLI start-up time
     from arena.config import get_settings
 
     return get_settings().resolved_data_dir / "cache" / "scenarios"
 
 
 def _hidden_seed(seed: str | None, dev: bool) -> int:
+    # deferred: CLI start-up time
     from arena.config import get_settings
     from arena.seeds import SeedError, parse_seed
 
@@ -114,8 +118,9 @@ def build(
     jobs: Jobs = 1,
 ) -> None:
     """Build the hidden suite (128 scenarios) or the public set into OUT with a manifest.json."""
+    # deferred: CLI start-up time
     from arena.scenario import DataLabel
-    from scenarios.replay.naturalistic import NaturalisticImportError, scene_files
+    from scenarios.recorded.naturalistic import NaturalisticImportError, scene_files
     from scenarios.suites import PUBLIC_SEED, SUITES, CorpusOptions, build_suite
 
     if suite is SuiteName.public:
@@ -180,6 +185,7 @@ def list_(
     as_json: Annotated[bool, typer.Option("--json", help="The rows as a JSON list.")] = False,
 ) -> None:
     """The scenarios of a built suite: a table on a terminal, tab-separated lines in a pipe."""
+    # deferred: CLI start-up time
     from arena.terminal import make_console, print_rows
 
     manifest = _suite(directory).manifest
@@ -209,6 +215,7 @@ def list_(
 
 
 def _suite(directory: str | Path):
+    # deferred: CLI start-up time
     from arena.config import get_settings
     from arena.errors import SuiteError
     from arena.suite import load_suite, resolve_suite
@@ -230,6 +237,7 @@ def show(
     step: Annotated[int, typer.Option(help="Draw the traffic at this step.", min=0)] = 0,
 ) -> None:
     """Draw a scenario: map, lanes, traffic at STEP, mission starts, routes and goals."""
+    # deferred: CLI start-up time
     from arena.config import get_settings
     from arena.suite import public_suite_dir
     from scenarios.picture import draw_scenario
@@ -251,8 +259,10 @@ def verify(
 ) -> None:
     """Run the expert on every scenario (log replay for replays, the reference planner for
     reactive ones); record unsolved reasons in the manifest; print `solved=<k>/<n>`."""
+    # deferred: CLI start-up time
     from rich.table import Table
 
+    # deferred: CLI start-up time
     from scenarios.verify import verify_suite
 
     suite = _suite(directory)

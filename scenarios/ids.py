@@ -1,4 +1,5 @@
-"""Names and seeds of a suite's rows: domain-separated hashes of (suite, suite seed, row), so a
+"""Names and seeds of a suite's rows, shared by the suite builder (:mod:`scenarios.suites`) and
+the scenario sources it draws from: domain-separated hashes of (suite, suite seed, row), so a
 public scenario never equals a hidden one and the hidden seed cannot be recovered from a build."""
 
 from __future__ import annotations

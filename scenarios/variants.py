@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from arena.errors import ArenaError
 from arena.scenario import Family
 
 
@@ -19,7 +20,7 @@ class Variant:
     goal_lane: int | None = None  # intersections: the exit lane; None draws one
 
 
-class UnknownVariant(ValueError):
+class UnknownVariant(ArenaError, ValueError):
     """A suite composition names a variant its family does not have."""
 
 
@@ -35,7 +36,7 @@ KIND_SCENE = {
     "left_turn": "cross",
     "urban": "urban",
 }
-# Replays cut from an organiser's corpus (scenarios/replay/naturalistic.py): the manoeuvre of the
+# Replays cut from an organiser's corpus (scenarios/recorded/naturalistic.py): the manoeuvre of the
 # removed vehicle, prefixed ``ngsim_`` for NGSIM scenes and ``corpus_`` for other sources.
 NATURALISTIC_KINDS = tuple(
     f"{prefix}_{kind}"

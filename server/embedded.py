@@ -25,12 +25,21 @@ from rich.console import Console
 from rich.panel import Panel
 
 from arena.config import Settings, get_settings
+from arena.errors import ArenaError
+from arena.suite import hidden_suite_dir, load_suite, public_suite_dir
+from evaluator import sandbox
+from evaluator.sandbox.backend import owner_labels
+from scenarios.ids import seed_fingerprint
+from server.core.db import Database
+from server.core.migrate import upgrade_database
 from server.core.permissions import close_service_folders
+from server.services import teams
+from server.services.errors import NotFound
 
 ARENA = [sys.executable, "-c", "from arena.cli import app; app()"]
 
 
-class AlreadyServed(RuntimeError):
+class AlreadyServed(ArenaError, RuntimeError):
     """Another instance serves this data folder, or something else listens on the port."""
 
 
@@ -46,8 +55,6 @@ def run_embedded(console: Console, *, host: str, port: int, demo_team: str) -> N
     admin_token = settings.admin_token or _stored_admin_token(data)
     env["ARENA_ADMIN_TOKEN"] = admin_token
 
-    from server.core.migrate import upgrade_database
-
     console.print(f"database: {settings.resolved_database_url}")
     upgrade_database(settings.resolved_database_url)
 
@@ -56,8 +63,6 @@ def run_embedded(console: Console, *, host: str, port: int, demo_team: str) -> N
     env["ARENA_HIDDEN_SUITE_DIR"] = str(hidden)
     for warning in close_service_folders(data, hidden):
         console.print(f"[red]{warning}[/red]")
-
-    from evaluator import sandbox
 
     kind = sandbox.check_service_kind(settings=settings)
     env["ARENA_SANDBOX"] = kind.value
@@ -149,10 +154,6 @@ def _check_port_free(host: str, port: int) -> None:
 def _remove_leftover_sandboxes(console: Console, settings: Settings) -> None:
     """Agents of episodes the stopped worker left behind (it was this data folder's only
     worker); other services' and local evaluations' sandboxes on this host are not ours."""
-    from arena.errors import ArenaError
-    from evaluator import sandbox
-    from evaluator.sandbox.backend import owner_labels
-
     try:
         removed = sandbox.cleanup(owner_labels(settings))
     except ArenaError as exc:
@@ -180,8 +181,6 @@ def _build_suite(console: Console, env: dict, suite: str, out: Path, seed: int |
 
 
 def _public_suite(console: Console, settings: Settings, env: dict) -> Path:
-    from arena.suite import public_suite_dir
-
     folder = public_suite_dir(settings)
     if not (folder / "manifest.json").exists():
         folder = settings.resolved_data_dir / "suites" / "public"
@@ -192,9 +191,6 @@ def _public_suite(console: Console, settings: Settings, env: dict) -> Path:
 
 
 def _hidden_suite(console: Console, settings: Settings, env: dict) -> Path:
-    from arena.suite import hidden_suite_dir, load_suite
-    from scenarios.suites import seed_fingerprint
-
     folder = hidden_suite_dir(settings)
     if (folder / "manifest.json").exists():
         console.print(f"hidden suite: {folder}")
@@ -228,10 +224,6 @@ def _demo_team_token(settings: Settings, name: str) -> str:
     """The demo team's token, the same across restarts: kept for the local organiser in the data
     folder (owner-readable only; the database stores tokens hashed). A token that no longer
     works (revoked with `teams rotate-token`) is replaced."""
-    from server.core.db import Database
-    from server.services import teams
-    from server.services.errors import NotFound
-
     stored = settings.resolved_data_dir / "demo_token"
     db = Database(settings.resolved_database_url)
     try:

@@ -17,7 +17,7 @@ import shapely
 
 from sim.geometry import box_corners
 from sim.road import RoadNetwork
-from sim.vehicles import VehicleStates
+from sim.vehicle.states import VehicleStates
 
 RAYS = 300
 RANGE = 20.0  # [m]

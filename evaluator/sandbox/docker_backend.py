@@ -98,6 +98,7 @@ def remove_orphan_socket_dirs(live_instances: set[str]) -> None:
 
 @lru_cache
 def docker_client():
+    # deferred: the docker client is needed only with the Docker sandbox
     import docker
 
     return docker.from_env()
@@ -108,6 +109,7 @@ def container_options(spec: LaunchSpec, socket_dir: Path | None) -> dict[str, An
     (``spec.training``) has no protocol socket: it gets the dataset read-only, the output folder
     writable with no single file larger than its cap, and the GPUs when the organisers enable
     them."""
+    # deferred: the docker client is needed only with the Docker sandbox
     from docker.types import DeviceRequest, LogConfig, Ulimit
 
     settings = spec.settings
@@ -202,6 +204,7 @@ class DockerSandbox:
         return Channel(fd, fd)
 
     def exit_status(self, timeout: float) -> ExitStatus | None:
+        # deferred: the docker client is needed only with the Docker sandbox
         import docker.errors
         import requests.exceptions
 
@@ -233,6 +236,7 @@ class DockerSandbox:
         return cgroup_meter(pid) if pid else None
 
     def kill(self) -> None:
+        # deferred: the docker client is needed only with the Docker sandbox
         import docker.errors
         import requests.exceptions
 
@@ -260,6 +264,7 @@ class DockerSandbox:
                 shutil.rmtree(self._socket_dir, ignore_errors=True)
 
     def logs(self) -> str:
+        # deferred: the docker client is needed only with the Docker sandbox
         import docker.errors
         import requests.exceptions
 
@@ -278,6 +283,7 @@ class DockerBackend:
     kind = SandboxKind.docker
 
     def unavailable_reason(self, settings: Settings) -> str | None:
+        # deferred: the docker client is needed only with the Docker sandbox
         import docker.errors
 
         try:
@@ -297,6 +303,7 @@ class DockerBackend:
         return confine.supported()
 
     def launch(self, spec: LaunchSpec) -> DockerSandbox:
+        # deferred: the docker client is needed only with the Docker sandbox
         import docker.errors
 
         if spec.training is not None:
@@ -322,6 +329,7 @@ class DockerBackend:
         return DockerSandbox(container, listener, socket_dir, spec.settings.agent_log_tail_bytes)
 
     def cleanup(self, labels: dict[str, str]) -> int:
+        # deferred: the docker client is needed only with the Docker sandbox
         import docker.errors
         import requests.exceptions
 

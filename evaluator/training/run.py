@@ -10,6 +10,7 @@ shutting down, its claim was lost).
 
 from __future__ import annotations
 
+import signal
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -17,7 +18,8 @@ from enum import StrEnum
 from pathlib import Path
 
 from arena.config import SandboxKind, Settings, get_settings
-from arena.errors import DatasetError, IntakeError
+from arena.errors import ArenaError, DatasetError, IntakeError
+from evaluator import sandbox
 from evaluator.sandbox.backend import TRAIN_SCRIPT, ExitStatus
 from evaluator.training.checkpoint import hand_to_sandbox_user, restore
 from evaluator.training.model import OutputUsage, output_usage, regular_files
@@ -51,7 +53,7 @@ class TrainingResult:
         return self.failure is None
 
 
-class TrainingStopped(Exception):
+class TrainingStopped(ArenaError):
     """The caller's ``on_progress`` asked to stop: the sandbox was killed, nothing is judged."""
 
 
@@ -78,8 +80,6 @@ def train(
     kills the run and raises :class:`TrainingStopped`. Raises
     :class:`~arena.errors.SandboxUnavailable` when the sandbox cannot start (ours, retried).
     """
-    from evaluator import sandbox
-
     settings = settings or get_settings()
     if not submission.trains:
         raise IntakeError(TRAIN_SCRIPT, "train-missing", "the submission has no train.py to run")
@@ -210,7 +210,5 @@ def _ran_out_of_memory(log: str) -> bool:
 
 def _file_too_large(status: ExitStatus, log: str) -> bool:
     """SIGXFSZ, or Python's own error when it ignores the signal (EFBIG)."""
-    import signal
-
     killed = status.code is not None and signal.SIGXFSZ in (-status.code, status.code - 128)
     return killed or "File too large" in log

@@ -1,7 +1,7 @@
 """`arena dataset build`: recorded and naturalistic replays -> a Minari offline-RL dataset.
 
 Sources: the corpus scenes (one episode per recorded vehicle that finishes its mission, once
-per vehicle however many scene files it appears in, see :mod:`scenarios.replay.corpus`) and the
+per vehicle however many scene files it appears in, see :mod:`scenarios.recorded.corpus`) and the
 non-reactive replays of the public set (our SUMO recordings). A scene sharing a file or a single
 recorded vehicle with a hidden suite (its manifest's ``naturalistic_scenes``) is left out.
 ``DIR/dataset-manifest.json`` says which scenes and vehicles it holds, which it left out and
@@ -25,10 +25,10 @@ from arena.errors import ArenaError
 from arena.scenario import DataLabel, load_scenario
 from scenarios.dataset.collect import Episode, collect
 from scenarios.dataset.features import ACTION_SIZE, OBS_SIZE
-from scenarios.replay.corpus import Corpus, CorpusScene, read_corpus
-from scenarios.replay.naturalistic import write_naturalistic
-from scenarios.replay.naturalistic_pool import TRACKS_FILE
-from scenarios.replay.tracks import TrackIndex
+from scenarios.recorded.corpus import Corpus, CorpusScene, read_corpus
+from scenarios.recorded.naturalistic import write_naturalistic
+from scenarios.recorded.naturalistic_pool import TRACKS_FILE
+from scenarios.recorded.tracks import TrackIndex
 
 DATASET_ID = "driving-arena/replays-v0"
 MANIFEST = "dataset-manifest.json"
@@ -135,6 +135,7 @@ def build_dataset(
     plus ``out/dataset-manifest.json``; returns the manifest. ``progress`` is told each scene
     file read and each scenario collected; ``on_sources`` how many scenarios will be. ``jobs``
     scene files are read and scenarios collected at once."""
+    # deferred: heavy optional dependencies (the dataset extra), loaded only when building
     import gymnasium as gym
     import minari
     from minari.data_collector import EpisodeBuffer
@@ -251,6 +252,7 @@ def _buffer(cls, index: int, episode: Episode):
 
 
 def _create(minari, buffers: list, space, sources: list[str]) -> None:
+    # deferred: heavy optional dependencies (the dataset extra), loaded only when building
     import gymnasium as gym
 
     minari.create_dataset_from_buffers(

@@ -34,11 +34,12 @@ def build(
     jobs: Jobs = 1,
 ) -> None:
     """Replays -> a Minari dataset (observations, actions, rewards, terminations) in OUT."""
+    # deferred: CLI start-up time
     from arena.config import get_settings
     from arena.scenario import DataLabel
     from arena.suite import public_suite_dir
     from scenarios.dataset.build import DatasetError, build_dataset
-    from scenarios.replay.naturalistic import (
+    from scenarios.recorded.naturalistic import (
         NaturalisticImportError,
         scene_files,
         shipped_scenes_dir,

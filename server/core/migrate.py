@@ -6,10 +6,13 @@ from pathlib import Path
 
 from alembic import command
 from alembic.config import Config
+from alembic.runtime.migration import MigrationContext
+from alembic.script import ScriptDirectory
 from sqlalchemy.engine import make_url
 from sqlalchemy.exc import SQLAlchemyError
 
 from arena.errors import ArenaError
+from server.core.db import make_engine
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 
@@ -27,10 +30,6 @@ def upgrade_database(database_url: str, revision: str = "head") -> None:
 
 
 def current_revision(database_url: str) -> str | None:
-    from alembic.runtime.migration import MigrationContext
-
-    from server.core.db import make_engine
-
     engine = make_engine(database_url)
     try:
         with engine.connect() as connection:
@@ -41,8 +40,6 @@ def current_revision(database_url: str) -> str | None:
 
 def head_revision() -> str:
     """The newest migration: what an up-to-date database is at."""
-    from alembic.script import ScriptDirectory
-
     return ScriptDirectory.from_config(alembic_config("sqlite://")).get_current_head()
 
 

@@ -18,7 +18,7 @@ from server.core.artifacts import ArtifactStore
 from server.core.db import Database
 from server.core.queue import BROKER_ERRORS, TaskQueue
 from server.models import EvaluationRun, Submission, utcnow
-from server.services import evaluation, phases, scoring, submissions, training
+from server.services import evaluation, leases, phases, scoring, submissions, training
 from server.services.errors import Conflict, InvalidInput, NotFound
 from server.services.evaluation import RunPlan, lock
 from server.status import (
@@ -94,7 +94,7 @@ def _lost_work(settings: Settings, run: EvaluationRun, submission_id: int) -> Ru
         else:  # a dead worker's claim: released, so the re-sent task can take it
             result.worker, result.lease_expires_at = "", None
     pending = tuple(e for e in evaluation.pending_episodes(run) if e not in held)
-    run.lease_expires_at = evaluation.lease_until(settings)
+    run.lease_expires_at = leases.lease_until(settings)
     return RunPlan(run_id=run.id, episodes=pending, aggregate=not pending and not held)
 
 

@@ -13,6 +13,7 @@ from sqlalchemy import func, or_, select
 from sqlalchemy.orm import Session, selectinload
 
 from arena.config import Settings
+from arena.errors import IntakeError
 from arena.outcome import FINISHED, UNCHARGED, ScenarioStatus
 from evaluator.provenance import Manifest
 from server.core.artifacts import artifact_store
@@ -59,8 +60,9 @@ from server.status import (
     advance,
 )
 from server.tracks import Track
+from submissions.intake import prepare_submission
+from submissions.intake.archive import remove_tree
 
-S = SubmissionStatus
 log = logging.getLogger(__name__)
 
 
@@ -86,8 +88,13 @@ def quota_used(session: Session, team_id: int, phase: str, track: Track, moment:
             Submission.phase == phase,
             Submission.track == track,
             Submission.created_at >= day_start,
-            or_(Submission.status != S.failed, Submission.failed_on_our_side.is_(False)),
-            or_(Submission.status != S.cancelled, Submission.started_at.is_not(None)),
+            or_(
+                Submission.status != SubmissionStatus.failed,
+                Submission.failed_on_our_side.is_(False),
+            ),
+            or_(
+                Submission.status != SubmissionStatus.cancelled, Submission.started_at.is_not(None)
+            ),
         )
     )
 
@@ -131,10 +138,6 @@ def accept_upload(
 
     The intake runs before anything is recorded, so a rejected zip leaves no trace and does not
     count towards the quota."""
-    from arena.errors import IntakeError
-    from submissions.intake import prepare_submission
-    from submissions.intake.archive import remove_tree
-
     method_name = new.method_name.strip()
     if not method_name or len(method_name) > 128:
         raise InvalidUpload("method_name: give the method a name of 1 to 128 characters")
@@ -181,11 +184,13 @@ def accept_upload(
                 file_sha256=prepared.sha256,
                 file_size=prepared.size,
                 upload_key=f"{prefix}/upload.zip",
-                status=S.received,
+                status=SubmissionStatus.received,
             )
             session.add(submission)
             session.flush()
-            submission.status = advance(submission.status, S.queued, SUBMISSION_MOVES)
+            submission.status = advance(
+                submission.status, SubmissionStatus.queued, SUBMISSION_MOVES
+            )
             submission.queued_at = utcnow()
     except BaseException:
         store.delete_prefix(prefix)
@@ -398,7 +403,7 @@ def cancel(db: Database, queue: TaskQueue, submission_id: int) -> Submission:
         submission = lock(session, Submission, submission_id)
         if submission.status not in ACTIVE_SUBMISSION:
             raise Conflict(f"submission {submission_id} is {submission.status}; cannot cancel")
-        submission.status = advance(submission.status, S.cancelled, SUBMISSION_MOVES)
+        submission.status = advance(submission.status, SubmissionStatus.cancelled, SUBMISSION_MOVES)
         submission.finished_at = utcnow()
         cancel_trainings(submission)
         unfinished: list[str] = []
@@ -417,12 +422,14 @@ def disqualify(db: Database, queue: TaskQueue, submission_id: int, reason: str) 
         raise InvalidInput("give the reason the team is shown (--reason)")
     with db.session() as session:
         submission = lock(session, Submission, submission_id)
-        if submission.status == S.disqualified:
+        if submission.status == SubmissionStatus.disqualified:
             raise Conflict(
                 f"submission {submission_id} is already disqualified "
                 f"(reason: {submission.status_reason or 'none given'})"
             )
-        submission.status = advance(submission.status, S.disqualified, SUBMISSION_MOVES)
+        submission.status = advance(
+            submission.status, SubmissionStatus.disqualified, SUBMISSION_MOVES
+        )
         submission.status_reason = reason
         submission.finished_at = submission.finished_at or utcnow()
         cancel_trainings(submission)

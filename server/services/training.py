@@ -12,15 +12,17 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from sqlalchemy import func, select, update
+from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from arena.config import Settings
 from server.core.queue import RunPlan
 from server.models import Submission, TrainingJob
 from server.models import utcnow as now
+from server.services import leases
 from server.services.errors import Conflict
-from server.services.evaluation import cannot_start, create_run, lease_until, lock
+from server.services.evaluation import cannot_start, create_run, lock
+from server.services.leases import lease_until
 from server.services.phases import PhaseMisconfigured
 from server.services.storable import storable_text
 from server.status import (
@@ -34,8 +36,6 @@ from server.status import (
 )
 from server.tracks import Track
 
-S = SubmissionStatus
-T = TrainingStatus
 # The failure a job gets when every worker that took it died.
 WORKER_LOST = "worker_lost"
 
@@ -49,6 +49,13 @@ class TrainingClaim:
     upload_key: str  # the submission's zip in the artifact store
     claim: int  # 1 for the first claim; more after workers died holding it: the fence token
 
+    @property
+    def claim_number(self) -> int:
+        return self.claim
+
+    def __str__(self) -> str:
+        return f"{self.training_id} (claim {self.claim})"
+
 
 def _new_job(session: Session, settings: Settings, submission: Submission) -> TrainingJob:
     attempt = 1 + (
@@ -60,7 +67,7 @@ def _new_job(session: Session, settings: Settings, submission: Submission) -> Tr
     job = TrainingJob(
         submission_id=submission.id,
         attempt=attempt,
-        status=T.queued,
+        status=TrainingStatus.queued,
         claims=0,
         elapsed_s=0.0,
         log_tail="",
@@ -79,9 +86,9 @@ def start_training(session: Session, settings: Settings, submission_id: int) -> 
     """The first training job of a queued offline submission; None for a freestyle one or one
     no longer queued (a duplicate delivery)."""
     submission = lock(session, Submission, submission_id)
-    if submission.track != Track.offline or submission.status != S.queued:
+    if submission.track != Track.offline or submission.status != SubmissionStatus.queued:
         return None
-    submission.status = advance(submission.status, S.training, SUBMISSION_MOVES)
+    submission.status = advance(submission.status, SubmissionStatus.training, SUBMISSION_MOVES)
     submission.started_at = now()
     return _new_job(session, settings, submission).id
 
@@ -92,7 +99,7 @@ def retrain(session: Session, settings: Settings, submission_id: int) -> Trainin
     submission = lock(session, Submission, submission_id)
     if submission.track != Track.offline:
         raise Conflict(f"submission {submission_id} is {submission.track}: it has no training")
-    if submission.status not in (S.scored, S.failed):
+    if submission.status not in (SubmissionStatus.scored, SubmissionStatus.failed):
         raise Conflict(
             f"submission {submission_id} is {submission.status}: only scored or failed "
             "submissions can be retrained"
@@ -104,7 +111,7 @@ def retrain(session: Session, settings: Settings, submission_id: int) -> Trainin
 
 
 def latest_trained(submission: Submission) -> TrainingJob | None:
-    trained = [job for job in submission.trainings if job.status == T.trained]
+    trained = [job for job in submission.trainings if job.status == TrainingStatus.trained]
     return trained[-1] if trained else None
 
 
@@ -120,14 +127,13 @@ def claim_training(
     job = lock(session, TrainingJob, training_id)
     if job.status not in ACTIVE_TRAINING:
         return None
-    if job.worker and job.lease_expires_at is not None and job.lease_expires_at > now():
+    if leases.held(job):
         return None
-    if job.status == T.queued:
-        job.status = advance(job.status, T.training, TRAINING_MOVES)
+    if job.status == TrainingStatus.queued:
+        job.status = advance(job.status, TrainingStatus.training, TRAINING_MOVES)
         job.started_at = now()
-    job.worker = worker
     job.claims += 1
-    job.lease_expires_at = lease_until(settings)
+    leases.take(job, worker, settings)
     return TrainingClaim(
         training_id=job.id,
         submission_id=job.submission_id,
@@ -140,7 +146,7 @@ def _fence(claim: TrainingClaim, worker: str) -> tuple:
     """``worker``'s claim number ``claim.claim``: a superseded training never writes."""
     return (
         TrainingJob.id == claim.training_id,
-        TrainingJob.status == T.training,
+        TrainingJob.status == TrainingStatus.training,
         TrainingJob.worker == worker,
         TrainingJob.claims == claim.claim,
     )
@@ -151,37 +157,29 @@ def heartbeat(
     settings: Settings,
     claim: TrainingClaim,
     worker: str,
-    elapsed_s: float,
-    log_tail: str,
+    elapsed_s: float | None = None,
+    log_tail: str | None = None,
 ) -> bool:
-    """Extend the lease and show the progress; False when the claim is no longer ``worker``'s
-    (cancelled, or handed to another worker): the training must stop."""
-    updated = session.execute(
-        update(TrainingJob)
-        .where(*_fence(claim, worker))
-        .values(
-            lease_expires_at=lease_until(settings),
-            elapsed_s=elapsed_s,
-            log_tail=storable_text(log_tail),
-        )
+    """Extend the lease and show the progress (when there is some yet); False when the claim is
+    no longer ``worker``'s (cancelled, or handed to another worker): the training must stop."""
+    progress = (
+        {}
+        if elapsed_s is None
+        else {"elapsed_s": elapsed_s, "log_tail": storable_text(log_tail or "")}
     )
-    return updated.rowcount == 1
+    return leases.renew(session, settings, TrainingJob, _fence(claim, worker), **progress)
 
 
 def release(session: Session, claim: TrainingClaim, worker: str) -> bool:
     """Hand the job back (its worker is stopping, or retries later): any worker may claim it."""
-    released = session.execute(
-        update(TrainingJob).where(*_fence(claim, worker)).values(worker="", lease_expires_at=None)
-    )
-    return released.rowcount == 1
+    return leases.release(session, TrainingJob, _fence(claim, worker))
 
 
 def _finish(session: Session, claim: TrainingClaim, worker: str) -> TrainingJob | None:
     job = lock(session, TrainingJob, claim.training_id)
-    if (job.status, job.worker, job.claims) != (T.training, worker, claim.claim):
+    if (job.status, job.worker, job.claims) != (TrainingStatus.training, worker, claim.claim):
         return None  # a duplicate delivery, or a superseded claim: the result is not ours
-    job.worker = ""
-    job.lease_expires_at = None
+    leases.drop(job)
     job.finished_at = now()
     return job
 
@@ -203,18 +201,21 @@ def record_trained(
     job = _finish(session, claim, worker)
     if job is None:
         return None
-    job.status = advance(job.status, T.trained, TRAINING_MOVES)
+    job.status = advance(job.status, TrainingStatus.trained, TRAINING_MOVES)
     job.elapsed_s, job.log_tail = elapsed_s, storable_text(log_tail)
     job.model_key, job.model_sha256, job.model_size = model_key, model_sha256, model_size
     submission = lock(session, Submission, claim.submission_id)
-    if submission.status == S.training:
-        submission.status = advance(submission.status, S.running, SUBMISSION_MOVES)
-    elif submission.status not in (S.scored, S.failed):  # cancelled or disqualified
+    if submission.status == SubmissionStatus.training:
+        submission.status = advance(submission.status, SubmissionStatus.running, SUBMISSION_MOVES)
+    elif submission.status not in (
+        SubmissionStatus.scored,
+        SubmissionStatus.failed,
+    ):  # cancelled or disqualified
         return None
     try:
         return create_run(session, settings, submission, training=job)
     except PhaseMisconfigured as exc:
-        if submission.status == S.running:
+        if submission.status == SubmissionStatus.running:
             cannot_start(submission, exc.message)
         return None
 
@@ -235,13 +236,13 @@ def record_failed(
     job = _finish(session, claim, worker)
     if job is None:
         return False
-    job.status = advance(job.status, T.failed, TRAINING_MOVES)
+    job.status = advance(job.status, TrainingStatus.failed, TRAINING_MOVES)
     error = storable_text(error)  # the training's own words, from its log
     job.failure, job.error = failure, error
     job.elapsed_s, job.log_tail = elapsed_s, storable_text(log_tail)
     submission = lock(session, Submission, claim.submission_id)
-    if submission.status == S.training:
-        submission.status = advance(submission.status, S.failed, SUBMISSION_MOVES)
+    if submission.status == SubmissionStatus.training:
+        submission.status = advance(submission.status, SubmissionStatus.failed, SUBMISSION_MOVES)
         submission.status_reason = f"{failure}: {error}"
         submission.failed_on_our_side = ours
         submission.finished_at = now()
@@ -253,9 +254,8 @@ def cancel_trainings(submission: Submission) -> None:
     kills the sandbox."""
     for job in submission.trainings:
         if job.status in ACTIVE_TRAINING:
-            job.status = advance(job.status, T.cancelled, TRAINING_MOVES)
-            job.worker = ""
-            job.lease_expires_at = None
+            job.status = advance(job.status, TrainingStatus.cancelled, TRAINING_MOVES)
+            leases.drop(job)
             job.finished_at = now()
 
 
@@ -264,18 +264,10 @@ def reap(session: Session, settings: Settings, *, queue_empty: bool) -> tuple[in
     and, when the queue is empty, those whose task was lost before any worker held them."""
     moment = now()
     resend: list[int] = []
-    stale = session.scalars(
-        select(TrainingJob)
-        .where(
-            TrainingJob.status == T.training,
-            TrainingJob.worker != "",
-            TrainingJob.lease_expires_at < moment,
-        )
-        .with_for_update()
-    )
-    for job in stale:
-        job.worker = ""
-        job.lease_expires_at = None
+    for job in session.scalars(
+        leases.expired(TrainingJob, TrainingJob.status == TrainingStatus.training)
+    ):
+        leases.drop(job)
         resend.append(job.id)
     if queue_empty:
         idle = session.scalars(

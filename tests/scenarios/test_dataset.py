@@ -21,10 +21,10 @@ from scenarios.dataset.build import DATASET_ID, MANIFEST, TRANSITIONS
 from scenarios.dataset.collect import collect
 from scenarios.dataset.features import ACTION_SIZE, OBS_SIZE, to_target_pose
 from scenarios.generators import Spec
-from scenarios.replay.builder import EXPERT_FILE
-from scenarios.replay.corpus import read_corpus
-from scenarios.replay.naturalistic import ego_choices, load_scene, scene_net, write_naturalistic
-from scenarios.replay.naturalistic_pool import TRACKS_FILE, NaturalisticPool
+from scenarios.recorded.builder import EXPERT_FILE
+from scenarios.recorded.corpus import read_corpus
+from scenarios.recorded.naturalistic import ego_choices, load_scene, scene_net, write_naturalistic
+from scenarios.recorded.naturalistic_pool import TRACKS_FILE, NaturalisticPool
 from sim.trajectories import read_trajectories
 from tests.scenarios import corpus_builders as cb
 
@@ -33,6 +33,7 @@ KEPT, HIDDEN = "USA_US101-3_3_T-1.xml", "USA_Peach-4_8_T-1.xml"
 RECORDED = "p033_replay_merge_2agents"
 
 
+@pytest.mark.slow
 def test_dataset_loads_with_minari_and_leaves_out_hidden_scenes(tmp_path, scenes_dir, monkeypatch):
     scenes = tmp_path / "scenes"
     scenes.mkdir()
@@ -106,6 +107,7 @@ def _scene_and_net(path, tmp_path):
     return scene, scene_net(scene, tmp_path / "cache")
 
 
+@pytest.mark.slow
 def test_actions_reproduce_the_recorded_motion(tmp_path, scenes_dir):
     """Tolerance: the pose each action targets is the next observed pose within 1 cm and
     0.01 rad, and observed poses are the recorded trajectory within 5 cm."""
@@ -159,6 +161,7 @@ def _suite_from(folder: Path, out: Path, cache: Path, rows: int) -> Path:
     return out
 
 
+@pytest.mark.slow
 def test_a_scene_sharing_one_vehicle_with_the_suite_is_left_out(tmp_path, scenes_dir, monkeypatch):
     """The suite used the first file of a recording cut in two; the second shares vehicles
     under other ids and clock, and never enters the dataset. Output under a relative path."""
@@ -196,6 +199,7 @@ def test_excluding_everything_fails_instead_of_writing_an_empty_dataset(tmp_path
     assert not (tmp_path / "dataset" / MANIFEST).exists()
 
 
+@pytest.mark.slow
 def test_unusable_files_are_skipped_and_one_vehicle_is_one_episode(tmp_path, scenes_dir):
     scenes = tmp_path / "scenes"
     scenes.mkdir()

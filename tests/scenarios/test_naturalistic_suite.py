@@ -19,10 +19,10 @@ from arena.config import get_settings
 from arena.scenario import DataLabel, Family, load_scenario
 from scenarios.generators import Spec
 from scenarios.picture import draw_scenario
-from scenarios.replay.corpus import read_corpus
-from scenarios.replay.naturalistic import ATTRIBUTION_FILE, collides, load_scene
-from scenarios.replay.naturalistic_pool import TRACKS_FILE, NaturalisticPool
-from scenarios.replay.tracks import TrackIndex, recording_location, track_poses
+from scenarios.recorded.corpus import read_corpus
+from scenarios.recorded.naturalistic import ATTRIBUTION_FILE, collides, load_scene
+from scenarios.recorded.naturalistic_pool import TRACKS_FILE, NaturalisticPool
+from scenarios.recorded.tracks import TrackIndex, recording_location, track_poses
 from scenarios.suites import REPLAYS
 from scenarios.verify import verify_scenario
 from sim.trajectories import read_trajectories
@@ -84,6 +84,7 @@ def hidden_corpus(tmp_path_factory, cache_dir, corpus_dir) -> Path:
     return out
 
 
+@pytest.mark.slow  # builds a whole hidden suite (the hidden_corpus fixture)
 def test_unusable_files_are_skipped_and_named_with_their_reason(hidden_corpus):
     skipped = {s["file"]: s["reason"] for s in manifest(hidden_corpus)["naturalistic_skipped"]}
     assert set(skipped) == set(BROKEN)
@@ -113,6 +114,7 @@ def test_a_folder_without_a_usable_mission_fails_naming_every_file(tmp_path, sce
     assert not out.exists()
 
 
+@pytest.mark.slow  # builds a whole hidden suite (the hidden_corpus fixture)
 def test_rows_are_filled_by_kind_and_the_recorded_driver_solves_every_mission(hidden_corpus):
     entries = manifest(hidden_corpus)["scenarios"]
     assert len(entries) == 128 and sum(e["reactive"] for e in entries) == 71
@@ -131,6 +133,7 @@ def test_rows_are_filled_by_kind_and_the_recorded_driver_solves_every_mission(hi
         assert "<polygon" in draw_scenario(hidden_corpus / e["id"])  # every map draws
 
 
+@pytest.mark.slow  # builds a whole hidden suite (the hidden_corpus fixture)
 def test_no_recorded_vehicle_is_the_mission_of_two_scenarios(hidden_corpus):
     """The split recording's two files share 16 vehicles under other ids and clocks."""
     index = TrackIndex()
@@ -143,6 +146,7 @@ def test_no_recorded_vehicle_is_the_mission_of_two_scenarios(hidden_corpus):
         index.add(e["id"], poses)
 
 
+@pytest.mark.slow
 def test_split_recording_files_are_one_recording_sharing_vehicles(corpus_dir, cache_dir):
     corpus = read_corpus(corpus_dir, cache_dir / "naturalistic")
     merged = {k: v for k, v in corpus.identity.items() if k != v}
@@ -164,6 +168,7 @@ def test_split_recording_files_are_one_recording_sharing_vehicles(corpus_dir, ca
         assert len(set(own)) == len(own)
 
 
+@pytest.mark.slow
 def test_a_long_truck_overlapping_a_car_rejects_both(corpus_dir, scenes_dir, cache_dir):
     car = "cr" + _first_vehicle(scenes_dir / cb.HIGHWAY_2018)
     scene = load_scene(corpus_dir / "USA_Truck-1_1_T-1.xml")
@@ -176,6 +181,7 @@ def test_a_long_truck_overlapping_a_car_rejects_both(corpus_dir, scenes_dir, cac
     assert {car, truck.vehicle_id}.isdisjoint(e.vehicle_id for e in s.egos)
 
 
+@pytest.mark.slow  # builds a whole hidden suite (the hidden_corpus fixture)
 def test_provenance_comes_from_the_file(hidden_corpus):
     entries = manifest(hidden_corpus)["scenarios"]
     sources = {e["source"] for e in entries if "source" in e}
@@ -202,7 +208,7 @@ def test_attribution_says_below_only_with_a_licence_and_label_overrides(tmp_path
     )
     scene = load_scene(folder / "a.xml")
     assert scene.provenance.label is DataLabel.recorded and scene.provenance.licence is None
-    from scenarios.replay.provenance import attribution
+    from scenarios.recorded.provenance import attribution
 
     text = attribution(scene.provenance, scene.name, "a.xml", "cr1")
     assert "below" not in text and "No licence file came with the scene" in text
@@ -214,6 +220,7 @@ def test_attribution_says_below_only_with_a_licence_and_label_overrides(tmp_path
     assert "below" in text and text.endswith("Terms of the organiser's data.")
 
 
+@pytest.mark.slow
 def test_the_seed_draws_from_all_candidates(corpus_dir, cache_dir, tmp_path):
     cruise = Spec(Family.replay, "cruise", None, 1, False)
 
@@ -230,6 +237,7 @@ def test_the_seed_draws_from_all_candidates(corpus_dir, cache_dir, tmp_path):
     assert drawn(5) != drawn(6)
 
 
+@pytest.mark.slow  # builds a whole hidden suite (the hidden_corpus fixture)
 def test_manifest_lists_exactly_the_scenes_used_with_their_tracks(hidden_corpus, corpus_dir):
     listed = manifest(hidden_corpus)["naturalistic_scenes"]
     used = {
@@ -251,6 +259,7 @@ def test_manifest_lists_exactly_the_scenes_used_with_their_tracks(hidden_corpus,
     assert len(listed) <= len(used)
 
 
+@pytest.mark.slow  # builds a whole hidden suite (the hidden_corpus fixture)
 def test_build_output_counts_rejected_vehicles(hidden_corpus):
     rejected = manifest(hidden_corpus)["naturalistic_rejected"]
     assert rejected.get("collision", 0) >= 2 and rejected.get("short", 0) > 0

@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 
 from arena.scenario import DataLabel
-from scenarios.replay.corpus import CorpusScene, _identities
-from scenarios.replay.naturalistic import NaturalisticScene
-from scenarios.replay.provenance import Provenance
-from scenarios.replay.tracks import TrackIndex, track_poses
+from scenarios.recorded.corpus import CorpusScene, _identities
+from scenarios.recorded.naturalistic import NaturalisticScene
+from scenarios.recorded.provenance import Provenance
+from scenarios.recorded.tracks import TrackIndex, track_poses
 from sim.trajectories import Trajectory
 
 

@@ -30,6 +30,7 @@ from tests.sim.agents import (
 from tests.sim.builders import ScenarioSpec, make_scenario
 
 
+@pytest.mark.slow
 def test_isolated_episode_returns_the_result_and_agent_log(tmp_path):
     folder = make_scenario(tmp_path / "sc", ScenarioSpec())
     record = tmp_path / "out" / "sc.npz"
@@ -117,6 +118,7 @@ def test_an_agent_failing_in_close_keeps_its_episode(tmp_path):
     assert "died while closing" in result.extra["agent_log"]
 
 
+@pytest.mark.slow
 def test_a_hung_episode_is_killed_at_the_hard_timeout(tmp_path):
     folder = make_scenario(tmp_path / "sc", ScenarioSpec())
     result = run_episode_isolated(
@@ -126,6 +128,7 @@ def test_a_hung_episode_is_killed_at_the_hard_timeout(tmp_path):
     assert [a.reason for a in result.agents] == [DoneReason.simulator_error]
 
 
+@pytest.mark.slow
 def test_wall_time_limit_ends_the_episode_keeping_the_record(tmp_path):
     folder = make_scenario(tmp_path / "sc", ScenarioSpec())
     record = tmp_path / "r.npz"
@@ -145,6 +148,7 @@ def test_preload_names_the_simulator_the_factory_module_and_what_it_lists():
     assert modules[-1] == "sim.forked"  # freezes what the others made
 
 
+@pytest.mark.slow
 def test_episode_children_start_with_the_factory_modules_already_imported(tmp_path):
     """A fresh process (its own fork server): every episode child has the listed module before
     the factory runs, because the server imported it once."""
@@ -170,6 +174,7 @@ for i in range(2):
     assert done.stdout.split() == ["preloaded=True", "frozen=True"] * 2
 
 
+@pytest.mark.slow
 def test_episode_children_do_not_run_the_main_script_again(tmp_path):
     """multiprocessing would run the main script again in every episode's child (for ``arena
     evaluate``, importing every command's modules): the factory does not come from it."""

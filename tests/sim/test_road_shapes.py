@@ -11,7 +11,7 @@ from sim.bev import BevRenderer, EgoPose
 from sim.render import SvgCanvas, draw_road, road_geometry
 from sim.road import RoadNetwork
 from sim.road.network import polygon_parts
-from sim.vehicles import VehicleStates
+from sim.vehicle.states import VehicleStates
 from tests.sim.builders import INVALID_JUNCTION_SHAPES, straight_road, with_junction_shape
 from tests.sim.test_bev import interface, pixel_world_points
 

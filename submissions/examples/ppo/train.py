@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 import warnings
 from pathlib import Path
 
@@ -67,6 +68,8 @@ def make_env(suite: str, rank: int, seed: int, log_dir: Path | None = None):
     with ``log_dir`` every episode's reward, length and time go to ``monitor-<rank>.csv``."""
 
     def make():
+        # deferred: the kit (its public learn.gym_env, docs/training.md) and stable-baselines3
+        # load in each env's own process, so AsyncVectorEnv's workers import them themselves
         from stable_baselines3.common.monitor import Monitor
 
         from learn.gym_env import DrivingArenaEnv
@@ -82,6 +85,7 @@ def make_env(suite: str, rank: int, seed: int, log_dir: Path | None = None):
 
 def export_onnx(model, path: Path) -> None:
     """The policy's action logits as an ONNX graph of (image uint8, vector float32)."""
+    # deferred: torch is heavy; only the export needs it here
     import torch
 
     policy = model.policy.to("cpu").eval()
@@ -141,8 +145,7 @@ def train(
     """Train for ``timesteps`` (or until ``minutes`` of wall time pass), export, return the
     ONNX file's path. With ``export_every``, also export ``checkpoints/policy_<steps>.onnx``
     every that many steps, to compare the stages of a run with ``arena evaluate``."""
-    import time
-
+    # deferred: torch and stable-baselines3 are heavy; `--help` need not load them
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
@@ -166,7 +169,7 @@ def train(
         checkpoints.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(1)  # the simulators need the other core
     # DummyVecEnv is enough: the first env simulates in this process, the second in a child of
-    # its own (libsumo holds one simulation per process; learn.session.open_simulator).
+    # its own (libsumo holds one simulation per process; learn.simulators.open_simulator).
     out.mkdir(parents=True, exist_ok=True)
     envs = DummyVecEnv([make_env(suite, rank, seed, out) for rank in range(2)])
     model = PPO(

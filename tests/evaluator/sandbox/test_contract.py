@@ -27,7 +27,13 @@ def answer(
     """The agent's first action: in a sandbox of its own, or (``warm``) forked in a warm one
     for its second episode (the first ran the same code, so nothing is new to the sandbox)."""
     submission = agent(tmp, settings, act=act, init=init)
-    settings = settings.model_copy(update={"step_timeout_s": max(settings.step_timeout_s, 5.0)})
+    # These acts burn CPU on purpose: the per-step CPU limit is not what they probe.
+    settings = settings.model_copy(
+        update={
+            "step_timeout_s": max(settings.step_timeout_s, 10.0),
+            "step_cpu_s": max(settings.step_cpu_s, 10.0),
+        }
+    )
     if warm:
         with zygote(submission, kind, settings, labels) as parent:
             episode(parent, settings)
@@ -132,8 +138,7 @@ def test_cpu_share_is_capped_for_the_whole_sandbox(kind, settings, labels, tmp) 
     used = resource.getrusage(resource.RUSAGE_CHILDREN)
     return {k: [used.ru_utime + used.ru_stime, time.monotonic() - began] for k in obs}
     """
-    cpu_s, wall_s = answer(kind, settings.model_copy(update={"step_timeout_s": 10.0}), labels,
-                           tmp, act)  # fmt: skip
+    cpu_s, wall_s = answer(kind, settings, labels, tmp, act)
     assert cpu_s <= settings.agent_cpus * wall_s * 1.15 + 0.2, (cpu_s, wall_s)
 
 

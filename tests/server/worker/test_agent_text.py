@@ -1,8 +1,8 @@
 """Whatever text an agent produces reaches the database through the worker's own code path
-(``_log_tail`` then ``record_scenario`` then the run's aggregation) without crashing it: a fuzz of
-random bytes, lone surrogates, NULs, control characters and huge outputs.
+(``team_log_tail`` then ``record_scenario`` then the run's aggregation) without crashing it: a
+fuzz of random bytes, lone surrogates, NULs, control characters and huge outputs.
 
-A lone surrogate in an exception message used to crash the task in ``_tail`` (a strict encode);
+A lone surrogate in an exception message used to crash the task in the log tail (a strict encode);
 the claim was re-sent until it ended as an uncharged ``worker_lost``.
 """
 
@@ -18,7 +18,8 @@ from evaluator.runner import ScenarioOutcome
 from server.core.artifacts import DatabaseStore
 from server.models import ScenarioResult
 from server.services import evaluation
-from server.worker.tasks import _log_tail, _tail
+from server.worker.episodes import team_log_tail
+from server.worker.local import tail as tail_of
 from tests.server.builders import agent, make_team, queued_submission, scenario_ids
 
 FIXED = [
@@ -47,7 +48,7 @@ def agent_texts(count: int, seed: int = 22) -> list[str]:
 
 @pytest.mark.parametrize("text", agent_texts(40), ids=lambda t: f"{len(t)}chars")
 def test_tail_of_any_agent_text_is_storable_and_bounded(text, settings):
-    tail = _tail(text)
+    tail = tail_of(text)
     assert len(tail.encode("utf-8")) <= 3 * settings.agent_log_tail_bytes  # U+FFFD per bad byte
     assert "\0" not in tail
     tail.encode("utf-8")  # strict: no lone surrogate left
@@ -75,7 +76,7 @@ def test_agent_text_of_every_kind_is_recorded_and_the_run_aggregates(db, setting
             )
             with db.session() as session:
                 evaluation.record_scenario(
-                    session, job, "w", outcome, _log_tail(job, outcome), None
+                    session, job, "w", outcome, team_log_tail(job, outcome), None
                 )
         with db.session() as session:
             evaluation.finish_run(session, DatabaseStore(db), plan.run_id)

@@ -14,7 +14,7 @@ from arena.config import get_settings
 from evaluator import sandbox
 from evaluator.sandbox.warm_pool import WarmAgents
 from server.core.db import get_database
-from server.worker import tasks
+from server.worker import local
 from submissions.intake.pack import pack_folder
 from submissions.sample import sample_observation
 
@@ -35,7 +35,7 @@ def worker_env(settings, db, monkeypatch):
         "BROKER_KEY_PREFIX": settings.broker_key_prefix,
     }.items():
         monkeypatch.setenv(f"ARENA_{name}", str(value))
-    caches = (get_settings, get_database, tasks._store, tasks._prepare, tasks._sandbox_kind)
+    caches = (get_settings, get_database, local.store, local._prepare, local.sandbox_kind)
     for cache in caches:
         cache.cache_clear()
     yield get_settings()
@@ -48,7 +48,7 @@ def upload(tmp_path, value: int) -> str:
     folder.mkdir()
     (folder / "policy.py").write_text(POLICY.format(value=value))
     key = f"uploads/{value}/upload.zip"
-    tasks._store().put(key, pack_folder(folder, tmp_path / f"agent{value}.zip"))
+    local.store().put(key, pack_folder(folder, tmp_path / f"agent{value}.zip"))
     return key
 
 
@@ -66,11 +66,11 @@ def test_a_submission_prepared_again_keeps_its_warm_agent_working(worker_env, tm
     keys = [upload(tmp_path, value) for value in range(6)]
     pool = WarmAgents()
     try:
-        first = tasks._prepared(keys[0])
+        first = local.prepared(keys[0])
         assert act_once(pool, first, kind, settings) == {"Agent_0": [0.0, 0.0]}
         for key in keys[1:]:  # more than the worker keeps: the first is dropped
-            tasks._prepared(key)
-        again = tasks._prepared(keys[0])
+            local.prepared(key)
+        again = local.prepared(keys[0])
         assert again is not first  # prepared again...
         assert again.root == first.root and again.sha256 == first.sha256  # ...into the same copy
         assert (first.root / "policy.py").is_file()

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from arena.errors import ArenaError
 from sim.trajectories import Trajectory
 
 STEP_S = 0.1  # [s]
@@ -35,7 +36,7 @@ DEFAULT_SPEED_LIMIT = 29.0576
 URBAN_SPEED_LIMIT = 13.8889
 
 
-class CommonRoadImportError(ValueError):
+class CommonRoadImportError(ArenaError, ValueError):
     """A file that is not a usable CommonRoad scenario; the message names the file and problem."""
 
 

@@ -14,8 +14,8 @@ import numpy as np
 from arena.scenario import DataLabel, Family, Scenario
 from scenarios.generators import Spec
 from scenarios.ids import derive_seed, scenario_id
-from scenarios.replay.corpus import Corpus, CorpusScene, TrackKey, read_corpus
-from scenarios.replay.naturalistic import Ego, NaturalisticImportError, write_naturalistic
+from scenarios.recorded.corpus import Corpus, CorpusScene, TrackKey, read_corpus
+from scenarios.recorded.naturalistic import Ego, NaturalisticImportError, write_naturalistic
 
 TRACKS_FILE = "naturalistic-tracks.json"  # in a built suite's folder, beside manifest.json
 

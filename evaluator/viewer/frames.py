@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 from PIL import Image
 
-from evaluator.replay.model import STYLE, Replay, ReplayError
+from evaluator.viewer.model import STYLE, Replay, ReplayError
 
 GIF_COLOURS = 64  # the drawings use a dozen colours and their anti-aliased edges
 HOLD_LAST_MS = 2000  # the terminal frame stays this long before the GIF loops

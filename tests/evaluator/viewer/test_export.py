@@ -18,13 +18,14 @@ def replay(record, suite, *args):
     return result
 
 
+@pytest.mark.slow
 def test_gif_has_one_frame_per_drawn_step_ends_on_the_last_and_the_vehicles_move(
     episode, tmp_path
 ):
     from PIL import Image
 
-    from evaluator.replay.frames import HOLD_LAST_MS, frames
-    from evaluator.replay.model import load_replay
+    from evaluator.viewer.frames import HOLD_LAST_MS, frames
+    from evaluator.viewer.model import load_replay
 
     suite, record = episode
     out = tmp_path / "e.gif"
@@ -55,7 +56,7 @@ def test_a_gif_is_small(episode, tmp_path):
 
 
 def test_a_goal_out_of_view_is_pointed_at():
-    from evaluator.replay.frames import FramePainter
+    from evaluator.viewer.frames import FramePainter
 
     painter = FramePainter.__new__(FramePainter)
     painter.width, painter.road_height, painter.scale = 640, 400, 640 / 110.0
@@ -67,6 +68,7 @@ def test_a_goal_out_of_view_is_pointed_at():
     assert not nothing.any()  # in view: the goal circle says it
 
 
+@pytest.mark.slow
 def test_mp4_has_every_step(episode, tmp_path):
     suite, record = episode
     out = tmp_path / "e.mp4"
@@ -83,6 +85,7 @@ def test_results_folder_needs_a_known_scenario(tmp_path):
     assert result.exit_code == 2 and "no record for nope" in result.output
 
 
+@pytest.mark.browser
 @pytest.mark.skipif(not CHROMIUM.exists(), reason="needs Debian's chromium")
 def test_html_file_plays_offline_in_chromium(episode, tmp_path):
     from playwright.sync_api import expect, sync_playwright
@@ -110,7 +113,7 @@ def test_html_file_plays_offline_in_chromium(episode, tmp_path):
 
 
 def test_labels_at_one_spot_are_stacked_apart():
-    from evaluator.replay.frames import place_labels
+    from evaluator.viewer.frames import place_labels
 
     sizes = [(60, 10), (60, 10), (80, 10), (40, 10)]
     anchors = [(100.0, 100.0, 4.0), (100.0, 102.0, 4.0), (95.0, 100.0, 12.0), (300.0, 50.0, 4.0)]

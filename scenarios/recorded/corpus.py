@@ -1,6 +1,6 @@
 """An organiser's folder of recorded scenes, read for a suite or dataset build: every usable scene
 with its map and its screened ego choices, every unusable file with its reason, and which
-recorded vehicles of different scenes are one vehicle (:mod:`scenarios.replay.tracks`).
+recorded vehicles of different scenes are one vehicle (:mod:`scenarios.recorded.tracks`).
 
 A file that cannot be read, has no trajectory or whose map cannot be built is skipped, never
 fatal: the build decides whether enough remains. Scenes are read in parallel with ``jobs``.
@@ -17,7 +17,7 @@ from pathlib import Path
 
 from arena.errors import ArenaError
 from arena.scenario import DataLabel
-from scenarios.replay.naturalistic import (
+from scenarios.recorded.naturalistic import (
     Ego,
     NaturalisticImportError,
     NaturalisticScene,
@@ -27,7 +27,7 @@ from scenarios.replay.naturalistic import (
     scene_net,
     screen_egos,
 )
-from scenarios.replay.tracks import Pose, TrackIndex, recording_location, track_poses
+from scenarios.recorded.tracks import Pose, TrackIndex, recording_location, track_poses
 
 TrackKey = tuple[str, str]  # (scene name, vehicle id)
 
