@@ -7,15 +7,14 @@ wheel does, with a message naming the line and the versions that do have one.
 
 from __future__ import annotations
 
-import ast
 import re
-import zipfile
+from pathlib import Path
 
 from packaging.requirements import InvalidRequirement, Requirement
 from packaging.utils import canonicalize_name
 
 from arena.errors import IntakeError
-from submissions.intake.contents import POLICY, REQUIREMENTS, read_text
+from submissions.intake.contents import POLICY, REQUIREMENTS
 
 SMARTS_CONFIG = "config.yaml"
 _NO_MATCH = re.compile(r"No matching distribution found for ([^\s/]+)")
@@ -23,35 +22,24 @@ _VERSIONS = re.compile(r"\(from versions: ([^)]*)\)")
 _SHOWN_VERSIONS = 5  # the newest few versions with a wheel, named in the message
 
 
-def porting_notes(archive: zipfile.ZipFile) -> tuple[str, ...]:
-    """Messages about SMARTS 2022 leftovers in the zip (empty when there are none)."""
+def porting_notes(root: Path, policy_defines: frozenset[str]) -> tuple[str, ...]:
+    """Messages about SMARTS 2022 leftovers in the extracted submission ``root`` (empty when
+    there are none); ``policy_defines``: the names policy.py defines at its top level."""
     notes = []
-    source = read_text(archive, POLICY) or ""
-    if "submitted_wrappers" in source and _defines(source, "submitted_wrappers"):
+    if "submitted_wrappers" in policy_defines:
         notes.append(
             f"{POLICY} defines submitted_wrappers(): Driving Arena applies no gym wrappers. "
             "Call the wrappers' observation and action transforms inside Policy.act yourself, "
             "and set `observation_format: smarts2022` in agent.yaml to receive SMARTS-style "
             "observations (docs/smarts-compat.md)."
         )
-    if read_text(archive, SMARTS_CONFIG) is not None:
+    if (root / SMARTS_CONFIG).is_file():
         notes.append(
             f"{SMARTS_CONFIG} is not read by Driving Arena (it is only a file your policy may "
             "open). Interface options (action space, waypoints, rasters, observation format) go "
             "in agent.yaml (docs/submissions.md)."
         )
     return tuple(notes)
-
-
-def _defines(source: str, name: str) -> bool:
-    try:
-        tree = ast.parse(source)
-    except SyntaxError:
-        return False
-    return any(
-        isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef) and node.name == name
-        for node in tree.body
-    )
 
 
 def explain_missing_wheel(error: IntakeError, requirements_text: str) -> IntakeError:
