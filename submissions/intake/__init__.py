@@ -95,12 +95,12 @@ def prepare_submission(
     work = Path(tempfile.mkdtemp(prefix=".intake-", dir=dest.parent))
     try:
         write_inputs(work / "in", settings, {rules.UPLOAD: source})
-        try:
-            verdict = runner("submission", work / "in", work / "out")
-        except IntakeError:
-            remove_tree(work / "out")
-            raise
-        remove_tree(dest)  # a zip that fails its checks leaves the previous extraction alone
+        verdict = runner("submission", work / "in", work / "out")
+    except BaseException:
+        remove_tree(work)  # a zip that fails its checks leaves the previous extraction alone
+        raise
+    try:
+        remove_tree(dest)
         (work / "out" / rules.SUBMISSION_DIR).rename(dest)
         make_read_only(dest)
         if needs_training and not verdict["trains"]:
