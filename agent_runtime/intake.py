@@ -132,12 +132,12 @@ def open_zip(path: Path, limits: Limits, shown: str = ARCHIVE) -> zipfile.ZipFil
     try:
         with path.open("rb") as handle:
             # The end record, read before zipfile parses (and holds) every directory record.
-            end = zipfile._EndRecData(handle)  # noqa: SLF001  (stable since Python 2)
+            end = zipfile._EndRecData(handle)
     except OSError as error:
         raise Rejected(shown, "not-a-zip", f"the upload is not a readable zip ({error})") from error
     if end is None:
         raise Rejected(shown, "not-a-zip", "the upload is not a readable zip (no end record)")
-    entries, directory_bytes = end[zipfile._ECD_ENTRIES_TOTAL], end[zipfile._ECD_SIZE]  # noqa: SLF001
+    entries, directory_bytes = end[zipfile._ECD_ENTRIES_TOTAL], end[zipfile._ECD_SIZE]
     # Past the entry limit by far: refused before its directory is parsed (just past it, the
     # directory check names the first entry too many).
     if entries > 2 * limits.max_entries:

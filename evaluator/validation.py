@@ -30,6 +30,8 @@ from submissions.intake.runner import IntakeRunner, read_report
 
 POLL_S = 0.1
 SANDBOX_UID = 65534
+
+
 def _stub(mode: str) -> str:
     return (
         "import runpy, sys\n"
@@ -60,10 +62,8 @@ def sandboxed(
         from evaluator import sandbox
 
         limits = intake_settings(settings)
-        disk_cap = (
-            settings.max_unzipped_bytes if mode == "submission" else settings.max_deps_bytes
-        )
-        files_cap = (settings.max_zip_entries if mode == "submission" else settings.max_deps_files)
+        disk_cap = settings.max_unzipped_bytes if mode == "submission" else settings.max_deps_bytes
+        files_cap = settings.max_zip_entries if mode == "submission" else settings.max_deps_files
         # Room for the report and the scratch copy of one nested archive.
         disk_cap, files_cap = 2 * disk_cap + 1024**2, files_cap + 16
         with tempfile.TemporaryDirectory(prefix="arena-intake-stub-") as stub_dir:
@@ -163,4 +163,3 @@ def validate(
         runner=sandboxed(settings, kind, labels),
         needs_training=needs_training,
     )
-

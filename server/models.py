@@ -25,6 +25,7 @@ from sqlalchemy import (
     TypeDecorator,
     UniqueConstraint,
     false,
+    text,
 )
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
@@ -127,7 +128,18 @@ class Phase(Base):
 
 class Submission(Base):
     __tablename__ = "submissions"
-    __table_args__ = (Index("ix_submissions_team_track_created", "team_id", "track", "created_at"),)
+    __table_args__ = (
+        Index("ix_submissions_team_track_created", "team_id", "track", "created_at"),
+        # A team has at most one upload being validated: the quota slot it reserves is taken
+        # atomically, whatever the number of parallel uploads (migration 0010).
+        Index(
+            "uq_submissions_one_validating_per_team",
+            "team_id",
+            unique=True,
+            postgresql_where=text("status = 'validating'"),
+            sqlite_where=text("status = 'validating'"),
+        ),
+    )
 
     id: Mapped[int] = mapped_column(primary_key=True)
     team_id: Mapped[int] = mapped_column(ForeignKey("teams.id"))
@@ -141,6 +153,9 @@ class Submission(Base):
     file_size: Mapped[int] = mapped_column(BigInteger)
     # The zip in the artifact store (server/core/artifacts.py).
     upload_key: Mapped[str] = mapped_column(String(512))
+    # Its requirements' folder (submissions/intake/dependencies.py), set by the validation; a
+    # folder no kept submission names is deleted.
+    deps_key: Mapped[str | None] = mapped_column(String(64))
     status: Mapped[SubmissionStatus] = mapped_column(_enum(SubmissionStatus), index=True)
     status_reason: Mapped[str] = mapped_column(Text, default="")
     # Failed through no fault of the team (our scenarios failed): the one failure that gives the

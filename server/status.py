@@ -1,6 +1,8 @@
 """Submission and evaluation-run status: an enum state machine that never moves backwards.
 
-A submission goes ``received -> queued -> running -> scored | failed``; an offline (Track 2) one
+A submission goes ``validating -> queued -> running -> scored | failed``: an upload is validated
+by a job (in the sandbox) and ends ``rejected``, naming the rule, when it breaks one (it does not
+count towards the quota). An offline (Track 2) one
 trains first: ``queued -> training -> running``. It can be ``cancelled``
 before it finishes and ``disqualified`` at any time. A later evaluation attempt (``arena admin
 rerun``) that scores turns a ``failed`` submission ``scored``; a ``scored`` one never becomes
@@ -14,7 +16,9 @@ from typing import TypeVar
 
 
 class SubmissionStatus(StrEnum):
-    received = "received"
+    received = "received"  # before validation jobs: uploads checked in the request
+    validating = "validating"
+    rejected = "rejected"
     queued = "queued"
     training = "training"
     running = "running"
@@ -45,6 +49,8 @@ R = RunStatus
 
 SUBMISSION_MOVES: dict[SubmissionStatus, frozenset[SubmissionStatus]] = {
     S.received: frozenset({S.queued, S.failed, S.cancelled, S.disqualified}),
+    S.validating: frozenset({S.queued, S.rejected, S.failed, S.cancelled, S.disqualified}),
+    S.rejected: frozenset(),
     S.queued: frozenset({S.training, S.running, S.failed, S.cancelled, S.disqualified}),
     S.training: frozenset({S.running, S.failed, S.cancelled, S.disqualified}),
     S.running: frozenset({S.scored, S.failed, S.cancelled, S.disqualified}),
@@ -71,7 +77,7 @@ TRAINING_MOVES: dict[TrainingStatus, frozenset[TrainingStatus]] = {
     T_.cancelled: frozenset(),
 }
 
-ACTIVE_SUBMISSION = frozenset({S.received, S.queued, S.training, S.running})
+ACTIVE_SUBMISSION = frozenset({S.received, S.validating, S.queued, S.training, S.running})
 ACTIVE_RUN = frozenset({R.queued, R.running})
 ACTIVE_TRAINING = frozenset({T_.queued, T_.training})
 

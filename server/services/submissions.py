@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import logging
-import shutil
-import uuid
 from dataclasses import dataclass
 from datetime import datetime, time
 from pathlib import Path
@@ -13,11 +11,13 @@ from sqlalchemy import func, or_, select
 from sqlalchemy.orm import Session, selectinload
 
 from arena.config import Settings
+from arena.errors import IntakeError
+from arena.neutralise.names import UnsafeName, check_name
 from arena.outcome import FINISHED, ScenarioStatus
 from server.core.artifacts import artifact_store
 from server.core.db import Database
 from server.core.queue import BROKER_ERRORS, TaskQueue, scenario_task_id
-from server.models import EvaluationRun, ScenarioResult, Score, Submission, Team, utcnow
+from server.models import EvaluationRun, ScenarioResult, Score, Submission, utcnow
 from server.schemas import (
     CompletionInterval,
     FamilyMetrics,
@@ -29,6 +29,7 @@ from server.schemas import (
     SubmissionSummary,
     TrainingProgress,
 )
+from server.services import validation
 from server.services.errors import Conflict, InvalidUpload, NotFound, QuotaExceeded
 from server.services.evaluation import bump_leaderboard, cancel_run, lock
 from server.services.phases import (
@@ -48,6 +49,7 @@ from server.status import (
     advance,
 )
 from server.tracks import Track
+from submissions.intake.archive import check_directory
 
 S = SubmissionStatus
 log = logging.getLogger(__name__)
@@ -62,7 +64,8 @@ class NewSubmission:
 
 
 def quota_used(session: Session, team_id: int, phase: str, track: Track, moment: datetime) -> int:
-    """Submissions of the phase and the UTC day so far that count: every accepted one, failed ones
+    """Submissions of the phase and the UTC day so far that count: every one being validated or
+    accepted (rejected ones by the validation do not), failed ones
     included (an agent that crashes costs its team a try, or a crash would buy free evaluations
     of the hidden suite), except those that failed on our side and those cancelled before their
     evaluation started."""
@@ -75,6 +78,7 @@ def quota_used(session: Session, team_id: int, phase: str, track: Track, moment:
             Submission.phase == phase,
             Submission.track == track,
             Submission.created_at >= day_start,
+            Submission.status != S.rejected,
             or_(Submission.status != S.failed, Submission.failed_on_our_side.is_(False)),
             or_(Submission.status != S.cancelled, Submission.started_at.is_not(None)),
         )
@@ -100,6 +104,22 @@ def check_quota(
         )
 
 
+def check_names(new: NewSubmission) -> str:
+    """The method name to store; refuses what cannot be stored or shown safely."""
+    method_name = new.method_name.strip()
+    if not method_name or len(method_name) > 128:
+        raise InvalidUpload("method_name: give the method a name of 1 to 128 characters")
+    try:
+        check_name("method_name", method_name)
+    except UnsafeName as exc:
+        raise InvalidUpload(str(exc)) from None
+    # PostgreSQL cannot store a NUL; no other control character belongs in a description either.
+    bad = next((c for c in new.description if ord(c) < 32 and c not in "\t\n\r"), None)
+    if bad is not None:
+        raise InvalidUpload(f"description: control character {bad!r} is not allowed")
+    return method_name
+
+
 def accept_upload(
     db: Database,
     settings: Settings,
@@ -107,79 +127,51 @@ def accept_upload(
     team_id: int,
     new: NewSubmission,
     upload: Path,
+    sha256: str,
 ) -> Submission:
-    """Check the zip at ``upload`` with the intake, store it and queue its evaluation.
+    """Reserve the team's validation slot and a try of its quota (atomically, first), run the
+    cheap checks of the zip at ``upload`` (its directory), store it and queue its validation.
 
-    The intake runs before anything is recorded, so a rejected zip leaves no trace and does not
-    count towards the quota."""
-    from arena.errors import IntakeError
-    from submissions.intake import prepare_submission
-    from submissions.intake.archive import remove_tree
-
-    method_name = new.method_name.strip()
-    if not method_name or len(method_name) > 128:
-        raise InvalidUpload("method_name: give the method a name of 1 to 128 characters")
-    for field_name, value in (("method_name", method_name), ("description", new.description)):
-        # PostgreSQL cannot store a NUL; no other control character belongs in these either.
-        bad = next((c for c in value if ord(c) < 32 and c not in "\t\n\r"), None)
-        if bad is not None:
-            raise InvalidUpload(f"{field_name}: control character {bad!r} is not allowed")
+    What the request does is bounded by the zip's size; everything else (inflating, nested
+    archives, compiling, requirements) is the validation job's, in the sandbox. A zip that fails
+    the cheap checks leaves no trace."""
+    method_name = check_names(new)
     if new.track == Track.offline and settings.train_dataset_dir is None:
         raise InvalidUpload(
             "track: this service cannot train offline submissions yet (no dataset: the "
             "organisers set ARENA_TRAIN_DATASET_DIR to a folder of `arena dataset build`)"
         )
-    with db.read_session() as session:
+    fields = {
+        "phase": new.phase,
+        "track": new.track,
+        "method_name": method_name,
+        "description": new.description.strip(),
+    }
+
+    def quota(session: Session) -> None:
         check_quota(session, settings, team_id, new.phase, new.track)
-    prefix = f"submissions/{uuid.uuid4().hex}"
+
+    submission_id, key = validation.reserve(db, team_id, fields, quota)
     store = artifact_store(settings, db)
-    # The intake runs in a scratch folder of this process; only the zip is kept, in the store.
-    scratch = settings.resolved_data_dir / "scratch" / prefix
-    scratch.mkdir(parents=True)
     try:
-        zip_path = scratch / "upload.zip"
-        shutil.move(upload, zip_path)
         try:
-            prepared = prepare_submission(zip_path, scratch / "prepared", settings)
+            check_directory(upload, settings)
         except IntakeError as exc:
             raise InvalidUpload(str(exc)) from exc
-        if new.track == Track.offline and not prepared.trains:
-            raise InvalidUpload(
-                "train.py: an offline (Track 2) submission holds train.py beside policy.py; the "
-                "service runs it on the dataset before evaluating (docs/dataset.md) "
-                "[rule: train-missing]"
-            )
-        store.put(f"{prefix}/upload.zip", zip_path)
-        with db.session() as session:
-            lock(session, Team, team_id)  # serialises concurrent uploads of one team (quota)
-            check_quota(session, settings, team_id, new.phase, new.track)
-            submission = Submission(
-                team_id=team_id,
-                phase=new.phase,
-                track=new.track,
-                method_name=method_name,
-                description=new.description.strip() or (prepared.explanation or "").strip(),
-                file_sha256=prepared.sha256,
-                file_size=prepared.size,
-                upload_key=f"{prefix}/upload.zip",
-                status=S.received,
-            )
-            session.add(submission)
-            session.flush()
-            submission.status = advance(submission.status, S.queued, SUBMISSION_MOVES)
-            submission.queued_at = utcnow()
+        store.put(key, upload)
+        validation.stored(db, submission_id, sha256, upload.stat().st_size)
     except BaseException:
-        store.delete_prefix(prefix)
+        store.delete_prefix(str(Path(key).parent))
+        validation.give_back(db, submission_id)
         raise
-    finally:
-        remove_tree(scratch)
     # After the commit: a worker that picks the task up finds the row. If the broker is down the
     # reaper sends it later.
     try:
-        queue.evaluate(submission.id)
+        queue.validate(submission_id)
     except BROKER_ERRORS as exc:
-        log.warning("queueing submission %s failed: %s", submission.id, exc)
-    return submission
+        log.warning("queueing the validation of submission %s failed: %s", submission_id, exc)
+    with db.read_session() as session:
+        return get_submission(session, submission_id)
 
 
 def get_submission(session: Session, submission_id: int) -> Submission:

@@ -37,7 +37,7 @@ from celery.signals import (
 from sqlalchemy.exc import SQLAlchemyError
 
 from arena.config import get_settings
-from arena.errors import DatasetError, InfrastructureError
+from arena.errors import DatasetError, InfrastructureError, IntakeError
 from evaluator.runner.scenario import ScenarioOutcome
 from server.core.artifacts import ArtifactStore, artifact_store
 from server.core.celery_app import (
@@ -46,10 +46,12 @@ from server.core.celery_app import (
     TASK_EVALUATE,
     TASK_SCENARIO,
     TASK_TRAIN,
+    TASK_VALIDATE,
 )
 from server.core.db import get_database
 from server.core.queue import BROKER_ERRORS, TaskQueue
-from server.services import evaluation, training
+from server.services import evaluation, training, validation
+from server.tracks import Track
 
 log = logging.getLogger(__name__)
 
@@ -63,6 +65,8 @@ MAX_SCENARIO_ATTEMPTS = 3
 # ARENA_TRAIN_TIMEOUT_S, is enforced by evaluator.training.
 TRAIN_TIME_LIMIT_S = 24 * 3600
 MAX_TRAINING_CLAIMS = 3
+# A backstop: each sandboxed step of a validation has ARENA_INTAKE_TIMEOUT_S, plus pip's download.
+VALIDATE_TIME_LIMIT_S = 3600
 
 
 def arena_task(name: str, *, time_limit: int, **options: Any):
@@ -86,6 +90,60 @@ def worker_name() -> str:
 @lru_cache(maxsize=1)
 def _queue() -> TaskQueue:
     return TaskQueue(get_settings())
+
+
+@arena_task(
+    TASK_VALIDATE, time_limit=VALIDATE_TIME_LIMIT_S, bind=True, max_retries=INFRASTRUCTURE_RETRIES
+)
+def validate_submission(self, *, submission_id: int) -> None:
+    """Validate an upload in the sandbox (evaluator.validation): ``queued`` and sent to
+    evaluation, or ``rejected`` naming the rule it broke. Its scratch folder goes with it."""
+    from evaluator.validation import validate
+    from submissions.intake.archive import remove_tree
+    from submissions.intake.dependencies import collect_garbage
+
+    settings = get_settings()
+    with get_database().read_session() as session:
+        submission = validation.upload_of(session, submission_id)
+        if submission is None:
+            return
+        upload_key, offline = submission.upload_key, submission.track == Track.offline
+    folder = _scratch() / "validation" / str(submission_id)
+    remove_tree(folder)
+    try:
+        zip_path = _store().fetch(upload_key, folder / "upload.zip")
+        prepared = validate(
+            zip_path,
+            folder / "prepared",
+            settings,
+            kind=_sandbox_kind(),
+            labels={"arena.validation": str(submission_id)},
+            needs_training=offline,
+        )
+    except IntakeError as exc:
+        with get_database().session() as session:
+            rejected = validation.record_rejected(session, submission_id, str(exc), ours=False)
+        if rejected:
+            _store().delete_prefix(str(Path(upload_key).parent))
+            with get_database().read_session() as session:
+                collect_garbage(
+                    settings, validation.deps_in_use(session), min_age_s=VALIDATE_TIME_LIMIT_S
+                )
+        return
+    except InfrastructureError as exc:
+        if self.request.retries < INFRASTRUCTURE_RETRIES:
+            raise self.retry(exc=exc, countdown=10 * (self.request.retries + 1)) from exc
+        with get_database().session() as session:
+            validation.record_rejected(session, submission_id, f"validation: {exc}", ours=True)
+        return
+    finally:
+        remove_tree(folder)
+    with get_database().session() as session:
+        valid = validation.record_valid(
+            session, submission_id, deps_key=prepared.deps_key, explanation=prepared.explanation
+        )
+    if valid:
+        _queue().evaluate(submission_id)
 
 
 @arena_task(TASK_EVALUATE, time_limit=BOOKKEEPING_TIME_LIMIT_S)
@@ -379,12 +437,14 @@ def _prepared(upload_key: str):
 @lru_cache(maxsize=4)
 def _prepare(upload_key: str):
     """The submission ready to run, prepared once per worker process from the zip in the
-    artifact store: a worker on another machine needs nothing but the database and broker."""
-    from submissions.intake import prepare_submission
+    artifact store: a worker on another machine needs nothing but the database and broker. The
+    intake runs in the sandbox again (its requirements come from the cache when this machine
+    validated it): nothing of the participant's is inflated or compiled on this host."""
+    from evaluator.validation import validate
 
     folder = _scratch() / "submissions" / Path(upload_key).parent.name
     zip_path = _store().fetch(upload_key, folder / "upload.zip")
-    return prepare_submission(zip_path, folder / "prepared", get_settings())
+    return validate(zip_path, folder / "prepared", get_settings(), kind=_sandbox_kind())
 
 
 def _model(model_key: str) -> Path:
@@ -490,6 +550,10 @@ def reap_once() -> evaluation.Reaped:
         trainings = training.reap(session, get_settings(), queue_empty=queue_empty)
     for training_id in trainings:
         queue.train(training_id)
+    if queue_empty:
+        with get_database().read_session() as session:
+            for submission_id in validation.stale(session, get_settings()):
+                queue.validate(submission_id)
     if reaped.plans or reaped.submission_ids or trainings:
         log.warning(
             "reaper re-sent %d run(s), %d submission(s) and %d training(s)",
@@ -530,6 +594,26 @@ def _start_reaper(**_: Any) -> None:
 @worker_shutdown.connect
 def _stop_reaper(**_: Any) -> None:
     _reaper_stop.set()
+
+
+@worker_shutdown.connect
+def _remove_scratch(**_: Any) -> None:
+    """This process's scratch (prepared submissions, records, models) ends with it."""
+    from submissions.intake.archive import remove_tree
+
+    remove_tree(_scratch())
+
+
+@worker_ready.connect
+def _remove_orphan_scratch(**_: Any) -> None:
+    """Scratch of this host's worker processes that died without cleaning up."""
+    from submissions.intake.archive import remove_tree
+
+    host = socket.gethostname()
+    for folder in (get_settings().resolved_data_dir / "scratch").glob(f"{host}-*"):
+        pid = folder.name.removeprefix(f"{host}-")
+        if pid.isdigit() and not Path(f"/proc/{pid}").exists():
+            remove_tree(folder)
 
 
 @worker_shutdown.connect

@@ -114,9 +114,7 @@ def prepare_submission(
         explanation = load_explanation(dest)
         requirements = read_text(dest, REQUIREMENTS) or ""
         notes = porting_notes(dest, frozenset(verdict["policy_defines"]))
-        installed = (
-            install_requirements(requirements, settings, runner) if install else None
-        )
+        installed = install_requirements(requirements, settings, runner) if install else None
     except BaseException:
         remove_tree(dest)
         raise

@@ -24,7 +24,9 @@ MAX_EXPLANATION_CHARS = 20_000
 MAX_CONFIG_BYTES = 64 * 1024
 
 
-def read_text(root: Path, name: str, max_bytes: int = MAX_CONFIG_BYTES, cut: bool = False) -> str | None:
+def read_text(
+    root: Path, name: str, max_bytes: int = MAX_CONFIG_BYTES, cut: bool = False
+) -> str | None:
     """A root-level text file of the submission, or None when it is absent. Longer than
     ``max_bytes``: cut there with ``cut``, else refused."""
     path = root / name

@@ -182,15 +182,19 @@ def pip_error_summary(output: str) -> str:
     return " / ".join((kept or lines)[-3:])
 
 
-def collect_garbage(settings: Settings, keys_in_use: set[str]) -> int:
+def collect_garbage(settings: Settings, keys_in_use: set[str], min_age_s: float = 0.0) -> int:
     """Delete the requirement folders whose key no kept submission uses; returns how many.
-    Folders being installed (``.deps-*``) are left alone."""
+    Folders being installed (``.deps-*``) and those younger than ``min_age_s`` (installed for
+    a validation not yet recorded) are left alone."""
     cache = deps_cache(settings)
     if not cache.is_dir():
         return 0
     removed = 0
+    cutoff = time.time() - min_age_s
     for folder in cache.iterdir():
         if folder.name.startswith(".") or folder.name in keys_in_use:
+            continue
+        if folder.stat().st_mtime > cutoff:
             continue
         remove_tree(folder)
         removed += 1

@@ -1,0 +1,38 @@
+"""uploads are validated by a job: at most one `validating` submission per team, and the content
+key of the requirements folder a submission uses (deleted with the last submission using it)
+
+Revision ID: 0010
+Revises: 0009
+"""
+
+from collections.abc import Sequence
+
+import sqlalchemy as sa
+from alembic import op
+
+revision: str = "0010"
+down_revision: str | None = "0009"
+branch_labels: str | Sequence[str] | None = None
+depends_on: str | Sequence[str] | None = None
+
+ONE_VALIDATING = "uq_submissions_one_validating_per_team"
+VALIDATING = sa.text("status = 'validating'")
+
+
+def upgrade() -> None:
+    with op.batch_alter_table("submissions", schema=None) as batch_op:
+        batch_op.add_column(sa.Column("deps_key", sa.String(length=64), nullable=True))
+    op.create_index(
+        ONE_VALIDATING,
+        "submissions",
+        ["team_id"],
+        unique=True,
+        postgresql_where=VALIDATING,
+        sqlite_where=VALIDATING,
+    )
+
+
+def downgrade() -> None:
+    op.drop_index(ONE_VALIDATING, table_name="submissions")
+    with op.batch_alter_table("submissions", schema=None) as batch_op:
+        batch_op.drop_column("deps_key")
