@@ -423,7 +423,7 @@ def _gone_ok(action: Callable[[], object]) -> Callable[[], None]:
 
 def _driver_of(paths: str) -> tuple[str, str]:
     """The worker and submission of the prepared submission a sandbox mounts,
-    ``<data>/scratch/<host>-<pid>/submissions/<upload folder>/`` (server/worker/tasks.py); claims
+    ``<data>/scratch/<host>-<pid>/submissions/<upload folder>/`` (server/worker/local.py); claims
     name the worker ``<host>:<pid>``. A warm sandbox serves many runs of its submission, so
     this, not a run label, ties it to the scenario it is driving."""
     match = re.search(r"/scratch/([^/\s]+)-(\d+)/submissions/([^/\s]+)/", paths)

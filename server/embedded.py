@@ -104,9 +104,7 @@ def _die_with_parent() -> None:
 
 def _start_child(command: list[str], env: dict) -> subprocess.Popen:
     # A session of its own, so stopping it reaches its children (simulators, agents) too.
-    return subprocess.Popen(
-        command, env=env, start_new_session=True, preexec_fn=_die_with_parent
-    )
+    return subprocess.Popen(command, env=env, start_new_session=True, preexec_fn=_die_with_parent)
 
 
 def _lock_data_folder(data: Path):

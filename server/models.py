@@ -177,6 +177,25 @@ class Submission(Base):
     )
 
 
+class UploadValidation(Base):
+    """The job validating an upload (``agent_runtime/intake.py`` in the sandbox), while its
+    submission is ``validating``. Claimed and leased like every job of the engine
+    (server/worker/engine.py): ``claims`` fences a dead worker's late verdict."""
+
+    __tablename__ = "upload_validations"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    submission_id: Mapped[int] = mapped_column(ForeignKey("submissions.id"), unique=True)
+    worker: Mapped[str] = mapped_column(String(255), default="")
+    claims: Mapped[int] = mapped_column(Integer, default=0)
+    lease_expires_at: Mapped[datetime | None]
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    started_at: Mapped[datetime | None]
+    finished_at: Mapped[datetime | None]
+
+    submission: Mapped[Submission] = relationship()
+
+
 class TrainingJob(Base):
     """One attempt at training an offline (Track 2) submission: its ``train.py`` in the sandbox,
     then the trained output in the artifact store with its sha256. Claimed and leased like a

@@ -33,8 +33,9 @@ from server.models import (
     TrainingJob,
 )
 from server.models import utcnow as now
-from server.services import phases, scoring
+from server.services import leases, phases, scoring
 from server.services.errors import Conflict, NotFound
+from server.services.leases import lease_until
 from server.status import (
     ACTIVE_RUN,
     RUN_MOVES,
@@ -64,6 +65,13 @@ class ScenarioJob:
     def key(self) -> Episode:
         return Episode(self.scenario_id, self.episode)
 
+    @property
+    def claim_number(self) -> int:
+        return self.attempt
+
+    def __str__(self) -> str:
+        return f"{self.key.name} of run {self.run_id} (claim {self.attempt})"
+
 
 def lock(session: Session, model, row_id: int):
     row = session.scalar(select(model).where(model.id == row_id).with_for_update())
@@ -80,10 +88,6 @@ def bump_leaderboard(session: Session) -> None:
     )
     if updated.rowcount == 0:
         session.add(LeaderboardGeneration(id=1, value=1))
-
-
-def lease_until(settings: Settings):
-    return now() + timedelta(seconds=settings.lease_seconds)
 
 
 def _suite(folder: Path) -> Suite:
@@ -188,8 +192,7 @@ def claim_scenario(
         return None
     # Each claim has its own lease: the other scenarios of the run renewing theirs does not keep
     # a dead worker's scenario from being taken over.
-    lease_valid = existing is not None and _alive(existing.lease_expires_at)
-    if existing is not None and existing.worker and lease_valid:
+    if existing is not None and leases.held(existing):
         return None
     suite = _suite(Path(run.suite_dir))
     entry = next((e for e in suite.scenarios if e.id == scenario_id), None)
@@ -208,14 +211,12 @@ def claim_scenario(
             attempts=0,
         )
         session.add(existing)
-    existing.worker = worker
     existing.attempts += 1
-    existing.lease_expires_at = lease_until(settings)
+    leases.take(existing, worker, settings)
     if run.status == RunStatus.queued:
         run.status = advance(run.status, RunStatus.running, RUN_MOVES)
         run.started_at = now()
-    run.worker = worker
-    run.lease_expires_at = lease_until(settings)
+    leases.take(run, worker, settings)
     return ScenarioJob(
         run_id=run_id,
         submission_id=run.submission_id,
@@ -228,36 +229,20 @@ def claim_scenario(
     )
 
 
-def _alive(lease_expires_at) -> bool:
-    return lease_expires_at is not None and lease_expires_at > now()
-
-
 def heartbeat(session: Session, settings: Settings, job: ScenarioJob, worker: str) -> bool:
     """Extend the lease of ``worker``'s claim on the job's scenario (and the run's); False when
     the claim is no longer this worker's (the run was cancelled, or the reaper gave the
     scenario to another worker): the episode must stop, its result would be refused."""
-    claim = session.execute(
-        update(ScenarioResult)
-        .where(*_claim_of(job, worker))
-        .values(lease_expires_at=lease_until(settings))
-    )
-    run = session.execute(
-        update(EvaluationRun)
-        .where(EvaluationRun.id == job.run_id, EvaluationRun.status.in_(list(ACTIVE_RUN)))
-        .values(lease_expires_at=lease_until(settings), worker=worker)
-    )
-    return claim.rowcount == 1 and run.rowcount == 1
+    claim = leases.renew(session, settings, ScenarioResult, _claim_of(job, worker))
+    run_fence = (EvaluationRun.id == job.run_id, EvaluationRun.status.in_(list(ACTIVE_RUN)))
+    run = leases.renew(session, settings, EvaluationRun, run_fence, worker=worker)
+    return claim and run
 
 
 def release_claim(session: Session, job: ScenarioJob, worker: str) -> bool:
     """Hand a scenario back (its worker is shutting down): another worker may claim it at once.
     False when the claim was no longer ``worker``'s."""
-    released = session.execute(
-        update(ScenarioResult)
-        .where(*_claim_of(job, worker))
-        .values(worker="", lease_expires_at=None)
-    )
-    return released.rowcount == 1
+    return leases.release(session, ScenarioResult, _claim_of(job, worker))
 
 
 def _claim_of(job: ScenarioJob, worker: str) -> tuple:
@@ -456,20 +441,13 @@ def reap(session: Session, settings: Settings, *, queue_empty: bool) -> Reaped:
     moment = now()
     resend: dict[int, set[Episode]] = {}
     stale_claims = session.scalars(
-        select(ScenarioResult)
+        leases.expired(ScenarioResult, ScenarioResult.status == ScenarioStatus.running)
         .join(EvaluationRun, EvaluationRun.id == ScenarioResult.run_id)
-        .where(
-            EvaluationRun.status.in_(list(ACTIVE_RUN)),
-            ScenarioResult.status == ScenarioStatus.running,
-            ScenarioResult.worker != "",
-            ScenarioResult.lease_expires_at < moment,
-        )
-        .with_for_update()
+        .where(EvaluationRun.status.in_(list(ACTIVE_RUN)))
     )
     for claim in stale_claims:
         # Released, so the re-sent task can claim it; the old claim's writes are fenced off.
-        claim.worker = ""
-        claim.lease_expires_at = None
+        leases.drop(claim)
         resend.setdefault(claim.run_id, set()).add(Episode(claim.scenario_id, claim.episode))
     plans = [
         RunPlan(run_id=run_id, episodes=tuple(sorted(episodes)))

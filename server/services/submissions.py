@@ -151,7 +151,7 @@ def accept_upload(
     def quota(session: Session) -> None:
         check_quota(session, settings, team_id, new.phase, new.track)
 
-    submission_id, key = validation.reserve(db, team_id, fields, quota)
+    submission_id, key = validation.reserve(db, settings, team_id, fields, quota)
     store = artifact_store(settings, db)
     try:
         try:

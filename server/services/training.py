@@ -12,15 +12,17 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from sqlalchemy import func, select, update
+from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from arena.config import Settings
 from server.core.queue import RunPlan
 from server.models import Submission, TrainingJob
 from server.models import utcnow as now
+from server.services import leases
 from server.services.errors import Conflict
-from server.services.evaluation import create_run, lease_until, lock
+from server.services.evaluation import create_run, lock
+from server.services.leases import lease_until
 from server.status import (
     ACTIVE_RUN,
     ACTIVE_TRAINING,
@@ -46,6 +48,13 @@ class TrainingClaim:
     submission_id: int
     upload_key: str  # the submission's zip in the artifact store
     claim: int  # 1 for the first claim; more after workers died holding it: the fence token
+
+    @property
+    def claim_number(self) -> int:
+        return self.claim
+
+    def __str__(self) -> str:
+        return f"{self.training_id} (claim {self.claim})"
 
 
 def _new_job(session: Session, settings: Settings, submission: Submission) -> TrainingJob:
@@ -118,14 +127,13 @@ def claim_training(
     job = lock(session, TrainingJob, training_id)
     if job.status not in ACTIVE_TRAINING:
         return None
-    if job.worker and job.lease_expires_at is not None and job.lease_expires_at > now():
+    if leases.held(job):
         return None
     if job.status == T.queued:
         job.status = advance(job.status, T.training, TRAINING_MOVES)
         job.started_at = now()
-    job.worker = worker
     job.claims += 1
-    job.lease_expires_at = lease_until(settings)
+    leases.take(job, worker, settings)
     return TrainingClaim(
         training_id=job.id,
         submission_id=job.submission_id,
@@ -149,33 +157,25 @@ def heartbeat(
     settings: Settings,
     claim: TrainingClaim,
     worker: str,
-    elapsed_s: float,
-    log_tail: str,
+    elapsed_s: float | None = None,
+    log_tail: str | None = None,
 ) -> bool:
-    """Extend the lease and show the progress; False when the claim is no longer ``worker``'s
-    (cancelled, or handed to another worker): the training must stop."""
-    updated = session.execute(
-        update(TrainingJob)
-        .where(*_fence(claim, worker))
-        .values(lease_expires_at=lease_until(settings), elapsed_s=elapsed_s, log_tail=log_tail)
-    )
-    return updated.rowcount == 1
+    """Extend the lease and show the progress (when there is some yet); False when the claim is
+    no longer ``worker``'s (cancelled, or handed to another worker): the training must stop."""
+    progress = {} if elapsed_s is None else {"elapsed_s": elapsed_s, "log_tail": log_tail or ""}
+    return leases.renew(session, settings, TrainingJob, _fence(claim, worker), **progress)
 
 
 def release(session: Session, claim: TrainingClaim, worker: str) -> bool:
     """Hand the job back (its worker is stopping, or retries later): any worker may claim it."""
-    released = session.execute(
-        update(TrainingJob).where(*_fence(claim, worker)).values(worker="", lease_expires_at=None)
-    )
-    return released.rowcount == 1
+    return leases.release(session, TrainingJob, _fence(claim, worker))
 
 
 def _finish(session: Session, claim: TrainingClaim, worker: str) -> TrainingJob | None:
     job = lock(session, TrainingJob, claim.training_id)
     if (job.status, job.worker, job.claims) != (T.training, worker, claim.claim):
         return None  # a duplicate delivery, or a superseded claim: the result is not ours
-    job.worker = ""
-    job.lease_expires_at = None
+    leases.drop(job)
     job.finished_at = now()
     return job
 
@@ -242,8 +242,7 @@ def cancel_trainings(submission: Submission) -> None:
     for job in submission.trainings:
         if job.status in ACTIVE_TRAINING:
             job.status = advance(job.status, T.cancelled, TRAINING_MOVES)
-            job.worker = ""
-            job.lease_expires_at = None
+            leases.drop(job)
             job.finished_at = now()
 
 
@@ -252,18 +251,8 @@ def reap(session: Session, settings: Settings, *, queue_empty: bool) -> tuple[in
     and, when the queue is empty, those whose task was lost before any worker held them."""
     moment = now()
     resend: list[int] = []
-    stale = session.scalars(
-        select(TrainingJob)
-        .where(
-            TrainingJob.status == T.training,
-            TrainingJob.worker != "",
-            TrainingJob.lease_expires_at < moment,
-        )
-        .with_for_update()
-    )
-    for job in stale:
-        job.worker = ""
-        job.lease_expires_at = None
+    for job in session.scalars(leases.expired(TrainingJob, TrainingJob.status == T.training)):
+        leases.drop(job)
         resend.append(job.id)
     if queue_empty:
         idle = session.scalars(

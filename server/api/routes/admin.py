@@ -46,9 +46,7 @@ def replay(
 ) -> dict:
     """Any episode of any submission, hidden phases included."""
     submission = submissions.get_submission(session, submission_id)
-    return replays.submission_replay(
-        session, settings, db, submission, scenario_id, organiser=True
-    )
+    return replays.submission_replay(session, settings, db, submission, scenario_id, organiser=True)
 
 
 @router.post("/submissions/{submission_id}/disqualify", response_model=SubmissionSummary)

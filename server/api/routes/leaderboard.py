@@ -33,7 +33,5 @@ def leaderboard_csv(
     return Response(
         to_csv(cache.get(track, phase).board),
         media_type="text/csv",
-        headers={
-            "Content-Disposition": f'attachment; filename="leaderboard-{phase}-{track}.csv"'
-        },
+        headers={"Content-Disposition": f'attachment; filename="leaderboard-{phase}-{track}.csv"'},
     )

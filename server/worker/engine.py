@@ -1,0 +1,165 @@
+"""The job engine: every kind of sandboxed work a worker does goes through one life,
+
+    claim -> heartbeat -> fence -> finish | hand back -> reap
+
+written once here for all job kinds (an episode of a scenario, a training, ...), after
+grand-challenge's ``ComponentJob``:
+
+- **claim**: the Celery task names a job by its ids; the kind takes the job's row in the database
+  (:mod:`server.services.leases`: worker, lease, claim counter) or returns None when the job is
+  over or held by a live lease (a duplicate delivery: nothing to do).
+- **heartbeat**: while the job runs, the worker's one heartbeat thread
+  (:mod:`server.worker.heartbeat`) renews its lease, with the progress the job reports.
+- **fence**: every write of the job is fenced by its claim number, so a claim that was superseded
+  (its worker presumed dead) writes nothing; the heartbeat finding the claim gone stops the job.
+- **finish**: the job's result is written through the fence (and follow-up tasks are sent after
+  the transaction committed).
+- **hand back**: a worker that stops (warm shutdown) releases the claim and sends the job again;
+  a job whose claim was lost is dropped without a word.
+- **our failures**: an :class:`~arena.errors.InfrastructureError` is retried (the claim released
+  first) up to :data:`INFRASTRUCTURE_RETRIES` times; any other exception, exhausted retries, and
+  a job whose workers died more than ``max_claims`` times end as a failure *on our side*
+  (recorded, never charged to the team, and never re-sent forever).
+- **reap**: :func:`reap_once` (the worker's reaper thread) asks every kind for jobs whose lease
+  expired and sends them again.
+
+Adding a job kind (e.g. validating an uploaded zip in a sandbox):
+
+1. A table with ``worker: str``, ``lease_expires_at: datetime | None`` and a claim counter
+   (Alembic migration), and service functions that claim, renew, release, finish and reap it over
+   :mod:`server.services.leases` (see :mod:`server.services.training`, ~250 lines with its
+   state machine). The claim object it returns has a ``claim_number`` (the fence token).
+2. A class satisfying :class:`JobKind` (see :mod:`server.worker.trainings`): mostly one-line
+   calls of those service functions, plus ``run`` (the sandboxed work; call
+   ``lease.stop_with(...)`` to be killable from outside and ``lease.report(...)`` to show
+   progress) and ``finish``.
+3. A task name in :mod:`server.core.celery_app`, a ``TaskQueue`` method that sends it, and in
+   :mod:`server.worker.tasks` a task ``run_job(KIND, self, <ids>)`` declared with ``arena_task``
+   (``bind=True``, ``max_retries=INFRASTRUCTURE_RETRIES``), with the kind added to ``JOB_KINDS``
+   (the reaper's list).
+"""
+
+from __future__ import annotations
+
+import logging
+import traceback
+from typing import Any, Protocol, TypeVar
+
+from celery import Task
+from sqlalchemy.orm import Session
+
+from arena.config import Settings, get_settings
+from arena.errors import InfrastructureError
+from server.core.db import get_database
+from server.core.queue import BROKER_ERRORS, TaskQueue
+from server.worker import local
+from server.worker.heartbeat import Lease, heartbeat
+
+log = logging.getLogger(__name__)
+
+INFRASTRUCTURE_RETRIES = 2
+# [s] Wait before retry n (1, 2, ...): n times this.
+RETRY_BACKOFF_S = 10
+# The failure of a job every worker that took it died with.
+WORKER_LOST = "worker_lost"
+
+ClaimT = TypeVar("ClaimT")
+ResultT = TypeVar("ResultT")
+
+
+class JobKind(Protocol[ClaimT, ResultT]):
+    """One kind of job: how to claim, renew, release, run, finish and reap it."""
+
+    name: str  # in logs: "episode", "training"
+    max_claims: int  # claims of one job (workers dying with it) before it fails as ours
+
+    def claim(self, session: Session, settings: Settings, worker: str, **ids: Any) -> ClaimT | None:
+        """Take the job for ``worker``; None when it is over or held by a live lease."""
+
+    def renew(
+        self, session: Session, settings: Settings, claim: ClaimT, worker: str, **progress: Any
+    ) -> bool:
+        """Extend the lease (writing the progress); False when the claim is no longer ours."""
+
+    def release(self, session: Session, claim: ClaimT, worker: str) -> bool:
+        """Hand the job back: any worker may claim it at once. False when no longer ours."""
+
+    def send_again(self, queue: TaskQueue, claim: ClaimT) -> None:
+        """Send the job's task again (after a release)."""
+
+    def run(self, claim: ClaimT, lease: Lease) -> ResultT | None:
+        """Do the work. Returns None only when it stopped because ``lease.stopped``."""
+
+    def ours(self, claim: ClaimT, reason: str, error: str) -> ResultT:
+        """The result of a job that failed on our side (not charged to the team)."""
+
+    def finish(self, claim: ClaimT, worker: str, result: ResultT) -> None:
+        """Write the result through the fence, then send any follow-up task."""
+
+    def reap(self, settings: Settings, queue: TaskQueue, *, queue_empty: bool) -> int:
+        """Send again the jobs whose lease expired (and, when the queue is empty, those whose
+        task was lost before any worker held them); how many."""
+
+
+def run_job(kind: JobKind, task: Task, **ids: Any) -> None:
+    """The whole life of one job in the Celery ``task`` (bound) that names it by ``ids``."""
+    settings = get_settings()
+    worker = local.worker_name()
+    with get_database().session() as session:
+        claim = kind.claim(session, settings, worker, **ids)
+    if claim is None:
+        return
+    if claim.claim_number > kind.max_claims:
+        # Every worker that took this job died with it (or was killed): stop handing it out.
+        died = f"{claim.claim_number - 1} workers died holding it"
+        kind.finish(claim, worker, kind.ours(claim, WORKER_LOST, died))
+        return
+    try:
+        with heartbeat().hold(kind, claim, worker) as lease:
+            result = kind.run(claim, lease)
+    except InfrastructureError as exc:
+        if task.request.retries < INFRASTRUCTURE_RETRIES:
+            with get_database().session() as session:
+                kind.release(session, claim, worker)
+            countdown = RETRY_BACKOFF_S * (task.request.retries + 1)
+            raise task.retry(exc=exc, countdown=countdown) from exc
+        result = kind.ours(claim, type(exc).__name__, str(exc))
+    except Exception as exc:
+        # A bug on our side: recorded (the team sees a failure that is not theirs, an organiser
+        # can run it again) rather than left for the reaper to hand out again and again.
+        log.exception("%s %s crashed the task", kind.name, claim)
+        result = kind.ours(claim, type(exc).__name__, traceback.format_exc())
+    else:
+        if lease.handed_back.is_set():
+            # Cut short on purpose: whatever it returned is not the team's result.
+            hand_back(kind, claim, worker)
+            return
+        if lease.lost.is_set() or result is None:
+            return  # cancelled, or another worker has it: its writes would be fenced off
+    kind.finish(claim, worker, result)
+
+
+def hand_back(kind: JobKind, claim: Any, worker: str) -> None:
+    """This worker is stopping: release the claim and send the job again for another worker."""
+    with get_database().session() as session:
+        released = kind.release(session, claim, worker)
+    if released:
+        kind.send_again(local.queue(), claim)
+        log.warning("handed %s %s back", kind.name, claim)
+
+
+def reap_once(kinds: tuple[JobKind, ...]) -> dict[str, int]:
+    """Send again every kind's jobs whose lease expired; how many, per kind."""
+    queue = local.queue()
+    try:
+        queue_empty = queue.depth() == 0
+    except BROKER_ERRORS as exc:
+        log.warning("reaper cannot read the queue: %s", exc)
+        return {}
+    settings = get_settings()
+    resent = {kind.name: kind.reap(settings, queue, queue_empty=queue_empty) for kind in kinds}
+    if any(resent.values()):
+        log.warning(
+            "reaper re-sent %s", ", ".join(f"{n} {name}(s)" for name, n in resent.items() if n)
+        )
+    return resent

@@ -1,0 +1,142 @@
+"""The worker's one heartbeat: a single thread that renews the lease of every job the worker
+process holds (whatever its kind), and stops the jobs whose claim is gone.
+
+A job is held through :meth:`Heartbeat.hold`, which returns its :class:`Lease`. Each round (every
+third of the lease, at most 5 s apart) the thread renews every lease through its kind's
+``renew``, writing the progress the job last reported (:meth:`Lease.report`). When a renewal
+finds the claim gone (the job was cancelled, or the reaper gave it to another worker) the lease
+is *lost*; when the worker begins a warm shutdown (:data:`shutting_down`) every lease is *handed
+back*. Either way the job's stop hook runs (e.g. killing its sandbox) and :attr:`Lease.stopped`
+turns true, so the job ends at once; :mod:`server.worker.engine` then drops its result or hands
+the job to another worker.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import TYPE_CHECKING, Any
+
+from sqlalchemy.exc import SQLAlchemyError
+
+from arena.config import get_settings
+from server.core.db import get_database
+
+if TYPE_CHECKING:  # the engine imports this module; only its types are needed here
+    from server.worker.engine import JobKind
+
+log = logging.getLogger(__name__)
+
+# Set when the worker begins a warm shutdown (SIGTERM): every job it holds is handed back.
+shutting_down = threading.Event()
+# [s] How often the thread looks at shutdown and lost leases between renewals.
+TICK_S = 0.2
+
+
+def beat_interval_s(lease_seconds: float) -> float:
+    """[s] Renewals three times per lease, at most 5 s apart (the pace progress is shown at)."""
+    return min(max(lease_seconds / 3, 0.5), 5.0)
+
+
+@dataclass(eq=False)
+class Lease:
+    """One claim a worker holds while its job runs."""
+
+    kind: JobKind
+    claim: Any
+    worker: str
+    lost: threading.Event = field(default_factory=threading.Event)
+    handed_back: threading.Event = field(default_factory=threading.Event)
+    progress: dict[str, Any] = field(default_factory=dict)
+    _on_stop: Callable[[], None] | None = None
+
+    @property
+    def stopped(self) -> bool:
+        return self.lost.is_set() or self.handed_back.is_set()
+
+    def stop_with(self, hook: Callable[[], None]) -> None:
+        """What ends the job from outside when its lease is lost or handed back (it may run
+        several times: until the job returns, nothing it starts may outlive the claim)."""
+        self._on_stop = hook
+
+    def report(self, **progress: Any) -> bool:
+        """Progress written with the next renewal; False once the job must stop."""
+        self.progress = progress
+        return not self.stopped
+
+    def stop(self) -> None:
+        if self._on_stop is not None:
+            self._on_stop()
+
+
+class Heartbeat:
+    """The renewing thread of one worker process, started with the first lease it holds."""
+
+    def __init__(self) -> None:
+        self._leases: set[Lease] = set()
+        self._lock = threading.Lock()
+        self._thread: threading.Thread | None = None
+
+    @contextmanager
+    def hold(self, kind: JobKind, claim: Any, worker: str) -> Iterator[Lease]:
+        lease = Lease(kind, claim, worker)
+        with self._lock:
+            self._leases.add(lease)
+            if self._thread is None:
+                self._thread = threading.Thread(
+                    target=self._run, name="arena-heartbeat", daemon=True
+                )
+                self._thread.start()
+        try:
+            yield lease
+        finally:
+            with self._lock:
+                self._leases.discard(lease)
+
+    def _held(self) -> list[Lease]:
+        with self._lock:
+            return list(self._leases)
+
+    def _run(self) -> None:
+        settings = get_settings()
+        interval = beat_interval_s(settings.lease_seconds)
+        next_beat = time.monotonic() + interval
+        while True:
+            time.sleep(TICK_S)
+            if shutting_down.is_set():
+                for lease in self._held():
+                    lease.handed_back.set()
+                    lease.stop()
+                continue
+            if time.monotonic() < next_beat:
+                continue
+            next_beat += interval
+            for lease in self._held():
+                if not lease.lost.is_set():
+                    self._renew(lease, settings)
+
+    @staticmethod
+    def _renew(lease: Lease, settings) -> None:
+        try:
+            with get_database().session() as session:
+                active = lease.kind.renew(
+                    session, settings, lease.claim, lease.worker, **lease.progress
+                )
+        except SQLAlchemyError as exc:
+            # The database is briefly away: the lease has time left, the next round tries again.
+            log.warning("lease heartbeat of %s %s failed: %s", lease.kind.name, lease.claim, exc)
+            return
+        if not active:
+            lease.lost.set()
+            lease.stop()
+
+
+@lru_cache(maxsize=1)
+def heartbeat() -> Heartbeat:
+    """This worker process's heartbeat (cleared in a forked child: threads do not survive fork)."""
+    return Heartbeat()

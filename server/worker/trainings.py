@@ -1,0 +1,155 @@
+"""The training job kind: an offline (Track 2) submission's ``train.py`` run in the sandbox, its
+output packed into the artifact store, then the evaluation of that output sent
+(:mod:`server.services.training` holds its transitions)."""
+
+from __future__ import annotations
+
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+
+from sqlalchemy.orm import Session
+
+from arena.config import Settings, get_settings
+from arena.errors import DatasetError
+from evaluator.runner import new_run_key
+from evaluator.training import MODEL_ARCHIVE, TrainingResult, TrainingStopped, pack_model, train
+from server.core.db import get_database
+from server.core.queue import TaskQueue
+from server.services import training
+from server.services.training import TrainingClaim
+from server.worker import local
+from server.worker.heartbeat import Lease, beat_interval_s
+
+
+@dataclass(frozen=True)
+class OurFailure:
+    """A training that ended without a model through no fault of the team (not charged)."""
+
+    failure: str
+    error: str
+
+
+class Trainings:
+    name = "training"
+    max_claims = 3
+
+    def claim(
+        self, session: Session, settings: Settings, worker: str, *, training_id: int
+    ) -> TrainingClaim | None:
+        return training.claim_training(session, settings, training_id, worker)
+
+    def renew(
+        self,
+        session: Session,
+        settings: Settings,
+        claim: TrainingClaim,
+        worker: str,
+        *,
+        elapsed_s: float | None = None,
+        log_tail: str | None = None,
+    ) -> bool:
+        return training.heartbeat(session, settings, claim, worker, elapsed_s, log_tail)
+
+    def release(self, session: Session, claim: TrainingClaim, worker: str) -> bool:
+        return training.release(session, claim, worker)
+
+    def send_again(self, queue: TaskQueue, claim: TrainingClaim) -> None:
+        queue.train(claim.training_id)
+
+    def run(self, claim: TrainingClaim, lease: Lease) -> TrainingResult | OurFailure | None:
+        """Run the submission's train.py; its progress is shown with each renewal of the lease,
+        and a lost claim or a stopping worker ends it (None)."""
+        settings = get_settings()
+        if settings.train_dataset_dir is None:
+            return OurFailure(
+                "no_dataset", "the service has no training dataset (ARENA_TRAIN_DATASET_DIR)"
+            )
+        output = _output(claim)
+        shutil.rmtree(output.parent, ignore_errors=True)  # an earlier claim's leftovers here
+        try:
+            return train(
+                local.prepared(claim.upload_key),
+                settings.train_dataset_dir,
+                output,
+                kind=local.sandbox_kind(),
+                labels={"arena.training": f"t{claim.training_id}c{claim.claim}-{new_run_key()}"},
+                settings=settings,
+                on_progress=lambda elapsed_s, log: lease.report(
+                    elapsed_s=elapsed_s, log_tail=local.tail(log)
+                ),
+                progress_every_s=beat_interval_s(settings.lease_seconds),
+            )
+        except TrainingStopped:
+            return None
+        except DatasetError as exc:
+            return OurFailure("no_dataset", str(exc))
+
+    def ours(self, claim: TrainingClaim, reason: str, error: str) -> OurFailure:
+        return OurFailure(reason, error)
+
+    def finish(
+        self, claim: TrainingClaim, worker: str, result: TrainingResult | OurFailure
+    ) -> None:
+        """Store the trained output and send its evaluation, or record the failure."""
+        if isinstance(result, OurFailure):
+            with get_database().session() as session:
+                training.record_failed(
+                    session, claim, worker, failure=result.failure, error=result.error, ours=True
+                )
+            return
+        tail = local.tail(result.log)
+        if not result.ok:
+            shutil.rmtree(_output(claim).parent, ignore_errors=True)
+            with get_database().session() as session:
+                training.record_failed(
+                    session,
+                    claim,
+                    worker,
+                    failure=str(result.failure),
+                    error=result.detail,
+                    elapsed_s=result.elapsed_s,
+                    log_tail=tail,
+                )
+            return
+        key, sha256, size = _store_model(claim)
+        with get_database().session() as session:
+            plan = training.record_trained(
+                session,
+                get_settings(),
+                claim,
+                worker,
+                elapsed_s=result.elapsed_s,
+                log_tail=tail,
+                model_key=key,
+                model_sha256=sha256,
+                model_size=size,
+            )
+        if plan is not None:
+            local.queue().send(plan)
+
+    def reap(self, settings: Settings, queue: TaskQueue, *, queue_empty: bool) -> int:
+        with get_database().session() as session:
+            resend = training.reap(session, settings, queue_empty=queue_empty)
+        for training_id in resend:
+            queue.train(training_id)
+        return len(resend)
+
+
+def _output(claim: TrainingClaim) -> Path:
+    return local.scratch() / "training" / str(claim.training_id) / f"claim-{claim.claim}"
+
+
+def _store_model(claim: TrainingClaim) -> tuple[str, str, int]:
+    """Pack the trained output into the artifact store: (key, sha256, size [bytes])."""
+    output = _output(claim)
+    archive = output.parent / MODEL_ARCHIVE
+    sha256 = pack_model(output, archive)
+    size = archive.stat().st_size
+    key = f"training/{claim.training_id}/claim-{claim.claim}/{MODEL_ARCHIVE}"
+    local.store().put(key, archive)
+    shutil.rmtree(output.parent, ignore_errors=True)
+    return key, sha256, size
+
+
+TRAININGS = Trainings()
