@@ -1,8 +1,5 @@
-"""uploads are validated by a job (upload_validations, leased like trainings): at most one `validating` submission per team, and the content
-key of the requirements folder a submission uses (deleted with the last submission using it)
-
-Revision ID: 0010
-Revises: 0009
+"""uploads validated by a job: upload_validations (leased like trainings), at most one
+`validating` submission per team, and the content key of a submission's requirements folder
 """
 
 from collections.abc import Sequence

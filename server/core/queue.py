@@ -62,9 +62,7 @@ class TaskQueue:
         )
 
     def validate(self, submission_id: int) -> None:
-        self.celery.send_task(
-            TASK_VALIDATE, kwargs={"submission_id": submission_id}, queue=QUEUE
-        )
+        self.celery.send_task(TASK_VALIDATE, kwargs={"submission_id": submission_id}, queue=QUEUE)
 
     def train(self, training_id: int) -> None:
         self.celery.send_task(TASK_TRAIN, kwargs={"training_id": training_id}, queue=QUEUE)

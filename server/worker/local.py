@@ -17,10 +17,10 @@ from pathlib import Path
 from arena.config import get_settings
 from evaluator import sandbox
 from evaluator.training import unpack_model
+from evaluator.validation import validate
 from server.core.artifacts import ArtifactStore, artifact_store
 from server.core.db import get_database
 from server.core.queue import TaskQueue
-from evaluator.validation import validate
 from submissions.intake import PreparedSubmission
 
 
