@@ -104,7 +104,9 @@ def build(
 
 @app.command("list")
 def list_(
-    directory: Annotated[str, typer.Argument(help="A built suite folder, or `public` / `hidden`.")],
+    directory: Annotated[
+        str, typer.Argument(help="A built suite folder, or `public` / `hidden`.")
+    ],
     as_json: Annotated[bool, typer.Option("--json", help="The rows as a JSON list.")] = False,
 ) -> None:
     """The scenarios of a built suite: a table on a terminal, tab-separated lines in a pipe."""
@@ -173,7 +175,9 @@ def show(
 
 @app.command()
 def verify(
-    directory: Annotated[str, typer.Argument(help="A built suite folder, or `public` / `hidden`.")],
+    directory: Annotated[
+        str, typer.Argument(help="A built suite folder, or `public` / `hidden`.")
+    ],
     jobs: Annotated[int, typer.Option(help="Episodes run in parallel.", min=1)] = 1,
     only: Annotated[list[str] | None, typer.Option(help="Verify just these ids.")] = None,
 ) -> None:

@@ -33,8 +33,6 @@ BUBBLE_RADIUS = 40.0  # [m]
 
 F = Family
 LOW_MID = ("low", "mid")
-
-
 # Reactive composition (scenario spec, "Reactive scenarios (71)").
 def every_variant(family: Family) -> tuple[str, ...]:
     """The family's variants in the order of the variant table (suite ids depend on it)."""

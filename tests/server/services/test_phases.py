@@ -102,7 +102,9 @@ def token_of(db, submission_id) -> str:
         return teams.rotate_token(session, team)
 
 
-def test_a_hidden_phase_gives_the_team_no_agent_output_and_no_scenario_detail(client, db, settings):
+def test_a_hidden_phase_gives_the_team_no_agent_output_and_no_scenario_detail(
+    client, db, settings
+):
     submission_id = finished_submission(db, settings, "final")
     headers = bearer(token_of(db, submission_id))
     logs = client.get(f"/api/v1/submissions/{submission_id}/logs", headers=headers)
