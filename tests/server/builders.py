@@ -6,6 +6,9 @@ import json
 from datetime import datetime, timedelta
 from pathlib import Path
 
+from sqlalchemy import select
+
+from arena.config import Settings
 from server.core.db import Database
 from server.models import EvaluationRun, Phase, Score, Submission, Visibility, utcnow
 from server.services import evaluation, teams
@@ -173,3 +176,35 @@ def evaluate_failing_everywhere(
             evaluation.record_scenario(session, job, "w1", outcome, log)
     with db.session() as session:
         assert evaluation.finish_run(session, DatabaseStore(db), plan.run_id) is not None
+
+
+def validate_uploads(db: Database, settings: Settings, worker: str = "test-worker") -> list[int]:
+    """Run the validation job of every upload ``validating``, as a worker does (the intake in
+    the service's sandbox, the verdict recorded through the fence); the ids validated."""
+    from evaluator.sandbox import check_service_kind
+    from server.core.artifacts import artifact_store
+    from server.core.queue import TaskQueue
+    from server.services import validation
+    from server.status import SubmissionStatus
+    from server.worker.validations import judge, record
+
+    with db.read_session() as session:
+        pending = list(
+            session.scalars(
+                select(Submission.id).where(Submission.status == SubmissionStatus.validating)
+            )
+        )
+    store = artifact_store(settings, db)
+    kind = check_service_kind(settings=settings)
+    queue = TaskQueue(settings)
+    try:
+        for submission_id in pending:
+            with db.session() as session:
+                claim = validation.claim(session, settings, submission_id, worker)
+            assert claim is not None
+            scratch = settings.resolved_data_dir / "scratch" / worker
+            verdict = judge(claim, settings, store, kind, {"arena.test": worker}, scratch)
+            record(claim, worker, verdict, settings, db, store, queue)
+    finally:
+        queue.close()
+    return pending
