@@ -359,9 +359,12 @@ def parse_script(name: str, source: str, rule: str) -> ast.Module:
     except ValueError as error:
         raise Rejected(name, f"{rule}-syntax", str(error)) from error
     except (RecursionError, MemoryError) as error:
-        # A deeply nested expression overflows the compiler's stack: not a program we can check.
+        # A deeply nested expression overflows the compiler's stack (CPython raises either), or
+        # the script is too big for the intake's memory: not a program we can check.
         raise Rejected(
-            name, f"{rule}-too-deep", f"nests expressions too deeply to compile ({error})"
+            name,
+            f"{rule}-too-deep",
+            f"nests expressions too deeply, or is too large, to compile ({type(error).__name__})",
         ) from error
     return tree
 
