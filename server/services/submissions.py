@@ -38,6 +38,8 @@ from server.services.phases import (
     check_team_may_see_output,
     daily_quota,
     get_phase,
+    list_phases,
+    team_sees_everything,
 )
 from server.services.training import cancel_trainings, shown_training
 from server.status import (
@@ -53,6 +55,8 @@ from submissions.intake.archive import check_directory
 
 S = SubmissionStatus
 log = logging.getLogger(__name__)
+# What a team sees of the progress of a hidden phase's run under way: quarters.
+HIDDEN_PROGRESS_STEPS = 4
 
 
 @dataclass(frozen=True)
@@ -198,10 +202,34 @@ def list_submissions(
     rows = list(session.scalars(query))
     runs = [shown_run(submission) for submission in rows]
     done = finished_counts(session, [run.id for run in runs if run is not None])
+    hidden = hidden_phases(session)
     return [
-        SubmissionSummary(**_summary_fields(submission, run, done.get(run.id, 0) if run else 0))
+        SubmissionSummary(
+            **_summary_fields(
+                submission, run, done.get(run.id, 0) if run else 0, submission.phase in hidden
+            )
+        )
         for submission, run in zip(rows, runs, strict=True)
     ]
+
+
+def hidden_phases(session: Session) -> set[str]:
+    """Names of the phases whose suite is hidden from the teams."""
+    return {phase.name for phase in list_phases(session) if not team_sees_everything(phase)}
+
+
+def live_in_hidden_phase(run: EvaluationRun | None, hidden: bool) -> bool:
+    """A run of a hidden phase not yet over: its team sees no per-episode detail of it."""
+    return hidden and run is not None and run.status in ACTIVE_RUN
+
+
+def shown_progress(run: EvaluationRun | None, done: int, hidden: bool) -> Progress:
+    """Episodes done of ``total``; while a hidden phase's run is under way only in steps of a
+    quarter of it: per-episode progress would time each hidden episode for its team."""
+    total = run.episode_count if run is not None else 0
+    if live_in_hidden_phase(run, hidden) and total:
+        done = (done * HIDDEN_PROGRESS_STEPS // total) * total // HIDDEN_PROGRESS_STEPS
+    return Progress(done=done, total=total)
 
 
 def finished_counts(session: Session, run_ids: list[int]) -> dict[int, int]:
@@ -239,10 +267,12 @@ def summary(session: Session, submission: Submission) -> SubmissionSummary:
 def _fields(session: Session, submission: Submission) -> dict:
     run = shown_run(submission)
     done = finished_counts(session, [run.id]).get(run.id, 0) if run is not None else 0
-    return _summary_fields(submission, run, done)
+    return _summary_fields(submission, run, done, submission.phase in hidden_phases(session))
 
 
-def _summary_fields(submission: Submission, run: EvaluationRun | None, done: int) -> dict:
+def _summary_fields(
+    submission: Submission, run: EvaluationRun | None, done: int, hidden: bool
+) -> dict:
     scored = current_run(submission)
     score = scored.score if scored is not None else None
     return {
@@ -253,7 +283,7 @@ def _summary_fields(submission: Submission, run: EvaluationRun | None, done: int
         "method_name": submission.method_name,
         "status": submission.status,
         "created_at": submission.created_at,
-        "progress": Progress(done=done, total=run.episode_count if run else 0),
+        "progress": shown_progress(run, done, hidden),
         "metrics": Metrics.model_validate(score) if score is not None else None,
         "completion_interval": completion_interval(score),
         # Of the run whose progress is shown: what the progress counts.
@@ -268,11 +298,14 @@ def completion_interval(score: Score | None) -> CompletionInterval | None:
 
 
 def detail(session: Session, submission: Submission) -> SubmissionDetail:
-    """Everything its own team may see. Never hands out hidden scenario ids."""
+    """Everything its own team may see. Never hands out hidden scenario ids; in a hidden phase,
+    no failure reason before the run is over (read live, episode by episode, the reasons an agent
+    chose to fail with would carry what it saw of the hidden scenarios)."""
     run = current_run(submission)
     score = run.score if run is not None else None
     reasons: dict[str, dict[str, int]] = {}
-    for result in run.results if run is not None else []:
+    live_hidden = live_in_hidden_phase(run, submission.phase in hidden_phases(session))
+    for result in run.results if run is not None and not live_hidden else []:
         if result.status != ScenarioStatus.running and result.reason != "reached_goal":
             by_reason = reasons.setdefault(result.family, {})
             reason = result.reason or result.status

@@ -150,18 +150,24 @@ def default_phases() -> list[Phase]:
 
 
 def evaluate_failing_everywhere(
-    db: Database, settings, submission_id: int, *, log: str, error: str | None = None
+    db: Database,
+    settings,
+    submission_id: int,
+    *,
+    log: str,
+    error: str | None = None,
+    episodes: int | None = None,
 ) -> None:
     """Run the submission through the service's bookkeeping as a worker would: every scenario
-    claimed, reported done with its agent colliding (no record) and ``log`` as its output, then
-    the run aggregated."""
+    (or the first ``episodes``: the run stays under way) claimed, reported done with its agent
+    colliding (no record) and ``log`` as its output, then the run aggregated."""
     from arena.outcome import AgentOutcome, ScenarioStatus
     from evaluator.runner import ScenarioOutcome
     from server.core.artifacts import DatabaseStore
 
     with db.session() as session:
         plan = evaluation.start_evaluation(session, settings, submission_id)
-    for scenario_id in scenario_ids(plan):
+    for scenario_id in scenario_ids(plan)[:episodes]:
         with db.session() as session:
             job = evaluation.claim_scenario(session, settings, plan.run_id, scenario_id, "w1")
         outcome = ScenarioOutcome(
@@ -174,6 +180,8 @@ def evaluate_failing_everywhere(
         )
         with db.session() as session:
             evaluation.record_scenario(session, job, "w1", outcome, log)
+    if episodes is not None and episodes < len(plan.episodes):
+        return
     with db.session() as session:
         assert evaluation.finish_run(session, DatabaseStore(db), plan.run_id) is not None
 
