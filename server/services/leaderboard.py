@@ -9,7 +9,6 @@ result.
 
 from __future__ import annotations
 
-import csv
 import io
 import threading
 import time
@@ -18,6 +17,7 @@ from dataclasses import dataclass
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from arena.neutralise.spreadsheet import write_rows
 from evaluator.scoring import Interval, rank, tied_neighbours
 from evaluator.scoring import Metrics as ScoringMetrics
 from server.core.db import Database
@@ -106,37 +106,37 @@ def _csv_value(value: float | None) -> str:
 
 
 def to_csv(board: Leaderboard) -> str:
+    """The board as CSV; every cell through :mod:`arena.neutralise.spreadsheet` (a method name
+    ``=HYPERLINK(...)`` stays text in whatever spreadsheet opens it)."""
     out = io.StringIO()
-    writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(
+    header = [
+        "rank",
+        "team",
+        "submission_id",
+        "method_name",
+        "submitted_at",
+        *METRICS,
+        "completion_low",
+        "completion_high",
+        "tied_with",
+    ]
+    rows = (
         [
-            "rank",
-            "team",
-            "submission_id",
-            "method_name",
-            "submitted_at",
-            *METRICS,
-            "completion_low",
-            "completion_high",
-            "tied_with",
+            entry.rank,
+            entry.team,
+            entry.submission_id,
+            entry.method_name,
+            entry.submitted_at.isoformat(),
+            *(_csv_value(getattr(entry.metrics, name)) for name in METRICS),
+            *(
+                _csv_value(getattr(entry.completion_interval, bound, None))
+                for bound in ("low", "high")
+            ),
+            " ".join(str(rank) for rank in entry.tied_with),
         ]
+        for entry in board.entries
     )
-    for entry in board.entries:
-        writer.writerow(
-            [
-                entry.rank,
-                entry.team,
-                entry.submission_id,
-                entry.method_name,
-                entry.submitted_at.isoformat(),
-                *(_csv_value(getattr(entry.metrics, name)) for name in METRICS),
-                *(
-                    _csv_value(getattr(entry.completion_interval, bound, None))
-                    for bound in ("low", "high")
-                ),
-                " ".join(str(rank) for rank in entry.tied_with),
-            ]
-        )
+    write_rows(out, header, rows)
     return out.getvalue()
 
 
