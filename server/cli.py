@@ -457,7 +457,19 @@ def serve(host: str = "127.0.0.1", port: int = 8000, workers: int = 1) -> None:
     """Run the API and web pages (uvicorn)."""
     import uvicorn
 
-    uvicorn.run("server.app:create_app", factory=True, host=host, port=port, workers=workers)
+    from arena.config import get_settings
+    from server.core.http import HeaderDeadlineProtocol
+
+    uvicorn.run(
+        "server.app:create_app",
+        factory=True,
+        host=host,
+        port=port,
+        workers=workers,
+        # Slow clients hold no worker: headers have a deadline, idle keep-alives end.
+        http=HeaderDeadlineProtocol,
+        timeout_keep_alive=get_settings().http_keep_alive_s,
+    )
 
 
 @service_app.command("worker")

@@ -3,7 +3,7 @@ watch."""
 
 from __future__ import annotations
 
-from fastapi import APIRouter
+from fastapi import APIRouter, Request, Response
 from starlette.concurrency import run_in_threadpool
 
 from server.api.contract import errors
@@ -12,6 +12,8 @@ from server.schemas import PublicScenario
 from server.services import replays, scenarios
 
 router = APIRouter(tags=["scenarios"])
+# The public replays change only with the public suite (their key is its content hash).
+REPLAY_MAX_AGE_S = 3600
 
 
 @router.get("/scenarios/public", response_model=list[PublicScenario])
@@ -21,8 +23,19 @@ def public_scenarios(settings: SettingsDep) -> list[PublicScenario]:
     ]
 
 
-@router.get("/scenarios/public/{scenario_id}/replay", responses=errors(404, 422))
-async def public_replay(scenario_id: ScenarioId, settings: SettingsDep, db: DatabaseDep) -> dict:
+@router.get(
+    "/scenarios/public/{scenario_id}/replay",
+    response_class=Response,
+    responses={200: {"content": {"application/json": {}}}, **errors(404, 422)},
+)
+async def public_replay(
+    request: Request, scenario_id: ScenarioId, settings: SettingsDep, db: DatabaseDep
+) -> Response:
     """The expert's drive through a public scenario, to watch (the replay page's data). The
-    first request simulates it (a few seconds); later ones read it back."""
-    return await run_in_threadpool(replays.public_replay, settings, db, scenario_id)
+    first request simulates it (a few seconds); later ones are served from memory, with an
+    ``ETag`` (``If-None-Match`` gets 304) and a cache lifetime."""
+    document = await run_in_threadpool(replays.public_replay, settings, db, scenario_id)
+    headers = {"ETag": document.etag, "Cache-Control": f"public, max-age={REPLAY_MAX_AGE_S}"}
+    if request.headers.get("if-none-match") == document.etag:
+        return Response(status_code=304, headers=headers)
+    return Response(document.body, media_type="application/json", headers=headers)
