@@ -5,7 +5,7 @@ const Arena = (() => {
   const TOKEN_KEY = "arena-token";
   const $ = (id) => document.getElementById(id);
   const headers = (token) => ({ Authorization: `Bearer ${token}` });
-  const FINISHED = ["scored", "failed", "cancelled", "disqualified"];
+  const FINISHED = ["scored", "failed", "rejected", "cancelled", "disqualified"];
 
   async function errorText(response) {
     try {
