@@ -48,7 +48,12 @@ class ArenaCollector:
         yield episodes
 
 
-@router.get("/metrics", response_class=Response)
+# The token is optional here (anyone reads the service figures; organisers read more): an empty
+# requirement beside the bearer one says so in the OpenAPI document.
+OPTIONAL_BEARER = {"security": [{}, {"HTTPBearer": []}]}
+
+
+@router.get("/metrics", response_class=Response, openapi_extra=OPTIONAL_BEARER)
 def metrics(db: DatabaseDep, queue: QueueDep, admin: IsAdmin) -> Response:
     """Service figures (Prometheus); per-reason episode outcomes with the admin token only."""
     registry = CollectorRegistry(auto_describe=False)

@@ -29,7 +29,19 @@ router = APIRouter(prefix="/submissions", tags=["submissions"], responses=errors
     "",
     status_code=status.HTTP_202_ACCEPTED,
     response_model=SubmissionDetail,
-    responses=errors(403, 409, 413, 429),
+    responses={
+        202: {
+            "description": "Received and stored; validating (poll Location until it is "
+            "queued or rejected)",
+            "headers": {
+                "Location": {
+                    "description": "The submission's URL",
+                    "schema": {"type": "string"},
+                }
+            },
+        },
+        **errors(403, 409, 413, 429),
+    },
     openapi_extra=UPLOAD_FORM,
 )
 async def create_submission(
