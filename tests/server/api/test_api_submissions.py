@@ -285,3 +285,24 @@ def test_offline_uploads_are_refused_while_the_service_has_no_dataset(
     assert response.status_code == 422
     assert "ARENA_TRAIN_DATASET_DIR" in response.json()["detail"]
     assert count_submissions(db) == 0
+
+
+def test_parallel_uploads_take_one_validation_slot_and_one_try(client, db, settings, keep_lane_zip):
+    """With one try left, six parallel uploads once cost 4.7 intakes: the quota was checked
+    again only after each. Now the slot is reserved first, atomically: one upload is validated,
+    the others are refused before any work on their zip."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    team_id, token = make_team(db, "alpha")
+    for _ in range(settings.daily_quota - 1):
+        assert accepted(client, db, settings, token, keep_lane_zip)["status"] == "queued"
+    with ThreadPoolExecutor(6) as pool:
+        answers = list(pool.map(lambda _: upload(client, token, keep_lane_zip), range(6)))
+    codes = sorted(answer.status_code for answer in answers)
+    # 409: refused by the taken slot, with nothing done on the zip (not 429 after an intake).
+    assert codes == [202, 409, 409, 409, 409, 409], codes
+    assert count_submissions(db) == settings.daily_quota
+    assert validate_uploads(db, settings) == [
+        next(a.json()["id"] for a in answers if a.status_code == 202)
+    ]
+    assert upload(client, token, keep_lane_zip).status_code == 429
