@@ -293,7 +293,7 @@ def test_parallel_uploads_take_one_validation_slot_and_one_try(client, db, setti
     the others are refused before any work on their zip."""
     from concurrent.futures import ThreadPoolExecutor
 
-    team_id, token = make_team(db, "alpha")
+    _, token = make_team(db, "alpha")
     for _ in range(settings.daily_quota - 1):
         assert accepted(client, db, settings, token, keep_lane_zip)["status"] == "queued"
     with ThreadPoolExecutor(6) as pool:

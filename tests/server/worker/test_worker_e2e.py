@@ -5,6 +5,7 @@ Redis restart that loses every queued message."""
 from __future__ import annotations
 
 import signal
+import socket
 import subprocess
 import time
 import uuid
@@ -104,6 +105,10 @@ def test_three_examples_are_scored_and_ranked(stack_settings, tmp_path):
         stop(worker)
     assert set(results_per_scenario(db).values()) == {3}  # one row per submission and scenario
     db.dispose()
+    # The worker's scratch (prepared submissions, validations, records) went with it: 1.9 GB
+    # were once left behind.
+    scratch = stack_settings.resolved_data_dir / "scratch"
+    assert not any(scratch.glob(f"{socket.gethostname()}-*")), list(scratch.iterdir())
 
 
 def test_worker_killed_mid_evaluation_finishes_after_restart(stack_settings, tmp_path):
