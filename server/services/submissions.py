@@ -17,7 +17,7 @@ from arena.outcome import FINISHED, ScenarioStatus
 from server.core.artifacts import artifact_store
 from server.core.db import Database
 from server.core.queue import BROKER_ERRORS, TaskQueue, scenario_task_id
-from server.models import EvaluationRun, ScenarioResult, Score, Submission, utcnow
+from server.models import EvaluationRun, ScenarioResult, Score, Submission, TrainingJob, utcnow
 from server.schemas import (
     CompletionInterval,
     FamilyMetrics,
@@ -176,6 +176,21 @@ def accept_upload(
         log.warning("queueing the validation of submission %s failed: %s", submission_id, exc)
     with db.read_session() as session:
         return get_submission(session, submission_id)
+
+
+def keys_in_work(session: Session) -> tuple[set[str], set[str]]:
+    """The zips and trained outputs of submissions still being trained or evaluated: what a
+    worker keeps unpacked; the rest of its scratch can go."""
+    working = Submission.status.in_([S.queued, S.training, S.running])
+    uploads = set(session.scalars(select(Submission.upload_key).where(working)))
+    models = set(
+        session.scalars(
+            select(TrainingJob.model_key)
+            .join(Submission, TrainingJob.submission_id == Submission.id)
+            .where(working, TrainingJob.model_key.is_not(None))
+        )
+    )
+    return uploads, models
 
 
 def get_submission(session: Session, submission_id: int) -> Submission:

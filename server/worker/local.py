@@ -22,6 +22,7 @@ from server.core.artifacts import ArtifactStore, artifact_store
 from server.core.db import get_database
 from server.core.queue import TaskQueue
 from submissions.intake import PreparedSubmission
+from submissions.intake.archive import remove_tree
 
 
 def worker_name() -> str:
@@ -64,21 +65,26 @@ def tail(text: str) -> str:
 
 
 _unpack_lock = threading.Lock()
+# What this process unpacked, by key: kept while the submission is in work, deleted (folder and
+# all) once it is not (forget_finished), so a long-running worker's scratch does not grow.
+_prepared: dict[str, PreparedSubmission] = {}
+_models: dict[str, Path] = {}
 
 
 def prepared(upload_key: str) -> PreparedSubmission:
     """One preparation per submission and worker process, even with several threads asking."""
     with _unpack_lock:
-        return _prepare(upload_key)
+        if upload_key not in _prepared:
+            _prepared[upload_key] = _prepare(upload_key)
+        return _prepared[upload_key]
 
 
-@lru_cache(maxsize=4)
 def _prepare(upload_key: str) -> PreparedSubmission:
     """The submission ready to run, prepared once per worker process from the zip in the
     artifact store. The intake runs in the sandbox again (its requirements come from the cache
     when this machine validated it): nothing of the participant's is inflated or compiled on
     this host."""
-    folder = scratch() / "submissions" / Path(upload_key).parent.name
+    folder = _submission_folder(upload_key)
     zip_path = store().fetch(upload_key, folder / "upload.zip")
     return validate(zip_path, folder / "prepared", get_settings(), kind=sandbox_kind())
 
@@ -86,14 +92,34 @@ def _prepare(upload_key: str) -> PreparedSubmission:
 def model(model_key: str) -> Path:
     """The trained output, unpacked once per worker process (several threads may ask)."""
     with _unpack_lock:
-        return _unpacked_model(model_key)
+        if model_key not in _models:
+            folder = _model_folder(model_key)
+            archive = store().fetch(model_key, folder / "model.tar.gz")
+            _models[model_key] = unpack_model(archive, folder / "model")
+        return _models[model_key]
 
 
-@lru_cache(maxsize=4)
-def _unpacked_model(model_key: str) -> Path:
-    folder = scratch() / "models" / hashlib.sha256(model_key.encode()).hexdigest()[:16]
-    archive = store().fetch(model_key, folder / "model.tar.gz")
-    return unpack_model(archive, folder / "model")
+def _submission_folder(upload_key: str) -> Path:
+    return scratch() / "submissions" / Path(upload_key).parent.name
+
+
+def _model_folder(model_key: str) -> Path:
+    return scratch() / "models" / hashlib.sha256(model_key.encode()).hexdigest()[:16]
+
+
+def forget_finished(upload_keys: set[str], model_keys: set[str]) -> int:
+    """Delete what this process unpacked for submissions no longer in work (their runs ended):
+    only ``upload_keys`` and ``model_keys`` are kept. How many folders went."""
+    with _unpack_lock:
+        gone = [(key, _submission_folder(key)) for key in _prepared if key not in upload_keys]
+        gone_models = [(key, _model_folder(key)) for key in _models if key not in model_keys]
+        for key, folder in gone:
+            del _prepared[key]
+            remove_tree(folder)
+        for key, folder in gone_models:
+            del _models[key]
+            remove_tree(folder)
+    return len(gone) + len(gone_models)
 
 
 @lru_cache(maxsize=1)

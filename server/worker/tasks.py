@@ -41,7 +41,7 @@ from server.core.celery_app import (
     TASK_VALIDATE,
 )
 from server.core.db import get_database
-from server.services import evaluation, training
+from server.services import evaluation, submissions, training
 from server.worker import engine, heartbeat, local
 from server.worker.engine import INFRASTRUCTURE_RETRIES, JobKind
 from server.worker.episodes import EPISODES
@@ -130,6 +130,13 @@ def reap_once() -> dict[str, int]:
     return engine.reap_once(JOB_KINDS)
 
 
+def remove_finished_scratch() -> int:
+    """Delete this process's unpacked submissions and models whose runs have ended."""
+    with get_database().read_session() as session:
+        uploads, models = submissions.keys_in_work(session)
+    return local.forget_finished(uploads, models)
+
+
 _reaper_stop = threading.Event()
 
 
@@ -147,6 +154,7 @@ def _start_reaper(**_: Any) -> None:
             try:
                 reap_once()
                 warm_agents().close_idle(get_settings().warm_agent_idle_s)
+                remove_finished_scratch()
             except Exception:  # a bad round must not end the loop; logged with traceback
                 log.exception("reaper round failed")
 

@@ -101,6 +101,14 @@ def test_three_examples_are_scored_and_ranked(stack_settings, tmp_path):
                 f"{url}/api/v1/submissions/{ids['random']}/logs", headers=bearer(tokens["random"])
             )
             assert not any(sid in detail.text + logs.text for sid in SCENARIOS)
+            # Runs over: the submissions the worker unpacked leave its scratch within a round of
+            # its reaper, while it keeps running.
+            unpacked = stack_settings.resolved_data_dir / "scratch"
+            deadline = time.monotonic() + 30
+            while any(unpacked.glob("*/submissions/*")) and time.monotonic() < deadline:
+                time.sleep(0.5)
+            assert not any(unpacked.glob("*/submissions/*")), list(unpacked.glob("*/*/*"))
+            assert worker.poll() is None
     finally:
         stop(worker)
     assert set(results_per_scenario(db).values()) == {3}  # one row per submission and scenario
