@@ -268,6 +268,7 @@ async def slow_headers(port: int, seconds: float) -> int:
 
 
 def final_status(url: str, token: str, submission_id: int, deadline: float) -> str:
+    """``status`` once validated, with the rule a rejection names: ``rejected[policy-class]``."""
     while True:
         body = httpx.get(
             f"{url}/api/v1/submissions/{submission_id}",
@@ -275,7 +276,8 @@ def final_status(url: str, token: str, submission_id: int, deadline: float) -> s
             timeout=30,
         ).json()
         if body["status"] != "validating" or time.monotonic() > deadline:
-            return body["status"]
+            rule = body["status_reason"].rpartition("[rule: ")[2].rstrip("]")
+            return f"{body['status']}[{rule}]" if rule else body["status"]
         time.sleep(1)
 
 
@@ -324,7 +326,7 @@ def main() -> None:
                 time.sleep(5)
             deadline = time.monotonic() + args.timeout
             sent = refused = 0
-            verdicts: list[str] = []
+            verdicts: list[tuple[str, str]] = []
             with Probe(url, api.pid) as loaded, ThreadPoolExecutor(32) as pool:
                 jobs = []
                 for kind, path in payloads.items():
@@ -337,26 +339,31 @@ def main() -> None:
                     lambda: asyncio.run(_gather(*(slow_headers(port, 30) for _ in range(PER_KIND))))
                 )
                 accepted = []
-                for job in jobs:
+                kinds = [kind for kind in payloads for _ in range(PER_KIND)]
+                kinds += ["parallel-quota"] * PER_KIND
+                for kind, job in zip(kinds, jobs, strict=True):
                     response = job.result()
                     sent += 1
                     if response.status_code == 202:
-                        accepted.append(
-                            (response.request.headers["authorization"][7:], response.json()["id"])
-                        )
+                        token = response.request.headers["authorization"][7:]
+                        accepted.append((kind, token, response.json()["id"]))
                     else:
                         refused += 1
+                        verdicts.append((kind, f"refused {response.status_code}"))
                 cut_off = sum(slow.result())
                 sent += PER_KIND
                 refused += cut_off
-                for token, submission_id in accepted:
-                    verdicts.append(final_status(url, token, submission_id, deadline))
+                verdicts += [("slow-headers", "cut off")] * cut_off
+                for kind, token, submission_id in accepted:
+                    verdicts.append((kind, final_status(url, token, submission_id, deadline)))
         finally:
             stop(worker)
             stop(api)
-        rejected = refused + sum(verdict in ("rejected", "failed") for verdict in verdicts)
+        validated = [v for _, v in verdicts if not v.startswith(("refused", "cut off"))]
+        rejected = refused + sum(v.startswith(("rejected", "failed")) for v in validated)
         print(f"sandbox={args.sandbox} uploads_per_kind={PER_KIND} kinds={len(payloads) + 2}")
-        print(f"verdicts after validation: {sorted(verdicts)}")
+        for kind in [*payloads, "parallel-quota", "slow-headers"]:
+            print(f"  {kind}: {', '.join(sorted(v for k, v in verdicts if k == kind))}")
         print(f"refused at once (4xx or cut off): {refused}")
         print(
             f"api_rss_mib idle={idle.peak_rss:.0f} loaded={loaded.peak_rss:.0f} "
