@@ -111,3 +111,12 @@ def test_names_that_could_pass_for_others_are_refused_at_upload(client, db, name
     response = upload(client, token, payload, method=name)
     assert response.status_code == 422
     assert "method_name: character" in response.json()["detail"]
+
+
+@pytest.mark.parametrize("name", ["alpha\n", "alpha\u202e", "al\u200bpha", "alpha\x1b[2J"])
+def test_team_names_hold_no_control_bidi_or_invisible_character(db, name):
+    from server.services import teams
+    from server.services.errors import InvalidInput
+
+    with db.session() as session, pytest.raises(InvalidInput):
+        teams.create_team(session, name)
