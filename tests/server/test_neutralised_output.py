@@ -111,6 +111,7 @@ def test_names_that_could_pass_for_others_are_refused_at_upload(client, db, name
     response = upload(client, token, payload, method=name)
     assert response.status_code == 422
     assert "method_name: character" in response.json()["detail"]
+    assert "not allowed in a name" in response.json()["detail"]
 
 
 @pytest.mark.parametrize("name", ["alpha\n", "alpha\u202e", "al\u200bpha", "alpha\x1b[2J"])
