@@ -22,12 +22,14 @@ S = SubmissionStatus
 # The lifecycle order; a legal move never goes to an earlier stage.
 STAGE = {
     S.received: 0,
+    S.validating: 0,
     S.queued: 1,
     S.training: 2,  # offline submissions only
     S.running: 3,
     S.scored: 4,
     S.failed: 4,
     S.cancelled: 4,
+    S.rejected: 4,
     S.disqualified: 5,
 }
 T = TrainingStatus

@@ -228,12 +228,15 @@ def test_redis_restart_with_queued_submissions_loses_nothing(stack_settings, tmp
         update={"broker_url": f"redis://127.0.0.1:{port}/0", "broker_key_prefix": ""}
     )
     db = Database(settings.database_url)
-    _, token = make_team(db, "restart-team")
+    # Two teams: a team has one upload validating at a time.
+    tokens = {name: make_team(db, f"restart-{name}")[1] for name in ("keep_lane", "random")}
     worker = None
     try:
         _wait_redis(port)
         with api_server(settings, tmp_path / "api.log") as (url, _):
-            ids = [upload_example(url, token, name, tmp_path) for name in ("keep_lane", "random")]
+            ids = {
+                name: upload_example(url, token, name, tmp_path) for name, token in tokens.items()
+            }
             assert redis.Redis(port=port).llen("arena") == 2  # queued, not yet taken
             # Restart Redis without persistence: the queued messages are gone.
             stop(redis_server)
@@ -243,8 +246,8 @@ def test_redis_restart_with_queued_submissions_loses_nothing(stack_settings, tmp
             _wait_redis(port)
             assert redis.Redis(port=port).llen("arena") == 0
             worker = start_worker(settings, tmp_path / "worker.log")
-            for sid in ids:
-                assert wait_finished(url, token, sid)["status"] == "scored"
+            for name, sid in ids.items():
+                assert wait_finished(url, tokens[name], sid)["status"] == "scored"
     finally:
         if worker is not None:
             stop(worker)
