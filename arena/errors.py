@@ -5,6 +5,11 @@ never retried: their zip was malformed, their agent crashed or exceeded a limit.
 :class:`InfrastructureError` is ours (Docker daemon gone, sandbox tool missing) and the job is
 retried. Library exceptions (docker, subprocess, zipfile) are translated into these at the
 boundary where they happen, so callers only ever catch ``ArenaError`` subclasses.
+
+Errors that are neither (an organiser's unusable suite, profile, record or data import; a
+service-level refusal, :mod:`server.services.errors`) derive from :class:`ArenaError` directly;
+every exception class of the project does, so a command line catches ``ArenaError`` once.
+The inside of the sandbox (``agent_runtime/``) imports nothing of ours and keeps its own.
 """
 
 from __future__ import annotations
@@ -13,7 +18,7 @@ from arena.outcome import DoneReason
 
 
 class ArenaError(Exception):
-    """Base of every error the evaluator raises on purpose."""
+    """Base of every error of ours."""
 
 
 class ParticipantError(ArenaError):

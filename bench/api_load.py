@@ -24,6 +24,12 @@ import time
 from datetime import timedelta
 from pathlib import Path
 
+from arena.config import Settings
+from server.core.db import Database
+from server.core.migrate import upgrade_database
+from server.models import utcnow
+from tests.server.builders import make_team, seed_scored
+
 # The benchmark seeds its database with the service tests' builders.
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
@@ -36,11 +42,6 @@ TARGET_P99_MS = 50.0
 
 
 def seed(database_url: str, rng: random.Random) -> None:
-    from server.core.db import Database
-    from server.core.migrate import upgrade_database
-    from server.models import utcnow
-    from tests.server.builders import make_team, seed_scored
-
     upgrade_database(database_url)
     db = Database(database_url)
     start = utcnow() - timedelta(days=10)
@@ -146,8 +147,6 @@ def main() -> None:
     parser.add_argument("--database-url", default="", help="default: a fresh SQLite file")
     args = parser.parse_args()
     seconds = min(args.seconds, 15.0)  # with seeding, start-up and warm-up: under 20 s
-
-    from arena.config import Settings
 
     workdir = Path(tempfile.mkdtemp(prefix="arena-bench-"))
     try:

@@ -34,6 +34,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from sim_throughput import build, in_child, raw_side
 
+from learn.gym_env import DrivingArenaEnv
+from learn.worker import SimulatorProcess
+
 RASTERS = {"top_down_rgb": True, "occupancy_grid_map": True, "drivable_area_grid_map": True}
 
 
@@ -52,9 +55,6 @@ def env_side(
     folder: Path, steps: int, rasters: bool, simulator: str = "auto"
 ) -> tuple[float, float]:
     """(wall, CPU) seconds spent in ``env.step`` over ``steps`` steps (policy excluded)."""
-    from learn.gym_env import DrivingArenaEnv
-    from learn.worker import SimulatorProcess
-
     options = {**RASTERS, "img_pixels": 256} if rasters else {}
     env = DrivingArenaEnv(folder, simulator=simulator, **options)
     try:

@@ -100,8 +100,10 @@ def fit_fixed_and_step(run: SuiteRun) -> tuple[float, float]:
 def raw_stepping(suite: str, steps: dict[str, int], queue) -> None:
     """In a child of its own (libsumo: one simulation at a time per process): start each
     scenario's SUMO as :class:`sim.traffic.SumoTraffic` would and time only the stepping."""
+    # deferred: libsumo loads only in the process that simulates (one simulation per process)
     import libsumo
 
+    # deferred: libsumo loads only in the process that simulates (one simulation per process)
     from arena.scenario import load_scenario
     from sim.traffic import sumo_command
 

@@ -49,7 +49,11 @@ from sqlalchemy.exc import SQLAlchemyError
 
 from arena.config import ArtifactBackend, SandboxKind, Settings
 from arena.suite import SHIPPED_PUBLIC_DIR
+from evaluator.sandbox import check_service_kind
+from evaluator.sandbox.backend import SANDBOX_LABEL
+from evaluator.sandbox.subprocess_sandbox import labelled_pids
 from server.core.db import Database
+from server.core.migrate import upgrade_database
 from server.models import EvaluationRun, ScenarioResult, Score, Submission
 from tests.server.builders import EXAMPLES, make_team
 from tests.server.live import ARENA, environment, free_port, start, stop
@@ -154,6 +158,7 @@ class PrivatePostgres:
             raise RuntimeError(f"PostgreSQL did not start, see {self.log}")
 
     def _ready(self) -> bool:
+        # deferred: each broker, database or daemon client is needed only by its own fault
         import psycopg
 
         try:
@@ -163,6 +168,7 @@ class PrivatePostgres:
             return False
 
     def create_database(self, name: str) -> None:
+        # deferred: each broker, database or daemon client is needed only by its own fault
         import psycopg
 
         dsn = f"postgresql://postgres@127.0.0.1:{self.port}/postgres"
@@ -209,6 +215,7 @@ class PrivateRedis:
             raise RuntimeError("redis-server did not start")
 
     def _ready(self) -> bool:
+        # deferred: each broker, database or daemon client is needed only by its own fault
         import redis
 
         try:
@@ -217,6 +224,7 @@ class PrivateRedis:
             return False
 
     def queued(self) -> int:
+        # deferred: each broker, database or daemon client is needed only by its own fault
         import redis
 
         return int(redis.Redis(port=self.port).llen("arena"))
@@ -375,10 +383,9 @@ class Sandbox:
 
 def campaign_sandboxes(root: Path, kind: SandboxKind) -> list[Sandbox]:
     """Agent sandboxes (running or stopped) that mount one of the campaign's folders."""
-    from evaluator.sandbox.backend import SANDBOX_LABEL
-
     found = []
     if kind is SandboxKind.docker:
+        # deferred: each broker, database or daemon client is needed only by its own fault
         from evaluator.sandbox.docker_backend import docker_client
 
         # Sparse: from the listing alone, no inspection that a container ending meanwhile fails.
@@ -394,8 +401,6 @@ def campaign_sandboxes(root: Path, kind: SandboxKind) -> list[Sandbox]:
                 remove = _gone_ok(functools.partial(container.remove, force=True))
                 found.append(Sandbox(container.id, driver, running, kill, remove))
         return found
-    from evaluator.sandbox.subprocess_sandbox import labelled_pids
-
     for pid in labelled_pids({SANDBOX_LABEL: "1"}):
         try:
             cmdline = Path(f"/proc/{pid}/cmdline").read_bytes()
@@ -413,6 +418,7 @@ def _gone_ok(action: Callable[[], object]) -> Callable[[], None]:
     """``action`` on a container, which may have ended and been removed since it was listed."""
 
     def act() -> None:
+        # deferred: each broker, database or daemon client is needed only by its own fault
         import docker.errors
 
         with contextlib.suppress(docker.errors.NotFound, docker.errors.APIError):
@@ -459,8 +465,6 @@ class Campaign:
         self.postgres.create_database("arena")
         self.stack.callback(self.redis.stop)
         self.redis.start()
-        from server.core.migrate import upgrade_database
-
         upgrade_database(self.postgres.url("arena"))
         self.ledger = Ledger(self.postgres.url("arena"))
         self.suite = cut_suite(SHIPPED_PUBLIC_DIR, self.root / "suite")
@@ -813,8 +817,6 @@ def _on_term(signum: int, frame: object) -> None:
 
 
 def main() -> None:
-    from evaluator.sandbox import check_service_kind
-
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sandbox", choices=["docker", "bubblewrap"], default=None)
     parser.add_argument("--timeout", type=int, default=900, help="[s] the whole campaign")

@@ -69,8 +69,10 @@ def build(folder: Path, n_vehicles: int, steps: int) -> Path:
 
 def raw_side(folder: str, steps: int, queue) -> None:
     """``simulationStep`` only, in its own process: (wall, CPU) seconds."""
+    # deferred: libsumo loads only in the process that simulates (one simulation per process)
     import libsumo
 
+    # deferred: libsumo loads only in the process that simulates (one simulation per process)
     from arena.scenario import load_scenario
     from sim.traffic import sumo_command
 
@@ -103,8 +105,10 @@ SUMO_VARIANTS: dict[str, tuple[int | None, int, bool, bool]] = {
 
 def sumo_side(folder: str, steps: int, variant: str, queue) -> None:
     """SUMO's own cost of one :data:`SUMO_VARIANTS` entry, in its own process: (wall, CPU) s."""
+    # deferred: libsumo loads only in the process that simulates (one simulation per process)
     import libsumo
 
+    # deferred: libsumo loads only in the process that simulates (one simulation per process)
     from arena.scenario import load_scenario
     from sim.traffic import sumo_command
 
@@ -175,6 +179,7 @@ def follow_gap(obs: dict) -> list[float]:
 
 
 def our_side(folder: str, steps: int, profile: bool, queue) -> None:
+    # deferred: libsumo loads only in the process that simulates (one simulation per process)
     from arena.scenario import load_scenario
     from sim.interface import AgentInterface
     from sim.simulation import Simulation

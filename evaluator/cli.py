@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import json
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -14,6 +15,7 @@ from rich.console import Console
 from rich.markup import escape
 
 from arena.config import SandboxKind
+from arena.errors import ArenaError
 from arena.terminal import make_console, print_rows
 from evaluator.failures import (
     describe_end,
@@ -23,7 +25,7 @@ from evaluator.failures import (
     never_started,
     startup_error,
 )
-from evaluator.replay.export import ReplayFormat
+from evaluator.viewer.export import ReplayFormat
 
 if TYPE_CHECKING:
     from evaluator.runner import ScenarioOutcome
@@ -88,11 +90,10 @@ def evaluate(
 
     Exits 1 when a scenario failed for the agent's fault (an exception, a bad action, a timeout),
     2 when the evaluation could not run."""
+    # deferred: CLI start-up time
     from arena.config import get_settings
-    from arena.errors import ArenaError
     from arena.suite import resolve_suite
     from evaluator.runner import evaluate as run_evaluation
-    from evaluator.scoring import ProfileError
 
     settings = get_settings()
     console = make_console(stderr=as_json)
@@ -100,23 +101,21 @@ def evaluate(
     out = out or Path("arena-results") / path.stem
     progress = _RichProgress(console)
     try:
-        summary = run_evaluation(
-            path,
-            resolve_suite(suite, settings),
-            out_dir=out,
-            per_submission=per_submission,
-            force=force,
-            scenario_ids=scenario,
-            jobs=jobs or settings.jobs,
-            sandbox=sandbox or settings.sandbox,
-            profile=profile or settings.scoring_profile,
-            progress=progress,
-            episodes_per_scenario=episodes or settings.episodes_per_scenario,
-            model_dir=model,
-        )
-    except (ArenaError, ProfileError) as exc:
-        console.print(f"[bold red]error:[/] {escape(str(exc))}")
-        raise typer.Exit(2) from None
+        with _exit_on_error(console):
+            summary = run_evaluation(
+                path,
+                resolve_suite(suite, settings),
+                out_dir=out,
+                per_submission=per_submission,
+                force=force,
+                scenario_ids=scenario,
+                jobs=jobs or settings.jobs,
+                sandbox=sandbox or settings.sandbox,
+                profile=profile or settings.scoring_profile,
+                progress=progress,
+                episodes_per_scenario=episodes or settings.episodes_per_scenario,
+                model_dir=model,
+            )
     finally:
         progress.stop()
     if per_submission:
@@ -152,10 +151,10 @@ def train(
 
     Exits 1 when the training failed (its named reason and log tail are printed), 2 when it
     could not run."""
+    # deferred: CLI start-up time
     import tempfile
 
     from arena.config import get_settings
-    from arena.errors import ArenaError
     from evaluator.training import train as run_training
     from submissions.intake import prepare_submission
 
@@ -163,28 +162,24 @@ def train(
     if timeout is not None:
         settings = settings.model_copy(update={"train_timeout_s": timeout})
     console = make_console()
-    try:
-        with tempfile.TemporaryDirectory(prefix="arena-train-") as tmp:
-            Path(tmp).chmod(0o755)  # the sandbox user must enter the submission
-            submission = prepare_submission(path, Path(tmp) / "submission", settings)
-            with console.status("training") as status:
+    with _exit_on_error(console), tempfile.TemporaryDirectory(prefix="arena-train-") as tmp:
+        Path(tmp).chmod(0o755)  # the sandbox user must enter the submission
+        submission = prepare_submission(path, Path(tmp) / "submission", settings)
+        with console.status("training") as status:
 
-                def progress(elapsed: float, log: str) -> bool:
-                    last = log.strip().splitlines()[-1:] or [""]
-                    status.update(f"training {elapsed:.0f} s  {escape(last[0][:100])}")
-                    return True
+            def progress(elapsed: float, log: str) -> bool:
+                last = log.strip().splitlines()[-1:] or [""]
+                status.update(f"training {elapsed:.0f} s  {escape(last[0][:100])}")
+                return True
 
-                result = run_training(
-                    submission,
-                    dataset,
-                    out,
-                    kind=sandbox,
-                    settings=settings,
-                    on_progress=progress,
-                )
-    except ArenaError as exc:
-        console.print(f"[bold red]error:[/] {escape(str(exc))}")
-        raise typer.Exit(2) from None
+            result = run_training(
+                submission,
+                dataset,
+                out,
+                kind=sandbox,
+                settings=settings,
+                on_progress=progress,
+            )
     if not result.ok:
         console.print(escape(result.log), highlight=False)
         console.print(f"[bold red]{result.failure}[/]: {escape(result.detail)}")
@@ -205,23 +200,20 @@ def score(
     ] = False,
 ) -> None:
     """Re-score stored episode records (no simulation) and rewrite summary.json."""
+    # deferred: CLI start-up time
     from arena.config import get_settings
-    from arena.errors import RecordError
     from evaluator.runner import score_results_dir
-    from evaluator.scoring import ProfileError, load_profile
+    from evaluator.scoring import load_profile
     from evaluator.summary import SUMMARY_FILE, write_summary
 
     console = make_console(stderr=as_json)
     if not (results_dir / SUMMARY_FILE).exists():
         console.print(f"[bold red]error:[/] {escape(str(results_dir))} has no {SUMMARY_FILE}")
         raise typer.Exit(2)
-    try:
+    with _exit_on_error(console):
         summary = score_results_dir(
             results_dir, load_profile(profile or get_settings().scoring_profile)
         )
-    except (ProfileError, RecordError) as exc:
-        console.print(f"[bold red]error:[/] {escape(str(exc))}")
-        raise typer.Exit(2) from None
     write_summary(summary, results_dir)
     _report(summary, results_dir, console, as_json, per_scenario)
 
@@ -255,14 +247,13 @@ def replay(
 ) -> None:
     """Watch one episode: an animated page (open it in a browser), a GIF or MP4 video, or a still
     SVG picture, with the map, every vehicle, the ego's speed and its events."""
+    # deferred: CLI start-up time
     from arena.config import get_settings
-    from arena.errors import RecordError, SuiteError
     from arena.suite import resolve_suite
-    from evaluator.replay.export import find_record, write_replay
-    from evaluator.replay.model import ReplayError
+    from evaluator.viewer.export import find_record, write_replay
 
     console = Console(stderr=True)
-    try:
+    with _exit_on_error(console):
         record = find_record(source, scenario_id)
         out = out or Path(f"{scenario_id or record.stem}.{fmt.value}")
         with _FrameProgress(console) as progress:
@@ -274,16 +265,25 @@ def replay(
                 every=every,
                 on_frames=progress.start,
             )
-    except (ReplayError, RecordError, SuiteError) as exc:
+    console.print(f"wrote {escape(str(out))}")
+
+
+@contextmanager
+def _exit_on_error(console: Console) -> Iterator[None]:
+    """Any error of ours (a bad suite, profile, record or submission; a sandbox that cannot
+    start) is one line on the console and exit code 2: the command could not run."""
+    try:
+        yield
+    except ArenaError as exc:
         console.print(f"[bold red]error:[/] {escape(str(exc))}")
         raise typer.Exit(2) from None
-    console.print(f"wrote {escape(str(out))}")
 
 
 class _FrameProgress:
     """A bar of frames drawn, shown once a video starts rendering."""
 
     def __init__(self, console: Console) -> None:
+        # deferred: CLI start-up time
         from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
 
         self.bar = Progress(
@@ -307,6 +307,7 @@ class _FrameProgress:
 
 def _episodes(summary: Summary) -> list[tuple[str, object]]:
     """Every episode of the summary with its name (the scenario id when it ran once)."""
+    # deferred: CLI start-up time
     from evaluator.runner.results import stored_episodes
 
     return [
@@ -320,6 +321,7 @@ class _RichProgress:
     """Episodes done/total, failures so far and ETA, on the console given."""
 
     def __init__(self, console: Console) -> None:
+        # deferred: CLI start-up time
         from rich.progress import (
             BarColumn,
             MofNCompleteColumn,
@@ -350,6 +352,7 @@ class _RichProgress:
         )
 
     def finished(self, outcome: ScenarioOutcome) -> None:
+        # deferred: CLI start-up time
         from arena.outcome import ScenarioStatus
 
         if outcome.status != ScenarioStatus.done:

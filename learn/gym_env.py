@@ -8,16 +8,11 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from evaluator.scoring import DEFAULT_PROFILE
+from learn.protocol import Config, Reply, Simulator, SimulatorMode, check_simulator_mode
 from learn.reward import RewardFn, RewardInput, default_reward
 from learn.scenarios import scenario_dirs
-from learn.session import (
-    Config,
-    Reply,
-    Simulator,
-    SimulatorMode,
-    check_simulator_mode,
-    open_simulator,
-)
+from learn.simulators import open_simulator
 from learn.spaces import action_space, observation_space
 from sim.interface import AgentInterface
 
@@ -71,7 +66,7 @@ class DrivingArenaEnv(gym.Env):
     scoring profile whose terms go into ``info``) and ``traffic_seed`` (``"scenario"``: the
     scenario's own seed, as evaluation uses; ``"random"``: drawn from the reset seed) and
     ``simulator`` (where the simulator runs: ``"auto"``, ``"in_process"`` or ``"subprocess"``,
-    see :func:`learn.session.open_simulator`).
+    see :func:`learn.simulators.open_simulator`).
     """
 
     metadata = {"render_modes": []}  # noqa: RUF012 - gymnasium's class attribute
@@ -153,6 +148,4 @@ def _action_space(interface: AgentInterface) -> gym.spaces.Box:
 
 
 def _profile_name(profile: str | None) -> str:
-    from evaluator.scoring import DEFAULT_PROFILE
-
     return profile or DEFAULT_PROFILE

@@ -28,6 +28,7 @@ def install() -> None:
 
 
 def _register() -> None:
+    # deferred: runs at every interpreter start (the .pth hook): keep it light
     from learn.registration import register_envs
 
     register_envs()

@@ -12,10 +12,10 @@ from gymnasium.utils import seeding
 from pettingzoo import ParallelEnv
 
 from arena.scenario import load_scenario
-from learn.gym_env import EpisodeState, start_episode, step_outcome
+from learn.gym_env import EpisodeState, _profile_name, start_episode, step_outcome
+from learn.protocol import Config, Simulator, SimulatorMode, check_simulator_mode
 from learn.reward import RewardFn, default_reward
 from learn.scenarios import scenario_dirs
-from learn.session import Config, Simulator, SimulatorMode, check_simulator_mode
 from learn.spaces import action_space, observation_space
 from sim.interface import AgentInterface
 
@@ -42,8 +42,6 @@ class DrivingArenaParallelEnv(ParallelEnv):
         simulator: SimulatorMode = "auto",
         **interface_options: Any,
     ) -> None:
-        from learn.gym_env import _profile_name
-
         self.interface = AgentInterface(action_space=action_space, **interface_options)
         self.scenarios = scenario_dirs(suite, scenario, agents=agents)
         ids = {m.agent_id for folder in self.scenarios for m in load_scenario(folder).missions}

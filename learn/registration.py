@@ -7,13 +7,13 @@ Gymnasium's registry loads; without the hook, the id's ``module:`` prefix import
 
 from __future__ import annotations
 
+from gymnasium.envs.registration import register, registry
+
 ENV_ID = "arena/DrivingArena-v0"
 
 
 def register_envs() -> None:
     """Register the environment (idempotent)."""
-    from gymnasium.envs.registration import register, registry
-
     if ENV_ID not in registry:
         register(id=ENV_ID, entry_point="learn.gym_env:DrivingArenaEnv")
 

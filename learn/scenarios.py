@@ -4,7 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from arena.config import get_settings
 from arena.scenario import SCENARIO_FILE, load_scenario
+from arena.suite import resolve_suite
 
 
 def scenario_dirs(
@@ -16,9 +18,6 @@ def scenario_dirs(
     """The scenario folders of ``suite`` (``public``, a built suite folder, or one scenario's
     folder) whose number of mission agents is within ``agents`` (inclusive), sorted by name.
     ``scenario`` narrows them to one: an id in the suite or a scenario folder."""
-    from arena.config import get_settings
-    from arena.suite import resolve_suite
-
     if scenario is not None and (Path(scenario) / SCENARIO_FILE).is_file():
         folders = [Path(scenario)]
     else:

@@ -3,52 +3,24 @@ the same ``reset``/``step``, action decoding, events, done reasons and record ro
 what a training loop needs and evaluation does not: a terminal observation of each agent that
 finished, the step's scoring terms, and observations encoded into the Gymnasium space.
 
-A session runs either in the environment's own process (:func:`open_simulator`, the default
+A session runs either in the environment's own process (:class:`InProcessSimulator`, the default
 when nothing else simulates there) or in a child process (:mod:`learn.worker`), which holds a
-:class:`SimulatorSession` of its own and sends its replies back over a pipe.
+:class:`SimulatorSession` of its own and sends its replies back over a pipe;
+:func:`learn.simulators.open_simulator` chooses. What both ends share is :mod:`learn.protocol`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal, Protocol
+from typing import Any
 
-SimulatorMode = Literal["auto", "in_process", "subprocess"]
-SIMULATOR_MODES = ("auto", "in_process", "subprocess")
-
-
-@dataclass(frozen=True)
-class Config:
-    interface: Any  # sim.interface.AgentInterface
-    profile: str  # scoring profile whose terms go into info
-
-
-@dataclass
-class Reply:
-    """What one reset or step produced."""
-
-    # Observations as arrays (learn.spaces); a child process sends their records (bytes of
-    # sim.observation_arrays.ObservationLayout).
-    observations: dict[str, Any]  # of the agents live after the step
-    finished: dict[str, str] = field(default_factory=dict)  # agent id -> done reason
-    terminal: dict[str, Any] = field(default_factory=dict)  # of the agents finished this step
-    events: dict[str, dict] = field(default_factory=dict)  # of every agent that drove this step
-    terms: dict[str, dict[str, float]] = field(default_factory=dict)
-    ids: dict[str, dict[str, str]] = field(default_factory=dict)  # road/lane ids per agent
-    done: bool = False  # the episode is over for everyone
-    scenario_id: str = ""
-    step: int = 0
-
-
-class Simulator(Protocol):
-    """What an environment drives: a session here or one in a child process."""
-
-    def reset(self, scenario_dir: str, seed: int | None) -> Reply: ...
-
-    def step(self, actions: dict[str, Any]) -> Reply: ...
-
-    def close(self) -> None: ...
+from arena.scenario import load_scenario
+from evaluator.scoring import load_profile
+from learn.protocol import Config, Reply
+from learn.terms import step_terms
+from sim.observation_arrays import ObservationEncoder, ObservationLayout
+from sim.simulation import Simulation
+from sim.traffic import sumo_running
 
 
 class SimulatorSession:
@@ -57,9 +29,6 @@ class SimulatorSession:
     dicts of arrays."""
 
     def __init__(self, config: Config, *, packed: bool = False) -> None:
-        from evaluator.scoring import load_profile
-        from sim.observation_arrays import ObservationLayout
-
         self.config = config
         self.profile = load_profile(config.profile)
         self._layout = ObservationLayout(config.interface)
@@ -69,9 +38,6 @@ class SimulatorSession:
         self.sim = None
 
     def reset(self, scenario_dir: str, seed: int | None) -> Reply:
-        from arena.scenario import load_scenario
-        from sim.simulation import Simulation
-
         self._end_episode()
         folder = Path(scenario_dir)
         scenario = load_scenario(folder)
@@ -99,7 +65,7 @@ class SimulatorSession:
                     reply.terminal[v.id] = self._encode(v.id, drove[v.id])
         for agent_id, observation in drove.items():
             reply.events[agent_id] = observation["events"]
-            reply.terms[agent_id] = _step_terms(sim.recorder.rows[agent_id], self.profile)
+            reply.terms[agent_id] = step_terms(sim.recorder.rows[agent_id], self.profile)
         # Only agents still waiting to enter: move time on until one does or the episode ends.
         while not obs and not sim.done:
             obs = {k: o for k, o in sim.step({}).items() if not o["done"]}
@@ -116,8 +82,6 @@ class SimulatorSession:
         return reply
 
     def _encode(self, agent_id: str, obs: dict) -> Any:
-        from sim.observation_arrays import ObservationEncoder
-
         encoder = self._encoders.get(agent_id)
         if encoder is None:
             encoder = self._encoders[agent_id] = ObservationEncoder(self._layout)
@@ -154,38 +118,9 @@ class InProcessSimulator(SimulatorSession):
 
     @classmethod
     def slot_free(cls) -> bool:
-        from sim.traffic import sumo_running
-
         return cls._holder is None and not sumo_running()
-
-
-def open_simulator(config: Config, mode: SimulatorMode) -> Simulator:
-    """The simulator for one environment. ``auto``: in this process when nothing else simulates
-    here (no IPC or copying per step), else in a child process of its own."""
-    from learn.worker import SimulatorProcess
-
-    check_simulator_mode(mode)
-    if mode == "subprocess" or (mode == "auto" and not InProcessSimulator.slot_free()):
-        return SimulatorProcess(config)
-    if not InProcessSimulator.slot_free():
-        raise RuntimeError(
-            "simulator='in_process': this process already runs a simulation (libsumo allows one"
-            " per process); close it, or use simulator='subprocess'"
-        )
-    return InProcessSimulator(config)
-
-
-def check_simulator_mode(mode: str) -> None:
-    if mode not in SIMULATOR_MODES:
-        raise ValueError(f"simulator is one of {', '.join(SIMULATOR_MODES)}, not {mode!r}")
 
 
 def _ids(obs: dict) -> dict[str, str]:
     ego = obs["ego_vehicle_state"]
     return {"id": ego["id"], "road_id": ego["road_id"], "lane_id": ego["lane_id"]}
-
-
-def _step_terms(rows, profile) -> dict[str, float]:
-    from learn.terms import step_terms
-
-    return step_terms(rows, profile)

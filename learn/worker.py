@@ -1,7 +1,7 @@
 """A :class:`learn.session.SimulatorSession` in a child process, driven over a pipe.
 
 libsumo holds one simulation per process, so an environment that cannot simulate in its own
-process (another one already does: ``learn.session.open_simulator``) owns a child of its own
+process (another one already does: ``learn.simulators.open_simulator``) owns a child of its own
 (started with ``subprocess``, which also works inside the daemonic workers of
 ``AsyncVectorEnv``). Observations travel as records (:mod:`sim.observation_arrays`).
 
@@ -19,13 +19,16 @@ import traceback
 from pathlib import Path
 from typing import Any, BinaryIO
 
-from learn.session import Config, Reply, SimulatorSession
+from arena.errors import InfrastructureError
+from learn.protocol import Config, Reply
+from learn.session import SimulatorSession
+from sim.observation_arrays import ObservationLayout
 
 HEADER = struct.Struct(">I")
 PROJECT_ROOT = Path(__file__).resolve().parents[1]
 
 
-class SimulatorError(RuntimeError):
+class SimulatorError(InfrastructureError, RuntimeError):
     """The simulator child failed (a SUMO error, or the child died)."""
 
 
@@ -36,8 +39,6 @@ class SimulatorProcess:
     """A child process holding one simulator; :meth:`call` sends a command and waits."""
 
     def __init__(self, config: Config) -> None:
-        from sim.observation_arrays import ObservationLayout
-
         self._layout = ObservationLayout(config.interface)
         env = dict(os.environ)
         # The child must import the same code as this process (a worktree before an install).

@@ -5,6 +5,7 @@ from __future__ import annotations
 from alembic import context
 from sqlalchemy import TypeDecorator
 
+from arena.config import get_settings
 from server.core.db import make_engine
 from server.models import Base
 
@@ -16,8 +17,6 @@ def _url() -> str:
     url = config.get_main_option("sqlalchemy.url")
     if url:
         return url
-    from arena.config import get_settings
-
     return get_settings().resolved_database_url
 
 

@@ -17,12 +17,14 @@ class SuiteName(StrEnum):
 
 
 def _console():
+    # deferred: CLI start-up time
     from rich.console import Console
 
     return Console()
 
 
 def _progress():
+    # deferred: CLI start-up time
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     return Progress(
@@ -36,12 +38,14 @@ def _progress():
 
 
 def _cache_dir() -> Path:
+    # deferred: CLI start-up time
     from arena.config import get_settings
 
     return get_settings().resolved_data_dir / "cache" / "scenarios"
 
 
 def _hidden_seed(seed: int | None, dev: bool) -> int:
+    # deferred: CLI start-up time
     from arena.config import get_settings
 
     settings = get_settings()
@@ -73,7 +77,8 @@ def build(
     ] = None,
 ) -> None:
     """Build the hidden suite (128 scenarios) or the public set into OUT with a manifest.json."""
-    from scenarios.replay.naturalistic import NaturalisticImportError
+    # deferred: CLI start-up time
+    from scenarios.recorded.naturalistic import NaturalisticImportError
     from scenarios.suites import PUBLIC_SEED, SUITES, build_suite
 
     if suite is SuiteName.public:
@@ -104,12 +109,11 @@ def build(
 
 @app.command("list")
 def list_(
-    directory: Annotated[
-        str, typer.Argument(help="A built suite folder, or `public` / `hidden`.")
-    ],
+    directory: Annotated[str, typer.Argument(help="A built suite folder, or `public` / `hidden`.")],
     as_json: Annotated[bool, typer.Option("--json", help="The rows as a JSON list.")] = False,
 ) -> None:
     """The scenarios of a built suite: a table on a terminal, tab-separated lines in a pipe."""
+    # deferred: CLI start-up time
     from arena.terminal import make_console, print_rows
 
     manifest = _suite(directory).manifest
@@ -139,6 +143,7 @@ def list_(
 
 
 def _suite(directory: str | Path):
+    # deferred: CLI start-up time
     from arena.config import get_settings
     from arena.errors import SuiteError
     from arena.suite import load_suite, resolve_suite
@@ -160,6 +165,7 @@ def show(
     step: Annotated[int, typer.Option(help="Draw the traffic at this step.", min=0)] = 0,
 ) -> None:
     """Draw a scenario: map, lanes, traffic at STEP, mission starts, routes and goals."""
+    # deferred: CLI start-up time
     from arena.config import get_settings
     from arena.suite import public_suite_dir
     from scenarios.picture import draw_scenario
@@ -175,16 +181,16 @@ def show(
 
 @app.command()
 def verify(
-    directory: Annotated[
-        str, typer.Argument(help="A built suite folder, or `public` / `hidden`.")
-    ],
+    directory: Annotated[str, typer.Argument(help="A built suite folder, or `public` / `hidden`.")],
     jobs: Annotated[int, typer.Option(help="Episodes run in parallel.", min=1)] = 1,
     only: Annotated[list[str] | None, typer.Option(help="Verify just these ids.")] = None,
 ) -> None:
     """Run the expert on every scenario (log replay for replays, the reference planner for
     reactive ones); record unsolved reasons in the manifest; print `solved=<k>/<n>`."""
+    # deferred: CLI start-up time
     from rich.table import Table
 
+    # deferred: CLI start-up time
     from scenarios.verify import verify_suite
 
     suite = _suite(directory)

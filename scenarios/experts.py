@@ -5,10 +5,14 @@ episode runner."""
 
 from __future__ import annotations
 
+import functools
 import importlib.util
 from pathlib import Path
 
-from scenarios.replay.builder import EXPERT_FILE
+import yaml
+
+from arena.scenario import load_scenario
+from scenarios.recorded.builder import EXPERT_FILE
 from sim.interface import ActionSpace, AgentInterface
 from sim.trajectories import Trajectory, read_trajectories
 
@@ -19,8 +23,6 @@ class LogReplayExpert:
     """Moves every agent to its recorded pose of the next step."""
 
     def __init__(self, scenario_dir: Path) -> None:
-        from arena.scenario import load_scenario
-
         scenario = load_scenario(scenario_dir)
         self.start_step = {m.agent_id: m.start_step for m in scenario.missions}
         self.dt = scenario.step_length
@@ -73,15 +75,11 @@ class PlannerAgent:
 def uses_log_replay(scenario_dir: Path) -> bool:
     """Non-reactive replays are verified by log replay; everything reactive (the replay with a
     reactive bubble included: its traffic no longer follows the recording) by the planner."""
-    from arena.scenario import load_scenario
-
     return (Path(scenario_dir) / EXPERT_FILE).exists() and not load_scenario(scenario_dir).reactive
 
 
 def expert_factory(scenario_dir: Path):
     """A picklable zero-argument factory of the expert for ``scenario_dir``."""
-    import functools
-
     if uses_log_replay(scenario_dir):
         return functools.partial(LogReplayExpert, Path(scenario_dir))
     return PlannerAgent
@@ -94,7 +92,5 @@ def expert_interface(scenario_dir: Path) -> AgentInterface:
 
 
 def planner_interface() -> AgentInterface:
-    import yaml
-
     data = yaml.safe_load((PLANNER_DIR / "agent.yaml").read_text()) or {}
     return AgentInterface(**data)

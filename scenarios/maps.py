@@ -23,6 +23,8 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 
+from arena.errors import ArenaError
+
 LANE_WIDTH = 3.2  # [m]
 SHOULDER_WIDTH = 2.5  # [m]
 HIGHWAY_SPEED = 22.22  # [m/s] 80 km/h
@@ -309,7 +311,7 @@ NETCONVERT_OPTIONS = (
 )
 
 
-class MapBuildError(RuntimeError):
+class MapBuildError(ArenaError, RuntimeError):
     pass
 
 

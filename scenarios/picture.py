@@ -9,10 +9,13 @@ import numpy as np
 
 from arena.scenario import ReplayTraffic, load_scenario
 from scenarios.netinfo import net_info
-from scenarios.replay.builder import EXPERT_FILE
+from scenarios.recorded.builder import EXPERT_FILE
+from sim.playback import ReplayTable
 from sim.render import EGO_COLOUR, GOAL_COLOUR, SvgCanvas, draw_road
+from sim.road import RoadNetwork
+from sim.simulation import scene_states
 from sim.trajectories import read_trajectories
-from sim.vehicles import VehicleStates
+from sim.vehicle.states import VehicleStates
 
 
 def stop_lanes(net_path: Path) -> tuple[str, ...]:
@@ -32,13 +35,9 @@ def traffic_at(folder: Path, step: int) -> VehicleStates:
     this process) for reactive traffic."""
     scenario = load_scenario(folder)
     if isinstance(scenario.traffic, ReplayTraffic):
-        from sim.replay import ReplayTable
-
         return ReplayTable(folder / scenario.traffic.trajectories, scenario.step_length).states(
             step
         )
-    from sim.simulation import scene_states
-
     last = VehicleStates.empty()
     for last in scene_states(scenario, folder, max(step, 1)):  # noqa: B007  (we want the last)
         pass
@@ -46,8 +45,6 @@ def traffic_at(folder: Path, step: int) -> VehicleStates:
 
 
 def draw_scenario(folder: Path, step: int = 0) -> str:
-    from sim.road import RoadNetwork
-
     folder = Path(folder)
     scenario = load_scenario(folder)
     net_path = folder / scenario.map

@@ -8,7 +8,6 @@ The hidden seed itself is never written anywhere: the manifest carries its finge
 
 from __future__ import annotations
 
-import hashlib
 import shutil
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -19,20 +18,22 @@ import numpy as np
 from arena.scenario import DataLabel, Family, Scenario, content_hash
 from arena.suite import ManifestEntry, SuiteManifest, write_manifest
 from scenarios.generators import GENERATORS, MapLibrary, Spec
+from scenarios.ids import derive_seed, scenario_id, seed_fingerprint
 from scenarios.maps import netconvert_version
-from scenarios.replay.builder import Candidate, candidates, write_replay
-from scenarios.replay.naturalistic import SOURCE as NATURALISTIC_SOURCE
-from scenarios.replay.naturalistic_pool import NaturalisticPool
-from scenarios.replay.recorder import Recording
-from scenarios.replay.scenes import SCENES, recorded
+from scenarios.recorded.builder import Candidate, candidates, write_replay
+from scenarios.recorded.naturalistic import SOURCE as NATURALISTIC_SOURCE
+from scenarios.recorded.naturalistic_pool import NaturalisticPool
+from scenarios.recorded.recorder import Recording
+from scenarios.recorded.scenes import SCENES, recorded
 from scenarios.variants import KIND_SCENE, VARIANTS
 from scenarios.writer import write_reactive
 
 PUBLIC_SEED = 2022
 BUBBLE_RADIUS = 40.0  # [m]
 
-F = Family
 LOW_MID = ("low", "mid")
+
+
 # Reactive composition (scenario spec, "Reactive scenarios (71)").
 def every_variant(family: Family) -> tuple[str, ...]:
     """The family's variants in the order of the variant table (suite ids depend on it)."""
@@ -40,14 +41,14 @@ def every_variant(family: Family) -> tuple[str, ...]:
 
 
 REACTIVE: tuple[tuple[Family, tuple[str, ...], tuple[str | None, ...], tuple[int, ...]], ...] = (
-    (F.left_turn_t, every_variant(F.left_turn_t), LOW_MID, (1,)),
-    (F.turn_c, every_variant(F.turn_c), LOW_MID, (1,)),
-    (F.merge, every_variant(F.merge), LOW_MID, (1, 2)),
-    (F.cruise, every_variant(F.cruise), ("low", "high"), (1,)),
-    (F.cruise, ("2lane",), ("low", "high"), (2,)),
-    (F.cruise, ("3lane_curve",), ("low", "high"), (3,)),
-    (F.cut_in, every_variant(F.cut_in), ("mid",), (1,)),
-    (F.overtake, every_variant(F.overtake), LOW_MID, (1,)),
+    (Family.left_turn_t, every_variant(Family.left_turn_t), LOW_MID, (1,)),
+    (Family.turn_c, every_variant(Family.turn_c), LOW_MID, (1,)),
+    (Family.merge, every_variant(Family.merge), LOW_MID, (1, 2)),
+    (Family.cruise, every_variant(Family.cruise), ("low", "high"), (1,)),
+    (Family.cruise, ("2lane",), ("low", "high"), (2,)),
+    (Family.cruise, ("3lane_curve",), ("low", "high"), (3,)),
+    (Family.cut_in, every_variant(Family.cut_in), ("mid",), (1,)),
+    (Family.overtake, every_variant(Family.overtake), LOW_MID, (1,)),
 )
 # Non-reactive replays (scenario spec, "Non-reactive replays (57)"): (kind, agents, count).
 REPLAYS: tuple[tuple[str, int, int], ...] = (
@@ -61,7 +62,7 @@ REPLAYS: tuple[tuple[str, int, int], ...] = (
     ("cut_off", 1, 1),
     ("urban", 1, 1),
 )
-BUBBLE = Spec(F.replay, "i80_bubble", None, 1, reactive=True)
+BUBBLE = Spec(Family.replay, "i80_bubble", None, 1, reactive=True)
 
 
 def hidden_specs() -> list[Spec]:
@@ -74,7 +75,7 @@ def hidden_specs() -> list[Spec]:
     ]
     specs.append(BUBBLE)
     for kind, agents, count in REPLAYS:
-        specs += [Spec(F.replay, kind, None, agents, reactive=False)] * count
+        specs += [Spec(Family.replay, kind, None, agents, reactive=False)] * count
     return specs
 
 
@@ -86,33 +87,13 @@ def public_specs() -> list[Spec]:
             agents = agent_counts[i % len(agent_counts)]
             specs.append(Spec(family, variant, volumes[i % len(volumes)], agents))
     specs.append(BUBBLE)
-    specs += [Spec(F.replay, kind, None, agents, reactive=False) for kind, agents, _ in REPLAYS]
+    specs += [
+        Spec(Family.replay, kind, None, agents, reactive=False) for kind, agents, _ in REPLAYS
+    ]
     return specs
 
 
 SUITES: dict[str, Callable[[], list[Spec]]] = {"hidden": hidden_specs, "public": public_specs}
-
-
-def derive_seed(suite: str, suite_seed: int, *parts: object) -> int:
-    """A 31-bit seed (SUMO takes int32) from a domain-separated hash."""
-    text = "/".join(["driving-arena", suite, str(suite_seed), *map(str, parts)])
-    return int.from_bytes(hashlib.sha256(text.encode()).digest()[:4], "big") & 0x7FFFFFFF
-
-
-def seed_fingerprint(seed: int) -> str:
-    return hashlib.sha256(f"driving-arena/seed-fingerprint/{seed}".encode()).hexdigest()[:16]
-
-
-def scenario_id(suite: str, index: int, spec: Spec) -> str:
-    parts = [f"{suite[0]}{index:03d}"]
-    if not spec.variant.startswith(spec.family.value):
-        parts.append(spec.family.value)
-    parts.append(spec.variant)
-    if spec.volume:
-        parts.append(spec.volume)
-    if spec.agents > 1:
-        parts.append(f"{spec.agents}agents")
-    return "_".join(parts)
 
 
 MAX_TAKES_PER_SCENE = 4  # recordings of one scene per build before giving up on a kind
@@ -193,7 +174,7 @@ def build_suite(
             entries.append(manifest_entry(scenario, out / scenario.id))
             progress(scenario.id)
             continue
-        if spec.family is F.replay:
+        if spec.family is Family.replay:
             scene, recording, chosen = replays.take(spec.variant, spec.agents, rng)
             scenario = write_replay(
                 folder,

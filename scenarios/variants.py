@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from arena.errors import ArenaError
 from arena.scenario import Family
 
 
@@ -19,7 +20,7 @@ class Variant:
     goal_lane: int | None = None  # intersections: the exit lane; None draws one
 
 
-class UnknownVariant(ValueError):
+class UnknownVariant(ArenaError, ValueError):
     """A suite composition names a variant its family does not have."""
 
 
@@ -35,7 +36,7 @@ KIND_SCENE = {
     "left_turn": "cross",
     "urban": "urban",
 }
-# Naturalistic replays (scenarios/replay/naturalistic.py): the manoeuvre of the removed vehicle.
+# Naturalistic replays (scenarios/recorded/naturalistic.py): the manoeuvre of the removed vehicle.
 NATURALISTIC_KINDS = tuple(
     f"ngsim_{kind}" for kind in ("cruise", "lane_change", "left_turn", "right_turn")
 )

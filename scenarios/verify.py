@@ -15,6 +15,7 @@ from pathlib import Path
 
 from arena.suite import load_suite, write_manifest
 from scenarios.experts import expert_factory, expert_interface, uses_log_replay
+from sim.isolation import run_episode_isolated
 
 EPISODE_TIMEOUT_S = 600.0
 
@@ -29,8 +30,6 @@ class VerifyResult:
 
 
 def verify_scenario(folder: Path, record_dir: Path) -> VerifyResult:
-    from sim.isolation import run_episode_isolated
-
     expert = "log replay" if uses_log_replay(folder) else "planner"
     result = run_episode_isolated(
         folder,

@@ -13,7 +13,7 @@ from fastapi.staticfiles import StaticFiles
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from arena.config import Settings, get_settings
-from evaluator.replay.page import WEB_DIR as REPLAY_WEB_DIR
+from evaluator.viewer.page import WEB_DIR as REPLAY_WEB_DIR
 from server.api.contract import allowed_methods
 from server.api.main import api_router
 from server.api.routes import docs_pages, pages

@@ -40,6 +40,7 @@ class _Context:
     """Settings, database and task queue, built on first use by a command."""
 
     def __init__(self) -> None:
+        # deferred: CLI start-up time
         from arena.config import get_settings
         from server.core.artifacts import artifact_store
         from server.core.db import Database
@@ -57,6 +58,7 @@ def _fail(exc: Exception) -> typer.Exit:
 
 
 def _run(action):
+    # deferred: CLI start-up time
     from server.services.errors import ServiceError
     from server.status import IllegalTransition
 
@@ -72,6 +74,7 @@ def _run(action):
 @db_app.command("upgrade")
 def db_upgrade(revision: str = "head") -> None:
     """Apply the Alembic migrations to the configured database."""
+    # deferred: CLI start-up time
     from arena.config import get_settings
     from server.core.migrate import current_revision, upgrade_database
 
@@ -86,6 +89,7 @@ def db_upgrade(revision: str = "head") -> None:
 @teams_app.command("create")
 def teams_create(name: str) -> None:
     """Create a team and print its API token (shown once)."""
+    # deferred: CLI start-up time
     from server.services import teams
 
     ctx = _Context()
@@ -103,6 +107,7 @@ def teams_list(
     as_json: Annotated[bool, typer.Option("--json", help="The rows as a JSON list.")] = False,
 ) -> None:
     """Every team with its number of submissions."""
+    # deferred: CLI start-up time
     from server.services import teams
 
     ctx = _Context()
@@ -120,6 +125,7 @@ def teams_list(
 @teams_app.command("rotate-token")
 def teams_rotate(name: str) -> None:
     """Revoke the team's tokens and print a new one."""
+    # deferred: CLI start-up time
     from server.services import teams
 
     ctx = _Context()
@@ -147,8 +153,10 @@ def _status_text(row, rerunning: set[int]) -> str:
 
 
 def _active_submissions(session) -> set[int]:
+    # deferred: CLI start-up time
     from sqlalchemy import select
 
+    # deferred: CLI start-up time
     from server.models import EvaluationRun
     from server.status import ACTIVE_RUN
 
@@ -162,6 +170,7 @@ def submissions_list(
     as_json: Annotated[bool, typer.Option("--json", help="The rows as a JSON list.")] = False,
 ) -> None:
     """The latest submissions with status, progress and metrics."""
+    # deferred: CLI start-up time
     from server.services import submissions
 
     ctx = _Context()
@@ -199,6 +208,7 @@ def submissions_show(
     ] = False,
 ) -> None:
     """Everything about a submission, including per-scenario results (organisers only)."""
+    # deferred: CLI start-up time
     from server.services import submissions
 
     ctx = _Context()
@@ -265,6 +275,7 @@ def _interval_text(interval) -> str:
 def submissions_logs(submission_id: SubmissionId) -> None:
     """The agent's output per scenario, with scenario ids, in every phase (organisers only: in a
     hidden phase the team never sees it)."""
+    # deferred: CLI start-up time
     from server.services import submissions
 
     ctx = _Context()
@@ -286,6 +297,7 @@ def submissions_logs(submission_id: SubmissionId) -> None:
 @submissions_app.command("cancel")
 def submissions_cancel(submission_id: SubmissionId) -> None:
     """Stop a submission: queued work is revoked, running sandboxes are killed."""
+    # deferred: CLI start-up time
     from server.services import submissions
 
     ctx = _Context()
@@ -299,6 +311,7 @@ def submissions_disqualify(
     reason: Annotated[str, typer.Option(help="Shown to the team.")] = "",
 ) -> None:
     """Take a submission off the leaderboard for good."""
+    # deferred: CLI start-up time
     from server.services import submissions
 
     ctx = _Context()
@@ -309,6 +322,7 @@ def submissions_disqualify(
 @submissions_app.command("requeue")
 def submissions_requeue(submission_id: SubmissionId) -> None:
     """Send an unfinished submission's work again (lost messages, dead worker)."""
+    # deferred: CLI start-up time
     from server.services import admin
 
     ctx = _Context()
@@ -327,8 +341,10 @@ def rescore(
     profile: Annotated[str | None, typer.Option(help="Scoring profile name.")] = None,
 ) -> None:
     """Recompute scores from the stored episode records (no simulation)."""
+    # deferred: CLI start-up time
     from rich.progress import Progress
 
+    # deferred: CLI start-up time
     from server.services import admin
 
     if (submission_id is None) == (not all_):
@@ -357,6 +373,7 @@ def rescore(
 @admin_app.command("rerun")
 def rerun(submission_id: SubmissionId) -> None:
     """Simulate a scored or failed submission again, as a new attempt."""
+    # deferred: CLI start-up time
     from server.services import admin
 
     ctx = _Context()
@@ -367,6 +384,7 @@ def rerun(submission_id: SubmissionId) -> None:
 @admin_app.command("retrain")
 def retrain(submission_id: SubmissionId) -> None:
     """Train a scored or failed offline submission again, from scratch, then evaluate it."""
+    # deferred: CLI start-up time
     from server.services import admin
 
     ctx = _Context()
@@ -382,8 +400,10 @@ def model(
     ] = None,
 ) -> None:
     """Download an offline submission's trained output for audit (checked against its sha256)."""
+    # deferred: CLI start-up time
     import hashlib
 
+    # deferred: CLI start-up time
     from server.services import admin
 
     ctx = _Context()
@@ -400,6 +420,7 @@ def model(
 @admin_app.command("status")
 def status() -> None:
     """Queue depth, workers, submissions by status and runs whose lease expired."""
+    # deferred: CLI start-up time
     from server.services import admin
 
     ctx = _Context()
@@ -433,6 +454,7 @@ def leaderboard_export(
     out: Annotated[Path | None, typer.Option(help="File to write (default: stdout).")] = None,
 ) -> None:
     """The leaderboard of one phase and track as CSV."""
+    # deferred: CLI start-up time
     from server.services import leaderboard, phases
 
     ctx = _Context()
@@ -455,6 +477,7 @@ def leaderboard_export(
 @service_app.command("serve")
 def serve(host: str = "127.0.0.1", port: int = 8000, workers: int = 1) -> None:
     """Run the API and web pages (uvicorn)."""
+    # deferred: CLI start-up time
     import uvicorn
 
     from arena.config import get_settings
@@ -480,6 +503,7 @@ def worker(
     loglevel: str = "INFO",
 ) -> None:
     """Run a Celery worker that evaluates submissions."""
+    # deferred: CLI start-up time
     from server.core.celery_app import create_celery_app
 
     app = create_celery_app()
@@ -503,6 +527,7 @@ def up(
     demo_team: str = "demo",
 ) -> None:
     """Everything on this machine: database, scenario suites, API and a worker (Ctrl-C stops)."""
+    # deferred: CLI start-up time
     from server.embedded import AlreadyServed, run_embedded
 
     try:
@@ -515,6 +540,7 @@ def up(
 
 
 def _moment(text: str | None, option: str):
+    # deferred: CLI start-up time
     from datetime import UTC, datetime
 
     if text is None:
@@ -532,6 +558,7 @@ def _moment(text: str | None, option: str):
 def phases_list() -> None:
     """Every phase: its suite, visibility, dates (UTC), daily quota, episodes per reactive
     scenario (what an evaluation costs) and whether it is open."""
+    # deferred: CLI start-up time
     from server.models import utcnow
     from server.services import phases
 
@@ -584,6 +611,7 @@ def phases_set(
     ] = False,
 ) -> None:
     """Create a phase or change some of its settings."""
+    # deferred: CLI start-up time
     from server.models import Visibility
     from server.services import phases
 

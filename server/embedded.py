@@ -25,11 +25,19 @@ from rich.console import Console
 from rich.panel import Panel
 
 from arena.config import Settings, get_settings
+from arena.errors import ArenaError
+from arena.suite import hidden_suite_dir, public_suite_dir
+from evaluator import sandbox
+from evaluator.sandbox.backend import owner_labels
+from server.core.db import Database
+from server.core.migrate import upgrade_database
+from server.services import teams
+from server.services.errors import NotFound
 
 ARENA = [sys.executable, "-c", "from arena.cli import app; app()"]
 
 
-class AlreadyServed(RuntimeError):
+class AlreadyServed(ArenaError, RuntimeError):
     """Another instance serves this data folder, or something else listens on the port."""
 
 
@@ -45,15 +53,11 @@ def run_embedded(console: Console, *, host: str, port: int, demo_team: str) -> N
     admin_token = settings.admin_token or _stored_admin_token(data)
     env["ARENA_ADMIN_TOKEN"] = admin_token
 
-    from server.core.migrate import upgrade_database
-
     console.print(f"database: {settings.resolved_database_url}")
     upgrade_database(settings.resolved_database_url)
 
     env["ARENA_PUBLIC_SUITE_DIR"] = str(_public_suite(console, settings, env))
     env["ARENA_HIDDEN_SUITE_DIR"] = str(_hidden_suite(console, settings, env))
-
-    from evaluator import sandbox
 
     kind = sandbox.check_service_kind(settings=settings)
     env["ARENA_SANDBOX"] = kind.value
@@ -145,10 +149,6 @@ def _check_port_free(host: str, port: int) -> None:
 def _remove_leftover_sandboxes(console: Console, settings: Settings) -> None:
     """Agents of episodes the stopped worker left behind (it was this data folder's only
     worker); other services' and local evaluations' sandboxes on this host are not ours."""
-    from arena.errors import ArenaError
-    from evaluator import sandbox
-    from evaluator.sandbox.backend import owner_labels
-
     try:
         removed = sandbox.cleanup(owner_labels(settings))
     except ArenaError as exc:
@@ -176,8 +176,6 @@ def _build_suite(console: Console, env: dict, suite: str, out: Path, seed: int |
 
 
 def _public_suite(console: Console, settings: Settings, env: dict) -> Path:
-    from arena.suite import public_suite_dir
-
     folder = public_suite_dir(settings)
     if not (folder / "manifest.json").exists():
         folder = settings.resolved_data_dir / "suites" / "public"
@@ -188,8 +186,6 @@ def _public_suite(console: Console, settings: Settings, env: dict) -> Path:
 
 
 def _hidden_suite(console: Console, settings: Settings, env: dict) -> Path:
-    from arena.suite import hidden_suite_dir
-
     folder = hidden_suite_dir(settings)
     if (folder / "manifest.json").exists():
         console.print(f"hidden suite: {folder}")
@@ -214,10 +210,6 @@ def _demo_team_token(settings: Settings, name: str) -> str:
     """The demo team's token, the same across restarts: kept for the local organiser in the data
     folder (owner-readable only; the database stores tokens hashed). A token that no longer
     works (revoked with `teams rotate-token`) is replaced."""
-    from server.core.db import Database
-    from server.services import teams
-    from server.services.errors import NotFound
-
     stored = settings.resolved_data_dir / "demo_token"
     db = Database(settings.resolved_database_url)
     try:

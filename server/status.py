@@ -14,6 +14,8 @@ from __future__ import annotations
 from enum import StrEnum
 from typing import TypeVar
 
+from arena.errors import ArenaError
+
 
 class SubmissionStatus(StrEnum):
     received = "received"  # before validation jobs: uploads checked in the request
@@ -44,52 +46,97 @@ class RunStatus(StrEnum):
     cancelled = "cancelled"
 
 
-S = SubmissionStatus
-R = RunStatus
-
 SUBMISSION_MOVES: dict[SubmissionStatus, frozenset[SubmissionStatus]] = {
-    S.received: frozenset({S.queued, S.failed, S.cancelled, S.disqualified}),
-    S.validating: frozenset({S.queued, S.rejected, S.failed, S.cancelled, S.disqualified}),
-    S.rejected: frozenset(),
-    S.queued: frozenset({S.training, S.running, S.failed, S.cancelled, S.disqualified}),
-    S.training: frozenset({S.running, S.failed, S.cancelled, S.disqualified}),
-    S.running: frozenset({S.scored, S.failed, S.cancelled, S.disqualified}),
-    S.scored: frozenset({S.disqualified}),
-    S.failed: frozenset({S.scored, S.disqualified}),
-    S.cancelled: frozenset({S.disqualified}),
-    S.disqualified: frozenset(),
+    SubmissionStatus.received: frozenset(
+        {
+            SubmissionStatus.queued,
+            SubmissionStatus.failed,
+            SubmissionStatus.cancelled,
+            SubmissionStatus.disqualified,
+        }
+    ),
+    SubmissionStatus.validating: frozenset(
+        {
+            SubmissionStatus.queued,
+            SubmissionStatus.rejected,
+            SubmissionStatus.failed,
+            SubmissionStatus.cancelled,
+            SubmissionStatus.disqualified,
+        }
+    ),
+    SubmissionStatus.rejected: frozenset(),
+    SubmissionStatus.queued: frozenset(
+        {
+            SubmissionStatus.training,
+            SubmissionStatus.running,
+            SubmissionStatus.failed,
+            SubmissionStatus.cancelled,
+            SubmissionStatus.disqualified,
+        }
+    ),
+    SubmissionStatus.training: frozenset(
+        {
+            SubmissionStatus.running,
+            SubmissionStatus.failed,
+            SubmissionStatus.cancelled,
+            SubmissionStatus.disqualified,
+        }
+    ),
+    SubmissionStatus.running: frozenset(
+        {
+            SubmissionStatus.scored,
+            SubmissionStatus.failed,
+            SubmissionStatus.cancelled,
+            SubmissionStatus.disqualified,
+        }
+    ),
+    SubmissionStatus.scored: frozenset({SubmissionStatus.disqualified}),
+    SubmissionStatus.failed: frozenset({SubmissionStatus.scored, SubmissionStatus.disqualified}),
+    SubmissionStatus.cancelled: frozenset({SubmissionStatus.disqualified}),
+    SubmissionStatus.disqualified: frozenset(),
 }
 
 RUN_MOVES: dict[RunStatus, frozenset[RunStatus]] = {
-    R.queued: frozenset({R.running, R.failed, R.cancelled}),
-    R.running: frozenset({R.scored, R.failed, R.cancelled}),
-    R.scored: frozenset(),
-    R.failed: frozenset(),
-    R.cancelled: frozenset(),
+    RunStatus.queued: frozenset({RunStatus.running, RunStatus.failed, RunStatus.cancelled}),
+    RunStatus.running: frozenset({RunStatus.scored, RunStatus.failed, RunStatus.cancelled}),
+    RunStatus.scored: frozenset(),
+    RunStatus.failed: frozenset(),
+    RunStatus.cancelled: frozenset(),
 }
 
-T_ = TrainingStatus
 TRAINING_MOVES: dict[TrainingStatus, frozenset[TrainingStatus]] = {
-    T_.queued: frozenset({T_.training, T_.failed, T_.cancelled}),
-    T_.training: frozenset({T_.trained, T_.failed, T_.cancelled}),
-    T_.trained: frozenset(),
-    T_.failed: frozenset(),
-    T_.cancelled: frozenset(),
+    TrainingStatus.queued: frozenset(
+        {TrainingStatus.training, TrainingStatus.failed, TrainingStatus.cancelled}
+    ),
+    TrainingStatus.training: frozenset(
+        {TrainingStatus.trained, TrainingStatus.failed, TrainingStatus.cancelled}
+    ),
+    TrainingStatus.trained: frozenset(),
+    TrainingStatus.failed: frozenset(),
+    TrainingStatus.cancelled: frozenset(),
 }
 
-ACTIVE_SUBMISSION = frozenset({S.received, S.validating, S.queued, S.training, S.running})
-ACTIVE_RUN = frozenset({R.queued, R.running})
-ACTIVE_TRAINING = frozenset({T_.queued, T_.training})
+ACTIVE_SUBMISSION = frozenset(
+    {
+        SubmissionStatus.received,
+        SubmissionStatus.validating,
+        SubmissionStatus.queued,
+        SubmissionStatus.training,
+        SubmissionStatus.running,
+    }
+)
+ACTIVE_RUN = frozenset({RunStatus.queued, RunStatus.running})
+ACTIVE_TRAINING = frozenset({TrainingStatus.queued, TrainingStatus.training})
 
 
-class IllegalTransition(ValueError):
+class IllegalTransition(ArenaError, ValueError):
     """A status change the state machine forbids (e.g. ``scored -> running``)."""
 
 
-T = TypeVar("T", SubmissionStatus, RunStatus, TrainingStatus)
+StatusT = TypeVar("StatusT", SubmissionStatus, RunStatus, TrainingStatus)
 
 
-def advance(current: T, new: T, moves: dict[T, frozenset[T]]) -> T:
+def advance(current: StatusT, new: StatusT, moves: dict[StatusT, frozenset[StatusT]]) -> StatusT:
     """``new`` if ``current -> new`` is a legal move; else :class:`IllegalTransition`."""
     if new not in moves[current]:
         raise IllegalTransition(f"cannot move from {current} to {new}")

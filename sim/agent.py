@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from typing import Any, Protocol
 
+from arena.errors import ParticipantError
+
 Observation = dict[str, Any]
 Action = list[float]
 
@@ -23,7 +25,7 @@ class Agent(Protocol):
         """Release the agent (process, container)."""
 
 
-class SomeAgentsFailed(Exception):
+class SomeAgentsFailed(ParticipantError):
     """The agent answered for some of its mission vehicles and raised for the others: those end
     with ``agent_error`` (``failed``: id -> detail), the rest drive on with ``actions``."""
 

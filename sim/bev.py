@@ -26,7 +26,7 @@ from sim.geometry import box_corners
 from sim.interface import AgentInterface
 from sim.road import RoadNetwork
 from sim.road.network import lane_surface
-from sim.vehicles import VehicleStates
+from sim.vehicle.states import VehicleStates
 
 RASTER_NAMES = ("drivable_area_grid_map", "occupancy_grid_map", "top_down_rgb")
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from sim.replay import ReplayTable
+from sim.playback import ReplayTable
 from sim.road import RoadNetwork
 from sim.road.waypoints import route_ahead
 from sim.traffic import SumoTraffic

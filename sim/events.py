@@ -9,7 +9,7 @@ import numpy as np
 
 from sim.geometry import box_overlaps_box
 from sim.road import LanePosition, angle_between
-from sim.vehicles import VehicleStates
+from sim.vehicle.states import VehicleStates
 
 WRONG_WAY_ANGLE = math.pi / 2  # [rad] heading difference to the lane beyond which is wrong way
 NOT_MOVING_SPEED = 0.1  # [m/s]

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from arena.scenario import ReplayTraffic, Scenario, load_scenario
-from sim.replay import ReplayTable
+from sim.playback import ReplayTable
 from sim.road import RoadNetwork
 
 # Pickled inputs kept per process: a whole hidden suite takes about 70 MB.

@@ -67,6 +67,7 @@ def run_episode_isolated(
     The scenario's network and recording are parsed here, once per process, and reach the child
     pickled in a memory file (:mod:`sim.inputs`).
     """
+    # deferred: only the episode's child process (forked from the server that preloads it) simulates
     from sim.inputs import packed_inputs
 
     started = time.monotonic()
@@ -189,6 +190,7 @@ def _wall_timeout(timeout_s: float, episode_timeout_s: float | None) -> float:
 def _child_main(
     scenario_dir, agent_factory, interface, record_path, seed, *, wall_timeout_s, conn, inputs
 ):
+    # deferred: only the episode's child process (forked from the server that preloads it) simulates
     from sim.episode import describe_exception, run_episode
     from sim.inputs import read_inputs
 
@@ -228,6 +230,7 @@ def _close_agent(agent: Agent) -> str | None:
 
 def _write_failed_start(scenario_dir, interface, record_path, seed, exc: AgentFailed, inputs):
     """The agent never started: every mission fails with its reason, 0 steps, empty record."""
+    # deferred: only the episode's child process (forked from the server that preloads it) simulates
     from sim.simulation import Simulation
 
     scenario = load_scenario(scenario_dir)

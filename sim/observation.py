@@ -15,7 +15,7 @@ from sim.events import Events
 from sim.interface import AgentInterface
 from sim.mission_vehicle import MissionVehicle, Status
 from sim.road import LanePosition, RoadNetwork
-from sim.vehicles import VehicleStates
+from sim.vehicle.states import VehicleStates
 
 RASTERS = ("drivable_area_grid_map", "occupancy_grid_map", "top_down_rgb")
 DEFAULT_HEIGHT = 1.5  # [m] of vehicles whose height we do not know

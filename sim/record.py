@@ -17,7 +17,7 @@ import numpy as np
 from arena.outcome import AgentOutcome
 from arena.record_format import EVENT_FLAGS, FORMAT_VERSION, NEIGHBOUR_FLOATS, STEP_FLOATS
 from arena.scenario import Mission
-from sim.vehicles import VehicleStates
+from sim.vehicle.states import VehicleStates
 
 
 class RecordRow(NamedTuple):

@@ -30,15 +30,15 @@ from sim.events import reached_goal as within_goal
 from sim.interface import AgentInterface
 from sim.mission_vehicle import MissionVehicle, Status
 from sim.observation import build_observation
+from sim.playback import ReplayTable
 from sim.record import EpisodeRecorder, RecordRow, write_npz
-from sim.replay import ReplayTable
 from sim.road import LanePosition, RoadNetwork
 from sim.road.waypoints import route_ahead, waypoint_paths
 from sim.traffic import SumoTraffic
 from sim.triggers import CutInTriggers
 from sim.vehicle import DECODERS, ControlContext, InvalidAction, check_action
 from sim.vehicle.actions import quote
-from sim.vehicles import Surroundings, VehicleStates
+from sim.vehicle.states import Surroundings, VehicleStates
 
 if TYPE_CHECKING:
     from sim.inputs import ScenarioInputs

@@ -15,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sim.vehicles import VehicleStates
+from arena.errors import InfrastructureError
+from sim.vehicle.states import VehicleStates
 
 _open_instance: SumoTraffic | None = None
 
@@ -24,7 +25,7 @@ DEFAULT_SPEED_MODE = 31
 DEFAULT_LANE_CHANGE_MODE = 1621
 
 
-class SumoError(RuntimeError):
+class SumoError(InfrastructureError, RuntimeError):
     """SUMO failed (bad input files, internal error): the episode ends with simulator_error."""
 
 

@@ -16,8 +16,10 @@ errors = make_console(stderr=True)
 
 def report_checked(zip_path: Path, install: bool) -> None:
     """Run intake on ``zip_path`` and print the verdict; exit 1 on a rejection."""
+    # deferred: CLI start-up time
     import tempfile
 
+    # deferred: CLI start-up time
     from arena.errors import IntakeError
     from submissions.intake import check_zip, prepare_submission
 
@@ -55,6 +57,7 @@ def pack(
     ] = True,
 ) -> None:
     """Zip a submission folder (deterministically, without caches) and run the intake checks."""
+    # deferred: CLI start-up time
     from arena.errors import IntakeError
     from submissions.intake import pack_folder
 
@@ -81,6 +84,7 @@ def init_agent(
     folder: Annotated[Path, typer.Argument(help="Folder to create (must be new or empty).")],
 ) -> None:
     """Write a runnable starting agent: policy.py, agent.yaml and a test to run with pytest."""
+    # deferred: CLI start-up time
     from submissions.starter import FolderNotEmpty, write_starter
 
     try:

@@ -7,6 +7,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from sim.bev import BevRenderer, EgoPose
+from sim.interface import AgentInterface
+from sim.road import RoadNetwork
+from sim.road.lane import Lane
+from sim.vehicle.states import VehicleStates
+
 SAMPLE_LANES = 4
 SAMPLE_LANE_WIDTH = 3.2  # [m]
 SAMPLE_ROAD_LENGTH = 500.0  # [m] edge E1 runs from x = 0 to here, lanes along +x
@@ -109,12 +115,6 @@ def sample_observation(
 
 def _sample_rasters(obs: dict, img_pixels: int, img_meters: float) -> dict[str, np.ndarray]:
     """The rasters of ``obs``'s scene on a straight 4-lane road (no SUMO needed)."""
-    from sim.bev import BevRenderer, EgoPose
-    from sim.interface import AgentInterface
-    from sim.road import RoadNetwork
-    from sim.road.lane import Lane
-    from sim.vehicles import VehicleStates
-
     lanes = {
         f"E1_{i}": Lane(
             id=f"E1_{i}",

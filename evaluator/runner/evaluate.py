@@ -10,6 +10,8 @@ stopped.
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
 import json
 import shutil
 import tempfile
@@ -21,9 +23,9 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Protocol
 
-from arena.config import SandboxKind
+from arena.config import SandboxKind, get_settings
 from arena.episodes import Episode, episodes_of
-from arena.errors import ArenaError
+from arena.errors import ArenaError, SandboxUnavailable
 from arena.outcome import ScenarioStatus
 from arena.suite import Suite, load_suite
 from evaluator.failures import FAIL_FAST_AFTER, never_started
@@ -32,14 +34,18 @@ from evaluator.runner.results import (
     RECORDS_DIR,
     ScoredEntry,
     is_finished,
+    outcome_from_results_dir,
     score_outcome,
     score_outcomes,
     stored_episodes,
-    stored_outcome,
 )
 from evaluator.runner.scenario import ScenarioOutcome, run_scenario
+from evaluator.sandbox import backend, resolve_kind
+from evaluator.sandbox.warm_pool import warm_agents
 from evaluator.scoring import DEFAULT_PROFILE, ScoringProfile, load_profile
 from evaluator.summary import SUMMARY_FILE, Summary, read_summary, write_summary
+from evaluator.training import folder_digest
+from submissions.intake import prepare_submission
 
 TIMINGS_FILE = "timings.json"  # wall times: kept out of summary.json, which is deterministic
 
@@ -81,8 +87,6 @@ def evaluate(
     ``model_dir`` is a trained output (``arena train``) the policy reads as ARENA_MODEL_DIR; the
     results then belong to the submission and that model together.
     """
-    from submissions.intake import prepare_submission
-
     scoring_profile = load_profile(profile)
     sandbox = _usable_sandbox(sandbox)
     suite = load_suite(suite_dir).select(scenario_ids)
@@ -143,8 +147,6 @@ def evaluate(
 @contextmanager
 def _warm_agents_of(submission) -> Iterator[None]:
     """The submission's warm agents close with its evaluation (its folder is about to go)."""
-    from evaluator.sandbox.warm_pool import warm_agents
-
     try:
         yield
     finally:
@@ -153,11 +155,6 @@ def _warm_agents_of(submission) -> Iterator[None]:
 
 def _with_model(submission, model_dir: Path):
     """The submission reading ``model_dir``, and the identity of the pair (sha256 of both)."""
-    import dataclasses
-    import hashlib
-
-    from evaluator.training import folder_digest
-
     if not model_dir.is_dir():
         raise ResultsDirError(f"the model folder {model_dir} does not exist (run `arena train`)")
     pair = hashlib.sha256(f"{submission.sha256}:{folder_digest(model_dir)}".encode())
@@ -193,10 +190,6 @@ class _StartWatch:
 def _usable_sandbox(kind: SandboxKind | None) -> SandboxKind:
     """The concrete sandbox, checked once: a missing daemon or tool fails the evaluation before
     any scenario, instead of every scenario failing on it."""
-    from arena.config import get_settings
-    from arena.errors import SandboxUnavailable
-    from evaluator.sandbox import backend, resolve_kind
-
     kind = resolve_kind(kind)
     reason = backend(kind).unavailable_reason(get_settings())
     if reason is not None:
@@ -257,7 +250,7 @@ class ResultsFolder:
             for entry in previous.scenarios:
                 for key, episode in stored_episodes(entry):
                     if is_finished(key, episode, self.out_dir):
-                        self.outcomes[key] = stored_outcome(key, episode, self.out_dir)
+                        self.outcomes[key] = outcome_from_results_dir(key, episode, self.out_dir)
             timings = self.out_dir / TIMINGS_FILE
             if timings.exists():
                 self.timings = json.loads(timings.read_text())

@@ -201,7 +201,7 @@ def score_results_dir(results_dir: Path, profile: ScoringProfile) -> Summary:
     )
     episodes = [pair for entry in stored.scenarios for pair in stored_episodes(entry)]
     outcomes = [
-        stored_outcome(key, episode, results_dir)
+        outcome_from_results_dir(key, episode, results_dir)
         for key, episode in episodes
         if episode.status in FINISHED
     ]
@@ -223,9 +223,12 @@ def stored_episodes(entry: ScenarioEntry) -> list[tuple[Episode, ScenarioEntry |
     return [(Episode(entry.id, e.index), e) for e in entry.episodes]
 
 
-def stored_outcome(
+def outcome_from_results_dir(
     key: Episode, entry: ScenarioEntry | EpisodeEntry, results_dir: Path
 ) -> ScenarioOutcome:
+    """The core's outcome back from a results folder's summary entry and record (a local
+    evaluation resumed or re-scored; the service's counterpart is
+    ``server.services.scoring.outcome_from_row``)."""
     path = record_path(results_dir, key.name)
     return ScenarioOutcome(
         scenario_id=key.scenario_id,

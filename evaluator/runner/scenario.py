@@ -15,7 +15,10 @@ from arena.episodes import Episode, traffic_seed
 from arena.outcome import AgentOutcome, DoneReason, ScenarioStatus
 from arena.record_format import RECORD_SUFFIX
 from arena.scenario import load_scenario
+from evaluator import sandbox as sandboxes
 from evaluator.failures import describe_end
+from evaluator.sandbox.warm_pool import warm_agents
+from sim.isolation import run_episode_isolated
 
 if TYPE_CHECKING:
     from evaluator.sandbox.warm import ForkedAgent
@@ -37,17 +40,13 @@ class SandboxedAgentFactory:
     labels: dict[str, str]
 
     def __call__(self) -> Agent:
-        from evaluator import sandbox
-
-        return sandbox.start(self.submission, kind=self.kind, labels=self.labels)
+        return sandboxes.start(self.submission, kind=self.kind, labels=self.labels)
 
     @property
     def preload_modules(self) -> tuple[str, ...]:
         """Imported once by the simulator's fork server instead of in every episode's process
         (see :func:`sim.isolation.preload_modules`)."""
-        from evaluator import sandbox
-
-        return ("evaluator.sandbox", *sandbox.client_modules(self.kind))
+        return ("evaluator.sandbox", *sandboxes.client_modules(self.kind))
 
 
 @dataclass(frozen=True)
@@ -69,8 +68,6 @@ def agent_factory(
 ) -> Iterator[SandboxedAgentFactory | ForkedAgentFactory]:
     """How one episode gets its agent: forked in a warm sandbox when the setting allows and the
     submission's zygote started, else in a sandbox of its own."""
-    from evaluator.sandbox.warm_pool import warm_agents
-
     settings = get_settings()
     if not settings.warm_agents:
         yield SandboxedAgentFactory(submission, kind, labels)
@@ -153,9 +150,6 @@ def run_scenario(
     errors (sandbox unavailable) are raised so the caller can retry the job. ``run_key`` labels
     the sandboxes (:func:`sandbox_labels`); a fresh one is made when not given.
     """
-    from evaluator import sandbox as sandboxes
-    from sim.isolation import run_episode_isolated
-
     kind = sandboxes.resolve_kind(sandbox)
     scenario = load_scenario(scenario_dir)
     key = Episode(scenario.id, episode)

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from arena.config import SandboxKind, Settings, get_settings
 from arena.errors import SandboxUnavailable
-from evaluator.sandbox.backend import Backend, LaunchSpec, Sandbox, Training
+from evaluator.sandbox.backend import SANDBOX_LABEL, Backend, LaunchSpec, Sandbox, Training
 from evaluator.sandbox.handle import AgentHandle
 
 __all__ = [
@@ -49,14 +49,17 @@ def client_modules(kind: SandboxKind | str | None) -> tuple[str, ...]:
 
 def backend(kind: SandboxKind) -> Backend:
     if kind is SandboxKind.docker:
+        # deferred: a backend's client modules load only when it is chosen
         from evaluator.sandbox.docker_backend import DockerBackend
 
         return DockerBackend()
     if kind is SandboxKind.bubblewrap:
+        # deferred: a backend's client modules load only when it is chosen
         from evaluator.sandbox.bwrap_backend import BubblewrapBackend
 
         return BubblewrapBackend()
     if kind is SandboxKind.process:
+        # deferred: a backend's client modules load only when it is chosen
         from evaluator.sandbox.process_backend import ProcessBackend
 
         return ProcessBackend()
@@ -143,7 +146,7 @@ def start_training(
 def cleanup(labels: dict[str, str] | None = None) -> int:
     """Remove leftover sandboxes of every backend carrying ``labels`` (default: all of ours),
     and kill this process's leased warm agents carrying them."""
-    from evaluator.sandbox.backend import SANDBOX_LABEL
+    # deferred: the warm pool imports this package (evaluator.sandbox.warm uses backend())
     from evaluator.sandbox.warm_pool import warm_agents
 
     wanted = {SANDBOX_LABEL: "1", **(labels or {})}

@@ -22,6 +22,8 @@ from typing import Any
 
 import numpy as np
 
+from arena.errors import ArenaError
+
 HEADER = struct.Struct(">I")
 # Replies carry a handful of actions; anything near this size is an agent writing garbage.
 MAX_REPLY_BYTES = 16 * 1024**2
@@ -32,15 +34,15 @@ INBOX_BYTES = 64 * 1024
 MAX_REPLY_DEPTH = 32
 
 
-class ChannelClosed(Exception):
+class ChannelClosed(ArenaError):
     """The agent's end went away (it exited or was killed)."""
 
 
-class ChannelTimeout(Exception):
+class ChannelTimeout(ArenaError):
     """The deadline passed before the whole frame moved."""
 
 
-class ChannelViolation(Exception):
+class ChannelViolation(ArenaError):
     """The agent sent something that is not a protocol frame."""
 
 

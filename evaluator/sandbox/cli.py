@@ -17,6 +17,7 @@ def build_image(
     force: Annotated[bool, typer.Option(help="Rebuild even if the image exists.")] = False,
 ) -> None:
     """Build the agent runtime image offline (debootstrap + docker import)."""
+    # deferred: CLI start-up time
     from arena.errors import SandboxUnavailable
     from evaluator.sandbox.image import build_image as build
 
@@ -40,6 +41,7 @@ def cleanup(
     Without --label this removes every agent sandbox on this host: run it when no worker is
     evaluating, or pass the labels of the evaluation to clean up after.
     """
+    # deferred: CLI start-up time
     from evaluator.sandbox import cleanup as remove
 
     labels = dict(item.split("=", 1) for item in label or [])
@@ -49,6 +51,7 @@ def cleanup(
 @sandbox_app.command("status")
 def status() -> None:
     """Which sandbox backends can run here, and which one `auto` picks."""
+    # deferred: CLI start-up time
     from arena.config import SandboxKind, get_settings
     from arena.errors import SandboxUnavailable
     from evaluator.sandbox import backend, resolve_kind

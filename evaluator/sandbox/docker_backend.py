@@ -65,6 +65,7 @@ def remove_orphan_socket_dirs(live_instances: set[str]) -> None:
 
 @lru_cache
 def docker_client():
+    # deferred: the docker client is needed only with the Docker sandbox
     import docker
 
     return docker.from_env()
@@ -75,6 +76,7 @@ def container_options(spec: LaunchSpec, socket_dir: Path | None) -> dict[str, An
     (``spec.training``) has no protocol socket: it gets the dataset read-only, the output folder
     writable with no single file larger than its cap, and the GPUs when the organisers enable
     them."""
+    # deferred: the docker client is needed only with the Docker sandbox
     from docker.types import DeviceRequest, LogConfig, Ulimit
 
     settings = spec.settings
@@ -169,6 +171,7 @@ class DockerSandbox:
         return Channel(fd, fd)
 
     def exit_status(self, timeout: float) -> ExitStatus | None:
+        # deferred: the docker client is needed only with the Docker sandbox
         import docker.errors
         import requests.exceptions
 
@@ -190,6 +193,7 @@ class DockerSandbox:
         return ExitStatus(state["ExitCode"], oom_killed=state["OOMKilled"])
 
     def kill(self) -> None:
+        # deferred: the docker client is needed only with the Docker sandbox
         import docker.errors
         import requests.exceptions
 
@@ -217,6 +221,7 @@ class DockerSandbox:
                 shutil.rmtree(self._socket_dir, ignore_errors=True)
 
     def logs(self) -> str:
+        # deferred: the docker client is needed only with the Docker sandbox
         import docker.errors
         import requests.exceptions
 
@@ -235,6 +240,7 @@ class DockerBackend:
     kind = SandboxKind.docker
 
     def unavailable_reason(self, settings: Settings) -> str | None:
+        # deferred: the docker client is needed only with the Docker sandbox
         import docker.errors
 
         try:
@@ -249,6 +255,7 @@ class DockerBackend:
         return None
 
     def launch(self, spec: LaunchSpec) -> DockerSandbox:
+        # deferred: the docker client is needed only with the Docker sandbox
         import docker.errors
 
         if spec.training is not None:
@@ -273,6 +280,7 @@ class DockerBackend:
         return DockerSandbox(container, listener, socket_dir, spec.settings.agent_log_tail_bytes)
 
     def cleanup(self, labels: dict[str, str]) -> int:
+        # deferred: the docker client is needed only with the Docker sandbox
         import docker.errors
         import requests.exceptions
 

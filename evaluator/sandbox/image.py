@@ -69,6 +69,7 @@ def debian_mirror(settings: Settings, apt_sources: tuple[Path, ...] = APT_SOURCE
 
 
 def image_exists(client, image: str) -> bool:
+    # deferred: the docker client is needed only with the Docker sandbox
     import docker.errors
 
     try:
@@ -130,6 +131,7 @@ def build_image(
     log: Callable[[str], None] = print,
 ) -> str:
     """Make ``settings.agent_image`` exist in the local Docker daemon; returns its id."""
+    # deferred: the docker client is needed only with the Docker sandbox
     import docker
     import docker.errors
 

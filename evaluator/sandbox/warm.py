@@ -158,6 +158,7 @@ class WarmAgent:
         """Start ``submission``'s zygote. Raises :class:`SandboxUnavailable` when it does not say
         hello and ready in ``init_timeout_s``: it runs none of the participant's code, so that
         is ours (the caller then starts each agent cold, which reports the agent's own errors)."""
+        # deferred: evaluator.sandbox (whose backend() this is) imports this module via warm_pool
         from evaluator.sandbox import backend
 
         spec = LaunchSpec.of_agent(

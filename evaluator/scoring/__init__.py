@@ -10,10 +10,10 @@ from evaluator.scoring.episode import (
     score_without_record,
 )
 from evaluator.scoring.interval import Interval, bootstrap_interval, tied_neighbours
+from evaluator.scoring.metrics import Metrics, aggregate, by_family, scenario_metrics
 from evaluator.scoring.profile import DEFAULT_PROFILE, ProfileError, ScoringProfile, load_profile
 from evaluator.scoring.ranking import rank, rank_key
 from evaluator.scoring.record import EpisodeRecord, load_record
-from evaluator.scoring.suite import Metrics, aggregate, by_family, scenario_metrics
 
 __all__ = [
     "DEFAULT_PROFILE",

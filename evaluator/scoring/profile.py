@@ -19,12 +19,13 @@ from pydantic import (
     model_validator,
 )
 
+from arena.errors import ArenaError
 from evaluator.scoring.registry import get_term
 
 DEFAULT_PROFILE = "driving-smarts-2022"
 
 
-class ProfileError(ValueError):
+class ProfileError(ArenaError, ValueError):
     pass
 
 
@@ -93,9 +94,6 @@ def profile_names() -> tuple[str, ...]:
 
 @cache
 def load_profile(name: str = DEFAULT_PROFILE) -> ScoringProfile:
-    import evaluator.scoring.reference_terms  # registers the terms the profiles name
-    import evaluator.scoring.terms  # noqa: F401
-
     if name not in profile_names():
         known = ", ".join(profile_names())
         raise ProfileError(f"unknown scoring profile {name!r} (known: {known})")

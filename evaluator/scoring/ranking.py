@@ -7,9 +7,9 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable
 from typing import Any, TypeVar
 
-from evaluator.scoring.suite import Metrics
+from evaluator.scoring.metrics import Metrics
 
-T = TypeVar("T")
+RankedT = TypeVar("RankedT")
 
 
 def rank_key(metrics: Metrics | None, submitted_at: Any) -> tuple:
@@ -22,10 +22,10 @@ def rank_key(metrics: Metrics | None, submitted_at: Any) -> tuple:
 
 
 def rank(
-    entries: Iterable[T],
+    entries: Iterable[RankedT],
     *,
-    metrics: Callable[[T], Metrics | None],
-    submitted_at: Callable[[T], Any],
-) -> list[T]:
+    metrics: Callable[[RankedT], Metrics | None],
+    submitted_at: Callable[[RankedT], Any],
+) -> list[RankedT]:
     """Entries best first. ``submitted_at`` must be comparable (a datetime, or a sequence id)."""
     return sorted(entries, key=lambda entry: rank_key(metrics(entry), submitted_at(entry)))

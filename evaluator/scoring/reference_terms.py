@@ -8,14 +8,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from evaluator.scoring.profile import ScoringProfile
 from evaluator.scoring.record import AgentTrack
-from evaluator.scoring.registry import register_term
+from evaluator.scoring.term import Term, TermParameters
 from evaluator.scoring.terms import distance_obs, wrap_angle
 
 
-@register_term("jerk_squared_change")
-def jerk_squared_change(track: AgentTrack, profile: ScoringProfile) -> np.ndarray:
+def jerk_squared_change(track: AgentTrack, profile: TermParameters) -> np.ndarray:
     """``|a_t - a_(t-1)|^2 + (alpha_t - alpha_(t-1))^2``: the squared change between steps of
     the acceleration vector [m/s^2] plus that of the angular acceleration [rad/s^2], not
     divided by dt; 0 on the first two rows (no earlier acceleration)."""
@@ -32,14 +30,12 @@ def jerk_squared_change(track: AgentTrack, profile: ScoringProfile) -> np.ndarra
     return out
 
 
-@register_term("lc_off_half_width")
-def lc_off_half_width(track: AgentTrack, profile: ScoringProfile) -> np.ndarray:
+def lc_off_half_width(track: AgentTrack, profile: TermParameters) -> np.ndarray:
     """``(distance from the lane centre / (lane width / 2))^2``: 1 on the lane's edge."""
     return (track.lane_offset / (track.lane_width / 2)) ** 2
 
 
-@register_term("distance_obs_running_mean")
-def distance_obs_running_mean(track: AgentTrack, profile: ScoringProfile) -> np.ndarray:
+def distance_obs_running_mean(track: AgentTrack, profile: TermParameters) -> np.ndarray:
     """The running mean of :func:`distance_obs` over the steps with a vehicle ahead, as of
     each step (0 until the first such step; a step with nothing ahead leaves it unchanged). The
     reference code reports this running mean, so an agent-episode keeps its last value."""
@@ -47,3 +43,11 @@ def distance_obs_running_mean(track: AgentTrack, profile: ScoringProfile) -> np.
     ahead = value > 0.0
     count = np.cumsum(ahead)
     return np.where(count > 0, np.cumsum(value) / np.maximum(count, 1), 0.0)
+
+
+# The terms of this module by the name profiles give them (evaluator.scoring.registry).
+TERMS: dict[str, Term] = {
+    "jerk_squared_change": jerk_squared_change,
+    "lc_off_half_width": lc_off_half_width,
+    "distance_obs_running_mean": distance_obs_running_mean,
+}

@@ -1,26 +1,23 @@
-"""Named per-agent-step metric terms.
+"""Named per-agent-step metric terms: the registry imports every term module and names its
+terms (:data:`TERMS` of each), refusing a name given twice.
 
-A term maps one agent's driven rows to one value per row. Profiles name the terms they sum into
-humanness and rules; naming a term that is not registered is an error when the profile loads.
+A term (:mod:`evaluator.scoring.term`) maps one agent's driven rows to one value per row.
+Profiles name the terms they sum into humanness and rules; naming a term that is not registered
+is an error when the profile loads.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING
 
-import numpy as np
-
-if TYPE_CHECKING:
-    from evaluator.scoring.profile import ScoringProfile
-    from evaluator.scoring.record import AgentTrack
-
-Term = Callable[["AgentTrack", "ScoringProfile"], np.ndarray]
+from arena.errors import ArenaError
+from evaluator.scoring import reference_terms, terms
+from evaluator.scoring.term import Term
 
 _TERMS: dict[str, Term] = {}
 
 
-class UnknownTermError(ValueError):
+class UnknownTermError(ArenaError, ValueError):
     pass
 
 
@@ -46,3 +43,8 @@ def get_term(name: str) -> Term:
 
 def term_names() -> tuple[str, ...]:
     return tuple(sorted(_TERMS))
+
+
+for _module in (terms, reference_terms):
+    for _name, _term in _module.TERMS.items():
+        register_term(_name)(_term)

@@ -8,9 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from evaluator.scoring.profile import ScoringProfile
 from evaluator.scoring.record import AgentTrack
-from evaluator.scoring.registry import register_term
+from evaluator.scoring.term import Term, TermParameters
 
 
 def wrap_angle(angle: np.ndarray) -> np.ndarray:
@@ -18,8 +17,7 @@ def wrap_angle(angle: np.ndarray) -> np.ndarray:
     return (angle + np.pi) % (2 * np.pi) - np.pi
 
 
-@register_term("distance_obs")
-def distance_obs(track: AgentTrack, profile: ScoringProfile) -> np.ndarray:
+def distance_obs(track: AgentTrack, profile: TermParameters) -> np.ndarray:
     """Closeness to the nearest vehicle ahead: max ``exp(-decay * d)`` over the vehicles within
     ``headway x speed`` [m] of the ego centre and within the half-angle of its heading."""
     dx = track.nbr_x - track.x[:, None]  # (n, K) [m]
@@ -38,8 +36,7 @@ def distance_obs(track: AgentTrack, profile: ScoringProfile) -> np.ndarray:
     return np.where(ahead, closeness, 0.0).max(axis=1, initial=0.0)
 
 
-@register_term("jerk")
-def jerk(track: AgentTrack, profile: ScoringProfile) -> np.ndarray:
+def jerk(track: AgentTrack, profile: TermParameters) -> np.ndarray:
     """``|a_t - a_(t-1)| / dt`` [m/s^3] from the velocity vector; 0 on the first two rows, which
     have no earlier acceleration to compare with."""
     velocity = np.stack([track.vx, track.vy], axis=1)  # (n, 2) [m/s]
@@ -49,25 +46,32 @@ def jerk(track: AgentTrack, profile: ScoringProfile) -> np.ndarray:
     return out
 
 
-@register_term("lc_off")
-def lc_off(track: AgentTrack, profile: ScoringProfile) -> np.ndarray:
+def lc_off(track: AgentTrack, profile: TermParameters) -> np.ndarray:
     """``(distance from the lane centre / lane width)^2``."""
     return (track.lane_offset / track.lane_width) ** 2
 
 
-@register_term("speeding")
-def speeding(track: AgentTrack, profile: ScoringProfile) -> np.ndarray:
+def speeding(track: AgentTrack, profile: TermParameters) -> np.ndarray:
     """``min(max(0, speed - limit) / (fraction x limit), 1)``: 0 at the limit, 1 from
     ``(1 + fraction) x limit`` on."""
     over = np.maximum(track.speed - track.speed_limit, 0.0)  # [m/s]
     return np.minimum(over / (profile.speeding_tolerance_fraction * track.speed_limit), 1.0)
 
 
-@register_term("wrong_way")
-def wrong_way(track: AgentTrack, profile: ScoringProfile) -> np.ndarray:
+def wrong_way(track: AgentTrack, profile: TermParameters) -> np.ndarray:
     """1 where the heading is more than the profile's angle from the lane direction, outside
     junctions (lane directions inside a junction do not say which way is right)."""
     against = np.abs(wrap_angle(track.heading - track.lane_heading)) > np.deg2rad(
         profile.wrong_way_angle_deg
     )
     return (against & ~track.in_junction).astype(float)
+
+
+# The terms of this module by the name profiles give them (evaluator.scoring.registry).
+TERMS: dict[str, Term] = {
+    "distance_obs": distance_obs,
+    "jerk": jerk,
+    "lc_off": lc_off,
+    "speeding": speeding,
+    "wrong_way": wrong_way,
+}

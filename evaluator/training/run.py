@@ -10,6 +10,7 @@ time and the log tail, and how it stops a run (its worker is shutting down, its 
 from __future__ import annotations
 
 import os
+import signal
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -17,7 +18,8 @@ from enum import StrEnum
 from pathlib import Path
 
 from arena.config import SandboxKind, Settings, get_settings
-from arena.errors import DatasetError, IntakeError
+from arena.errors import ArenaError, DatasetError, IntakeError
+from evaluator import sandbox
 from evaluator.sandbox.backend import TRAIN_SCRIPT, ExitStatus
 from evaluator.training.model import output_bytes, regular_files
 
@@ -48,7 +50,7 @@ class TrainingResult:
         return self.failure is None
 
 
-class TrainingStopped(Exception):
+class TrainingStopped(ArenaError):
     """The caller's ``on_progress`` asked to stop: the sandbox was killed, nothing is judged."""
 
 
@@ -72,8 +74,6 @@ def train(
     kills the run and raises :class:`TrainingStopped`. Raises
     :class:`~arena.errors.SandboxUnavailable` when the sandbox cannot start (ours, retried).
     """
-    from evaluator import sandbox
-
     settings = settings or get_settings()
     if not submission.trains:
         raise IntakeError(TRAIN_SCRIPT, "train-missing", "the submission has no train.py to run")
@@ -180,7 +180,5 @@ def _ran_out_of_memory(log: str) -> bool:
 
 def _file_too_large(status: ExitStatus, log: str) -> bool:
     """SIGXFSZ, or Python's own error when it ignores the signal (EFBIG)."""
-    import signal
-
     killed = status.code is not None and signal.SIGXFSZ in (-status.code, status.code - 128)
     return killed or "File too large" in log

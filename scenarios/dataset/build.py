@@ -1,7 +1,7 @@
 """`arena dataset build`: recorded and naturalistic replays -> a Minari offline-RL dataset.
 
 Sources: the naturalistic scenes (one episode per ego choice of every scene, see
-:mod:`scenarios.replay.naturalistic`) and the non-reactive replays of the public set (our SUMO
+:mod:`scenarios.recorded.naturalistic`) and the non-reactive replays of the public set (our SUMO
 recordings). Scenes that a hidden suite used (its manifest's ``naturalistic_scenes``, matched by
 sha256) are left out. ``DIR/dataset-manifest.json`` says which scenes and vehicles it holds.
 """
@@ -21,7 +21,7 @@ import numpy as np
 from arena.scenario import DataLabel, load_scenario
 from scenarios.dataset.collect import Episode, collect
 from scenarios.dataset.features import ACTION_SIZE, OBS_SIZE
-from scenarios.replay.naturalistic import ego_choices, load_scenes, scene_net, write_naturalistic
+from scenarios.recorded.naturalistic import ego_choices, load_scenes, scene_net, write_naturalistic
 
 DATASET_ID = "driving-arena/replays-v0"
 MANIFEST = "dataset-manifest.json"
@@ -71,6 +71,7 @@ def build_dataset(
 ) -> dict:
     """Write the Minari dataset :data:`DATASET_ID` under ``out`` (its ``MINARI_DATASETS_PATH``)
     plus ``out/dataset-manifest.json``; returns the manifest."""
+    # deferred: heavy optional dependencies (the dataset extra), loaded only when building
     import gymnasium as gym
     import minari
     from minari.data_collector import EpisodeBuffer
@@ -152,6 +153,7 @@ def _buffer(cls, index: int, episode: Episode):
 
 
 def _create(minari, buffers: list, space) -> None:
+    # deferred: heavy optional dependencies (the dataset extra), loaded only when building
     import gymnasium as gym
 
     minari.create_dataset_from_buffers(

@@ -26,12 +26,14 @@ def build(
     ] = None,
 ) -> None:
     """Replays -> a Minari dataset (observations, actions, rewards, terminations) in OUT."""
+    # deferred: CLI start-up time
     from rich.console import Console
 
+    # deferred: CLI start-up time
     from arena.config import get_settings
     from arena.suite import public_suite_dir
     from scenarios.dataset.build import build_dataset
-    from scenarios.replay.naturalistic import NaturalisticImportError, shipped_scenes_dir
+    from scenarios.recorded.naturalistic import NaturalisticImportError, shipped_scenes_dir
 
     console = Console()
     settings = get_settings()

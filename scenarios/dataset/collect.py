@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from arena.scenario import load_scenario
 from scenarios.dataset.features import (
     CRASH_PENALTY,
     GOAL_BONUS,
@@ -18,7 +19,8 @@ from scenarios.dataset.features import (
     observation_vector,
     pose_action,
 )
-from scenarios.experts import LogReplayExpert
+from scenarios.experts import LogReplayExpert, expert_interface
+from sim.isolation import run_episode_isolated
 
 CRASH_EVENTS = ("collisions", "off_road")
 
@@ -80,10 +82,6 @@ def collect(scenario_dir: Path) -> list[Episode]:
     observation the agent received: its final transition is *truncated* (or *terminated* when it
     ended in a collision or off the road); the goal bonus applies only to an observed arrival,
     which the expert's episodes (ending at arrival) never contain."""
-    from arena.scenario import load_scenario
-    from scenarios.experts import expert_interface
-    from sim.isolation import run_episode_isolated
-
     scenario = load_scenario(scenario_dir)
     with tempfile.TemporaryDirectory(prefix="arena-dataset-") as tmp:
         out = Path(tmp) / "steps.npz"

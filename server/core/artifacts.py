@@ -17,11 +17,12 @@ from typing import Protocol
 from sqlalchemy import delete, or_, select
 
 from arena.config import ArtifactBackend, Settings
+from arena.errors import ArenaError
 from server.core.db import Database
 from server.models import Artifact, utcnow
 
 
-class MissingArtifact(LookupError):
+class MissingArtifact(ArenaError, LookupError):
     """No artifact under that key."""
 
 

@@ -6,6 +6,10 @@ from pathlib import Path
 
 from alembic import command
 from alembic.config import Config
+from alembic.runtime.migration import MigrationContext
+from alembic.script import ScriptDirectory
+
+from server.core.db import make_engine
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 
@@ -23,10 +27,6 @@ def upgrade_database(database_url: str, revision: str = "head") -> None:
 
 
 def current_revision(database_url: str) -> str | None:
-    from alembic.runtime.migration import MigrationContext
-
-    from server.core.db import make_engine
-
     engine = make_engine(database_url)
     try:
         with engine.connect() as connection:
@@ -37,6 +37,4 @@ def current_revision(database_url: str) -> str | None:
 
 def head_revision() -> str:
     """The newest migration: what an up-to-date database is at."""
-    from alembic.script import ScriptDirectory
-
     return ScriptDirectory.from_config(alembic_config("sqlite://")).get_current_head()

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from arena.errors import ArenaError
 
-class ServiceError(Exception):
+
+class ServiceError(ArenaError):
     status_code = 400
 
     def __init__(self, message: str) -> None:

@@ -21,7 +21,8 @@ from sqlalchemy.orm import Session
 from arena.config import Settings
 from arena.errors import RecordError
 from arena.suite import public_suite_dir
-from evaluator.replay.model import load_replay
+from evaluator.viewer.model import load_replay
+from scenarios.verify import verify_scenario
 from server.core.artifacts import MissingArtifact, artifact_store
 from server.core.db import Database
 from server.models import Submission
@@ -98,8 +99,6 @@ def public_replay(settings: Settings, db: Database, scenario_id: str) -> ReplayD
             if store.exists(key):
                 store.fetch(key, record)
             else:
-                from scenarios.verify import verify_scenario
-
                 verify_scenario(suite_dir / scenario_id, Path(scratch))
                 if not record.exists():
                     raise NotFound(f"the expert could not drive {scenario_id!r}")

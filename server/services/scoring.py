@@ -59,7 +59,9 @@ def result_values(
     }
 
 
-def stored_outcome(result: ScenarioResult, store: ArtifactStore, scratch: Path) -> ScenarioOutcome:
+def outcome_from_row(
+    result: ScenarioResult, store: ArtifactStore, scratch: Path
+) -> ScenarioOutcome:
     """The core's outcome back from a finished row, its record fetched into ``scratch``. A
     record missing from the store leaves the outcome without one (the core then refuses to
     charge a scenario whose agents drove steps)."""
@@ -87,7 +89,7 @@ def run_summary(run: EvaluationRun, profile: ScoringProfile, store: ArtifactStor
     ]
     with tempfile.TemporaryDirectory(prefix="arena-score-") as scratch:
         outcomes = [
-            stored_outcome(r, store, Path(scratch)) for r in run.results if r.status in FINISHED
+            outcome_from_row(r, store, Path(scratch)) for r in run.results if r.status in FINISHED
         ]
         return score_outcomes(
             outcomes,

@@ -53,7 +53,6 @@ from server.status import (
 from server.tracks import Track
 from submissions.intake.archive import check_directory
 
-S = SubmissionStatus
 log = logging.getLogger(__name__)
 # What a team sees of the progress of a hidden phase's run under way: quarters.
 HIDDEN_PROGRESS_STEPS = 4
@@ -82,9 +81,14 @@ def quota_used(session: Session, team_id: int, phase: str, track: Track, moment:
             Submission.phase == phase,
             Submission.track == track,
             Submission.created_at >= day_start,
-            Submission.status != S.rejected,
-            or_(Submission.status != S.failed, Submission.failed_on_our_side.is_(False)),
-            or_(Submission.status != S.cancelled, Submission.started_at.is_not(None)),
+            Submission.status != SubmissionStatus.rejected,
+            or_(
+                Submission.status != SubmissionStatus.failed,
+                Submission.failed_on_our_side.is_(False),
+            ),
+            or_(
+                Submission.status != SubmissionStatus.cancelled, Submission.started_at.is_not(None)
+            ),
         )
     )
 
@@ -181,7 +185,9 @@ def accept_upload(
 def keys_in_work(session: Session) -> tuple[set[str], set[str]]:
     """The zips and trained outputs of submissions still being trained or evaluated: what a
     worker keeps unpacked; the rest of its scratch can go."""
-    working = Submission.status.in_([S.queued, S.training, S.running])
+    working = Submission.status.in_(
+        [SubmissionStatus.queued, SubmissionStatus.training, SubmissionStatus.running]
+    )
     uploads = set(session.scalars(select(Submission.upload_key).where(working)))
     models = set(
         session.scalars(
@@ -388,7 +394,7 @@ def cancel(db: Database, queue: TaskQueue, submission_id: int) -> Submission:
         submission = lock(session, Submission, submission_id)
         if submission.status not in ACTIVE_SUBMISSION:
             raise Conflict(f"submission {submission_id} is {submission.status}; cannot cancel")
-        submission.status = advance(submission.status, S.cancelled, SUBMISSION_MOVES)
+        submission.status = advance(submission.status, SubmissionStatus.cancelled, SUBMISSION_MOVES)
         submission.finished_at = utcnow()
         cancel_trainings(submission)
         unfinished: list[str] = []
@@ -402,7 +408,9 @@ def cancel(db: Database, queue: TaskQueue, submission_id: int) -> Submission:
 def disqualify(db: Database, queue: TaskQueue, submission_id: int, reason: str) -> Submission:
     with db.session() as session:
         submission = lock(session, Submission, submission_id)
-        submission.status = advance(submission.status, S.disqualified, SUBMISSION_MOVES)
+        submission.status = advance(
+            submission.status, SubmissionStatus.disqualified, SUBMISSION_MOVES
+        )
         submission.status_reason = reason
         submission.finished_at = submission.finished_at or utcnow()
         cancel_trainings(submission)

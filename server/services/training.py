@@ -34,8 +34,6 @@ from server.status import (
 )
 from server.tracks import Track
 
-S = SubmissionStatus
-T = TrainingStatus
 # The failure a job gets when every worker that took it died.
 WORKER_LOST = "worker_lost"
 
@@ -67,7 +65,7 @@ def _new_job(session: Session, settings: Settings, submission: Submission) -> Tr
     job = TrainingJob(
         submission_id=submission.id,
         attempt=attempt,
-        status=T.queued,
+        status=TrainingStatus.queued,
         claims=0,
         elapsed_s=0.0,
         log_tail="",
@@ -86,9 +84,9 @@ def start_training(session: Session, settings: Settings, submission_id: int) -> 
     """The first training job of a queued offline submission; None for a freestyle one or one
     no longer queued (a duplicate delivery)."""
     submission = lock(session, Submission, submission_id)
-    if submission.track != Track.offline or submission.status != S.queued:
+    if submission.track != Track.offline or submission.status != SubmissionStatus.queued:
         return None
-    submission.status = advance(submission.status, S.training, SUBMISSION_MOVES)
+    submission.status = advance(submission.status, SubmissionStatus.training, SUBMISSION_MOVES)
     submission.started_at = now()
     return _new_job(session, settings, submission).id
 
@@ -99,7 +97,7 @@ def retrain(session: Session, settings: Settings, submission_id: int) -> Trainin
     submission = lock(session, Submission, submission_id)
     if submission.track != Track.offline:
         raise Conflict(f"submission {submission_id} is {submission.track}: it has no training")
-    if submission.status not in (S.scored, S.failed):
+    if submission.status not in (SubmissionStatus.scored, SubmissionStatus.failed):
         raise Conflict(
             f"submission {submission_id} is {submission.status}: only scored or failed "
             "submissions can be retrained"
@@ -111,7 +109,7 @@ def retrain(session: Session, settings: Settings, submission_id: int) -> Trainin
 
 
 def latest_trained(submission: Submission) -> TrainingJob | None:
-    trained = [job for job in submission.trainings if job.status == T.trained]
+    trained = [job for job in submission.trainings if job.status == TrainingStatus.trained]
     return trained[-1] if trained else None
 
 
@@ -129,8 +127,8 @@ def claim_training(
         return None
     if leases.held(job):
         return None
-    if job.status == T.queued:
-        job.status = advance(job.status, T.training, TRAINING_MOVES)
+    if job.status == TrainingStatus.queued:
+        job.status = advance(job.status, TrainingStatus.training, TRAINING_MOVES)
         job.started_at = now()
     job.claims += 1
     leases.take(job, worker, settings)
@@ -146,7 +144,7 @@ def _fence(claim: TrainingClaim, worker: str) -> tuple:
     """``worker``'s claim number ``claim.claim``: a superseded training never writes."""
     return (
         TrainingJob.id == claim.training_id,
-        TrainingJob.status == T.training,
+        TrainingJob.status == TrainingStatus.training,
         TrainingJob.worker == worker,
         TrainingJob.claims == claim.claim,
     )
@@ -173,7 +171,7 @@ def release(session: Session, claim: TrainingClaim, worker: str) -> bool:
 
 def _finish(session: Session, claim: TrainingClaim, worker: str) -> TrainingJob | None:
     job = lock(session, TrainingJob, claim.training_id)
-    if (job.status, job.worker, job.claims) != (T.training, worker, claim.claim):
+    if (job.status, job.worker, job.claims) != (TrainingStatus.training, worker, claim.claim):
         return None  # a duplicate delivery, or a superseded claim: the result is not ours
     leases.drop(job)
     job.finished_at = now()
@@ -197,13 +195,16 @@ def record_trained(
     job = _finish(session, claim, worker)
     if job is None:
         return None
-    job.status = advance(job.status, T.trained, TRAINING_MOVES)
+    job.status = advance(job.status, TrainingStatus.trained, TRAINING_MOVES)
     job.elapsed_s, job.log_tail = elapsed_s, log_tail
     job.model_key, job.model_sha256, job.model_size = model_key, model_sha256, model_size
     submission = lock(session, Submission, claim.submission_id)
-    if submission.status == S.training:
-        submission.status = advance(submission.status, S.running, SUBMISSION_MOVES)
-    elif submission.status not in (S.scored, S.failed):  # cancelled or disqualified
+    if submission.status == SubmissionStatus.training:
+        submission.status = advance(submission.status, SubmissionStatus.running, SUBMISSION_MOVES)
+    elif submission.status not in (
+        SubmissionStatus.scored,
+        SubmissionStatus.failed,
+    ):  # cancelled or disqualified
         return None
     return create_run(session, settings, submission, training=job)
 
@@ -224,12 +225,12 @@ def record_failed(
     job = _finish(session, claim, worker)
     if job is None:
         return False
-    job.status = advance(job.status, T.failed, TRAINING_MOVES)
+    job.status = advance(job.status, TrainingStatus.failed, TRAINING_MOVES)
     job.failure, job.error = failure, error
     job.elapsed_s, job.log_tail = elapsed_s, log_tail
     submission = lock(session, Submission, claim.submission_id)
-    if submission.status == S.training:
-        submission.status = advance(submission.status, S.failed, SUBMISSION_MOVES)
+    if submission.status == SubmissionStatus.training:
+        submission.status = advance(submission.status, SubmissionStatus.failed, SUBMISSION_MOVES)
         submission.status_reason = f"{failure}: {error}"
         submission.failed_on_our_side = ours
         submission.finished_at = now()
@@ -241,7 +242,7 @@ def cancel_trainings(submission: Submission) -> None:
     kills the sandbox."""
     for job in submission.trainings:
         if job.status in ACTIVE_TRAINING:
-            job.status = advance(job.status, T.cancelled, TRAINING_MOVES)
+            job.status = advance(job.status, TrainingStatus.cancelled, TRAINING_MOVES)
             leases.drop(job)
             job.finished_at = now()
 
@@ -251,7 +252,9 @@ def reap(session: Session, settings: Settings, *, queue_empty: bool) -> tuple[in
     and, when the queue is empty, those whose task was lost before any worker held them."""
     moment = now()
     resend: list[int] = []
-    for job in session.scalars(leases.expired(TrainingJob, TrainingJob.status == T.training)):
+    for job in session.scalars(
+        leases.expired(TrainingJob, TrainingJob.status == TrainingStatus.training)
+    ):
         leases.drop(job)
         resend.append(job.id)
     if queue_empty:

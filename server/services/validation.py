@@ -27,7 +27,6 @@ from server.services.evaluation import lock
 from server.status import SUBMISSION_MOVES, SubmissionStatus, advance
 from server.tracks import Track
 
-S = SubmissionStatus
 BUSY = (
     "an upload of your team is still being validated{which}: wait until it is queued or "
     "rejected, then upload again"
@@ -48,7 +47,7 @@ def check_not_busy(session: Session, team_id: int) -> None:
     """Refuse early (before the body is read) when the team's slot is taken."""
     busy = session.scalar(
         select(Submission.id).where(
-            Submission.team_id == team_id, Submission.status == S.validating
+            Submission.team_id == team_id, Submission.status == SubmissionStatus.validating
         )
     )
     if busy is not None:
@@ -71,7 +70,7 @@ def reserve(
                 upload_key=f"submissions/{uuid.uuid4().hex}/upload.zip",
                 file_sha256="",
                 file_size=0,
-                status=S.validating,
+                status=SubmissionStatus.validating,
                 **fields,
             )
             session.add(submission)
@@ -94,7 +93,7 @@ def give_back(db: Database, submission_id: int) -> None:
     """The upload never passed its cheap checks: the reservation leaves no trace."""
     with db.session() as session:
         submission = session.get(Submission, submission_id)
-        if submission is None or submission.status != S.validating:
+        if submission is None or submission.status != SubmissionStatus.validating:
             return
         job = session.scalar(
             select(UploadValidation).where(UploadValidation.submission_id == submission_id)
@@ -125,7 +124,7 @@ def claim(
     """Take the validation for ``worker``; None when it is over or held by a live lease."""
     submission = lock(session, Submission, submission_id)
     job = _job(session, submission_id)
-    if job is None or submission.status != S.validating or leases.held(job):
+    if job is None or submission.status != SubmissionStatus.validating or leases.held(job):
         return None
     job.claims += 1
     job.started_at = job.started_at or utcnow()
@@ -163,7 +162,7 @@ def _finish(session: Session, claim: ValidationClaim, worker: str) -> Submission
         return None  # a duplicate delivery, or a superseded claim: the verdict is not ours
     leases.drop(job)
     job.finished_at = utcnow()
-    return submission if submission.status == S.validating else None
+    return submission if submission.status == SubmissionStatus.validating else None
 
 
 def record_valid(
@@ -178,7 +177,7 @@ def record_valid(
     submission = _finish(session, claim, worker)
     if submission is None:
         return False
-    submission.status = advance(submission.status, S.queued, SUBMISSION_MOVES)
+    submission.status = advance(submission.status, SubmissionStatus.queued, SUBMISSION_MOVES)
     submission.queued_at = utcnow()
     submission.deps_key = deps_key
     if not submission.description.strip():
@@ -195,7 +194,9 @@ def record_rejected(
     if submission is None:
         return False
     submission.status = advance(
-        submission.status, S.failed if ours else S.rejected, SUBMISSION_MOVES
+        submission.status,
+        SubmissionStatus.failed if ours else SubmissionStatus.rejected,
+        SUBMISSION_MOVES,
     )
     submission.status_reason = reason
     submission.failed_on_our_side = ours
@@ -216,7 +217,11 @@ def reap(session: Session, settings: Settings, *, queue_empty: bool) -> list[int
         idle = session.scalars(
             select(UploadValidation)
             .join(Submission)
-            .where(active, UploadValidation.worker == "", Submission.status == S.validating)
+            .where(
+                active,
+                UploadValidation.worker == "",
+                Submission.status == SubmissionStatus.validating,
+            )
             .with_for_update(of=UploadValidation)
         )
         for job in idle:
@@ -232,7 +237,7 @@ def deps_in_use(session: Session) -> set[str]:
     """Requirement folders a kept submission names (rejected ones keep none)."""
     keys = session.scalars(
         select(Submission.deps_key).where(
-            Submission.deps_key.is_not(None), Submission.status != S.rejected
+            Submission.deps_key.is_not(None), Submission.status != SubmissionStatus.rejected
         )
     )
     return set(keys)

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from arena.errors import ParticipantError
 from sim.geometry import wrap
 from sim.interface import ACTION_LENGTH, ActionSpace
 from sim.road.waypoints import preferred_successor
@@ -48,7 +49,7 @@ MAX_ACTION_MAGNITUDE = 1.0e6
 _QUOTE_CHARS = 80
 
 
-class InvalidAction(ValueError):
+class InvalidAction(ParticipantError, ValueError):
     """An action broke a rule; ``rule`` is its short name, the message quotes the value."""
 
     def __init__(self, rule: str, message: str) -> None:

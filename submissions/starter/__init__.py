@@ -5,11 +5,13 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
+from arena.errors import ArenaError
+
 STARTER = Path(__file__).resolve().parent
 FILES = ("policy.py", "agent.yaml", "test_policy.py")
 
 
-class FolderNotEmpty(Exception):
+class FolderNotEmpty(ArenaError):
     """The target folder already holds files (never overwrite a participant's work)."""
 
 

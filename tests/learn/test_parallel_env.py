@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from pettingzoo.test import parallel_api_test
 
 from learn.parallel_env import DrivingArenaParallelEnv
@@ -18,6 +19,7 @@ def test_passes_pettingzoos_parallel_api_test(closing) -> None:
     parallel_api_test(env, num_cycles=60)
 
 
+@pytest.mark.slow
 def test_three_agents_act_at_once_joining_and_leaving(closing) -> None:
     env = DrivingArenaParallelEnv(THREE_AGENTS, action_space="LaneWithContinuousSpeed")
     closing(env)

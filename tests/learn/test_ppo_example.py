@@ -40,6 +40,7 @@ def test_the_submission_receives_the_training_observation() -> None:
     assert example_interface().observation_format is ObservationFormat.arrays
 
 
+@pytest.mark.slow
 def test_onnx_export_gives_the_trained_networks_logits(example, short_road) -> None:
     from stable_baselines3 import PPO
 
@@ -67,6 +68,7 @@ def test_onnx_export_gives_the_trained_networks_logits(example, short_road) -> N
     )
 
 
+@pytest.mark.slow
 def test_a_tiny_training_run_exports_a_policy_the_submission_runs(example, short_road) -> None:
     path = example["train"].train(64, short_road.parent / "tiny", suite=str(short_road), n_steps=32)
     policy = example["policy"].Policy(model=path)

@@ -51,6 +51,7 @@ def test_every_wheel_carries_the_start_up_hook(tmp_path) -> None:
     assert hook.decode().startswith("import learn.gymnasium_hook")
 
 
+@pytest.mark.slow
 def test_a_fresh_interpreter_makes_the_env_by_name(short_road, tmp_path) -> None:
     code = (
         "import gymnasium\n"

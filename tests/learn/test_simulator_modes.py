@@ -22,6 +22,7 @@ def _leaves(obs: dict, path: str = ""):
             yield f"{path}{name}", value
 
 
+@pytest.mark.slow
 def test_in_process_and_child_process_give_the_same_episode(closing) -> None:
     here = DrivingArenaEnv(
         CRUISE,
@@ -53,6 +54,7 @@ def test_in_process_and_child_process_give_the_same_episode(closing) -> None:
             break
 
 
+@pytest.mark.slow
 def test_auto_gives_a_second_env_in_this_process_a_child(closing, short_road) -> None:
     first = DrivingArenaEnv(short_road, action_space="Continuous")
     second = DrivingArenaEnv(short_road, action_space="Continuous")

@@ -19,7 +19,7 @@ def cache_dir(tmp_path_factory) -> Path:
 @pytest.fixture(scope="session")
 def scenes_dir() -> Path:
     """The shipped naturalistic scenes (scenarios/data/naturalistic/commonroad-ngsim)."""
-    from scenarios.replay.naturalistic import shipped_scenes_dir
+    from scenarios.recorded.naturalistic import shipped_scenes_dir
 
     folder = shipped_scenes_dir()
     # The scenes ship in the repository: missing ones are a broken checkout or setting, never a

@@ -3,6 +3,7 @@ from __future__ import annotations
 import json
 import shutil
 
+import pytest
 from typer.testing import CliRunner
 
 from arena.cli import app
@@ -32,6 +33,7 @@ def test_public_build_refuses_a_seed(tmp_path):
     assert result.exit_code != 0
 
 
+@pytest.mark.slow
 def test_list_show_and_verify_on_a_copy_of_the_public_set(tmp_path):
     suite = tmp_path / "public"
     shutil.copytree(SHIPPED_PUBLIC_DIR, suite)

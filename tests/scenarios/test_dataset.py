@@ -9,6 +9,7 @@ import shutil
 
 import minari  # the dev extra installs it: no silent skip in CI
 import numpy as np
+import pytest
 from typer.testing import CliRunner
 
 from arena.cli import app
@@ -16,8 +17,8 @@ from arena.suite import SHIPPED_PUBLIC_DIR
 from scenarios.dataset.build import DATASET_ID, MANIFEST, TRANSITIONS
 from scenarios.dataset.collect import collect
 from scenarios.dataset.features import ACTION_SIZE, OBS_SIZE, to_target_pose
-from scenarios.replay.builder import EXPERT_FILE
-from scenarios.replay.naturalistic import ego_choices, load_scene, scene_net, write_naturalistic
+from scenarios.recorded.builder import EXPERT_FILE
+from scenarios.recorded.naturalistic import ego_choices, load_scene, scene_net, write_naturalistic
 from sim.trajectories import read_trajectories
 
 runner = CliRunner()
@@ -25,6 +26,7 @@ KEPT, HIDDEN = "USA_US101-3_3_T-1.xml", "USA_Peach-4_8_T-1.xml"
 RECORDED = "p033_replay_merge_2agents"
 
 
+@pytest.mark.slow
 def test_dataset_loads_with_minari_and_leaves_out_hidden_scenes(tmp_path, scenes_dir, monkeypatch):
     scenes = tmp_path / "scenes"
     scenes.mkdir()
@@ -98,6 +100,7 @@ def _scene_and_net(path, tmp_path):
     return scene, scene_net(scene, tmp_path / "cache")
 
 
+@pytest.mark.slow
 def test_actions_reproduce_the_recorded_motion(tmp_path, scenes_dir):
     """Tolerance: the pose each action targets is the next observed pose within 1 cm and
     0.01 rad, and observed poses are the recorded trajectory within 5 cm."""

@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from scenarios.replay.commonroad import CommonRoadImportError, read_commonroad
-from scenarios.replay.ngsim import FOOT, NgsimFormatError, headings_from_positions, read_ngsim
+from scenarios.recorded.commonroad import CommonRoadImportError, read_commonroad
+from scenarios.recorded.ngsim import FOOT, NgsimFormatError, headings_from_positions, read_ngsim
 
 NGSIM_HEADER = "Vehicle_ID,Frame_ID,Total_Frames,Local_X,Local_Y,v_Length,v_Width,v_Vel,Lane_ID\n"
 

@@ -9,6 +9,7 @@ from sim.road import RoadNetwork
 from sim.road.waypoints import waypoint_paths
 
 
+@pytest.mark.slow
 def test_netconvert_output_is_deterministic(tmp_path):
     a = build_map("cross_upside_rotated", tmp_path / "a")
     b = build_map("cross_upside_rotated", tmp_path / "b")
@@ -21,6 +22,7 @@ def test_unknown_template_is_a_clear_error(tmp_path):
         build_map("moon_base", tmp_path)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(TEMPLATES))
 def test_template_builds_with_speed_limits(name, cache_dir):
     info = net_info(build_map(name, cache_dir))

@@ -13,11 +13,11 @@ import pytest
 import sumolib
 
 from arena.scenario import DataLabel, load_scenario
-from scenarios.replay.builder import EXPERT_FILE
-from scenarios.replay.commonroad import CommonRoadImportError, read_scene
-from scenarios.replay.lanelet_net import build_lanelet_net, lanelet_edges
-from scenarios.replay.map_match import MAX_ANGLE_RAD, REACH_M, fit_trajectory
-from scenarios.replay.naturalistic import (
+from scenarios.recorded.builder import EXPERT_FILE
+from scenarios.recorded.commonroad import CommonRoadImportError, read_scene
+from scenarios.recorded.lanelet_net import build_lanelet_net, lanelet_edges
+from scenarios.recorded.map_match import MAX_ANGLE_RAD, REACH_M, fit_trajectory
+from scenarios.recorded.naturalistic import (
     ATTRIBUTION_FILE,
     NaturalisticImportError,
     ego_choices,
@@ -117,6 +117,7 @@ def test_malformed_scenes_are_rejected_naming_file_and_problem(tmp_path):
         load_scene(tmp_path / "notes.txt")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(SHIPPED))
 def test_lanelets_become_sumo_lanes_with_their_width_speed_and_place(nets, name):
     """Each lanelet is a lane of its width and speed limit, in place (coordinates not shifted);
@@ -175,6 +176,7 @@ def naturalistic_scenarios(nets, tmp_path_factory) -> list[Path]:
     return folders
 
 
+@pytest.mark.slow
 def test_every_scene_gives_several_ego_choices(naturalistic_scenarios):
     per_scene: dict[str, int] = {}
     for folder in naturalistic_scenarios:
@@ -202,6 +204,7 @@ def test_naturalistic_scenario_replaces_one_recorded_vehicle(nets, naturalistic_
         assert "NGSIM" in attribution and "BSD" in attribution and "OpenStreetMap" in attribution
 
 
+@pytest.mark.slow
 def test_log_replay_expert_solves_every_naturalistic_scenario(naturalistic_scenarios, tmp_path):
     unsolved = [
         (folder.name, r.reason)
@@ -215,6 +218,7 @@ def test_log_replay_expert_solves_every_naturalistic_scenario(naturalistic_scena
         assert record["ev_off_route"].sum() == 0 and record["ev_wrong_way"].sum() == 0, folder.name
 
 
+@pytest.mark.slow
 def test_ngsim_csv_scene_gets_straight_lanes_and_solvable_scenarios(tmp_path):
     """An NGSIM CSV scene (no road in the file): one straight 12 ft lane per Lane_ID; vehicles
     40 ft apart in lanes 1-3 at 40 ft/s, one drifting from lane 2 into lane 3."""
@@ -243,7 +247,7 @@ def test_ngsim_csv_scene_gets_straight_lanes_and_solvable_scenarios(tmp_path):
 
 
 def _straight(lid, y_right, *, left=None, right=None):
-    from scenarios.replay.commonroad import Lanelet
+    from scenarios.recorded.commonroad import Lanelet
 
     return Lanelet(
         lid,
@@ -257,6 +261,7 @@ def _straight(lid, y_right, *, left=None, right=None):
     )
 
 
+@pytest.mark.slow
 def test_side_by_side_lanelets_are_one_edge_and_bad_neighbour_loops_are_not(tmp_path):
     pair = [_straight(1, 0.0, left=2), _straight(2, 3.5, right=1)]
     assert lanelet_edges(pair) == {1: ("cr1_2", 0), 2: ("cr1_2", 1)}
@@ -268,6 +273,7 @@ def test_side_by_side_lanelets_are_one_edge_and_bad_neighbour_loops_are_not(tmp_
     assert set(lanelet_edges(looped)) == {3, 4}
 
 
+@pytest.mark.slow
 def test_a_track1_agent_drives_the_imported_maps(naturalistic_scenarios, tmp_path):
     """The reference planner (waypoints, observations, events on the imported lanes) runs one
     scenario of every scene without a simulator error and reaches some goals."""

@@ -27,6 +27,7 @@ def hidden_natural(tmp_path_factory, cache_dir, scenes_dir):
     return out
 
 
+@pytest.mark.slow
 def test_hidden_suite_draws_its_one_agent_replays_from_the_scenes(hidden_natural):
     entries = manifest(hidden_natural)["scenarios"]
     assert len(entries) == 128 and sum(e["reactive"] for e in entries) == 71

@@ -6,6 +6,8 @@ import multiprocessing as mp
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
+import pytest
+
 from arena.suite import SHIPPED_PUBLIC_DIR
 from tests.scenarios.conftest import manifest
 
@@ -29,6 +31,7 @@ def run_50_steps(folder: Path) -> tuple[str, int, int]:
     return scenario.id, sim.step_count, seen
 
 
+@pytest.mark.slow
 def test_every_public_scenario_runs_50_steps():
     folder = SHIPPED_PUBLIC_DIR
     entries = manifest(folder)["scenarios"]

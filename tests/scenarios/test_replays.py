@@ -5,9 +5,9 @@ import pytest
 
 from arena.scenario import DataLabel, load_scenario
 from scenarios.maps import build_map
-from scenarios.replay.builder import EXPERT_FILE
-from scenarios.replay.geometry import boxes_overlap
-from scenarios.replay.recorder import record_scene
+from scenarios.recorded.builder import EXPERT_FILE
+from scenarios.recorded.geometry import boxes_overlap
+from scenarios.recorded.recorder import record_scene
 from scenarios.traffic import Flow, Routes, driver_types
 from scenarios.verify import verify_suite
 from sim.trajectories import read_trajectories
@@ -43,6 +43,7 @@ def _boxes(tr, frames):
     )
 
 
+@pytest.mark.slow
 def test_replays_are_recorded_and_the_removed_paths_collide_with_nothing(hidden_dev):
     replays = [e for e in manifest(hidden_dev)["scenarios"] if e["family"] == "replay"]
     assert len(replays) == 58

@@ -74,6 +74,7 @@ def test_manifest_hashes_match_folders_and_hide_the_seed(hidden_dev):
         assert content_hash(hidden_dev / e["id"]) == e["hash"]
 
 
+@pytest.mark.slow
 def test_same_seed_same_bytes_other_seed_other_hashes(hidden_dev, tmp_path, cache_dir):
     from arena.config import get_settings
 
@@ -98,6 +99,7 @@ def _traffic_bytes(folder):
     )
 
 
+@pytest.mark.slow
 def test_no_public_scenario_equals_a_hidden_one(hidden_dev, public_fresh):
     hidden = manifest(hidden_dev)["scenarios"]
     public = manifest(public_fresh)["scenarios"]

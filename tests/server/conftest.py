@@ -1,6 +1,7 @@
-"""Fixtures of the service tests: every database test runs on SQLite and on PostgreSQL (a fresh
-database per session, dropped at the end); tasks go to the shared Redis under a key prefix of
-this session, removed at the end."""
+"""Fixtures of the service tests: every database test runs twice, on SQLite with an in-memory
+broker (the fast tier, ``pytest -m "not integration"``) and on PostgreSQL (a fresh database per
+session, dropped at the end) with tasks on the shared Redis under a key prefix of this session,
+removed at the end (``integration``, as in production)."""
 
 from __future__ import annotations
 
@@ -38,7 +39,14 @@ def _drop_pg_database(name: str) -> None:
         connection.execute(f'DROP DATABASE IF EXISTS "{name}" WITH (FORCE)')
 
 
-@pytest.fixture(scope="session", params=["sqlite", "postgresql"])
+# The in-process broker of the fast tier: tasks sent are held in this process, never run.
+MEMORY_BROKER = "memory://"
+
+
+@pytest.fixture(
+    scope="session",
+    params=["sqlite", pytest.param("postgresql", marks=pytest.mark.integration)],
+)
 def database_url(request, tmp_path_factory) -> Iterator[str]:
     if request.param == "sqlite":
         url = f"sqlite:///{tmp_path_factory.mktemp('sqlite') / 'arena.db'}"
@@ -64,18 +72,28 @@ def broker_prefix() -> Iterator[str]:
 
 
 @pytest.fixture
+def broker(request, database_url) -> tuple[str, str]:
+    """(broker URL, key prefix): Redis beside PostgreSQL (production's pair), the in-memory
+    broker beside SQLite (no server needed)."""
+    if database_url.startswith("sqlite"):
+        return MEMORY_BROKER, ""
+    return REDIS_URL, request.getfixturevalue("broker_prefix")
+
+
+@pytest.fixture
 def suite_dir(tmp_path) -> Path:
     return write_suite(tmp_path / "suite", {"cruise": 2, "merge": 1})
 
 
 @pytest.fixture
-def settings(tmp_path, database_url, broker_prefix, suite_dir) -> Settings:
+def settings(tmp_path, database_url, broker, suite_dir) -> Settings:
+    url, prefix = broker
     return Settings(
         _env_file=None,
         data_dir=tmp_path / "data",
         database_url=database_url,
-        broker_url=REDIS_URL,
-        broker_key_prefix=broker_prefix,
+        broker_url=url,
+        broker_key_prefix=prefix,
         hidden_suite_dir=suite_dir,
         public_suite_dir=suite_dir,
         admin_token=ADMIN_TOKEN,

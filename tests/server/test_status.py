@@ -18,22 +18,26 @@ from server.status import (
     advance,
 )
 
-S = SubmissionStatus
 # The lifecycle order; a legal move never goes to an earlier stage.
 STAGE = {
-    S.received: 0,
-    S.validating: 0,
-    S.queued: 1,
-    S.training: 2,  # offline submissions only
-    S.running: 3,
-    S.scored: 4,
-    S.failed: 4,
-    S.cancelled: 4,
-    S.rejected: 4,
-    S.disqualified: 5,
+    SubmissionStatus.received: 0,
+    SubmissionStatus.validating: 0,
+    SubmissionStatus.queued: 1,
+    SubmissionStatus.training: 2,  # offline submissions only
+    SubmissionStatus.running: 3,
+    SubmissionStatus.scored: 4,
+    SubmissionStatus.failed: 4,
+    SubmissionStatus.cancelled: 4,
+    SubmissionStatus.rejected: 4,
+    SubmissionStatus.disqualified: 5,
 }
-T = TrainingStatus
-TRAINING_STAGE = {T.queued: 0, T.training: 1, T.trained: 2, T.failed: 2, T.cancelled: 2}
+TRAINING_STAGE = {
+    TrainingStatus.queued: 0,
+    TrainingStatus.training: 1,
+    TrainingStatus.trained: 2,
+    TrainingStatus.failed: 2,
+    TrainingStatus.cancelled: 2,
+}
 
 
 @pytest.mark.parametrize("current,new", list(itertools.product(SubmissionStatus, repeat=2)))
@@ -66,10 +70,18 @@ def test_run_moves(current, new):
 
 
 def test_the_main_path_is_legal_and_scored_never_goes_back():
-    status = S.received
-    for new in (S.queued, S.running, S.scored):
+    status = SubmissionStatus.received
+    for new in (SubmissionStatus.queued, SubmissionStatus.running, SubmissionStatus.scored):
         status = advance(status, new, SUBMISSION_MOVES)
-    for earlier in (S.received, S.queued, S.running, S.failed):
+    for earlier in (
+        SubmissionStatus.received,
+        SubmissionStatus.queued,
+        SubmissionStatus.running,
+        SubmissionStatus.failed,
+    ):
         with pytest.raises(IllegalTransition):
             advance(status, earlier, SUBMISSION_MOVES)
-    assert advance(status, S.disqualified, SUBMISSION_MOVES) == S.disqualified
+    assert (
+        advance(status, SubmissionStatus.disqualified, SUBMISSION_MOVES)
+        == SubmissionStatus.disqualified
+    )

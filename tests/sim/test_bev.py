@@ -14,7 +14,7 @@ from sim.bev import COLOURS, OCCUPIED, BevRenderer, EgoPose
 from sim.interface import ActionSpace, AgentInterface
 from sim.road import RoadNetwork
 from sim.simulation import Simulation
-from sim.vehicles import VehicleStates
+from sim.vehicle.states import VehicleStates
 from tests.sim.builders import ScenarioSpec, lane_y, make_scenario, mission, vehicle_xml
 
 ALL_RASTERS = {"top_down_rgb": True, "occupancy_grid_map": True, "drivable_area_grid_map": True}

@@ -35,6 +35,7 @@ def file_of(fd: int) -> int:
         os.close(fd)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "scenario_id",
     ["p000_left_turn_t_low", "p029_replay_i80_bubble", "p030_replay_cruise"],
@@ -73,6 +74,7 @@ def test_cached_inputs_cannot_be_written(tmp_path):
         os.close(fd)
 
 
+@pytest.mark.slow
 def test_cache_drops_the_least_recently_used_past_its_limit(tmp_path):
     one = make_scenario(tmp_path / "one", ScenarioSpec())
     two = make_scenario(tmp_path / "two", ScenarioSpec(trajectories=REPLAY_CSV))
@@ -85,6 +87,7 @@ def test_cache_drops_the_least_recently_used_past_its_limit(tmp_path):
     assert file_of(cache.open(one)) != first  # parsed again: it had been dropped
 
 
+@pytest.mark.slow
 def test_an_unreadable_network_is_left_to_the_episode_and_is_a_simulator_error(tmp_path):
     folder = make_scenario(tmp_path / "sc", ScenarioSpec())
     scenario = load_scenario(folder)

@@ -7,6 +7,7 @@ from functools import partial
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from arena.outcome import DoneReason
 from sim.episode import run_episode
@@ -25,6 +26,7 @@ from tests.sim.agents import (
 from tests.sim.builders import ScenarioSpec, make_scenario
 
 
+@pytest.mark.slow
 def test_isolated_episode_returns_the_result_and_agent_log(tmp_path):
     folder = make_scenario(tmp_path / "sc", ScenarioSpec())
     record = tmp_path / "out" / "sc.npz"
@@ -81,6 +83,7 @@ def test_agent_failing_at_init_fails_every_agent_and_still_writes_the_record(tmp
         assert data["x"].shape == (1, 0)
 
 
+@pytest.mark.slow
 def test_a_hung_episode_is_killed_at_the_hard_timeout(tmp_path):
     folder = make_scenario(tmp_path / "sc", ScenarioSpec())
     result = run_episode_isolated(
@@ -90,6 +93,7 @@ def test_a_hung_episode_is_killed_at_the_hard_timeout(tmp_path):
     assert [a.reason for a in result.agents] == [DoneReason.simulator_error]
 
 
+@pytest.mark.slow
 def test_wall_time_limit_ends_the_episode_keeping_the_record(tmp_path):
     folder = make_scenario(tmp_path / "sc", ScenarioSpec())
     record = tmp_path / "r.npz"
@@ -109,6 +113,7 @@ def test_preload_names_the_simulator_the_factory_module_and_what_it_lists():
     assert modules[-1] == "sim.forked"  # freezes what the others made
 
 
+@pytest.mark.slow
 def test_episode_children_start_with_the_factory_modules_already_imported(tmp_path):
     """A fresh process (its own fork server): every episode child has the listed module before
     the factory runs, because the server imported it once."""
@@ -134,6 +139,7 @@ for i in range(2):
     assert done.stdout.split() == ["preloaded=True", "frozen=True"] * 2
 
 
+@pytest.mark.slow
 def test_episode_children_do_not_run_the_main_script_again(tmp_path):
     """multiprocessing would run the main script again in every episode's child (for ``arena
     evaluate``, importing every command's modules): the factory does not come from it."""

@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from sim.interface import AgentInterface
 from sim.observation_arrays import RECORD_ALIGN, ObservationEncoder, ObservationLayout
@@ -95,6 +96,7 @@ def test_leaves_are_aligned_and_apart() -> None:
     assert json.loads(json.dumps(layout.describe()))["size"] == layout.size
 
 
+@pytest.mark.slow
 def test_a_reused_encoder_gives_what_a_fresh_one_gives_along_a_route() -> None:
     """The encoder remembers waypoint dicts and the last step's paths. A vehicle driving a left
     turn through a junction (paths shift, change lanes, shorten, a new path appears) and

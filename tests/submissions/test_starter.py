@@ -6,6 +6,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 from typer.testing import CliRunner
 
 from arena.cli import app
@@ -13,6 +14,7 @@ from arena.cli import app
 REPO = Path(__file__).resolve().parents[2]
 
 
+@pytest.mark.slow
 def test_init_writes_an_agent_whose_own_test_passes(tmp_path):
     folder = tmp_path / "my_agent"
     result = CliRunner().invoke(app, ["init", str(folder)])
@@ -31,6 +33,7 @@ def test_init_writes_an_agent_whose_own_test_passes(tmp_path):
     assert "1 passed" in run.stdout
 
 
+@pytest.mark.slow
 def test_init_test_catches_a_broken_policy(tmp_path):
     folder = tmp_path / "my_agent"
     CliRunner().invoke(app, ["init", str(folder)])
@@ -54,6 +57,7 @@ def test_init_refuses_a_folder_with_files(tmp_path):
     assert (tmp_path / "policy.py").read_text() == "mine"
 
 
+@pytest.mark.slow
 def test_the_starting_agent_drives_a_public_scenario(tmp_path):
     folder = tmp_path / "my_agent"
     CliRunner().invoke(app, ["init", str(folder)])

@@ -17,6 +17,7 @@ from server.api.deps import (
     SessionDep,
     SettingsDep,
 )
+from server.core.artifacts import artifact_store
 from server.schemas import SubmissionSummary
 from server.services import admin, replays, submissions
 
@@ -90,8 +91,6 @@ def retrain(
 def trained_model(submission_id: SubmissionId, db: DatabaseDep, settings: SettingsDep) -> Response:
     """The trained output of an offline submission, for audit: the ``.tar.gz`` whose sha256 the
     service stored (also in the ``X-Model-Sha256`` header)."""
-    from server.core.artifacts import artifact_store
-
     model = admin.trained_model(db, submission_id)
     return Response(
         artifact_store(settings, db).read(model.key),

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 from pathlib import Path
 
 import gymnasium as gym
@@ -61,6 +62,8 @@ class BaselineInputs(gym.Wrapper):
 
 def make_env(suite: str, rank: int, seed: int):
     def make():
+        # deferred: the kit (its public learn.gym_env, docs/training.md) loads in each env's
+        # own process, so AsyncVectorEnv's workers import it themselves
         from learn.gym_env import DrivingArenaEnv
 
         env = BaselineInputs(DrivingArenaEnv(suite, traffic_seed="random", **AGENT_OPTIONS))
@@ -72,6 +75,7 @@ def make_env(suite: str, rank: int, seed: int):
 
 def export_onnx(model, path: Path) -> None:
     """The policy's action logits as an ONNX graph of (image uint8, vector float32)."""
+    # deferred: torch is heavy; only the export needs it here
     import torch
 
     policy = model.policy.to("cpu").eval()
@@ -121,8 +125,7 @@ def train(
     """Train for ``timesteps`` (or until ``minutes`` of wall time pass), export, return the
     ONNX file's path. With ``export_every``, also export ``checkpoints/policy_<steps>.onnx``
     every that many steps, to compare the stages of a run with ``arena evaluate``."""
-    import time
-
+    # deferred: torch and stable-baselines3 are heavy; `--help` need not load them
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
@@ -146,7 +149,7 @@ def train(
         checkpoints.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(1)  # the simulators need the other core
     # DummyVecEnv is enough: the first env simulates in this process, the second in a child of
-    # its own (libsumo holds one simulation per process; learn.session.open_simulator).
+    # its own (libsumo holds one simulation per process; learn.simulators.open_simulator).
     envs = DummyVecEnv([make_env(suite, rank, seed) for rank in range(2)])
     model = PPO(
         "MultiInputPolicy",

@@ -4,6 +4,7 @@ stops early when the agent cannot start."""
 
 import json
 
+import pytest
 from typer.testing import CliRunner
 
 from arena.cli import app
@@ -23,6 +24,7 @@ def evaluate(*args: str, scenarios=SCENARIOS[:1]):
     return CliRunner().invoke(app, command)
 
 
+@pytest.mark.slow
 def test_each_version_keeps_its_results_and_force_replaces_them(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     agent = write_policy(tmp_path / "agent", KEEP_LANE.replace("SPEED", "8.0"))
@@ -60,6 +62,7 @@ def test_an_agent_that_cannot_start_stops_the_run_with_one_error(tmp_path):
     assert len(ran) == 2 and not summary["complete"]  # the third never started
 
 
+@pytest.mark.slow
 def test_identical_tracebacks_are_printed_once_with_their_scenarios(tmp_path):
     body = """
 class Policy:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from evaluator.sandbox import start
 from submissions.sample import sample_observation
@@ -38,6 +39,7 @@ def test_sample_rasters_reach_the_policy_as_uint8_arrays(any_kind, settings, lab
     assert received[:3] == [96, 96, 3] and received[3] > 0  # a real picture, not zeros
 
 
+@pytest.mark.slow
 def test_the_ppo_example_drives_from_rasters_in_the_sandbox(any_kind, settings, labels, tmp):
     """The committed PPO baseline (onnxruntime from its requirements.txt) answers a rastered
     observation with LaneWithContinuousSpeed actions."""

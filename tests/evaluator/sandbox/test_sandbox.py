@@ -105,6 +105,7 @@ def test_cleanup_removes_what_a_crashed_worker_left(kind, settings, labels, good
     handle.close()
 
 
+@pytest.mark.slow
 def test_cleanup_removes_socket_folders_of_killed_workers(settings, labels, good_agent) -> None:
     from evaluator.sandbox.backend import INSTANCE_LABEL
     from evaluator.sandbox.docker_backend import ORPHAN_SOCKET_DIR_AGE_S, socket_dir_for
@@ -164,6 +165,7 @@ def test_auto_prefers_docker_and_the_service_refuses_process(settings) -> None:
     assert check_service_kind("auto", settings) is expected
 
 
+@pytest.mark.slow
 def test_bubblewrap_bounds_the_cpu_time_an_agent_burns(settings, labels, tmp) -> None:
     budget = settings.model_copy(
         update={"init_timeout_s": 1.0, "episode_timeout_s": 1.0, "step_timeout_s": 30.0}
@@ -180,6 +182,7 @@ def test_bubblewrap_bounds_the_cpu_time_an_agent_burns(settings, labels, tmp) ->
     assert leftovers(kind, labels) == []
 
 
+@pytest.mark.slow
 def test_bubblewrap_agent_is_nobody_on_the_host(settings, labels, tmp) -> None:
     if os.geteuid() != 0:
         pytest.skip("only a root evaluator drops bubblewrap to uid 65534")
@@ -211,6 +214,7 @@ def test_cleanup_of_one_run_spares_another_of_the_same_zip(kind, settings, good_
     assert leftovers(kind, sandbox_labels(theirs)) == []
 
 
+@pytest.mark.slow
 def test_nothing_naming_the_scenario_enters_the_sandbox(any_kind, settings, tmp) -> None:
     """The bubblewrap backend put the labels (then the hidden scenario id) in the agent's
     environment; labels are opaque run keys now, and the scenario runner passes nothing else."""

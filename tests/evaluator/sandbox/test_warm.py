@@ -147,6 +147,7 @@ def test_cleanup_kills_a_leased_agent_and_close_leaves_nothing(kind, settings, l
     assert leftovers(kind, labels) == []
 
 
+@pytest.mark.slow
 def test_a_zygote_that_cannot_start_means_cold_episodes(settings, labels, tmp) -> None:
     """Nothing of the participant runs in the zygote, so its failure is ours: the pool says
     so with None (the runner then starts that submission's agents cold). Docker only: its

@@ -31,6 +31,7 @@ CHROMIUM_ARGS = [
 pytestmark = [
     pytest.mark.slow,
     pytest.mark.bwrap,
+    pytest.mark.browser,
     pytest.mark.skipif(
         not CHROMIUM.exists(), reason="needs Debian's chromium (apt-get install chromium)"
     ),

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 from server.services import evaluation
 from tests.server.builders import bearer, make_team, queued_submission, scenario_ids, seed_scored
 from tests.server.conftest import ADMIN_TOKEN
@@ -71,6 +73,7 @@ def test_admin_routes_need_the_admin_token(client, db):
     assert [item["id"] for item in listing] == [sid]
 
 
+@pytest.mark.slow
 def test_healthz_degrades_and_uploads_still_land_when_the_broker_is_down(settings, db, tmp_path):
     from fastapi.testclient import TestClient
 

@@ -29,6 +29,9 @@ ADMIN = "organiser-secret"
 PUBLIC_SUITE = load_suite(public_suite_dir(Settings(_env_file=None)))
 PUBLIC_ID = "p000_left_turn_t_low"
 
+# A live API process over a recorded episode (module fixture `served`).
+pytestmark = pytest.mark.slow
+
 
 def with_episode(db, store, submission_id: int, suite, record) -> None:
     """The submission's run evaluated the scenario of ``record`` from ``suite``."""
@@ -76,6 +79,7 @@ def served(tmp_path_factory):
     shutil.rmtree(root, ignore_errors=True)
 
 
+@pytest.mark.slow
 def test_team_watches_its_own_episodes_of_a_full_visibility_phase_only(served):
     url, token, ids = served
     api = f"{url}/api/v1"
@@ -104,6 +108,7 @@ def test_organisers_watch_every_episode_hidden_phases_included(served):
     assert httpx.get(path, headers=bearer(token)).status_code == 401
 
 
+@pytest.mark.slow
 def test_anyone_watches_the_expert_drive_a_public_scenario(served):
     url, _, _ = served
     first = httpx.get(f"{url}/api/v1/scenarios/public/{PUBLIC_ID}/replay", timeout=120)
@@ -134,6 +139,7 @@ def drawn(page) -> dict[str, dict]:
     return {v["id"]: v for v in vehicles}
 
 
+@pytest.mark.browser
 @pytest.mark.skipif(not CHROMIUM.exists(), reason="needs Debian's chromium")
 def test_submission_page_links_each_episode_and_the_slider_moves_the_vehicles(served, browser):
     from playwright.sync_api import expect
@@ -180,6 +186,7 @@ def test_submission_page_links_each_episode_and_the_slider_moves_the_vehicles(se
         page.close()
 
 
+@pytest.mark.browser
 @pytest.mark.skipif(not CHROMIUM.exists(), reason="needs Debian's chromium")
 def test_public_scenario_replay_plays_from_the_scenarios_page(served, browser):
     from playwright.sync_api import expect

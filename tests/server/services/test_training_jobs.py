@@ -23,8 +23,6 @@ from server.status import (
 from server.tracks import Track
 from tests.server.builders import make_team, queued_submission
 
-S = SubmissionStatus
-
 
 def offline(db) -> int:
     team_id, _ = make_team(db, "bc")
@@ -68,9 +66,11 @@ def test_only_offline_submissions_train_and_only_once(db, settings):
     sid = offline(db)
     assert started(db, settings, sid) is not None
     assert started(db, settings, sid) is None  # a duplicate delivery
-    assert status_of(db, sid) == S.training
+    assert status_of(db, sid) == SubmissionStatus.training
     with pytest.raises(IllegalTransition):
-        advance(S.running, S.training, SUBMISSION_MOVES)  # never backwards
+        advance(
+            SubmissionStatus.running, SubmissionStatus.training, SUBMISSION_MOVES
+        )  # never backwards
 
 
 def test_trained_output_starts_the_evaluation_of_that_output(db, settings):
@@ -78,7 +78,7 @@ def test_trained_output_starts_the_evaluation_of_that_output(db, settings):
     job = claim(db, settings, started(db, settings, sid), "w1")
     plan = trained(db, settings, job, "w1")
     assert plan is not None and plan.episodes
-    assert status_of(db, sid) == S.running
+    assert status_of(db, sid) == SubmissionStatus.running
     with db.session() as session:
         first = plan.episodes[0]
         work = evaluation.claim_scenario(
@@ -115,7 +115,7 @@ def test_a_failed_training_fails_the_submission_with_its_name(db, settings):
         )
     with db.session() as session:
         submission = session.get(Submission, sid)
-        assert submission.status == S.failed
+        assert submission.status == SubmissionStatus.failed
         assert submission.status_reason == "train_timeout: ran past 10 s"
         assert not submission.failed_on_our_side  # the team's: counts towards the quota
 
@@ -140,7 +140,7 @@ def test_retrain_is_a_new_attempt_and_rerun_uses_the_trained_output(db, settings
         with pytest.raises(Conflict, match="only scored or failed"):
             training.retrain(session, settings, sid)
         submission = session.get(Submission, sid)
-        submission.status = S.scored
+        submission.status = SubmissionStatus.scored
         for run in submission.runs:
             run.status = "scored"
     with db.session() as session:

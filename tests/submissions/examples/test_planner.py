@@ -153,6 +153,7 @@ def test_planner_agent_uses_the_interface_of_its_agent_yaml():
     assert agent.act({}) == {}
 
 
+@pytest.mark.slow
 def test_planner_solves_at_least_90_percent_of_public_reactive_scenarios():
     suite = SHIPPED_PUBLIC_DIR
     ids = [
@@ -174,6 +175,7 @@ def test_planner_solves_at_least_90_percent_of_public_reactive_scenarios():
     assert np.mean([r.steps for r in results if r.solved]) < 600
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "scenario", ["p017_cruise_3lane_curve_high", "p026_overtake_3lane_curve_slow_mid"]
 )

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from arena.errors import ArenaError
 from sim.trajectories import Trajectory
 
 STEP_S = 0.1  # [s]
@@ -31,7 +32,7 @@ SPEED_LIMIT_SIGNS = ("R2-1", "274")  # US and German maximum-speed signs
 DEFAULT_SPEED_LIMIT = 29.0576  # [m/s] 65 mph, US-101's posted limit, where a lanelet has none
 
 
-class CommonRoadImportError(ValueError):
+class CommonRoadImportError(ArenaError, ValueError):
     pass
 
 

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from scenarios.generators import MapLibrary
-from scenarios.replay.builder import FLOWS_STOP_BEFORE_END_S
-from scenarios.replay.recorder import Recording, record_scene
+from scenarios.recorded.builder import FLOWS_STOP_BEFORE_END_S
+from scenarios.recorded.recorder import Recording, record_scene
 from scenarios.traffic import Flow, Routes, driver_types
 
 

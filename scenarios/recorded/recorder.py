@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from arena.errors import ArenaError
 from scenarios.traffic import Routes
 from sim.trajectories import Trajectory
 
@@ -30,7 +31,7 @@ class Recording:
     lanes: dict[str, tuple[str, ...]]  # lane id per frame (internal lanes included)
 
 
-class RecordingError(RuntimeError):
+class RecordingError(ArenaError, RuntimeError):
     pass
 
 

@@ -7,7 +7,7 @@ import json
 from html import escape
 from pathlib import Path
 
-from evaluator.replay.model import Replay
+from evaluator.viewer.model import Replay
 
 WEB_DIR = Path(__file__).resolve().parent / "web"
 VIEWER_SCRIPT = WEB_DIR / "replay.js"

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from arena.errors import RecordError
+from arena.errors import ArenaError, RecordError
 from arena.record_format import EVENT_FLAGS
 from evaluator.scoring.record import read_arrays, scalar
 from sim import render
@@ -49,7 +49,7 @@ STYLE = {
 }
 
 
-class ReplayError(ValueError):
+class ReplayError(ArenaError, ValueError):
     """A replay cannot be made: no record, or no way to write the asked format."""
 
 
@@ -175,6 +175,7 @@ def scenario_folder(suite_dir: Path | None, scenario_id: str) -> Path | None:
 
 
 def _road(scenario_dir: Path) -> RoadGeometry:
+    # deferred: CLI start-up (the CLI imports this module); the road needs the simulator
     from arena.scenario import load_scenario
     from scenarios.picture import stop_lanes
     from sim.render import road_geometry

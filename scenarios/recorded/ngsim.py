@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from arena.errors import ArenaError
 from sim.trajectories import Trajectory
 
 FOOT = 0.3048  # [m]
@@ -35,7 +36,7 @@ REQUIRED = (
 _MIN_MOVE = 0.05  # [m] smaller displacements do not define a heading
 
 
-class NgsimFormatError(ValueError):
+class NgsimFormatError(ArenaError, ValueError):
     pass
 
 

@@ -1,5 +1,5 @@
 // Episode replay viewer: the map, every vehicle step by step, play/pause/scrub, and the followed
-// agent's speed and events on a timeline. Reads the replay JSON of evaluator/replay/model.py,
+// agent's speed and events on a timeline. Reads the replay JSON of evaluator/viewer/model.py,
 // fetched from the API or inlined in a file written by `arena replay --format html`.
 // Nothing is loaded from elsewhere. The state (`element.replay`) is open so tests can read it.
 const ArenaReplay = (() => {

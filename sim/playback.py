@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from sim.trajectories import read_trajectories
-from sim.vehicles import VehicleStates
+from sim.vehicle.states import VehicleStates
 
 
 class ReplayTable:

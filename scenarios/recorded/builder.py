@@ -16,8 +16,8 @@ import numpy as np
 
 from arena.scenario import DataLabel, Family, Goal, Mission, Scenario, VehicleDims
 from scenarios.netinfo import NetInfo
-from scenarios.replay.geometry import boxes_overlap
-from scenarios.replay.recorder import Recording
+from scenarios.recorded.geometry import boxes_overlap
+from scenarios.recorded.recorder import Recording
 from scenarios.writer import TRAJECTORIES_FILE, replay_traffic, write_scenario
 from sim.trajectories import Trajectory, write_trajectories
 

@@ -11,7 +11,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from evaluator.replay.model import STYLE, Replay, ReplayError
+from evaluator.viewer.model import STYLE, Replay, ReplayError
 
 FRAME_WIDTH_PX = 640
 ROAD_HEIGHT_PX = 400

@@ -4,13 +4,14 @@ its start state, with its goal where it ended; every other vehicle replays its r
 reacts.
 
 A scene gives one scenario per *ego choice*: a recorded vehicle whose every pose fits a lane of
-the built map (:mod:`scenarios.replay.map_match`), whose path is long enough to be a task, and
+the built map (:mod:`scenarios.recorded.map_match`), whose path is long enough to be a task, and
 whose recorded box overlaps no other recorded vehicle's (the log replay expert must be able to
 solve the scenario). Scenario folders carry the source's licence and attribution.
 """
 
 from __future__ import annotations
 
+import csv
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,6 +19,8 @@ from pathlib import Path
 import numpy as np
 import sumolib
 
+from arena.config import get_settings
+from arena.errors import ArenaError
 from arena.scenario import (
     GOAL_RADIUS_M,
     DataLabel,
@@ -28,12 +31,12 @@ from arena.scenario import (
     Scenario,
     VehicleDims,
 )
-from scenarios.replay.builder import EXPERT_FILE, TAIL_S, _crop
-from scenarios.replay.commonroad import CommonRoadImportError, Lanelet, read_scene
-from scenarios.replay.geometry import boxes_overlap
-from scenarios.replay.lanelet_net import build_lanelet_net
-from scenarios.replay.map_match import driven_route, fit_trajectory
-from scenarios.replay.ngsim import NgsimFormatError, read_ngsim
+from scenarios.recorded.builder import EXPERT_FILE, TAIL_S, _crop
+from scenarios.recorded.commonroad import CommonRoadImportError, Lanelet, read_scene
+from scenarios.recorded.geometry import boxes_overlap
+from scenarios.recorded.lanelet_net import build_lanelet_net
+from scenarios.recorded.map_match import driven_route, fit_trajectory
+from scenarios.recorded.ngsim import NgsimFormatError, read_ngsim
 from scenarios.writer import TRAJECTORIES_FILE, write_scenario
 from sim.road.network import RoadNetwork
 from sim.trajectories import Trajectory, write_trajectories
@@ -46,7 +49,7 @@ SOURCE = "NGSIM"
 NGSIM_LANE_WIDTH = 12 * 0.3048  # [m] the US-101 / I-80 lanes are 12 ft wide
 
 
-class NaturalisticImportError(ValueError):
+class NaturalisticImportError(ArenaError, ValueError):
     """A scene file that cannot be used; the message names the file and the problem."""
 
 
@@ -100,8 +103,6 @@ def ngsim_lanelets(path: Path) -> tuple[Lanelet, ...]:
     """NGSIM CSV has no road geometry: straight parallel 12 ft lanes along +x, one per
     ``Lane_ID`` (1 = leftmost, at y = 0 .. -12 ft, as :func:`read_ngsim` lays out ``Local_X``),
     spanning the recorded x range."""
-    import csv
-
     try:
         with open(path, newline="") as f:
             lane_ids = {int(float(row["Lane_ID"])) for row in csv.DictReader(f)}
@@ -272,8 +273,6 @@ def shipped_scenes_dir() -> Path:
     """The naturalistic scenes shipped with the package, with their licence and provenance:
     ``scenarios/data/naturalistic/commonroad-ngsim`` (setting ``ARENA_NATURALISTIC_DIR``
     overrides)."""
-    from arena.config import get_settings
-
     configured = get_settings().naturalistic_dir
     if configured is not None:
         return configured

@@ -7,8 +7,8 @@ from enum import StrEnum
 from pathlib import Path
 
 from arena.record_format import RECORD_SUFFIX
-from evaluator.replay.model import ReplayError, load_replay, scenario_folder
 from evaluator.runner.results import RECORDS_DIR, record_path
+from evaluator.viewer.model import ReplayError, load_replay, scenario_folder
 
 
 class ReplayFormat(StrEnum):
@@ -52,8 +52,9 @@ def write_replay(
     ``on_frames(total)`` returns what to call after each frame drawn (a progress bar)."""
     out = Path(out)
     if fmt is ReplayFormat.svg:
-        from evaluator.replay_picture import episode_svg
+        # deferred: CLI start-up (the CLI imports this module); each format loads its renderer
         from evaluator.scoring.record import read_arrays, scalar
+        from evaluator.viewer.picture import episode_svg
 
         arrays = read_arrays(record)
         folder = scenario_folder(suite_dir, str(scalar(arrays["scenario_id"])))
@@ -61,11 +62,13 @@ def write_replay(
         return out
     replay = load_replay(record, suite_dir)
     if fmt is ReplayFormat.html:
-        from evaluator.replay.page import replay_html
+        # deferred: CLI start-up (the CLI imports this module); each format loads its renderer
+        from evaluator.viewer.page import replay_html
 
         out.write_text(replay_html(replay))
         return out
-    from evaluator.replay.frames import frame_count, frames, write_gif, write_mp4
+    # deferred: CLI start-up (the CLI imports this module); each format loads its renderer
+    from evaluator.viewer.frames import frame_count, frames, write_gif, write_mp4
 
     advance = on_frames(frame_count(replay, every))
 

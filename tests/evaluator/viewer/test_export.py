@@ -18,6 +18,7 @@ def replay(record, suite, *args):
     return result
 
 
+@pytest.mark.slow
 def test_gif_has_one_frame_per_drawn_step_and_the_vehicles_move(episode, tmp_path):
     suite, record = episode
     out = tmp_path / "e.gif"
@@ -30,6 +31,7 @@ def test_gif_has_one_frame_per_drawn_step_and_the_vehicles_move(episode, tmp_pat
     assert first.shape == last.shape and np.abs(first.astype(int) - last).sum() > 0
 
 
+@pytest.mark.slow
 def test_mp4_has_every_step(episode, tmp_path):
     suite, record = episode
     out = tmp_path / "e.mp4"
@@ -46,6 +48,7 @@ def test_results_folder_needs_a_known_scenario(tmp_path):
     assert result.exit_code == 2 and "no record for nope" in result.output
 
 
+@pytest.mark.browser
 @pytest.mark.skipif(not CHROMIUM.exists(), reason="needs Debian's chromium")
 def test_html_file_plays_offline_in_chromium(episode, tmp_path):
     from playwright.sync_api import expect, sync_playwright
@@ -73,7 +76,7 @@ def test_html_file_plays_offline_in_chromium(episode, tmp_path):
 
 
 def test_labels_at_one_spot_are_stacked_apart():
-    from evaluator.replay.frames import place_labels
+    from evaluator.viewer.frames import place_labels
 
     sizes = [(60, 10), (60, 10), (80, 10), (40, 10)]
     anchors = [(100.0, 100.0, 4.0), (100.0, 102.0, 4.0), (95.0, 100.0, 12.0), (300.0, 50.0, 4.0)]

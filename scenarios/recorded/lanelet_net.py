@@ -25,7 +25,7 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from scenarios.maps import NETCONVERT_OPTIONS, convert_plain_xml
-from scenarios.replay.commonroad import Lanelet
+from scenarios.recorded.commonroad import Lanelet
 
 SIDE_BY_SIDE_M = 1.0  # [m] neighbours whose ends are farther apart than this are separate edges
 LANELET_NET_OPTIONS = ("--geometry.remove", "false")

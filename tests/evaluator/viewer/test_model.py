@@ -7,11 +7,12 @@ import numpy as np
 import pytest
 
 from arena.errors import RecordError
-from evaluator.replay.model import VehicleKind, load_replay
 from evaluator.scoring.record import read_arrays
+from evaluator.viewer.model import VehicleKind, load_replay
 from tests.evaluator.scoring.builders import AgentSpec, drive, write_record
 
 
+@pytest.mark.slow
 def test_mission_agents_and_every_vehicle_they_saw_step_by_step(episode):
     suite, record = episode
     arrays = read_arrays(record)

@@ -11,7 +11,8 @@ import numpy as np
 
 from arena.scenario import Family, Scenario
 from scenarios.generators import Spec
-from scenarios.replay.naturalistic import (
+from scenarios.ids import derive_seed, scenario_id
+from scenarios.recorded.naturalistic import (
     Ego,
     NaturalisticScene,
     ego_choices,
@@ -29,8 +30,6 @@ class NaturalisticPool:
 
     @classmethod
     def load(cls, folder: Path, suite: str, seed: int, cache_dir: Path) -> NaturalisticPool:
-        from scenarios.suites import derive_seed  # suites imports this module
-
         scenes = load_scenes(folder)
         rng = np.random.default_rng(derive_seed(suite, seed, "naturalistic"))
         nets, per_scene = {}, []
@@ -57,8 +56,6 @@ class NaturalisticPool:
         )
 
     def write(self, out: Path, suite: str, index: int, seed: int) -> Scenario:
-        from scenarios.suites import scenario_id
-
         scene, ego = self.queue.pop(0)
         sid = scenario_id(suite, index, Spec(Family.replay, f"ngsim_{ego.kind}", None, 1, False))
         return write_naturalistic(out / sid, sid, scene, ego, self.nets[scene.name], seed)

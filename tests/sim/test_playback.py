@@ -4,7 +4,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sim.replay import ReplayTable
+from sim.playback import ReplayTable
 from sim.trajectories import Trajectory, write_trajectories
 
 

@@ -3,10 +3,10 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from evaluator.replay.export import ReplayFormat, find_record, write_replay
-from evaluator.replay.model import ReplayError
-from evaluator.replay_picture import TRAIL_COLOUR
 from evaluator.runner.results import record_path
+from evaluator.viewer.export import ReplayFormat, find_record, write_replay
+from evaluator.viewer.model import ReplayError
+from evaluator.viewer.picture import TRAIL_COLOUR
 from sim.render import ROAD_COLOUR
 from tests.evaluator.scoring.builders import AgentSpec, drive, write_record
 from tests.sim.builders import make_scenario
@@ -45,6 +45,7 @@ def test_picture_shows_path_coloured_by_speed_trails_goal_and_collision(tmp_path
     assert "Agent_0: collision at step 40" in texts(root)
 
 
+@pytest.mark.slow
 def test_map_is_drawn_when_the_scenario_is_found(tmp_path):
     make_scenario(tmp_path / "suite" / "cut_in_1")
     crash_record(tmp_path / "results")

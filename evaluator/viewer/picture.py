@@ -13,8 +13,11 @@ from pathlib import Path
 
 import numpy as np
 
+from arena.scenario import load_scenario
 from evaluator.scoring.record import scalar
-from sim.render import GOAL_COLOUR, SvgCanvas
+from scenarios.picture import stop_lanes
+from sim.render import GOAL_COLOUR, SvgCanvas, draw_road
+from sim.road import RoadNetwork
 
 # Slow (blue) to fast (red), as fractions of the top speed drawn.
 SPEED_COLOURS = ((0.0, (49, 54, 149)), (0.5, (255, 255, 191)), (1.0, (165, 0, 38)))
@@ -45,11 +48,6 @@ def _canvas_with_map(rec: dict[str, np.ndarray], scenario_dir: Path | None) -> S
     scale = min(6.0, max(0.5, PICTURE_WIDTH_PX / extent))  # [px/m]
     canvas = SvgCanvas((xs.min(), ys.min(), xs.max(), ys.max()), scale, margin=MARGIN_M)
     if scenario_dir is not None:
-        from arena.scenario import load_scenario
-        from scenarios.picture import stop_lanes
-        from sim.render import draw_road
-        from sim.road import RoadNetwork
-
         net_path = scenario_dir / load_scenario(scenario_dir).map
         draw_road(canvas, RoadNetwork.load(net_path), stop_lanes(net_path))
     return canvas

@@ -1,0 +1,22 @@
+"""The two tiers of the suite. The fast tier, ``pytest -m "not integration"``, runs on SQLite and
+an in-memory broker with no server, daemon or browser (minutes); ``integration`` adds
+PostgreSQL and Redis (``tests/server/conftest.py``), the sandboxes, Chromium, real service
+processes and every test marked slow. ``./scripts/test.sh`` (and CI) runs both."""
+
+from __future__ import annotations
+
+import pytest
+
+# Markers that mean a test needs more than this process, or takes long: such a test is
+# integration whatever else it is.
+INTEGRATION_MARKERS = ("slow", "docker", "bwrap", "browser")
+# Session fixtures that build a whole suite (tens of seconds of map building and simulation):
+# a test using one is integration.
+SUITE_BUILDS = frozenset({"hidden_dev", "public_fresh", "hidden_natural"})
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    for item in items:
+        marked = any(item.get_closest_marker(name) for name in INTEGRATION_MARKERS)
+        if marked or SUITE_BUILDS & set(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.integration)
