@@ -36,6 +36,7 @@ def nested_zip_upload(path: Path, inner_bytes: int) -> Path:
     return path
 
 
+@pytest.mark.slow  # the intake in the service's sandbox
 def test_a_nested_zip_is_checked_from_disk_not_read_whole_into_memory(tmp_path: Path) -> None:
     upload = nested_zip_upload(tmp_path / "upload.zip", 96 * MiB)
     assert upload.stat().st_size < 2 * MiB
@@ -75,6 +76,7 @@ def test_an_entry_count_far_past_the_limit_is_refused_from_the_end_record(tmp_pa
     assert (caught.value.entry, caught.value.rule) == ("<zip>", "max-entries")
 
 
+@pytest.mark.slow  # the intake in the service's sandbox
 @pytest.mark.parametrize("kind", ["bubblewrap", "docker"])
 def test_a_policy_too_big_to_compile_in_the_intake_memory_is_rejected_in_the_sandbox(
     tmp_path: Path, kind: str
@@ -131,6 +133,7 @@ def local_index(tmp_path: Path, wheelhouse: Path, **overrides) -> Settings:
     )
 
 
+@pytest.mark.slow  # the intake in the service's sandbox
 @pytest.mark.parametrize("kind", ["bubblewrap", "docker"])
 def test_requirements_unpack_in_the_sandbox_and_are_cached_by_content(
     tmp_path: Path, wheelhouse: Path, kind: str
@@ -143,6 +146,7 @@ def test_requirements_unpack_in_the_sandbox_and_are_cached_by_content(
     assert (second.deps_key, second.deps_dir) == (first.deps_key, first.deps_dir)
 
 
+@pytest.mark.slow  # the intake in the service's sandbox
 def test_wheels_unpacking_past_the_deps_cap_are_rejected_and_leave_nothing(
     tmp_path: Path, wheelhouse: Path
 ) -> None:
@@ -158,6 +162,7 @@ def test_wheels_unpacking_past_the_deps_cap_are_rejected_and_leave_nothing(
     assert not any(deps_cache(settings).iterdir())
 
 
+@pytest.mark.slow  # the intake in the service's sandbox
 def test_the_download_of_wheels_is_capped(tmp_path: Path, wheelhouse: Path) -> None:
     settings = local_index(tmp_path, wheelhouse, max_deps_download_bytes=1 * MiB)
     upload = write_zip(tmp_path / "a.zip", with_policy(**{"requirements.txt": "fatpkg==1.0\n"}))
@@ -166,6 +171,7 @@ def test_the_download_of_wheels_is_capped(tmp_path: Path, wheelhouse: Path) -> N
     assert caught.value.rule == "max-deps-download"
 
 
+@pytest.mark.slow  # the intake in the service's sandbox
 def test_requirement_folders_no_submission_uses_are_collected(
     tmp_path: Path, wheelhouse: Path
 ) -> None:

@@ -62,6 +62,7 @@ def accepted(client, db, settings, token, payload: bytes, **options) -> dict:
     return submission(client, token, response.json()["id"])
 
 
+@pytest.mark.slow  # the intake in the service's sandbox
 def test_upload_is_received_validated_then_queued(client, db, settings, keep_lane_zip):
     _, token = make_team(db, "alpha")
     response = upload(client, token, keep_lane_zip)
@@ -113,6 +114,7 @@ def test_a_zip_whose_directory_breaks_a_rule_gets_422_at_once(client, db, payloa
     ],
     ids=["no-policy", "syntax-error", "deep-expression", "bad-crc"],
 )
+@pytest.mark.slow  # the intake in the service's sandbox
 def test_a_zip_whose_contents_break_a_rule_is_rejected_by_its_validation(
     client, db, settings, payload, needle
 ):
@@ -171,6 +173,7 @@ def test_a_team_never_sees_another_teams_submission(client, db, keep_lane_zip):
     assert client.get("/api/v1/submissions", headers=bearer(token_b)).json() == []
 
 
+@pytest.mark.slow  # the intake in the service's sandbox
 def test_daily_quota_per_team_and_track(client, db, settings, keep_lane_zip, tmp_path):
     _, token = make_team(db, "alpha")
     ids = [
@@ -234,6 +237,7 @@ def test_upload_declared_over_the_cap_is_refused_before_reading(client, db, sett
     assert count_submissions(db) == 0
 
 
+@pytest.mark.slow  # the intake in the service's sandbox
 def test_an_offline_submission_without_train_py_is_rejected_before_its_requirements(
     client, db, settings, keep_lane_zip
 ):
@@ -252,6 +256,7 @@ def test_an_offline_submission_without_train_py_is_rejected_before_its_requireme
         assert quota_used(session, team_id, "final", Track.offline, utcnow()) == 0
 
 
+@pytest.mark.slow  # the intake in the service's sandbox
 def test_a_train_py_that_does_not_compile_is_named(client, db, settings, keep_lane_zip):
     _, token = make_team(db, "alpha")
     with zipfile.ZipFile(io.BytesIO(keep_lane_zip)) as archive:
@@ -287,6 +292,7 @@ def test_offline_uploads_are_refused_while_the_service_has_no_dataset(
     assert count_submissions(db) == 0
 
 
+@pytest.mark.slow  # the intake in the service's sandbox
 def test_parallel_uploads_take_one_validation_slot_and_one_try(client, db, settings, keep_lane_zip):
     """With one try left, six parallel uploads once cost 4.7 intakes: the quota was checked
     again only after each. Now the slot is reserved first, atomically: one upload is validated,

@@ -73,6 +73,7 @@ def test_the_upload_location_is_a_path(client, db, tmp_path):
     assert response.headers["location"].startswith("/api/v1/submissions/")
 
 
+@pytest.mark.slow  # a live API process
 def test_slow_clients_are_cut_off_and_do_not_hold_the_server(settings, db, tmp_path):
     """50 connections trickling their headers once held the API for 40 s and more."""
     slow = settings.model_copy(update={"http_header_timeout_s": 1.0})

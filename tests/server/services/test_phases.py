@@ -42,6 +42,7 @@ def set_phase(db, name, **changes):
     phases.set_phase(db, name, phases.PhaseChanges(**changes))
 
 
+@pytest.mark.slow  # the intake in the service's sandbox
 def test_upload_names_its_phase_and_defaults_to_final(client, db, settings, keep_lane_zip):
     _, token = make_team(db, "alpha")
     assert upload(client, token, keep_lane_zip).json()["phase"] == "final"
@@ -72,6 +73,7 @@ def test_uploads_outside_a_phase_are_refused_saying_when(client, db, keep_lane_z
     assert upload(client, token, keep_lane_zip).status_code == 202
 
 
+@pytest.mark.slow  # the intake in the service's sandbox
 def test_the_daily_quota_is_per_phase(client, db, settings, keep_lane_zip):
     _, token = make_team(db, "alpha")
     set_phase(db, "final", daily_quota=1)
