@@ -126,6 +126,17 @@ class Settings(BaseSettings):
     max_unzipped_bytes: int = 500 * 1024**2
     max_zip_entries: int = 10_000
     max_compression_ratio: float = 200.0
+    # Requirements: the downloaded wheels, and all of them unpacked (bytes and files).
+    max_deps_download_bytes: int = 400 * 1024**2
+    max_deps_bytes: int = 1536 * 1024**2
+    max_deps_files: int = 30_000
+    # Extra `pip download` options (e.g. `["--no-index", "--find-links", "/srv/wheels"]`); the
+    # package index itself comes from the host's pip configuration.
+    pip_options: list[str] = Field(default_factory=list)
+    # The validation of an upload (agent_runtime/intake.py in the sandbox): its memory, its wall
+    # time [s] (per step: the zip, then the wheels). Disk: the unzipped and deps caps above.
+    intake_memory_bytes: int = 1024**3
+    intake_timeout_s: float = 300.0
 
     # Service.
     daily_quota: int = 5
@@ -142,6 +153,11 @@ class Settings(BaseSettings):
     broker_key_prefix: str = ""
     # How often a worker looks for evaluations whose lease expired [s].
     reaper_interval_s: float = 10.0
+    # Absolute URLs the service writes (none today: pages link relatively); never the Host header.
+    public_base_url: str = ""
+    # uvicorn: a client must send its request headers within this [s]; idle keep-alive ends after.
+    http_header_timeout_s: float = 10.0
+    http_keep_alive_s: float = 5.0
 
     @property
     def resolved_data_dir(self) -> Path:

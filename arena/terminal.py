@@ -18,6 +18,8 @@ from collections.abc import Sequence
 from rich.console import Console
 from rich.table import Table
 
+from arena.neutralise.console import plain, safe
+
 Cell = str | int | float | None
 # Columns a console lays out in when it writes to a pipe or file: a panel (Panel.fit) or table is
 # as wide as its content, and its content never meets the edge.
@@ -33,7 +35,9 @@ def make_console(*, stderr: bool = False) -> Console:
 
 
 def _text(value: Cell) -> str:
-    return "-" if value is None else str(value)
+    """A cell as shown: no control character (team text reaches organisers' terminals), and no
+    tab or newline to split the plain line it sits in."""
+    return "-" if value is None else plain(value).replace("\t", " ").replace("\n", " ")
 
 
 def print_rows(
@@ -51,14 +55,15 @@ def print_rows(
         return
     if not console.is_terminal:
         # Written straight to the file: Rich would expand the tabs into spaces.
-        lines = [f"# {title}"] if title else []
+        lines = [f"# {_text(title)}"] if title else []
         lines += ["\t".join(_text(cell) for cell in line) for line in (columns, *rows)]
         console.file.write("\n".join(lines) + "\n")
         return
-    table = Table(title=title)
+    table = Table(title=safe(title) if title else None)
     for column in columns:
         justify = "right" if column in numeric else "left"
         table.add_column(column, justify=justify, overflow="fold")
     for row in rows:
-        table.add_row(*(_text(cell) for cell in row))
+        # Cells are text, never markup: a `[/]` in a method name once crashed the listing.
+        table.add_row(*(safe(_text(cell)) for cell in row))
     console.print(table)

@@ -17,6 +17,7 @@ from evaluator.viewer.page import WEB_DIR as REPLAY_WEB_DIR
 from server.api.contract import allowed_methods
 from server.api.main import api_router
 from server.api.routes import docs_pages, pages
+from server.api.security import SecurityHeaders
 from server.core.db import Database
 from server.core.queue import TaskQueue
 from server.services.errors import ServiceError
@@ -68,6 +69,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     async def _illegal(_: Request, exc: IllegalTransition) -> JSONResponse:
         return JSONResponse({"detail": str(exc)}, status_code=409)
 
+    app.add_middleware(SecurityHeaders)
     app.include_router(api_router)
     app.include_router(pages.router)
     app.include_router(docs_pages.router)

@@ -10,6 +10,8 @@ from typing import Annotated
 
 import typer
 
+from arena.neutralise.console import plain, safe
+from arena.neutralise.log_view import quoted
 from arena.terminal import make_console, print_rows
 from server.tracks import Track
 
@@ -55,7 +57,7 @@ class _Context:
 
 
 def _fail(exc: Exception) -> typer.Exit:
-    console.print(f"[red]error:[/red] {getattr(exc, 'message', exc)}")
+    console.print(f"[red]error:[/red] {safe(getattr(exc, 'message', exc))}")
     return typer.Exit(1)
 
 
@@ -97,7 +99,9 @@ def teams_create(name: str) -> None:
     ctx = _Context()
     with ctx.db.session() as session:
         team, token = _run(lambda: teams.create_team(session, name))
-    console.print(f"team [bold]{team.name}[/bold] (id {team.id}) created; its token, shown once:")
+    console.print(
+        f"team [bold]{safe(team.name)}[/bold] (id {team.id}) created; its token, shown once:"
+    )
     # Alone on its line, never wrapped: copy it or take it with `tail -n 1`.
     print(token)
 
@@ -132,7 +136,7 @@ def teams_rotate(name: str) -> None:
     with ctx.db.session() as session:
         team = _run(lambda: teams.get_team(session, name))
         token = teams.rotate_token(session, team)
-    console.print(f"new token for [bold]{name}[/bold] (the old ones are revoked):")
+    console.print(f"new token for [bold]{safe(name)}[/bold] (the old ones are revoked):")
     print(token)
 
 
@@ -266,7 +270,7 @@ def submissions_show(
         ("episodes", f"{view.episodes_per_scenario} per reactive scenario"),
         *_manifest_rows(view.manifest),
     ):
-        console.print(f"{name}: {value}", markup=False, highlight=False)
+        console.print(f"{name}: {plain(value)}", markup=False, highlight=False)
     for attempt, status, worker, profile, error, results in runs:
         title = f"attempt {attempt}: {status} ({profile}) {worker or ''} {error or ''}".strip()
         print_rows(console, columns, results, title=title, numeric=("episode", "steps"))
@@ -332,9 +336,13 @@ def submissions_logs(submission_id: SubmissionId) -> None:
     for entry in view.scenarios:
         episode = f" episode {entry.episode}" if entry.episode else ""
         typer.echo(
-            f"=== {entry.scenario_id}{episode} ({entry.family}): {entry.status} {entry.reason}"
+            plain(
+                f"=== {entry.scenario_id}{episode} ({entry.family}): {entry.status} {entry.reason}"
+            )
         )
-        typer.echo(entry.log_tail)
+        # The agent's bytes: escape sequences shown, not run; each line marked as the agent's so
+        # none can pass for one of these headers.
+        typer.echo(quoted(entry.log_tail))
 
 
 @submissions_app.command("cancel")
@@ -660,7 +668,19 @@ def serve(host: str = "127.0.0.1", port: int = 8000, workers: int = 1) -> None:
     # deferred: CLI start-up time
     import uvicorn
 
-    uvicorn.run("server.app:create_app", factory=True, host=host, port=port, workers=workers)
+    from arena.config import get_settings
+    from server.core.http import HeaderDeadlineProtocol
+
+    uvicorn.run(
+        "server.app:create_app",
+        factory=True,
+        host=host,
+        port=port,
+        workers=workers,
+        # Slow clients hold no worker: headers have a deadline, idle keep-alives end.
+        http=HeaderDeadlineProtocol,
+        timeout_keep_alive=get_settings().http_keep_alive_s,
+    )
 
 
 @service_app.command("worker")

@@ -25,6 +25,7 @@ from sqlalchemy import (
     TypeDecorator,
     UniqueConstraint,
     false,
+    text,
 )
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
@@ -135,7 +136,18 @@ class Phase(Base):
 
 class Submission(Base):
     __tablename__ = "submissions"
-    __table_args__ = (Index("ix_submissions_team_track_created", "team_id", "track", "created_at"),)
+    __table_args__ = (
+        Index("ix_submissions_team_track_created", "team_id", "track", "created_at"),
+        # A team has at most one upload being validated: the quota slot it reserves is taken
+        # atomically, whatever the number of parallel uploads (migration 0010).
+        Index(
+            "uq_submissions_one_validating_per_team",
+            "team_id",
+            unique=True,
+            postgresql_where=text("status = 'validating'"),
+            sqlite_where=text("status = 'validating'"),
+        ),
+    )
 
     id: Mapped[int] = mapped_column(primary_key=True)
     team_id: Mapped[int] = mapped_column(ForeignKey("teams.id"))
@@ -149,6 +161,9 @@ class Submission(Base):
     file_size: Mapped[int] = mapped_column(BigInteger)
     # The zip in the artifact store (server/core/artifacts.py).
     upload_key: Mapped[str] = mapped_column(String(512))
+    # Its requirements' folder (submissions/intake/dependencies.py), set by the validation; a
+    # folder no kept submission names is deleted.
+    deps_key: Mapped[str | None] = mapped_column(String(64))
     status: Mapped[SubmissionStatus] = mapped_column(_enum(SubmissionStatus), index=True)
     status_reason: Mapped[str] = mapped_column(Text, default="")
     # Failed through no fault of the team (our scenarios failed): the one failure that gives the
@@ -168,6 +183,25 @@ class Submission(Base):
     trainings: Mapped[list[TrainingJob]] = relationship(
         back_populates="submission", order_by="TrainingJob.attempt"
     )
+
+
+class UploadValidation(Base):
+    """The job validating an upload (``agent_runtime/intake.py`` in the sandbox), while its
+    submission is ``validating``. Claimed and leased like every job of the engine
+    (server/worker/engine.py): ``claims`` fences a dead worker's late verdict."""
+
+    __tablename__ = "upload_validations"
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    submission_id: Mapped[int] = mapped_column(ForeignKey("submissions.id"), unique=True)
+    worker: Mapped[str] = mapped_column(String(255), default="")
+    claims: Mapped[int] = mapped_column(Integer, default=0)
+    lease_expires_at: Mapped[datetime | None]
+    created_at: Mapped[datetime] = mapped_column(default=utcnow)
+    started_at: Mapped[datetime | None]
+    finished_at: Mapped[datetime | None]
+
+    submission: Mapped[Submission] = relationship()
 
 
 class TrainingJob(Base):

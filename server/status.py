@@ -1,6 +1,8 @@
 """Submission and evaluation-run status: an enum state machine that never moves backwards.
 
-A submission goes ``received -> queued -> running -> scored | failed``; an offline (Track 2) one
+A submission goes ``validating -> queued -> running -> scored | failed``: an upload is validated
+by a job (in the sandbox) and ends ``rejected``, naming the rule, when it breaks one (it does not
+count towards the quota). An offline (Track 2) one
 trains first: ``queued -> training -> running``. It can be ``cancelled``
 before it finishes and ``disqualified`` at any time. A later evaluation attempt (``arena admin
 rerun``) that scores turns a ``failed`` submission ``scored``; a ``scored`` one never becomes
@@ -16,7 +18,9 @@ from arena.errors import ArenaError
 
 
 class SubmissionStatus(StrEnum):
-    received = "received"
+    received = "received"  # before validation jobs: uploads checked in the request
+    validating = "validating"
+    rejected = "rejected"
     queued = "queued"
     training = "training"
     running = "running"
@@ -51,6 +55,16 @@ SUBMISSION_MOVES: dict[SubmissionStatus, frozenset[SubmissionStatus]] = {
             SubmissionStatus.disqualified,
         }
     ),
+    SubmissionStatus.validating: frozenset(
+        {
+            SubmissionStatus.queued,
+            SubmissionStatus.rejected,
+            SubmissionStatus.failed,
+            SubmissionStatus.cancelled,
+            SubmissionStatus.disqualified,
+        }
+    ),
+    SubmissionStatus.rejected: frozenset(),
     SubmissionStatus.queued: frozenset(
         {
             SubmissionStatus.training,
@@ -105,6 +119,7 @@ TRAINING_MOVES: dict[TrainingStatus, frozenset[TrainingStatus]] = {
 ACTIVE_SUBMISSION = frozenset(
     {
         SubmissionStatus.received,
+        SubmissionStatus.validating,
         SubmissionStatus.queued,
         SubmissionStatus.training,
         SubmissionStatus.running,

@@ -78,13 +78,19 @@ class WarmAgents:
             agent.kill()
         return len(chosen)
 
-    def close(self, sha256: str | None = None) -> None:
-        """Close the idle warm agents of the submission whose zip has ``sha256`` (every one
-        without)."""
+    def close(self, sha256: str | None = None, model_dir: Path | None = None) -> None:
+        """Close the idle warm agents of the submission whose zip has ``sha256`` and of those
+        bound to the trained output ``model_dir`` (every one without either)."""
+
+        def chosen(key: Key) -> bool:
+            return (sha256 is None or key[0] == sha256) and (
+                model_dir is None or key[1] == model_dir
+            )
+
         with self._lock:
-            keys = [k for k in self._idle if sha256 is None or k[0] == sha256]
+            keys = [k for k in self._idle if chosen(k)]
             closing = [warm for key in keys for warm in self._idle.pop(key)]
-            self._cold -= {k for k in self._cold if sha256 is None or k[0] == sha256}
+            self._cold -= {k for k in self._cold if chosen(k)}
         for warm in closing:
             warm.close()
 

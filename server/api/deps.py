@@ -88,6 +88,18 @@ def require_admin(settings: SettingsDep, credentials: Credentials) -> None:
 AdminDep = Depends(require_admin)
 
 
+def is_admin(settings: SettingsDep, credentials: Credentials) -> bool:
+    """Whether the caller sent the admin token (for routes that show organisers more)."""
+    return (
+        settings.admin_token is not None
+        and credentials is not None
+        and same_secret(credentials.credentials, settings.admin_token)
+    )
+
+
+IsAdmin = Annotated[bool, Depends(is_admin)]
+
+
 def get_owned_submission(
     session: SessionDep, team: CurrentTeam, submission_id: RowId
 ) -> Submission:

@@ -4,6 +4,7 @@ declared Content-Length already does)."""
 
 from __future__ import annotations
 
+import hashlib
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -31,6 +32,8 @@ class ReceivedForm:
     fields: dict[str, str] = field(default_factory=dict)
     file_path: Path | None = None
     file_size: int = 0  # [bytes]
+    # Of the zip, computed while it streams in (the API never reads it back for this).
+    sha256: str = ""
 
 
 class _Receiver:
@@ -47,6 +50,7 @@ class _Receiver:
         self._fields_bytes = 0
         self._parts = 0
         self._header_bytes = 0
+        self._digest = hashlib.sha256()
 
     def callbacks(self) -> dict:
         return {
@@ -103,6 +107,7 @@ class _Receiver:
                     f"the zip exceeds the limit of {self.max_file_bytes // 2**20} MiB"
                 )
             self._file.write(data[start:end])
+            self._digest.update(data[start:end])
         else:
             self._value += data[start:end]
             self._fields_bytes += end - start
@@ -116,6 +121,7 @@ class _Receiver:
     def _part_end(self) -> None:
         if self._name == FILE_FIELD and self._file is not None:
             self._file.close()
+            self.form.sha256 = self._digest.hexdigest()
         else:
             self.form.fields[self._name] = self._value.decode("utf-8", "replace")
 

@@ -20,6 +20,7 @@ TASK_EVALUATE = "arena.evaluate_submission"
 TASK_SCENARIO = "arena.run_scenario"
 TASK_AGGREGATE = "arena.aggregate_run"
 TASK_TRAIN = "arena.train_submission"
+TASK_VALIDATE = "arena.validate_submission"
 
 
 def is_embedded_broker(broker_url: str) -> bool:

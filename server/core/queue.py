@@ -16,6 +16,7 @@ from server.core.celery_app import (
     TASK_EVALUATE,
     TASK_SCENARIO,
     TASK_TRAIN,
+    TASK_VALIDATE,
     create_celery_app,
     is_embedded_broker,
 )
@@ -59,6 +60,9 @@ class TaskQueue:
             task_id=scenario_task_id(run_id, episode),
             queue=QUEUE,
         )
+
+    def validate(self, submission_id: int) -> None:
+        self.celery.send_task(TASK_VALIDATE, kwargs={"submission_id": submission_id}, queue=QUEUE)
 
     def train(self, training_id: int) -> None:
         self.celery.send_task(TASK_TRAIN, kwargs={"training_id": training_id}, queue=QUEUE)

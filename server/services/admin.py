@@ -41,6 +41,13 @@ def requeue(db: Database, settings: Settings, queue: TaskQueue, submission_id: i
     skip what is already done."""
     with db.session() as session:
         submission = lock(session, Submission, submission_id)
+        validating = submission.status == SubmissionStatus.validating
+    if validating:
+        # A validation held by a live worker ignores the re-sent task (its lease fences it).
+        queue.validate(submission_id)
+        return "validation re-sent"
+    with db.session() as session:
+        submission = lock(session, Submission, submission_id)
         plan = None
         if submission.status == SubmissionStatus.received:
             submission.status = advance(

@@ -10,7 +10,6 @@ the score stands).
 
 from __future__ import annotations
 
-import csv
 import io
 import threading
 import time
@@ -21,6 +20,7 @@ import numpy as np
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from arena.neutralise.spreadsheet import write_rows
 from evaluator.scoring import Interval, MetricSamples, rank, tied_neighbours
 from evaluator.scoring import Metrics as ScoringMetrics
 from evaluator.scoring.significance import ranges_from_replicates, replicates
@@ -186,47 +186,43 @@ def _gap(entry: LeaderboardEntry, name: str) -> float | None:
 
 
 def to_csv(board: Leaderboard) -> str:
+    """The board as CSV; every cell through :mod:`arena.neutralise.spreadsheet` (a method name
+    ``=HYPERLINK(...)`` stays text in whatever spreadsheet opens it)."""
     out = io.StringIO()
-    writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(
+    header = [
+        "rank",
+        "rank_range",
+        "beats_next",
+        "team",
+        "submission_id",
+        "method_name",
+        "submitted_at",
+        *METRICS,
+        "completion_low",
+        "completion_high",
+        "tied_with",
+        *([f"gap_{name}" for name in METRICS] if board.gap_from else []),
+    ]
+    rows = (
         [
-            "rank",
-            "rank_range",
-            "beats_next",
-            "team",
-            "submission_id",
-            "method_name",
-            "submitted_at",
-            *METRICS,
-            "completion_low",
-            "completion_high",
-            "tied_with",
-            *([f"gap_{name}" for name in METRICS] if board.gap_from else []),
+            entry.rank,
+            entry.rank_range,
+            _csv_value(entry.beats_next),
+            entry.team,
+            entry.submission_id,
+            entry.method_name,
+            entry.submitted_at.isoformat(),
+            *(_csv_value(getattr(entry.metrics, name)) for name in METRICS),
+            *(
+                _csv_value(getattr(entry.completion_interval, bound, None))
+                for bound in ("low", "high")
+            ),
+            " ".join(str(rank) for rank in entry.tied_with),
+            *([_csv_value(_gap(entry, name)) for name in METRICS] if board.gap_from else []),
         ]
+        for entry in board.entries
     )
-    for entry in board.entries:
-        writer.writerow(
-            [
-                entry.rank,
-                entry.rank_range,
-                _csv_value(entry.beats_next),
-                entry.team,
-                entry.submission_id,
-                entry.method_name,
-                entry.submitted_at.isoformat(),
-                *(_csv_value(getattr(entry.metrics, name)) for name in METRICS),
-                *(
-                    _csv_value(getattr(entry.completion_interval, bound, None))
-                    for bound in ("low", "high")
-                ),
-                " ".join(str(rank) for rank in entry.tied_with),
-                *(
-                    [_csv_value(_gap(entry, name)) for name in METRICS]
-                    if board.gap_from
-                    else []
-                ),
-            ]
-        )
+    write_rows(out, header, rows)
     return out.getvalue()
 
 

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import logging
-import shutil
-import uuid
 from dataclasses import dataclass
 from datetime import datetime, time
 from pathlib import Path
@@ -14,12 +12,13 @@ from sqlalchemy.orm import Session, selectinload
 
 from arena.config import Settings
 from arena.errors import IntakeError
+from arena.neutralise.names import UnsafeName, check_name
 from arena.outcome import FINISHED, UNCHARGED, ScenarioStatus
 from evaluator.provenance import Manifest
 from server.core.artifacts import artifact_store
 from server.core.db import Database
 from server.core.queue import BROKER_ERRORS, TaskQueue, scenario_task_id
-from server.models import EvaluationRun, ScenarioResult, Score, Submission, Team, utcnow
+from server.models import EvaluationRun, ScenarioResult, Score, Submission, TrainingJob, utcnow
 from server.schemas import (
     CompletionInterval,
     FamilyMetrics,
@@ -31,6 +30,7 @@ from server.schemas import (
     SubmissionSummary,
     TrainingProgress,
 )
+from server.services import validation
 from server.services.errors import (
     Conflict,
     Forbidden,
@@ -47,6 +47,7 @@ from server.services.phases import (
     check_team_may_see_output,
     daily_quota,
     get_phase,
+    list_phases,
     phase_setup,
     team_sees_everything,
 )
@@ -60,10 +61,11 @@ from server.status import (
     advance,
 )
 from server.tracks import Track
-from submissions.intake import prepare_submission
-from submissions.intake.archive import remove_tree
+from submissions.intake.archive import check_directory
 
 log = logging.getLogger(__name__)
+# What a team sees of the progress of a hidden phase's run under way: quarters.
+HIDDEN_PROGRESS_STEPS = 4
 
 
 @dataclass(frozen=True)
@@ -75,7 +77,8 @@ class NewSubmission:
 
 
 def quota_used(session: Session, team_id: int, phase: str, track: Track, moment: datetime) -> int:
-    """Submissions of the phase and the UTC day so far that count: every accepted one, failed ones
+    """Submissions of the phase and the UTC day so far that count: every one being validated or
+    accepted (rejected ones by the validation do not), failed ones
     included (an agent that crashes costs its team a try, or a crash would buy free evaluations
     of the hidden suite), except those that failed on our side and those cancelled before their
     evaluation started."""
@@ -88,6 +91,7 @@ def quota_used(session: Session, team_id: int, phase: str, track: Track, moment:
             Submission.phase == phase,
             Submission.track == track,
             Submission.created_at >= day_start,
+            Submission.status != SubmissionStatus.rejected,
             or_(
                 Submission.status != SubmissionStatus.failed,
                 Submission.failed_on_our_side.is_(False),
@@ -126,6 +130,22 @@ def check_quota(
         )
 
 
+def check_names(new: NewSubmission) -> str:
+    """The method name to store; refuses what cannot be stored or shown safely."""
+    method_name = new.method_name.strip()
+    if not method_name or len(method_name) > 128:
+        raise InvalidUpload("method_name: give the method a name of 1 to 128 characters")
+    try:
+        check_name("method_name", method_name)
+    except UnsafeName as exc:
+        raise InvalidUpload(str(exc)) from None
+    # PostgreSQL cannot store a NUL; no other control character belongs in a description either.
+    bad = next((c for c in new.description if ord(c) < 32 and c not in "\t\n\r"), None)
+    if bad is not None:
+        raise InvalidUpload(f"description: control character {bad!r} is not allowed")
+    return method_name
+
+
 def accept_upload(
     db: Database,
     settings: Settings,
@@ -133,77 +153,68 @@ def accept_upload(
     team_id: int,
     new: NewSubmission,
     upload: Path,
+    sha256: str,
 ) -> Submission:
-    """Check the zip at ``upload`` with the intake, store it and queue its evaluation.
+    """Reserve the team's validation slot and a try of its quota (atomically, first), run the
+    cheap checks of the zip at ``upload`` (its directory), store it and queue its validation.
 
-    The intake runs before anything is recorded, so a rejected zip leaves no trace and does not
-    count towards the quota."""
-    method_name = new.method_name.strip()
-    if not method_name or len(method_name) > 128:
-        raise InvalidUpload("method_name: give the method a name of 1 to 128 characters")
-    for field_name, value in (("method_name", method_name), ("description", new.description)):
-        # PostgreSQL cannot store a NUL; no other control character belongs in these either.
-        bad = next((c for c in value if ord(c) < 32 and c not in "\t\n\r"), None)
-        if bad is not None:
-            raise InvalidUpload(f"{field_name}: control character {bad!r} is not allowed")
+    What the request does is bounded by the zip's size; everything else (inflating, nested
+    archives, compiling, requirements) is the validation job's, in the sandbox. A zip that fails
+    the cheap checks leaves no trace."""
+    method_name = check_names(new)
     if new.track == Track.offline and settings.train_dataset_dir is None:
         raise InvalidUpload(
             "track: this service cannot train offline submissions yet (no dataset: the "
             "organisers set ARENA_TRAIN_DATASET_DIR to a folder of `arena dataset build`)"
         )
-    with db.read_session() as session:
+    fields = {
+        "phase": new.phase,
+        "track": new.track,
+        "method_name": method_name,
+        "description": new.description.strip(),
+    }
+
+    def quota(session: Session) -> None:
         check_quota(session, settings, team_id, new.phase, new.track)
-    prefix = f"submissions/{uuid.uuid4().hex}"
+
+    submission_id, key = validation.reserve(db, settings, team_id, fields, quota)
     store = artifact_store(settings, db)
-    # The intake runs in a scratch folder of this process; only the zip is kept, in the store.
-    scratch = settings.resolved_data_dir / "scratch" / prefix
-    scratch.mkdir(parents=True)
     try:
-        zip_path = scratch / "upload.zip"
-        shutil.move(upload, zip_path)
         try:
-            prepared = prepare_submission(zip_path, scratch / "prepared", settings)
+            check_directory(upload, settings)
         except IntakeError as exc:
             raise InvalidUpload(str(exc)) from exc
-        if new.track == Track.offline and not prepared.trains:
-            raise InvalidUpload(
-                "train.py: an offline (Track 2) submission holds train.py beside policy.py; the "
-                "service runs it on the dataset before evaluating (docs/dataset.md) "
-                "[rule: train-missing]"
-            )
-        store.put(f"{prefix}/upload.zip", zip_path)
-        with db.session() as session:
-            lock(session, Team, team_id)  # serialises concurrent uploads of one team (quota)
-            check_quota(session, settings, team_id, new.phase, new.track)
-            submission = Submission(
-                team_id=team_id,
-                phase=new.phase,
-                track=new.track,
-                method_name=method_name,
-                description=new.description.strip() or (prepared.explanation or "").strip(),
-                file_sha256=prepared.sha256,
-                file_size=prepared.size,
-                upload_key=f"{prefix}/upload.zip",
-                status=SubmissionStatus.received,
-            )
-            session.add(submission)
-            session.flush()
-            submission.status = advance(
-                submission.status, SubmissionStatus.queued, SUBMISSION_MOVES
-            )
-            submission.queued_at = utcnow()
+        store.put(key, upload)
+        validation.stored(db, submission_id, sha256, upload.stat().st_size)
     except BaseException:
-        store.delete_prefix(prefix)
+        store.delete_prefix(str(Path(key).parent))
+        validation.give_back(db, submission_id)
         raise
-    finally:
-        remove_tree(scratch)
     # After the commit: a worker that picks the task up finds the row. If the broker is down the
     # reaper sends it later.
     try:
-        queue.evaluate(submission.id)
+        queue.validate(submission_id)
     except BROKER_ERRORS as exc:
-        log.warning("queueing submission %s failed: %s", submission.id, exc)
-    return submission
+        log.warning("queueing the validation of submission %s failed: %s", submission_id, exc)
+    with db.read_session() as session:
+        return get_submission(session, submission_id)
+
+
+def keys_in_work(session: Session) -> tuple[set[str], set[str]]:
+    """The zips and trained outputs of submissions still being trained or evaluated: what a
+    worker keeps unpacked; the rest of its scratch can go."""
+    working = Submission.status.in_(
+        [SubmissionStatus.queued, SubmissionStatus.training, SubmissionStatus.running]
+    )
+    uploads = set(session.scalars(select(Submission.upload_key).where(working)))
+    models = set(
+        session.scalars(
+            select(TrainingJob.model_key)
+            .join(Submission, TrainingJob.submission_id == Submission.id)
+            .where(working, TrainingJob.model_key.is_not(None))
+        )
+    )
+    return uploads, models
 
 
 def get_submission(session: Session, submission_id: int) -> Submission:
@@ -230,10 +241,34 @@ def list_submissions(
     rows = list(session.scalars(query))
     runs = [shown_run(submission) for submission in rows]
     done = finished_counts(session, [run.id for run in runs if run is not None])
+    hidden = hidden_phases(session)
     return [
-        SubmissionSummary(**_summary_fields(submission, run, done.get(run.id, 0) if run else 0))
+        SubmissionSummary(
+            **_summary_fields(
+                submission, run, done.get(run.id, 0) if run else 0, submission.phase in hidden
+            )
+        )
         for submission, run in zip(rows, runs, strict=True)
     ]
+
+
+def hidden_phases(session: Session) -> set[str]:
+    """Names of the phases whose suite is hidden from the teams."""
+    return {phase.name for phase in list_phases(session) if not team_sees_everything(phase)}
+
+
+def live_in_hidden_phase(run: EvaluationRun | None, hidden: bool) -> bool:
+    """A run of a hidden phase not yet over: its team sees no per-episode detail of it."""
+    return hidden and run is not None and run.status in ACTIVE_RUN
+
+
+def shown_progress(run: EvaluationRun | None, done: int, hidden: bool) -> Progress:
+    """Episodes done of ``total``; while a hidden phase's run is under way only in steps of a
+    quarter of it: per-episode progress would time each hidden episode for its team."""
+    total = run.episode_count if run is not None else 0
+    if live_in_hidden_phase(run, hidden) and total:
+        done = (done * HIDDEN_PROGRESS_STEPS // total) * total // HIDDEN_PROGRESS_STEPS
+    return Progress(done=done, total=total)
 
 
 def finished_counts(session: Session, run_ids: list[int]) -> dict[int, int]:
@@ -271,10 +306,12 @@ def summary(session: Session, submission: Submission) -> SubmissionSummary:
 def _fields(session: Session, submission: Submission) -> dict:
     run = shown_run(submission)
     done = finished_counts(session, [run.id]).get(run.id, 0) if run is not None else 0
-    return _summary_fields(submission, run, done)
+    return _summary_fields(submission, run, done, submission.phase in hidden_phases(session))
 
 
-def _summary_fields(submission: Submission, run: EvaluationRun | None, done: int) -> dict:
+def _summary_fields(
+    submission: Submission, run: EvaluationRun | None, done: int, hidden: bool
+) -> dict:
     scored = current_run(submission)
     score = scored.score if scored is not None else None
     return {
@@ -289,7 +326,7 @@ def _summary_fields(submission: Submission, run: EvaluationRun | None, done: int
         "started_at": submission.started_at,
         "finished_at": submission.finished_at,
         "duration_s": _duration_s(submission),
-        "progress": Progress(done=done, total=run.episode_count if run else 0),
+        "progress": shown_progress(run, done, hidden),
         "metrics": Metrics.model_validate(score) if score is not None else None,
         "completion_interval": completion_interval(score),
         # Of the run whose progress is shown: what the progress counts.
@@ -313,7 +350,9 @@ def completion_interval(score: Score | None) -> CompletionInterval | None:
 
 
 def detail(session: Session, submission: Submission) -> SubmissionDetail:
-    """Everything its own team may see. Never hands out hidden scenario ids."""
+    """Everything its own team may see. Never hands out hidden scenario ids; in a hidden phase,
+    no failure reason before the run is over (read live, episode by episode, the reasons an agent
+    chose to fail with would carry what it saw of the hidden scenarios)."""
     run = current_run(submission)
     score = run.score if run is not None else None
     results = run.results if run is not None else []
@@ -322,7 +361,8 @@ def detail(session: Session, submission: Submission) -> SubmissionDetail:
         # at no cost (the run is not charged): nothing per family until it is rerun and scored.
         results, score = [], None
     reasons: dict[str, dict[str, int]] = {}
-    for result in results:
+    live_hidden = live_in_hidden_phase(run, submission.phase in hidden_phases(session))
+    for result in [] if live_hidden else results:
         if result.status != ScenarioStatus.running and result.reason != "reached_goal":
             by_reason = reasons.setdefault(result.family, {})
             reason = result.reason or result.status

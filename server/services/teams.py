@@ -25,7 +25,8 @@ class TeamRow:
 
 def create_team(session: Session, name: str) -> tuple[Team, str]:
     """A new team and its first token (returned in clear once; only its hash is stored)."""
-    if not TEAM_NAME.match(name):
+    # fullmatch: with match, `$` also matches before a final newline ("alpha\n" passed).
+    if not TEAM_NAME.fullmatch(name):
         raise InvalidInput(f"team name {name!r}: use 1-64 letters, digits, spaces, '_', '.' or '-'")
     if session.scalar(select(Team.id).where(Team.name == name)) is not None:
         raise Conflict(f"team {name!r} already exists")

@@ -6,7 +6,7 @@ const Arena = (() => {
   const ADMIN_TOKEN_KEY = "arena-admin-token";
   const $ = (id) => document.getElementById(id);
   const headers = (token) => ({ Authorization: `Bearer ${token}` });
-  const FINISHED = ["scored", "failed", "cancelled", "disqualified"];
+  const FINISHED = ["scored", "failed", "rejected", "cancelled", "disqualified"];
 
   async function errorText(response) {
     try {
@@ -49,7 +49,7 @@ const Arena = (() => {
       data.append("file", $("file").files[0]);
       $("submit-error").hidden = true;
       $("submit-button").disabled = true;
-      $("submit-status").textContent = "Uploading and checking the zip…";
+      $("submit-status").textContent = "Uploading…";
       try {
         const response = await fetch(`${API}/submissions`, {
           method: "POST", headers: headers(token), body: data,
@@ -63,7 +63,19 @@ const Arena = (() => {
           return;
         }
         sessionStorage.setItem(TOKEN_KEY, token);
-        const submission = await response.json();
+        let submission = await response.json();
+        // 202: received and stored; a job checks the zip in the sandbox. A rejection is shown
+        // here, as the synchronous checks' messages are; once queued, its page takes over.
+        if (submission.status === "validating") {
+          $("submit-status").textContent = "Received; validating the zip (this takes a few seconds)…";
+          submission = await untilValidated(submission.id, token);
+        }
+        if (submission.status === "rejected" || submission.status === "failed") {
+          $("submit-status").textContent = `Rejected by its validation (${submission.status}).`;
+          $("submit-error").textContent = submission.status_reason;
+          $("submit-error").hidden = false;
+          return;
+        }
         window.location.href = `/submissions/${submission.id}`;
       } catch (error) {
         $("submit-status").textContent = "Upload failed.";
@@ -73,6 +85,18 @@ const Arena = (() => {
         $("submit-button").disabled = false;
       }
     });
+  }
+
+  async function untilValidated(id, token) {
+    // The validation ends within the intake's time limits; past ten minutes the page shows it.
+    const deadline = Date.now() + 600_000;
+    for (;;) {
+      await new Promise((resolve) => setTimeout(resolve, 1000));
+      const response = await fetch(`${API}/submissions/${id}`, { headers: headers(token) });
+      if (!response.ok) throw new Error(await errorText(response));
+      const submission = await response.json();
+      if (submission.status !== "validating" || Date.now() > deadline) return submission;
+    }
   }
 
   function fmt(metric, value) {

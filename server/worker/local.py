@@ -11,7 +11,6 @@ import dataclasses
 import hashlib
 import os
 import pickle
-import shutil
 import socket
 import threading
 import uuid
@@ -20,12 +19,15 @@ from pathlib import Path
 
 from arena.config import get_settings
 from evaluator import sandbox
+from evaluator.sandbox.warm_pool import warm_agents
 from evaluator.training import unpack_model
+from evaluator.validation import validate
 from server.core.artifacts import ArtifactStore, artifact_store
 from server.core.db import get_database
 from server.core.queue import TaskQueue
 from server.services.storable import storable_text
-from submissions.intake import PreparedSubmission, prepare_submission
+from submissions.intake import PreparedSubmission
+from submissions.intake.archive import remove_tree
 
 
 def worker_name() -> str:
@@ -49,6 +51,18 @@ def scratch() -> Path:
     return get_settings().resolved_data_dir / "scratch" / f"{socket.gethostname()}-{os.getpid()}"
 
 
+def orphan_scratch() -> list[Path]:
+    """Scratch folders of this host's worker processes that no longer run."""
+    host = socket.gethostname()
+    folders = (get_settings().resolved_data_dir / "scratch").glob(f"{host}-*")
+    return [
+        folder
+        for folder in folders
+        if (pid := folder.name.removeprefix(f"{host}-")).isdigit()
+        and not Path(f"/proc/{pid}").exists()
+    ]
+
+
 def tail(text: str) -> str:
     """The end of a log, as much as the team may see, storable whatever it holds (lone
     surrogates, NULs: a strict encode here crashed the task, an uncharged ``worker_lost``)."""
@@ -60,23 +74,29 @@ def tail(text: str) -> str:
 _unpack_lock = threading.Lock()
 # Beside each prepared submission: its PreparedSubmission, pickled.
 PREPARED_DESCRIPTION = "prepared.pickle"
+# What this process unpacked, by key: kept while the submission is in work, deleted (folder and
+# all) once it is not (forget_finished), so a long-running worker's scratch does not grow.
+_prepared: dict[str, PreparedSubmission] = {}
+_models: dict[str, Path] = {}
 
 
 def prepared(upload_key: str) -> PreparedSubmission:
     """One preparation per submission and worker process, even with several threads asking."""
     with _unpack_lock:
-        return _prepare(upload_key)
+        if upload_key not in _prepared:
+            _prepared[upload_key] = _prepare(upload_key)
+        return _prepared[upload_key]
 
 
-@lru_cache(maxsize=4)
 def _prepare(upload_key: str) -> PreparedSubmission:
     """The submission ready to run, prepared once per worker process from the zip in the
-    artifact store.
+    artifact store. The intake runs in the sandbox again (its requirements come from the cache
+    when this machine validated it): nothing of the participant's is inflated or compiled on
+    this host.
 
     Into a folder named after the zip's digest, made whole in a staging folder then renamed,
-    and never changed again: a warm agent binds it (its pool is keyed by that digest), so one
-    prepared again after this cache dropped it finds the same folder (the description beside it)
-    instead of deleting files under a live sandbox."""
+    and never changed while it is in work: a warm agent binds it (its pool is keyed by that
+    digest), and two uploads of the same zip share it."""
     root = scratch() / "submissions"
     staging = root / f"staging-{uuid.uuid4().hex}"
     try:
@@ -84,17 +104,13 @@ def _prepare(upload_key: str) -> PreparedSubmission:
         final = root / _file_sha256(zip_path)
         described = final / PREPARED_DESCRIPTION
         if not described.is_file():
-            ready = prepare_submission(zip_path, staging / "prepared", get_settings())
+            ready = validate(zip_path, staging / "prepared", get_settings(), kind=sandbox_kind())
             (staging / PREPARED_DESCRIPTION).write_bytes(pickle.dumps(ready))
-            try:
-                staging.rename(final)
-            except OSError:  # another thread of this process got there first: same content
-                if not described.is_file():
-                    raise
+            staging.rename(final)
         # Written by this process into its own scratch folder, which no sandbox can write.
         ready = pickle.loads(described.read_bytes())
     finally:
-        shutil.rmtree(staging, ignore_errors=True)
+        remove_tree(staging)
     return dataclasses.replace(ready, root=final / "prepared")
 
 
@@ -109,13 +125,14 @@ def _file_sha256(path: Path) -> str:
 def model(model_key: str) -> Path:
     """The trained output, unpacked once per worker process (several threads may ask)."""
     with _unpack_lock:
-        return _unpacked_model(model_key)
+        if model_key not in _models:
+            _models[model_key] = _unpacked_model(model_key)
+        return _models[model_key]
 
 
-@lru_cache(maxsize=4)
 def _unpacked_model(model_key: str) -> Path:
-    """Unpacked once into a folder of its own, never changed again (as :func:`_prepare`)."""
-    folder = scratch() / "models" / hashlib.sha256(model_key.encode()).hexdigest()[:16]
+    """Unpacked once into a folder of its own, never changed while it is in work."""
+    folder = _model_folder(model_key)
     if (folder / "model").is_dir():
         return folder / "model"
     staging = folder.with_name(f"staging-{uuid.uuid4().hex}")
@@ -125,8 +142,31 @@ def _unpacked_model(model_key: str) -> Path:
         (staging / "model.tar.gz").unlink()
         staging.rename(folder)
     finally:
-        shutil.rmtree(staging, ignore_errors=True)
+        remove_tree(staging)
     return folder / "model"
+
+
+def _model_folder(model_key: str) -> Path:
+    return scratch() / "models" / hashlib.sha256(model_key.encode()).hexdigest()[:16]
+
+
+def forget_finished(upload_keys: set[str], model_keys: set[str]) -> int:
+    """Delete what this process unpacked for submissions no longer in work (their runs ended):
+    only ``upload_keys`` and ``model_keys`` are kept. How many folders went. The idle warm
+    agents bound to a folder close first; a folder another upload in work shares (same zip)
+    stays."""
+    with _unpack_lock:
+        gone = [_prepared.pop(key) for key in list(_prepared) if key not in upload_keys]
+        kept = {submission.root.parent for submission in _prepared.values()}
+        folders = {s.root.parent: s.sha256 for s in gone if s.root.parent not in kept}
+        gone_models = [_models.pop(key) for key in list(_models) if key not in model_keys]
+        for folder, sha256 in folders.items():
+            warm_agents().close(sha256)
+            remove_tree(folder)
+        for model_dir in gone_models:
+            warm_agents().close(model_dir=model_dir)
+            remove_tree(model_dir.parent)
+    return len(folders) + len(gone_models)
 
 
 @lru_cache(maxsize=1)

@@ -39,25 +39,30 @@ from server.core.celery_app import (
     TASK_EVALUATE,
     TASK_SCENARIO,
     TASK_TRAIN,
+    TASK_VALIDATE,
 )
 from server.core.db import get_database
 from server.core.permissions import close_service_folders
-from server.services import adaptive, evaluation, training
+from server.services import adaptive, evaluation, submissions, training
 from server.worker import engine, heartbeat, local
 from server.worker.engine import INFRASTRUCTURE_RETRIES, JobKind
 from server.worker.episodes import EPISODES
 from server.worker.trainings import TRAININGS
+from server.worker.validations import VALIDATIONS
+from submissions.intake.archive import remove_tree
 
 log = logging.getLogger(__name__)
 
 # [s] One scenario: agent start-up plus the episode limit (600 s) plus a SUMO retry.
 SCENARIO_TIME_LIMIT_S = 1800
 BOOKKEEPING_TIME_LIMIT_S = 300
+# A backstop: each sandboxed step of a validation has ARENA_INTAKE_TIMEOUT_S, plus pip's download.
+VALIDATE_TIME_LIMIT_S = 3600
 # A backstop only (the thread pool enforces no task time limit): the training's own budget,
 # ARENA_TRAIN_TIMEOUT_S, is enforced by evaluator.training.
 TRAIN_TIME_LIMIT_S = 24 * 3600
 # Every job kind of the engine: what the reaper looks through.
-JOB_KINDS: tuple[JobKind, ...] = (EPISODES, TRAININGS)
+JOB_KINDS: tuple[JobKind, ...] = (VALIDATIONS, EPISODES, TRAININGS)
 
 
 def arena_task(name: str, *, time_limit: int, **options: Any):
@@ -72,6 +77,14 @@ def arena_task(name: str, *, time_limit: int, **options: Any):
         ignore_result=True,
         **options,
     )
+
+
+@arena_task(
+    TASK_VALIDATE, time_limit=VALIDATE_TIME_LIMIT_S, bind=True, max_retries=INFRASTRUCTURE_RETRIES
+)
+def validate_submission(self, *, submission_id: int) -> None:
+    """An upload validated in the sandbox: queued (and sent to evaluation) or rejected."""
+    engine.run_job(VALIDATIONS, self, submission_id=submission_id)
 
 
 @arena_task(TASK_EVALUATE, time_limit=BOOKKEEPING_TIME_LIMIT_S)
@@ -124,6 +137,13 @@ def reap_once() -> dict[str, int]:
     return engine.reap_once(JOB_KINDS)
 
 
+def remove_finished_scratch() -> int:
+    """Delete this process's unpacked submissions and models whose runs have ended."""
+    with get_database().read_session() as session:
+        uploads, models = submissions.keys_in_work(session)
+    return local.forget_finished(uploads, models)
+
+
 _reaper_stop = threading.Event()
 
 
@@ -148,6 +168,7 @@ def _start_reaper(**_: Any) -> None:
             try:
                 reap_once()
                 warm_agents().close_idle(get_settings().warm_agent_idle_s)
+                remove_finished_scratch()
             except Exception:  # a bad round must not end the loop; logged with traceback
                 log.exception("reaper round failed")
 
@@ -157,6 +178,19 @@ def _start_reaper(**_: Any) -> None:
 @worker_shutdown.connect
 def _stop_reaper(**_: Any) -> None:
     _reaper_stop.set()
+
+
+@worker_shutdown.connect
+def _remove_scratch(**_: Any) -> None:
+    """This process's scratch (prepared submissions, records, models) ends with it."""
+    remove_tree(local.scratch())
+
+
+@worker_ready.connect
+def _remove_orphan_scratch(**_: Any) -> None:
+    """Scratch of this host's worker processes that died without removing theirs."""
+    for folder in local.orphan_scratch():
+        remove_tree(folder)
 
 
 @worker_shutdown.connect

@@ -1,8 +1,11 @@
 """Submission intake: a zip (or folder) in, a checked, extracted, read-only submission out.
 
-:func:`prepare_submission` is the only way a submission reaches a sandbox. Each rule it enforces
-has a short name, carried by the :class:`~arena.errors.IntakeError` it raises together with
-the entry at fault; ``docs/submissions.md`` lists them all.
+:func:`prepare_submission` is the only way a submission reaches a sandbox. The participant's
+bytes are handled by :mod:`agent_runtime.intake`, through an
+:class:`~submissions.intake.runner.IntakeRunner`: in this process for a participant's own zip, in
+the sandbox for the service (``evaluator.validation``). Each rule has a short name, carried by
+the :class:`~arena.errors.IntakeError` it raises together with the entry at fault;
+``docs/submissions.md`` lists them all.
 """
 
 from __future__ import annotations
@@ -12,21 +15,21 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
+from agent_runtime import intake as rules
 from arena.config import Settings, get_settings
 from arena.errors import IntakeError
 from sim.interface import AgentInterface
-from submissions.intake.archive import Budget, check_members, extract, open_zip, remove_tree
+from submissions.intake.archive import make_read_only, remove_tree
 from submissions.intake.contents import (
     REQUIREMENTS,
-    check_policy,
-    check_train_script,
     load_explanation,
     load_interface,
     read_text,
 )
 from submissions.intake.dependencies import install_requirements
 from submissions.intake.pack import pack_folder
-from submissions.intake.porting import porting_notes, with_porting_notes
+from submissions.intake.porting import porting_notes, read_scan, with_porting_notes
+from submissions.intake.runner import IntakeRunner, in_process, write_inputs
 
 __all__ = ["IntakeError", "PreparedSubmission", "check_zip", "pack_folder", "prepare_submission"]
 
@@ -45,85 +48,104 @@ class PreparedSubmission:
     trains: bool = False  # holds train.py (Track 2: trained in the sandbox before evaluation)
     # The trained output its policy reads (ARENA_MODEL_DIR), once `train.py` has run.
     model_dir: Path | None = None
+    # The content key of its requirements' folder (submissions.intake.dependencies), if any.
+    deps_key: str | None = None
 
 
-@dataclass(frozen=True)
-class CheckedZip:
-    interface: AgentInterface
-    explanation: str | None
-    requirements: str | None
-    sha256: str
-    size: int
-    notes: tuple[str, ...] = ()
-    trains: bool = False
-
-
-def check_zip(path: Path, settings: Settings | None = None) -> CheckedZip:
-    """Every rule that can be judged from the zip alone; nothing is written."""
-    settings = settings or get_settings()
-    with open_zip(path, settings) as archive:
-        check_members(archive, Budget(settings), depth=0)
-        notes = porting_notes(archive)
-        try:
-            check_policy(archive)
-            trains = check_train_script(archive)
-            interface = load_interface(archive)
-            explanation = load_explanation(archive)
-            requirements = read_text(archive, REQUIREMENTS)
-        except IntakeError as error:
-            raise with_porting_notes(error, notes) from error
+def file_sha256(path: Path) -> str:
     digest = hashlib.sha256()
     with path.open("rb") as handle:
         while chunk := handle.read(1024**2):
             digest.update(chunk)
-    return CheckedZip(
-        interface,
-        explanation,
-        requirements,
-        digest.hexdigest(),
-        path.stat().st_size,
-        notes,
-        trains,
-    )
+    return digest.hexdigest()
 
 
 def prepare_submission(
-    source: Path, dest: Path, settings: Settings | None = None
+    source: Path,
+    dest: Path,
+    settings: Settings | None = None,
+    *,
+    runner: IntakeRunner = in_process,
+    needs_training: bool = False,
+    install: bool = True,
 ) -> PreparedSubmission:
     """Check ``source`` (a zip, or a folder zipped the same way), extract it into ``dest``
-    (replacing what was there) and install its requirements.
+    (replacing what was there) and install its requirements (unless not ``install``).
 
-    Raises :class:`~arena.errors.IntakeError` naming the entry and the rule at fault.
+    ``needs_training``: refuse a zip without ``train.py`` (an offline submission), before its
+    requirements are installed. Raises :class:`~arena.errors.IntakeError` naming the entry and
+    the rule at fault; nothing is left in ``dest`` then.
     """
     settings = settings or get_settings()
     source = Path(source)
     dest = Path(dest)
     if source.is_dir():
         with tempfile.TemporaryDirectory(prefix="arena-pack-") as tmp:
-            return prepare_submission(pack_folder(source, Path(tmp) / "agent.zip"), dest, settings)
+            return prepare_submission(
+                pack_folder(source, Path(tmp) / "agent.zip"),
+                dest,
+                settings,
+                runner=runner,
+                needs_training=needs_training,
+                install=install,
+            )
     if not source.is_file():
         raise IntakeError(str(source), "not-found", "no such file")
-    checked = check_zip(source, settings)
-    remove_tree(dest)
-    # Extract first: a zip that fails extraction must not leave installed requirements behind
-    # (repeated rejected uploads would fill the disk at no cost to their quota).
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    work = Path(tempfile.mkdtemp(prefix=".intake-", dir=dest.parent))
     try:
-        with open_zip(source, settings) as archive:
-            extract(archive, dest, settings)
-        deps_dir = install_requirements(checked.requirements or "", settings)
+        write_inputs(work / "in", settings, {rules.UPLOAD: source})
+        verdict = runner("submission", work / "in", work / "out")
+    except IntakeError as error:
+        # A script that fails its checks after extraction: the porting notes are still told.
+        try:
+            notes = porting_notes(work / "out" / rules.SUBMISSION_DIR, read_scan(work / "out"))
+        finally:
+            remove_tree(work)  # a zip that fails its checks leaves the previous extraction alone
+        raise with_porting_notes(error, notes) from error
+    except BaseException:
+        remove_tree(work)
+        raise
+    notes: tuple[str, ...] = ()
+    try:
+        remove_tree(dest)
+        (work / "out" / rules.SUBMISSION_DIR).rename(dest)
+        make_read_only(dest)
+        notes = porting_notes(dest, read_scan(work / "out"))
+        if needs_training and not verdict["trains"]:
+            raise IntakeError(
+                rules.TRAIN_SCRIPT,
+                "train-missing",
+                "an offline (Track 2) submission holds train.py beside policy.py; the service "
+                "runs it on the dataset before evaluating (docs/dataset.md)",
+            )
+        interface = load_interface(dest)
+        explanation = load_explanation(dest)
+        requirements = read_text(dest, REQUIREMENTS) or ""
+        installed = install_requirements(requirements, settings, runner) if install else None
     except IntakeError as error:
         remove_tree(dest)
-        raise with_porting_notes(error, checked.notes) from error
+        raise with_porting_notes(error, notes) from error
     except BaseException:
         remove_tree(dest)
         raise
+    finally:
+        remove_tree(work)
     return PreparedSubmission(
         root=dest.resolve(),
-        deps_dir=deps_dir,
-        interface=checked.interface,
-        sha256=checked.sha256,
-        size=checked.size,
-        explanation=checked.explanation,
-        notes=checked.notes,
-        trains=checked.trains,
+        deps_dir=installed.folder if installed else None,
+        deps_key=installed.key if installed else None,
+        interface=interface,
+        sha256=file_sha256(source),
+        size=source.stat().st_size,
+        explanation=explanation,
+        notes=notes,
+        trains=verdict["trains"],
     )
+
+
+def check_zip(path: Path, settings: Settings | None = None) -> PreparedSubmission:
+    """Every rule that can be judged from the zip alone (requirements are not installed);
+    nothing is kept."""
+    with tempfile.TemporaryDirectory(prefix="arena-check-") as tmp:
+        return prepare_submission(path, Path(tmp) / "submission", settings, install=False)

@@ -1,22 +1,19 @@
-"""Checks of what a submission holds: ``policy.py``, ``agent.yaml``, ``explanation.md``.
-
-Nothing of the participant's is imported or run on the host: ``policy.py`` is compiled and its
-syntax tree searched for a ``Policy`` definition, and ``agent.yaml`` is parsed with the safe loader.
+"""What a checked, extracted submission says about itself: ``agent.yaml``, ``explanation.md``,
+``requirements.txt``. Each is read with a size cap (``policy.py`` and ``train.py`` are checked by
+:mod:`agent_runtime.intake`, inside the sandbox) and ``agent.yaml`` is parsed with the safe loader.
 """
 
 from __future__ import annotations
 
-import ast
 import difflib
-import zipfile
 from enum import Enum
+from pathlib import Path
 
 import yaml
 from pydantic import ValidationError
 
 from arena.errors import IntakeError
 from sim.interface import AgentInterface
-from submissions.intake.archive import read_entry
 
 POLICY = "policy.py"
 TRAIN_SCRIPT = "train.py"
@@ -25,77 +22,32 @@ REQUIREMENTS = "requirements.txt"
 EXPLANATION = "explanation.md"
 # The explanation is shown on a web page; the rest of a long file is cut.
 MAX_EXPLANATION_CHARS = 20_000
+# A configuration file is small: a bigger one is refused before it is parsed.
+MAX_CONFIG_BYTES = 64 * 1024
 
 
-def read_text(archive: zipfile.ZipFile, name: str) -> str | None:
-    """A root-level text file of the zip, or None when it is absent."""
-    try:
-        archive.getinfo(name)
-    except KeyError:
+def read_text(
+    root: Path, name: str, max_bytes: int = MAX_CONFIG_BYTES, cut: bool = False
+) -> str | None:
+    """A root-level text file of the submission, or None when it is absent. Longer than
+    ``max_bytes``: cut there with ``cut``, else refused."""
+    path = root / name
+    if not path.is_file():
         return None
-    data = read_entry(archive, name)
+    with path.open("rb") as handle:
+        data = handle.read(max_bytes + 1)
+    if len(data) > max_bytes:
+        if not cut:
+            raise IntakeError(name, "file-too-large", f"is larger than {max_bytes // 1024} KiB")
+        data = data[:max_bytes]
     try:
-        return data.decode("utf-8-sig")
+        return data.decode("utf-8-sig", errors="replace" if cut else "strict")
     except UnicodeDecodeError as error:
         raise IntakeError(name, "not-utf8", f"is not UTF-8 text ({error})") from error
 
 
-def check_policy(archive: zipfile.ZipFile) -> None:
-    source = read_text(archive, POLICY)
-    if source is None:
-        nested = [n for n in archive.namelist() if n.endswith(f"/{POLICY}")]
-        hint = f"; found {nested[0]}: zip the folder's contents, not the folder" if nested else ""
-        raise IntakeError(POLICY, "policy-missing", f"the zip has no {POLICY} at its root{hint}")
-    tree = parse_script(POLICY, source, "policy")
-    if not defines_policy(tree):
-        raise IntakeError(POLICY, "policy-class", "defines no top-level class Policy")
-
-
-def check_train_script(archive: zipfile.ZipFile) -> bool:
-    """True when the zip holds a ``train.py`` (Track 2) that compiles."""
-    source = read_text(archive, TRAIN_SCRIPT)
-    if source is None:
-        return False
-    parse_script(TRAIN_SCRIPT, source, "train")
-    return True
-
-
-def parse_script(name: str, source: str, rule: str) -> ast.Module:
-    """The syntax tree of a submission's script; its rules are ``<rule>-syntax`` and
-    ``<rule>-too-deep``."""
-    try:
-        tree = compile(source, name, "exec", flags=ast.PyCF_ONLY_AST, dont_inherit=True)
-        compile(tree, name, "exec", dont_inherit=True)
-    except SyntaxError as error:
-        where = f"line {error.lineno}" + (f", column {error.offset}" if error.offset else "")
-        raise IntakeError(name, f"{rule}-syntax", f"{error.msg} ({where})") from error
-    except ValueError as error:
-        raise IntakeError(name, f"{rule}-syntax", str(error)) from error
-    except (RecursionError, MemoryError) as error:
-        # A deeply nested expression overflows the compiler's stack: not a program we can check.
-        raise IntakeError(
-            name, f"{rule}-too-deep", f"nests expressions too deeply to compile ({error})"
-        ) from error
-    return tree
-
-
-def defines_policy(tree: ast.Module) -> bool:
-    """A top-level ``class Policy``, ``Policy = ...`` or ``from x import ... as Policy``."""
-    for node in tree.body:
-        if isinstance(node, ast.ClassDef) and node.name == "Policy":
-            return True
-        if isinstance(node, ast.Assign | ast.AnnAssign):
-            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
-            if any(isinstance(t, ast.Name) and t.id == "Policy" for t in targets):
-                return True
-        imported = isinstance(node, ast.ImportFrom | ast.Import)
-        if imported and any((alias.asname or alias.name) == "Policy" for alias in node.names):
-            return True
-    return False
-
-
-def load_interface(archive: zipfile.ZipFile) -> AgentInterface:
-    text = read_text(archive, AGENT_YAML)
+def load_interface(root: Path) -> AgentInterface:
+    text = read_text(root, AGENT_YAML)
     if text is None:
         return AgentInterface()
     try:
@@ -141,6 +93,6 @@ def _did_you_mean(word: str, allowed: list[str]) -> str:
     return f"; did you mean {close[0]!r}?" if close else ""
 
 
-def load_explanation(archive: zipfile.ZipFile) -> str | None:
-    text = read_text(archive, EXPLANATION)
+def load_explanation(root: Path) -> str | None:
+    text = read_text(root, EXPLANATION, MAX_EXPLANATION_CHARS * 4, cut=True)
     return None if text is None else text[:MAX_EXPLANATION_CHARS]

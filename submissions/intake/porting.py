@@ -7,34 +7,22 @@ wheel does, with a message naming the line and the versions that do have one.
 
 from __future__ import annotations
 
-import ast
 import contextlib
+import json
 import platform
 import re
-import zipfile
-from dataclasses import dataclass, field
+from pathlib import Path
 
 import yaml
 from packaging.requirements import InvalidRequirement, Requirement
 from packaging.utils import canonicalize_name
 
+from agent_runtime import intake as rules
 from arena.errors import IntakeError
-from submissions.intake.archive import read_entry
 from submissions.intake.contents import AGENT_YAML, POLICY, REQUIREMENTS, read_text
 
 SMARTS_CONFIG = "config.yaml"
 SMARTS_FORMAT = "smarts2022"
-# numpy's aliases of Python types, removed in numpy 1.24 -> the Python type to use instead.
-NUMPY_ALIASES = {
-    "float": "float",
-    "int": "int",
-    "bool": "bool",
-    "object": "object",
-    "str": "str",
-    "long": "int",
-    "unicode": "str",
-    "complex": "complex",
-}
 # The modules (and names imported from them) of agent_runtime/compat/smarts.
 SMARTS_COMPAT_MODULES = frozenset(
     {
@@ -61,27 +49,31 @@ SMARTS_COMPAT_MODULES = frozenset(
         "smarts.zoo.agent_spec",
     }
 )
-_MAX_SCANNED_FILES = 500
-_MAX_SCANNED_BYTES = 1 << 20
+_MAX_SCAN_REPORT_BYTES = 256 * 1024
 _NO_MATCH = re.compile(r"No matching distribution found for ([^\s/]+)")
 _VERSIONS = re.compile(r"\(from versions: ([^)]*)\)")
 _SHOWN_VERSIONS = 5  # the newest few versions with a wheel, named in the message
 
 
-def porting_notes(archive: zipfile.ZipFile) -> tuple[str, ...]:
-    """Messages about SMARTS 2022 leftovers in the zip (empty when there are none): what the
-    three published 2022 agents needed when ported (``docs/submissions.md``)."""
-    scan = _scan(archive)
-    smarts_format = _observation_format(archive) == SMARTS_FORMAT
-    requirements = _required_projects(read_text(archive, REQUIREMENTS) or "")
+def porting_notes(root: Path, scan: dict | None) -> tuple[str, ...]:
+    """Messages about SMARTS 2022 leftovers in the extracted submission ``root`` (empty when
+    there are none): what the three published 2022 agents needed when ported
+    (``docs/submissions.md``). ``scan``: what its Python files import and use, found by
+    :func:`agent_runtime.intake.scan_sources` in the sandbox (None: not scanned)."""
+    scan = scan or {}
+    imports = _names(scan, "imports")
+    numpy_aliases = _names(scan, "numpy_aliases") & set(rules.NUMPY_ALIASES)
+    smarts_format = _observation_format(root) == SMARTS_FORMAT
+    requirements_text = _text(root, REQUIREMENTS)
+    requirements = _required_projects(requirements_text)
     notes = []
-    if scan.defines_wrappers and not smarts_format:
+    if scan.get("defines_wrappers") is True and not smarts_format:
         notes.append(
             f"{POLICY} defines submitted_wrappers(): Driving Arena applies them (around an "
             "environment that gives SMARTS's observations, as the 2022 evaluation did) only with "
             "`observation_format: smarts2022` in agent.yaml (docs/smarts-compat.md)."
         )
-    smarts_modules = sorted(m for m in scan.imports if m.split(".")[0] == "smarts")
+    smarts_modules = sorted(m for m in imports if m.split(".")[0] == "smarts")
     if smarts_modules and "smarts" not in requirements:
         if not smarts_format:
             notes.append(
@@ -98,7 +90,7 @@ def porting_notes(archive: zipfile.ZipFile) -> tuple[str, ...]:
                     "compatibility package (docs/smarts-compat.md lists what is); the import "
                     "fails unless you copy what you use into your submission."
                 )
-    if "gym" in {m.split(".")[0] for m in scan.imports} and "gym" not in requirements:
+    if "gym" in {m.split(".")[0] for m in imports} and "gym" not in requirements:
         if smarts_format:
             notes.append(
                 "imports gym: the sandbox provides gym 0.21's Env, wrappers and spaces (enough "
@@ -110,15 +102,15 @@ def porting_notes(archive: zipfile.ZipFile) -> tuple[str, ...]:
                 "smarts2022` it provides gym 0.21's Env, wrappers and spaces; or use gymnasium "
                 "and list it in requirements.txt."
             )
-    aliases = sorted(scan.numpy_aliases)
-    if aliases and not _pins_old_numpy(read_text(archive, REQUIREMENTS) or ""):
+    aliases = sorted(numpy_aliases)
+    if aliases and not _pins_old_numpy(requirements_text):
         names = ", ".join(f"np.{a}" for a in aliases)
         notes.append(
             f"uses {names}, removed in numpy 1.24 (the sandbox's numpy is newer): use the Python "
-            f"types ({', '.join(NUMPY_ALIASES[a] for a in aliases)}), or pin an older numpy in "
-            "requirements.txt (e.g. numpy==1.23.5), which the policy then imports."
+            f"types ({', '.join(rules.NUMPY_ALIASES[a] for a in aliases)}), or pin an older "
+            "numpy in requirements.txt (e.g. numpy==1.23.5), which the policy then imports."
         )
-    if read_text(archive, SMARTS_CONFIG) is not None:
+    if (root / SMARTS_CONFIG).is_file():
         notes.append(
             f"{SMARTS_CONFIG} is not read by Driving Arena (it is only a file your policy may "
             "open). Interface options (action space, waypoints, rasters, observation format) go "
@@ -135,57 +127,36 @@ def with_porting_notes(error: IntakeError, notes: tuple[str, ...]) -> IntakeErro
     return IntakeError(error.entry, error.rule, f"{error.message} {listed}")
 
 
-@dataclass
-class _Scan:
-    imports: set[str] = field(default_factory=set)  # modules imported (`from m import x`: m)
-    numpy_aliases: set[str] = field(default_factory=set)  # np.float and the like used
-    defines_wrappers: bool = False  # policy.py defines submitted_wrappers()
-
-
-def _scan(archive: zipfile.ZipFile) -> _Scan:
-    """Imports and removed numpy aliases of the zip's Python files (syntax trees only: nothing
-    of the participant's runs here)."""
-    scan = _Scan()
-    sources = [i for i in archive.infolist() if i.filename.endswith(".py") and not i.is_dir()]
-    for info in sources[:_MAX_SCANNED_FILES]:
-        try:
-            tree = ast.parse(read_entry(archive, info, _MAX_SCANNED_BYTES))
-        except (SyntaxError, ValueError, RecursionError, MemoryError):
-            continue  # check_policy names what is wrong with policy.py; others are not ours
-        if info.filename == POLICY:
-            scan.defines_wrappers = any(
-                isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef)
-                and node.name == "submitted_wrappers"
-                for node in tree.body
-            )
-        numpy_names = {"numpy"}
-        for node in ast.walk(tree):
-            if isinstance(node, ast.Import):
-                for alias in node.names:
-                    scan.imports.add(alias.name)
-                    if alias.name == "numpy":
-                        numpy_names.add(alias.asname or "numpy")
-            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-                scan.imports.add(node.module)
-        for node in ast.walk(tree):
-            if (
-                isinstance(node, ast.Attribute)
-                and node.attr in NUMPY_ALIASES
-                and isinstance(node.value, ast.Name)
-                and node.value.id in numpy_names
-            ):
-                scan.numpy_aliases.add(node.attr)
-    scan.imports = {m for m in scan.imports if _is_module_like(m)}
-    return scan
-
-
-def _is_module_like(name: str) -> bool:
-    return all(part.isidentifier() for part in name.split("."))
-
-
-def _observation_format(archive: zipfile.ZipFile) -> str | None:
+def read_scan(output: Path) -> dict | None:
+    """The sandbox's scan of the Python files (:data:`agent_runtime.intake.PORTING` in the
+    intake's output folder, written where the participant's bytes were handled: bounded)."""
+    path = output / rules.PORTING
+    if not path.is_file() or path.stat().st_size > _MAX_SCAN_REPORT_BYTES:
+        return None
     try:
-        options = yaml.safe_load(read_text(archive, AGENT_YAML) or "") or {}
+        scan = json.loads(path.read_text())
+    except (ValueError, UnicodeDecodeError):
+        return None
+    return scan if isinstance(scan, dict) else None
+
+
+def _names(scan: dict, key: str) -> set[str]:
+    values = scan.get(key)
+    return {v for v in values if isinstance(v, str)} if isinstance(values, list) else set()
+
+
+def _text(root: Path, name: str) -> str:
+    """A configuration file read for advice only: absent, too large or not UTF-8 reads as empty
+    (the checks proper refuse those)."""
+    try:
+        return read_text(root, name) or ""
+    except IntakeError:
+        return ""
+
+
+def _observation_format(root: Path) -> str | None:
+    try:
+        options = yaml.safe_load(_text(root, AGENT_YAML)) or {}
     except yaml.YAMLError:
         return None
     return options.get("observation_format") if isinstance(options, dict) else None

@@ -7,6 +7,9 @@ import json
 from datetime import datetime, timedelta
 from pathlib import Path
 
+from sqlalchemy import select
+
+from arena.config import Settings
 from evaluator.scoring import MetricSamples
 from server.core.db import Database
 from server.models import EvaluationRun, Phase, Score, Submission, Visibility, utcnow
@@ -153,18 +156,24 @@ def default_phases() -> list[Phase]:
 
 
 def evaluate_failing_everywhere(
-    db: Database, settings, submission_id: int, *, log: str, error: str | None = None
+    db: Database,
+    settings,
+    submission_id: int,
+    *,
+    log: str,
+    error: str | None = None,
+    episodes: int | None = None,
 ) -> None:
     """Run the submission through the service's bookkeeping as a worker would: every scenario
-    claimed, reported done with its agent colliding (no record) and ``log`` as its output, then
-    the run aggregated."""
+    (or the first ``episodes``: the run stays under way) claimed, reported done with its agent
+    colliding (no record) and ``log`` as its output, then the run aggregated."""
     from arena.outcome import AgentOutcome, ScenarioStatus
     from evaluator.runner import ScenarioOutcome
     from server.core.artifacts import DatabaseStore
 
     with db.session() as session:
         plan = evaluation.start_evaluation(session, settings, submission_id)
-    for scenario_id in scenario_ids(plan):
+    for scenario_id in scenario_ids(plan)[:episodes]:
         with db.session() as session:
             job = evaluation.claim_scenario(session, settings, plan.run_id, scenario_id, "w1")
         outcome = ScenarioOutcome(
@@ -177,5 +186,39 @@ def evaluate_failing_everywhere(
         )
         with db.session() as session:
             evaluation.record_scenario(session, job, "w1", outcome, log)
+    if episodes is not None and episodes < len(plan.episodes):
+        return
     with db.session() as session:
         assert evaluation.finish_run(session, DatabaseStore(db), plan.run_id) is not None
+
+
+def validate_uploads(db: Database, settings: Settings, worker: str = "test-worker") -> list[int]:
+    """Run the validation job of every upload ``validating``, as a worker does (the intake in
+    the service's sandbox, the verdict recorded through the fence); the ids validated."""
+    from evaluator.sandbox import check_service_kind
+    from server.core.artifacts import artifact_store
+    from server.core.queue import TaskQueue
+    from server.services import validation
+    from server.status import SubmissionStatus
+    from server.worker.validations import judge, record
+
+    with db.read_session() as session:
+        pending = list(
+            session.scalars(
+                select(Submission.id).where(Submission.status == SubmissionStatus.validating)
+            )
+        )
+    store = artifact_store(settings, db)
+    kind = check_service_kind(settings=settings)
+    queue = TaskQueue(settings)
+    try:
+        for submission_id in pending:
+            with db.session() as session:
+                claim = validation.claim(session, settings, submission_id, worker)
+            assert claim is not None
+            scratch = settings.resolved_data_dir / "scratch" / worker
+            verdict = judge(claim, settings, store, kind, {"arena.test": worker}, scratch)
+            record(claim, worker, verdict, settings, db, store, queue)
+    finally:
+        queue.close()
+    return pending

@@ -25,7 +25,7 @@ SCENARIOS = (
     "p023_overtake_2lane_low",
     "p030_replay_cruise",
 )
-FINISHED = {"scored", "failed", "cancelled", "disqualified"}
+FINISHED = {"scored", "failed", "rejected", "cancelled", "disqualified"}
 
 
 def shared_dir(prefix: str) -> Path:
@@ -84,7 +84,8 @@ def upload_folder(url: str, token: str, folder: Path, zips: Path) -> int:
             files={"file": (path.name, handle, "application/zip")},
             timeout=120,
         )
-    assert response.status_code == 201, response.text
+    # Received and stored; the worker validates it, then evaluates it.
+    assert response.status_code == 202, response.text
     return response.json()["id"]
 
 

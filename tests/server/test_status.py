@@ -21,12 +21,14 @@ from server.status import (
 # The lifecycle order; a legal move never goes to an earlier stage.
 STAGE = {
     SubmissionStatus.received: 0,
+    SubmissionStatus.validating: 0,
     SubmissionStatus.queued: 1,
     SubmissionStatus.training: 2,  # offline submissions only
     SubmissionStatus.running: 3,
     SubmissionStatus.scored: 4,
     SubmissionStatus.failed: 4,
     SubmissionStatus.cancelled: 4,
+    SubmissionStatus.rejected: 4,
     SubmissionStatus.disqualified: 5,
 }
 TRAINING_STAGE = {

@@ -10,6 +10,7 @@ from typer.testing import CliRunner
 from arena.cli import app
 from arena.config import Settings
 from arena.errors import IntakeError
+from evaluator.validation import validate
 from submissions.intake import check_zip, prepare_submission
 from submissions.intake.porting import explain_missing_wheel
 from tests.submissions.zips import GOOD_POLICY, write_zip
@@ -126,3 +127,45 @@ def test_a_rejected_port_still_gets_its_notes(tmp_path: Path) -> None:
         check_zip(upload, Settings(data_dir=tmp_path / "data"))
     assert caught.value.entry == "agent.yaml"
     assert "Porting note" in caught.value.message and "smarts.core.smarts" in caught.value.message
+
+
+def test_every_python_file_is_scanned_not_only_policy_py(tmp_path: Path) -> None:
+    upload = write_zip(
+        tmp_path / "a.zip",
+        {"policy.py": GOOD_POLICY, "agent/helpers.py": "import numpy\nX = numpy.float\n"},
+    )
+    notes = " ".join(check_zip(upload, Settings(data_dir=tmp_path / "data")).notes)
+    assert "np.float" in notes
+
+
+def test_a_port_whose_script_is_refused_still_gets_its_notes(tmp_path: Path) -> None:
+    """policy.py and train.py are checked in the intake (the sandbox for the service): a port
+    refused there is told what to change as well as what is wrong."""
+    upload = write_zip(
+        tmp_path / "a.zip", {"policy.py": DS2022_POLICY, "train.py": "def broken(:\n"}
+    )
+    with pytest.raises(IntakeError) as caught:
+        check_zip(upload, Settings(data_dir=tmp_path / "data"))
+    assert caught.value.rule == "train-syntax"
+    assert "Porting note" in caught.value.message and "imports gym" in caught.value.message
+
+
+@pytest.mark.slow  # the intake in the service's sandbox
+@pytest.mark.parametrize("kind", ["bubblewrap", "docker"])
+def test_the_service_scans_the_python_files_in_the_sandbox(tmp_path: Path, kind: str) -> None:
+    """The notes of the service's intake come from the sandbox's scan, accepted or refused."""
+    settings = Settings(data_dir=tmp_path / "data")
+    accepted = validate(
+        write_zip(tmp_path / "a.zip", {"policy.py": DS2022_POLICY}),
+        tmp_path / "a",
+        settings,
+        kind=kind,
+    )
+    assert any("smarts.core.smarts" in note for note in accepted.notes)
+    refused = write_zip(
+        tmp_path / "b.zip", {"policy.py": DS2022_POLICY, "train.py": "def broken(:\n"}
+    )
+    with pytest.raises(IntakeError) as caught:
+        validate(refused, tmp_path / "b", settings, kind=kind)
+    assert caught.value.rule == "train-syntax" and "np.float" in caught.value.message
+    assert not (tmp_path / "b").exists()

@@ -15,8 +15,9 @@ from fastapi.openapi.docs import (
 )
 from fastapi.responses import FileResponse, HTMLResponse
 from fastapi.staticfiles import StaticFiles
-from fastapi.templating import Jinja2Templates
 from markdown_it import MarkdownIt
+
+from server.api.security import page_templates, with_nonce
 
 ASSETS_DIR = Path(fastapi_offline.__file__).resolve().parent / "static"
 ASSETS_URL = "/docs-assets"
@@ -28,7 +29,7 @@ GUIDES = {
     "scoring": "scoring.md",
 }
 
-templates = Jinja2Templates(directory=Path(__file__).resolve().parents[2] / "templates")
+templates = page_templates(Path(__file__).resolve().parents[2] / "templates")
 router = APIRouter(include_in_schema=False)
 
 
@@ -38,7 +39,7 @@ def mount_docs_assets(app: FastAPI) -> None:
 
 @router.get("/docs", response_class=HTMLResponse)
 def swagger_ui(request: Request) -> HTMLResponse:
-    return get_swagger_ui_html(
+    page = get_swagger_ui_html(
         openapi_url=request.app.openapi_url,
         title=f"{request.app.title} · API",
         oauth2_redirect_url="/docs/oauth2-redirect",
@@ -46,11 +47,13 @@ def swagger_ui(request: Request) -> HTMLResponse:
         swagger_css_url=f"{ASSETS_URL}/swagger-ui.css",
         swagger_favicon_url="/favicon.ico",
     )
+    return HTMLResponse(with_nonce(page.body.decode(), request.state.csp_nonce))
 
 
 @router.get("/docs/oauth2-redirect", response_class=HTMLResponse)
-def swagger_ui_redirect() -> HTMLResponse:
-    return get_swagger_ui_oauth2_redirect_html()
+def swagger_ui_redirect(request: Request) -> HTMLResponse:
+    page = get_swagger_ui_oauth2_redirect_html()
+    return HTMLResponse(with_nonce(page.body.decode(), request.state.csp_nonce))
 
 
 @router.get("/favicon.ico")

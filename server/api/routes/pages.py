@@ -10,7 +10,6 @@ from typing import Annotated
 from fastapi import APIRouter, Request
 from fastapi import Path as PathParam
 from fastapi.responses import HTMLResponse
-from fastapi.templating import Jinja2Templates
 
 from server.api.deps import (
     MAX_ROW_ID,
@@ -21,6 +20,7 @@ from server.api.deps import (
     SessionDep,
     SettingsDep,
 )
+from server.api.security import page_templates
 from server.models import utcnow
 from server.services import phases, scenarios
 from server.services.errors import NotFound
@@ -28,7 +28,7 @@ from server.services.leaderboard import METRICS, with_gap
 from server.services.phases import DEFAULT_PHASE
 from server.tracks import Track
 
-templates = Jinja2Templates(directory=Path(__file__).resolve().parents[2] / "templates")
+templates = page_templates(Path(__file__).resolve().parents[2] / "templates")
 router = APIRouter(include_in_schema=False)
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Path
+from fastapi import APIRouter, Path, Request, Response
 from fastapi.responses import FileResponse
 from starlette.concurrency import run_in_threadpool
 
@@ -15,6 +15,8 @@ from server.schemas import PublicScenario
 from server.services import release, replays, scenarios
 
 router = APIRouter(tags=["scenarios"])
+# The public replays change only with the public suite (their key is its content hash).
+REPLAY_MAX_AGE_S = 3600
 
 
 @router.get("/scenarios/public", response_model=list[PublicScenario])
@@ -24,11 +26,22 @@ def public_scenarios(settings: SettingsDep) -> list[PublicScenario]:
     ]
 
 
-@router.get("/scenarios/public/{scenario_id}/replay", responses=errors(404, 422))
-async def public_replay(scenario_id: ScenarioId, settings: SettingsDep, db: DatabaseDep) -> dict:
+@router.get(
+    "/scenarios/public/{scenario_id}/replay",
+    response_class=Response,
+    responses={200: {"content": {"application/json": {}}}, **errors(404, 422)},
+)
+async def public_replay(
+    request: Request, scenario_id: ScenarioId, settings: SettingsDep, db: DatabaseDep
+) -> Response:
     """The expert's drive through a public scenario, to watch (the replay page's data). The
-    first request simulates it (a few seconds); later ones read it back."""
-    return await run_in_threadpool(replays.public_replay, settings, db, scenario_id)
+    first request simulates it (a few seconds); later ones are served from memory, with an
+    ``ETag`` (``If-None-Match`` gets 304) and a cache lifetime."""
+    document = await run_in_threadpool(replays.public_replay, settings, db, scenario_id)
+    headers = {"ETag": document.etag, "Cache-Control": f"public, max-age={REPLAY_MAX_AGE_S}"}
+    if request.headers.get("if-none-match") == document.etag:
+        return Response(status_code=304, headers=headers)
+    return Response(document.body, media_type="application/json", headers=headers)
 
 
 @router.get(

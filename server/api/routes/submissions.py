@@ -17,7 +17,7 @@ from server.api.deps import (
 )
 from server.api.upload import receive_form
 from server.schemas import SubmissionDetail, SubmissionLogs, SubmissionSummary
-from server.services import downloads, replays, standing, submissions
+from server.services import downloads, replays, standing, submissions, validation
 from server.services.errors import InvalidUpload
 from server.services.phases import DEFAULT_PHASE
 from server.tracks import Track
@@ -27,37 +27,67 @@ router = APIRouter(prefix="/submissions", tags=["submissions"], responses=errors
 
 @router.post(
     "",
-    status_code=status.HTTP_201_CREATED,
+    status_code=status.HTTP_202_ACCEPTED,
     response_model=SubmissionDetail,
-    responses=errors(403, 409, 413, 429),
+    responses={
+        202: {
+            "description": "Received and stored; validating (poll Location until it is "
+            "queued or rejected)",
+            "headers": {
+                "Location": {
+                    "description": "The submission's URL",
+                    "schema": {"type": "string"},
+                }
+            },
+        },
+        **errors(403, 409, 413, 429),
+    },
     openapi_extra=UPLOAD_FORM,
 )
 async def create_submission(
-    request: Request, team: CurrentTeam, db: DatabaseDep, settings: SettingsDep, queue: QueueDep
+    request: Request,
+    response: Response,
+    team: CurrentTeam,
+    db: DatabaseDep,
+    settings: SettingsDep,
+    queue: QueueDep,
 ) -> SubmissionDetail:
     """Multipart form: ``file`` (the zip), ``phase`` (default ``final``), ``track``
-    (freestyle|offline), ``method_name``, ``description``. The zip is checked before the
-    response: a bad one gets 422 with the reason."""
+    (freestyle|offline), ``method_name``, ``description``. The request only receives, bounds and
+    queues: it answers ``202`` with status ``validating`` once the zip is stored, and a job
+    validates it in the sandbox; poll ``Location`` until it is ``queued`` (or ``rejected``, with
+    the reason in ``status_reason``). A zip whose size or directory breaks a rule gets 413/422
+    at once; a team has one upload validating at a time (409)."""
+    with db.read_session() as session:
+        validation.check_not_busy(session, team.id)
     form = await receive_form(
         request, settings.resolved_data_dir / "uploads", settings.max_zip_bytes
     )
     try:
-        track = Track(form.fields.get("track", Track.freestyle))
-    except ValueError:
-        form.file_path.unlink(missing_ok=True)
-        raise InvalidUpload("track: must be 'freestyle' or 'offline'") from None
-    new = submissions.NewSubmission(
-        track=track,
-        method_name=form.fields.get("method_name", ""),
-        description=form.fields.get("description", ""),
-        phase=form.fields.get("phase") or DEFAULT_PHASE,
-    )
-    try:
+        try:
+            track = Track(form.fields.get("track", Track.freestyle))
+        except ValueError:
+            raise InvalidUpload("track: must be 'freestyle' or 'offline'") from None
+        new = submissions.NewSubmission(
+            track=track,
+            method_name=form.fields.get("method_name", ""),
+            description=form.fields.get("description", ""),
+            phase=form.fields.get("phase") or DEFAULT_PHASE,
+        )
         created = await run_in_threadpool(
-            submissions.accept_upload, db, settings, queue, team.id, new, form.file_path
+            submissions.accept_upload,
+            db,
+            settings,
+            queue,
+            team.id,
+            new,
+            form.file_path,
+            form.sha256,
         )
     finally:
         form.file_path.unlink(missing_ok=True)
+    # Relative (or under the configured base URL): never built from the request's Host header.
+    response.headers["Location"] = f"{settings.public_base_url}/api/v1/submissions/{created.id}"
     with db.read_session() as session:
         submission = submissions.get_submission(session, created.id)
         return standing.team_view(session, settings, submission)

@@ -1,5 +1,6 @@
-"""POST/GET /submissions over HTTP with the real intake, database and broker: uploads, rejections,
-authentication, ownership, quotas and cancel."""
+"""POST/GET /submissions over HTTP with the real intake (in the service's sandbox), database and
+broker: uploads received and validated, rejections, authentication, ownership, quotas and
+cancel."""
 
 from __future__ import annotations
 
@@ -9,10 +10,12 @@ import zipfile
 import pytest
 from sqlalchemy import func, select
 
-from server.models import Submission
+from server.models import Submission, utcnow
 from server.services import evaluation
+from server.services.submissions import quota_used
 from server.status import SubmissionStatus
-from tests.server.builders import bearer, make_team, pack_example
+from server.tracks import Track
+from tests.server.builders import bearer, make_team, pack_example, validate_uploads
 from tests.submissions.zips import bad_crc_zip
 
 
@@ -45,12 +48,30 @@ def count_submissions(db) -> int:
         return session.scalar(select(func.count()).select_from(Submission))
 
 
-def test_upload_is_checked_stored_and_queued(client, db, settings, keep_lane_zip):
+def submission(client, token, sid: int) -> dict:
+    return client.get(f"/api/v1/submissions/{sid}", headers=bearer(token)).json()
+
+
+def accepted(client, db, settings, token, payload: bytes, **options) -> dict:
+    """Upload (202 validating), run the validation job, and return the submission as it then
+    reads."""
+    response = upload(client, token, payload, **options)
+    assert response.status_code == 202, response.text
+    assert response.json()["status"] == "validating"
+    validate_uploads(db, settings)
+    return submission(client, token, response.json()["id"])
+
+
+@pytest.mark.slow  # the intake in the service's sandbox
+def test_upload_is_received_validated_then_queued(client, db, settings, keep_lane_zip):
     _, token = make_team(db, "alpha")
     response = upload(client, token, keep_lane_zip)
-    assert response.status_code == 201, response.text
+    assert response.status_code == 202, response.text
     body = response.json()
-    assert body["status"] == "queued"
+    assert body["status"] == "validating"
+    assert response.headers["location"] == f"/api/v1/submissions/{body['id']}"
+    assert validate_uploads(db, settings) == [body["id"]]
+    assert submission(client, token, body["id"])["status"] == "queued"
     assert body["team"] == "alpha"
     assert body["file_size"] == len(keep_lane_zip)
     assert body["progress"] == {"done": 0, "total": 0}
@@ -65,36 +86,49 @@ def test_upload_is_checked_stored_and_queued(client, db, settings, keep_lane_zip
     "payload,needle",
     [
         (b"this is not a zip", ""),
-        (zip_bytes({"agent.yaml": b"action_space: TargetPose\n"}), "policy.py"),
-        (zip_bytes({"policy.py": b"class Policy(:\n"}), "policy.py"),
         (zip_bytes({"../evil.py": b"x = 1\n", "policy.py": b"class Policy: pass\n"}), "evil"),
-        # These four gave 500s.
-        (
-            zip_bytes({"policy.py": b"x = " + b"1+" * 100_000 + b"1\nclass Policy: pass\n"}),
-            "policy-too-deep",
-        ),
         (zip_bytes({"policy.py": b"class Policy: pass\n", "a": b"", "a/b": b""}), "file-folder"),
         (zip_bytes({"policy.py": b"class Policy: pass\n", "n" * 300: b""}), "name-too-long"),
-        (bad_crc_zip({"policy.py": "class Policy: pass\n", "w.txt": "x" * 100}), "corrupt-entry"),
     ],
-    ids=[
-        "not-a-zip",
-        "no-policy",
-        "syntax-error",
-        "zip-slip",
-        "deep-expression",
-        "file-beside-folder",
-        "300-character-name",
-        "bad-crc",
-    ],
+    ids=["not-a-zip", "zip-slip", "file-beside-folder", "300-character-name"],
 )
-def test_malformed_upload_gets_422_with_the_intake_message(client, db, payload, needle):
+def test_a_zip_whose_directory_breaks_a_rule_gets_422_at_once(client, db, payload, needle):
     _, token = make_team(db, "alpha")
     response = upload(client, token, payload)
     assert response.status_code == 422
     detail = response.json()["detail"]
     assert "[rule:" in detail and needle in detail
     assert count_submissions(db) == 0
+
+
+@pytest.mark.parametrize(
+    "payload,needle",
+    [
+        (zip_bytes({"agent.yaml": b"action_space: TargetPose\n"}), "policy.py"),
+        (zip_bytes({"policy.py": b"class Policy(:\n"}), "policy.py"),
+        (
+            zip_bytes({"policy.py": b"x = " + b"1+" * 100_000 + b"1\nclass Policy: pass\n"}),
+            "policy-too-deep",
+        ),
+        (bad_crc_zip({"policy.py": "class Policy: pass\n", "w.txt": "x" * 100}), "corrupt-entry"),
+    ],
+    ids=["no-policy", "syntax-error", "deep-expression", "bad-crc"],
+)
+@pytest.mark.slow  # the intake in the service's sandbox
+def test_a_zip_whose_contents_break_a_rule_is_rejected_by_its_validation(
+    client, db, settings, payload, needle
+):
+    """What needs the entries' bytes is judged by the validation job, in the sandbox: the team
+    reads the same message a synchronous 422 gave, and the try is given back."""
+    team_id, token = make_team(db, "alpha")
+    body = accepted(client, db, settings, token, payload)
+    assert body["status"] == "rejected"
+    assert "[rule:" in body["status_reason"] and needle in body["status_reason"]
+    with db.session() as session:
+        upload_key = session.get(Submission, body["id"]).upload_key
+    assert not (settings.resolved_data_dir / upload_key).exists()
+    with db.session() as session:
+        assert quota_used(session, team_id, "final", Track.freestyle, utcnow()) == 0
 
 
 def test_upload_without_file_or_with_a_bad_track_is_rejected(client, db, keep_lane_zip):
@@ -139,21 +173,25 @@ def test_a_team_never_sees_another_teams_submission(client, db, keep_lane_zip):
     assert client.get("/api/v1/submissions", headers=bearer(token_b)).json() == []
 
 
+@pytest.mark.slow  # the intake in the service's sandbox
 def test_daily_quota_per_team_and_track(client, db, settings, keep_lane_zip, tmp_path):
     _, token = make_team(db, "alpha")
-    ids = [upload(client, token, keep_lane_zip).json()["id"] for _ in range(settings.daily_quota)]
+    ids = [
+        accepted(client, db, settings, token, keep_lane_zip)["id"]
+        for _ in range(settings.daily_quota)
+    ]
     response = upload(client, token, keep_lane_zip)
     assert response.status_code == 429
     assert "quota" in response.json()["detail"]
     # Another track has its own quota.
     offline_zip = pack_example("offline_bc", tmp_path).read_bytes()
-    assert upload(client, token, offline_zip, track="offline").status_code == 201
+    assert accepted(client, db, settings, token, offline_zip, track="offline")["status"] == "queued"
     # Cancelled before it started: does not count.
     assert (
         client.post(f"/api/v1/submissions/{ids[0]}/cancel", headers=bearer(token)).status_code
         == 200
     )
-    assert upload(client, token, keep_lane_zip).status_code == 201
+    assert accepted(client, db, settings, token, keep_lane_zip)["status"] == "queued"
     assert upload(client, token, keep_lane_zip).status_code == 429
     # Failed through the agent's fault (it crashed): still counts, or crashing on purpose would
     # buy free evaluations of the hidden suite.
@@ -164,7 +202,7 @@ def test_daily_quota_per_team_and_track(client, db, settings, keep_lane_zip, tmp
     # Failed on our side: the try is given back.
     with db.session() as session:
         evaluation.lock(session, Submission, ids[1]).failed_on_our_side = True
-    assert upload(client, token, keep_lane_zip).status_code == 201
+    assert upload(client, token, keep_lane_zip).status_code == 202
 
 
 def test_cancel_once_then_conflict(client, db, keep_lane_zip):
@@ -199,25 +237,40 @@ def test_upload_declared_over_the_cap_is_refused_before_reading(client, db, sett
     assert count_submissions(db) == 0
 
 
-def test_an_offline_submission_without_train_py_is_refused_and_costs_nothing(
-    client, db, keep_lane_zip
+@pytest.mark.slow  # the intake in the service's sandbox
+def test_an_offline_submission_without_train_py_is_rejected_before_its_requirements(
+    client, db, settings, keep_lane_zip
 ):
-    _, token = make_team(db, "alpha")
-    response = upload(client, token, keep_lane_zip, track="offline")
-    assert response.status_code == 422
-    assert "train.py" in response.json()["detail"] and "train-missing" in response.json()["detail"]
-    assert count_submissions(db) == 0
+    team_id, token = make_team(db, "alpha")
+    with zipfile.ZipFile(io.BytesIO(keep_lane_zip)) as archive:
+        entries = {name: archive.read(name) for name in archive.namelist()}
+    # A requirement that cannot resolve: reached only if train-missing were judged after it.
+    entries["requirements.txt"] = b"no-such-project-anywhere==0.0.1\n"
+    body = accepted(client, db, settings, token, zip_bytes(entries), track="offline")
+    assert body["status"] == "rejected"
+    assert "train.py" in body["status_reason"] and "train-missing" in body["status_reason"]
+    assert not (settings.resolved_data_dir / "deps").exists() or not any(
+        (settings.resolved_data_dir / "deps").iterdir()
+    )
+    with db.session() as session:
+        assert quota_used(session, team_id, "final", Track.offline, utcnow()) == 0
 
 
-def test_a_train_py_that_does_not_compile_is_named(client, db, keep_lane_zip):
+@pytest.mark.slow  # the intake in the service's sandbox
+def test_a_train_py_that_does_not_compile_is_named(client, db, settings, keep_lane_zip):
     _, token = make_team(db, "alpha")
     with zipfile.ZipFile(io.BytesIO(keep_lane_zip)) as archive:
         entries = {name: archive.read(name) for name in archive.namelist()}
-    response = upload(
-        client, token, zip_bytes({**entries, "train.py": b"def fit(:\n"}), track="offline"
+    body = accepted(
+        client,
+        db,
+        settings,
+        token,
+        zip_bytes({**entries, "train.py": b"def fit(:\n"}),
+        track="offline",
     )
-    assert response.status_code == 422
-    assert "train-syntax" in response.json()["detail"]
+    assert body["status"] == "rejected"
+    assert "train-syntax" in body["status_reason"]
 
 
 def test_offline_uploads_are_refused_while_the_service_has_no_dataset(
@@ -237,3 +290,25 @@ def test_offline_uploads_are_refused_while_the_service_has_no_dataset(
     assert response.status_code == 422
     assert "ARENA_TRAIN_DATASET_DIR" in response.json()["detail"]
     assert count_submissions(db) == 0
+
+
+@pytest.mark.slow  # the intake in the service's sandbox
+def test_parallel_uploads_take_one_validation_slot_and_one_try(client, db, settings, keep_lane_zip):
+    """With one try left, six parallel uploads once cost 4.7 intakes: the quota was checked
+    again only after each. Now the slot is reserved first, atomically: one upload is validated,
+    the others are refused before any work on their zip."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    _, token = make_team(db, "alpha")
+    for _ in range(settings.daily_quota - 1):
+        assert accepted(client, db, settings, token, keep_lane_zip)["status"] == "queued"
+    with ThreadPoolExecutor(6) as pool:
+        answers = list(pool.map(lambda _: upload(client, token, keep_lane_zip), range(6)))
+    codes = sorted(answer.status_code for answer in answers)
+    # 409: refused by the taken slot, with nothing done on the zip (not 429 after an intake).
+    assert codes == [202, 409, 409, 409, 409, 409], codes
+    assert count_submissions(db) == settings.daily_quota
+    assert validate_uploads(db, settings) == [
+        next(a.json()["id"] for a in answers if a.status_code == 202)
+    ]
+    assert upload(client, token, keep_lane_zip).status_code == 429

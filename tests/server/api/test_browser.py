@@ -5,6 +5,7 @@ scored on its submission page, find it on the leaderboard."""
 from __future__ import annotations
 
 import shutil
+import zipfile
 from pathlib import Path
 
 import pytest
@@ -63,6 +64,9 @@ def test_upload_through_the_form_and_read_the_result(embedded_settings, tmp_path
     db.dispose()
     bad_zip = tmp_path / "bad.zip"
     bad_zip.write_bytes(b"not a zip at all")
+    no_policy_zip = tmp_path / "no-policy.zip"
+    with zipfile.ZipFile(no_policy_zip, "w") as archive:
+        archive.writestr("agent.yaml", "action_space: TargetPose\n")
     agent_zip = pack_example("keep_lane", tmp_path)
     worker = start_worker(embedded_settings, tmp_path / "worker.log")
     try:
@@ -81,6 +85,12 @@ def test_upload_through_the_form_and_read_the_result(embedded_settings, tmp_path
             page.set_input_files("#file", str(bad_zip))
             page.click("#submit-button")
             expect(page.locator("#submit-error")).to_contain_text("rule:", timeout=30_000)
+            assert page.url.endswith("/submit")
+            # A zip only its validation can judge: validating, then its rule, on the form.
+            page.set_input_files("#file", str(no_policy_zip))
+            page.click("#submit-button")
+            expect(page.locator("#submit-status")).to_contain_text("validating")
+            expect(page.locator("#submit-error")).to_contain_text("policy-missing", timeout=60_000)
             assert page.url.endswith("/submit")
 
             page.set_input_files("#file", str(agent_zip))

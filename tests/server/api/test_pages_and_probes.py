@@ -46,7 +46,7 @@ def test_healthz_and_metrics(client, db, settings):
         plan = evaluation.start_evaluation(session, settings, sid)
     with db.session() as session:
         evaluation.claim_scenario(session, settings, plan.run_id, scenario_ids(plan)[0], "w")
-    text = client.get("/api/v1/metrics").text
+    text = client.get("/api/v1/metrics", headers=bearer(settings.admin_token)).text
     assert "arena_queue_depth" in text
     assert "arena_running_evaluations 1.0" in text
     assert 'arena_submissions{status="running"} 1.0' in text
@@ -87,7 +87,8 @@ def test_healthz_degrades_and_uploads_still_land_when_the_broker_is_down(setting
         response = client.get("/api/v1/healthz")
         assert response.status_code == 503
         assert response.json() == {"status": "degraded", "database": True, "broker": False}
-        # The upload is stored and queued; the workers' reaper sends it once the broker is back.
+        # The upload is stored, validating; the workers' reaper sends its validation once the
+        # broker is back.
         zip_path = pack_example("random", tmp_path)
         created = client.post(
             "/api/v1/submissions",
@@ -95,4 +96,4 @@ def test_healthz_degrades_and_uploads_still_land_when_the_broker_is_down(setting
             data={"method_name": "random"},
             files={"file": ("a.zip", zip_path.read_bytes(), "application/zip")},
         )
-        assert created.status_code == 201 and created.json()["status"] == "queued"
+        assert created.status_code == 202 and created.json()["status"] == "validating"

@@ -18,6 +18,7 @@ from tests.server.builders import (
     pack_example,
     queued_submission,
     seed_scored,
+    validate_uploads,
 )
 
 SECRET = "obs: start=(12.5, -3.2) goal=(310.0, 4.8) agent printed this"
@@ -45,9 +46,11 @@ def set_phase(db, settings):
     return change
 
 
-def test_upload_names_its_phase_and_defaults_to_final(client, db, keep_lane_zip):
+@pytest.mark.slow  # the intake in the service's sandbox
+def test_upload_names_its_phase_and_defaults_to_final(client, db, settings, keep_lane_zip):
     _, token = make_team(db, "alpha")
     assert upload(client, token, keep_lane_zip).json()["phase"] == "final"
+    validate_uploads(db, settings)  # a team has one upload validating at a time
     body = upload(client, token, keep_lane_zip, phase="validation").json()
     assert body["phase"] == "validation"
 
@@ -71,17 +74,19 @@ def test_uploads_outside_a_phase_are_refused_saying_when(client, db, keep_lane_z
     assert response.status_code == 403
     assert "closed for submissions" in response.json()["detail"]
     set_phase("final", clear_dates=True)
-    assert upload(client, token, keep_lane_zip).status_code == 201
+    assert upload(client, token, keep_lane_zip).status_code == 202
 
 
-def test_the_daily_quota_is_per_phase(client, db, keep_lane_zip, set_phase):
+@pytest.mark.slow  # the intake in the service's sandbox
+def test_the_daily_quota_is_per_phase(client, db, settings, keep_lane_zip, set_phase):
     _, token = make_team(db, "alpha")
     set_phase("final", daily_quota=1)
-    assert upload(client, token, keep_lane_zip).status_code == 201
+    assert upload(client, token, keep_lane_zip).status_code == 202
+    validate_uploads(db, settings)
     refused = upload(client, token, keep_lane_zip)
     assert refused.status_code == 429
     assert "'final' phase" in refused.json()["detail"]
-    assert upload(client, token, keep_lane_zip, phase="validation").status_code == 201
+    assert upload(client, token, keep_lane_zip, phase="validation").status_code == 202
 
 
 def test_submit_page_offers_the_open_phases_and_says_when_the_others_open(client, db, set_phase):

@@ -109,7 +109,7 @@ def upload(url: str, token: str, path: Path, method: str) -> int:
             files={"file": (path.name, handle, "application/zip")},
             timeout=120,
         )
-    assert response.status_code == 201, response.text
+    assert response.status_code == 202, response.text
     return response.json()["id"]
 
 
@@ -123,7 +123,7 @@ def watch(url: str, token: str, submission_id: int, timeout_s: float = 300) -> l
         ).json()
         if not seen or body["status"] != seen[-1]["status"]:
             seen.append(body)
-        if body["status"] in ("scored", "failed", "cancelled"):
+        if body["status"] in ("scored", "failed", "rejected", "cancelled"):
             return seen
         time.sleep(0.3)
     raise AssertionError(f"submission {submission_id} did not finish: {seen[-1:]}")

@@ -5,6 +5,7 @@ Redis restart that loses every queued message."""
 from __future__ import annotations
 
 import signal
+import socket
 import subprocess
 import time
 import uuid
@@ -102,10 +103,22 @@ def test_three_examples_are_scored_and_ranked(stack_settings, tmp_path):
                 f"{url}/api/v1/submissions/{ids['random']}/logs", headers=bearer(tokens["random"])
             )
             assert not any(sid in detail.text + logs.text for sid in SCENARIOS)
+            # Runs over: the submissions the worker unpacked leave its scratch within a round of
+            # its reaper, while it keeps running.
+            unpacked = stack_settings.resolved_data_dir / "scratch"
+            deadline = time.monotonic() + 30
+            while any(unpacked.glob("*/submissions/*")) and time.monotonic() < deadline:
+                time.sleep(0.5)
+            assert not any(unpacked.glob("*/submissions/*")), list(unpacked.glob("*/*/*"))
+            assert worker.poll() is None
     finally:
         stop(worker)
     assert set(results_per_scenario(db).values()) == {3}  # one row per submission and scenario
     db.dispose()
+    # The worker's scratch (prepared submissions, validations, records) went with it: 1.9 GB
+    # were once left behind.
+    scratch = stack_settings.resolved_data_dir / "scratch"
+    assert not any(scratch.glob(f"{socket.gethostname()}-*")), list(scratch.iterdir())
 
 
 def test_worker_killed_mid_evaluation_finishes_after_restart(stack_settings, tmp_path):
@@ -217,12 +230,15 @@ def test_redis_restart_with_queued_submissions_loses_nothing(stack_settings, tmp
         update={"broker_url": f"redis://127.0.0.1:{port}/0", "broker_key_prefix": ""}
     )
     db = Database(settings.database_url)
-    _, token = make_team(db, "restart-team")
+    # Two teams: a team has one upload validating at a time.
+    tokens = {name: make_team(db, f"restart-{name}")[1] for name in ("keep_lane", "random")}
     worker = None
     try:
         _wait_redis(port)
         with api_server(settings, tmp_path / "api.log") as (url, _):
-            ids = [upload_example(url, token, name, tmp_path) for name in ("keep_lane", "random")]
+            ids = {
+                name: upload_example(url, token, name, tmp_path) for name, token in tokens.items()
+            }
             assert redis.Redis(port=port).llen("arena") == 2  # queued, not yet taken
             # Restart Redis without persistence: the queued messages are gone.
             stop(redis_server)
@@ -232,8 +248,8 @@ def test_redis_restart_with_queued_submissions_loses_nothing(stack_settings, tmp
             _wait_redis(port)
             assert redis.Redis(port=port).llen("arena") == 0
             worker = start_worker(settings, tmp_path / "worker.log")
-            for sid in ids:
-                assert wait_finished(url, token, sid)["status"] == "scored"
+            for name, sid in ids.items():
+                assert wait_finished(url, tokens[name], sid)["status"] == "scored"
     finally:
         if worker is not None:
             stop(worker)

@@ -1,0 +1,21 @@
+"""Team text on an organiser's terminal: Rich markup escaped (a ``[/]`` in a method name would
+otherwise crash the table or restyle it) and control characters (escape sequences that set the
+window title or write the clipboard) replaced by a visible ``?``."""
+
+from __future__ import annotations
+
+import re
+
+from rich.markup import escape
+
+_CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f\u2028\u2029\u202a-\u202e\u2066-\u2069]")
+
+
+def plain(value: object) -> str:
+    """``value`` as text with no control character."""
+    return _CONTROL.sub("?", str(value))
+
+
+def safe(value: object) -> str:
+    """``value`` ready to embed in a Rich markup string or table cell."""
+    return escape(plain(value))

@@ -1,0 +1,165 @@
+"""The service's intake: :mod:`agent_runtime.intake` run in the sandbox, never on the host.
+
+Each step (the zip; then the wheels of its requirements) is one sandbox of the backend agents
+run in: no network, uid 65534, read-only root, a size-capped ``/tmp``, the intake's own memory
+limit (``ARENA_INTAKE_MEMORY_BYTES``), one CPU, a wall-time budget (``ARENA_INTAKE_TIMEOUT_S``),
+no single file past the unzipped cap, and the output folder's bytes and files watched from here.
+A step that breaks one of these limits is rejected naming it (``intake-memory``,
+``intake-timeout``, ``intake-disk``, ``intake-files``); a broken sandbox is ours
+(:class:`~arena.errors.SandboxUnavailable`, retried).
+
+The sandbox's batch mode (:func:`evaluator.sandbox.start_training`: a script from a read-only
+folder, inputs read-only, one writable output folder) runs it: the script is a two-line stub that
+hands over to the runtime's ``intake.py``, mounted in every sandbox at ``/opt/arena``.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import time
+from pathlib import Path
+from types import SimpleNamespace
+
+from agent_runtime import intake as rules
+from arena.config import SandboxKind, Settings
+from arena.errors import IntakeError
+from evaluator.sandbox.backend import DATASET_MOUNT, MODEL_MOUNT, RUNTIME_MOUNT, TRAIN_SCRIPT
+from submissions.intake import PreparedSubmission, prepare_submission
+from submissions.intake.runner import IntakeRunner, read_report
+
+POLL_S = 0.1
+SANDBOX_UID = 65534
+
+
+def _stub(mode: str) -> str:
+    return (
+        "import runpy, sys\n"
+        f"sys.argv = ['intake.py', {mode!r}, {DATASET_MOUNT!r}, {MODEL_MOUNT!r}]\n"
+        f"runpy.run_path({RUNTIME_MOUNT + '/intake.py'!r}, run_name='__main__')\n"
+    )
+
+
+def intake_settings(settings: Settings) -> Settings:
+    """The sandbox limits of an intake step: its own memory and time; no file larger than what
+    the zip (or the wheels) may unpack to."""
+    return settings.model_copy(
+        update={
+            "agent_memory_bytes": settings.intake_memory_bytes,
+            "train_timeout_s": settings.intake_timeout_s,
+            "train_output_bytes": max(settings.max_unzipped_bytes, settings.max_deps_bytes),
+            "train_gpu": False,
+        }
+    )
+
+
+def sandboxed(
+    settings: Settings, kind: SandboxKind | str | None = None, labels: dict[str, str] | None = None
+) -> IntakeRunner:
+    """An intake runner that runs each step in a sandbox of ``kind``."""
+
+    def run(mode: str, inputs: Path, output: Path) -> dict:
+        from evaluator import sandbox
+
+        limits = intake_settings(settings)
+        disk_cap = settings.max_unzipped_bytes if mode == "submission" else settings.max_deps_bytes
+        files_cap = settings.max_zip_entries if mode == "submission" else settings.max_deps_files
+        # Room for the report and the scratch copy of one nested archive.
+        disk_cap, files_cap = 2 * disk_cap + 1024**2, files_cap + 16
+        with tempfile.TemporaryDirectory(prefix="arena-intake-stub-") as stub_dir:
+            program = Path(stub_dir)
+            (program / TRAIN_SCRIPT).write_text(_stub(mode))
+            _open_to_sandbox(program, inputs)
+            _writable(output)
+            started = time.monotonic()
+            box = sandbox.start_training(
+                SimpleNamespace(root=program, deps_dir=None),
+                inputs,
+                output,
+                kind=kind,
+                labels=labels,
+                settings=limits,
+            )
+            try:
+                while (status := box.exit_status(POLL_S)) is None:
+                    if time.monotonic() - started > settings.intake_timeout_s:
+                        raise IntakeError(
+                            rules.ARCHIVE,
+                            "intake-timeout",
+                            f"checking took longer than {settings.intake_timeout_s:g} s",
+                        )
+                    size, count = _usage(output)
+                    if size > disk_cap:
+                        raise IntakeError(
+                            rules.ARCHIVE, "intake-disk", f"unpacks to more than {disk_cap} bytes"
+                        )
+                    if count > files_cap:
+                        raise IntakeError(
+                            rules.ARCHIVE, "intake-files", f"unpacks to more than {files_cap} files"
+                        )
+            finally:
+                box.kill()
+            log = box.logs()
+        if status.oom_killed or (status.code != 0 and "MemoryError" in log):
+            raise IntakeError(
+                rules.ARCHIVE,
+                "intake-memory",
+                f"checking it needed more than {settings.intake_memory_bytes // 1024**2} MiB",
+            )
+        if status.code != 0:
+            if "File too large" in log or status.code in (-25, 128 + 25):
+                raise IntakeError(rules.ARCHIVE, "intake-disk", "a file unpacks past the cap")
+            raise IntakeError(
+                rules.ARCHIVE, "intake-crashed", f"the check {status.describe()}: {log[-300:]}"
+            )
+        return read_report(output)
+
+    return run
+
+
+def _open_to_sandbox(program: Path, inputs: Path) -> None:
+    """The sandbox user (not us) reads the stub and the inputs."""
+    for root in (program, inputs):
+        root.chmod(0o755)
+        for path in root.rglob("*"):
+            path.chmod(0o755 if path.is_dir() else 0o644)
+
+
+def _writable(output: Path) -> None:
+    output.mkdir(parents=True, exist_ok=True)
+    if os.geteuid() == 0:
+        os.chown(output, SANDBOX_UID, SANDBOX_UID)
+    else:
+        output.chmod(0o777)
+
+
+def _usage(folder: Path) -> tuple[int, int]:
+    size = count = 0
+    for path, _, files in os.walk(folder):
+        for name in files:
+            count += 1
+            try:
+                size += os.lstat(os.path.join(path, name)).st_size
+            except FileNotFoundError:
+                continue
+    return size, count
+
+
+def validate(
+    upload: Path,
+    dest: Path,
+    settings: Settings,
+    *,
+    kind: SandboxKind | str | None = None,
+    labels: dict[str, str] | None = None,
+    needs_training: bool = False,
+) -> PreparedSubmission:
+    """:func:`~submissions.intake.prepare_submission` of ``upload`` into ``dest``, every step
+    in the sandbox."""
+    return prepare_submission(
+        upload,
+        dest,
+        settings,
+        runner=sandboxed(settings, kind, labels),
+        needs_training=needs_training,
+    )

@@ -1,0 +1,145 @@
+"""The validation job kind: an uploaded zip checked, extracted and compiled, and its requirements
+unpacked, in the sandbox (:mod:`evaluator.validation`); the submission then queued for evaluation
+or rejected naming the rule it broke (:mod:`server.services.validation` holds its transitions).
+Its scratch folder is removed when it ends, whatever the verdict."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import partial
+from pathlib import Path
+
+from sqlalchemy.orm import Session
+
+from arena.config import SandboxKind, Settings, get_settings
+from arena.errors import IntakeError
+from evaluator import sandbox
+from evaluator.validation import validate
+from server.core.artifacts import ArtifactStore
+from server.core.db import Database, get_database
+from server.core.queue import TaskQueue
+from server.services import validation
+from server.services.validation import ValidationClaim
+from server.worker import local
+from server.worker.heartbeat import Lease
+from submissions.intake import PreparedSubmission
+from submissions.intake.archive import remove_tree
+from submissions.intake.dependencies import collect_garbage
+
+
+@dataclass(frozen=True)
+class Verdict:
+    prepared: PreparedSubmission | None  # None: rejected
+    reason: str = ""  # the rule broken, as the team reads it
+    ours: bool = False  # failed on our side (not charged)
+
+
+class Validations:
+    name = "validation"
+    max_claims = 3
+
+    def claim(
+        self, session: Session, settings: Settings, worker: str, *, submission_id: int
+    ) -> ValidationClaim | None:
+        return validation.claim(session, settings, submission_id, worker)
+
+    def renew(
+        self, session: Session, settings: Settings, claim: ValidationClaim, worker: str, **_: object
+    ) -> bool:
+        return validation.renew(session, settings, claim, worker)
+
+    def release(self, session: Session, claim: ValidationClaim, worker: str) -> bool:
+        return validation.release(session, claim, worker)
+
+    def send_again(self, queue: TaskQueue, claim: ValidationClaim) -> None:
+        queue.validate(claim.submission_id)
+
+    def run(self, claim: ValidationClaim, lease: Lease) -> Verdict | None:
+        labels = {"arena.validation": f"s{claim.submission_id}c{claim.claim_number}"}
+        lease.stop_with(partial(sandbox.cleanup, labels))
+        verdict = judge(
+            claim, get_settings(), local.store(), local.sandbox_kind(), labels, local.scratch()
+        )
+        return None if lease.stopped else verdict
+
+    def ours(self, claim: ValidationClaim, reason: str, error: str) -> Verdict:
+        return Verdict(None, f"validation failed on our side ({reason}): {error}", ours=True)
+
+    def finish(self, claim: ValidationClaim, worker: str, result: Verdict) -> None:
+        record(claim, worker, result, get_settings(), get_database(), local.store(), local.queue())
+
+    def reap(self, settings: Settings, queue: TaskQueue, *, queue_empty: bool) -> int:
+        with get_database().session() as session:
+            resend = validation.reap(session, settings, queue_empty=queue_empty)
+        for submission_id in resend:
+            queue.validate(submission_id)
+        return len(resend)
+
+
+def judge(
+    claim: ValidationClaim,
+    settings: Settings,
+    store: ArtifactStore,
+    kind: SandboxKind,
+    labels: dict[str, str],
+    scratch: Path,
+) -> Verdict:
+    """The verdict on the claimed upload: its zip fetched into ``scratch`` and validated in the
+    sandbox; the scratch folder is gone when this returns."""
+    folder = scratch / "validation" / f"{claim.submission_id}-c{claim.claim_number}"
+    remove_tree(folder)
+    try:
+        zip_path = store.fetch(claim.upload_key, folder / "upload.zip")
+        return Verdict(
+            validate(
+                zip_path,
+                folder / "prepared",
+                settings,
+                kind=kind,
+                labels=labels,
+                needs_training=claim.needs_training,
+            )
+        )
+    except IntakeError as exc:
+        return Verdict(None, str(exc))
+    finally:
+        remove_tree(folder)
+
+
+def record(
+    claim: ValidationClaim,
+    worker: str,
+    result: Verdict,
+    settings: Settings,
+    db: Database,
+    store: ArtifactStore,
+    queue: TaskQueue,
+) -> None:
+    """Queue the submission's evaluation, or record the rejection (its zip and any requirement
+    folder only it used are deleted)."""
+    with db.session() as session:
+        if result.prepared is not None:
+            written = validation.record_valid(
+                session,
+                claim,
+                worker,
+                deps_key=result.prepared.deps_key,
+                explanation=result.prepared.explanation,
+            )
+        else:
+            written = validation.record_rejected(
+                session, claim, worker, result.reason, ours=result.ours
+            )
+    if not written:
+        return
+    if result.prepared is not None:
+        queue.evaluate(claim.submission_id)
+        return
+    store.delete_prefix(str(Path(claim.upload_key).parent))
+    with db.read_session() as session:
+        in_use = validation.deps_in_use(session)
+    # Young folders may belong to a validation not yet recorded.
+    collect_garbage(settings, in_use, min_age_s=4 * settings.intake_timeout_s)
+
+
+VALIDATIONS = Validations()
