@@ -1,5 +1,6 @@
 """A worker prepares each submission once into a folder named after its digest and never changes
-it; its warm agents are keyed by that digest.
+it while the submission is in work; its warm agents are keyed by that digest, and the folder
+goes only with them.
 
 The reproduction: the worker kept 4 prepared submissions; when one was evicted and prepared again
 into the same folder, its idle warm sandbox still bound the deleted files, and every later
@@ -12,7 +13,7 @@ import pytest
 
 from arena.config import get_settings
 from evaluator import sandbox
-from evaluator.sandbox.warm_pool import WarmAgents
+from evaluator.sandbox.warm_pool import WarmAgents, warm_agents
 from server.core.db import get_database
 from server.worker import local
 from submissions.intake.pack import pack_folder
@@ -35,10 +36,11 @@ def worker_env(settings, db, monkeypatch):
         "BROKER_KEY_PREFIX": settings.broker_key_prefix,
     }.items():
         monkeypatch.setenv(f"ARENA_{name}", str(value))
-    caches = (get_settings, get_database, local.store, local._prepare, local.sandbox_kind)
+    caches = (get_settings, get_database, local.store, local.sandbox_kind)
     for cache in caches:
         cache.cache_clear()
     yield get_settings()
+    local.forget_finished(set(), set())
     for cache in caches:
         cache.cache_clear()
 
@@ -60,21 +62,36 @@ def act_once(pool: WarmAgents, submission, kind, settings) -> dict:
             return handle.act(sample_observation())
 
 
-def test_a_submission_prepared_again_keeps_its_warm_agent_working(worker_env, tmp_path):
+def test_a_submission_prepared_again_gets_a_working_warm_agent(worker_env, tmp_path):
     settings = worker_env
     kind = sandbox.check_service_kind(settings=settings)
     keys = [upload(tmp_path, value) for value in range(6)]
-    pool = WarmAgents()
+    pool = warm_agents()  # the worker's own pool: the one that forgetting a submission closes
     try:
         first = local.prepared(keys[0])
         assert act_once(pool, first, kind, settings) == {"Agent_0": [0.0, 0.0]}
-        for key in keys[1:]:  # more than the worker keeps: the first is dropped
+        for key in keys[1:]:  # more than the old cache of 4 kept: nothing in work is dropped
             local.prepared(key)
-        again = local.prepared(keys[0])
-        assert again is not first  # prepared again...
-        assert again.root == first.root and again.sha256 == first.sha256  # ...into the same copy
-        assert (first.root / "policy.py").is_file()
-        # The idle warm agent of the first preparation serves the second.
+        assert local.prepared(keys[0]) is first and (first.root / "policy.py").is_file()
+        # Its run ends: the folder goes, and the idle warm agent bound to it with it.
+        local.forget_finished(set(keys[1:]), set())
+        assert not first.root.exists()
+        again = local.prepared(keys[0])  # a rerun: prepared again into the same content folder
+        assert again.root == first.root and again.sha256 == first.sha256
         assert act_once(pool, again, kind, settings) == {"Agent_0": [0.0, 0.0]}
     finally:
         pool.close()
+
+
+def test_two_uploads_of_one_zip_share_a_folder_that_stays_while_either_runs(
+    worker_env, tmp_path
+):
+    one = upload(tmp_path, 7)
+    other = "uploads/8/upload.zip"
+    local.store().put(other, tmp_path / "agent7.zip")  # the same bytes, another team's upload
+    first, second = local.prepared(one), local.prepared(other)
+    assert first.root == second.root
+    local.forget_finished({other}, set())
+    assert (second.root / "policy.py").is_file()
+    local.forget_finished(set(), set())
+    assert not second.root.exists()
