@@ -100,6 +100,13 @@ class Lane:
             axis=-1,
         )
 
+    def point_at(self, s: float) -> tuple[float, float]:
+        """:meth:`position_at` of one offset, as floats, without np.clip and np.stack (a controller
+        and the junction match ask for single points every step)."""
+        s = min(max(s, 0.0), self.length)
+        cum = self.cumulative_s
+        return float(np.interp(s, cum, self._xs)), float(np.interp(s, cum, self._ys))
+
     def heading_at(self, s: float | np.ndarray) -> float | np.ndarray:
         """Lane direction [rad] at distance ``s`` [m] along the lane."""
         i = np.clip(

@@ -137,7 +137,7 @@ def route_lane_in_junction(
         if lane is here or exit_edge(road, lane) not in route:
             continue
         s, _, _ = lane.project(x, y)
-        px, py = lane.position_at(s)
+        px, py = lane.point_at(s)
         distance = math.hypot(px - x, py - y)
         if distance <= max(position.distance + _JUNCTION_MATCH_DISTANCE, lane.width / 2):
             candidates.append((distance, lane, s))
