@@ -9,6 +9,7 @@ from functools import cached_property
 import numpy as np
 
 WAYPOINT_SPACING = 1.0  # [m] distance between consecutive waypoints along a lane
+_STEPS = WAYPOINT_SPACING * np.arange(256)  # [m] offsets of a path's first points from its start
 # Lanes of more centreline points than this are projected onto with numpy (one pass over all
 # segments), fewer with a scalar loop; both give the same result.
 _VECTOR_PROJECTION_POINTS = 16
@@ -131,7 +132,9 @@ class Lane:
         """
         first_s = max(first_s, 0.0)
         total = max(math.ceil((self.length - first_s) / WAYPOINT_SPACING - 1e-9), 0)
-        return first_s + WAYPOINT_SPACING * np.arange(min(limit, total)), total
+        count = min(limit, total)
+        steps = _STEPS[:count] if count <= len(_STEPS) else WAYPOINT_SPACING * np.arange(count)
+        return first_s + steps, total
 
     def waypoints_from(self, first_s: float, limit: int) -> tuple[list[dict], int]:
         """The waypoint dicts at :meth:`waypoint_offsets`, and how many the lane has in all."""
@@ -183,8 +186,8 @@ def waypoint_dicts(pieces: list[tuple[Lane, np.ndarray]]) -> list[dict]:
     if not pieces:
         return []
     sampled = [lane._sample(s) for lane, s in pieces]
-    xs = np.round(np.concatenate([x for x, _, _ in sampled]), 4).tolist()
-    ys = np.round(np.concatenate([y for _, y, _ in sampled]), 4).tolist()
+    xs = np.concatenate([x for x, _, _ in sampled]).round(4).tolist()
+    ys = np.concatenate([y for _, y, _ in sampled]).round(4).tolist()
     headings = np.concatenate([h for _, _, h in sampled]).tolist()
     offsets = np.concatenate([s for _, s in pieces]).tolist()
     # Copies of one template per lane (the key order of the documented waypoint), then the
