@@ -250,10 +250,16 @@ class ObservationEncoder:
             view.fill(0)
         if not points:
             return
-        mask[slots] = 1
-        pos[slots] = [wp["pos"] for wp in points]
-        lane[slots] = [wp["lane_index"] for wp in points]
-        floats[:, slots] = np.array([_WAYPOINT_FLOATS(wp) for wp in points], np.float32).T
+        # np.fromiter over flat floats: several times faster than np.array on nested lists or
+        # tuples; float64 then float32 rounds as a direct conversion does.
+        n, fields = len(points), len(WAYPOINT_FIELDS)
+        at = np.array(slots, np.intp)
+        mask[at] = 1
+        xy = chain.from_iterable(wp["pos"] for wp in points)
+        pos[at] = np.fromiter(xy, np.float64, 2 * n).reshape(n, 2)
+        lane[at] = [wp["lane_index"] for wp in points]
+        values = chain.from_iterable(map(_WAYPOINT_FLOATS, points))
+        floats[:, at] = np.fromiter(values, np.float64, fields * n).reshape(n, fields).T
 
 
 _WAYPOINT_FLOATS = itemgetter(*WAYPOINT_FIELDS)
