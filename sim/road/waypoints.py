@@ -83,7 +83,7 @@ def waypoint_paths(
     """Up to ``max_paths`` paths of 1 to ``per_path`` waypoints (1 m apart) starting level with
     (x, y) on each lane of the vehicle's road, nearest lanes to the vehicle's own first, then
     ordered by lane index. In a junction, one path along the junction lane that leads onto
-    ``route``. Waypoint dicts are shared between observations (read-only)."""
+    ``route``. Built afresh for each call (a dead end's end waypoint is shared: read-only)."""
     here = position.lane
     if here.is_internal:
         lane, s = route_lane_in_junction(road, position, x, y, route)
