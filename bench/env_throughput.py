@@ -56,7 +56,8 @@ def env_side(
 ) -> tuple[float, float]:
     """(wall, CPU) seconds spent in ``env.step`` over ``steps`` steps (policy excluded)."""
     options = {**RASTERS, "img_pixels": 256} if rasters else {}
-    env = DrivingArenaEnv(folder, simulator=simulator, **options)
+    # follow_gap sends TargetPose actions (the environments' default is LaneWithContinuousSpeed).
+    env = DrivingArenaEnv(folder, simulator=simulator, action_space="TargetPose", **options)
     try:
         obs, _ = env.reset(seed=0)
         # A simulator in a child process (simulator="subprocess") uses CPU there too.

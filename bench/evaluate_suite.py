@@ -1,6 +1,7 @@
 """Benchmark: the whole hidden suite (development seed) in the Docker sandbox: the planner with one
 and with two parallel jobs, a trivial agent to split scenario time into a fixed and a per-step
-part, and raw libsumo stepping the same traffic for comparison.
+part, and the floor a sandboxed agent cannot go below: raw libsumo stepping the same traffic plus
+an empty observation's round trip to an agent.
 
     python bench/evaluate_suite.py [--sandbox docker] [--suite DIR] [--keep DIR] [--first N]
                                    [--only trivial]
@@ -14,12 +15,18 @@ Prints, in order:
 - ``raw_step_ms``: libsumo alone, in one process, stepping each scenario's SUMO traffic (same
   network, routes, seed and step length) for as many steps as the trivial agent's episode had.
   Replayed traffic is not SUMO's (the simulator reads it from the recording), so for the
-  suite's replay scenarios this is SUMO stepping an empty network: ``raw_step_ms`` is about
-  0.01 ms, less than the agent round trip's floor alone (``bench/sandbox_roundtrip.py``).
+  suite's replay scenarios this is SUMO stepping an empty network (about 0.01 ms);
+- ``round_trip_floor_ms``: the median ``act`` round trip of an empty observation to a trivial
+  agent forked in a warm sandbox of the same kind, in the keep-lane agent's observation format
+  (``bench/sandbox_roundtrip.py``): the transport alone, which no sandboxed agent avoids;
+- ``floor_ms = raw_step_ms + round_trip_floor_ms``, both measured in this run, and
+  ``floor_ratio = step_ms / floor_ms``: what the evaluator adds per step over SUMO and the
+  transport (observation building, encoding, scoring, records).
 
-The last line is ``wall_s=<planner, jobs 2> speedup=<jobs1/jobs2> fixed_ms=<...>
-step_ratio=<step_ms/raw_step_ms>``. Targets (2-core machine): wall_s <= 50, speedup >= 1.8,
-fixed_ms <= 100, step_ratio <= 2.
+The last line is ``wall_s=<planner, jobs 2> speedup=<jobs1/jobs2> fixed_ms=<...> step_ms=<...>
+floor_ms=<...> floor_ratio=<step_ms/floor_ms>``. Targets (2-core machine): wall_s <= 20,
+speedup >= 1.8, fixed_ms <= 100, step_ms <= 0.25, floor_ratio <= 2. With ``--only trivial``
+the last line is ``fixed_ms=<...> step_ms=<...> floor_ms=<...> floor_ratio=<...>``.
 
 Agents are forked in warm sandboxes, as every evaluation runs them (docs/protocol.md); run with
 ``ARENA_WARM_AGENTS=false`` for the cold figures (a new sandbox per scenario) side by side. The
@@ -43,11 +50,14 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import yaml
+from sandbox_roundtrip import floor_round_trip_ms  # a sibling script (bench/ is on sys.path)
 
 from arena.config import SandboxKind, get_settings
 from arena.suite import load_suite
 from evaluator.runner import evaluate
 from evaluator.runner.evaluate import TIMINGS_FILE
+from sim.interface import AgentInterface
 
 REPO = Path(__file__).resolve().parents[1]
 PLANNER = REPO / "submissions" / "examples" / "planner"
@@ -164,15 +174,24 @@ def main() -> None:
             jobs_2 = timed_evaluation(PLANNER, suite, work / "planner-jobs2", 2, args.sandbox, ids)
         trivial = timed_evaluation(TRIVIAL, suite, work / "trivial-jobs1", 1, args.sandbox, ids)
         fixed_ms, step_ms = fit_fixed_and_step(trivial)
-        if args.only is None:
-            raw_ms = raw_step_ms(suite, trivial.steps)
+        raw_ms = raw_step_ms(suite, trivial.steps)
+        fmt = AgentInterface(
+            **yaml.safe_load((TRIVIAL / "agent.yaml").read_text())
+        ).observation_format
+        trip_ms = floor_round_trip_ms(args.sandbox, get_settings(), fmt)
+    floor_ms = raw_ms + trip_ms
     print(f"trivial agent: fixed_ms={fixed_ms:.0f} per scenario, step_ms={step_ms:.3f} per step")
+    print(
+        f"raw libsumo, same traffic and steps: raw_step_ms={raw_ms:.3f}; empty observation "
+        f"round trip ({args.sandbox.value}, forked, {fmt}): round_trip_floor_ms={trip_ms:.3f}"
+    )
+    floors = f"step_ms={step_ms:.3f} floor_ms={floor_ms:.3f} floor_ratio={step_ms / floor_ms:.2f}"
     if args.only:
+        print(f"fixed_ms={fixed_ms:.0f} {floors}")
         return
-    print(f"raw libsumo, same traffic and steps: raw_step_ms={raw_ms:.3f}")
     print(
         f"wall_s={jobs_2.wall_s:.1f} speedup={jobs_1.wall_s / jobs_2.wall_s:.2f} "
-        f"fixed_ms={fixed_ms:.0f} step_ratio={step_ms / raw_ms:.2f}"
+        f"fixed_ms={fixed_ms:.0f} {floors}"
     )
 
 

@@ -144,6 +144,29 @@ def main() -> None:
     )
 
 
+def floor_round_trip_ms(
+    kind: SandboxKind, settings: Settings, fmt: str = "native", steps: int = 2000
+) -> float:
+    """The median ``act`` round trip [ms] of an empty observation to a trivial agent forked in a
+    warm sandbox of ``kind``, as evaluations run agents: what the transport alone costs per step
+    (``bench/evaluate_suite.py`` adds it to raw SUMO stepping for its floor)."""
+    base = Path(tempfile.mkdtemp(prefix="arena-bench-"))
+    source = base / "src"
+    source.mkdir()
+    (source / "policy.py").write_text(TRIVIAL_POLICY)
+    (source / "agent.yaml").write_text(f"observation_format: {fmt}\n")
+    submission = prepare_submission(source, base / "submission", settings)
+    labels = {"bench": "floor"}
+    warm = WarmAgent.start(submission, kind, settings, labels=labels)
+    forked = warm.fork(settings, labels)
+    try:
+        with forked.start() as handle:
+            return float(np.median(timings_ms(handle.act, EMPTY[fmt], steps)))
+    finally:
+        forked.close()
+        warm.close()
+
+
 def both(act, obs: dict, fmt: str, steps: int) -> tuple[np.ndarray, np.ndarray]:
     """Round trips with ``obs`` and with an empty observation [ms]."""
     return timings_ms(act, obs, steps), timings_ms(act, EMPTY[fmt], steps)

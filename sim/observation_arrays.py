@@ -60,8 +60,6 @@ PATHS = "waypoint_paths"
 # [bytes] records are padded to this, so that every record of a frame starts aligned
 RECORD_ALIGN = 8
 _STRUCT_CODE = {F32: "f", I32: "i", U8: "B"}
-# Waypoints a path may move on in one step and still be found shifted (1 m apart: 80 m/s).
-MAX_SHIFT = 8
 _INF = math.inf
 
 
@@ -169,16 +167,10 @@ class ObservationEncoder:
     the sandbox protocol (about 25 µs for 4 x 50 waypoints and 16 neighbours, where building
     the ~40 arrays one by one took about 90 µs). Use one encoder per agent.
 
-    The head (scalars, events, ego) is one ``struct`` call, the neighbours one per field. Waypoints
-    go through a table of the waypoint dicts already seen, found by identity: the simulator
-    builds each lane point's dict once and shares it between observations and steps
-    (``sim.road.lane``, read-only), so every waypoint becomes a row index and numpy gathers the
-    rows. A path is mostly its slot's path of the step before, shifted by the points the vehicle
-    passed: a pointer comparison confirms that and only the new tail is looked up. The table
-    holds the dicts it indexes (their ids stay theirs) and starts over when full.
+    The head (scalars, events, ego) is one ``struct`` call, the neighbours one per field, the
+    waypoints one gather of each field over all paths and one numpy assignment per array
+    (waypoints are built afresh for each observation, as paths start level with the vehicle).
     """
-
-    MAX_WAYPOINT_ROWS = 1 << 16
 
     def __init__(self, layout: ObservationLayout) -> None:
         self.layout = layout
@@ -197,28 +189,17 @@ class ObservationEncoder:
         interface = layout.interface
         self._paths, self._per_path = interface.max_waypoint_paths, interface.waypoints_per_path
         flat = self._paths * self._per_path
-        self._index = np.zeros(flat, np.intp)
         heading = layout.leaf(PATHS, WAYPOINT_FIELDS[0])
-        # (view shape, dtype, offset): x and y pairs read as one float64, so that one 1-d take
-        # moves both; the four per-waypoint floats lie back to back, one (4, flat) block.
+        # (view shape, dtype, offset); the four per-waypoint floats lie back to back, one
+        # (4, flat) block.
         self._path_views_at = [
             ((flat,), U8, layout.leaf(PATHS, "mask").offset),
-            ((flat,), "<f8", layout.leaf(PATHS, "pos").offset),
+            ((flat, 2), F32, layout.leaf(PATHS, "pos").offset),
             ((flat,), I32, layout.leaf(PATHS, "lane_index").offset),
             ((len(WAYPOINT_FIELDS), flat), F32, heading.offset),
         ]
         last = layout.leaf(PATHS, WAYPOINT_FIELDS[-1])
         assert last.offset == heading.offset + (len(WAYPOINT_FIELDS) - 1) * heading.nbytes
-        self._clear_waypoints()
-
-    def _clear_waypoints(self) -> None:
-        # Row 0 is all zeros: the padding of short paths.
-        self._rows: dict[int, int] = {}
-        self._kept: list[dict | None] = [None]
-        self._previous: list[tuple[list, list]] = []  # each path and its rows, last write
-        self._xy = np.zeros((1024, 2), np.float32)
-        self._floats = np.zeros((len(WAYPOINT_FIELDS), 1024), np.float32)
-        self._lanes = np.zeros(1024, np.int32)
 
     def encode(self, obs: dict) -> dict:
         """``obs`` (the agent-interface dict) as fresh arrays, writable, sharing one buffer."""
@@ -256,62 +237,32 @@ class ObservationEncoder:
 
     def _write_waypoints(self, paths: list[list[dict]], record: bytearray) -> None:
         w = self._per_path
-        if len(self._kept) > self.MAX_WAYPOINT_ROWS - self._paths * w:
-            self._clear_waypoints()
-        flat = [0] * (self._paths * w)
-        before = self._previous
-        self._previous = []
+        slots: list[int] = []  # where each kept waypoint goes among the paths x w slots
+        points: list[dict] = []
         for i, path in enumerate(paths[: self._paths]):
             path = path[:w]
-            rows = self._path_rows(path, before[i] if i < len(before) else None)
-            flat[i * w : i * w + len(rows)] = rows
-            self._previous.append((path, rows))
-        index = self._index
-        index[:] = flat
+            slots += range(i * w, i * w + len(path))
+            points += path
         mask, pos, lane, floats = (
             np.ndarray(shape, dtype, record, offset) for shape, dtype, offset in self._path_views_at
         )
-        np.greater(index, 0, out=mask)
-        np.take(self._xy.view(np.float64)[:, 0], index, out=pos)
-        np.take(self._lanes, index, out=lane)
-        np.take(self._floats, index, axis=1, out=floats)
-
-    def _path_rows(self, path: list[dict], before: tuple[list, list] | None) -> list[int]:
-        """The table rows of ``path``'s waypoints. ``before``: the same slot's path and rows of
-        the step before; a vehicle moves a few waypoints on per step, so the path is mostly
-        that one shifted, which identity comparisons confirm far faster than row lookups."""
-        if before is not None and path:
-            previous, rows = before
-            first = path[0]
-            for shift in range(min(len(previous), MAX_SHIFT)):
-                if previous[shift] is first:
-                    k = min(len(previous) - shift, len(path))
-                    # Identical dicts compare by pointer; equal ones encode alike anyway.
-                    if previous[shift : shift + k] == path[:k]:
-                        return rows[shift : shift + k] + [self._row(wp) for wp in path[k:]]
-                    break
-        known = self._rows
-        try:
-            return [known[id(wp)] for wp in path]
-        except KeyError:
-            return [self._row(wp) for wp in path]
-
-    def _row(self, wp: dict) -> int:
-        row = self._rows.get(id(wp))
-        if row is None:
-            row = len(self._kept)
-            if row == len(self._lanes):
-                self._xy = np.concatenate([self._xy, np.zeros_like(self._xy)])
-                self._floats = np.concatenate([self._floats, np.zeros_like(self._floats)], 1)
-                self._lanes = np.concatenate([self._lanes, np.zeros_like(self._lanes)])
-            self._xy[row] = wp["pos"]
-            self._floats[:, row] = [wp[name] for name in WAYPOINT_FIELDS]
-            self._lanes[row] = wp["lane_index"]
-            self._kept.append(wp)
-            self._rows[id(wp)] = row
-        return row
+        for view in (mask, pos, lane, floats):  # zeros pad short and missing paths
+            view.fill(0)
+        if not points:
+            return
+        # np.fromiter over flat floats: several times faster than np.array on nested lists or
+        # tuples; float64 then float32 rounds as a direct conversion does.
+        n, fields = len(points), len(WAYPOINT_FIELDS)
+        at = np.array(slots, np.intp)
+        mask[at] = 1
+        xy = chain.from_iterable(wp["pos"] for wp in points)
+        pos[at] = np.fromiter(xy, np.float64, 2 * n).reshape(n, 2)
+        lane[at] = [wp["lane_index"] for wp in points]
+        values = chain.from_iterable(map(_WAYPOINT_FLOATS, points))
+        floats[:, at] = np.fromiter(values, np.float64, fields * n).reshape(n, fields).T
 
 
+_WAYPOINT_FLOATS = itemgetter(*WAYPOINT_FIELDS)
 _NEIGHBOUR_FIELDS = itemgetter("position", "heading", "speed", "bounding_box", "lane_index")
 _EVENTS = itemgetter(*EVENT_NAMES)
 

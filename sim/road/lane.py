@@ -9,6 +9,7 @@ from functools import cached_property
 import numpy as np
 
 WAYPOINT_SPACING = 1.0  # [m] distance between consecutive waypoints along a lane
+_STEPS = WAYPOINT_SPACING * np.arange(256)  # [m] offsets of a path's first points from its start
 # Lanes of more centreline points than this are projected onto with numpy (one pass over all
 # segments), fewer with a scalar loop; both give the same result.
 _VECTOR_PROJECTION_POINTS = 16
@@ -47,6 +48,11 @@ class Lane:
         self.length = float(self.cumulative_s[-1])  # [m]
         self._points = pts.tolist()
         self._seg_len2 = np.maximum(seg[:, 0] * seg[:, 0] + seg[:, 1] * seg[:, 1], 1e-12)
+        # Contiguous copies for np.interp, which would otherwise copy each column per call.
+        self._xs, self._ys = pts[:, 0].copy(), pts[:, 1].copy()
+        # Segment i starts at cumulative_s[i]: searching the inner offsets gives the segment of
+        # an offset directly, already within [0, n - 2] (see heading_at).
+        self._inner_s = self.cumulative_s[1:-1].copy()
 
     def project(self, x: float, y: float) -> tuple[float, float, float]:
         """Lane coordinates of a point: (s [m] along the lane, t [m] signed lateral offset, left
@@ -95,6 +101,13 @@ class Lane:
             axis=-1,
         )
 
+    def point_at(self, s: float) -> tuple[float, float]:
+        """:meth:`position_at` of one offset, as floats, without np.clip and np.stack (a controller
+        and the junction match ask for single points every step)."""
+        s = min(max(s, 0.0), self.length)
+        cum = self.cumulative_s
+        return float(np.interp(s, cum, self._xs)), float(np.interp(s, cum, self._ys))
+
     def heading_at(self, s: float | np.ndarray) -> float | np.ndarray:
         """Lane direction [rad] at distance ``s`` [m] along the lane."""
         i = np.clip(
@@ -107,46 +120,43 @@ class Lane:
     @property
     def waypoints(self) -> list[dict]:
         """Waypoint dicts every :data:`WAYPOINT_SPACING` along the lane, from s = 0."""
-        return self._waypoint_dicts(np.arange(0.0, self.length, WAYPOINT_SPACING))
+        return waypoint_dicts([(self, np.arange(0.0, self.length, WAYPOINT_SPACING))])
 
-    def waypoints_from(self, first_s: float, limit: int) -> tuple[list[dict], int]:
-        """Up to ``limit`` waypoint dicts at s = ``first_s`` + k * :data:`WAYPOINT_SPACING` [m],
-        k >= 0, short of the lane's end; and how many such points the lane has in all.
+    def waypoint_offsets(self, first_s: float, limit: int) -> tuple[np.ndarray, int]:
+        """Up to ``limit`` offsets s = ``first_s`` + k * :data:`WAYPOINT_SPACING` [m], k >= 0,
+        short of the lane's end; and how many such points the lane has in all.
 
         A path starts level with the vehicle (``first_s`` is its own s) and one crossing into
-        this lane starts at the offset left over from the previous lane, so the spacing stays
-        even along the whole path. Built for each call: the first offset follows the vehicle.
+        this lane starts at the offset left over from the previous one, so the spacing stays
+        even along the whole path.
         """
         first_s = max(first_s, 0.0)
         total = max(math.ceil((self.length - first_s) / WAYPOINT_SPACING - 1e-9), 0)
         count = min(limit, total)
-        if count <= 0:
-            return [], total
-        return self._waypoint_dicts(first_s + WAYPOINT_SPACING * np.arange(count)), total
+        steps = _STEPS[:count] if count <= len(_STEPS) else WAYPOINT_SPACING * np.arange(count)
+        return first_s + steps, total
+
+    def waypoints_from(self, first_s: float, limit: int) -> tuple[list[dict], int]:
+        """The waypoint dicts at :meth:`waypoint_offsets`, and how many the lane has in all."""
+        s, total = self.waypoint_offsets(first_s, limit)
+        return waypoint_dicts([(self, s)]), total
 
     @cached_property
     def end_waypoint(self) -> dict:
         """The waypoint at the lane's very end: the last point of a path that ends here."""
-        return self._waypoint_dicts(np.array([self.length]))[0]
+        return waypoint_dicts([(self, np.array([self.length]))])[0]
 
-    def _waypoint_dicts(self, s: np.ndarray) -> list[dict]:
-        # Rounded as arrays, then plain floats: paths are built afresh every step (they start
-        # at the vehicle), and rounding or boxing values one by one costs several times more.
-        xy = np.round(self.position_at(s), 4).tolist()
-        heading = np.atleast_1d(self.heading_at(np.minimum(s, self.length - 1e-9))).tolist()
-        lane_id, index, width, limit = self.id, self.index, self.width, self.speed_limit
-        return [
-            {
-                "pos": pos,
-                "heading": h,
-                "lane_id": lane_id,
-                "lane_index": index,
-                "lane_width": width,
-                "speed_limit": limit,
-                "lane_offset": si,
-            }
-            for pos, h, si in zip(xy, heading, s.tolist(), strict=True)
-        ]
+    def _sample(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Centreline x, y [m] and heading [rad] at offsets ``s``: :meth:`position_at` and
+        :meth:`heading_at` without their np.clip and np.stack wrappers. np.interp already holds
+        the end values beyond the lane; the heading is the last segment's at the very end."""
+        cum = self.cumulative_s
+        segment = self._inner_s.searchsorted(np.minimum(s, self.length - 1e-9), side="right")
+        return (
+            np.interp(s, cum, self._xs),
+            np.interp(s, cum, self._ys),
+            self.segment_headings[segment],
+        )
 
     @property
     def heading_start(self) -> float:
@@ -163,3 +173,39 @@ class Lane:
 def angle_between(a: float, b: float) -> float:
     """Absolute difference of two headings [rad], in [0, pi]."""
     return abs(math.remainder(a - b, 2 * math.pi))
+
+
+def waypoint_dicts(pieces: list[tuple[Lane, np.ndarray]]) -> list[dict]:
+    """Waypoint dicts at offsets ``s`` along each (lane, s) piece, in order.
+
+    Built afresh for every observation (paths start level with the vehicle), so this is the hot
+    path of one: positions are sampled per lane, then rounded and boxed to floats in one pass
+    over all pieces, as numpy's per-call cost outweighs the arithmetic on ~50 points.
+    """
+    pieces = [(lane, s) for lane, s in pieces if len(s)]
+    if not pieces:
+        return []
+    sampled = [lane._sample(s) for lane, s in pieces]
+    xs = np.concatenate([x for x, _, _ in sampled]).round(4).tolist()
+    ys = np.concatenate([y for _, y, _ in sampled]).round(4).tolist()
+    headings = np.concatenate([h for _, _, h in sampled]).tolist()
+    offsets = np.concatenate([s for _, s in pieces]).tolist()
+    # Copies of one template per lane (the key order of the documented waypoint), then the
+    # three values per point: faster than a dict display of seven keys.
+    out: list[dict] = []
+    for lane, s in pieces:
+        template = {
+            "pos": None,
+            "heading": None,
+            "lane_id": lane.id,
+            "lane_index": lane.index,
+            "lane_width": lane.width,
+            "speed_limit": lane.speed_limit,
+            "lane_offset": None,
+        }
+        out += [template.copy() for _ in range(len(s))]
+    for point, x, y, h, si in zip(out, xs, ys, headings, offsets, strict=True):
+        point["pos"] = [x, y]
+        point["heading"] = h
+        point["lane_offset"] = si
+    return out

@@ -15,7 +15,9 @@ from __future__ import annotations
 import math
 from weakref import WeakKeyDictionary
 
-from sim.road.lane import WAYPOINT_SPACING, Lane
+import numpy as np
+
+from sim.road.lane import WAYPOINT_SPACING, Lane, waypoint_dicts
 from sim.road.network import LanePosition, RoadNetwork
 
 _MAX_LANE_HOPS = 256  # a path crosses at most this many lanes (zero-length junction lanes)
@@ -81,20 +83,17 @@ def waypoint_paths(
     """Up to ``max_paths`` paths of 1 to ``per_path`` waypoints (1 m apart) starting level with
     (x, y) on each lane of the vehicle's road, nearest lanes to the vehicle's own first, then
     ordered by lane index. In a junction, one path along the junction lane that leads onto
-    ``route``. Waypoint dicts are shared between observations (read-only)."""
+    ``route``. Built afresh for each call (a dead end's end waypoint is shared: read-only)."""
     here = position.lane
     if here.is_internal:
         lane, s = route_lane_in_junction(road, position, x, y, route)
-        return [_path_from(road, lane, s, route, per_path)]
+        return _paths_of(road, [(lane, s)], route, per_path)
     lanes = road.edges[here.edge_id]  # by index
     if len(lanes) > max_paths:
         nearest = sorted(lanes, key=lambda lane: abs(lane.index - here.index))[:max_paths]
         lanes = sorted(nearest, key=lambda lane: lane.index)
-    paths = []
-    for lane in lanes:
-        s = position.s if lane is here else lane.project(x, y)[0]
-        paths.append(_path_from(road, lane, s, route, per_path))
-    return paths
+    starts = [(lane, position.s if lane is here else lane.project(x, y)[0]) for lane in lanes]
+    return _paths_of(road, starts, route, per_path)
 
 
 def road_waypoints(
@@ -111,11 +110,12 @@ def road_waypoints(
     along the route."""
     here = position.lane
     lanes = [here] if here.is_internal else road.edges[here.edge_id]
-    out = {}
+    starts = []
     for lane in lanes:
         s = position.s if lane is here else lane.project(x, y)[0]
-        out[lane.id] = [_path_from(road, lane, max(s - horizon, 0.0), route, 2 * horizon + 1)]
-    return out
+        starts.append((lane, max(s - horizon, 0.0)))
+    paths = _paths_of(road, starts, route, 2 * horizon + 1)
+    return {lane.id: [path] for (lane, _), path in zip(starts, paths, strict=True)}
 
 
 def route_lane_in_junction(
@@ -137,7 +137,7 @@ def route_lane_in_junction(
         if lane is here or exit_edge(road, lane) not in route:
             continue
         s, _, _ = lane.project(x, y)
-        px, py = lane.position_at(s)
+        px, py = lane.point_at(s)
         distance = math.hypot(px - x, py - y)
         if distance <= max(position.distance + _JUNCTION_MATCH_DISTANCE, lane.width / 2):
             candidates.append((distance, lane, s))
@@ -180,16 +180,33 @@ def _junction_id(lane: Lane) -> str:
     return lane.edge_id[1:].rsplit("_", 1)[0]
 
 
-def _path_from(road: RoadNetwork, lane: Lane, s: float, route: tuple[str, ...], n: int) -> list:
-    path: list[dict] = []
-    first_s = s  # the first waypoint is level with the vehicle
+def _paths_of(
+    road: RoadNetwork, starts: list[tuple[Lane, float]], route: tuple[str, ...], n: int
+) -> list[list[dict]]:
+    """One path of up to ``n`` waypoints from each (lane, s) start, converted to waypoint dicts
+    in one pass over all of them."""
+    walks = [_path_pieces(road, lane, s, route, n) for lane, s in starts]
+    points = waypoint_dicts([piece for pieces, _ in walks for piece in pieces])
+    paths, start = [], 0
+    for pieces, last_lane in walks:
+        end = start + sum(len(s) for _, s in pieces)
+        paths.append(points[start:end] or [last_lane.end_waypoint])
+        start = end
+    return paths
+
+
+def _path_pieces(
+    road: RoadNetwork, lane: Lane, s: float, route: tuple[str, ...], n: int
+) -> tuple[list[tuple[Lane, np.ndarray]], Lane]:
+    """The offsets of a path's waypoints on each lane it crosses, the first level with s; and
+    the lane the path ends on (whose end point is the one waypoint of an empty path)."""
+    pieces: list[tuple[Lane, np.ndarray]] = []
+    count, first_s = 0, s
     for _ in range(_MAX_LANE_HOPS):
-        points, on_lane = lane.waypoints_from(first_s, n - len(path))
-        if path:
-            path.extend(points)
-        else:  # a fresh list: most paths end on their first lane
-            path = points
-        if len(path) >= n:
+        offsets, on_lane = lane.waypoint_offsets(first_s, n - count)
+        pieces.append((lane, offsets))
+        count += len(offsets)
+        if count >= n:
             break
         # The next point lies past this lane's end by what is left of one spacing.
         first_s = first_s + on_lane * WAYPOINT_SPACING - lane.length
@@ -197,9 +214,7 @@ def _path_from(road: RoadNetwork, lane: Lane, s: float, route: tuple[str, ...], 
         if successor is None:
             break
         lane = successor
-    if not path:
-        path.append(lane.end_waypoint)
-    return path
+    return pieces, lane
 
 
 def route_ahead(road: RoadNetwork, x: float, y: float, heading: float) -> list[str]:

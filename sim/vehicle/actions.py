@@ -185,8 +185,7 @@ def _point_ahead(ctx: ControlContext, lane_id: str, s: float) -> tuple[float, fl
             break
         s -= lane.length
         lane = preferred_successor(ctx.road, lane, ctx.route)
-    x, y = lane.position_at(s)
-    return float(x), float(y)
+    return lane.point_at(s)
 
 
 Decoder = Callable[[np.ndarray, Pose, ControlContext], Pose]

@@ -122,13 +122,3 @@ def test_a_reused_encoder_gives_what_a_fresh_one_gives_along_a_route() -> None:
     order = [*range(len(observations)), *rng.permutation(len(observations))]
     for obs in (observations[i] for i in order):
         assert_same(reused.encode(obs), ObservationEncoder(layout).encode(obs))
-
-
-def test_a_full_waypoint_table_starts_over() -> None:
-    layout = ObservationLayout(AgentInterface(max_waypoint_paths=1, waypoints_per_path=5))
-    encoder = ObservationEncoder(layout)
-    encoder.MAX_WAYPOINT_ROWS = 12
-    for _ in range(6):  # fresh dicts each time: 5 new rows per observation
-        obs = sample_observation(waypoints=5)["Agent_0"]
-        assert_same(encoder.encode(obs), ObservationEncoder(layout).encode(obs))
-        assert len(encoder._kept) <= 12
