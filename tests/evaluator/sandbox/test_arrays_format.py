@@ -157,6 +157,8 @@ def test_records_and_scores_do_not_depend_on_the_format(tmp) -> None:
     assert not reasons & {"agent_error", "invalid_action", "agent_exited", "step_timeout"}
     first, second = native.to_dict(), arrays.to_dict()
     assert first.pop("submission") != second.pop("submission")
+    # The reproducibility manifest names the submission's digest too; everything else is equal.
+    assert first["manifest"].pop("submission") != second["manifest"].pop("submission")
     assert first == second
     for scenario_id in scenarios:
         record = f"records/{scenario_id}.npz"
