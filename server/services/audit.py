@@ -28,8 +28,12 @@ from arena.errors import ArenaError
 from arena.outcome import FINISHED
 from arena.scenario import load_scenario
 from arena.suite import Suite, load_suite
+from evaluator import sandbox
 from evaluator.provenance import EpisodeRun, Manifest, differences, environment, manifest_of
 from evaluator.runner import ScenarioOutcome, run_scenario
+from evaluator.sandbox.warm_pool import warm_agents
+from evaluator.training import unpack_model
+from evaluator.validation import validate
 from server.core.artifacts import ArtifactStore, MissingArtifact
 from server.core.db import Database
 from server.models import Phase, ScenarioResult, Submission
@@ -114,8 +118,6 @@ def audit(
 ) -> AuditReport:
     """Re-run ``submission_id``'s scored episodes under its manifest; ``progress(done, total)``
     after each episode."""
-    from evaluator import sandbox
-
     with db.read_session() as session:
         target = _target(session, submission_id)
     recorded = target.manifest
@@ -158,14 +160,29 @@ def _rerun(
     model: Path | None,
     progress: Callable[[int, int], None] | None,
 ) -> AuditReport:
-    from evaluator.training import unpack_model
-    from submissions.intake import prepare_submission
-
-    submission = prepare_submission(upload, scratch / "prepared", settings)
+    # Checked in the sandbox, as a worker does: nothing of the team's is parsed on this host.
+    submission = validate(upload, scratch / "prepared", settings, kind=kind)
     if model is not None:
         submission = dataclasses.replace(
             submission, model_dir=unpack_model(model, scratch / "model")
         )
+    try:
+        return _rerun_episodes(target, suite, kind, store, scratch, submission, progress)
+    finally:
+        # Its warm agents bind the scratch folder, which goes when the audit ends: a later
+        # audit of the same zip must not find them idle.
+        warm_agents().close(submission.sha256)
+
+
+def _rerun_episodes(
+    target: _Target,
+    suite: Suite,
+    kind: SandboxKind,
+    store: ArtifactStore,
+    scratch: Path,
+    submission,
+    progress: Callable[[int, int], None] | None,
+) -> AuditReport:
     for done, stored in enumerate(target.episodes, start=1):
         outcome = run_scenario(
             submission,

@@ -521,7 +521,7 @@ def test_audit_reruns_a_score_bit_identically_and_names_what_differs(
         assert same.exit_code == 0, same.output
         assert f"submission {sid}: bit-identical ({len(SCENARIOS)} episodes)" in same.output
         sampled = audit("--sample", "5")
-        assert sampled.exit_code == 0 and "bit-identical" in sampled.output
+        assert sampled.exit_code == 0 and "bit-identical" in sampled.output, sampled.output
 
         with db.session() as session:
             score = session.scalar(select(Score))
