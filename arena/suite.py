@@ -126,6 +126,8 @@ def load_suite(root: Path) -> Suite:
         raw = path.read_bytes()
     except FileNotFoundError:
         raise SuiteError(f"{root} is not a scenario suite: no {MANIFEST_FILE}") from None
+    except OSError as exc:  # unreadable to this process (permissions): say so, never a crash
+        raise SuiteError(f"{root}: cannot read {MANIFEST_FILE}: {exc.strerror}") from None
     try:
         manifest = SuiteManifest.model_validate_json(raw)
     except ValidationError as exc:

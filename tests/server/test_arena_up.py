@@ -84,7 +84,7 @@ def test_arena_up_serves_and_stops_cleanly(root, tmp_path):
         assert listing.status_code == 200
         assert (root / "data" / "arena.db").exists()
         # Closed to the agents' uid: the database, uploads and the hidden suite are in it.
-        assert (root / "data").stat().st_mode & 0o777 == 0o700
+        assert (root / "data").stat().st_mode & 0o007 == 0  # nothing for other users
         process.send_signal(signal.SIGINT)
         assert process.wait(timeout=40) == 0
         with pytest.raises(httpx.ConnectError):

@@ -40,7 +40,7 @@ def test_a_closed_folder_is_unreadable_to_the_agents_uid(open_folder):
     (data / "arena.db").chmod(0o644)
     assert as_agent("cat", str(data / "arena.db")).returncode == 0  # open before
     assert close_to_agents(data) is None
-    assert data.stat().st_mode & 0o777 == 0o700
+    assert data.stat().st_mode & 0o777 == 0o750  # the service's own group still reads it
     assert as_agent("cat", str(data / "arena.db")).returncode != 0
     assert as_agent("ls", str(data)).returncode != 0
 
@@ -53,3 +53,13 @@ def test_a_folder_the_agents_own_is_reported_not_trusted(tmp_path):
     os.chown(folder, AGENT_UID, AGENT_UID)
     warnings = close_service_folders(folder, None)
     assert len(warnings) == 1 and "agents' user" in warnings[0]
+
+
+def test_a_folder_in_the_agents_group_is_reported_not_trusted(tmp_path):
+    folder = tmp_path / "data"
+    folder.mkdir()
+    if os.geteuid() != 0:
+        pytest.skip("only root can give a folder to group 65534")
+    os.chown(folder, 0, AGENT_UID)
+    warnings = close_service_folders(folder)
+    assert len(warnings) == 1 and "agents' group" in warnings[0]
