@@ -65,6 +65,8 @@ SCENARIOS = (
 )
 UP_TIMEOUT_S = 300
 SCORED_TIMEOUT_S = 1800
+# [s] One upload's sandboxed validation (its requirements included).
+VALIDATION_TIMEOUT_S = 600
 CLAIMED = re.compile(r"run (\d+): episode (\d+) of (\S+) claimed \(claim (\d+)\)")
 
 
@@ -341,9 +343,23 @@ def upload(url: str, token: str, zip_path: Path, agent: str) -> int:
             files={"file": (zip_path.name, handle, "application/zip")},
             timeout=300,
         )
-    if response.status_code != 201:
+    if response.status_code != 202:
         raise SystemExit(f"upload of {agent} refused: {response.status_code} {response.text}")
-    return response.json()["id"]
+    submission_id = response.json()["id"]
+    # A team has one upload validating at a time: the next waits for this one's verdict.
+    deadline = time.monotonic() + VALIDATION_TIMEOUT_S
+    while time.monotonic() < deadline:
+        shown = httpx.get(
+            f"{url}/api/v1/submissions/{submission_id}",
+            headers={"Authorization": f"Bearer {token}"},
+            timeout=30,
+        ).json()
+        if shown["status"] == "rejected":
+            raise SystemExit(f"upload of {agent} rejected: {shown['status_reason']}")
+        if shown["status"] != "validating":
+            return submission_id
+        time.sleep(0.5)
+    raise SystemExit(f"upload of {agent} still validating after {VALIDATION_TIMEOUT_S} s")
 
 
 def submission(stack: Stack, submission_id: int) -> dict:
@@ -366,7 +382,9 @@ def wait_scored(
         for container in stack.agent_containers():
             networks[container.name] = container.attrs["HostConfig"]["NetworkMode"]
         found = {i: submission(stack, i) for i in ids}
-        finished = {i: s for i, s in found.items() if s["status"] in ("scored", "failed")}
+        finished = {
+            i: s for i, s in found.items() if s["status"] in ("scored", "failed", "rejected")
+        }
         cpu.sample()
         if len(finished) == len(ids):
             return finished
