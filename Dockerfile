@@ -37,6 +37,7 @@ COPY sim ./sim
 COPY scenarios ./scenarios
 COPY submissions ./submissions
 COPY evaluator ./evaluator
+COPY learn ./learn
 COPY server ./server
 COPY docs ./docs
 # Editable, so `arena admin db upgrade` finds alembic.ini and migrations/ next to the code.

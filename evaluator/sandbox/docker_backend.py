@@ -72,6 +72,8 @@ def runtime_source(settings: Settings) -> Path:
         digest.update(str(path.relative_to(package)).encode() + b"\0" + path.read_bytes())
     target = settings.sandbox_shared_dir / f"agent-runtime-{digest.hexdigest()[:16]}"
     if not target.is_dir():
+        # The first launch may be an upload's validation, before any agent made the folder.
+        settings.sandbox_shared_dir.mkdir(parents=True, exist_ok=True)
         partial = Path(tempfile.mkdtemp(prefix=".agent-runtime-", dir=settings.sandbox_shared_dir))
         for path in files:
             (partial / path.relative_to(package)).parent.mkdir(parents=True, exist_ok=True)
