@@ -66,7 +66,11 @@ def sandboxed(
         files_cap = settings.max_zip_entries if mode == "submission" else settings.max_deps_files
         # Room for the report and the scratch copy of one nested archive.
         disk_cap, files_cap = 2 * disk_cap + 1024**2, files_cap + 16
-        with tempfile.TemporaryDirectory(prefix="arena-intake-stub-") as stub_dir:
+        # A worker in a container makes the stub where the Docker daemon sees the same path.
+        shared = settings.sandbox_shared_dir
+        if shared is not None:
+            shared.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(prefix="arena-intake-stub-", dir=shared) as stub_dir:
             program = Path(stub_dir)
             (program / TRAIN_SCRIPT).write_text(_stub(mode))
             _open_to_sandbox(program, inputs)
