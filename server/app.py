@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import logging
+import threading
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from pathlib import Path
@@ -10,6 +12,7 @@ from fastapi import FastAPI, Request
 from fastapi.exception_handlers import http_exception_handler
 from fastapi.responses import JSONResponse, Response
 from fastapi.staticfiles import StaticFiles
+from sqlalchemy.exc import SQLAlchemyError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from arena.config import Settings, get_settings
@@ -25,6 +28,15 @@ from server.services.leaderboard import LeaderboardCache
 from server.status import IllegalTransition
 
 STATIC_DIR = Path(__file__).resolve().parent / "static"
+log = logging.getLogger(__name__)
+
+
+def _warm(leaderboard: LeaderboardCache) -> None:
+    try:
+        leaderboard.warm()
+    except SQLAlchemyError:
+        # A database not yet migrated or unreachable: requests will say so themselves.
+        log.warning("leaderboards not warmed at start", exc_info=True)
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
@@ -32,7 +44,14 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        # In the background: the API answers at once, and the first leaderboard request finds
+        # the boards computed instead of waiting for their resampling.
+        warming = threading.Thread(
+            target=_warm, args=(app.state.leaderboard,), name="leaderboard-warm", daemon=True
+        )
+        warming.start()
         yield
+        warming.join(timeout=5)
         app.state.queue.close()
         app.state.db.dispose()
 

@@ -11,6 +11,7 @@ the score stands).
 from __future__ import annotations
 
 import io
+import math
 import threading
 import time
 from dataclasses import dataclass
@@ -40,7 +41,7 @@ from server.schemas import (
     LeaderboardEntry,
     Metrics,
 )
-from server.services.phases import DEFAULT_PHASE, get_phase
+from server.services.phases import DEFAULT_PHASE, get_phase, list_phases
 from server.services.submissions import completion_interval
 from server.status import RunStatus, SubmissionStatus
 
@@ -284,3 +285,13 @@ class LeaderboardCache:
             return cached
         finally:
             self._lock.release()
+
+    def warm(self) -> None:
+        """Compute every phase's boards once, so that the first request after a start finds
+        the bootstrap replicates made (seconds for a few hundred entries) and only looks at the
+        generation: a score written meanwhile still shows at once."""
+        with self.db.read_session() as session:
+            names = [phase.name for phase in list_phases(session)]
+        for name in names:
+            for track in Track:
+                self.get(track, name).checked_at = -math.inf

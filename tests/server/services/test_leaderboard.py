@@ -255,3 +255,16 @@ def test_the_generalisation_gap_to_another_phase(client, db):
     assert "gap vs" not in client.get("/", params={"phase": "final"}).text.split("<table")[1]
     unknown = client.get("/api/v1/leaderboard", params={"phase": "final", "gap_from": "nope"})
     assert unknown.status_code == 404
+
+
+def test_warm_resamples_every_board_and_still_shows_a_later_score(db):
+    a, _ = make_team(db, "a")
+    b, _ = make_team(db, "b")
+    seed_scored(db, a, (0.5, 500.0, 0.2, 0.0), samples=simulated(np.random.default_rng(1), 0.5))
+    cache = LeaderboardCache(db, recheck_s=3600)
+    cache.warm()
+    resampled = {key for key, known in cache._replicates.items() if known}
+    assert resampled == {("final", Track.freestyle)}
+    # The warmed board is not trusted blindly: a score written after the warm-up shows.
+    seed_scored(db, b, (0.25, 500.0, 0.2, 0.0))
+    assert [e.team for e in cache.get(Track.freestyle).board.entries] == ["b", "a"]
