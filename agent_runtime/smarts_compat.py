@@ -15,6 +15,7 @@ Standard library plus numpy only, and no import of this project (it runs beside 
 
 from __future__ import annotations
 
+import hashlib
 import math
 import os
 import sys
@@ -91,9 +92,16 @@ def _mission(mission: dict) -> Mission:
     )
 
 
-def _neighbour(n: dict) -> VehicleObservation:
+def smarts_vehicle_id(agent_id: str) -> str:
+    """The id of ``agent_id``'s vehicle as SMARTS named it, ``<agent id>-<8 hex digits>``
+    (agents that parse it, e.g. ``id.split("-")[0]``, find their agent id). SMARTS drew the
+    digits at random; these come from the agent id, so an episode replays identically."""
+    return f"{agent_id}-{hashlib.sha256(agent_id.encode()).hexdigest()[:8]}"
+
+
+def _neighbour(n: dict, vehicle_id: str) -> VehicleObservation:
     return VehicleObservation(
-        id=n["id"],
+        id=vehicle_id,
         position=_vec3(n["position"]),
         bounding_box=Dimensions(*n["bounding_box"]),
         heading=Heading(to_smarts_heading(n["heading"])),
@@ -151,12 +159,21 @@ class SmartsAdapter:
         self._distance: dict[str, float] = {}  # agent id -> running total at its last step [m]
         self._steps: dict[str, int] = {}  # agent id -> its steps so far
         self._missions: dict[str, tuple[int, Mission]] = {}  # built once per episode
+        self._agents: set[str] = set()  # the episode's agent ids: their vehicles get SMARTS ids
 
     def reset(self) -> None:
-        self._distance, self._steps, self._missions = {}, {}, {}
+        self._distance, self._steps, self._missions, self._agents = {}, {}, {}, set()
 
     def observations(self, obs: dict[str, dict]) -> dict[str, Observation]:
+        self._agents.update(obs)
         return {agent_id: self.observation(agent_id, o) for agent_id, o in obs.items()}
+
+    def _vehicle_id(self, vehicle_id: str) -> str:
+        return smarts_vehicle_id(vehicle_id) if vehicle_id in self._agents else vehicle_id
+
+    def _collision(self, collidee: str) -> Collision:
+        owner = collidee if collidee in self._agents else ""
+        return Collision(self._vehicle_id(collidee), owner)
 
     def observation(self, agent_id: str, o: dict) -> Observation:
         total = o["distance_travelled"]
@@ -164,6 +181,7 @@ class SmartsAdapter:
         self._distance[agent_id] = total
         steps = self._steps.get(agent_id, -1) + 1
         self._steps[agent_id] = steps
+        self._agents.add(agent_id)
         ev = o["events"]
         ego = o["ego_vehicle_state"]
         rasters = self._rasters(o, ego)
@@ -173,7 +191,7 @@ class SmartsAdapter:
             steps_completed=steps,
             elapsed_sim_time=o["elapsed_sim_time"],
             events=Events(
-                collisions=[Collision(c) for c in ev["collisions"]],
+                collisions=[self._collision(c) for c in ev["collisions"]],
                 off_road=ev["off_road"],
                 off_route=ev["off_route"],
                 on_shoulder=ev["on_shoulder"],
@@ -184,7 +202,9 @@ class SmartsAdapter:
             ),
             ego_vehicle_state=self._ego(agent_id, ego),
             under_this_agent_control=True,
-            neighborhood_vehicle_states=[_neighbour(n) for n in o["neighborhood_vehicle_states"]],
+            neighborhood_vehicle_states=[
+                _neighbour(n, self._vehicle_id(n["id"])) for n in o["neighborhood_vehicle_states"]
+            ],
             waypoint_paths=[_path(path) for path in o["waypoint_paths"]],
             distance_travelled=step_distance,
             lidar_point_cloud=_lidar(o.get("lidar_point_cloud")),
@@ -201,7 +221,7 @@ class SmartsAdapter:
             cached = (id(mission), _mission(mission))
             self._missions[agent_id] = cached
         return EgoVehicleObservation(
-            id=ego["id"],
+            id=smarts_vehicle_id(agent_id),
             position=_vec3(ego["position"]),
             bounding_box=Dimensions(*ego["bounding_box"]),
             heading=Heading(to_smarts_heading(ego["heading"])),

@@ -79,3 +79,27 @@ def test_target_pose_heading_goes_back_to_our_frame_other_actions_untouched():
     assert target["Agent_1"] == "junk"  # the simulator rules it invalid_action
     lane = SmartsAdapter("LaneWithContinuousSpeed").actions({"Agent_0": [8.0, 0]})
     assert lane == {"Agent_0": [8.0, 0]}
+
+
+def test_agents_vehicles_carry_smarts_ids_wherever_they_appear():
+    """SMARTS named an agent's vehicle ``<agent id>-<8 hex>``: as the ego, as another agent's
+    neighbour and as a collidee (whose owner is then that agent); traffic keeps its ids."""
+    native = sample_observation(("Agent_0", "Agent_1"), neighbours=2)
+    native["Agent_0"]["neighborhood_vehicle_states"][0]["id"] = "Agent_1"
+    native["Agent_0"]["events"]["collisions"] = ["Agent_1", "car-1"]
+    obs = SmartsAdapter().observations(native)
+    ego_ids = {agent: o.ego_vehicle_state.id for agent, o in obs.items()}
+    assert all(
+        vid.startswith(f"{agent}-") and len(vid) == len(agent) + 9 for agent, vid in ego_ids.items()
+    )
+    assert ego_ids["Agent_0"] != ego_ids["Agent_1"]
+    neighbours = [n.id for n in obs["Agent_0"].neighborhood_vehicle_states]
+    assert neighbours == [ego_ids["Agent_1"], "car-1"]
+    collisions = obs["Agent_0"].events.collisions
+    assert [(c.collidee_id, c.collidee_owner_id) for c in collisions] == [
+        (ego_ids["Agent_1"], "Agent_1"),
+        ("car-1", ""),
+    ]
+    # The same agent's vehicle has the same id in every episode: a rerun is identical.
+    again = SmartsAdapter().observations(sample_observation(("Agent_0",)))
+    assert again["Agent_0"].ego_vehicle_state.id == ego_ids["Agent_0"]
