@@ -20,6 +20,7 @@ from server.core.db import Database
 from server.core.queue import BROKER_ERRORS, TaskQueue, scenario_task_id
 from server.models import EvaluationRun, ScenarioResult, Score, Submission, TrainingJob, utcnow
 from server.schemas import (
+    AgentCpu,
     CompletionInterval,
     FamilyMetrics,
     Metrics,
@@ -39,7 +40,7 @@ from server.services.errors import (
     NotFound,
     QuotaExceeded,
 )
-from server.services.evaluation import bump_leaderboard, cancel_run, lock
+from server.services.evaluation import agent_cpu_used, bump_leaderboard, cancel_run, lock
 from server.services.phases import (
     DEFAULT_PHASE,
     PhaseMisconfigured,
@@ -381,10 +382,19 @@ def detail(session: Session, submission: Submission) -> SubmissionDetail:
         },
         failure_reasons={family: reasons[family] for family in sorted(reasons)},
         training=_training(submission),
+        agent_cpu=_agent_cpu(session, shown_run(submission)),
         manifest=Manifest.model_validate(score.manifest).public()
         if score is not None and score.manifest
         else None,
     )
+
+
+def _agent_cpu(session: Session, run: EvaluationRun | None) -> AgentCpu | None:
+    """The CPU the run's agent used so far against the budget it runs under; None before a
+    run, or for a run made before budgets were recorded."""
+    if run is None or run.evaluation_cpu_s is None:
+        return None
+    return AgentCpu(used_s=agent_cpu_used(session, run.id), budget_s=run.evaluation_cpu_s)
 
 
 def failed_on_our_side_while_hidden(
