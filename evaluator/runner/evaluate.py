@@ -155,6 +155,7 @@ def evaluate(
                 finished = [_outcome_of(future, pending.pop(future)) for future in done]
                 for outcome in finished:
                     starts.saw(outcome)
+                    run.charge_cpu(outcome)  # before the next ones start, unlike the scoring
     return run.summary()
 
 
@@ -299,6 +300,12 @@ class ResultsFolder:
         with self.lock:
             self.running.add(episode)
 
+    def charge_cpu(self, outcome: ScenarioOutcome) -> None:
+        """Count the CPU ``outcome``'s agent used against the evaluation's budget (written with
+        the next :meth:`summary`)."""
+        with self.lock:
+            self.cpu.charge(outcome.key.name, outcome.agent_cpu_s)
+
     def record(self, outcome: ScenarioOutcome) -> None:
         """``episode`` finished: its log now, its entry with the next :meth:`summary`."""
         with self.lock:
@@ -309,7 +316,6 @@ class ResultsFolder:
             self.outcomes[key] = outcome
             self.cache[key] = scored
             self.timings[key.name] = round(outcome.wall_time_s, 3)
-            self.cpu.charge(key.name, outcome.agent_cpu_s)
             (self.out_dir / LOGS_DIR / f"{key.name}.txt").write_text(outcome.log)
 
     def _manifest(self) -> Manifest:
