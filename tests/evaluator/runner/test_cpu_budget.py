@@ -101,3 +101,28 @@ def test_under_the_budget_every_episode_runs_and_its_cpu_is_counted(public_suite
     used = read_agent_cpu(tmp_path / "out")
     assert not used.over_budget and used.budget_s == 600.0
     assert all(seconds >= EPISODE_AT_LEAST_S for seconds in used.episodes.values())
+
+
+def test_arena_evaluate_says_the_budget_was_passed_and_exits_1(public_suite, tmp_path, monkeypatch):
+    from typer.testing import CliRunner
+
+    from arena.cli import app
+    from arena.config import get_settings
+
+    ids = few_scenarios(public_suite, 2)
+    source = write_policy(tmp_path / "busy", BUSY_POLICY)
+    monkeypatch.setenv("ARENA_EVALUATION_CPU_S", "0.1")
+    get_settings.cache_clear()
+    try:
+        command = ["evaluate", str(source), "--suite", str(public_suite), "--jobs", "1"]
+        command += ["--sandbox", TEST_SANDBOX.value, "--out", str(tmp_path / "out")]
+        for scenario_id in ids:
+            command += ["--scenario", scenario_id]
+        result = CliRunner().invoke(app, command)
+    finally:
+        get_settings.cache_clear()
+    assert result.exit_code == 1, result.output
+    output = " ".join(result.output.split())  # the console wraps long lines
+    assert "CPU budget exceeded" in output and "budget of 0.1 s" in output
+    assert "remaining episodes were not run" in output
+    assert "re-run with the same --out to finish" not in output
