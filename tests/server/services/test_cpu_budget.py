@@ -19,13 +19,14 @@ from tests.server.builders import agent, bearer, make_team, queued_submission
 TINY = phases.PhaseChanges(step_cpu_s=0.1, episode_cpu_s=0.5, evaluation_cpu_s=1.0)
 
 
-def run_episodes(db, settings, submission_id, cpu_s: float) -> list[bool]:
-    """Every episode claimed and reported done as a worker does, its agent having used
-    ``cpu_s`` of CPU; per episode, whether it could be claimed (False: not run)."""
+def run_episodes(db, settings, submission_id, cpu_s: float, only: int | None = None) -> list[bool]:
+    """Every episode (or the first ``only``: the run stays under way) claimed and reported done
+    as a worker does, its agent having used ``cpu_s`` of CPU; per episode, whether it could be
+    claimed (False: not run)."""
     with db.session() as session:
         plan = evaluation.start_evaluation(session, settings, submission_id)
     claimed, last = [], False
-    for episode in plan.episodes:
+    for episode in plan.episodes[:only]:
         with db.session() as session:
             job = evaluation.claim_scenario(
                 session, settings, plan.run_id, episode.scenario_id, "w1", episode.index
@@ -130,3 +131,18 @@ def test_the_phase_refuses_limits_that_do_not_grow(db, settings):
         phases.set_phase(db, settings, "final", phases.PhaseChanges(evaluation_cpu_s=0))
     with pytest.raises(InvalidInput, match="must grow"):
         phases.set_phase(db, settings, "final", phases.PhaseChanges(evaluation_cpu_s=10.0))
+
+
+@pytest.mark.parametrize(("phase", "shown"), [("validation", True), ("final", False)])
+def test_a_hidden_phase_shows_the_cpu_only_once_the_run_is_over(client, db, settings, phase, shown):
+    """Read after each episode, the CPU an agent used would carry what it saw of a hidden
+    scenario: in a hidden phase it is shown once the run is over, like failure reasons."""
+    team, token = make_team(db, "a")
+    sid = queued_submission(db, team, phase=phase)
+    run_episodes(db, settings, sid, cpu_s=0.25, only=1)
+    detail = client.get(f"/api/v1/submissions/{sid}", headers=bearer(token)).json()
+    assert detail["status"] == "running"
+    if shown:
+        assert detail["agent_cpu"] == {"used_s": 0.25, "budget_s": settings.evaluation_cpu_s}
+    else:
+        assert detail["agent_cpu"] is None
