@@ -327,7 +327,8 @@ def test_the_runs_own_limits_win_over_the_settings(kind, settings, labels, tmp) 
         with pytest.raises(AgentFailed) as caught:
             handle.act(observation())
         assert caught.value.reason is DoneReason.step_timeout
-        assert "more than 0.2 s of CPU" in caught.value.detail
+        # Stopped while it computes, or on its answer when the poll came too late (a busy host).
+        assert "CPU" in caught.value.detail and "0.2 s" in caught.value.detail
         assert handle.episode_cpu_s > 0.2
 
 
