@@ -15,6 +15,7 @@ from typing import Annotated
 from pydantic import BeforeValidator, Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from arena.cpu_limits import CpuLimits
 from arena.seeds import parse_seed
 
 
@@ -88,6 +89,10 @@ class Settings(BaseSettings):
     # (simulator included) is episode_timeout_s.
     episode_cpu_s: float = 600.0
     episode_timeout_s: float = 600.0
+    # The agent CPU time one evaluation (every episode together) may use, the 2022 competition's
+    # figure: once passed, the remaining episodes are not run and the submission fails. A phase
+    # may override it and the two above (`arena admin phases set`).
+    evaluation_cpu_s: float = Field(default=64_800.0, gt=0)
     agent_memory_bytes: int = 2 * 1024**3
     agent_cpus: float = 1.0
     agent_pids: int = 64
@@ -158,6 +163,10 @@ class Settings(BaseSettings):
     # uvicorn: a client must send its request headers within this [s]; idle keep-alive ends after.
     http_header_timeout_s: float = 10.0
     http_keep_alive_s: float = 5.0
+
+    @property
+    def cpu_limits(self) -> CpuLimits:
+        return CpuLimits(self.step_cpu_s, self.episode_cpu_s, self.evaluation_cpu_s)
 
     @property
     def resolved_data_dir(self) -> Path:

@@ -28,6 +28,7 @@ from evaluator.failures import (
 from evaluator.viewer.export import ReplayFormat
 
 if TYPE_CHECKING:
+    from arena.cpu_limits import CpuLimits
     from evaluator.runner import ScenarioOutcome
     from evaluator.summary import Summary
 
@@ -124,11 +125,40 @@ def evaluate(
         _report(summary, out, console, as_json, per_scenario)
     else:  # no table of meaningless scores: the one error is the result
         console.print(f"results in {out} (agent logs in {out / 'logs'})")
-    explain_failures(
-        summary, out, make_console(stderr=True) if as_json else console, verbose=verbose
-    )
-    if any(is_agent_fault(episode.agents) for _, episode in _episodes(summary)):
+    notes = make_console(stderr=True) if as_json else console
+    explain_failures(summary, out, notes, verbose=verbose)
+    over_budget = _report_agent_cpu(out, settings.cpu_limits, notes)
+    if over_budget or any(is_agent_fault(episode.agents) for _, episode in _episodes(summary)):
         raise typer.Exit(1)
+
+
+def over_cpu_budget(results_dir: Path) -> bool:
+    """The agent's episodes in ``results_dir`` used more CPU than the evaluation's budget."""
+    from evaluator.runner.cpu_budget import read_agent_cpu
+
+    used = read_agent_cpu(results_dir)
+    return used is not None and used.over_budget
+
+
+def _report_agent_cpu(results_dir: Path, limits: CpuLimits, console: Console) -> bool:
+    """Say the CPU the agent used of the evaluation's budget (agent_cpu.json); True when it
+    passed the budget, so the remaining episodes were not run (the agent's fault)."""
+    from evaluator.runner.cpu_budget import read_agent_cpu
+
+    used = read_agent_cpu(results_dir)
+    if used is None:
+        return False
+    if used.over_budget:
+        message = limits.overridden(evaluation_s=used.budget_s).budget_exceeded(
+            used.used_s, len(used.episodes)
+        )
+        console.print(f"[red]CPU budget exceeded[/]: {escape(message)}")
+        return True
+    console.print(
+        f"agent CPU: {used.used_s:.1f} s of this evaluation's budget of {used.budget_s:g} s",
+        style="dim",
+    )
+    return False
 
 
 @app.command()
@@ -454,7 +484,7 @@ def _report(
         entry = next(e for e in summary.scenarios if e.id == scenario_id)
         error = escape(str(entry.error))
         console.print(f"[red]not charged[/] {scenario_id} ({entry.status}): {error}")
-    if not summary.complete and not could_not_start(summary):
+    if not summary.complete and not could_not_start(summary) and not over_cpu_budget(results_dir):
         console.print("[bold yellow]incomplete:[/] re-run with the same --out to finish")
     console.print(f"results in {results_dir} (agent logs in {results_dir / 'logs'})")
 

@@ -297,6 +297,8 @@ def _rank_text(standing) -> str:
         f"team ranks {standing.rank} of {standing.teams_ranked} "
         f"(with submission {standing.ranked_submission_id})"
     )
+
+
 def _manifest_rows(manifest) -> list[tuple[str, str]]:
     """The reproducibility manifest, in the lines of `submissions show` (docs/scoring.md)."""
     if manifest is None:
@@ -756,7 +758,17 @@ def phases_list() -> None:
     moment = utcnow()
     print_rows(
         console,
-        ("phase", "suite", "visibility", "starts", "ends", "daily quota", "episodes", "open"),
+        (
+            "phase",
+            "suite",
+            "visibility",
+            "starts",
+            "ends",
+            "daily quota",
+            "episodes",
+            "cpu act/episode/evaluation [s]",
+            "open",
+        ),
         [
             (
                 phase.name,
@@ -767,6 +779,7 @@ def phases_list() -> None:
                 phases.daily_quota(phase, ctx.settings),
                 f"{phases.episodes_per_scenario(phase, ctx.settings)}"
                 + ("+" if phase.adaptive_target is not None else ""),
+                _cpu_cell(phases.cpu_limits(phase, ctx.settings)),
                 "yes" if phases.is_open(phase, moment) else "no",
             )
             for phase in rows
@@ -785,6 +798,10 @@ def phases_list() -> None:
         adaptive = phases.adaptive_cost(phase, ctx.settings)
         if adaptive is not None:
             console.print(f"{phase.name} (+): {adaptive}", markup=False)
+
+
+def _cpu_cell(limits) -> str:
+    return f"{limits.step_s:g} / {limits.episode_s:g} / {limits.evaluation_s:g}"
 
 
 @phases_app.command("release")
@@ -836,6 +853,29 @@ def phases_set(
     fixed_episodes: Annotated[
         bool, typer.Option("--fixed-episodes", help="Turn adaptive evaluation off.")
     ] = False,
+    step_cpu: Annotated[
+        float | None,
+        typer.Option(help="Agent CPU seconds one act may use (default: ARENA_STEP_CPU_S)."),
+    ] = None,
+    episode_cpu: Annotated[
+        float | None,
+        typer.Option(
+            help="Agent CPU seconds of one episode's acts together (default: ARENA_EPISODE_CPU_S)."
+        ),
+    ] = None,
+    evaluation_cpu: Annotated[
+        float | None,
+        typer.Option(
+            help="Agent CPU seconds of one evaluation's episodes together; past it the rest are "
+            "not run and the submission fails (default: ARENA_EVALUATION_CPU_S)."
+        ),
+    ] = None,
+    default_cpu_limits: Annotated[
+        bool,
+        typer.Option(
+            "--default-cpu-limits", help="Clear the phase's CPU limits: the settings' apply."
+        ),
+    ] = False,
     dry_run: Annotated[
         bool, typer.Option("--dry-run", help="Say what the phase would cost; save nothing.")
     ] = False,
@@ -859,6 +899,10 @@ def phases_set(
         adaptive_target=adaptive_target,
         max_episodes=max_episodes,
         fixed_episodes=fixed_episodes,
+        step_cpu_s=step_cpu,
+        episode_cpu_s=episode_cpu,
+        evaluation_cpu_s=evaluation_cpu,
+        default_cpu_limits=default_cpu_limits,
     )
     ctx = _Context()
     phase = _run(lambda: phases.set_phase(ctx.db, ctx.settings, name, changes, dry_run=dry_run))
@@ -870,6 +914,7 @@ def phases_set(
         console.print(adaptive, markup=False)
     elif per_scenario > 1:
         console.print(phases.episodes_cost(per_scenario))
+    console.print(phases.describe_cpu_limits(phases.cpu_limits(phase, ctx.settings)), markup=False)
 
 
 @phases_app.command("delete")

@@ -132,6 +132,11 @@ class Phase(Base):
     # When the organisers released the closed phase (arena admin phases release): its suite is
     # downloadable and every team sees its own episodes. None: nothing changes.
     released_at: Mapped[datetime | None]
+    # The agent's CPU limits [s] (arena/cpu_limits.py): an act's, an episode's, an evaluation's.
+    # None: the setting's (step_cpu_s, episode_cpu_s, evaluation_cpu_s).
+    step_cpu_s: Mapped[float | None] = mapped_column(Float)
+    episode_cpu_s: Mapped[float | None] = mapped_column(Float)
+    evaluation_cpu_s: Mapped[float | None] = mapped_column(Float)
 
 
 class Submission(Base):
@@ -269,6 +274,11 @@ class EvaluationRun(Base):
     error: Mapped[str] = mapped_column(Text, default="")
     # The trained output this run evaluates (offline submissions); None for freestyle.
     training_id: Mapped[int | None] = mapped_column(ForeignKey("training_jobs.id"))
+    # The agent's CPU limits [s] it is evaluated under, fixed when it is made (the phase's, else
+    # the settings'). None: a run made before they were recorded (the settings' apply).
+    step_cpu_s: Mapped[float | None] = mapped_column(Float)
+    episode_cpu_s: Mapped[float | None] = mapped_column(Float)
+    evaluation_cpu_s: Mapped[float | None] = mapped_column(Float)
 
     submission: Mapped[Submission] = relationship(back_populates="runs")
     training: Mapped[TrainingJob | None] = relationship()
@@ -298,6 +308,9 @@ class ScenarioResult(Base):
     record_key: Mapped[str | None] = mapped_column(String(512))
     log_tail: Mapped[str] = mapped_column(Text, default="")
     detail: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    # The CPU time the agent's acts used [s]: what the run's evaluation budget counts. None while
+    # it runs, and for episodes stored before it was measured.
+    agent_cpu_s: Mapped[float | None] = mapped_column(Float)
     # The worker holding the claim while "running"; empty once the reaper released it.
     worker: Mapped[str] = mapped_column(String(255), default="")
     attempts: Mapped[int] = mapped_column(Integer, default=0)  # claims so far: the fence token

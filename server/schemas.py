@@ -74,6 +74,21 @@ class TrainingProgress(Schema):
     model_size: int  # [bytes]
 
 
+class CpuLimitsView(Schema):
+    """The agent's CPU time limits [s] in a phase (docs/protocol.md, "Time limits")."""
+
+    step_s: float  # one act
+    episode_s: float  # every act of one episode
+    evaluation_s: float  # every episode of one evaluation: past it, the rest are not run
+
+
+class AgentCpu(Schema):
+    """The CPU time the agent used in the shown evaluation, against its budget [s]."""
+
+    used_s: float
+    budget_s: float
+
+
 class PhaseWindow(Schema):
     """The phase a submission was made in, as its team sees it."""
 
@@ -84,6 +99,7 @@ class PhaseWindow(Schema):
     state: str  # "open", "closed" or "not yet open"
     # What the team does not see in this phase, and why ("" in a phase of full visibility).
     hidden: str
+    cpu_limits: CpuLimitsView
 
 
 class Standing(Schema):
@@ -126,6 +142,8 @@ class SubmissionDetail(SubmissionSummary):
     # ids of the hidden suite are never shown to participants; these counts are.
     failure_reasons: dict[str, dict[str, int]]
     training: TrainingProgress | None = None  # offline (Track 2) submissions
+    # Of the run whose progress is shown; None before it starts.
+    agent_cpu: AgentCpu | None = None
     phase_window: PhaseWindow | None = None
     standing: Standing | None = None
     # The score's reproducibility manifest as the team may see it (evaluator/provenance.py

@@ -8,6 +8,7 @@ participant's, and never raises here.
 
 from __future__ import annotations
 
+import dataclasses
 import multiprocessing as mp
 import os
 import sys
@@ -61,7 +62,8 @@ def run_episode_isolated(
     ``agent_factory`` must be picklable (a module-level function or ``functools.partial``); it is
     called in the child. If it raises :class:`AgentFailed`, every agent fails with that reason
     after 0 steps (the record is still written). The child closes the agent and, when the agent
-    has a ``logs()`` method, returns its text in ``extra["agent_log"]``. The episode itself
+    has a ``logs()`` method, returns its text in ``extra["agent_log"]``, and the CPU its acts
+    used when it has an ``episode_cpu_s`` attribute. The episode itself
     stops at ``episode_timeout_s``, the organisers' limit (reason ``episode_timeout``, record kept);
     ``timeout_s`` is the hard limit after which the child is killed (``simulator_error``).
     The scenario's network and recording are parsed here, once per process, and reach the child
@@ -213,6 +215,7 @@ def _child_main(
             log = _close_agent(agent)
             if log is not None:
                 result.extra["agent_log"] = log
+            result = dataclasses.replace(result, agent_cpu_s=_agent_cpu_s(agent))
         conn.send(result)
     except BaseException as exc:
         conn.send((f"{type(exc).__name__}: {exc}", describe_exception(exc)))
@@ -233,6 +236,13 @@ def _close_agent(agent: Agent) -> str | None:
     if failed is None:
         return text
     return f"{text}\n{failed}" if text else failed
+
+
+def _agent_cpu_s(agent: Agent) -> float:
+    """The CPU time the agent's acts used, when it measures it (the evaluator's sandboxed
+    handle does, an in-process test policy does not)."""
+    used = getattr(agent, "episode_cpu_s", 0.0)
+    return float(used) if isinstance(used, int | float) else 0.0
 
 
 def _write_failed_start(scenario_dir, interface, record_path, seed, exc: AgentFailed, inputs):

@@ -16,4 +16,6 @@ class EpisodeResult:
     simulator_error: str | None = None  # set when SUMO failed: not charged to the participant
     detail: str = ""  # human-readable failure detail (traceback, agent stderr tail)
     wall_time_s: float = 0.0
+    # CPU time of the agent's acts [s], as its handle measured it (0 where nothing measures it).
+    agent_cpu_s: float = 0.0
     extra: dict = field(default_factory=dict)

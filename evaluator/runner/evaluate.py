@@ -5,7 +5,8 @@ agent (the threads here only wait on those processes). A reactive scenario runs
 ``episodes_per_scenario`` episodes, each with other traffic (:mod:`arena.episodes`).
 ``summary.json`` is rewritten whenever episodes start or finish (once for those that finish and
 start together), so a crash leaves a trace and a re-run with the same ``out_dir`` resumes where it
-stopped.
+stopped. ``agent_cpu.json`` keeps the CPU time the agent used: once it passes the evaluation's
+budget, no more episodes start, a resumed run included (:mod:`evaluator.runner.cpu_budget`).
 """
 
 from __future__ import annotations
@@ -24,12 +25,14 @@ from pathlib import Path
 from typing import Protocol
 
 from arena.config import SandboxKind, get_settings
+from arena.cpu_limits import CpuLimits
 from arena.episodes import Episode, episodes_of
 from arena.errors import ArenaError, SandboxUnavailable
 from arena.outcome import ScenarioStatus
 from arena.suite import Suite, load_suite
 from evaluator.failures import FAIL_FAST_AFTER, never_started
 from evaluator.provenance import EpisodeRun, Manifest, distinct, manifest_of
+from evaluator.runner.cpu_budget import AGENT_CPU_FILE, CpuLedger
 from evaluator.runner.results import (
     LOGS_DIR,
     RECORDS_DIR,
@@ -77,6 +80,7 @@ def evaluate(
     fail_fast_after: int | None = FAIL_FAST_AFTER,
     episodes_per_scenario: int = 1,
     model_dir: Path | None = None,
+    cpu_limits: CpuLimits | None = None,
 ) -> Summary:
     """Run the episodes not yet finished in ``out_dir`` and return the summary.
 
@@ -88,7 +92,11 @@ def evaluate(
     rest are not run (the summary stays incomplete): one error, not one per scenario.
     ``model_dir`` is a trained output (``arena train``) the policy reads as ARENA_MODEL_DIR; the
     results then belong to the submission and that model together.
+    The agent acts under ``cpu_limits`` (default: the settings'); once the CPU its episodes used
+    passes the evaluation's budget, the rest are not run (the summary stays incomplete, and
+    ``agent_cpu.json`` says why).
     """
+    cpu_limits = cpu_limits or get_settings().cpu_limits
     scoring_profile = load_profile(profile)
     sandbox = _usable_sandbox(sandbox)
     suite = load_suite(suite_dir).select(scenario_ids)
@@ -106,7 +114,9 @@ def evaluate(
         (out_dir / RECORDS_DIR).mkdir(parents=True, exist_ok=True)
         (out_dir / LOGS_DIR).mkdir(exist_ok=True)
         pins = (submission.sha256, _model_digest(model_dir))
-        run = ResultsFolder(out_dir, suite, scoring_profile, identity, episodes_per_scenario, pins)
+        run = ResultsFolder(
+            out_dir, suite, scoring_profile, identity, episodes_per_scenario, pins, cpu_limits
+        )
         todo = run.resume()
         if progress:
             progress.started(len(run.episodes), list(run.outcomes.values()))
@@ -118,6 +128,7 @@ def evaluate(
                 out_dir / RECORDS_DIR,
                 sandbox=sandbox,
                 episode=episode.index,
+                limits=cpu_limits,
             )
 
         with _warm_agents_of(submission), ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
@@ -126,7 +137,7 @@ def evaluate(
             starts = _StartWatch(fail_fast_after)
             finished: list[ScenarioOutcome] = []
             while True:
-                while queue and len(pending) < jobs and not starts.gave_up:
+                while queue and len(pending) < jobs and not (starts.gave_up or run.over_budget):
                     episode = queue.pop(0)
                     run.mark_running(episode)
                     pending[pool.submit(play, episode)] = episode
@@ -144,6 +155,7 @@ def evaluate(
                 finished = [_outcome_of(future, pending.pop(future)) for future in done]
                 for outcome in finished:
                     starts.saw(outcome)
+                    run.charge_cpu(outcome)  # before the next ones start, unlike the scoring
     return run.summary()
 
 
@@ -172,7 +184,7 @@ def _model_digest(model_dir: Path | None) -> str | None:
 
 def discard_results(out_dir: Path) -> None:
     """Remove what an evaluation wrote in ``out_dir`` (and nothing else a user keeps there)."""
-    for name in (SUMMARY_FILE, TIMINGS_FILE):
+    for name in (SUMMARY_FILE, TIMINGS_FILE, AGENT_CPU_FILE):
         (out_dir / name).unlink(missing_ok=True)
     for folder in (RECORDS_DIR, LOGS_DIR):
         shutil.rmtree(out_dir / folder, ignore_errors=True)
@@ -231,9 +243,11 @@ class ResultsFolder:
         submission: str,
         episodes_per_scenario: int = 1,
         pins: tuple[str, str | None] | None = None,
+        cpu_limits: CpuLimits | None = None,
     ) -> None:
         """``pins``: the sha256 of the submission's zip and of its trained model (or None), for
-        the reproducibility manifest (``submission`` is the identity of the pair)."""
+        the reproducibility manifest (``submission`` is the identity of the pair);
+        ``cpu_limits``: whose evaluation budget the agent's CPU is counted against."""
         self.out_dir = out_dir
         self.suite = suite
         self.profile = profile
@@ -246,7 +260,14 @@ class ResultsFolder:
         self.running: set[Episode] = set()
         self.cache: dict[Episode, ScoredEntry] = {}
         self.timings: dict[str, float] = {}  # episode name -> wall time [s]
+        self.cpu = CpuLedger(out_dir, cpu_limits or get_settings().cpu_limits)
         self.lock = threading.Lock()
+
+    @property
+    def over_budget(self) -> bool:
+        """The agent's episodes used more CPU than the evaluation's budget: start no more."""
+        with self.lock:
+            return self.cpu.over_budget
 
     def resume(self) -> list[Episode]:
         """Keep the episodes a previous run finished; return the ones still to run."""
@@ -278,6 +299,12 @@ class ResultsFolder:
         """``episode`` started (written with the next :meth:`summary`)."""
         with self.lock:
             self.running.add(episode)
+
+    def charge_cpu(self, outcome: ScenarioOutcome) -> None:
+        """Count the CPU ``outcome``'s agent used against the evaluation's budget (written with
+        the next :meth:`summary`)."""
+        with self.lock:
+            self.cpu.charge(outcome.key.name, outcome.agent_cpu_s)
 
     def record(self, outcome: ScenarioOutcome) -> None:
         """``episode`` finished: its log now, its entry with the next :meth:`summary`."""
@@ -337,4 +364,5 @@ class ResultsFolder:
         summary = summary.model_copy(update={"manifest": self._manifest()})
         write_summary(summary, self.out_dir)
         (self.out_dir / TIMINGS_FILE).write_text(json.dumps(self.timings, indent=2) + "\n")
+        self.cpu.write()
         return summary

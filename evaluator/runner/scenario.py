@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from arena.config import SandboxKind, get_settings
+from arena.cpu_limits import CpuLimits
 from arena.episodes import Episode, traffic_seed
 from arena.outcome import AgentOutcome, DoneReason, ScenarioStatus
 from arena.record_format import RECORD_SUFFIX
@@ -40,9 +41,12 @@ class SandboxedAgentFactory:
     submission: PreparedSubmission
     kind: SandboxKind | None
     labels: dict[str, str]
+    limits: CpuLimits | None = None
 
     def __call__(self) -> Agent:
-        return sandboxes.start(self.submission, kind=self.kind, labels=self.labels)
+        return sandboxes.start(
+            self.submission, kind=self.kind, labels=self.labels, limits=self.limits
+        )
 
     @property
     def preload_modules(self) -> tuple[str, ...]:
@@ -57,28 +61,32 @@ class ForkedAgentFactory:
     episode in the submission's warm sandbox (:mod:`evaluator.sandbox.warm`)."""
 
     agent: ForkedAgent
+    limits: CpuLimits | None = None
 
     def __call__(self) -> Agent:
-        return self.agent.start()
+        return self.agent.start(self.limits)
 
     preload_modules = ("evaluator.sandbox.warm",)
 
 
 @contextmanager
 def agent_factory(
-    submission: PreparedSubmission, kind: SandboxKind, labels: dict[str, str]
+    submission: PreparedSubmission,
+    kind: SandboxKind,
+    labels: dict[str, str],
+    limits: CpuLimits | None = None,
 ) -> Iterator[SandboxedAgentFactory | ForkedAgentFactory]:
     """How one episode gets its agent: forked in a warm sandbox when the setting allows and the
-    submission's zygote started, else in a sandbox of its own."""
+    submission's zygote started, else in a sandbox of its own; either acts under ``limits``."""
     settings = get_settings()
     if not settings.warm_agents:
-        yield SandboxedAgentFactory(submission, kind, labels)
+        yield SandboxedAgentFactory(submission, kind, labels, limits)
         return
     with warm_agents().lease(submission, kind, labels, settings) as forked:
         if forked is None:
-            yield SandboxedAgentFactory(submission, kind, labels)
+            yield SandboxedAgentFactory(submission, kind, labels, limits)
         else:
-            yield ForkedAgentFactory(forked)
+            yield ForkedAgentFactory(forked, limits)
 
 
 @dataclass(frozen=True)
@@ -97,6 +105,9 @@ class ScenarioOutcome:
     episode: int = 0  # which episode of the scenario (arena.episodes)
     seed: int | None = None  # the SUMO traffic seed it ran with
     environment: Environment | None = None  # the software it ran under (evaluator.provenance)
+    # The CPU time the agent's acts used [s] (0 where no meter reads it): what the evaluation's
+    # budget counts. Only the attempt that counts is charged, never one that failed on our side.
+    agent_cpu_s: float = 0.0
 
     @property
     def key(self) -> Episode:
@@ -145,6 +156,7 @@ def run_scenario(
     sandbox: SandboxKind | None = None,
     run_key: str | None = None,
     episode: int = 0,
+    limits: CpuLimits | None = None,
 ) -> ScenarioOutcome:
     """Simulate episode ``episode`` of ``scenario_dir`` (its traffic seed from
     :func:`arena.episodes.traffic_seed`) with the submission's agent, writing
@@ -152,7 +164,8 @@ def run_scenario(
 
     Agent failures come back as a ``done`` outcome whose agents carry the reason. Infrastructure
     errors (sandbox unavailable) are raised so the caller can retry the job. ``run_key`` labels
-    the sandboxes (:func:`sandbox_labels`); a fresh one is made when not given.
+    the sandboxes (:func:`sandbox_labels`); a fresh one is made when not given. The agent acts
+    under ``limits`` (default: the settings'); the outcome says the CPU it used.
     """
     kind = sandboxes.resolve_kind(sandbox)
     scenario = load_scenario(scenario_dir)
@@ -166,7 +179,7 @@ def run_scenario(
     for attempt in range(1, SIMULATOR_ATTEMPTS + 1):
         labels = sandbox_labels(run_key, attempt)
         record_path.unlink(missing_ok=True)
-        with agent_factory(submission, kind, labels) as factory:
+        with agent_factory(submission, kind, labels, limits) as factory:
             result = run_episode_isolated(
                 scenario_dir,
                 factory,
@@ -228,6 +241,7 @@ def _outcome(
         attempts=attempts,
         wall_time_s=time.monotonic() - started,
         episode=episode,
+        agent_cpu_s=result.agent_cpu_s,
     )
 
 

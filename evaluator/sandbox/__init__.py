@@ -12,6 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from arena.config import SandboxKind, Settings, get_settings
+from arena.cpu_limits import CpuLimits
 from arena.errors import SandboxUnavailable
 from evaluator.sandbox.backend import SANDBOX_LABEL, Backend, LaunchSpec, Sandbox, Training
 from evaluator.sandbox.handle import AgentHandle
@@ -100,8 +101,10 @@ def start(
     kind: SandboxKind | str | None = None,
     labels: dict[str, str] | None = None,
     settings: Settings | None = None,
+    limits: CpuLimits | None = None,
 ) -> AgentHandle:
-    """Start ``submission`` (a PreparedSubmission) and wait until its Policy is built.
+    """Start ``submission`` (a PreparedSubmission) and wait until its Policy is built; its acts
+    run under ``limits`` (default: the settings').
 
     Raises :class:`~arena.errors.AgentFailed` when the policy fails to import or construct
     in ``init_timeout_s``, :class:`~arena.errors.SandboxUnavailable` when the sandbox itself
@@ -110,7 +113,7 @@ def start(
     settings = settings or get_settings()
     chosen = backend(resolve_kind(kind, settings))
     sandbox = chosen.launch(LaunchSpec.of_agent(submission, settings, labels))
-    handle = AgentHandle(sandbox, settings, submission.interface)
+    handle = AgentHandle(sandbox, settings, submission.interface, limits)
     try:
         handle.handshake()
     except BaseException:

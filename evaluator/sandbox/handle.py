@@ -10,6 +10,7 @@ import time
 from typing import Any, NoReturn
 
 from arena.config import Settings
+from arena.cpu_limits import CpuLimits
 from arena.errors import AgentFailed
 from arena.outcome import DoneReason
 from evaluator.sandbox.array_frames import ArrayFrames
@@ -33,17 +34,23 @@ class AgentHandle:
     observations travel."""
 
     def __init__(
-        self, sandbox: Sandbox, settings: Settings, interface: AgentInterface | None = None
+        self,
+        sandbox: Sandbox,
+        settings: Settings,
+        interface: AgentInterface | None = None,
+        limits: CpuLimits | None = None,
     ) -> None:
+        """``limits``: the run's CPU limits (a phase may override the settings')."""
         self._sandbox = sandbox
         self._arrays = (
             ArrayFrames(interface)
             if interface is not None and interface.observation_format is ObservationFormat.arrays
             else None
         )
-        self._step_cpu_s = settings.step_cpu_s
+        limits = limits or settings.cpu_limits
+        self._step_cpu_s = limits.step_s
         self._step_timeout_s = settings.step_timeout_s
-        self._episode_cpu_s = settings.episode_cpu_s
+        self._episode_cpu_s = limits.episode_s
         self._init_timeout_s = settings.init_timeout_s
         self._meter: CpuMeter | None = None
         self._cpu_mark: float | None = None  # the meter after the last answer [s]
@@ -184,6 +191,8 @@ class AgentHandle:
                     raise
             now = self._cpu_now()
             if now is not None and now - cpu_from > self._step_cpu_s:
+                # Charged too: the evaluation's budget counts what the act used before it ended.
+                self.episode_cpu_s += now - cpu_from
                 self._fail(
                     DoneReason.step_timeout,
                     f"one act used more than {self._step_cpu_s:g} s of CPU without answering",

@@ -30,6 +30,7 @@ import time
 from dataclasses import dataclass, field
 
 from arena.config import SandboxKind, Settings
+from arena.cpu_limits import CpuLimits
 from arena.errors import SandboxUnavailable
 from evaluator.sandbox.backend import SANDBOX_LABEL, ExitStatus, LaunchSpec, Sandbox
 from evaluator.sandbox.channel import (
@@ -75,9 +76,10 @@ class ForkedAgent:
         for end in (self.protocol, self.lifeline, self.log):
             end.close()
 
-    def start(self) -> AgentHandle:
-        """The agent's handle, after its hello and ready (in the episode process)."""
-        handle = AgentHandle(ForkedSandbox(self), self.settings, self.interface)
+    def start(self, limits: CpuLimits | None = None) -> AgentHandle:
+        """The agent's handle, after its hello and ready (in the episode process); its acts
+        run under ``limits`` (default: the settings')."""
+        handle = AgentHandle(ForkedSandbox(self), self.settings, self.interface, limits)
         try:
             handle.handshake()
         except BaseException:

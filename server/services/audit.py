@@ -23,6 +23,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from arena.config import SandboxKind, Settings
+from arena.cpu_limits import CpuLimits
 from arena.episodes import Episode, traffic_seed
 from arena.errors import ArenaError
 from arena.outcome import FINISHED
@@ -38,6 +39,7 @@ from server.core.artifacts import ArtifactStore, MissingArtifact
 from server.core.db import Database
 from server.models import Phase, ScenarioResult, Submission
 from server.services.errors import Conflict, NotFound
+from server.services.evaluation import run_cpu_limits
 from server.services.leaderboard import compute
 from server.services.submissions import current_run
 from server.status import RunStatus
@@ -75,9 +77,10 @@ class _Target:
     upload_key: str
     model_key: str | None
     episodes: tuple[_Stored, ...]
+    limits: CpuLimits  # the agent's CPU limits the run was evaluated under
 
 
-def _target(session: Session, submission_id: int) -> _Target:
+def _target(session: Session, settings: Settings, submission_id: int) -> _Target:
     submission = session.get(Submission, submission_id)
     if submission is None:
         raise NotFound(f"no submission {submission_id}")
@@ -105,6 +108,7 @@ def _target(session: Session, submission_id: int) -> _Target:
             for r in results
             if r.status in FINISHED
         ),
+        limits=run_cpu_limits(run, settings),
     )
 
 
@@ -119,7 +123,7 @@ def audit(
     """Re-run ``submission_id``'s scored episodes under its manifest; ``progress(done, total)``
     after each episode."""
     with db.read_session() as session:
-        target = _target(session, submission_id)
+        target = _target(session, settings, submission_id)
     recorded = target.manifest
     try:
         suite = load_suite(target.suite_dir)
@@ -190,6 +194,7 @@ def _rerun_episodes(
             scratch / "records",
             sandbox=kind,
             episode=stored.episode,
+            limits=target.limits,
         )
         name = Episode(stored.scenario_id, stored.episode).name
         difference = _compare(stored, outcome, store, scratch / "stored" / f"{name}.npz")

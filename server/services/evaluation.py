@@ -16,6 +16,7 @@ from sqlalchemy import delete, func, select, update
 from sqlalchemy.orm import Session
 
 from arena.config import Settings
+from arena.cpu_limits import CpuLimits
 from arena.episodes import Episode, episode_count, episodes_of
 from arena.errors import SuiteError
 from arena.outcome import FINISHED, AgentOutcome, ScenarioStatus
@@ -63,6 +64,7 @@ class ScenarioJob:
     attempt: int  # 1 for the first claim; more after workers died holding it
     episode: int = 0  # arena.episodes: which traffic seed
     model_key: str | None = None  # the trained output it evaluates (offline submissions)
+    limits: CpuLimits | None = None  # the run's agent CPU limits (None: the settings')
 
     @property
     def key(self) -> Episode:
@@ -110,6 +112,7 @@ def create_run(
     ``training``: the trained output it evaluates (offline submissions)."""
     phase = phases.get_phase(session, submission.phase)
     setup = phases.phase_setup(phase, settings)
+    limits = phases.cpu_limits(phase, settings)
     suite, profile, per_scenario = setup.suite, setup.profile, setup.episodes_per_scenario
     episodes = episodes_of(suite.scenarios, per_scenario)
     attempt = 1 + (
@@ -135,6 +138,9 @@ def create_run(
         scoring_version=str(profile.version),
         lease_expires_at=lease_until(settings),
         training_id=training.id if training is not None else None,
+        step_cpu_s=limits.step_s,
+        episode_cpu_s=limits.episode_s,
+        evaluation_cpu_s=limits.evaluation_s,
     )
     session.add(run)
     session.flush()
@@ -250,6 +256,22 @@ def claim_scenario(
         attempt=existing.attempts,
         episode=episode,
         model_key=run.training.model_key if run.training is not None else None,
+        limits=run_cpu_limits(run, settings),
+    )
+
+
+def run_cpu_limits(run: EvaluationRun, settings: Settings) -> CpuLimits:
+    """The CPU limits the run is evaluated under: those recorded when it was made (the
+    settings' for a run made before they were)."""
+    return settings.cpu_limits.overridden(run.step_cpu_s, run.episode_cpu_s, run.evaluation_cpu_s)
+
+
+def agent_cpu_used(session: Session, run_id: int) -> float:
+    """The CPU time [s] the agent's finished episodes of the run used together."""
+    return session.scalar(
+        select(func.coalesce(func.sum(ScenarioResult.agent_cpu_s), 0.0)).where(
+            ScenarioResult.run_id == run_id, ScenarioResult.status.in_(list(FINISHED))
+        )
     )
 
 
@@ -306,6 +328,8 @@ def record_scenario(
         return False  # a duplicate delivery, or a superseded claim: the result is not ours
     if _give_up_if_agent_cannot_start(session, run):
         return False
+    if job.limits is not None and _stop_over_cpu_budget(session, run, job.limits):
+        return False
     return finished_count(session, job.run_id) == run.episode_count
 
 
@@ -334,10 +358,29 @@ def _give_up_if_agent_cannot_start(session: Session, run: EvaluationRun) -> bool
         shown = error[-1] if error else shown
     else:
         shown += " (evaluate in the validation phase or locally to see its output)"
-    run.error = (
+    _fail_run(
+        session,
+        run,
         f"your agent could not start: {shown} "
-        f"(the same in the first {len(results)} episodes; the others were not run)"
+        f"(the same in the first {len(results)} episodes; the others were not run)",
     )
+    return True
+
+
+def _stop_over_cpu_budget(session: Session, run: EvaluationRun, limits: CpuLimits) -> bool:
+    """Fail the run, charged to the team, once its agent's episodes used more CPU than the
+    evaluation's budget: the remaining episodes find it inactive and are not run."""
+    used = agent_cpu_used(session, run.id)
+    if not limits.over_budget(used):
+        return False
+    _fail_run(session, run, limits.budget_exceeded(used, finished_count(session, run.id)))
+    return True
+
+
+def _fail_run(session: Session, run: EvaluationRun, error: str) -> None:
+    """End an active run as failed through the submission's fault, with ``error`` as what its
+    team reads."""
+    run.error = error
     run.status = advance(run.status, RunStatus.failed, RUN_MOVES)
     run.finished_at = now()
     submission = lock(session, Submission, run.submission_id)
@@ -345,7 +388,6 @@ def _give_up_if_agent_cannot_start(session: Session, run: EvaluationRun) -> bool
         submission.status = advance(submission.status, SubmissionStatus.failed, SUBMISSION_MOVES)
         submission.status_reason = run.error
         submission.finished_at = now()
-    return True
 
 
 def finished_count(session: Session, run_id: int) -> int:

@@ -11,6 +11,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from arena.config import Settings
+from arena.cpu_limits import CpuLimits
 from arena.errors import ArenaError, SuiteError
 from arena.suite import Suite, load_suite, resolve_suite
 from evaluator.scoring import ProfileError, ScoringProfile, load_profile
@@ -74,6 +75,21 @@ def episodes_per_scenario(phase: Phase, settings: Settings) -> int:
     if phase.episodes_per_scenario is not None:
         return phase.episodes_per_scenario
     return settings.episodes_per_scenario
+
+
+def cpu_limits(phase: Phase, settings: Settings) -> CpuLimits:
+    """The agent's CPU limits in the phase: its overrides, else the settings'."""
+    return settings.cpu_limits.overridden(
+        phase.step_cpu_s, phase.episode_cpu_s, phase.evaluation_cpu_s
+    )
+
+
+def describe_cpu_limits(limits: CpuLimits) -> str:
+    """The limits as said wherever a phase is shown or set."""
+    return (
+        f"agent CPU: {limits.step_s:g} s per act, {limits.episode_s:g} s per episode, "
+        f"{limits.evaluation_s:g} s per evaluation"
+    )
 
 
 def episodes_cost(per_scenario: int) -> str:
@@ -186,6 +202,12 @@ class PhaseChanges:
     adaptive_target: float | None = None
     max_episodes: int | None = None
     fixed_episodes: bool = False
+    # The agent's CPU limits [s]; default_cpu_limits clears the phase's overrides (the
+    # settings' apply again) before any given here.
+    step_cpu_s: float | None = None
+    episode_cpu_s: float | None = None
+    evaluation_cpu_s: float | None = None
+    default_cpu_limits: bool = False
 
 
 class _DryRun(ArenaError):
@@ -228,6 +250,9 @@ def _set_phase(
         1 <= changes.max_episodes <= MAX_EPISODES_PER_SCENARIO
     ):
         raise InvalidInput(f"max episodes: per reactive scenario, 1 to {MAX_EPISODES_PER_SCENARIO}")
+    for field, value in _cpu_changes(changes).items():
+        if value is not None and not value > 0:
+            raise InvalidInput(f"{field}: CPU seconds, more than 0")
     if changes.scoring_profile is not None:
         try:
             load_profile(changes.scoring_profile)
@@ -260,6 +285,18 @@ def _set_phase(
         if changes.adaptive_target is not None:
             phase.adaptive_target = changes.adaptive_target
             phase.max_episodes = changes.max_episodes
+        if changes.default_cpu_limits:
+            phase.step_cpu_s = phase.episode_cpu_s = phase.evaluation_cpu_s = None
+        for field, value in _cpu_changes(changes).items():
+            if value is not None:
+                setattr(phase, field, value)
+        limits = cpu_limits(phase, settings)
+        if not limits.step_s <= limits.episode_s <= limits.evaluation_s:
+            raise InvalidInput(
+                f"the CPU limits must grow: an act's ({limits.step_s:g} s) at most an "
+                f"episode's ({limits.episode_s:g} s), at most an evaluation's "
+                f"({limits.evaluation_s:g} s)"
+            )
         first = phase.episodes_per_scenario
         if phase.max_episodes is not None and first is not None and phase.max_episodes < first:
             raise InvalidInput("max episodes must be at least the episodes of the first round")
@@ -274,3 +311,11 @@ def _set_phase(
         if dry_run:
             raise _DryRun(phase)  # rolls the transaction back
         return phase
+
+
+def _cpu_changes(changes: PhaseChanges) -> dict[str, float | None]:
+    return {
+        "step_cpu_s": changes.step_cpu_s,
+        "episode_cpu_s": changes.episode_cpu_s,
+        "evaluation_cpu_s": changes.evaluation_cpu_s,
+    }

@@ -48,6 +48,7 @@ def result_values(
         "reason": reason,
         "steps": outcome.steps,
         "record_key": record_key,
+        "agent_cpu_s": outcome.agent_cpu_s,
         # Agent output: any byte value must record on every database.
         "log_tail": storable_text(log_tail),
         "detail": storable_json(
@@ -87,6 +88,7 @@ def outcome_from_row(
         error=result.detail.get("error"),
         seed=result.detail.get("seed"),
         environment=_environment(result),
+        agent_cpu_s=result.agent_cpu_s or 0.0,
     )
 
 

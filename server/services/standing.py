@@ -8,16 +8,24 @@ from sqlalchemy.orm import Session
 
 from arena.config import Settings
 from server.models import Submission, Team, utcnow
-from server.schemas import Allowance, PhaseWindow, Standing, SubmissionDetail, TeamStatus
+from server.schemas import (
+    Allowance,
+    CpuLimitsView,
+    PhaseWindow,
+    Standing,
+    SubmissionDetail,
+    TeamStatus,
+)
 from server.services import leaderboard, phases, submissions
 from server.tracks import Track
 
 
-def phase_window(session: Session, name: str) -> PhaseWindow:
-    return _window(phases.get_phase(session, name))
+def phase_window(session: Session, settings: Settings, name: str) -> PhaseWindow:
+    return _window(phases.get_phase(session, name), settings)
 
 
-def _window(phase) -> PhaseWindow:
+def _window(phase, settings: Settings) -> PhaseWindow:
+    limits = phases.cpu_limits(phase, settings)
     return PhaseWindow(
         name=phase.name,
         visibility=str(phase.visibility),
@@ -25,6 +33,9 @@ def _window(phase) -> PhaseWindow:
         ends_at=phase.ends_at,
         state=phases.state(phase, utcnow()),
         hidden=phases.what_is_hidden(phase),
+        cpu_limits=CpuLimitsView(
+            step_s=limits.step_s, episode_s=limits.episode_s, evaluation_s=limits.evaluation_s
+        ),
     )
 
 
@@ -50,7 +61,7 @@ def team_view(session: Session, settings: Settings, submission: Submission) -> S
     """The detail its team sees, with the phase and where the team stands."""
     return submissions.detail(session, submission).model_copy(
         update={
-            "phase_window": phase_window(session, submission.phase),
+            "phase_window": phase_window(session, settings, submission.phase),
             "standing": standing(session, settings, submission),
         }
     )
@@ -67,7 +78,10 @@ def team_status(session: Session, settings: Settings, team: Team) -> TeamStatus:
             left = max(0, quota - used) if phases.is_open(phase, moment) else 0
             allowances.append(
                 Allowance(
-                    phase=_window(phase), track=track, tries_left_today=left, daily_quota=quota
+                    phase=_window(phase, settings),
+                    track=track,
+                    tries_left_today=left,
+                    daily_quota=quota,
                 )
             )
     return TeamStatus(team=team.name, allowances=allowances)

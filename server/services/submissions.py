@@ -20,6 +20,7 @@ from server.core.db import Database
 from server.core.queue import BROKER_ERRORS, TaskQueue, scenario_task_id
 from server.models import EvaluationRun, ScenarioResult, Score, Submission, TrainingJob, utcnow
 from server.schemas import (
+    AgentCpu,
     CompletionInterval,
     FamilyMetrics,
     Metrics,
@@ -39,7 +40,7 @@ from server.services.errors import (
     NotFound,
     QuotaExceeded,
 )
-from server.services.evaluation import bump_leaderboard, cancel_run, lock
+from server.services.evaluation import agent_cpu_used, bump_leaderboard, cancel_run, lock
 from server.services.phases import (
     DEFAULT_PHASE,
     PhaseMisconfigured,
@@ -361,7 +362,8 @@ def detail(session: Session, submission: Submission) -> SubmissionDetail:
         # at no cost (the run is not charged): nothing per family until it is rerun and scored.
         results, score = [], None
     reasons: dict[str, dict[str, int]] = {}
-    live_hidden = live_in_hidden_phase(run, submission.phase in hidden_phases(session))
+    hidden = submission.phase in hidden_phases(session)
+    live_hidden = live_in_hidden_phase(run, hidden)
     for result in [] if live_hidden else results:
         if result.status != ScenarioStatus.running and result.reason != "reached_goal":
             by_reason = reasons.setdefault(result.family, {})
@@ -381,10 +383,20 @@ def detail(session: Session, submission: Submission) -> SubmissionDetail:
         },
         failure_reasons={family: reasons[family] for family in sorted(reasons)},
         training=_training(submission),
+        agent_cpu=_agent_cpu(session, shown_run(submission), hidden),
         manifest=Manifest.model_validate(score.manifest).public()
         if score is not None and score.manifest
         else None,
     )
+
+
+def _agent_cpu(session: Session, run: EvaluationRun | None, hidden: bool) -> AgentCpu | None:
+    """The CPU the run's agent used so far against the budget it runs under; None before a
+    run, for a run made before budgets were recorded, and while a hidden phase's run is under
+    way (read after each episode, an agent's CPU would carry what it saw of hidden scenarios)."""
+    if run is None or run.evaluation_cpu_s is None or live_in_hidden_phase(run, hidden):
+        return None
+    return AgentCpu(used_s=agent_cpu_used(session, run.id), budget_s=run.evaluation_cpu_s)
 
 
 def failed_on_our_side_while_hidden(

@@ -147,9 +147,12 @@ const Arena = (() => {
     const opens = p.starts_at ? `opened ${when(p.starts_at)} UTC` : "open from the start";
     const closes = p.ends_at
       ? `${p.state === "closed" ? "closed" : "closes"} ${when(p.ends_at)} UTC` : "never closes";
-    $("phase-dates").textContent = p.state === "not yet open"
+    const c = p.cpu_limits;
+    const cpu = ` Agent CPU limits: ${c.step_s} s per act, ${c.episode_s} s per episode, ` +
+      `${c.evaluation_s} s per evaluation.`;
+    $("phase-dates").textContent = (p.state === "not yet open"
       ? `Phase ${p.name} opens ${when(p.starts_at)} UTC.`
-      : `Phase ${p.name}: ${opens}, ${closes}.`;
+      : `Phase ${p.name}: ${opens}, ${closes}.`) + cpu;
     // What a hidden phase withholds is said above; the empty expander would only repeat it.
     $("logs-box").hidden = Boolean(p.hidden);
   }
@@ -163,6 +166,17 @@ const Arena = (() => {
       parts.push(`${s.finished_at ? "took" : "running for"} ${duration(s.duration_s)}`);
     }
     $("timings").textContent = `${parts.join(" · ")} (UTC)`;
+  }
+
+  function renderAgentCpu(s) {
+    // The evaluation's CPU budget: past it, the remaining episodes are not run.
+    const cpu = s.agent_cpu;
+    $("agent-cpu").hidden = !cpu;
+    if (!cpu) return;
+    const share = cpu.budget_s > 0 ? ` (${Math.round((100 * cpu.used_s) / cpu.budget_s)}%)` : "";
+    $("agent-cpu").textContent =
+      `Agent CPU: ${duration(cpu.used_s)} used of this evaluation's budget of ` +
+      `${duration(cpu.budget_s)}${share}.`;
   }
 
   function renderStanding(s) {
@@ -228,6 +242,7 @@ const Arena = (() => {
     $("track").textContent = s.track;
     renderPhase(s);
     renderTimings(s);
+    renderAgentCpu(s);
     renderStanding(s);
     $("status").textContent = s.status;
     $("status").className = `status-${s.status}`;

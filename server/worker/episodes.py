@@ -81,6 +81,7 @@ class Episodes:
             sandbox=local.sandbox_kind(),
             run_key=run_key,
             episode=claim.episode,
+            limits=claim.limits,
         )
 
     def ours(self, claim: ScenarioJob, reason: str, error: str) -> ScenarioOutcome:

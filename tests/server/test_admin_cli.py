@@ -166,6 +166,21 @@ def test_phases_set_episodes_says_the_cost_and_list_shows_it(arena, client):
     assert "3 episodes per reactive scenario: evaluation takes about 3 times as long" in page
 
 
+def test_phases_set_cpu_limits_and_back_to_the_settings(arena, client):
+    output = arena(
+        "phases", "set", "final", "--step-cpu", "0.5", "--episode-cpu", "60",
+        "--evaluation-cpu", "3600",
+    )  # fmt: skip
+    assert "agent CPU: 0.5 s per act, 60 s per episode, 3600 s per evaluation" in output
+    listing = arena("phases", "list")
+    final = next(line for line in listing.splitlines() if line.startswith("final"))
+    assert final.split("\t")[7] == "0.5 / 60 / 3600"
+    assert "must grow" in arena("phases", "set", "final", "--step-cpu", "120", ok=False)
+    assert "more than 0" in arena("phases", "set", "final", "--evaluation-cpu", "0", ok=False)
+    output = arena("phases", "set", "final", "--default-cpu-limits")
+    assert "agent CPU: 1 s per act, 600 s per episode, 64800 s per evaluation" in output
+
+
 def test_without_a_database_admin_says_what_to_do_and_creates_nothing(tmp_path, monkeypatch):
     """No ARENA_DATA_DIR: a message naming `arena up` and the settings, no ./.arena/arena.db, no
     traceback; a database file without the schema is named as not migrated."""
@@ -329,6 +344,8 @@ def test_compare_two_submissions_of_a_hidden_phase(arena, db, settings):
     assert {row["b"] for row in document["differing_outcomes"]} == {"reached_goal"}
     queued = queued_submission(db, team)
     assert "no score yet" in arena("compare", str(worse), str(queued), ok=False)
+
+
 def test_phases_set_adaptive_says_the_cost_before_and_after_and_list_shows_it(arena, client):
     cost = (
         "adaptive: 2 episode(s) per reactive scenario, then 2 more per round while completion's "

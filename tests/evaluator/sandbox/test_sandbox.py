@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from arena.config import SandboxKind, Settings
+from arena.cpu_limits import CpuLimits
 from arena.errors import AgentFailed, SandboxUnavailable
 from arena.outcome import DoneReason
 from evaluator.sandbox import check_service_kind, cleanup, resolve_kind, start
@@ -308,6 +309,29 @@ def test_an_episode_has_a_cpu_budget(kind, settings, labels, tmp) -> None:
         assert "CPU this episode" in caught.value.detail
 
 
+def test_the_runs_own_limits_win_over_the_settings(kind, settings, labels, tmp) -> None:
+    """A phase's limits reach the handle as one value: an act of 0.4 s of CPU passes the
+    settings' 1 s step limit but not a run's 0.2 s, and what it used before it was stopped is
+    counted for the evaluation's budget."""
+    settings = settings.model_copy(update={"step_cpu_s": 1.0, "step_timeout_s": 120.0})
+    act = """
+    began = time.process_time()
+    while time.process_time() - began < 0.4:
+        pass
+    return {k: [1.0, 0.0] for k in obs}
+    """
+    submission = agent(tmp, settings, act=act)
+    tight = CpuLimits(step_s=0.2, episode_s=600.0, evaluation_s=64_800.0)
+    with start(submission, kind=kind, labels=labels, settings=settings, limits=tight) as handle:
+        handle.reset()
+        with pytest.raises(AgentFailed) as caught:
+            handle.act(observation())
+        assert caught.value.reason is DoneReason.step_timeout
+        # Stopped while it computes, or on its answer when the poll came too late (a busy host).
+        assert "CPU" in caught.value.detail and "0.2 s" in caught.value.detail
+        assert handle.episode_cpu_s > 0.2
+
+
 def test_the_service_refuses_bubblewrap_that_cannot_cap_each_sandbox(settings) -> None:
     """Where no control group per sandbox can be made (here: the cgroup hierarchies read-only in
     a private mount namespace), bubblewrap would fall back to per-process rlimits; the service
@@ -326,7 +350,7 @@ def test_the_service_refuses_bubblewrap_that_cannot_cap_each_sandbox(settings) -
     )
     shell = (
         "for m in $(awk '$3 ~ /^cgroup/ {print $2}' /proc/self/mounts); do "
-        "mount -o remount,ro,bind \"$m\"; done; exec python3 -c \"$0\""
+        'mount -o remount,ro,bind "$m"; done; exec python3 -c "$0"'
     )
     done = subprocess.run(
         ["unshare", "--mount", "--propagation", "private", "sh", "-c", shell, script],

@@ -9,10 +9,12 @@ import zipfile
 from pathlib import Path
 
 import pytest
+from sqlalchemy import select
 
 from arena.config import Settings
 from server.core.db import Database
 from server.core.migrate import upgrade_database
+from server.models import ScenarioResult
 from tests.server.builders import make_team, pack_example
 from tests.server.live import api_server, stop
 from tests.server.service_stack import SCENARIOS, build_small_suite, shared_dir, start_worker
@@ -103,6 +105,13 @@ def test_upload_through_the_form_and_read_the_result(embedded_settings, tmp_path
             completion = float(page.locator("#metric-completion").inner_text())
             assert 0.0 <= completion <= 1.0
             assert page.locator("#chart svg rect.bar").count() >= 1
+            # The CPU the worker measured, against the evaluation's budget and the phase's limits.
+            expect(page.locator("#agent-cpu")).to_contain_text(
+                "used of this evaluation's budget of 18 h 0 min"
+            )
+            expect(page.locator("#phase-dates")).to_contain_text(
+                "Agent CPU limits: 1 s per act, 600 s per episode, 64800 s per evaluation."
+            )
 
             page.goto(f"{url}/?track=freestyle")
             row = page.locator("#leaderboard tr.entry").first
@@ -112,6 +121,12 @@ def test_upload_through_the_form_and_read_the_result(embedded_settings, tmp_path
             browser.close()
     finally:
         stop(worker)
+    # Every episode's agent CPU was measured in the worker's sandbox and stored.
+    db = Database(embedded_settings.resolved_database_url)
+    with db.read_session() as session:
+        used = session.scalars(select(ScenarioResult.agent_cpu_s)).all()
+    db.dispose()
+    assert len(used) == len(SCENARIOS) and all(seconds > 0 for seconds in used), used
 
 
 def test_an_offline_submission_through_the_form_trains_then_ranks(embedded_settings, tmp_path):
