@@ -297,6 +297,8 @@ def _rank_text(standing) -> str:
         f"team ranks {standing.rank} of {standing.teams_ranked} "
         f"(with submission {standing.ranked_submission_id})"
     )
+
+
 def _manifest_rows(manifest) -> list[tuple[str, str]]:
     """The reproducibility manifest, in the lines of `submissions show` (docs/scoring.md)."""
     if manifest is None:
@@ -756,7 +758,17 @@ def phases_list() -> None:
     moment = utcnow()
     print_rows(
         console,
-        ("phase", "suite", "visibility", "starts", "ends", "daily quota", "episodes", "open"),
+        (
+            "phase",
+            "suite",
+            "visibility",
+            "starts",
+            "ends",
+            "daily quota",
+            "episodes",
+            "seeds",
+            "open",
+        ),
         [
             (
                 phase.name,
@@ -767,11 +779,12 @@ def phases_list() -> None:
                 phases.daily_quota(phase, ctx.settings),
                 f"{phases.episodes_per_scenario(phase, ctx.settings)}"
                 + ("+" if phase.adaptive_target is not None else ""),
+                phase.training_seeds,
                 "yes" if phases.is_open(phase, moment) else "no",
             )
             for phase in rows
         ],
-        numeric=("daily quota", "episodes"),
+        numeric=("daily quota", "episodes", "seeds"),
     )
     released = [phase.name for phase in rows if phase.released_at is not None]
     console.print(
@@ -836,6 +849,14 @@ def phases_set(
     fixed_episodes: Annotated[
         bool, typer.Option("--fixed-episodes", help="Turn adaptive evaluation off.")
     ] = False,
+    training_seeds: Annotated[
+        int | None,
+        typer.Option(
+            help="Track 2: train each offline submission this many times (1 to 16), each with "
+            "its own ARENA_TRAIN_SEED, and score it over them; training and evaluation take "
+            "about this many times as long."
+        ),
+    ] = None,
     dry_run: Annotated[
         bool, typer.Option("--dry-run", help="Say what the phase would cost; save nothing.")
     ] = False,
@@ -859,6 +880,7 @@ def phases_set(
         adaptive_target=adaptive_target,
         max_episodes=max_episodes,
         fixed_episodes=fixed_episodes,
+        training_seeds=training_seeds,
     )
     ctx = _Context()
     phase = _run(lambda: phases.set_phase(ctx.db, ctx.settings, name, changes, dry_run=dry_run))
@@ -870,6 +892,12 @@ def phases_set(
         console.print(adaptive, markup=False)
     elif per_scenario > 1:
         console.print(phases.episodes_cost(per_scenario))
+    if phase.training_seeds > 1:
+        console.print(
+            f"each offline submission trains {phase.training_seeds} times (seeds 0 to "
+            f"{phase.training_seeds - 1}), each model evaluated: about {phase.training_seeds} "
+            "times the work of one"
+        )
 
 
 @phases_app.command("delete")

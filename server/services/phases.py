@@ -22,6 +22,8 @@ DEFAULT_PHASE = "final"
 # Episodes of each reactive scenario a phase may ask for, fixed or adaptive: each multiplies an
 # evaluation's cost.
 MAX_EPISODES_PER_SCENARIO = 64
+# Trainings per offline submission (each a whole training run): at most this many.
+MAX_TRAINING_SEEDS = 16
 
 
 def get_phase(session: Session, name: str) -> Phase:
@@ -186,6 +188,7 @@ class PhaseChanges:
     adaptive_target: float | None = None
     max_episodes: int | None = None
     fixed_episodes: bool = False
+    training_seeds: int | None = None  # Track 2: trainings of each offline submission
 
 
 class _DryRun(ArenaError):
@@ -220,6 +223,12 @@ def _set_phase(
         raise InvalidInput(
             f"episodes: how often each reactive scenario runs, 1 to {MAX_EPISODES_PER_SCENARIO}"
         )
+    if changes.training_seeds is not None and not (
+        1 <= changes.training_seeds <= MAX_TRAINING_SEEDS
+    ):
+        raise InvalidInput(
+            f"training seeds: trainings of each offline submission, 1 to {MAX_TRAINING_SEEDS}"
+        )
     if (changes.adaptive_target is None) != (changes.max_episodes is None):
         raise InvalidInput("adaptive evaluation needs both a target half-width and a cap")
     if changes.adaptive_target is not None and not 0 < changes.adaptive_target < 1:
@@ -249,6 +258,7 @@ def _set_phase(
             "ends_at",
             "daily_quota",
             "episodes_per_scenario",
+            "training_seeds",
         ):
             value = getattr(changes, field)
             if value is not None:

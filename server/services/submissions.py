@@ -51,7 +51,8 @@ from server.services.phases import (
     phase_setup,
     team_sees_everything,
 )
-from server.services.training import cancel_trainings, shown_training
+from server.services.seed_sets import cancel_trainings
+from server.services.training import shown_training
 from server.status import (
     ACTIVE_RUN,
     ACTIVE_SUBMISSION,
