@@ -268,12 +268,27 @@ def submissions_show(
             f"time {m.time:.1f}, humanness {_metric(m.humanness)}, rules {_metric(m.rules)}",
         ),
         ("episodes", f"{view.episodes_per_scenario} per reactive scenario"),
+        *_seed_rows(view.seeds),
         *_manifest_rows(view.manifest),
     ):
         console.print(f"{name}: {plain(value)}", markup=False, highlight=False)
     for attempt, status, worker, profile, error, results in runs:
         title = f"attempt {attempt}: {status} ({profile}) {worker or ''} {error or ''}".strip()
         print_rows(console, columns, results, title=title, numeric=("episode", "steps"))
+
+
+def _seed_rows(seeds) -> list[tuple[str, str]]:
+    """A submission scored over several training seeds: their spread and each one's."""
+    if seeds is None:
+        return []
+    each = ", ".join(f"{s.seed}: {s.completion:.4f}" for s in seeds.per_seed)
+    return [
+        (
+            "seeds",
+            f"{seeds.count}, completion from {seeds.completion_min:.4f} to "
+            f"{seeds.completion_max:.4f} (std {seeds.completion_std:.4f}); per seed {each}",
+        )
+    ]
 
 
 def _timings(view) -> str:

@@ -35,6 +35,25 @@ class CompletionInterval(Schema):
     high: float
 
 
+class SeedMetrics(Metrics):
+    """One seed's own metrics (its trained model's run)."""
+
+    seed: int
+
+
+class SeedResults(Schema):
+    """A submission trained with several seeds (docs/training.md): its metrics are the means
+    over them, its completion interval covers seeds x scenarios; the seeds' own completion
+    errors spread from ``completion_min`` to ``completion_max`` (standard deviation
+    ``completion_std``)."""
+
+    count: int
+    completion_min: float
+    completion_max: float
+    completion_std: float
+    per_seed: list[SeedMetrics]
+
+
 class Progress(Schema):
     done: int
     total: int  # episodes: one per scenario, episodes_per_scenario per reactive scenario
@@ -58,6 +77,8 @@ class SubmissionSummary(Schema):
     # None until scored (and for scores from before intervals existed).
     completion_interval: CompletionInterval | None
     episodes_per_scenario: int
+    # Scored over several training seeds: their spread (None for one seed and freestyle).
+    seeds: SeedResults | None = None
 
 
 class TrainingProgress(Schema):
@@ -177,6 +198,7 @@ class LeaderboardEntry(Schema):
     beats_next: float | None
     episodes_per_scenario: int
     families: dict[str, FamilyMetrics]
+    seeds: SeedResults | None = None  # scored over several training seeds
     # With ?gap_from=PHASE: this entry's metrics minus its team's entry in that phase (positive:
     # worse here, e.g. on the hidden suite than on the public one); None without one there.
     gap: GeneralisationGap | None = None

@@ -23,6 +23,7 @@ from evaluator.scoring.seeds import (
 )
 from server.models import EvaluationRun, Score, SeedSetScore, Submission, TrainingJob
 from server.models import utcnow as now
+from server.schemas import SeedMetrics, SeedResults
 from server.services import leases
 from server.status import (
     ACTIVE_RUN,
@@ -149,3 +150,16 @@ def standing_score(submission: Submission) -> Score | SeedSetScore | None:
     if over_seeds is not None and (not single or over_seeds.attempt > single[-1].attempt):
         return over_seeds
     return single[-1].score if single else None
+
+
+def seed_results(score: Score | SeedSetScore | None) -> SeedResults | None:
+    """What the team sees of the seeds behind a score; None for a score of one run."""
+    if not isinstance(score, SeedSetScore):
+        return None
+    return SeedResults(
+        count=len(score.per_seed),
+        completion_min=score.seed_completion_min,
+        completion_max=score.seed_completion_max,
+        completion_std=score.seed_completion_std,
+        per_seed=[SeedMetrics.model_validate(seed) for seed in score.per_seed],
+    )
