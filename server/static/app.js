@@ -244,6 +244,7 @@ const Arena = (() => {
     $("interval-row").hidden = !(s.metrics && ci);
     $("completion-interval").textContent =
       s.metrics && ci ? `[${fmt("completion", ci.low)}, ${fmt("completion", ci.high)}]` : "";
+    renderSeeds(s.metrics && s.seeds);
     const families = Object.keys(s.families).sort();
     $("families-box").hidden = families.length === 0;
     $("families").innerHTML = families.length ? `<table><thead><tr><th>family</th>` +
@@ -260,6 +261,16 @@ const Arena = (() => {
       `<li><strong>${escape(family)}</strong>: ${Object.entries(reasons)
         .map(([r, n]) => `${escape(r)} × ${n}`).join(", ")}</li>`).join("")}</ul>`
       : `<p class="empty">None.</p>`;
+  }
+
+  function renderSeeds(seeds) {
+    // Scored over several training seeds: their spread, then each seed's completion.
+    $("seeds-row").hidden = !seeds;
+    $("seeds-text").textContent = seeds
+      ? `${seeds.count}: completion ${fmt("completion", seeds.completion_min)}–` +
+        `${fmt("completion", seeds.completion_max)} (std ${fmt("completion", seeds.completion_std)}); ` +
+        seeds.per_seed.map((x) => `seed ${x.seed} ${fmt("completion", x.completion)}`).join(", ")
+      : "";
   }
 
   function renderTraining(t, status) {

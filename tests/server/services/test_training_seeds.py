@@ -147,6 +147,14 @@ def test_the_rest_api_shows_the_seeds(db, settings, client):
     seeds = shown.json()["seeds"]
     assert (seeds["count"], seeds["completion_std"]) == (2, 0.0)
     assert [s["seed"] for s in seeds["per_seed"]] == [0, 1]
+    board = client.get("/api/v1/leaderboard", params={"track": "offline", "phase": "final"})
+    (entry,) = board.json()["entries"]
+    assert entry["seeds"]["count"] == 2
+    assert entry["completion_interval"] == shown.json()["completion_interval"]
+    csv = client.get("/api/v1/leaderboard.csv", params={"track": "offline", "phase": "final"})
+    assert "seed_completion_std" in csv.text.splitlines()[0]
+    page = client.get("/", params={"track": "offline", "phase": "final"})
+    assert "2 seeds" in page.text
 
 
 def test_a_seeds_failure_fails_the_submission_naming_it_and_stops_the_others(db, settings):
