@@ -329,8 +329,6 @@ def test_compare_two_submissions_of_a_hidden_phase(arena, db, settings):
     assert {row["b"] for row in document["differing_outcomes"]} == {"reached_goal"}
     queued = queued_submission(db, team)
     assert "no score yet" in arena("compare", str(worse), str(queued), ok=False)
-
-
 def test_phases_set_adaptive_says_the_cost_before_and_after_and_list_shows_it(arena, client):
     cost = (
         "adaptive: 2 episode(s) per reactive scenario, then 2 more per round while completion's "
