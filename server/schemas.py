@@ -82,10 +82,13 @@ class SubmissionSummary(Schema):
 
 
 class TrainingProgress(Schema):
-    """The latest training attempt of an offline submission. Its log is the team's to read: the
-    dataset it trains on is public."""
+    """The training job of an offline submission shown (of its latest seed set: a failed seed,
+    else one still under way, else the last). Its log is the team's to read: the dataset it
+    trains on is public."""
 
     attempt: int
+    seed: int = 0  # ARENA_TRAIN_SEED
+    seeds: int = 1  # of its seed set (the phase's training seeds)
     status: TrainingStatus
     elapsed_s: float
     log_tail: str

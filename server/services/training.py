@@ -125,8 +125,14 @@ def latest_trained(submission: Submission) -> TrainingJob | None:
 
 
 def shown_training(submission: Submission) -> TrainingJob | None:
-    """The job whose progress is shown: the latest attempt."""
-    return submission.trainings[-1] if submission.trainings else None
+    """The job whose progress is shown, of the latest seed set: a failed seed (why the
+    submission failed), else the first still under way, else the last."""
+    jobs = seed_sets.latest_set(submission)
+    failed = [job for job in jobs if job.status == TrainingStatus.failed]
+    active = [job for job in jobs if job.status in ACTIVE_TRAINING]
+    if failed or active:
+        return (failed or active)[0]
+    return jobs[-1] if jobs else None
 
 
 def claim_training(

@@ -284,7 +284,8 @@ const Arena = (() => {
     const failure = t.failure ? ` · ${t.failure}: ${t.error}` : "";
     const model = t.model_sha256 ? ` · model sha256 ${t.model_sha256.slice(0, 12)}… ` +
       `(${t.model_size} bytes)` : "";
-    $("training-text").textContent = `attempt ${t.attempt} · ${when}${failure}${model}`;
+    const seed = t.seeds > 1 ? ` · seed ${t.seed} of ${t.seeds}` : "";
+    $("training-text").textContent = `attempt ${t.attempt}${seed} · ${when}${failure}${model}`;
     $("training-log").textContent = t.log_tail || "(no output yet)";
   }
 

@@ -171,6 +171,8 @@ def test_a_seeds_failure_fails_the_submission_naming_it_and_stops_the_others(db,
         submission = session.get(Submission, sid)
         assert submission.status == SubmissionStatus.failed
         assert submission.status_reason == "seed 1 (of 3): train_crashed: exit 1"
+        shown = submissions.detail(session, submission).training  # why it failed
+        assert (shown.seed, shown.seeds, shown.failure) == (1, 3, "train_crashed")
         third_job = session.get(TrainingJob, third.training_id)
         assert third_job.status == TrainingStatus.cancelled
         assert submission.runs[0].status == RunStatus.cancelled
