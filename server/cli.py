@@ -908,11 +908,7 @@ def phases_set(
     elif per_scenario > 1:
         console.print(phases.episodes_cost(per_scenario))
     if phase.training_seeds > 1:
-        console.print(
-            f"each offline submission trains {phase.training_seeds} times (seeds 0 to "
-            f"{phase.training_seeds - 1}), each model evaluated: about {phase.training_seeds} "
-            "times the work of one"
-        )
+        console.print(phases.seeds_cost(phase.training_seeds), markup=False)
 
 
 @phases_app.command("delete")

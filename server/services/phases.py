@@ -86,6 +86,14 @@ def episodes_cost(per_scenario: int) -> str:
     )
 
 
+def seeds_cost(seeds: int) -> str:
+    """The cost of several training seeds, said wherever the count is set or shown."""
+    return (
+        f"offline submissions train {seeds} times (seeds 0 to {seeds - 1}), each model "
+        f"evaluated, and are scored over them: about {seeds} times as long"
+    )
+
+
 class PhaseMisconfigured(Conflict):
     """A phase whose suite or scoring profile cannot be used: nothing can be evaluated in it
     until an organiser fixes it (``arena admin phases set``)."""

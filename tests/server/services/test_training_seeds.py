@@ -155,6 +155,8 @@ def test_the_rest_api_shows_the_seeds(db, settings, client):
     assert "seed_completion_std" in csv.text.splitlines()[0]
     page = client.get("/", params={"track": "offline", "phase": "final"})
     assert "2 seeds" in page.text
+    submit = client.get("/submit")  # said before the upload
+    assert "offline submissions train 2 times" in submit.text
 
 
 def test_a_seeds_failure_fails_the_submission_naming_it_and_stops_the_others(db, settings):
@@ -280,7 +282,7 @@ def test_the_cli_sets_the_training_seeds(db, settings, monkeypatch):
     finally:
         get_settings.cache_clear()
     assert result.exit_code == 0, result.output
-    assert "trains 4 times (seeds 0 to 3)" in result.output
+    assert "train 4 times (seeds 0 to 3)" in result.output
     assert "seeds" in listed.output
     assert refused.exit_code != 0 and "1 to 16" in refused.output
     with db.read_session() as session:
