@@ -406,8 +406,21 @@ def finish_run(session: Session, store: ArtifactStore, run_id: int) -> RunStatus
     run.status = advance(run.status, RunStatus.scored, RUN_MOVES)
     if seed_sets.several(run.training):
         session.flush()
-        if not seed_sets.score_set(session, submission.id, run.training.seed_set):
-            return run.status  # the submission is scored once its last seed is
+        try:
+            if not seed_sets.score_set(session, submission.id, run.training.seed_set):
+                return run.status  # the submission is scored once its last seed is
+        except seed_sets.SeedsApart:
+            if submission.status == SubmissionStatus.running:
+                submission.status = advance(
+                    submission.status, SubmissionStatus.failed, SUBMISSION_MOVES
+                )
+                submission.status_reason = (
+                    "its seeds were evaluated on different suites (the phase's suite changed "
+                    "meanwhile); an organiser re-runs the evaluation"
+                )
+                submission.failed_on_our_side = True
+                submission.finished_at = now()
+            return run.status
     if submission.status in (SubmissionStatus.running, SubmissionStatus.failed):
         submission.status = advance(submission.status, SubmissionStatus.scored, SUBMISSION_MOVES)
         submission.failed_on_our_side = False

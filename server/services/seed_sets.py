@@ -35,6 +35,11 @@ from server.status import (
 )
 
 
+class SeedsApart(Exception):
+    """The seeds' runs were made on different suites (the phase's suite changed between them):
+    they cannot be scored together."""
+
+
 def several(job: TrainingJob | None) -> bool:
     """Whether ``job`` (a run's training; None for freestyle) belongs to a set of several seeds."""
     return job is not None and job.seeds > 1
@@ -77,7 +82,8 @@ def latest_set(submission: Submission) -> list[TrainingJob]:
 
 def score_set(session: Session, submission_id: int, seed_set: int) -> bool:
     """Score the seed set from each seed's latest run if every one is scored (and none is still
-    under way): True when it was, False while a seed is still to come."""
+    under way): True when it was, False while a seed is still to come. Raises
+    :class:`SeedsApart` when the runs are on different suites."""
     jobs = set_jobs(session, submission_id, seed_set)
     runs = list(
         session.scalars(
@@ -94,6 +100,8 @@ def score_set(session: Session, submission_id: int, seed_set: int) -> bool:
     ):
         return False
     chosen = [latest[job.id] for job in jobs]
+    if len({run.manifest_sha256 for run in chosen}) > 1:
+        raise SeedsApart
     scores = {
         s.run_id: s
         for s in session.scalars(select(Score).where(Score.run_id.in_([run.id for run in chosen])))

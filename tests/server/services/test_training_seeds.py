@@ -16,7 +16,7 @@ from arena.outcome import AgentOutcome, ScenarioStatus
 from evaluator.runner import ScenarioOutcome
 from server.core.artifacts import DatabaseStore
 from server.core.queue import TaskQueue
-from server.models import Phase, SeedSetScore, Submission, TrainingJob
+from server.models import EvaluationRun, Phase, SeedSetScore, Submission, TrainingJob
 from server.services import admin, evaluation, leaderboard, phases, submissions, training
 from server.services.errors import InvalidInput
 from server.status import RunStatus, SubmissionStatus, TrainingStatus
@@ -217,6 +217,22 @@ def test_a_seeds_failed_evaluation_fails_the_submission_naming_it(db, settings):
         assert submission.status == SubmissionStatus.failed
         assert submission.status_reason.startswith("seed 1 (of 2): 1 scenario(s) failed on our")
         assert submission.runs[0].status == RunStatus.cancelled  # seed 0's stops
+
+
+def test_seeds_evaluated_on_different_suites_are_not_scored_together(db, settings):
+    set_seeds(db, settings, 2)
+    sid = offline(db)
+    plans = [trained(db, settings, claim(db, settings, i)) for i in start(db, settings, sid)]
+    assert evaluate(db, settings, plans[0], fails=0) == RunStatus.scored
+    with db.session() as session:  # as if the phase's suite changed before seed 1's run
+        session.get(EvaluationRun, plans[1].run_id).manifest_sha256 = "another suite"
+    assert evaluate(db, settings, plans[1], fails=0) == RunStatus.scored
+    with db.read_session() as session:
+        submission = session.get(Submission, sid)
+        assert submission.status == SubmissionStatus.failed
+        assert submission.failed_on_our_side  # not the team's: it costs no try
+        assert "different suites" in submission.status_reason
+        assert session.scalar(select(SeedSetScore)) is None
 
 
 def test_rerun_retrain_and_requeue_act_on_the_whole_set(db, settings):
