@@ -481,7 +481,8 @@ def compare(
 
 @admin_app.command("rerun")
 def rerun(submission_id: SubmissionId) -> None:
-    """Simulate a scored or failed submission again, as a new attempt."""
+    """Simulate a scored or failed submission again, as a new attempt (an offline one: every
+    seed's trained model)."""
     # deferred: CLI start-up time
     from server.services import admin
 
@@ -548,7 +549,8 @@ def audit(
 
 @admin_app.command("retrain")
 def retrain(submission_id: SubmissionId) -> None:
-    """Train a scored or failed offline submission again, from scratch, then evaluate it."""
+    """Train a scored or failed offline submission again, from scratch (every training seed of
+    its phase), then evaluate it."""
     # deferred: CLI start-up time
     from server.services import admin
 
