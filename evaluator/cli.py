@@ -175,6 +175,10 @@ def train(
         float | None,
         typer.Option(min=1, help="Wall-time budget [s] (default: ARENA_TRAIN_TIMEOUT_S)."),
     ] = None,
+    seed: Annotated[
+        int,
+        typer.Option(min=0, help="ARENA_TRAIN_SEED, as the service sets it (seeds 0, 1, ...)."),
+    ] = 0,
 ) -> None:
     """Run train.py in the sandbox exactly as the service does (Track 2); then
     `arena evaluate PATH --model OUT`. Its output (the tail the service keeps too) is printed
@@ -211,6 +215,7 @@ def train(
                 kind=sandbox,
                 settings=settings,
                 on_progress=progress,
+                seed=seed,
             )
     log_file = out.parent / f"{out.name}.train.log"
     log_file.write_text(result.log)

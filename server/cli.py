@@ -268,12 +268,27 @@ def submissions_show(
             f"time {m.time:.1f}, humanness {_metric(m.humanness)}, rules {_metric(m.rules)}",
         ),
         ("episodes", f"{view.episodes_per_scenario} per reactive scenario"),
+        *_seed_rows(view.seeds),
         *_manifest_rows(view.manifest),
     ):
         console.print(f"{name}: {plain(value)}", markup=False, highlight=False)
     for attempt, status, worker, profile, error, results in runs:
         title = f"attempt {attempt}: {status} ({profile}) {worker or ''} {error or ''}".strip()
         print_rows(console, columns, results, title=title, numeric=("episode", "steps"))
+
+
+def _seed_rows(seeds) -> list[tuple[str, str]]:
+    """A submission scored over several training seeds: their spread and each one's."""
+    if seeds is None:
+        return []
+    each = ", ".join(f"{s.seed}: {s.completion:.4f}" for s in seeds.per_seed)
+    return [
+        (
+            "seeds",
+            f"{seeds.count}, completion from {seeds.completion_min:.4f} to "
+            f"{seeds.completion_max:.4f} (std {seeds.completion_std:.4f}); per seed {each}",
+        )
+    ]
 
 
 def _timings(view) -> str:
@@ -466,7 +481,8 @@ def compare(
 
 @admin_app.command("rerun")
 def rerun(submission_id: SubmissionId) -> None:
-    """Simulate a scored or failed submission again, as a new attempt."""
+    """Simulate a scored or failed submission again, as a new attempt (an offline one: every
+    seed's trained model)."""
     # deferred: CLI start-up time
     from server.services import admin
 
@@ -533,7 +549,8 @@ def audit(
 
 @admin_app.command("retrain")
 def retrain(submission_id: SubmissionId) -> None:
-    """Train a scored or failed offline submission again, from scratch, then evaluate it."""
+    """Train a scored or failed offline submission again, from scratch (every training seed of
+    its phase), then evaluate it."""
     # deferred: CLI start-up time
     from server.services import admin
 
@@ -767,6 +784,7 @@ def phases_list() -> None:
             "daily quota",
             "episodes",
             "cpu act/episode/evaluation [s]",
+            "seeds",
             "open",
         ),
         [
@@ -780,11 +798,12 @@ def phases_list() -> None:
                 f"{phases.episodes_per_scenario(phase, ctx.settings)}"
                 + ("+" if phase.adaptive_target is not None else ""),
                 _cpu_cell(phases.cpu_limits(phase, ctx.settings)),
+                phase.training_seeds,
                 "yes" if phases.is_open(phase, moment) else "no",
             )
             for phase in rows
         ],
-        numeric=("daily quota", "episodes"),
+        numeric=("daily quota", "episodes", "seeds"),
     )
     released = [phase.name for phase in rows if phase.released_at is not None]
     console.print(
@@ -876,6 +895,14 @@ def phases_set(
             "--default-cpu-limits", help="Clear the phase's CPU limits: the settings' apply."
         ),
     ] = False,
+    training_seeds: Annotated[
+        int | None,
+        typer.Option(
+            help="Track 2: train each offline submission this many times (1 to 16), each with "
+            "its own ARENA_TRAIN_SEED, and score it over them; training and evaluation take "
+            "about this many times as long."
+        ),
+    ] = None,
     dry_run: Annotated[
         bool, typer.Option("--dry-run", help="Say what the phase would cost; save nothing.")
     ] = False,
@@ -903,6 +930,7 @@ def phases_set(
         episode_cpu_s=episode_cpu,
         evaluation_cpu_s=evaluation_cpu,
         default_cpu_limits=default_cpu_limits,
+        training_seeds=training_seeds,
     )
     ctx = _Context()
     phase = _run(lambda: phases.set_phase(ctx.db, ctx.settings, name, changes, dry_run=dry_run))
@@ -915,6 +943,8 @@ def phases_set(
     elif per_scenario > 1:
         console.print(phases.episodes_cost(per_scenario))
     console.print(phases.describe_cpu_limits(phases.cpu_limits(phase, ctx.settings)), markup=False)
+    if phase.training_seeds > 1:
+        console.print(phases.seeds_cost(phase.training_seeds), markup=False)
 
 
 @phases_app.command("delete")

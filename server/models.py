@@ -137,6 +137,9 @@ class Phase(Base):
     step_cpu_s: Mapped[float | None] = mapped_column(Float)
     episode_cpu_s: Mapped[float | None] = mapped_column(Float)
     evaluation_cpu_s: Mapped[float | None] = mapped_column(Float)
+    # Track 2: each offline submission is trained this many times, each with its own seed
+    # (ARENA_TRAIN_SEED 0..N-1), and scored over them (evaluator/scoring/seeds.py).
+    training_seeds: Mapped[int] = mapped_column(Integer, default=1, server_default="1")
 
 
 class Submission(Base):
@@ -187,6 +190,9 @@ class Submission(Base):
     )
     trainings: Mapped[list[TrainingJob]] = relationship(
         back_populates="submission", order_by="TrainingJob.attempt"
+    )
+    seed_set_scores: Mapped[list[SeedSetScore]] = relationship(
+        back_populates="submission", order_by="SeedSetScore.attempt"
     )
 
 
@@ -239,6 +245,11 @@ class TrainingJob(Base):
     model_key: Mapped[str | None] = mapped_column(String(512))
     model_sha256: Mapped[str] = mapped_column(String(64), default="")
     model_size: Mapped[int] = mapped_column(BigInteger, default=0)
+    # The trainings started together, one per seed (the phase's training_seeds): numbered per
+    # submission; each job of a set has its own seed (ARENA_TRAIN_SEED) and knows the set's size.
+    seed_set: Mapped[int] = mapped_column(Integer, default=1, server_default="1")
+    seed: Mapped[int] = mapped_column(Integer, default=0, server_default="0")
+    seeds: Mapped[int] = mapped_column(Integer, default=1, server_default="1")
 
     submission: Mapped[Submission] = relationship(back_populates="trainings")
 
@@ -350,6 +361,43 @@ class Score(Base):
     computed_at: Mapped[datetime] = mapped_column(default=utcnow)
 
     run: Mapped[EvaluationRun] = relationship(back_populates="score")
+
+
+class SeedSetScore(Base):
+    """The score of a seed set of several seeds (evaluator/scoring/seeds.py): the four metrics
+    and per-family values as means over the seeds, completion's interval over seeds x scenarios,
+    and the seeds' spread. Each seed's own run keeps its :class:`Score`."""
+
+    __tablename__ = "seed_set_scores"
+    __table_args__ = (UniqueConstraint("submission_id", "seed_set"),)
+
+    id: Mapped[int] = mapped_column(primary_key=True)
+    submission_id: Mapped[int] = mapped_column(ForeignKey("submissions.id"), index=True)
+    seed_set: Mapped[int] = mapped_column(Integer)
+    # The latest attempt among the seeds' runs: orders it against the submission's other scores.
+    attempt: Mapped[int] = mapped_column(Integer)
+    episodes_per_scenario: Mapped[int] = mapped_column(Integer, default=1)
+    completion: Mapped[float] = mapped_column(Float)
+    time: Mapped[float] = mapped_column(Float)
+    humanness: Mapped[float | None] = mapped_column(Float)
+    rules: Mapped[float | None] = mapped_column(Float)
+    completion_low: Mapped[float | None] = mapped_column(Float)
+    completion_high: Mapped[float | None] = mapped_column(Float)
+    # The seeds' own completion errors: lowest, highest, standard deviation.
+    seed_completion_min: Mapped[float] = mapped_column(Float)
+    seed_completion_max: Mapped[float] = mapped_column(Float)
+    seed_completion_std: Mapped[float] = mapped_column(Float)
+    # Per seed: {"seed", "training_id", "run_id", and the four metrics}, in seed order.
+    per_seed: Mapped[list[dict[str, Any]]] = mapped_column(JSON, default=list)
+    families: Mapped[dict[str, Any]] = mapped_column(default=dict)
+    # The seeds' samples pooled (evaluator/scoring/seeds.py pooled_samples): what the
+    # leaderboard's rank ranges resample. Deferred like Score.samples.
+    samples: Mapped[dict[str, Any] | None] = mapped_column(deferred=True)
+    profile: Mapped[str] = mapped_column(String(64))
+    profile_version: Mapped[str] = mapped_column(String(32), default="")
+    computed_at: Mapped[datetime] = mapped_column(default=utcnow)
+
+    submission: Mapped[Submission] = relationship(back_populates="seed_set_scores")
 
 
 class LeaderboardGeneration(Base):

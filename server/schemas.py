@@ -35,6 +35,25 @@ class CompletionInterval(Schema):
     high: float
 
 
+class SeedMetrics(Metrics):
+    """One seed's own metrics (its trained model's run)."""
+
+    seed: int
+
+
+class SeedResults(Schema):
+    """A submission trained with several seeds (docs/training.md): its metrics are the means
+    over them, its completion interval covers seeds x scenarios; the seeds' own completion
+    errors spread from ``completion_min`` to ``completion_max`` (standard deviation
+    ``completion_std``)."""
+
+    count: int
+    completion_min: float
+    completion_max: float
+    completion_std: float
+    per_seed: list[SeedMetrics]
+
+
 class Progress(Schema):
     done: int
     total: int  # episodes: one per scenario, episodes_per_scenario per reactive scenario
@@ -58,13 +77,18 @@ class SubmissionSummary(Schema):
     # None until scored (and for scores from before intervals existed).
     completion_interval: CompletionInterval | None
     episodes_per_scenario: int
+    # Scored over several training seeds: their spread (None for one seed and freestyle).
+    seeds: SeedResults | None = None
 
 
 class TrainingProgress(Schema):
-    """The latest training attempt of an offline submission. Its log is the team's to read: the
-    dataset it trains on is public."""
+    """The training job of an offline submission shown (of its latest seed set: a failed seed,
+    else one still under way, else the last). Its log is the team's to read: the dataset it
+    trains on is public."""
 
     attempt: int
+    seed: int = 0  # ARENA_TRAIN_SEED
+    seeds: int = 1  # of its seed set (the phase's training seeds)
     status: TrainingStatus
     elapsed_s: float
     log_tail: str
@@ -195,6 +219,7 @@ class LeaderboardEntry(Schema):
     beats_next: float | None
     episodes_per_scenario: int
     families: dict[str, FamilyMetrics]
+    seeds: SeedResults | None = None  # scored over several training seeds
     # With ?gap_from=PHASE: this entry's metrics minus its team's entry in that phase (positive:
     # worse here, e.g. on the hidden suite than on the public one); None without one there.
     gap: GeneralisationGap | None = None

@@ -130,9 +130,11 @@ def start_training(
     kind: SandboxKind | str | None = None,
     labels: dict[str, str] | None = None,
     settings: Settings | None = None,
+    seed: int = 0,
 ) -> Sandbox:
-    """Start ``submission``'s ``train.py`` (see :mod:`evaluator.training`); it runs until it
-    exits or is killed. Raises :class:`~arena.errors.SandboxUnavailable`."""
+    """Start ``submission``'s ``train.py`` (see :mod:`evaluator.training`) with ``seed`` in
+    ``ARENA_TRAIN_SEED``; it runs until it exits or is killed. Raises
+    :class:`~arena.errors.SandboxUnavailable`."""
     settings = settings or get_settings()
     chosen = backend(resolve_kind(kind, settings))
     spec = LaunchSpec(
@@ -140,7 +142,9 @@ def start_training(
         deps=submission.deps_dir,
         settings=settings,
         labels=dict(labels or {}),
-        training=Training(dataset=Path(dataset).resolve(), output=Path(output).resolve()),
+        training=Training(
+            dataset=Path(dataset).resolve(), output=Path(output).resolve(), seed=seed
+        ),
     )
     return chosen.launch(spec)
 

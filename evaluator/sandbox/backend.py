@@ -38,6 +38,8 @@ DATASET_MOUNT = "/dataset"
 MODEL_MOUNT = "/model"
 DATASET_ENV = "ARENA_DATASET_DIR"
 MODEL_ENV = "ARENA_MODEL_DIR"
+# The training's seed (docs/training.md): a phase trains each submission once per seed.
+SEED_ENV = "ARENA_TRAIN_SEED"
 # One thread for BLAS/OpenMP: the agent has one CPU, and a thread each counts against its pids.
 # (No PYTHON* variables: the runner starts with -I, which ignores them; -B keeps bytecode away.)
 RUNTIME_ENV = {
@@ -65,6 +67,16 @@ class Training:
 
     dataset: Path
     output: Path
+    seed: int = 0  # ARENA_TRAIN_SEED
+
+    def env(self, dataset: str, output: str) -> dict[str, str]:
+        """The training's variables, with the dataset and output as the sandbox sees them."""
+        return {
+            DATASET_ENV: dataset,
+            MODEL_ENV: output,
+            SEED_ENV: str(self.seed),
+            "PYTHONUNBUFFERED": "1",
+        }
 
 
 @dataclass(frozen=True)
@@ -114,7 +126,7 @@ class LaunchSpec:
         """The environment inside Docker and bubblewrap (fixed mount points)."""
         env = dict(RUNTIME_ENV)
         if self.training is not None:
-            env |= {DATASET_ENV: DATASET_MOUNT, MODEL_ENV: MODEL_MOUNT, "PYTHONUNBUFFERED": "1"}
+            env |= self.training.env(DATASET_MOUNT, MODEL_MOUNT)
             if self.deps:
                 env["PYTHONPATH"] = DEPS_MOUNT
         elif self.model is not None:

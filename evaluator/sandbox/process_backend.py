@@ -19,7 +19,6 @@ import sys
 
 from arena.config import SandboxKind, Settings
 from evaluator.sandbox.backend import (
-    DATASET_ENV,
     MODEL_ENV,
     RUNTIME_ENV,
     RUNTIME_MAIN,
@@ -59,11 +58,7 @@ class ProcessBackend:
         training = spec.training
         if training is not None:
             command = [sys.executable, "-B", "-s", str(spec.submission / TRAIN_SCRIPT)]
-            env |= {
-                DATASET_ENV: str(training.dataset),
-                MODEL_ENV: str(training.output),
-                "PYTHONUNBUFFERED": "1",
-            }
+            env |= training.env(str(training.dataset), str(training.output))
             if spec.deps:
                 env["PYTHONPATH"] = str(spec.deps)
         else:

@@ -71,10 +71,11 @@ def train(
     on_progress: Progress | None = None,
     progress_every_s: float = 2.0,
     resume_from: Path | None = None,
+    seed: int = 0,
 ) -> TrainingResult:
     """Run ``submission``'s (a PreparedSubmission) ``train.py`` into the empty folder ``output``,
     which first receives the snapshot ``resume_from`` (:mod:`evaluator.training.checkpoint`)
-    when the training resumes.
+    when the training resumes. ``seed`` reaches ``train.py`` as ``ARENA_TRAIN_SEED``.
 
     ``on_progress(elapsed_s, log_tail)`` is called every ``progress_every_s``; returning False
     kills the run and raises :class:`TrainingStopped`. Raises
@@ -95,7 +96,7 @@ def train(
     caps = _Caps.of(settings)
     started = time.monotonic()
     box = sandbox.start_training(
-        submission, dataset, output, kind=kind, labels=labels, settings=settings
+        submission, dataset, output, kind=kind, labels=labels, settings=settings, seed=seed
     )
     next_report = started + progress_every_s
     next_check = started + OUTPUT_CHECK_S

@@ -54,31 +54,45 @@ def requeue(db: Database, settings: Settings, queue: TaskQueue, submission_id: i
                 submission.status, SubmissionStatus.queued, SUBMISSION_MOVES
             )
         # A training still held by a live worker ignores the re-sent task; a dead worker's is
-        # handed out by the reaper once its lease expires.
-        trainings = [job.id for job in submission.trainings if job.status in ACTIVE_TRAINING]
-        training_id = None
+        # handed out by the reaper once its lease expires. Every seed's work goes again.
+        training_ids = [job.id for job in submission.trainings if job.status in ACTIVE_TRAINING]
+        plans: list[RunPlan] = []
         if submission.status == SubmissionStatus.queued:
             submission.queued_at = utcnow()
-        elif trainings:
-            training_id = trainings[-1]
         else:
             runs = [run for run in submission.runs if run.status in ACTIVE_RUN]
-            if not runs:
+            if not runs and not training_ids:
                 raise Conflict(
                     f"submission {submission_id} is {submission.status} with no evaluation in "
                     "progress; use rerun for a new attempt"
                 )
-            plan = _lost_work(settings, runs[-1], submission_id)
-    if training_id is not None:
+            alive: list[Conflict] = []
+            for run in runs:
+                try:
+                    plans.append(_lost_work(settings, run, submission_id))
+                except Conflict as exc:
+                    alive.append(exc)
+            if alive and not plans and not training_ids:
+                raise alive[0]
+    for training_id in training_ids:
         queue.train(training_id)
-        return "training re-sent"
-    if plan is None:
-        queue.evaluate(submission_id)
-        return "evaluation queued"
-    queue.send(plan)
-    if plan.episodes:
-        return f"{len(plan.episodes)} episode(s) re-sent (neither finished nor held by a worker)"
-    return "aggregation re-sent"
+    for plan in plans:
+        queue.send(plan)
+    said = []
+    if training_ids:
+        count = len(training_ids)
+        said.append("training re-sent" if count == 1 else f"{count} trainings re-sent")
+    if plans:
+        episodes = sum(len(plan.episodes) for plan in plans)
+        said.append(
+            f"{episodes} episode(s) re-sent (neither finished nor held by a worker)"
+            if episodes
+            else "aggregation re-sent"
+        )
+    if said:
+        return "; ".join(said)
+    queue.evaluate(submission_id)
+    return "evaluation queued"
 
 
 def _lost_work(settings: Settings, run: EvaluationRun, submission_id: int) -> RunPlan:
@@ -106,21 +120,24 @@ def _lost_work(settings: Settings, run: EvaluationRun, submission_id: int) -> Ru
 
 
 def rerun(db: Database, settings: Settings, queue: TaskQueue, submission_id: int) -> int:
-    """A new simulation attempt; returns its attempt number."""
+    """A new simulation attempt (a run per seed of an offline submission's seed set); returns
+    the attempt number of its first run."""
     with db.session() as session:
-        plan = evaluation.rerun(session, settings, submission_id)
-        attempt = session.get(EvaluationRun, plan.run_id).attempt
-    queue.send(plan)
+        plans = evaluation.rerun(session, settings, submission_id)
+        attempt = session.get(EvaluationRun, plans[0].run_id).attempt
+    for plan in plans:
+        queue.send(plan)
     return attempt
 
 
 def retrain(db: Database, settings: Settings, queue: TaskQueue, submission_id: int) -> int:
-    """A new training attempt of an offline submission, from scratch (then its evaluation);
-    returns its attempt number."""
+    """A new training attempt of an offline submission, from scratch, every seed of its phase
+    (then their evaluations); returns the attempt number of its first seed's job."""
     with db.session() as session:
-        job = training.retrain(session, settings, submission_id)
-        training_id, attempt = job.id, job.attempt
-    queue.train(training_id)
+        jobs = training.retrain(session, settings, submission_id)
+        training_ids, attempt = [job.id for job in jobs], jobs[0].attempt
+    for training_id in training_ids:
+        queue.train(training_id)
     return attempt
 
 

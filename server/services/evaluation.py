@@ -35,7 +35,7 @@ from server.models import (
     TrainingJob,
 )
 from server.models import utcnow as now
-from server.services import leases, phases, scoring
+from server.services import leases, phases, scoring, seed_sets
 from server.services.errors import Conflict, NotFound
 from server.services.leases import lease_until
 from server.status import (
@@ -177,9 +177,9 @@ def cannot_start(submission: Submission, detail: str) -> None:
     )
 
 
-def rerun(session: Session, settings: Settings, submission_id: int) -> RunPlan:
-    """A new simulation attempt of a scored or failed submission; its current score stands
-    until the new attempt is scored."""
+def rerun(session: Session, settings: Settings, submission_id: int) -> tuple[RunPlan, ...]:
+    """A new simulation attempt of a scored or failed submission (of an offline one, a run per
+    seed of its latest seed set); its current score stands until the new attempt is scored."""
     submission = lock(session, Submission, submission_id)
     if submission.status not in (SubmissionStatus.scored, SubmissionStatus.failed):
         raise Conflict(
@@ -189,13 +189,14 @@ def rerun(session: Session, settings: Settings, submission_id: int) -> RunPlan:
     if any(run.status in ACTIVE_RUN for run in submission.runs):
         raise Conflict(f"submission {submission_id} already has an evaluation in progress")
     if submission.track == Track.offline:
-        trained = [job for job in submission.trainings if job.status == TrainingStatus.trained]
-        if not trained:
+        jobs = seed_sets.latest_set(submission)
+        if not jobs or any(job.status != TrainingStatus.trained for job in jobs):
             raise Conflict(
-                f"submission {submission_id} has no trained output to evaluate: retrain it"
+                f"submission {submission_id} has no trained output to evaluate for every seed: "
+                "retrain it"
             )
-        return create_run(session, settings, submission, training=trained[-1])
-    return create_run(session, settings, submission)
+        return tuple(create_run(session, settings, submission, training=job) for job in jobs)
+    return (create_run(session, settings, submission),)
 
 
 def claim_scenario(
@@ -386,8 +387,18 @@ def _fail_run(session: Session, run: EvaluationRun, error: str) -> None:
     submission = lock(session, Submission, run.submission_id)
     if submission.status == SubmissionStatus.running:
         submission.status = advance(submission.status, SubmissionStatus.failed, SUBMISSION_MOVES)
-        submission.status_reason = run.error
+        submission.status_reason = seed_sets.reason(run.training, run.error)
         submission.finished_at = now()
+    stop_seed_set(session, submission)
+
+
+def stop_seed_set(session: Session, submission: Submission) -> None:
+    """A seed failed: the set can no longer be scored, so its other seeds' trainings and runs
+    stop (their pending tasks find them inactive and do nothing)."""
+    seed_sets.cancel_trainings(submission)
+    for run in submission.runs:
+        if run.status in ACTIVE_RUN:
+            cancel_run(session, run)
 
 
 def finished_count(session: Session, run_id: int) -> int:
@@ -428,12 +439,30 @@ def finish_run(session: Session, store: ArtifactStore, run_id: int) -> RunStatus
             submission.status = advance(
                 submission.status, SubmissionStatus.failed, SUBMISSION_MOVES
             )
-            submission.status_reason = run.error
+            submission.status_reason = seed_sets.reason(run.training, run.error)
             submission.failed_on_our_side = bool(summary.uncharged)
             submission.finished_at = now()
+        stop_seed_set(session, submission)
         return run.status
     write_score(session, run, run_score, run.scoring_profile, run.scoring_version)
     run.status = advance(run.status, RunStatus.scored, RUN_MOVES)
+    if seed_sets.several(run.training):
+        session.flush()
+        try:
+            if not seed_sets.score_set(session, submission.id, run.training.seed_set):
+                return run.status  # the submission is scored once its last seed is
+        except seed_sets.SeedsApart:
+            if submission.status == SubmissionStatus.running:
+                submission.status = advance(
+                    submission.status, SubmissionStatus.failed, SUBMISSION_MOVES
+                )
+                submission.status_reason = (
+                    "its seeds were evaluated on different suites (the phase's suite changed "
+                    "meanwhile); an organiser re-runs the evaluation"
+                )
+                submission.failed_on_our_side = True
+                submission.finished_at = now()
+            return run.status
     if submission.status in (SubmissionStatus.running, SubmissionStatus.failed):
         submission.status = advance(submission.status, SubmissionStatus.scored, SUBMISSION_MOVES)
         submission.failed_on_our_side = False

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from datetime import datetime
 
 import numpy as np
-from sqlalchemy import select
+from sqlalchemy import or_, select
 from sqlalchemy.orm import Session
 
 from arena.neutralise.spreadsheet import write_rows
@@ -30,9 +30,11 @@ from server.models import (
     EvaluationRun,
     LeaderboardGeneration,
     Score,
+    SeedSetScore,
     Submission,
     Team,
     Track,
+    TrainingJob,
 )
 from server.schemas import (
     FamilyMetrics,
@@ -42,33 +44,41 @@ from server.schemas import (
     Metrics,
 )
 from server.services.phases import DEFAULT_PHASE, get_phase, list_phases
+from server.services.seed_sets import seed_results
 from server.services.submissions import completion_interval
 from server.status import RunStatus, SubmissionStatus
 
 METRICS = ("completion", "time", "humanness", "rules")
 
-# A score's bootstrap replicates (None: scored before per-episode values were kept), by score id
-# and when it was computed (a re-score writes a new row).
-Replicates = dict[tuple[int, datetime], "np.ndarray | None"]
+# A score's bootstrap replicates (None: scored before per-episode values were kept), by its
+# table, id and when it was computed (a re-score writes a new row).
+Replicates = dict[tuple[str, int, datetime], "np.ndarray | None"]
+Standing = Score | SeedSetScore  # a run's score, or a seed set's over several seeds
 
 
-def _replicates(session: Session, scores: list[Score], known: Replicates) -> list:
+def _key(score: Standing) -> tuple[str, int, datetime]:
+    return (score.__tablename__, score.id, score.computed_at)
+
+
+def _replicates(session: Session, scores: list[Standing], known: Replicates) -> list:
     """Each score's replicates, from ``known`` or resampled from its stored samples; ``known``
     is left holding exactly these scores' (a replaced score's drop out)."""
-    used = {(s.id, s.computed_at) for s in scores}
+    used = {_key(s) for s in scores}
     for key in [key for key in known if key not in used]:
         del known[key]
-    missing = [s.id for s in scores if (s.id, s.computed_at) not in known]
-    if missing:
-        query = select(Score.id, Score.samples).where(Score.id.in_(missing))
+    for table in (Score, SeedSetScore):
+        missing = [s.id for s in scores if isinstance(s, table) and _key(s) not in known]
+        if not missing:
+            continue
+        query = select(table.id, table.samples).where(table.id.in_(missing))
         stored = {score_id: samples for score_id, samples in session.execute(query)}
         for score in scores:
-            if score.id in stored:
+            if isinstance(score, table) and score.id in stored:
                 samples = stored[score.id]
-                known[(score.id, score.computed_at)] = (
+                known[_key(score)] = (
                     None if samples is None else replicates(MetricSamples.from_json(samples))
                 )
-    return [known[(s.id, s.computed_at)] for s in scores]
+    return [known[_key(s)] for s in scores]
 
 
 def compute(
@@ -78,21 +88,40 @@ def compute(
     known: Replicates | None = None,
 ) -> Leaderboard:
     """The board; ``known`` keeps scores' bootstrap replicates between calls."""
-    rows = session.execute(
+    shown = (
+        Submission.phase == phase,
+        Submission.track == track,
+        Submission.status == SubmissionStatus.scored,
+    )
+    runs = session.execute(
         select(
             Submission, Team.name, EvaluationRun.attempt, Score, EvaluationRun.episodes_per_scenario
         )
         .join(Team, Team.id == Submission.team_id)
         .join(EvaluationRun, EvaluationRun.submission_id == Submission.id)
         .join(Score, Score.run_id == EvaluationRun.id)
+        .outerjoin(TrainingJob, TrainingJob.id == EvaluationRun.training_id)
         .where(
-            Submission.phase == phase,
-            Submission.track == track,
-            Submission.status == SubmissionStatus.scored,
+            *shown,
             EvaluationRun.status == RunStatus.scored,
+            # A seed of several is scored with its set, never alone.
+            or_(TrainingJob.id.is_(None), TrainingJob.seeds == 1),
         )
     ).all()
-    # A submission's standing score is that of its latest scored attempt.
+    seed_sets = session.execute(
+        select(
+            Submission,
+            Team.name,
+            SeedSetScore.attempt,
+            SeedSetScore,
+            SeedSetScore.episodes_per_scenario,
+        )
+        .join(Team, Team.id == Submission.team_id)
+        .join(SeedSetScore, SeedSetScore.submission_id == Submission.id)
+        .where(*shown)
+    ).all()
+    rows = [*runs, *seed_sets]
+    # A submission's standing score is that of its latest scored attempt (or seed set).
     latest: dict[int, tuple] = {}
     for row in rows:
         submission, _, attempt = row[:3]
@@ -128,6 +157,7 @@ def compute(
             rank_range=ranks.label,
             beats_next=ranks.beats_next,
             episodes_per_scenario=episodes,
+            seeds=seed_results(score),
             families={
                 family: FamilyMetrics.model_validate(values)
                 for family, values in score.families.items()
@@ -202,6 +232,10 @@ def to_csv(board: Leaderboard) -> str:
         "completion_low",
         "completion_high",
         "tied_with",
+        "seeds",
+        "seed_completion_min",
+        "seed_completion_max",
+        "seed_completion_std",
         *([f"gap_{name}" for name in METRICS] if board.gap_from else []),
     ]
     rows = (
@@ -219,6 +253,11 @@ def to_csv(board: Leaderboard) -> str:
                 for bound in ("low", "high")
             ),
             " ".join(str(rank) for rank in entry.tied_with),
+            entry.seeds.count if entry.seeds is not None else 1,
+            *(
+                _csv_value(getattr(entry.seeds, f"completion_{name}", None))
+                for name in ("min", "max", "std")
+            ),
             *([_csv_value(_gap(entry, name)) for name in METRICS] if board.gap_from else []),
         ]
         for entry in board.entries

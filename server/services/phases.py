@@ -23,6 +23,8 @@ DEFAULT_PHASE = "final"
 # Episodes of each reactive scenario a phase may ask for, fixed or adaptive: each multiplies an
 # evaluation's cost.
 MAX_EPISODES_PER_SCENARIO = 64
+# Trainings per offline submission (each a whole training run): at most this many.
+MAX_TRAINING_SEEDS = 16
 
 
 def get_phase(session: Session, name: str) -> Phase:
@@ -97,6 +99,14 @@ def episodes_cost(per_scenario: int) -> str:
     return (
         f"{per_scenario} episodes per reactive scenario: evaluation takes about {per_scenario} "
         "times as long"
+    )
+
+
+def seeds_cost(seeds: int) -> str:
+    """The cost of several training seeds, said wherever the count is set or shown."""
+    return (
+        f"offline submissions train {seeds} times (seeds 0 to {seeds - 1}), each model "
+        f"evaluated, and are scored over them: about {seeds} times as long"
     )
 
 
@@ -208,6 +218,7 @@ class PhaseChanges:
     episode_cpu_s: float | None = None
     evaluation_cpu_s: float | None = None
     default_cpu_limits: bool = False
+    training_seeds: int | None = None  # Track 2: trainings of each offline submission
 
 
 class _DryRun(ArenaError):
@@ -242,6 +253,12 @@ def _set_phase(
         raise InvalidInput(
             f"episodes: how often each reactive scenario runs, 1 to {MAX_EPISODES_PER_SCENARIO}"
         )
+    if changes.training_seeds is not None and not (
+        1 <= changes.training_seeds <= MAX_TRAINING_SEEDS
+    ):
+        raise InvalidInput(
+            f"training seeds: trainings of each offline submission, 1 to {MAX_TRAINING_SEEDS}"
+        )
     if (changes.adaptive_target is None) != (changes.max_episodes is None):
         raise InvalidInput("adaptive evaluation needs both a target half-width and a cap")
     if changes.adaptive_target is not None and not 0 < changes.adaptive_target < 1:
@@ -274,6 +291,7 @@ def _set_phase(
             "ends_at",
             "daily_quota",
             "episodes_per_scenario",
+            "training_seeds",
         ):
             value = getattr(changes, field)
             if value is not None:

@@ -21,6 +21,7 @@ from server.models import (
     Phase,
     ScenarioResult,
     Score,
+    SeedSetScore,
     Submission,
     Team,
     TrainingJob,
@@ -125,6 +126,7 @@ def _remove_submissions(session: Session, rows: list[Submission]) -> list[str]:
     prefixes += [f"runs/{run_id}" for run_id in runs]
     prefixes += [f"training/{training_id}" for training_id in trainings]
     session.execute(delete(Score).where(Score.run_id.in_(runs)))
+    session.execute(delete(SeedSetScore).where(SeedSetScore.submission_id.in_(ids)))
     session.execute(delete(ScenarioResult).where(ScenarioResult.run_id.in_(runs)))
     session.execute(delete(EvaluationRun).where(EvaluationRun.id.in_(runs)))
     session.execute(delete(TrainingJob).where(TrainingJob.id.in_(trainings)))

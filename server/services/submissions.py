@@ -18,7 +18,15 @@ from evaluator.provenance import Manifest
 from server.core.artifacts import artifact_store
 from server.core.db import Database
 from server.core.queue import BROKER_ERRORS, TaskQueue, scenario_task_id
-from server.models import EvaluationRun, ScenarioResult, Score, Submission, TrainingJob, utcnow
+from server.models import (
+    EvaluationRun,
+    ScenarioResult,
+    Score,
+    SeedSetScore,
+    Submission,
+    TrainingJob,
+    utcnow,
+)
 from server.schemas import (
     AgentCpu,
     CompletionInterval,
@@ -52,7 +60,8 @@ from server.services.phases import (
     phase_setup,
     team_sees_everything,
 )
-from server.services.training import cancel_trainings, shown_training
+from server.services.seed_sets import cancel_trainings, seed_results, standing_score
+from server.services.training import shown_training
 from server.status import (
     ACTIVE_RUN,
     ACTIVE_SUBMISSION,
@@ -233,6 +242,8 @@ def list_submissions(
         .options(
             selectinload(Submission.team),
             selectinload(Submission.runs).selectinload(EvaluationRun.score),
+            selectinload(Submission.runs).selectinload(EvaluationRun.training),
+            selectinload(Submission.seed_set_scores),
         )
         .order_by(Submission.id.desc())
         .limit(limit)
@@ -313,8 +324,7 @@ def _fields(session: Session, submission: Submission) -> dict:
 def _summary_fields(
     submission: Submission, run: EvaluationRun | None, done: int, hidden: bool
 ) -> dict:
-    scored = current_run(submission)
-    score = scored.score if scored is not None else None
+    score = standing_score(submission)
     return {
         "id": submission.id,
         "team": submission.team.name,
@@ -332,6 +342,7 @@ def _summary_fields(
         "completion_interval": completion_interval(score),
         # Of the run whose progress is shown: what the progress counts.
         "episodes_per_scenario": run.episodes_per_scenario if run is not None else 1,
+        "seeds": seed_results(score),
     }
 
 
@@ -344,7 +355,7 @@ def _duration_s(submission: Submission) -> float | None:
     return max(0.0, (end - submission.started_at).total_seconds())
 
 
-def completion_interval(score: Score | None) -> CompletionInterval | None:
+def completion_interval(score: Score | SeedSetScore | None) -> CompletionInterval | None:
     if score is None or score.completion_low is None or score.completion_high is None:
         return None
     return CompletionInterval(low=score.completion_low, high=score.completion_high)
@@ -356,11 +367,13 @@ def detail(session: Session, submission: Submission) -> SubmissionDetail:
     chose to fail with would carry what it saw of the hidden scenarios)."""
     run = current_run(submission)
     score = run.score if run is not None else None
+    # Over several seeds, the seed set's means; the run (the latest seed's) gives the rest.
+    standing = standing_score(submission)
     results = run.results if run is not None else []
     if failed_on_our_side_while_hidden(session, submission, results):
         # The other episodes' per-family outcomes would tell the team about the hidden suite
         # at no cost (the run is not charged): nothing per family until it is rerun and scored.
-        results, score = [], None
+        results, score, standing = [], None, None
     reasons: dict[str, dict[str, int]] = {}
     hidden = submission.phase in hidden_phases(session)
     live_hidden = live_in_hidden_phase(run, hidden)
@@ -376,10 +389,10 @@ def detail(session: Session, submission: Submission) -> SubmissionDetail:
         file_sha256=submission.file_sha256,
         file_size=submission.file_size,
         attempt=run.attempt if run is not None else 0,
-        scoring_profile=score.profile if score is not None else None,
+        scoring_profile=standing.profile if standing is not None else None,
         families={
             family: FamilyMetrics.model_validate(values)
-            for family, values in (score.families if score is not None else {}).items()
+            for family, values in (standing.families if standing is not None else {}).items()
         },
         failure_reasons={family: reasons[family] for family in sorted(reasons)},
         training=_training(submission),

@@ -2,7 +2,8 @@
 :mod:`server.services.evaluation`, whose claim, lease and fence they follow).
 
 An offline submission goes ``queued -> training -> running``: :func:`start_training` makes its
-first job; a worker claims it (:func:`claim_training`), renews the lease with the progress the
+first seed set, one job per seed of its phase (:mod:`server.services.seed_sets`); a worker claims
+each (:func:`claim_training`), renews the lease with the progress the
 team sees (:func:`heartbeat`) and records the end (:func:`record_trained`, which creates the
 evaluation run of the trained output, or :func:`record_failed`). A worker that dies stops
 renewing its lease and :func:`reap` hands the job to another, which trains again from scratch.
@@ -19,11 +20,10 @@ from arena.config import Settings
 from server.core.queue import RunPlan
 from server.models import Submission, TrainingJob
 from server.models import utcnow as now
-from server.services import leases
+from server.services import leases, phases, seed_sets
 from server.services.errors import Conflict
-from server.services.evaluation import cannot_start, create_run, lock
+from server.services.evaluation import cannot_start, create_run, lock, stop_seed_set
 from server.services.leases import lease_until
-from server.services.phases import PhaseMisconfigured
 from server.services.storable import storable_text
 from server.status import (
     ACTIVE_RUN,
@@ -48,6 +48,7 @@ class TrainingClaim:
     submission_id: int
     upload_key: str  # the submission's zip in the artifact store
     claim: int  # 1 for the first claim; more after workers died holding it: the fence token
+    seed: int = 0  # ARENA_TRAIN_SEED
 
     @property
     def claim_number(self) -> int:
@@ -57,45 +58,53 @@ class TrainingClaim:
         return f"{self.training_id} (claim {self.claim})"
 
 
-def _new_job(session: Session, settings: Settings, submission: Submission) -> TrainingJob:
-    attempt = 1 + (
-        session.scalar(
-            select(func.max(TrainingJob.attempt)).where(TrainingJob.submission_id == submission.id)
+def _new_set(session: Session, settings: Settings, submission: Submission) -> list[TrainingJob]:
+    """A new seed set: one queued job per seed of the submission's phase."""
+    seeds = phases.get_phase(session, submission.phase).training_seeds
+
+    def latest(column) -> int:
+        query = select(func.max(column)).where(TrainingJob.submission_id == submission.id)
+        return session.scalar(query) or 0
+
+    attempt, seed_set = latest(TrainingJob.attempt), 1 + latest(TrainingJob.seed_set)
+    jobs = [
+        TrainingJob(
+            submission_id=submission.id,
+            attempt=attempt + 1 + seed,
+            seed_set=seed_set,
+            seed=seed,
+            seeds=seeds,
+            status=TrainingStatus.queued,
+            claims=0,
+            elapsed_s=0.0,
+            log_tail="",
+            failure="",
+            error="",
+            model_sha256="",
+            model_size=0,
+            lease_expires_at=lease_until(settings),
         )
-        or 0
-    )
-    job = TrainingJob(
-        submission_id=submission.id,
-        attempt=attempt,
-        status=TrainingStatus.queued,
-        claims=0,
-        elapsed_s=0.0,
-        log_tail="",
-        failure="",
-        error="",
-        model_sha256="",
-        model_size=0,
-        lease_expires_at=lease_until(settings),
-    )
-    session.add(job)
+        for seed in range(seeds)
+    ]
+    session.add_all(jobs)
     session.flush()
-    return job
+    return jobs
 
 
-def start_training(session: Session, settings: Settings, submission_id: int) -> int | None:
-    """The first training job of a queued offline submission; None for a freestyle one or one
-    no longer queued (a duplicate delivery)."""
+def start_training(session: Session, settings: Settings, submission_id: int) -> tuple[int, ...]:
+    """The training jobs (one per seed) of a queued offline submission; none for a freestyle
+    one or one no longer queued (a duplicate delivery)."""
     submission = lock(session, Submission, submission_id)
     if submission.track != Track.offline or submission.status != SubmissionStatus.queued:
-        return None
+        return ()
     submission.status = advance(submission.status, SubmissionStatus.training, SUBMISSION_MOVES)
     submission.started_at = now()
-    return _new_job(session, settings, submission).id
+    return tuple(job.id for job in _new_set(session, settings, submission))
 
 
-def retrain(session: Session, settings: Settings, submission_id: int) -> TrainingJob:
-    """A new training attempt, from scratch, of a scored or failed offline submission; its score
-    stands until the new attempt's evaluation is scored."""
+def retrain(session: Session, settings: Settings, submission_id: int) -> list[TrainingJob]:
+    """A new training attempt, from scratch, of a scored or failed offline submission: a new
+    seed set, every seed trained again; its score stands until the new set is scored."""
     submission = lock(session, Submission, submission_id)
     if submission.track != Track.offline:
         raise Conflict(f"submission {submission_id} is {submission.track}: it has no training")
@@ -107,7 +116,7 @@ def retrain(session: Session, settings: Settings, submission_id: int) -> Trainin
     busy = [j for j in submission.trainings if j.status in ACTIVE_TRAINING]
     if busy or any(run.status in ACTIVE_RUN for run in submission.runs):
         raise Conflict(f"submission {submission_id} already has a training or evaluation running")
-    return _new_job(session, settings, submission)
+    return _new_set(session, settings, submission)
 
 
 def latest_trained(submission: Submission) -> TrainingJob | None:
@@ -116,8 +125,14 @@ def latest_trained(submission: Submission) -> TrainingJob | None:
 
 
 def shown_training(submission: Submission) -> TrainingJob | None:
-    """The job whose progress is shown: the latest attempt."""
-    return submission.trainings[-1] if submission.trainings else None
+    """The job whose progress is shown, of the latest seed set: a failed seed (why the
+    submission failed), else the first still under way, else the last."""
+    jobs = seed_sets.latest_set(submission)
+    failed = [job for job in jobs if job.status == TrainingStatus.failed]
+    active = [job for job in jobs if job.status in ACTIVE_TRAINING]
+    if failed or active:
+        return (failed or active)[0]
+    return jobs[-1] if jobs else None
 
 
 def claim_training(
@@ -139,6 +154,7 @@ def claim_training(
         submission_id=job.submission_id,
         upload_key=job.submission.upload_key,
         claim=job.claims,
+        seed=job.seed,
     )
 
 
@@ -208,13 +224,14 @@ def record_trained(
     if submission.status == SubmissionStatus.training:
         submission.status = advance(submission.status, SubmissionStatus.running, SUBMISSION_MOVES)
     elif submission.status not in (
+        SubmissionStatus.running,  # another seed trained first
         SubmissionStatus.scored,
         SubmissionStatus.failed,
     ):  # cancelled or disqualified
         return None
     try:
         return create_run(session, settings, submission, training=job)
-    except PhaseMisconfigured as exc:
+    except phases.PhaseMisconfigured as exc:
         if submission.status == SubmissionStatus.running:
             cannot_start(submission, exc.message)
         return None
@@ -232,7 +249,8 @@ def record_failed(
     ours: bool = False,
 ) -> bool:
     """A training that ended without a model: the named ``failure`` (the team's, charged) or,
-    with ``ours``, a failure on our side (not charged). False if the claim was superseded."""
+    with ``ours``, a failure on our side (not charged). The seed set can no longer be scored:
+    its other seeds stop. False if the claim was superseded."""
     job = _finish(session, claim, worker)
     if job is None:
         return False
@@ -241,22 +259,13 @@ def record_failed(
     job.failure, job.error = failure, error
     job.elapsed_s, job.log_tail = elapsed_s, storable_text(log_tail)
     submission = lock(session, Submission, claim.submission_id)
-    if submission.status == SubmissionStatus.training:
+    if submission.status in (SubmissionStatus.training, SubmissionStatus.running):
         submission.status = advance(submission.status, SubmissionStatus.failed, SUBMISSION_MOVES)
-        submission.status_reason = f"{failure}: {error}"
+        submission.status_reason = seed_sets.reason(job, f"{failure}: {error}")
         submission.failed_on_our_side = ours
         submission.finished_at = now()
+    stop_seed_set(session, submission)
     return True
-
-
-def cancel_trainings(submission: Submission) -> None:
-    """Cancel the submission's active training: its worker sees it on the next heartbeat and
-    kills the sandbox."""
-    for job in submission.trainings:
-        if job.status in ACTIVE_TRAINING:
-            job.status = advance(job.status, TrainingStatus.cancelled, TRAINING_MOVES)
-            leases.drop(job)
-            job.finished_at = now()
 
 
 def reap(session: Session, settings: Settings, *, queue_empty: bool) -> tuple[int, ...]:

@@ -259,6 +259,7 @@ const Arena = (() => {
     $("interval-row").hidden = !(s.metrics && ci);
     $("completion-interval").textContent =
       s.metrics && ci ? `[${fmt("completion", ci.low)}, ${fmt("completion", ci.high)}]` : "";
+    renderSeeds(s.metrics && s.seeds);
     const families = Object.keys(s.families).sort();
     $("families-box").hidden = families.length === 0;
     $("families").innerHTML = families.length ? `<table><thead><tr><th>family</th>` +
@@ -277,6 +278,16 @@ const Arena = (() => {
       : `<p class="empty">None.</p>`;
   }
 
+  function renderSeeds(seeds) {
+    // Scored over several training seeds: their spread, then each seed's completion.
+    $("seeds-row").hidden = !seeds;
+    $("seeds-text").textContent = seeds
+      ? `${seeds.count}: completion ${fmt("completion", seeds.completion_min)}–` +
+        `${fmt("completion", seeds.completion_max)} (std ${fmt("completion", seeds.completion_std)}); ` +
+        seeds.per_seed.map((x) => `seed ${x.seed} ${fmt("completion", x.completion)}`).join(", ")
+      : "";
+  }
+
   function renderTraining(t, status) {
     // Offline (Track 2) submissions train first; their training log is the team's to read.
     $("training-box").hidden = !t;
@@ -288,7 +299,8 @@ const Arena = (() => {
     const failure = t.failure ? ` · ${t.failure}: ${t.error}` : "";
     const model = t.model_sha256 ? ` · model sha256 ${t.model_sha256.slice(0, 12)}… ` +
       `(${t.model_size} bytes)` : "";
-    $("training-text").textContent = `attempt ${t.attempt} · ${when}${failure}${model}`;
+    const seed = t.seeds > 1 ? ` · seed ${t.seed} of ${t.seeds}` : "";
+    $("training-text").textContent = `attempt ${t.attempt}${seed} · ${when}${failure}${model}`;
     $("training-log").textContent = t.log_tail || "(no output yet)";
   }
 

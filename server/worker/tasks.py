@@ -92,13 +92,11 @@ def evaluate_submission(*, submission_id: int) -> None:
     settings = get_settings()
     with get_database().session() as session:
         # Offline submissions train first; the training's end starts their evaluation.
-        training_id = training.start_training(session, settings, submission_id)
+        training_ids = training.start_training(session, settings, submission_id)
         plan = (
-            evaluation.start_evaluation(session, settings, submission_id)
-            if training_id is None
-            else None
+            None if training_ids else evaluation.start_evaluation(session, settings, submission_id)
         )
-    if training_id is not None:
+    for training_id in training_ids:  # one per seed
         local.queue().train(training_id)
     if plan is not None:
         local.queue().send(plan)

@@ -89,6 +89,7 @@ class Trainings:
                 on_progress=progress,
                 progress_every_s=beat_interval_s(settings.lease_seconds),
                 resume_from=resume_from,
+                seed=claim.seed,
             )
         except TrainingStopped:
             return None

@@ -11,6 +11,7 @@ from fastapi import APIRouter, Request
 from fastapi import Path as PathParam
 from fastapi.responses import HTMLResponse
 
+from arena.config import Settings
 from server.api.deps import (
     MAX_ROW_ID,
     GapQuery,
@@ -21,7 +22,7 @@ from server.api.deps import (
     SettingsDep,
 )
 from server.api.security import page_templates
-from server.models import utcnow
+from server.models import Phase, utcnow
 from server.services import phases, scenarios
 from server.services.errors import NotFound
 from server.services.leaderboard import METRICS, with_gap
@@ -61,6 +62,16 @@ def leaderboard_page(
     )
 
 
+def _costs(phase: Phase, episodes: int, settings: Settings) -> list[str]:
+    """What makes a score of the phase take longer than one training and one episode each."""
+    costs = []
+    if episodes > 1 or phase.adaptive_target is not None:
+        costs.append(phases.adaptive_cost(phase, settings) or phases.episodes_cost(episodes))
+    if phase.training_seeds > 1:
+        costs.append(phases.seeds_cost(phase.training_seeds))
+    return costs
+
+
 @router.get("/submit", response_class=HTMLResponse)
 def submit_page(request: Request, session: SessionDep, settings: SettingsDep) -> HTMLResponse:
     # Every phase, a closed or future one too (disabled, saying when): a phase that just
@@ -80,12 +91,9 @@ def submit_page(request: Request, session: SessionDep, settings: SettingsDep) ->
             "states": {p.name: phases.state(p, moment) for p in known},
             "any_open": any(phases.is_open(p, moment) for p in known),
             "default_phase": default,
-            # Said before the upload: several episodes multiply the time to a score.
-            "costs": {
-                p.name: phases.adaptive_cost(p, settings) or phases.episodes_cost(episodes[p.name])
-                for p in known
-                if episodes[p.name] > 1 or p.adaptive_target is not None
-            },
+            # Said before the upload: several episodes, or training seeds, multiply the time to
+            # a score.
+            "costs": {p.name: "; ".join(_costs(p, episodes[p.name], settings)) for p in known},
         },
     )
 

@@ -28,6 +28,7 @@ print("rows", len(data["actions"]), flush=True)
 (out / "ckpt").mkdir()
 np.save(out / "ckpt" / "mean.npy", data["actions"].mean(axis=0))
 (out / "weights.txt").write_text("ok")
+print("seed", os.environ["ARENA_TRAIN_SEED"], flush=True)
 """
 
 
@@ -81,11 +82,18 @@ def test_a_good_run_reads_the_dataset_and_its_output_packs(tmp_path, settings, d
     result, out = run(tmp_path, settings, dataset, any_kind, GOOD)
     assert result.ok, result
     assert "rows 50" in result.log
+    assert "seed 0" in result.log  # a phase of one seed
     assert (out / "weights.txt").read_text() == "ok"
     sha = pack_model(out, tmp_path / "model.tar.gz")
     assert sha == pack_model(out, tmp_path / "again.tar.gz")  # deterministic: names the model
     back = unpack_model(tmp_path / "model.tar.gz", tmp_path / "back")
     assert np.load(back / "ckpt" / "mean.npy").shape == (3,)
+
+
+def test_the_seed_reaches_train_py(tmp_path, settings, dataset, any_kind):
+    result, _ = run(tmp_path, settings, dataset, any_kind, GOOD, seed=7)
+    assert result.ok, result
+    assert "seed 7" in result.log
 
 
 HOSTILE = {
@@ -219,10 +227,13 @@ def test_arena_train_keeps_train_py_output_on_success(tmp_path, dataset):
             str(out),
             "--sandbox",
             "process",
+            "--seed",
+            "3",
         ],
     )
     assert result.exit_code == 0, result.output
     assert "rows 50" in result.output
+    assert "seed 3" in result.output  # ARENA_TRAIN_SEED, as the service sets it
     assert "rows 50" in (tmp_path / "model.train.log").read_text()
     assert not (out / "model.train.log").exists()
     assert "model.train.log" in result.output.replace("\n", "")

@@ -29,9 +29,12 @@ def offline(db) -> int:
     return queued_submission(db, team_id, track=Track.offline)
 
 
-def started(db, settings, submission_id: int) -> int:
+def started(db, settings, submission_id: int) -> int | None:
+    """The one training job of a phase of one seed; None when nothing started."""
     with db.session() as session:
-        return training.start_training(session, settings, submission_id)
+        ids = training.start_training(session, settings, submission_id)
+    assert len(ids) <= 1
+    return ids[0] if ids else None
 
 
 def claim(db, settings, training_id: int, worker: str):
@@ -144,7 +147,7 @@ def test_retrain_is_a_new_attempt_and_rerun_uses_the_trained_output(db, settings
         for run in submission.runs:
             run.status = "scored"
     with db.session() as session:
-        rerun = evaluation.rerun(session, settings, sid)
+        (rerun,) = evaluation.rerun(session, settings, sid)
     assert rerun.run_id != plan.run_id
     with db.session() as session:
         session.get(Submission, sid).runs[-1].status = "scored"

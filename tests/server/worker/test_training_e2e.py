@@ -1,7 +1,8 @@
 """Track 2 end to end with real processes: an offline submission uploaded over HTTP trains in
 the bubblewrap sandbox on a dataset of real replays, is evaluated with its trained output and
 ranked on the offline leaderboard; a training past its budget fails with its name; a worker
-killed while training loses nothing: the training resumes from its last checkpoint."""
+killed while training loses nothing: the training resumes from its last checkpoint; a phase of
+two seeds trains and evaluates each and scores the submission over them."""
 
 from __future__ import annotations
 
@@ -258,3 +259,45 @@ def wait_for_training(db: Database, submission_id: int, timeout_s: float = 60) -
             return
         time.sleep(0.2)
     raise AssertionError("no worker took the training")
+
+
+# The offline_bc example, saying which seed it trains with.
+SEEDED = """\
+import os, runpy
+print("training with seed", os.environ["ARENA_TRAIN_SEED"], flush=True)
+runpy.run_path("bc_train.py", run_name="__main__")
+"""
+
+
+def test_a_phase_of_two_seeds_trains_and_evaluates_each_and_scores_over_them(
+    stack_settings, tmp_path
+):
+    from server.services import phases
+
+    db = Database(stack_settings.database_url)
+    phases.set_phase(db, stack_settings, "final", phases.PhaseChanges(training_seeds=2))
+    _, token = make_team(db, "bc-team")
+    worker = start_worker(stack_settings, tmp_path / "worker.log")
+    try:
+        with api_server(stack_settings, tmp_path / "api.log") as (url, _):
+            sid = upload(url, token, offline_zip(tmp_path / "seeded", SEEDED), "two seeds")
+            final = watch(url, token, sid)[-1]
+            assert final["status"] == "scored", final
+            seeds = final["seeds"]
+            assert seeds["count"] == 2 and [s["seed"] for s in seeds["per_seed"]] == [0, 1]
+            mean = sum(s["completion"] for s in seeds["per_seed"]) / 2
+            assert abs(final["metrics"]["completion"] - mean) < 1e-9
+            time.sleep(1.1)  # the API re-checks the leaderboard generation once a second
+            board = httpx.get(f"{url}/api/v1/leaderboard", params={"track": "offline"}).json()
+            assert [e["seeds"]["count"] for e in board["entries"]] == [2]
+    finally:
+        stop(worker)
+    with db.session() as session:
+        jobs = session.scalars(select(TrainingJob).where(TrainingJob.submission_id == sid)).all()
+        # Each job's sandbox had its own ARENA_TRAIN_SEED; each trained model had its own run.
+        assert sorted(
+            (job.seed, f"training with seed {job.seed}" in job.log_tail) for job in jobs
+        ) == [(0, True), (1, True)]
+        runs = session.scalars(select(EvaluationRun).where(EvaluationRun.submission_id == sid))
+        assert sorted(run.training.seed for run in runs) == [0, 1]
+    db.dispose()

@@ -1,0 +1,305 @@
+"""Track 2 over seeds, through the service as the worker's tasks drive it (on SQLite and
+PostgreSQL): a phase of N training seeds trains each offline submission N times, each model
+evaluated by its own run; the submission is scored over the seeds once the last one is, any
+seed's failure fails it naming the seed, and the organisers' operations act on the whole set."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+from sqlalchemy import select
+from typer.testing import CliRunner
+
+from arena.cli import app
+from arena.outcome import AgentOutcome, ScenarioStatus
+from evaluator.runner import ScenarioOutcome
+from server.core.artifacts import DatabaseStore
+from server.core.queue import TaskQueue
+from server.models import EvaluationRun, Phase, SeedSetScore, Submission, TrainingJob
+from server.services import admin, evaluation, leaderboard, phases, submissions, training
+from server.services.errors import InvalidInput
+from server.status import RunStatus, SubmissionStatus, TrainingStatus
+from server.tracks import Track
+from tests.server.builders import agent, make_team, queued_submission
+
+
+def set_seeds(db, settings, seeds: int) -> None:
+    phases.set_phase(db, settings, "final", phases.PhaseChanges(training_seeds=seeds))
+
+
+def offline(db, team: str = "bc") -> int:
+    team_id, _ = make_team(db, team)
+    return queued_submission(db, team_id, track=Track.offline)
+
+
+def start(db, settings, submission_id: int) -> tuple[int, ...]:
+    with db.session() as session:
+        return training.start_training(session, settings, submission_id)
+
+
+def claim(db, settings, training_id: int):
+    with db.session() as session:
+        return training.claim_training(session, settings, training_id, "w1")
+
+
+def trained(db, settings, job):
+    with db.session() as session:
+        return training.record_trained(
+            session,
+            settings,
+            job,
+            "w1",
+            elapsed_s=1.0,
+            log_tail="saved",
+            model_key=f"training/{job.training_id}/model.tar.gz",
+            model_sha256="a" * 64,
+            model_size=10,
+        )
+
+
+def evaluate(db, settings, plan, fails: int) -> RunStatus | None:
+    """Every episode of the run reported as a worker does, the first ``fails`` scenarios with
+    the agent colliding; then the aggregation."""
+    for number, episode in enumerate(plan.episodes):
+        with db.session() as session:
+            job = evaluation.claim_scenario(
+                session, settings, plan.run_id, episode.scenario_id, "w1", episode.index
+            )
+        outcome = ScenarioOutcome(
+            scenario_id=episode.scenario_id,
+            status=ScenarioStatus.done,
+            steps=0,
+            agents=(AgentOutcome(**agent(number >= fails)),),
+            record_path=None,
+            episode=episode.index,
+        )
+        with db.session() as session:
+            evaluation.record_scenario(session, job, "w1", outcome, "", record_key=None)
+    with db.session() as session:
+        return evaluation.finish_run(session, DatabaseStore(db), plan.run_id)
+
+
+def status_of(db, submission_id: int) -> SubmissionStatus:
+    with db.session() as session:
+        return session.get(Submission, submission_id).status
+
+
+def test_each_seed_is_a_training_job_of_its_own_with_its_seed(db, settings):
+    set_seeds(db, settings, 3)
+    sid = offline(db)
+    ids = start(db, settings, sid)
+    assert len(ids) == 3
+    claims = [claim(db, settings, training_id) for training_id in ids]
+    assert [c.seed for c in claims] == [0, 1, 2]  # ARENA_TRAIN_SEED of each sandbox
+    with db.read_session() as session:
+        jobs = session.scalars(select(TrainingJob).order_by(TrainingJob.seed)).all()
+        assert {(j.seed_set, j.seeds) for j in jobs} == {(1, 3)}
+    assert start(db, settings, sid) == ()  # a duplicate delivery
+
+
+def test_the_submission_is_scored_over_its_seeds_once_the_last_one_is(db, settings):
+    set_seeds(db, settings, 3)
+    sid = offline(db)
+    plans = [trained(db, settings, claim(db, settings, i)) for i in start(db, settings, sid)]
+    scenarios = len({episode.scenario_id for episode in plans[0].episodes})
+    # Seed 0 fails no scenario, seed 1 one, seed 2 two.
+    assert evaluate(db, settings, plans[0], fails=0) == RunStatus.scored
+    assert evaluate(db, settings, plans[1], fails=1) == RunStatus.scored
+    assert status_of(db, sid) == SubmissionStatus.running  # a seed still to come
+    with db.read_session() as session:
+        assert leaderboard.compute(session, Track.offline, "final").entries == []
+    assert evaluate(db, settings, plans[2], fails=2) == RunStatus.scored
+    assert status_of(db, sid) == SubmissionStatus.scored
+    per_seed = [0.0, 1 / scenarios, 2 / scenarios]
+    with db.read_session() as session:
+        score = session.scalar(select(SeedSetScore))
+        assert score.completion == pytest.approx(sum(per_seed) / 3)
+        assert (score.seed_completion_min, score.seed_completion_max) == pytest.approx(
+            (0.0, 2 / scenarios)
+        )
+        assert score.seed_completion_std == pytest.approx(1 / scenarios)
+        assert score.completion_low <= score.completion <= score.completion_high
+        view = submissions.detail(session, session.get(Submission, sid))
+        board = leaderboard.compute(session, Track.offline, "final")
+    assert view.metrics.completion == pytest.approx(score.completion)
+    assert view.seeds.count == 3
+    assert [s.completion for s in view.seeds.per_seed] == pytest.approx(per_seed)
+    assert view.completion_interval.low == score.completion_low
+    (entry,) = board.entries
+    assert entry.metrics.completion == pytest.approx(score.completion)
+    assert entry.seeds.completion_max == pytest.approx(2 / scenarios)
+    assert entry.rank_range == "1"
+    rows = leaderboard.to_csv(board).splitlines()
+    header, row = rows[0].split(","), rows[1].split(",")
+    assert row[header.index("seeds")] == "3"
+    assert float(row[header.index("seed_completion_max")]) == pytest.approx(2 / scenarios)
+
+
+def test_the_rest_api_shows_the_seeds(db, settings, client):
+    set_seeds(db, settings, 2)
+    team_id, token = make_team(db, "api")
+    sid = queued_submission(db, team_id, track=Track.offline)
+    for training_id in start(db, settings, sid):
+        evaluate(db, settings, trained(db, settings, claim(db, settings, training_id)), fails=1)
+    shown = client.get(f"/api/v1/submissions/{sid}", headers={"Authorization": f"Bearer {token}"})
+    assert shown.status_code == 200, shown.text
+    seeds = shown.json()["seeds"]
+    assert (seeds["count"], seeds["completion_std"]) == (2, 0.0)
+    assert [s["seed"] for s in seeds["per_seed"]] == [0, 1]
+    board = client.get("/api/v1/leaderboard", params={"track": "offline", "phase": "final"})
+    (entry,) = board.json()["entries"]
+    assert entry["seeds"]["count"] == 2
+    assert entry["completion_interval"] == shown.json()["completion_interval"]
+    csv = client.get("/api/v1/leaderboard.csv", params={"track": "offline", "phase": "final"})
+    assert "seed_completion_std" in csv.text.splitlines()[0]
+    page = client.get("/", params={"track": "offline", "phase": "final"})
+    assert "2 seeds" in page.text
+    submit = client.get("/submit")  # said before the upload
+    assert "offline submissions train 2 times" in submit.text
+
+
+def test_a_seeds_failure_fails_the_submission_naming_it_and_stops_the_others(db, settings):
+    set_seeds(db, settings, 3)
+    sid = offline(db)
+    ids = start(db, settings, sid)
+    first, second, third = (claim(db, settings, i) for i in ids)
+    plan = trained(db, settings, first)  # seed 0 trained: its evaluation starts
+    with db.session() as session:
+        assert training.record_failed(
+            session, second, "w1", failure="train_crashed", error="exit 1", log_tail="boom"
+        )
+    with db.read_session() as session:
+        submission = session.get(Submission, sid)
+        assert submission.status == SubmissionStatus.failed
+        assert submission.status_reason == "seed 1 (of 3): train_crashed: exit 1"
+        shown = submissions.detail(session, submission).training  # why it failed
+        assert (shown.seed, shown.seeds, shown.failure) == (1, 3, "train_crashed")
+        third_job = session.get(TrainingJob, third.training_id)
+        assert third_job.status == TrainingStatus.cancelled
+        assert submission.runs[0].status == RunStatus.cancelled
+    with db.session() as session:  # seed 2's worker learns on its next heartbeat
+        assert not training.heartbeat(session, settings, third, "w1", 1.0, "")
+    with db.session() as session:  # the cancelled run's episode tasks do nothing
+        episode = plan.episodes[0]
+        assert (
+            evaluation.claim_scenario(
+                session, settings, plan.run_id, episode.scenario_id, "w1", episode.index
+            )
+            is None
+        )
+
+
+def test_a_seeds_failed_evaluation_fails_the_submission_naming_it(db, settings):
+    set_seeds(db, settings, 2)
+    sid = offline(db)
+    plans = [trained(db, settings, claim(db, settings, i)) for i in start(db, settings, sid)]
+    with db.session() as session:  # seed 1's run loses an episode on our side
+        run_id = plans[1].run_id
+        first = plans[1].episodes[0]
+        job = evaluation.claim_scenario(
+            session, settings, run_id, first.scenario_id, "w1", first.index
+        )
+    outcome = ScenarioOutcome(
+        scenario_id=first.scenario_id,
+        status=ScenarioStatus.evaluator_error,
+        steps=0,
+        agents=(),
+        record_path=None,
+        error="simulator died",
+    )
+    with db.session() as session:
+        evaluation.record_scenario(session, job, "w1", outcome, "")
+    rest = dataclasses.replace(plans[1], episodes=plans[1].episodes[1:])
+    assert evaluate(db, settings, rest, fails=0) == RunStatus.failed
+    with db.read_session() as session:
+        submission = session.get(Submission, sid)
+        assert submission.status == SubmissionStatus.failed
+        assert submission.status_reason.startswith("seed 1 (of 2): 1 scenario(s) failed on our")
+        assert submission.runs[0].status == RunStatus.cancelled  # seed 0's stops
+
+
+def test_seeds_evaluated_on_different_suites_are_not_scored_together(db, settings):
+    set_seeds(db, settings, 2)
+    sid = offline(db)
+    plans = [trained(db, settings, claim(db, settings, i)) for i in start(db, settings, sid)]
+    assert evaluate(db, settings, plans[0], fails=0) == RunStatus.scored
+    with db.session() as session:  # as if the phase's suite changed before seed 1's run
+        session.get(EvaluationRun, plans[1].run_id).manifest_sha256 = "another suite"
+    assert evaluate(db, settings, plans[1], fails=0) == RunStatus.scored
+    with db.read_session() as session:
+        submission = session.get(Submission, sid)
+        assert submission.status == SubmissionStatus.failed
+        assert submission.failed_on_our_side  # not the team's: it costs no try
+        assert "different suites" in submission.status_reason
+        assert session.scalar(select(SeedSetScore)) is None
+
+
+def test_rerun_retrain_and_requeue_act_on_the_whole_set(db, settings):
+    set_seeds(db, settings, 2)
+    sid = offline(db)
+    for training_id in start(db, settings, sid):
+        evaluate(db, settings, trained(db, settings, claim(db, settings, training_id)), fails=0)
+    assert status_of(db, sid) == SubmissionStatus.scored
+    queue = TaskQueue(settings)
+    try:
+        assert admin.rerun(db, settings, queue, sid) == 3  # runs 3 and 4, one per seed
+        with db.read_session() as session:
+            runs = session.get(Submission, sid).runs
+            active = [r.training.seed for r in runs if r.status == RunStatus.queued]
+            assert active == [0, 1]
+        with db.session() as session:
+            for run in session.get(Submission, sid).runs:
+                if run.status == RunStatus.queued:
+                    evaluation.cancel_run(session, run)
+        assert admin.retrain(db, settings, queue, sid) == 3  # jobs 3 and 4: seed set 2
+        with db.read_session() as session:
+            jobs = session.get(Submission, sid).trainings
+            assert [(j.seed_set, j.seed, j.status) for j in jobs] == [
+                (1, 0, "trained"),
+                (1, 1, "trained"),
+                (2, 0, "queued"),
+                (2, 1, "queued"),
+            ]
+        assert admin.requeue(db, settings, queue, sid) == "2 trainings re-sent"
+    finally:
+        queue.close()
+    assert status_of(db, sid) == SubmissionStatus.scored  # the first set's score stands
+
+
+def test_a_phase_trains_1_to_16_seeds(db, settings):
+    for wrong in (0, 17):
+        with pytest.raises(InvalidInput, match="training seeds"):
+            set_seeds(db, settings, wrong)
+    with db.read_session() as session:
+        assert session.scalar(select(Phase).where(Phase.name == "final")).training_seeds == 1
+
+
+def test_the_cli_sets_the_training_seeds(db, settings, monkeypatch):
+    for key, value in {
+        "ARENA_DATABASE_URL": settings.database_url,
+        "ARENA_BROKER_URL": settings.broker_url,
+        "ARENA_BROKER_KEY_PREFIX": settings.broker_key_prefix,
+        "ARENA_DATA_DIR": str(settings.data_dir),
+        "ARENA_HIDDEN_SUITE_DIR": str(settings.hidden_suite_dir),
+    }.items():
+        monkeypatch.setenv(key, value)
+    from arena.config import get_settings
+
+    get_settings.cache_clear()
+    try:
+        result = CliRunner().invoke(
+            app, ["admin", "phases", "set", "final", "--training-seeds", "4"]
+        )
+        listed = CliRunner().invoke(app, ["admin", "phases", "list"])
+        refused = CliRunner().invoke(
+            app, ["admin", "phases", "set", "final", "--training-seeds", "17"]
+        )
+    finally:
+        get_settings.cache_clear()
+    assert result.exit_code == 0, result.output
+    assert "train 4 times (seeds 0 to 3)" in result.output
+    assert "seeds" in listed.output
+    assert refused.exit_code != 0 and "1 to 16" in refused.output
+    with db.read_session() as session:
+        assert session.scalar(select(Phase).where(Phase.name == "final")).training_seeds == 4
