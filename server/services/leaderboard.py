@@ -309,7 +309,8 @@ class LeaderboardCache:
             return stale
         try:
             cached = self._cached.get((phase, track))
-            if cached is not None and time.monotonic() - cached.checked_at < self.recheck_s:
+            if cached is not None and cached.checked_at >= moment:
+                # Checked while this request waited for the lock: nothing older is served.
                 return cached
             with self.db.read_session() as session:
                 get_phase(session, phase)  # an unknown phase is a 404, never cached
