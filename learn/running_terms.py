@@ -40,7 +40,11 @@ class RunningTerm(Protocol):
 
 class Closeness:
     """:func:`evaluator.scoring.terms.distance_obs`: the largest ``exp(-decay * d)`` over the
-    neighbours within ``headway x speed`` of the ego and the half-angle of its heading."""
+    neighbours within ``headway x speed`` of the ego and the half-angle of its heading.
+
+    A row's neighbours are nearest first (``docs/records.md``) and closeness falls with distance,
+    so the first neighbour ahead is the largest: the rest are not looked at.
+    """
 
     def __init__(self, profile: TermParameters) -> None:
         self._headway = profile.obs_headway_s
@@ -54,7 +58,6 @@ class Closeness:
             return 0.0
         reach = self._headway * speed  # [m]
         x, y, heading = row.x, row.y, row.heading
-        best = 0.0
         for nx, ny in zip(nbr.x.tolist(), nbr.y.tolist(), strict=True):
             dx, dy = nx - x, ny - y
             # A neighbour farther than reach along either axis is farther in a straight line:
@@ -62,10 +65,11 @@ class Closeness:
             if abs(dx) > reach or abs(dy) > reach:
                 continue
             distance = math.hypot(dx, dy)
-            if distance > reach or abs(wrap_angle(math.atan2(dy, dx) - heading)) > self._half_angle:
-                continue
-            best = max(best, math.exp(-self._decay * distance))
-        return best
+            if distance > reach:
+                return 0.0  # and so are all the rest
+            if abs(wrap_angle(math.atan2(dy, dx) - heading)) <= self._half_angle:
+                return math.exp(-self._decay * distance)
+        return 0.0
 
 
 class ClosenessRunningMean:
