@@ -16,7 +16,7 @@ time, which counts only the work done.
 
 Usage: ``python bench/env_throughput.py [--steps 1000] [--vehicles 100] [--repeat 2]``.
 The last line printed is ``env_ratio=<env_time/raw_time> raster_ms=<extra ms per agent-step for
-rasters>`` (targets: at most 2 and at most 1).
+rasters>`` (targets: at most 3 and at most 1).
 """
 
 from __future__ import annotations

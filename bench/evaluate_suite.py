@@ -4,7 +4,7 @@ part, and the floor a sandboxed agent cannot go below: raw libsumo stepping the 
 an empty observation's round trip to an agent.
 
     python bench/evaluate_suite.py [--sandbox docker] [--suite DIR] [--keep DIR] [--first N]
-                                   [--only trivial]
+                                   [--only trivial] [--episodes N [--measure-episodes K]]
 
 Prints, in order:
 
@@ -34,6 +34,17 @@ fit is only as good as the machine is quiet: on a loaded host the per-step noise
 intercept (it can come out negative). ``--only trivial`` runs the trivial agent alone, twice: the
 first run parses each scenario's network and recording once (:mod:`sim.inputs`), as the planner's
 runs do in the full benchmark, and the second is the one fitted.
+
+``--episodes N`` measures the Driving SMARTS 2022 protocol instead: the planner with two jobs, every
+reactive scenario of the suite ``N`` times with other traffic (:mod:`arena.episodes`) and each
+replay once (71 x N + 57 episodes on the hidden suite). It runs ``K = --measure-episodes`` (default
+3) episodes of each reactive scenario and extrapolates to ``N`` unless ``K >= N``: a scenario's
+first episode is kept as measured (it alone parses the scenario's network and recording, once per
+evaluating process), its later episodes' time is scaled by ``(N - 1) / (K - 1)``, and the run's
+wall time by the ratio of that extrapolated episode time to the measured one (the same overlap of
+the two jobs). The output says whether the figure is measured or extrapolated. The last line is
+``ds2022_protocol_s=<wall time of the protocol [s]> episodes=<N> measured_episodes=<K>
+extrapolated=<yes|no>``; target: at most 600 s on the 2-core machine with ``N = 50``.
 """
 
 from __future__ import annotations
@@ -54,6 +65,7 @@ import yaml
 from sandbox_roundtrip import floor_round_trip_ms  # a sibling script (bench/ is on sys.path)
 
 from arena.config import SandboxKind, get_settings
+from arena.episodes import episodes_of
 from arena.suite import load_suite
 from evaluator.runner import evaluate
 from evaluator.runner.evaluate import TIMINGS_FILE
@@ -78,10 +90,25 @@ def build_hidden_suite(out: Path, seed: int) -> None:
 
 
 def timed_evaluation(
-    agent: Path, suite: Path, out: Path, jobs: int, sandbox: SandboxKind, ids: list[str] | None
+    agent: Path,
+    suite: Path,
+    out: Path,
+    jobs: int,
+    sandbox: SandboxKind,
+    ids: list[str] | None,
+    episodes: int = 1,
 ) -> SuiteRun:
+    """``episodes`` of each reactive scenario; ``scenario_s`` is then by episode name."""
     started = time.perf_counter()
-    summary = evaluate(agent, suite, out_dir=out, scenario_ids=ids, jobs=jobs, sandbox=sandbox)
+    summary = evaluate(
+        agent,
+        suite,
+        out_dir=out,
+        scenario_ids=ids,
+        jobs=jobs,
+        sandbox=sandbox,
+        episodes_per_scenario=episodes,
+    )
     wall = time.perf_counter() - started
     if summary.uncharged:
         print(f"  warning: uncharged scenarios {', '.join(summary.uncharged)}", file=sys.stderr)
@@ -105,6 +132,51 @@ def fit_fixed_and_step(run: SuiteRun) -> tuple[float, float]:
     seconds = np.array([run.scenario_s[i] for i in ids])
     per_step, fixed = np.polyfit(steps, seconds, 1)
     return fixed * 1e3, per_step * 1e3
+
+
+def ds2022_protocol(
+    suite: Path, out: Path, sandbox: SandboxKind, ids: list[str] | None, episodes: int, measure: int
+) -> None:
+    """Time the planner on ``episodes`` episodes of each reactive scenario and one of each replay,
+    two jobs: measured with ``measure`` episodes per reactive scenario and extrapolated when
+    fewer than ``episodes`` (see the module's docstring)."""
+    measured = min(measure, episodes)
+    entries = [e for e in load_suite(suite).scenarios if ids is None or e.id in ids]
+    run = timed_evaluation(PLANNER, suite, out, 2, sandbox, ids, measured)
+    reactive = {e.id for e in entries if e.reactive}
+    first_s = later_s = replay_s = 0.0
+    for episode in episodes_of(entries, measured):
+        seconds = run.scenario_s[episode.name]
+        if episode.scenario_id not in reactive:
+            replay_s += seconds
+        elif episode.index == 0:
+            first_s += seconds
+        else:
+            later_s += seconds
+    measured_s = first_s + later_s + replay_s
+    extrapolated = measured < episodes
+    # Without later episodes to scale, the first ones stand for all (K = 1).
+    if measured > 1:
+        total_s = replay_s + first_s + later_s * (episodes - 1) / (measured - 1)
+    else:
+        total_s = replay_s + first_s * episodes
+    protocol_s = run.wall_s * total_s / measured_s
+    n_reactive, n_replays = len(reactive), len(entries) - len(reactive)
+    how = (
+        f"extrapolated from {measured} episodes of each reactive scenario "
+        f"({run.wall_s:.1f} s wall; episode time {measured_s:.0f} s -> {total_s:.0f} s)"
+        if extrapolated
+        else f"measured ({run.wall_s:.1f} s wall)"
+    )
+    print(
+        f"DS-2022 protocol, planner, jobs=2: {n_reactive} reactive scenarios x {episodes} "
+        f"episodes + {n_replays} replays = {n_reactive * episodes + n_replays} episodes, "
+        f"{protocol_s:.0f} s {how}"
+    )
+    print(
+        f"ds2022_protocol_s={protocol_s:.1f} episodes={episodes} measured_episodes={measured} "
+        f"extrapolated={'yes' if extrapolated else 'no'}"
+    )
 
 
 def raw_stepping(suite: str, steps: dict[str, int], queue) -> None:
@@ -152,7 +224,22 @@ def main() -> None:
     parser.add_argument(
         "--only", choices=["trivial"], help="only fixed_ms and step_ms (a quick measurement)"
     )
+    parser.add_argument(
+        "--episodes",
+        type=int,
+        help="only the DS-2022 protocol: N episodes of each reactive scenario, planner, 2 jobs",
+    )
+    parser.add_argument(
+        "--measure-episodes",
+        type=int,
+        default=3,
+        help="with --episodes: episodes of each reactive scenario run, the rest extrapolated",
+    )
     args = parser.parse_args()
+    if args.episodes is not None and (args.episodes < 1 or args.measure_episodes < 1):
+        parser.error("--episodes and --measure-episodes must be at least 1")
+    if args.episodes is not None and args.only:
+        parser.error("--episodes and --only measure different things: one at a time")
     if args.keep and args.keep.exists():
         parser.error(f"{args.keep} exists: results there would be resumed, not timed")
     seed = get_settings().development_seed
@@ -167,6 +254,11 @@ def main() -> None:
         ids = None
         if args.first:
             ids = [s.id for s in load_suite(suite).scenarios[: args.first]]
+        if args.episodes is not None:
+            ds2022_protocol(
+                suite, work / "ds2022", args.sandbox, ids, args.episodes, args.measure_episodes
+            )
+            return
         if args.only == "trivial":
             timed_evaluation(TRIVIAL, suite, work / "trivial-warm-up", 1, args.sandbox, ids)
         else:

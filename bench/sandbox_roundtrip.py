@@ -4,9 +4,11 @@ vs Docker, side by side.
 Target: the Docker median round trip with ``observation_format: arrays`` at most 0.1 ms.
 
 A trivial policy (one constant action per agent) gets a realistic observation per the agent
-interface: one agent, 4 waypoint paths x 50 waypoints, 20 neighbours. In-process calls the policy
-object directly with the native observation; every other row is the full evaluator path from the
-simulator's observation dict to the actions, once per format:
+interface: one agent, 4 waypoint paths x 50 waypoints, 20 neighbours, a fresh one each round (the
+sample scene driven on by a step: other objects and other values, made before the round's clock
+starts), as a simulator sends them; re-sending one observation would time a cache. In-process
+calls the policy object directly with the native observation; every other row is the full
+evaluator path from the simulator's observation dict to the actions, once per format:
 
 - ``native``: pickle the observation dicts, frame, write; the runner unpickles, calls the policy,
   answers in JSON; we decode the JSON.
@@ -32,6 +34,7 @@ import argparse
 import importlib.util
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -52,15 +55,43 @@ WARMUP = 200
 EMPTY = {"native": {"Agent_0": {}}, "arrays": {}}
 
 
-def timings_ms(act, obs: dict, steps: int) -> np.ndarray:
-    for _ in range(WARMUP):
-        act(obs)
+Observations = Callable[[int], dict]  # round -> the observation sent in that round
+
+
+def timings_ms(act, observations: Observations, steps: int) -> np.ndarray:
+    """``act`` round trips [ms], each with the round's observation (made before its clock)."""
+    for i in range(WARMUP):
+        act(observations(i))
     times = np.empty(steps)
     for i in range(steps):
+        obs = observations(WARMUP + i)
         started = time.perf_counter()
         act(obs)
         times[i] = time.perf_counter() - started
     return times * 1000.0
+
+
+def driving(step: int) -> dict[str, dict]:
+    """The sample observation ``step`` steps (of 0.1 s at 12 m/s) down its road: new dicts and
+    lists with other positions, headings and speeds every round."""
+    obs = sample_observation()
+    dx = 1.2 * step  # [m]
+    for observation in obs.values():
+        ego = observation["ego_vehicle_state"]
+        ego["position"][0] += dx
+        ego["speed"] += 0.01 * (step % 10)
+        for n, other in enumerate(observation["neighborhood_vehicle_states"]):
+            other["position"][0] += dx + 0.05 * step * (n % 3)  # some faster than the ego
+            other["heading"] += 0.001 * (step % 7)
+        for path in observation["waypoint_paths"]:
+            for waypoint in path:
+                waypoint["pos"][0] += dx
+    return obs
+
+
+def empty(fmt: str) -> Observations:
+    """The same empty observation every round: the transport alone."""
+    return lambda step: EMPTY[fmt]
 
 
 def in_process_act(folder: Path):
@@ -85,13 +116,15 @@ def main() -> None:
         (source / "policy.py").write_text(TRIVIAL_POLICY)
         (source / "agent.yaml").write_text(f"observation_format: {name}\n")
         submissions[name] = prepare_submission(source, base / f"submission-{name}", settings)
-    obs = sample_observation()
 
     # row -> format -> (times, floor times) [ms]
     results: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]] = {}
     in_process = in_process_act(base / "src-native")
     results["in-process"] = {
-        "native": (timings_ms(in_process, obs, args.steps), timings_ms(in_process, {}, args.steps))
+        "native": (
+            timings_ms(in_process, driving, args.steps),
+            timings_ms(in_process, lambda step: {}, args.steps),
+        )
     }
     labels = {"bench": "roundtrip"}
     for name in args.kinds.split(","):
@@ -103,7 +136,7 @@ def main() -> None:
         # Formats interleaved per row, so that both see the same load on a shared machine.
         for fmt, submission in submissions.items():
             with start(submission, kind=kind, settings=settings, labels=labels) as handle:
-                results.setdefault(name, {})[fmt] = both(handle.act, obs, fmt, args.steps)
+                results.setdefault(name, {})[fmt] = both(handle.act, fmt, args.steps)
         if kind is SandboxKind.docker:
             for fmt, submission in submissions.items():
                 warm = WarmAgent.start(submission, kind, settings, labels=labels)
@@ -111,7 +144,7 @@ def main() -> None:
                 try:
                     with forked.start() as handle:
                         row = results.setdefault("docker (forked)", {})
-                        row[fmt] = both(handle.act, obs, fmt, args.steps)
+                        row[fmt] = both(handle.act, fmt, args.steps)
                 finally:
                     forked.close()
                     warm.close()
@@ -161,15 +194,15 @@ def floor_round_trip_ms(
     forked = warm.fork(settings, labels)
     try:
         with forked.start() as handle:
-            return float(np.median(timings_ms(handle.act, EMPTY[fmt], steps)))
+            return float(np.median(timings_ms(handle.act, empty(fmt), steps)))
     finally:
         forked.close()
         warm.close()
 
 
-def both(act, obs: dict, fmt: str, steps: int) -> tuple[np.ndarray, np.ndarray]:
-    """Round trips with ``obs`` and with an empty observation [ms]."""
-    return timings_ms(act, obs, steps), timings_ms(act, EMPTY[fmt], steps)
+def both(act, fmt: str, steps: int) -> tuple[np.ndarray, np.ndarray]:
+    """Round trips with fresh driving observations and with an empty observation [ms]."""
+    return timings_ms(act, driving, steps), timings_ms(act, empty(fmt), steps)
 
 
 def median_of(results: dict, name: str, fmt: str, column: int) -> float:

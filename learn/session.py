@@ -18,7 +18,7 @@ from arena.scenario import load_scenario
 from evaluator.scoring import load_profile
 from learn.protocol import Config, Reply
 from learn.render import TopView
-from learn.terms import step_terms
+from learn.terms import EpisodeTerms
 from sim.observation_arrays import ObservationEncoder, ObservationLayout
 from sim.simulation import Simulation
 from sim.traffic import sumo_running
@@ -38,12 +38,14 @@ class SimulatorSession:
         self._packed = packed
         self.sim = None
         self._view = None  # learn.render.TopView of the episode, when rendering
+        self._terms = EpisodeTerms(self.profile)
 
     def reset(self, scenario_dir: str, seed: int | None) -> Reply:
         self._end_episode()
         folder = Path(scenario_dir)
         scenario = load_scenario(folder)
         self.sim = Simulation(scenario, folder, self.config.interface, seed)
+        self._terms = EpisodeTerms(self.profile)
         if self.config.render:
             self._view = TopView(self.sim)
         obs = self.sim.reset()
@@ -69,7 +71,7 @@ class SimulatorSession:
                     reply.terminal[v.id] = self._encode(v.id, drove[v.id])
         for agent_id, observation in drove.items():
             reply.events[agent_id] = observation["events"]
-            reply.terms[agent_id] = step_terms(sim.recorder.rows[agent_id], self.profile)
+            reply.terms[agent_id] = self._terms.step(agent_id, sim.recorder.rows[agent_id])
         # Only agents still waiting to enter: move time on until one does or the episode ends.
         while not obs and not sim.done:
             obs = {k: o for k, o in sim.step({}).items() if not o["done"]}

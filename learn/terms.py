@@ -1,50 +1,40 @@
-"""The scoring profile's humanness and rules terms of one agent-step, for ``info``.
+"""The scoring profile's humanness and rules terms of each agent-step of an episode, for ``info``.
 
-The evaluator computes each term over a whole episode record (``evaluator.scoring.terms``); here
-the same functions run on the last rows the simulator recorded for the agent (three: jerk looks
-two steps back), and the value of the newest row is the step's term.
+Each agent gets the running twins (:data:`learn.running_terms.RUNNING_TERMS`) of the profile's
+terms; each step feeds them the rows the simulator recorded for the agent since the last call,
+so a step's terms equal the evaluator's on the agent's full record at that row, and cost the same
+late in an episode as early.
 """
 
 from __future__ import annotations
 
-import numpy as np
-
-from arena.record_format import STEP_FLOATS
 from evaluator.scoring.profile import ScoringProfile
-from evaluator.scoring.record import AgentTrack
-from evaluator.scoring.registry import get_term
+from learn.running_terms import RUNNING_TERMS, RunningTerm
 from sim.record import RecordRow
 
-_ROWS_NEEDED = 3
+
+class _AgentTerms:
+    def __init__(self, profile: ScoringProfile) -> None:
+        names = (*profile.humanness_terms, *profile.rules_terms)
+        self.terms: dict[str, RunningTerm] = {name: RUNNING_TERMS[name](profile) for name in names}
+        self.rows_seen = 0
+        self.last: dict[str, float] = {}
 
 
-def track_of(rows: list[RecordRow]) -> AgentTrack:
-    """An :class:`AgentTrack` of ``rows`` (oldest first), neighbours padded to the widest row."""
-    k = max([1] + [len(r.neighbours) for r in rows])
-    nbr_valid = np.zeros((len(rows), k), bool)
-    nbr_x = np.full((len(rows), k), np.nan)
-    nbr_y = np.full((len(rows), k), np.nan)
-    for i, row in enumerate(rows):
-        m = len(row.neighbours)
-        nbr_valid[i, :m] = True
-        nbr_x[i, :m] = row.neighbours.x
-        nbr_y[i, :m] = row.neighbours.y
-    # One array for every scalar column: this runs on every env step.
-    table = np.array([[getattr(r, name) for name in STEP_FLOATS] for r in rows], float).T
-    return AgentTrack(
-        **dict(zip(STEP_FLOATS, table, strict=True)),
-        in_junction=np.array([r.in_junction for r in rows], bool),
-        nbr_valid=nbr_valid,
-        nbr_x=nbr_x,
-        nbr_y=nbr_y,
-    )
+class EpisodeTerms:
+    """The running terms of every agent of one episode (a new one per episode)."""
 
+    def __init__(self, profile: ScoringProfile) -> None:
+        self._profile = profile
+        self._agents: dict[str, _AgentTerms] = {}
 
-def step_terms(rows: list[RecordRow], profile: ScoringProfile) -> dict[str, float]:
-    """Every humanness and rules term of the newest row of ``rows`` (an agent's record so far);
-    empty before the agent has driven."""
-    if not rows:
-        return {}
-    track = track_of(rows[-_ROWS_NEEDED:])
-    names = (*profile.humanness_terms, *profile.rules_terms)
-    return {name: float(get_term(name)(track, profile)[-1]) for name in names}
+    def step(self, agent_id: str, rows: list[RecordRow]) -> dict[str, float]:
+        """Every term of the newest of ``rows`` (the agent's record so far, oldest first: the
+        rows not seen before are fed in order); empty before the agent has driven."""
+        agent = self._agents.get(agent_id)
+        if agent is None:
+            agent = self._agents[agent_id] = _AgentTerms(self._profile)
+        for row in rows[agent.rows_seen :]:
+            agent.last = {name: term.update(row) for name, term in agent.terms.items()}
+        agent.rows_seen = len(rows)
+        return dict(agent.last)
