@@ -129,6 +129,7 @@ def test_cleanup_removes_socket_folders_of_killed_workers(settings, labels, good
     assert not live.exists()
 
 
+@pytest.mark.bwrap
 def test_cleanup_without_a_docker_daemon_still_cleans_bubblewrap(
     settings, labels, good_agent, monkeypatch: pytest.MonkeyPatch, tmp: Path
 ) -> None:
@@ -308,6 +309,7 @@ def test_an_episode_has_a_cpu_budget(kind, settings, labels, tmp) -> None:
         assert "CPU this episode" in caught.value.detail
 
 
+@pytest.mark.bwrap
 def test_the_service_refuses_bubblewrap_that_cannot_cap_each_sandbox(settings) -> None:
     """Where no control group per sandbox can be made (here: the cgroup hierarchies read-only in
     a private mount namespace), bubblewrap would fall back to per-process rlimits; the service
