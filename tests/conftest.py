@@ -10,13 +10,14 @@ import pytest
 # Markers that mean a test needs more than this process, or takes long: such a test is
 # integration whatever else it is.
 INTEGRATION_MARKERS = ("slow", "docker", "bwrap", "browser")
-# Session fixtures that build a whole suite (tens of seconds of map building and simulation):
-# a test using one is integration.
-SUITE_BUILDS = frozenset({"hidden_dev", "public_fresh", "hidden_corpus"})
+# Fixtures that make a test using one integration: the session fixtures that build a whole suite
+# (tens of seconds of map building and simulation), and Chromium (whether or not its module says
+# `browser`).
+INTEGRATION_FIXTURES = frozenset({"hidden_dev", "public_fresh", "hidden_corpus", "browser"})
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         marked = any(item.get_closest_marker(name) for name in INTEGRATION_MARKERS)
-        if marked or SUITE_BUILDS & set(getattr(item, "fixturenames", ())):
+        if marked or INTEGRATION_FIXTURES & set(getattr(item, "fixturenames", ())):
             item.add_marker(pytest.mark.integration)

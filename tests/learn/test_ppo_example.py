@@ -9,7 +9,6 @@ from pathlib import Path
 import numpy as np
 import onnxruntime
 import pytest
-import torch
 import yaml
 
 from sim.interface import AgentInterface, ObservationFormat
@@ -42,6 +41,8 @@ def test_the_submission_receives_the_training_observation() -> None:
 
 @pytest.mark.slow
 def test_onnx_export_gives_the_trained_networks_logits(example, short_road) -> None:
+    # Imported here: torch takes seconds to import, and only the slow tests train.
+    import torch
     from stable_baselines3 import PPO
 
     train = example["train"]
@@ -87,6 +88,7 @@ def test_the_four_actions_map_onto_lane_with_continuous_speed(example) -> None:
     assert to_action(2, 8.0) == [8.0, 1.0] and to_action(3, 1.0) == [3.0, -1.0]
 
 
+@pytest.mark.slow  # a PPO training run (and torch's import)
 def test_training_logs_episode_statistics_and_exports_without_warnings(
     example, short_road, recwarn
 ) -> None:

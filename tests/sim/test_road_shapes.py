@@ -16,10 +16,11 @@ from tests.sim.builders import INVALID_JUNCTION_SHAPES, straight_road, with_junc
 from tests.sim.test_bev import interface, pixel_world_points
 
 
-@pytest.fixture(params=sorted(INVALID_JUNCTION_SHAPES))
-def broken(request, tmp_path) -> tuple[RoadNetwork, list]:
+# Built once per shape for the module: the tests only read the road.
+@pytest.fixture(scope="module", params=sorted(INVALID_JUNCTION_SHAPES))
+def broken(request, tmp_path_factory) -> tuple[RoadNetwork, list]:
     shape = INVALID_JUNCTION_SHAPES[request.param]
-    net = with_junction_shape(straight_road(tmp_path), "e", shape)
+    net = with_junction_shape(straight_road(tmp_path_factory.mktemp(request.param)), "e", shape)
     return RoadNetwork.load(net), shape
 
 

@@ -130,6 +130,7 @@ def test_cleanup_removes_socket_folders_of_killed_workers(settings, labels, good
     assert not live.exists()
 
 
+@pytest.mark.bwrap
 def test_cleanup_without_a_docker_daemon_still_cleans_bubblewrap(
     settings, labels, good_agent, monkeypatch: pytest.MonkeyPatch, tmp: Path
 ) -> None:
@@ -332,6 +333,7 @@ def test_the_runs_own_limits_win_over_the_settings(kind, settings, labels, tmp) 
         assert handle.episode_cpu_s > 0.2
 
 
+@pytest.mark.bwrap
 def test_the_service_refuses_bubblewrap_that_cannot_cap_each_sandbox(settings) -> None:
     """Where no control group per sandbox can be made (here: the cgroup hierarchies read-only in
     a private mount namespace), bubblewrap would fall back to per-process rlimits; the service

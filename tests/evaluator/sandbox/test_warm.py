@@ -30,8 +30,13 @@ global EPISODES
 EPISODES = globals().get('EPISODES', 0) + 1
 private = os.getppid() == 1  # the zygote is PID 1 of an isolating sandbox
 found_file = os.path.exists('/tmp/note') or os.path.exists('/tmp/locked')
-others = [p for p in os.listdir('/proc') if p.isdigit() and int(p) not in (1, os.getpid())
-          and open(f'/proc/{p}/comm').read().strip() != 'arena-holder']
+others = 0
+for p in os.listdir('/proc'):
+    if p.isdigit() and int(p) not in (1, os.getpid()):
+        try:
+            others += open(f'/proc/{p}/comm').read().strip() != 'arena-holder'
+        except OSError:  # ended since the listing: the process backend sees the host's /proc
+            pass
 with open('/proc/sysvipc/shm') as table:
     segments = len(table.readlines()) - 1
 if private and EPISODES == 1:
@@ -44,7 +49,7 @@ if private and EPISODES == 1:
         os.setsid()
         time.sleep(300)
         os._exit(0)
-return {k: [float(EPISODES), float(found_file), float(len(others)), float(segments)]
+return {k: [float(EPISODES), float(found_file), float(others), float(segments)]
         for k in obs}
 """
 

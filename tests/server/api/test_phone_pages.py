@@ -33,9 +33,12 @@ from tests.server.builders import make_team, queued_submission, seed_scored
 from tests.server.live import api_server
 from tests.server.service_stack import shared_dir
 
-pytestmark = pytest.mark.skipif(
-    not CHROMIUM.exists(), reason="needs Debian's chromium (apt-get install chromium)"
-)
+pytestmark = [
+    pytest.mark.browser,
+    pytest.mark.skipif(
+        not CHROMIUM.exists(), reason="needs Debian's chromium (apt-get install chromium)"
+    ),
+]
 ADMIN = "admin-token-for-the-phone-pages"
 SITE_KEYS = ("final", "validation", "running", "training", "queued", "scenario")
 FAMILIES = {
