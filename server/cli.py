@@ -565,6 +565,10 @@ def model(
     out: Annotated[
         Path | None, typer.Option(help="File to write (default: model-<sha>.tar.gz).")
     ] = None,
+    seed: Annotated[
+        int | None,
+        typer.Option(help="Which training seed's model, when the phase trains several."),
+    ] = None,
 ) -> None:
     """Download an offline submission's trained output for audit (checked against its sha256)."""
     # deferred: CLI start-up time
@@ -574,13 +578,13 @@ def model(
     from server.services import admin
 
     ctx = _Context()
-    trained = _run(lambda: admin.trained_model(ctx.db, submission_id))
+    trained = _run(lambda: admin.trained_model(ctx.db, submission_id, seed))
     path = ctx.store.fetch(trained.key, out or Path(trained.file_name))
     if hashlib.sha256(path.read_bytes()).hexdigest() != trained.sha256:
         raise _fail(ValueError(f"{path} does not match the stored sha256 {trained.sha256}"))
     console.print(
         f"wrote {path} ({trained.size} bytes, sha256 {trained.sha256}, training attempt "
-        f"{trained.attempt})"
+        f"{trained.attempt}, seed {trained.seed})"
     )
 
 

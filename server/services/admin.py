@@ -18,7 +18,15 @@ from server.core.artifacts import ArtifactStore
 from server.core.db import Database
 from server.core.queue import BROKER_ERRORS, TaskQueue
 from server.models import EvaluationRun, Submission, utcnow
-from server.services import evaluation, leases, phases, scoring, submissions, training
+from server.services import (
+    evaluation,
+    leases,
+    phases,
+    scoring,
+    seed_sets,
+    submissions,
+    training,
+)
 from server.services.errors import Conflict, InvalidInput, NotFound
 from server.services.evaluation import RunPlan, lock
 from server.status import (
@@ -143,27 +151,40 @@ def retrain(db: Database, settings: Settings, queue: TaskQueue, submission_id: i
 
 @dataclass(frozen=True)
 class TrainedModel:
-    """The stored trained output of a submission's latest successful training."""
+    """The stored trained output of one of a submission's trainings."""
 
     key: str
     sha256: str
     size: int  # [bytes]
     attempt: int
+    seed: int
 
     @property
     def file_name(self) -> str:
         return f"model-{self.sha256[:12]}.tar.gz"
 
 
-def trained_model(db: Database, submission_id: int) -> TrainedModel:
+def trained_model(db: Database, submission_id: int, seed: int | None = None) -> TrainedModel:
+    """The latest trained output, or with ``seed`` that seed's in the latest seed set; a set of
+    several seeds needs ``seed`` (each seed is a model of its own)."""
     with db.read_session() as session:
         submission = session.get(Submission, submission_id)
         if submission is None:
             raise NotFound(f"no submission {submission_id}")
-        job = training.latest_trained(submission)
+        latest = seed_sets.latest_set(submission)
+        if seed is None and len(latest) > 1:
+            raise InvalidInput(
+                f"submission {submission_id} was trained with {len(latest)} seeds: choose one "
+                f"with --seed (0 to {len(latest) - 1})"
+            )
+        if seed is None:
+            job = training.latest_trained(submission)
+        else:
+            job = next((j for j in latest if j.seed == seed), None)
         if job is None or job.model_key is None:
-            raise NotFound(f"submission {submission_id} has no trained output")
-        return TrainedModel(job.model_key, job.model_sha256, job.model_size, job.attempt)
+            which = "" if seed is None else f" for seed {seed}"
+            raise NotFound(f"submission {submission_id} has no trained output{which}")
+        return TrainedModel(job.model_key, job.model_sha256, job.model_size, job.attempt, job.seed)
 
 
 def scoring_profile(name: str) -> ScoringProfile:

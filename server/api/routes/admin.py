@@ -89,10 +89,16 @@ def retrain(
     response_class=Response,
     responses={200: {"content": {"application/gzip": {}}}},
 )
-def trained_model(submission_id: SubmissionId, db: DatabaseDep, settings: SettingsDep) -> Response:
+def trained_model(
+    submission_id: SubmissionId,
+    db: DatabaseDep,
+    settings: SettingsDep,
+    seed: Annotated[int | None, Query(ge=0, lt=16)] = None,
+) -> Response:
     """The trained output of an offline submission, for audit: the ``.tar.gz`` whose sha256 the
-    service stored (also in the ``X-Model-Sha256`` header)."""
-    model = admin.trained_model(db, submission_id)
+    service stored (also in the ``X-Model-Sha256`` header); ``seed`` picks one seed's model when
+    the phase trains several (required then)."""
+    model = admin.trained_model(db, submission_id, seed)
     return Response(
         artifact_store(settings, db).read(model.key),
         media_type="application/gzip",

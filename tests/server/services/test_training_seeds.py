@@ -21,7 +21,8 @@ from server.services import admin, evaluation, leaderboard, phases, submissions,
 from server.services.errors import InvalidInput
 from server.status import RunStatus, SubmissionStatus, TrainingStatus
 from server.tracks import Track
-from tests.server.builders import agent, make_team, queued_submission
+from tests.server.builders import agent, bearer, make_team, queued_submission
+from tests.server.conftest import ADMIN_TOKEN
 
 
 def set_seeds(db, settings, seeds: int) -> None:
@@ -303,3 +304,20 @@ def test_the_cli_sets_the_training_seeds(db, settings, monkeypatch):
     assert refused.exit_code != 0 and "1 to 16" in refused.output
     with db.read_session() as session:
         assert session.scalar(select(Phase).where(Phase.name == "final")).training_seeds == 4
+
+
+def test_each_seeds_model_is_downloaded_by_its_seed(db, settings, client):
+    set_seeds(db, settings, 2)
+    sid = offline(db)
+    ids = start(db, settings, sid)
+    for training_id in ids:
+        trained(db, settings, claim(db, settings, training_id))
+    with pytest.raises(InvalidInput, match="2 seeds: choose one with --seed"):
+        admin.trained_model(db, sid)
+    models = [admin.trained_model(db, sid, seed) for seed in (0, 1)]
+    assert [m.key for m in models] == [f"training/{i}/model.tar.gz" for i in ids]
+    assert [m.seed for m in models] == [0, 1]
+    # The organisers' REST route asks for the seed the same way.
+    url = f"/api/v1/admin/submissions/{sid}/model"
+    assert client.get(url, headers=bearer(ADMIN_TOKEN)).status_code == 422
+    assert client.get(url, params={"seed": 5}, headers=bearer(ADMIN_TOKEN)).status_code == 404
