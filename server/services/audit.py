@@ -5,7 +5,9 @@ that manifest from what is here now: the stored upload's and model's bytes, the 
 every episode's traffic seed, this machine's software. Any component that differs is named and
 nothing is re-run (a different SUMO would make a difference that says nothing about the score).
 Otherwise every scored episode runs again, in its sandbox, and its outcome and record are
-compared with the stored ones: bit-identical, or the first record that differs and where.
+compared with the stored ones: bit-identical, or the first record that differs and where. A
+score over several training seeds is audited seed by seed (each seed's model on its own run), and
+what differs is named with its seed.
 """
 
 from __future__ import annotations
@@ -37,10 +39,11 @@ from evaluator.training import unpack_model
 from evaluator.validation import validate
 from server.core.artifacts import ArtifactStore, MissingArtifact
 from server.core.db import Database
-from server.models import Phase, ScenarioResult, Submission
+from server.models import EvaluationRun, Phase, ScenarioResult, SeedSetScore, Submission
 from server.services.errors import Conflict, NotFound
 from server.services.evaluation import run_cpu_limits
 from server.services.leaderboard import compute
+from server.services.seed_sets import standing_score
 from server.services.submissions import current_run
 from server.status import RunStatus
 from server.tracks import Track
@@ -78,15 +81,36 @@ class _Target:
     model_key: str | None
     episodes: tuple[_Stored, ...]
     limits: CpuLimits  # the agent's CPU limits the run was evaluated under
+    label: str  # which of the score's runs: "" for a score of one run, "seed K: " over seeds
 
 
-def _target(session: Session, settings: Settings, submission_id: int) -> _Target:
+def _targets(session: Session, settings: Settings, submission_id: int) -> list[_Target]:
+    """The runs the standing score comes from: one, or each training seed's."""
     submission = session.get(Submission, submission_id)
     if submission is None:
         raise NotFound(f"no submission {submission_id}")
+    score = standing_score(submission)
+    if isinstance(score, SeedSetScore):
+        return [
+            _target(
+                session,
+                settings,
+                submission,
+                session.get(EvaluationRun, seed["run_id"]),
+                f"seed {seed['seed']}: ",
+            )
+            for seed in score.per_seed
+        ]
     run = current_run(submission)
     if run is None or run.status != RunStatus.scored or run.score is None:
         raise Conflict(f"submission {submission_id} has no score to audit")
+    return [_target(session, settings, submission, run, "")]
+
+
+def _target(
+    session: Session, settings: Settings, submission: Submission, run: EvaluationRun, label: str
+) -> _Target:
+    submission_id = submission.id
     if not run.score.manifest:
         raise Conflict(
             f"submission {submission_id} was scored before manifests were kept: "
@@ -109,6 +133,7 @@ def _target(session: Session, settings: Settings, submission_id: int) -> _Target
             if r.status in FINISHED
         ),
         limits=run_cpu_limits(run, settings),
+        label=label,
     )
 
 
@@ -120,16 +145,38 @@ def audit(
     *,
     progress: Callable[[int, int], None] | None = None,
 ) -> AuditReport:
-    """Re-run ``submission_id``'s scored episodes under its manifest; ``progress(done, total)``
-    after each episode."""
+    """Re-run ``submission_id``'s scored episodes under its manifest (each seed's, for a score
+    over training seeds); ``progress(done, total)`` after each episode. The first refusal or
+    difference ends the audit."""
     with db.read_session() as session:
-        target = _target(session, settings, submission_id)
+        targets = _targets(session, settings, submission_id)
+    total = sum(len(target.episodes) for target in targets)
+    compared = 0
+
+    def counted(done: int, _: int) -> None:
+        if progress is not None:
+            progress(compared + done, total)
+
+    for target in targets:
+        report = _audit(target, settings, store, counted)
+        compared += report.compared
+        if not report.identical:
+            return dataclasses.replace(report, compared=compared)
+    return AuditReport(submission_id, compared=compared)
+
+
+def _audit(
+    target: _Target,
+    settings: Settings,
+    store: ArtifactStore,
+    progress: Callable[[int, int], None],
+) -> AuditReport:
     recorded = target.manifest
     try:
         suite = load_suite(target.suite_dir)
         kind = sandbox.check_service_kind(settings=settings)
     except ArenaError as exc:
-        raise Conflict(f"cannot audit submission {submission_id} here: {exc}") from exc
+        raise Conflict(f"cannot audit submission {target.submission_id} here: {exc}") from exc
     with tempfile.TemporaryDirectory(prefix="arena-audit-") as tmp:
         scratch = Path(tmp)
         scratch.chmod(0o755)  # the sandbox user enters the prepared submission
@@ -149,7 +196,9 @@ def audit(
         )
         refused = differences(recorded, current)
         if refused:
-            return AuditReport(submission_id, refused=tuple(refused))
+            return AuditReport(
+                target.submission_id, refused=tuple(target.label + r for r in refused)
+            )
         return _rerun(target, suite, kind, settings, store, scratch, upload, model, progress)
 
 
@@ -162,7 +211,7 @@ def _rerun(
     scratch: Path,
     upload: Path,
     model: Path | None,
-    progress: Callable[[int, int], None] | None,
+    progress: Callable[[int, int], None],
 ) -> AuditReport:
     # Checked in the sandbox, as a worker does: nothing of the team's is parsed on this host.
     submission = validate(upload, scratch / "prepared", settings, kind=kind)
@@ -185,7 +234,7 @@ def _rerun_episodes(
     store: ArtifactStore,
     scratch: Path,
     submission,
-    progress: Callable[[int, int], None] | None,
+    progress: Callable[[int, int], None],
 ) -> AuditReport:
     for done, stored in enumerate(target.episodes, start=1):
         outcome = run_scenario(
@@ -198,11 +247,12 @@ def _rerun_episodes(
         )
         name = Episode(stored.scenario_id, stored.episode).name
         difference = _compare(stored, outcome, store, scratch / "stored" / f"{name}.npz")
-        if progress is not None:
-            progress(done, len(target.episodes))
+        progress(done, len(target.episodes))
         if difference is not None:
             return AuditReport(
-                target.submission_id, compared=done, difference=f"{name}: {difference}"
+                target.submission_id,
+                compared=done,
+                difference=f"{target.label}{name}: {difference}",
             )
     return AuditReport(target.submission_id, compared=len(target.episodes))
 

@@ -23,7 +23,8 @@ from arena.suite import SHIPPED_PUBLIC_DIR
 from server.core.artifacts import artifact_store
 from server.core.db import Database
 from server.core.migrate import upgrade_database
-from server.models import EvaluationRun, TrainingJob
+from server.models import EvaluationRun, ScenarioResult, TrainingJob
+from server.services.audit import audit
 from server.worker.checkpoints import checkpoint_key
 from submissions.intake import pack_folder
 from tests.server.builders import EXAMPLES, bearer, make_team
@@ -298,6 +299,36 @@ def test_a_phase_of_two_seeds_trains_and_evaluates_each_and_scores_over_them(
         assert sorted(
             (job.seed, f"training with seed {job.seed}" in job.log_tail) for job in jobs
         ) == [(0, True), (1, True)]
-        runs = session.scalars(select(EvaluationRun).where(EvaluationRun.submission_id == sid))
+        runs = session.scalars(
+            select(EvaluationRun).where(EvaluationRun.submission_id == sid)
+        ).all()
         assert sorted(run.training.seed for run in runs) == [0, 1]
+        episodes = sum(run.episode_count for run in runs)
+    # The audit re-runs each seed's model on its episodes; a changed record names its seed.
+    store = artifact_store(stack_settings, db)
+    report = audit(db, stack_settings, store, sid)
+    assert report.identical and report.compared == episodes, report
+    with db.session() as session:
+        run = session.scalar(
+            select(EvaluationRun)
+            .join(TrainingJob, EvaluationRun.training_id == TrainingJob.id)
+            .where(EvaluationRun.submission_id == sid, TrainingJob.seed == 1)
+        )
+        result = session.scalar(
+            select(ScenarioResult)
+            .where(ScenarioResult.run_id == run.id, ScenarioResult.record_key.is_not(None))
+            .order_by(ScenarioResult.scenario_id)
+        )
+        other = session.scalar(
+            select(ScenarioResult).where(
+                ScenarioResult.run_id != run.id,
+                ScenarioResult.scenario_id != result.scenario_id,
+                ScenarioResult.record_key.is_not(None),
+            )
+        )
+        result.record_key = other.record_key  # seed 0's record stands in for seed 1's
+        tampered = result.scenario_id
+    report = audit(db, stack_settings, store, sid)
+    assert report.difference is not None and report.difference.startswith("seed 1: "), report
+    assert tampered in report.difference
     db.dispose()
