@@ -31,10 +31,18 @@ from sim.interface import AgentInterface
 from sim.lidar import Lidar
 from sim.mission_vehicle import MissionVehicle, Status
 from sim.observation import build_observation
+from sim.observation_arrays import ObservationLayout
+from sim.observation_record import ArraysObservation, ObservationRecord
 from sim.playback import ReplayTable
 from sim.record import EpisodeRecorder, RecordRow, write_npz
 from sim.road import LanePosition, RoadNetwork
-from sim.road.waypoints import road_waypoints, route_ahead, waypoint_paths
+from sim.road.waypoints import (
+    path_starts,
+    road_waypoints,
+    route_ahead,
+    waypoint_arrays,
+    waypoint_paths,
+)
 from sim.traffic import SumoTraffic
 from sim.triggers import CutInTriggers
 from sim.vehicle import DECODERS, ControlContext, InvalidAction, check_action
@@ -52,7 +60,12 @@ _AT_REST = Events((), False, False, False, False, False, False, False)
 
 class Simulation:
     """An episode of ``scenario``. Not reusable across processes: libsumo allows one running
-    simulation per process, so create, run and :meth:`close` one at a time."""
+    simulation per process, so create, run and :meth:`close` one at a time.
+
+    ``arrays``: observations as :class:`sim.observation_record.ArraysObservation` (each agent's
+    record of the interface's arrays layout, written in place and valid until its next
+    observation) instead of dicts; the record rows and the episode are the same.
+    """
 
     def __init__(
         self,
@@ -63,6 +76,7 @@ class Simulation:
         *,
         with_missions: bool = True,
         inputs: ScenarioInputs | None = None,
+        arrays: bool = False,
     ) -> None:
         self.scenario = scenario
         self.scenario_dir = Path(scenario_dir)
@@ -95,10 +109,13 @@ class Simulation:
         self.recorder = EpisodeRecorder([m.agent_id for m in self._missions])
         self._bev = BevRenderer(self.road, interface, {m.agent_id: m.route for m in self._missions})
         self._lidar = Lidar(self.road) if interface.lidar_point_cloud else None
+        # arrays: observations written straight into records of this layout (ArraysObservation)
+        self._layout = ObservationLayout(interface) if arrays else None
+        self._records: dict[str, ObservationRecord] = {}
 
     # --- lifecycle ---------------------------------------------------------------------------
 
-    def reset(self) -> dict[str, dict]:
+    def reset(self) -> dict[str, dict | ArraysObservation]:
         """Start SUMO and place the vehicles; the observations of agents starting at step 0."""
         self.close()
         sc, folder = self.scenario, self.scenario_dir
@@ -120,6 +137,7 @@ class Simulation:
         self.step_count = 0
         self.violations = {}
         self._lanes = {}
+        self._records = {}
         entering = [v for v in self.vehicles if v.mission.start_step <= 0]
         for v in entering:
             self._enter(v)
@@ -137,7 +155,7 @@ class Simulation:
 
     # --- stepping ----------------------------------------------------------------------------
 
-    def step(self, actions: dict[str, object]) -> dict[str, dict]:
+    def step(self, actions: dict[str, object]) -> dict[str, dict | ArraysObservation]:
         """Apply one action per live agent, advance every vehicle by dt, detect events, record.
 
         A missing, wrongly shaped, non-finite or out-of-range action ends that agent with
@@ -403,8 +421,12 @@ class Simulation:
         self._lane_of(v)
         return _AT_REST
 
-    def _observe(self, v: MissionVehicle, around: Surroundings, events: Events) -> dict:
+    def _observe(
+        self, v: MissionVehicle, around: Surroundings, events: Events
+    ) -> dict | ArraysObservation:
         lane, near = self._lanes[v.id], around.vehicles
+        if self._layout is not None:
+            return self._observe_arrays(v, lane, near, events)
         paths = waypoint_paths(
             self.road,
             lane,
@@ -433,6 +455,30 @@ class Simulation:
                 if self.interface.road_waypoints
                 else None
             ),
+        )
+
+    def _observe_arrays(
+        self, v: MissionVehicle, lane: LanePosition, near: VehicleStates, events: Events
+    ) -> ArraysObservation:
+        assert self._layout is not None
+        record = self._records.get(v.id)
+        if record is None:
+            record = self._records[v.id] = ObservationRecord(self._layout)
+        route, interface = v.mission.route, self.interface
+        starts = path_starts(
+            self.road, lane, v.pose.x, v.pose.y, route, interface.max_waypoint_paths
+        )
+        return record.write(
+            vehicle=v,
+            step=self.step_count,
+            dt=self.dt,
+            lane=lane,
+            events=events,
+            neighbours=near,
+            road=self.road,
+            waypoints=waypoint_arrays(self.road, starts, route, interface.waypoints_per_path),
+            rasters=self._rasters(v, near),
+            done=v.status is Status.done,
         )
 
     def _rasters(self, v: MissionVehicle, near: VehicleStates) -> dict[str, np.ndarray] | None:

@@ -13,6 +13,7 @@ point as its one waypoint.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 from weakref import WeakKeyDictionary
 
 import numpy as np
@@ -84,16 +85,70 @@ def waypoint_paths(
     (x, y) on each lane of the vehicle's road, nearest lanes to the vehicle's own first, then
     ordered by lane index. In a junction, one path along the junction lane that leads onto
     ``route``. Built afresh for each call (a dead end's end waypoint is shared: read-only)."""
+    return _paths_of(road, path_starts(road, position, x, y, route, max_paths), route, per_path)
+
+
+def path_starts(
+    road: RoadNetwork,
+    position: LanePosition,
+    x: float,
+    y: float,
+    route: tuple[str, ...],
+    max_paths: int,
+) -> list[tuple[Lane, float]]:
+    """The (lane, s) each of :func:`waypoint_paths`'s paths starts from, in their order."""
     here = position.lane
     if here.is_internal:
-        lane, s = route_lane_in_junction(road, position, x, y, route)
-        return _paths_of(road, [(lane, s)], route, per_path)
+        return [route_lane_in_junction(road, position, x, y, route)]
     lanes = road.edges[here.edge_id]  # by index
     if len(lanes) > max_paths:
         nearest = sorted(lanes, key=lambda lane: abs(lane.index - here.index))[:max_paths]
         lanes = sorted(nearest, key=lambda lane: lane.index)
-    starts = [(lane, position.s if lane is here else lane.project(x, y)[0]) for lane in lanes]
-    return _paths_of(road, starts, route, per_path)
+    return [(lane, position.s if lane is here else lane.project(x, y)[0]) for lane in lanes]
+
+
+class WaypointArrays(NamedTuple):
+    """The waypoints of :func:`waypoint_paths` as flat arrays over all paths' points, in order
+    (the values the waypoint dicts hold, before any float32 conversion)."""
+
+    counts: list[int]  # points of each path (at least 1)
+    x: np.ndarray  # [m], rounded to 0.1 mm as the dicts' "pos"
+    y: np.ndarray
+    heading: np.ndarray  # [rad]
+    lane_offset: np.ndarray  # [m]
+    lane_index: np.ndarray
+    lane_width: np.ndarray  # [m]
+    speed_limit: np.ndarray  # [m/s]
+
+
+def waypoint_arrays(
+    road: RoadNetwork, starts: list[tuple[Lane, float]], route: tuple[str, ...], n: int
+) -> WaypointArrays:
+    """:func:`waypoint_paths`'s waypoints from :func:`path_starts`, sampled straight into
+    arrays (the arrays observation's path; no waypoint dicts). A path with no point ahead holds
+    its last lane's end point, as the dicts do."""
+    pieces: list[tuple[Lane, np.ndarray]] = []
+    counts = []
+    for lane, s in starts:
+        walk, last_lane = _path_pieces(road, lane, s, route, n)
+        walk = [(lane, s) for lane, s in walk if len(s)]
+        if not walk:
+            walk = [(last_lane, np.array([last_lane.length]))]
+        pieces += walk
+        counts.append(sum(len(s) for _, s in walk))
+    sampled = [lane._sample(s) for lane, s in pieces]
+    sizes = [len(s) for _, s in pieces]
+    lanes = [lane for lane, _ in pieces]
+    return WaypointArrays(
+        counts,
+        np.concatenate([x for x, _, _ in sampled]).round(4),
+        np.concatenate([y for _, y, _ in sampled]).round(4),
+        np.concatenate([h for _, _, h in sampled]),
+        np.concatenate([s for _, s in pieces]),
+        np.repeat([lane.index for lane in lanes], sizes),
+        np.repeat([lane.width for lane in lanes], sizes),
+        np.repeat([lane.speed_limit for lane in lanes], sizes),
+    )
 
 
 def road_waypoints(
