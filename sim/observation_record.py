@@ -141,7 +141,9 @@ class ObservationRecord:
         if total == w * len(waypoints.counts):  # every path full: the slots in a row
             at: slice | np.ndarray = slice(0, total)
         else:
-            at = np.concatenate([np.arange(i * w, i * w + c) for i, c in enumerate(waypoints.counts)])
+            at = np.concatenate(
+                [np.arange(i * w, i * w + c) for i, c in enumerate(waypoints.counts)]
+            )
         self._path_mask[at] = 1
         self._path_pos[at, 0] = waypoints.x
         self._path_pos[at, 1] = waypoints.y
