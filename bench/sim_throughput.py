@@ -266,9 +266,7 @@ def main() -> None:
                 print("arrays" if arrays else "native")
                 print(in_child(our_side, folder, args.steps, arrays, True)[1])
     n = args.steps
-    best = {
-        name: (min(w for w, _ in side), min(c for _, c in side)) for name, side in runs.items()
-    }
+    best = {name: (min(w for w, _ in side), min(c for _, c in side)) for name, side in runs.items()}
     for name, (wall, cpu) in best.items():
         print(
             f"{name + ':':8s} wall {n / wall:7,.0f} steps/s ({wall * 1e3 / n:.3f} ms/step)"

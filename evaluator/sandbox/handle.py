@@ -41,6 +41,8 @@ class AgentHandle:
             if interface is not None and interface.observation_format is ObservationFormat.arrays
             else None
         )
+        # run_episode then has the simulator write the arrays records in place (sim.agent)
+        self.takes_arrays = self._arrays is not None
         self._step_cpu_s = settings.step_cpu_s
         self._step_timeout_s = settings.step_timeout_s
         self._episode_cpu_s = settings.episode_cpu_s
