@@ -3,7 +3,7 @@
 Plain Python values (lists, floats, ints, bools, strings), plus the optional rasters as uint8 numpy
 arrays (``sim.bev``), which the sandbox protocol carries as arrays.
 An agent's bounding box and mission are built once per episode and shared between observations
-(as is a dead-end lane's end waypoint; other waypoints are built afresh, level with the vehicle):
+(waypoints are built afresh, level with the vehicle):
 an in-process policy must treat observations as read-only.
 """
 

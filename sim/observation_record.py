@@ -27,7 +27,7 @@ from sim.observation_arrays import (
     head_values,
 )
 from sim.road import LanePosition, RoadNetwork
-from sim.road.waypoints import WaypointArrays
+from sim.road.lane import WaypointArrays
 from sim.vehicle.states import VehicleStates
 
 
@@ -135,8 +135,8 @@ class ObservationRecord:
         self._nbr_lane[:n] = [lane.index for lane in neighbour_lanes(neighbours, road)]
 
     def _write_waypoints(self, waypoints: WaypointArrays) -> None:
-        start, end = self._path_bytes
-        self.record[start:end] = bytes(end - start)
+        first, end = self._path_bytes
+        self.record[first:end] = bytes(end - first)
         w, total = self._per_path, len(waypoints.x)
         if total == w * len(waypoints.counts):  # every path full: the slots in a row
             at: slice | np.ndarray = slice(0, total)
@@ -147,9 +147,18 @@ class ObservationRecord:
         self._path_mask[at] = 1
         self._path_pos[at, 0] = waypoints.x
         self._path_pos[at, 1] = waypoints.y
-        self._path_lane[at] = waypoints.lane_index
-        for view, name in zip(self._path_floats, WAYPOINT_FIELDS, strict=True):
-            view[at] = getattr(waypoints, name)
+        heading, lane_width, speed_limit, lane_offset = self._path_floats
+        heading[at] = waypoints.heading
+        lane_offset[at] = waypoints.lane_offset
+        # Each lane's values over its points' slots (a piece: a run of one path's points).
+        start = 0
+        for lane, count in waypoints.pieces:
+            points = slice(start, start + count)
+            slots = points if isinstance(at, slice) else at[points]
+            self._path_lane[slots] = lane.index
+            lane_width[slots] = lane.width
+            speed_limit[slots] = lane.speed_limit
+            start += count
 
 
 def _span(layout: ObservationLayout, group: str) -> tuple[int, int]:

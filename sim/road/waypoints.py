@@ -13,12 +13,17 @@ point as its one waypoint.
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
 from weakref import WeakKeyDictionary
 
 import numpy as np
 
-from sim.road.lane import WAYPOINT_SPACING, Lane, waypoint_dicts
+from sim.road.lane import (
+    WAYPOINT_SPACING,
+    Lane,
+    WaypointArrays,
+    as_dicts,
+    sample_waypoints,
+)
 from sim.road.network import LanePosition, RoadNetwork
 
 _MAX_LANE_HOPS = 256  # a path crosses at most this many lanes (zero-length junction lanes)
@@ -84,8 +89,9 @@ def waypoint_paths(
     """Up to ``max_paths`` paths of 1 to ``per_path`` waypoints (1 m apart) starting level with
     (x, y) on each lane of the vehicle's road, nearest lanes to the vehicle's own first, then
     ordered by lane index. In a junction, one path along the junction lane that leads onto
-    ``route``. Built afresh for each call (a dead end's end waypoint is shared: read-only)."""
-    return _paths_of(road, path_starts(road, position, x, y, route, max_paths), route, per_path)
+    ``route``. Built afresh for each call, from :func:`waypoint_arrays`."""
+    starts = path_starts(road, position, x, y, route, max_paths)
+    return split_paths(waypoint_arrays(road, starts, route, per_path))
 
 
 def path_starts(
@@ -107,48 +113,32 @@ def path_starts(
     return [(lane, position.s if lane is here else lane.project(x, y)[0]) for lane in lanes]
 
 
-class WaypointArrays(NamedTuple):
-    """The waypoints of :func:`waypoint_paths` as flat arrays over all paths' points, in order
-    (the values the waypoint dicts hold, before any float32 conversion)."""
-
-    counts: list[int]  # points of each path (at least 1)
-    x: np.ndarray  # [m], rounded to 0.1 mm as the dicts' "pos"
-    y: np.ndarray
-    heading: np.ndarray  # [rad]
-    lane_offset: np.ndarray  # [m]
-    lane_index: np.ndarray
-    lane_width: np.ndarray  # [m]
-    speed_limit: np.ndarray  # [m/s]
-
-
 def waypoint_arrays(
     road: RoadNetwork, starts: list[tuple[Lane, float]], route: tuple[str, ...], n: int
 ) -> WaypointArrays:
-    """:func:`waypoint_paths`'s waypoints from :func:`path_starts`, sampled straight into
-    arrays (the arrays observation's path; no waypoint dicts). A path with no point ahead holds
-    its last lane's end point, as the dicts do."""
+    """The waypoints of paths of up to ``n`` points from each (lane, s) of ``starts``
+    (:func:`path_starts`), sampled into arrays in one pass over all paths: what the arrays
+    observation holds, and what the waypoint dicts are made from. A path with no point ahead
+    holds its last lane's end point."""
     pieces: list[tuple[Lane, np.ndarray]] = []
     counts = []
     for lane, s in starts:
         walk, last_lane = _path_pieces(road, lane, s, route, n)
-        walk = [(lane, s) for lane, s in walk if len(s)]
-        if not walk:
-            walk = [(last_lane, np.array([last_lane.length]))]
+        count = sum(len(offsets) for _, offsets in walk)
+        if not count:
+            walk, count = [(last_lane, np.array([last_lane.length]))], 1
         pieces += walk
-        counts.append(sum(len(s) for _, s in walk))
-    sampled = [lane._sample(s) for lane, s in pieces]
-    sizes = [len(s) for _, s in pieces]
-    lanes = [lane for lane, _ in pieces]
-    return WaypointArrays(
-        counts,
-        np.concatenate([x for x, _, _ in sampled]).round(4),
-        np.concatenate([y for _, y, _ in sampled]).round(4),
-        np.concatenate([h for _, _, h in sampled]),
-        np.concatenate([s for _, s in pieces]),
-        np.repeat([lane.index for lane in lanes], sizes),
-        np.repeat([lane.width for lane in lanes], sizes),
-        np.repeat([lane.speed_limit for lane in lanes], sizes),
-    )
+        counts.append(count)
+    return sample_waypoints(pieces, counts)
+
+
+def split_paths(waypoints: WaypointArrays) -> list[list[dict]]:
+    """The waypoint dicts of each path of ``waypoints``."""
+    points, paths, start = as_dicts(waypoints), [], 0
+    for count in waypoints.counts:
+        paths.append(points[start : start + count])
+        start += count
+    return paths
 
 
 def road_waypoints(
@@ -169,7 +159,7 @@ def road_waypoints(
     for lane in lanes:
         s = position.s if lane is here else lane.project(x, y)[0]
         starts.append((lane, max(s - horizon, 0.0)))
-    paths = _paths_of(road, starts, route, 2 * horizon + 1)
+    paths = split_paths(waypoint_arrays(road, starts, route, 2 * horizon + 1))
     return {lane.id: [path] for (lane, _), path in zip(starts, paths, strict=True)}
 
 
@@ -233,21 +223,6 @@ def _lanes_of_junction(road: RoadNetwork, lane: Lane) -> list[Lane]:
 def _junction_id(lane: Lane) -> str:
     # SUMO names internal edges ":<junction id>_<index>".
     return lane.edge_id[1:].rsplit("_", 1)[0]
-
-
-def _paths_of(
-    road: RoadNetwork, starts: list[tuple[Lane, float]], route: tuple[str, ...], n: int
-) -> list[list[dict]]:
-    """One path of up to ``n`` waypoints from each (lane, s) start, converted to waypoint dicts
-    in one pass over all of them."""
-    walks = [_path_pieces(road, lane, s, route, n) for lane, s in starts]
-    points = waypoint_dicts([piece for pieces, _ in walks for piece in pieces])
-    paths, start = [], 0
-    for pieces, last_lane in walks:
-        end = start + sum(len(s) for _, s in pieces)
-        paths.append(points[start:end] or [last_lane.end_waypoint])
-        start = end
-    return paths
 
 
 def _path_pieces(
