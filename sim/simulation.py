@@ -144,8 +144,10 @@ class Simulation:
         if self._bubble is not None:
             self._bubble.update(self._traffic, 0, [(v.pose.x, v.pose.y) for v in self.live])
         self._traffic.step()
+        shared = self._shared_neighbours()
         return {
-            v.id: self._observe(v, self._surroundings(v), self._events_at_rest(v)) for v in entering
+            v.id: self._observe(v, self._surroundings(v, *shared), self._events_at_rest(v))
+            for v in entering
         }
 
     def close(self) -> None:
@@ -209,7 +211,8 @@ class Simulation:
         traffic.step()
         self._keep_egos_in_sumo()
 
-        surroundings = {v.id: self._surroundings(v) for v in driven + entering}
+        shared = self._shared_neighbours()
+        surroundings = {v.id: self._surroundings(v, *shared) for v in driven + entering}
         events = {}
         for v in driven:
             events[v.id] = self._detect(v, surroundings[v.id], step)
@@ -323,34 +326,37 @@ class Simulation:
             return VehicleStates.empty()
         return self._replay.states(step)
 
-    def _surroundings(self, v: MissionVehicle) -> Surroundings:
-        """Other vehicles within the observation radius of ``v``'s centre, nearest first."""
-        assert self._traffic is not None
-        parts = [self._traffic.vehicles_around(v.id, self._mission_ids)]
-        if self._replay is not None:
-            parts.append(self._replay.states(self.step_count))
-        others = [o for o in self.live if o is not v]
-        if others:
-            rows = np.array(
-                [
-                    (
-                        o.pose.x,
-                        o.pose.y,
-                        o.pose.heading,
-                        o.pose.speed,
-                        o.mission.vehicle.length,
-                        o.mission.vehicle.width,
-                    )
-                    for o in others
-                ]
-            )
-            parts.append(
-                VehicleStates(
-                    [o.id for o in others],
-                    *rows.T,
-                    [self._lanes[o.id].lane.id if o.id in self._lanes else "" for o in others],
+    def _shared_neighbours(self) -> tuple[VehicleStates, VehicleStates]:
+        """The replayed vehicles outside SUMO and the live mission vehicles (lanes as of the
+        last step), made once per step for every ego's neighbours."""
+        replay = self._replay_states(self.step_count)
+        live = self.live
+        if not live:
+            return replay, VehicleStates.empty()
+        rows = np.array(
+            [
+                (
+                    o.pose.x,
+                    o.pose.y,
+                    o.pose.heading,
+                    o.pose.speed,
+                    o.mission.vehicle.length,
+                    o.mission.vehicle.width,
                 )
-            )
+                for o in live
+            ]
+        )
+        lanes = [self._lanes[o.id].lane.id if o.id in self._lanes else "" for o in live]
+        return replay, VehicleStates([o.id for o in live], *rows.T, lanes)
+
+    def _surroundings(
+        self, v: MissionVehicle, replay: VehicleStates, egos: VehicleStates
+    ) -> Surroundings:
+        """Other vehicles within the observation radius of ``v``'s centre, nearest first:
+        SUMO's, ``replay``'s and the other live egos of ``egos``."""
+        assert self._traffic is not None
+        parts = [self._traffic.vehicles_around(v.id, self._mission_ids), replay]
+        parts.append(egos.without({v.id}))
         near, distance = VehicleStates.concat(parts).nearest_first(
             v.pose.x, v.pose.y, self.interface.observation_radius
         )
