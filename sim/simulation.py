@@ -331,7 +331,7 @@ class Simulation:
         last step), made once per step for every ego's neighbours."""
         replay = self._replay_states(self.step_count)
         live = self.live
-        if not live:
+        if len(live) < 2:  # an ego alone has no other egos around
             return replay, VehicleStates.empty()
         rows = np.array(
             [
