@@ -146,12 +146,12 @@ class Lane:
         :meth:`heading_at` without their np.clip and np.stack wrappers. np.interp already holds
         the end values beyond the lane; the heading is the last segment's at the very end."""
         cum = self.cumulative_s
-        segment = self._inner_s.searchsorted(np.minimum(s, self.length - 1e-9), side="right")
-        return (
-            np.interp(s, cum, self._xs),
-            np.interp(s, cum, self._ys),
-            self.segment_headings[segment],
-        )
+        if len(self._inner_s):
+            at = np.minimum(s, self.length - 1e-9)
+            heading = self.segment_headings[self._inner_s.searchsorted(at, side="right")]
+        else:  # one segment (a straight lane): one heading
+            heading = np.full(len(s), self.segment_headings[0])
+        return np.interp(s, cum, self._xs), np.interp(s, cum, self._ys), heading
 
     @property
     def heading_start(self) -> float:

@@ -123,8 +123,7 @@ def waypoint_arrays(
     pieces: list[tuple[Lane, np.ndarray]] = []
     counts = []
     for lane, s in starts:
-        walk, last_lane = _path_pieces(road, lane, s, route, n)
-        count = sum(len(offsets) for _, offsets in walk)
+        walk, last_lane, count = _path_pieces(road, lane, s, route, n)
         if not count:
             walk, count = [(last_lane, np.array([last_lane.length]))], 1
         pieces += walk
@@ -227,9 +226,10 @@ def _junction_id(lane: Lane) -> str:
 
 def _path_pieces(
     road: RoadNetwork, lane: Lane, s: float, route: tuple[str, ...], n: int
-) -> tuple[list[tuple[Lane, np.ndarray]], Lane]:
-    """The offsets of a path's waypoints on each lane it crosses, the first level with s; and
-    the lane the path ends on (whose end point is the one waypoint of an empty path)."""
+) -> tuple[list[tuple[Lane, np.ndarray]], Lane, int]:
+    """The offsets of a path's waypoints on each lane it crosses, the first level with s; the
+    lane the path ends on (whose end point is the one waypoint of an empty path); and how many
+    points it has."""
     pieces: list[tuple[Lane, np.ndarray]] = []
     count, first_s = 0, s
     for _ in range(_MAX_LANE_HOPS):
@@ -244,7 +244,7 @@ def _path_pieces(
         if successor is None:
             break
         lane = successor
-    return pieces, lane
+    return pieces, lane, count
 
 
 def route_ahead(road: RoadNetwork, x: float, y: float, heading: float) -> list[str]:
