@@ -5,14 +5,17 @@ starts SUMO with the same network, traffic and options and only calls ``simulati
 runs :class:`sim.simulation.Simulation` with one ego driven by a simple gap-keeping policy
 (TargetPose): ego moved into SUMO, neighbours read, events detected, observation built, record
 row kept, and the ``.npz`` record written at the end. The policy's own time is not counted.
-Each side runs in its own process (libsumo: one simulation per process); best of three each.
+Our side runs twice: with observation dicts (the native and smarts2022 formats) and with the
+arrays observation written in place (``Simulation(arrays=True)``: the arrays format and learn's
+environments). Each side runs in its own process (libsumo: one simulation per process); best of
+three each, the sides taking turns so that a changing load falls on all of them.
 
 Two clocks, as in ``bench/env_throughput.py``: wall time, and the side's CPU time. On a shared,
 loaded machine wall time mostly measures the neighbours, so ``ratio`` uses CPU time.
 
 Usage: ``python bench/sim_throughput.py [--steps 1000] [--vehicles 100] [--repeat 3]``.
-The last line printed is ``ratio=<ours_cpu/raw_cpu> wall_ratio=<ours_wall/raw_wall>`` (target:
-ratio at most 1.5).
+The last line printed is ``ratio=<arrays_cpu/raw_cpu> native_ratio=<native_cpu/raw_cpu>
+wall_ratio=<arrays_wall/raw_wall>`` (target: ratio at most 2).
 
 ``--sumo-costs`` first prints what SUMO itself costs per step for the ways we could put an ego
 into it and read its surroundings (libsumo only, no code of ours; an ego at constant speed along
@@ -174,17 +177,31 @@ def follow_gap(obs: dict) -> list[float]:
         ),
         default=100.0,
     )
+    return gap_action(x, y, gap)
+
+
+def follow_gap_arrays(obs) -> list[float]:
+    """:func:`follow_gap` on an arrays observation (its nearest neighbour slots)."""
+    x, y, _ = obs.arrays["ego_vehicle_state"]["position"].tolist()
+    nbr = obs.arrays["neighborhood_vehicle_states"]
+    pos = nbr["position"][nbr["mask"].astype(bool)]
+    ahead = pos[(pos[:, 0] > x) & (abs(pos[:, 1] - y) < 1.6), 0]
+    return gap_action(x, y, float(ahead.min()) - x if len(ahead) else 100.0)
+
+
+def gap_action(x: float, y: float, gap: float) -> list[float]:
     speed = min(25.0, max(0.0, (gap - 10.0) / 1.5))
     return [x + speed * 0.1, y, 0.0, 0.1]
 
 
-def our_side(folder: str, steps: int, profile: bool, queue) -> None:
+def our_side(folder: str, steps: int, arrays: bool, profile: bool, queue) -> None:
     # deferred: libsumo loads only in the process that simulates (one simulation per process)
     from arena.scenario import load_scenario
     from sim.interface import AgentInterface
     from sim.simulation import Simulation
 
-    sim = Simulation(load_scenario(Path(folder)), Path(folder), AgentInterface())
+    sim = Simulation(load_scenario(Path(folder)), Path(folder), AgentInterface(), arrays=arrays)
+    policy = follow_gap_arrays if arrays else follow_gap
     obs = sim.reset()
     profiler = cProfile.Profile() if profile else None
     policy_wall = policy_cpu = 0.0
@@ -193,7 +210,7 @@ def our_side(folder: str, steps: int, profile: bool, queue) -> None:
         profiler.enable()
     for _ in range(steps):
         t0, c0 = time.perf_counter(), time.process_time()
-        actions = {a: follow_gap(o) for a, o in obs.items()}
+        actions = {a: policy(o) for a, o in obs.items()}
         policy_wall += time.perf_counter() - t0
         policy_cpu += time.process_time() - c0
         obs = sim.step(actions)
@@ -239,24 +256,28 @@ def main() -> None:
         folder = str(build(Path(tmp) / "bench", args.vehicles, args.steps))
         if args.sumo_costs:
             sumo_costs(folder, args.steps, args.repeat)
-        raw, ours = [], []
+        runs: dict[str, list[tuple[float, float]]] = {"raw": [], "native": [], "arrays": []}
         for _ in range(args.repeat):
-            raw.append(in_child(raw_side, folder, args.steps)[0])
-            ours.append(in_child(our_side, folder, args.steps, False)[0])
+            runs["raw"].append(in_child(raw_side, folder, args.steps)[0])
+            runs["native"].append(in_child(our_side, folder, args.steps, False, False)[0])
+            runs["arrays"].append(in_child(our_side, folder, args.steps, True, False)[0])
         if args.profile:
-            print(in_child(our_side, folder, args.steps, True)[1])
+            for arrays in (False, True):
+                print("arrays" if arrays else "native")
+                print(in_child(our_side, folder, args.steps, arrays, True)[1])
     n = args.steps
-    best = {
-        name: (min(w for w, _ in runs), min(c for _, c in runs))
-        for name, runs in (("raw libsumo", raw), ("ours", ours))
-    }
+    best = {name: (min(w for w, _ in side), min(c for _, c in side)) for name, side in runs.items()}
     for name, (wall, cpu) in best.items():
         print(
-            f"{name + ':':13s} wall {n / wall:7,.0f} steps/s ({wall * 1e3 / n:.3f} ms/step)"
+            f"{name + ':':8s} wall {n / wall:7,.0f} steps/s ({wall * 1e3 / n:.3f} ms/step)"
             f"   CPU {n / cpu:7,.0f} steps/s ({cpu * 1e3 / n:.3f} ms/step)"
+            f"   {cpu / best['raw'][1]:.2f} x raw CPU"
         )
-    (raw_wall, raw_cpu), (ours_wall, ours_cpu) = best["raw libsumo"], best["ours"]
-    print(f"ratio={ours_cpu / raw_cpu:.2f} wall_ratio={ours_wall / raw_wall:.2f}")
+    raw_wall, raw_cpu = best["raw"]
+    print(
+        f"ratio={best['arrays'][1] / raw_cpu:.2f} native_ratio={best['native'][1] / raw_cpu:.2f}"
+        f" wall_ratio={best['arrays'][0] / raw_wall:.2f}"
+    )
 
 
 if __name__ == "__main__":

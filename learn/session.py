@@ -19,7 +19,8 @@ from evaluator.scoring import load_profile
 from learn.protocol import Config, Reply
 from learn.render import TopView
 from learn.terms import EpisodeTerms
-from sim.observation_arrays import ObservationEncoder, ObservationLayout
+from sim.observation_arrays import ObservationLayout
+from sim.observation_record import ArraysObservation
 from sim.simulation import Simulation
 from sim.traffic import sumo_running
 
@@ -33,8 +34,6 @@ class SimulatorSession:
         self.config = config
         self.profile = load_profile(config.profile)
         self._layout = ObservationLayout(config.interface)
-        # One encoder per agent of the episode: each follows its agent's paths step to step.
-        self._encoders: dict[str, Any] = {}
         self._packed = packed
         self.sim = None
         self._view = None  # learn.render.TopView of the episode, when rendering
@@ -44,7 +43,8 @@ class SimulatorSession:
         self._end_episode()
         folder = Path(scenario_dir)
         scenario = load_scenario(folder)
-        self.sim = Simulation(scenario, folder, self.config.interface, seed)
+        # The simulator writes each observation straight into its arrays record.
+        self.sim = Simulation(scenario, folder, self.config.interface, seed, arrays=True)
         self._terms = EpisodeTerms(self.profile)
         if self.config.render:
             self._view = TopView(self.sim)
@@ -62,25 +62,27 @@ class SimulatorSession:
         # The simulator hands an agent that finished while driving this step its last
         # observation once (``done`` True): that is the Gymnasium terminal observation.
         drove = sim.step(actions)
-        obs = {k: o for k, o in drove.items() if not o["done"]}
+        obs = {k: o for k, o in drove.items() if not o.done}
         reply = Reply(observations={}, scenario_id=sim.scenario.id)
         for v in sim.vehicles:
             if v.id in live_before and v.id not in obs:
                 reply.finished[v.id] = str(v.reason)
                 if v.id in drove:  # drove this step (not ended by an invalid action)
-                    reply.terminal[v.id] = self._encode(v.id, drove[v.id])
+                    reply.terminal[v.id] = self._encode(drove[v.id])
         for agent_id, observation in drove.items():
-            reply.events[agent_id] = observation["events"]
+            reply.events[agent_id] = observation.events.as_observation()
             reply.terms[agent_id] = self._terms.step(agent_id, sim.recorder.rows[agent_id])
         # Only agents still waiting to enter: move time on until one does or the episode ends.
         while not obs and not sim.done:
-            obs = {k: o for k, o in sim.step({}).items() if not o["done"]}
+            obs = {k: o for k, o in sim.step({}).items() if not o.done}
         return self._reply(obs, reply)
 
-    def _reply(self, obs: dict[str, dict], reply: Reply) -> Reply:
+    def _reply(self, obs: dict[str, ArraysObservation], reply: Reply) -> Reply:
         assert self.sim is not None
-        reply.observations = {k: self._encode(k, o) for k, o in obs.items()}
-        reply.ids = {k: _ids(o) for k, o in obs.items()}
+        reply.observations = {k: self._encode(o) for k, o in obs.items()}
+        reply.ids = {
+            k: {"id": k, "road_id": o.road_id, "lane_id": o.lane_id} for k, o in obs.items()
+        }
         reply.done = self.sim.done
         reply.step = self.sim.step_count
         if self._view is not None and self.sim.vehicles:
@@ -89,18 +91,13 @@ class SimulatorSession:
             self._end_episode()
         return reply
 
-    def _encode(self, agent_id: str, obs: dict) -> Any:
-        encoder = self._encoders.get(agent_id)
-        if encoder is None:
-            encoder = self._encoders[agent_id] = ObservationEncoder(self._layout)
-        if not self._packed:
-            return encoder.encode(obs)
-        record = bytearray(self._layout.size)
-        encoder.write(obs, record)
-        return record
+    def _encode(self, obs: ArraysObservation) -> Any:
+        # A copy: the simulator rewrites its record at the agent's next step, and a training
+        # loop may keep this observation longer.
+        record = bytearray(obs.record)
+        return record if self._packed else self._layout.arrays(record)
 
     def _end_episode(self) -> None:
-        self._encoders.clear()
         self._view = None
         if self.sim is not None:
             self.sim.close()
@@ -128,8 +125,3 @@ class InProcessSimulator(SimulatorSession):
     @classmethod
     def slot_free(cls) -> bool:
         return cls._holder is None and not sumo_running()
-
-
-def _ids(obs: dict) -> dict[str, str]:
-    ego = obs["ego_vehicle_state"]
-    return {"id": ego["id"], "road_id": ego["road_id"], "lane_id": ego["lane_id"]}

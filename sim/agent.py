@@ -2,6 +2,9 @@
 
 The evaluator's sandboxed agent handles and in-process test policies both satisfy :class:`Agent`.
 A failure of the agent itself (not of one action) is raised as :class:`arena.errors.AgentFailed`.
+An agent with a true ``takes_arrays`` attribute (a sandbox handle of ``observation_format:
+arrays``) is given :class:`sim.observation_record.ArraysObservation` values, the records the
+simulator writes in place, instead of observation dicts.
 """
 
 from __future__ import annotations

@@ -42,7 +42,8 @@ def run_episode(
     """
     started = time.monotonic()
     scenario = load_scenario(scenario_dir)
-    sim = Simulation(scenario, scenario_dir, interface, seed, inputs=inputs)
+    arrays = bool(getattr(agent, "takes_arrays", False))  # see sim.agent
+    sim = Simulation(scenario, scenario_dir, interface, seed, inputs=inputs, arrays=arrays)
     detail = ""
     try:
         obs = sim.reset()

@@ -3,7 +3,7 @@
 Plain Python values (lists, floats, ints, bools, strings), plus the optional rasters as uint8 numpy
 arrays (``sim.bev``), which the sandbox protocol carries as arrays.
 An agent's bounding box and mission are built once per episode and shared between observations
-(as is a dead-end lane's end waypoint; other waypoints are built afresh, level with the vehicle):
+(waypoints are built afresh, level with the vehicle):
 an in-process policy must treat observations as read-only.
 """
 
@@ -14,7 +14,7 @@ import numpy as np
 from sim.events import Events
 from sim.interface import AgentInterface
 from sim.mission_vehicle import MissionVehicle, Status
-from sim.road import LanePosition, RoadNetwork
+from sim.road import Lane, LanePosition, RoadNetwork
 from sim.vehicle.states import VehicleStates
 
 RASTERS = ("drivable_area_grid_map", "occupancy_grid_map", "top_down_rgb")
@@ -101,18 +101,13 @@ def neighbour_states(
     ``lane_positions`` each also has ``lane_position`` [s, t] [m] on its lane (SMARTS's
     ``VehicleObservation.lane_position``; the smarts2022 format only, as it costs a projection
     per neighbour and step)."""
-    lanes = road.lanes
-    unknown = [i for i, lane_id in enumerate(neighbours.lane_id) if lane_id not in lanes]
-    guessed = {}
-    if unknown:
-        xy = np.stack([neighbours.x[unknown], neighbours.y[unknown]], 1)
-        guessed = dict(zip(unknown, road.nearest_lanes(xy), strict=True))
     out = []
     xs, ys = neighbours.x.tolist(), neighbours.y.tolist()
     hs, vs = neighbours.heading.tolist(), neighbours.speed.tolist()
     ls, ws = neighbours.length.tolist(), neighbours.width.tolist()
-    for i, vid in enumerate(neighbours.ids):
-        lane = guessed[i] if unknown and i in guessed else lanes[neighbours.lane_id[i]]
+    for i, (vid, lane) in enumerate(
+        zip(neighbours.ids, neighbour_lanes(neighbours, road), strict=True)
+    ):
         state = {
             "id": vid,
             "position": [xs[i], ys[i], 0.0],
@@ -128,3 +123,15 @@ def neighbour_states(
             state["lane_position"] = [s, t]
         out.append(state)
     return out
+
+
+def neighbour_lanes(neighbours: VehicleStates, road: RoadNetwork) -> list[Lane]:
+    """Each neighbour's lane: SUMO's, else (replayed and unreported vehicles) the nearest."""
+    lanes = road.lanes
+    found = [lanes.get(lane_id) for lane_id in neighbours.lane_id]
+    unknown = [i for i, lane in enumerate(found) if lane is None]
+    if unknown:
+        xy = np.stack([neighbours.x[unknown], neighbours.y[unknown]], 1)
+        for i, lane in zip(unknown, road.nearest_lanes(xy), strict=True):
+            found[i] = lane
+    return found

@@ -17,7 +17,7 @@ from __future__ import annotations
 import functools
 import math
 import struct
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from itertools import chain
 from operator import itemgetter
@@ -175,8 +175,7 @@ class ObservationEncoder:
     def __init__(self, layout: ObservationLayout) -> None:
         self.layout = layout
         leaves = layout.leaves
-        first_variable = next(i for i, f in enumerate(leaves) if f.path[0] == NEIGHBOURS)
-        self._head = _head_struct(leaves[:first_variable])
+        self._head = head_struct(layout)
         mask = layout.leaf(NEIGHBOURS, "mask")
         self._neighbours_at = mask.offset
         neighbour_end = layout.leaf(NEIGHBOURS, "lane_index")
@@ -267,8 +266,11 @@ _NEIGHBOUR_FIELDS = itemgetter("position", "heading", "speed", "bounding_box", "
 _EVENTS = itemgetter(*EVENT_NAMES)
 
 
-def _head_struct(leaves: tuple[Leaf, ...]) -> struct.Struct:
-    """One struct for the head leaves: events pack any value's truth ('?'), as ``bool``."""
+def head_struct(layout: ObservationLayout) -> struct.Struct:
+    """One struct for the head leaves (those before the neighbours): events pack any value's
+    truth ('?'), as ``bool``."""
+    first_variable = next(i for i, f in enumerate(layout.leaves) if f.path[0] == NEIGHBOURS)
+    leaves = layout.leaves[:first_variable]
     parts, at = ["<"], 0
     for leaf in leaves:
         parts.append("x" * (leaf.offset - at))
@@ -282,14 +284,34 @@ def _head_values(obs: dict) -> list:
     """The head's values in leaf order (:func:`_leaf_specs`)."""
     ego = obs["ego_vehicle_state"]
     goal = ego["mission"]["goal"]
-    values = [obs["dt"], obs["step_count"], obs["elapsed_sim_time"], obs["distance_travelled"]]
-    values += _EVENTS(obs["events"])
-    for name, size in EGO_FIELDS:
+    return head_values(
+        (obs["dt"], obs["step_count"], obs["elapsed_sim_time"], obs["distance_travelled"]),
+        _EVENTS(obs["events"]),
+        [ego[name] for name, _ in EGO_FIELDS],
+        ego["lane_index"],
+        goal["position"],
+        goal["radius"],
+    )
+
+
+def head_values(
+    scalars: tuple[float, int, float, float],
+    events: Iterable,
+    ego: list,
+    lane_index: int,
+    goal_position: Iterable[float],
+    goal_radius: float,
+) -> list:
+    """The head's values in leaf order (:func:`_leaf_specs`): ``scalars`` dt, step count,
+    elapsed time and distance travelled, ``events`` in :data:`EVENT_NAMES` order and ``ego``
+    in :data:`EGO_FIELDS` order (vectors as sequences)."""
+    values = [*scalars, *events]
+    for (_, size), value in zip(EGO_FIELDS, ego, strict=True):
         if size:
-            values += ego[name]
+            values += value
         else:
-            values.append(ego[name])
-    values.append(ego["lane_index"])
-    values += goal["position"]
-    values.append(goal["radius"])
+            values.append(value)
+    values.append(lane_index)
+    values += goal_position
+    values.append(goal_radius)
     return values

@@ -31,10 +31,18 @@ from sim.interface import AgentInterface
 from sim.lidar import Lidar
 from sim.mission_vehicle import MissionVehicle, Status
 from sim.observation import build_observation
+from sim.observation_arrays import ObservationLayout
+from sim.observation_record import ArraysObservation, ObservationRecord
 from sim.playback import ReplayTable
 from sim.record import EpisodeRecorder, RecordRow, write_npz
 from sim.road import LanePosition, RoadNetwork
-from sim.road.waypoints import road_waypoints, route_ahead, waypoint_paths
+from sim.road.waypoints import (
+    path_starts,
+    road_waypoints,
+    route_ahead,
+    waypoint_arrays,
+    waypoint_paths,
+)
 from sim.traffic import SumoTraffic
 from sim.triggers import CutInTriggers
 from sim.vehicle import DECODERS, ControlContext, InvalidAction, check_action
@@ -52,7 +60,12 @@ _AT_REST = Events((), False, False, False, False, False, False, False)
 
 class Simulation:
     """An episode of ``scenario``. Not reusable across processes: libsumo allows one running
-    simulation per process, so create, run and :meth:`close` one at a time."""
+    simulation per process, so create, run and :meth:`close` one at a time.
+
+    ``arrays``: observations as :class:`sim.observation_record.ArraysObservation` (each agent's
+    record of the interface's arrays layout, written in place and valid until its next
+    observation) instead of dicts; the record rows and the episode are the same.
+    """
 
     def __init__(
         self,
@@ -63,6 +76,7 @@ class Simulation:
         *,
         with_missions: bool = True,
         inputs: ScenarioInputs | None = None,
+        arrays: bool = False,
     ) -> None:
         self.scenario = scenario
         self.scenario_dir = Path(scenario_dir)
@@ -95,10 +109,13 @@ class Simulation:
         self.recorder = EpisodeRecorder([m.agent_id for m in self._missions])
         self._bev = BevRenderer(self.road, interface, {m.agent_id: m.route for m in self._missions})
         self._lidar = Lidar(self.road) if interface.lidar_point_cloud else None
+        # arrays: observations written straight into records of this layout (ArraysObservation)
+        self._layout = ObservationLayout(interface) if arrays else None
+        self._records: dict[str, ObservationRecord] = {}
 
     # --- lifecycle ---------------------------------------------------------------------------
 
-    def reset(self) -> dict[str, dict]:
+    def reset(self) -> dict[str, dict | ArraysObservation]:
         """Start SUMO and place the vehicles; the observations of agents starting at step 0."""
         self.close()
         sc, folder = self.scenario, self.scenario_dir
@@ -120,14 +137,17 @@ class Simulation:
         self.step_count = 0
         self.violations = {}
         self._lanes = {}
+        self._records = {}
         entering = [v for v in self.vehicles if v.mission.start_step <= 0]
         for v in entering:
             self._enter(v)
         if self._bubble is not None:
             self._bubble.update(self._traffic, 0, [(v.pose.x, v.pose.y) for v in self.live])
         self._traffic.step()
+        shared = self._shared_neighbours()
         return {
-            v.id: self._observe(v, self._surroundings(v), self._events_at_rest(v)) for v in entering
+            v.id: self._observe(v, self._surroundings(v, *shared), self._events_at_rest(v))
+            for v in entering
         }
 
     def close(self) -> None:
@@ -137,7 +157,7 @@ class Simulation:
 
     # --- stepping ----------------------------------------------------------------------------
 
-    def step(self, actions: dict[str, object]) -> dict[str, dict]:
+    def step(self, actions: dict[str, object]) -> dict[str, dict | ArraysObservation]:
         """Apply one action per live agent, advance every vehicle by dt, detect events, record.
 
         A missing, wrongly shaped, non-finite or out-of-range action ends that agent with
@@ -191,7 +211,8 @@ class Simulation:
         traffic.step()
         self._keep_egos_in_sumo()
 
-        surroundings = {v.id: self._surroundings(v) for v in driven + entering}
+        shared = self._shared_neighbours()
+        surroundings = {v.id: self._surroundings(v, *shared) for v in driven + entering}
         events = {}
         for v in driven:
             events[v.id] = self._detect(v, surroundings[v.id], step)
@@ -305,34 +326,37 @@ class Simulation:
             return VehicleStates.empty()
         return self._replay.states(step)
 
-    def _surroundings(self, v: MissionVehicle) -> Surroundings:
-        """Other vehicles within the observation radius of ``v``'s centre, nearest first."""
-        assert self._traffic is not None
-        parts = [self._traffic.vehicles_around(v.id, self._mission_ids)]
-        if self._replay is not None:
-            parts.append(self._replay.states(self.step_count))
-        others = [o for o in self.live if o is not v]
-        if others:
-            rows = np.array(
-                [
-                    (
-                        o.pose.x,
-                        o.pose.y,
-                        o.pose.heading,
-                        o.pose.speed,
-                        o.mission.vehicle.length,
-                        o.mission.vehicle.width,
-                    )
-                    for o in others
-                ]
-            )
-            parts.append(
-                VehicleStates(
-                    [o.id for o in others],
-                    *rows.T,
-                    [self._lanes[o.id].lane.id if o.id in self._lanes else "" for o in others],
+    def _shared_neighbours(self) -> tuple[VehicleStates, VehicleStates]:
+        """The replayed vehicles outside SUMO and the live mission vehicles (lanes as of the
+        last step), made once per step for every ego's neighbours."""
+        replay = self._replay_states(self.step_count)
+        live = self.live
+        if len(live) < 2:  # an ego alone has no other egos around
+            return replay, VehicleStates.empty()
+        rows = np.array(
+            [
+                (
+                    o.pose.x,
+                    o.pose.y,
+                    o.pose.heading,
+                    o.pose.speed,
+                    o.mission.vehicle.length,
+                    o.mission.vehicle.width,
                 )
-            )
+                for o in live
+            ]
+        )
+        lanes = [self._lanes[o.id].lane.id if o.id in self._lanes else "" for o in live]
+        return replay, VehicleStates([o.id for o in live], *rows.T, lanes)
+
+    def _surroundings(
+        self, v: MissionVehicle, replay: VehicleStates, egos: VehicleStates
+    ) -> Surroundings:
+        """Other vehicles within the observation radius of ``v``'s centre, nearest first:
+        SUMO's, ``replay``'s and the other live egos of ``egos``."""
+        assert self._traffic is not None
+        parts = [self._traffic.vehicles_around(v.id, self._mission_ids), replay]
+        parts.append(egos.without({v.id}))
         near, distance = VehicleStates.concat(parts).nearest_first(
             v.pose.x, v.pose.y, self.interface.observation_radius
         )
@@ -403,8 +427,12 @@ class Simulation:
         self._lane_of(v)
         return _AT_REST
 
-    def _observe(self, v: MissionVehicle, around: Surroundings, events: Events) -> dict:
+    def _observe(
+        self, v: MissionVehicle, around: Surroundings, events: Events
+    ) -> dict | ArraysObservation:
         lane, near = self._lanes[v.id], around.vehicles
+        if self._layout is not None:
+            return self._observe_arrays(v, lane, near, events)
         paths = waypoint_paths(
             self.road,
             lane,
@@ -433,6 +461,30 @@ class Simulation:
                 if self.interface.road_waypoints
                 else None
             ),
+        )
+
+    def _observe_arrays(
+        self, v: MissionVehicle, lane: LanePosition, near: VehicleStates, events: Events
+    ) -> ArraysObservation:
+        assert self._layout is not None
+        record = self._records.get(v.id)
+        if record is None:
+            record = self._records[v.id] = ObservationRecord(self._layout)
+        route, interface = v.mission.route, self.interface
+        starts = path_starts(
+            self.road, lane, v.pose.x, v.pose.y, route, interface.max_waypoint_paths
+        )
+        return record.write(
+            vehicle=v,
+            step=self.step_count,
+            dt=self.dt,
+            lane=lane,
+            events=events,
+            neighbours=near,
+            road=self.road,
+            waypoints=waypoint_arrays(self.road, starts, route, interface.waypoints_per_path),
+            rasters=self._rasters(v, near),
+            done=v.status is Status.done,
         )
 
     def _rasters(self, v: MissionVehicle, near: VehicleStates) -> dict[str, np.ndarray] | None:

@@ -6,8 +6,11 @@ its interface, so it is sent once (the ``layout`` message); each step then sends
     b"a" | uint32 agent count | uint32 record size | per agent: uint16 id length + UTF-8 id
          | one record per agent, in the same order
 
-(integers big-endian, like the frame header; the records hold little-endian arrays). The records
-are encoded into buffers kept from step to step and written as they are, never copied or pickled.
+(integers big-endian, like the frame header; the records hold little-endian arrays). In an
+episode the simulator writes each agent's record in place (``Simulation(arrays=True)``, an
+:class:`sim.observation_record.ArraysObservation`) and its bytes go out as they are; an
+observation dict (tests, tools) is encoded into a buffer kept from step to step. Never copied
+or pickled.
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ import struct
 
 from sim.interface import AgentInterface
 from sim.observation_arrays import ObservationEncoder, ObservationLayout
+from sim.observation_record import ArraysObservation
 
 TAG = b"a"  # the payload's first byte; a pickle's is 0x80
 HEAD = struct.Struct(">II")
@@ -32,11 +36,14 @@ class ArrayFrames:
         self._agents: dict[str, tuple[ObservationEncoder, bytearray]] = {}
         self._prefixes: dict[tuple[str, ...], bytes] = {}
 
-    def frame(self, obs: dict[str, dict]) -> list[bytes | bytearray]:
-        """The frame's payload for ``obs`` (agent id -> agent-interface observation), in parts;
-        valid until the next call (the records are reused)."""
+    def frame(self, obs: dict[str, dict | ArraysObservation]) -> list[bytes | bytearray]:
+        """The frame's payload for ``obs`` (agent id -> the simulator's arrays observation or an
+        agent-interface dict), in parts; valid until the next call (the records are reused)."""
         records = []
         for agent_id, observation in obs.items():
+            if isinstance(observation, ArraysObservation):
+                records.append(observation.record)
+                continue
             encoder, record = self._agents.get(agent_id) or self._agents.setdefault(
                 agent_id, (ObservationEncoder(self.layout), bytearray(self.layout.size))
             )

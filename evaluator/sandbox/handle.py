@@ -48,6 +48,8 @@ class AgentHandle:
             else None
         )
         limits = limits or settings.cpu_limits
+        # run_episode then has the simulator write the arrays records in place (sim.agent)
+        self.takes_arrays = self._arrays is not None
         self._step_cpu_s = limits.step_s
         self._step_timeout_s = settings.step_timeout_s
         self._episode_cpu_s = limits.episode_s

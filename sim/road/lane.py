@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from functools import cached_property
+from typing import NamedTuple
 
 import numpy as np
 
@@ -141,22 +141,17 @@ class Lane:
         s, total = self.waypoint_offsets(first_s, limit)
         return waypoint_dicts([(self, s)]), total
 
-    @cached_property
-    def end_waypoint(self) -> dict:
-        """The waypoint at the lane's very end: the last point of a path that ends here."""
-        return waypoint_dicts([(self, np.array([self.length]))])[0]
-
     def _sample(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Centreline x, y [m] and heading [rad] at offsets ``s``: :meth:`position_at` and
         :meth:`heading_at` without their np.clip and np.stack wrappers. np.interp already holds
         the end values beyond the lane; the heading is the last segment's at the very end."""
         cum = self.cumulative_s
-        segment = self._inner_s.searchsorted(np.minimum(s, self.length - 1e-9), side="right")
-        return (
-            np.interp(s, cum, self._xs),
-            np.interp(s, cum, self._ys),
-            self.segment_headings[segment],
-        )
+        if len(self._inner_s):
+            at = np.minimum(s, self.length - 1e-9)
+            heading = self.segment_headings[self._inner_s.searchsorted(at, side="right")]
+        else:  # one segment (a straight lane): one heading
+            heading = np.full(len(s), self.segment_headings[0])
+        return np.interp(s, cum, self._xs), np.interp(s, cum, self._ys), heading
 
     @property
     def heading_start(self) -> float:
@@ -175,25 +170,54 @@ def angle_between(a: float, b: float) -> float:
     return abs(math.remainder(a - b, 2 * math.pi))
 
 
-def waypoint_dicts(pieces: list[tuple[Lane, np.ndarray]]) -> list[dict]:
-    """Waypoint dicts at offsets ``s`` along each (lane, s) piece, in order.
+class WaypointArrays(NamedTuple):
+    """Waypoints as flat arrays over all their points, in order: the values of the waypoint
+    dicts (before any float32 conversion), sampled per lane in one pass."""
 
-    Built afresh for every observation (paths start level with the vehicle), so this is the hot
-    path of one: positions are sampled per lane, then rounded and boxed to floats in one pass
-    over all pieces, as numpy's per-call cost outweighs the arithmetic on ~50 points.
-    """
+    counts: list[int]  # points of each path, in order (one path: all of them)
+    x: np.ndarray  # [m], rounded to 0.1 mm as the dicts' "pos"
+    y: np.ndarray
+    heading: np.ndarray  # [rad]
+    lane_offset: np.ndarray  # [m] along each point's lane
+    pieces: list[tuple[Lane, int]]  # the points' lanes in order: (lane, how many points)
+
+
+def sample_waypoints(pieces: list[tuple[Lane, np.ndarray]], counts: list[int]) -> WaypointArrays:
+    """The waypoints at offsets ``s`` along each (lane, s) piece, in order, making up paths of
+    ``counts`` points (their sum: every piece's points)."""
     pieces = [(lane, s) for lane, s in pieces if len(s)]
     if not pieces:
-        return []
+        z = np.zeros(0)
+        return WaypointArrays(counts, z, z, z, z, [])
     sampled = [lane._sample(s) for lane, s in pieces]
-    xs = np.concatenate([x for x, _, _ in sampled]).round(4).tolist()
-    ys = np.concatenate([y for _, y, _ in sampled]).round(4).tolist()
-    headings = np.concatenate([h for _, _, h in sampled]).tolist()
-    offsets = np.concatenate([s for _, s in pieces]).tolist()
+    return WaypointArrays(
+        counts,
+        np.concatenate([x for x, _, _ in sampled]).round(4),
+        np.concatenate([y for _, y, _ in sampled]).round(4),
+        np.concatenate([h for _, _, h in sampled]),
+        np.concatenate([s for _, s in pieces]),
+        [(lane, len(s)) for lane, s in pieces],
+    )
+
+
+def waypoint_dicts(pieces: list[tuple[Lane, np.ndarray]]) -> list[dict]:
+    """Waypoint dicts at offsets ``s`` along each (lane, s) piece, in order."""
+    return as_dicts(sample_waypoints(pieces, [sum(len(s) for _, s in pieces)]))
+
+
+def as_dicts(waypoints: WaypointArrays) -> list[dict]:
+    """The waypoint dicts of ``waypoints``, all paths' in one list.
+
+    Built afresh for every observation (paths start level with the vehicle), so this is the hot
+    path of one: the values are boxed to floats in one pass over all points, as numpy's per-call
+    cost outweighs the arithmetic on ~50 points.
+    """
+    xs, ys = waypoints.x.tolist(), waypoints.y.tolist()
+    headings, offsets = waypoints.heading.tolist(), waypoints.lane_offset.tolist()
     # Copies of one template per lane (the key order of the documented waypoint), then the
     # three values per point: faster than a dict display of seven keys.
     out: list[dict] = []
-    for lane, s in pieces:
+    for lane, count in waypoints.pieces:
         template = {
             "pos": None,
             "heading": None,
@@ -203,7 +227,7 @@ def waypoint_dicts(pieces: list[tuple[Lane, np.ndarray]]) -> list[dict]:
             "speed_limit": lane.speed_limit,
             "lane_offset": None,
         }
-        out += [template.copy() for _ in range(len(s))]
+        out += [template.copy() for _ in range(count)]
     for point, x, y, h, si in zip(out, xs, ys, headings, offsets, strict=True):
         point["pos"] = [x, y]
         point["heading"] = h

@@ -17,7 +17,13 @@ from weakref import WeakKeyDictionary
 
 import numpy as np
 
-from sim.road.lane import WAYPOINT_SPACING, Lane, waypoint_dicts
+from sim.road.lane import (
+    WAYPOINT_SPACING,
+    Lane,
+    WaypointArrays,
+    as_dicts,
+    sample_waypoints,
+)
 from sim.road.network import LanePosition, RoadNetwork
 
 _MAX_LANE_HOPS = 256  # a path crosses at most this many lanes (zero-length junction lanes)
@@ -83,17 +89,55 @@ def waypoint_paths(
     """Up to ``max_paths`` paths of 1 to ``per_path`` waypoints (1 m apart) starting level with
     (x, y) on each lane of the vehicle's road, nearest lanes to the vehicle's own first, then
     ordered by lane index. In a junction, one path along the junction lane that leads onto
-    ``route``. Built afresh for each call (a dead end's end waypoint is shared: read-only)."""
+    ``route``. Built afresh for each call, from :func:`waypoint_arrays`."""
+    starts = path_starts(road, position, x, y, route, max_paths)
+    return split_paths(waypoint_arrays(road, starts, route, per_path))
+
+
+def path_starts(
+    road: RoadNetwork,
+    position: LanePosition,
+    x: float,
+    y: float,
+    route: tuple[str, ...],
+    max_paths: int,
+) -> list[tuple[Lane, float]]:
+    """The (lane, s) each of :func:`waypoint_paths`'s paths starts from, in their order."""
     here = position.lane
     if here.is_internal:
-        lane, s = route_lane_in_junction(road, position, x, y, route)
-        return _paths_of(road, [(lane, s)], route, per_path)
+        return [route_lane_in_junction(road, position, x, y, route)]
     lanes = road.edges[here.edge_id]  # by index
     if len(lanes) > max_paths:
         nearest = sorted(lanes, key=lambda lane: abs(lane.index - here.index))[:max_paths]
         lanes = sorted(nearest, key=lambda lane: lane.index)
-    starts = [(lane, position.s if lane is here else lane.project(x, y)[0]) for lane in lanes]
-    return _paths_of(road, starts, route, per_path)
+    return [(lane, position.s if lane is here else lane.project(x, y)[0]) for lane in lanes]
+
+
+def waypoint_arrays(
+    road: RoadNetwork, starts: list[tuple[Lane, float]], route: tuple[str, ...], n: int
+) -> WaypointArrays:
+    """The waypoints of paths of up to ``n`` points from each (lane, s) of ``starts``
+    (:func:`path_starts`), sampled into arrays in one pass over all paths: what the arrays
+    observation holds, and what the waypoint dicts are made from. A path with no point ahead
+    holds its last lane's end point."""
+    pieces: list[tuple[Lane, np.ndarray]] = []
+    counts = []
+    for lane, s in starts:
+        walk, last_lane, count = _path_pieces(road, lane, s, route, n)
+        if not count:
+            walk, count = [(last_lane, np.array([last_lane.length]))], 1
+        pieces += walk
+        counts.append(count)
+    return sample_waypoints(pieces, counts)
+
+
+def split_paths(waypoints: WaypointArrays) -> list[list[dict]]:
+    """The waypoint dicts of each path of ``waypoints``."""
+    points, paths, start = as_dicts(waypoints), [], 0
+    for count in waypoints.counts:
+        paths.append(points[start : start + count])
+        start += count
+    return paths
 
 
 def road_waypoints(
@@ -114,7 +158,7 @@ def road_waypoints(
     for lane in lanes:
         s = position.s if lane is here else lane.project(x, y)[0]
         starts.append((lane, max(s - horizon, 0.0)))
-    paths = _paths_of(road, starts, route, 2 * horizon + 1)
+    paths = split_paths(waypoint_arrays(road, starts, route, 2 * horizon + 1))
     return {lane.id: [path] for (lane, _), path in zip(starts, paths, strict=True)}
 
 
@@ -180,26 +224,12 @@ def _junction_id(lane: Lane) -> str:
     return lane.edge_id[1:].rsplit("_", 1)[0]
 
 
-def _paths_of(
-    road: RoadNetwork, starts: list[tuple[Lane, float]], route: tuple[str, ...], n: int
-) -> list[list[dict]]:
-    """One path of up to ``n`` waypoints from each (lane, s) start, converted to waypoint dicts
-    in one pass over all of them."""
-    walks = [_path_pieces(road, lane, s, route, n) for lane, s in starts]
-    points = waypoint_dicts([piece for pieces, _ in walks for piece in pieces])
-    paths, start = [], 0
-    for pieces, last_lane in walks:
-        end = start + sum(len(s) for _, s in pieces)
-        paths.append(points[start:end] or [last_lane.end_waypoint])
-        start = end
-    return paths
-
-
 def _path_pieces(
     road: RoadNetwork, lane: Lane, s: float, route: tuple[str, ...], n: int
-) -> tuple[list[tuple[Lane, np.ndarray]], Lane]:
-    """The offsets of a path's waypoints on each lane it crosses, the first level with s; and
-    the lane the path ends on (whose end point is the one waypoint of an empty path)."""
+) -> tuple[list[tuple[Lane, np.ndarray]], Lane, int]:
+    """The offsets of a path's waypoints on each lane it crosses, the first level with s; the
+    lane the path ends on (whose end point is the one waypoint of an empty path); and how many
+    points it has."""
     pieces: list[tuple[Lane, np.ndarray]] = []
     count, first_s = 0, s
     for _ in range(_MAX_LANE_HOPS):
@@ -214,7 +244,7 @@ def _path_pieces(
         if successor is None:
             break
         lane = successor
-    return pieces, lane
+    return pieces, lane, count
 
 
 def route_ahead(road: RoadNetwork, x: float, y: float, heading: float) -> list[str]:

@@ -14,7 +14,9 @@ The planner drives with the default observation; :data:`EXPECTED_INTERFACES` cov
 action spaces and the optional parts (rasters, shorter waypoint paths, other radii) with the
 keep-lane example and seeded random actions (lists, tuples and arrays), which also end episodes
 off road and in collisions. Those digests were taken before the per-step speed work of the
-simulator (bulk neighbour reads, lane shortcuts of the area tests, plain-float poses).
+simulator (bulk neighbour reads, lane shortcuts of the area tests, plain-float poses); those of
+the smarts2022 format (keep-lane with road waypoints) before its waypoint dicts were made from
+the arrays the arrays format is written from.
 """
 
 from __future__ import annotations
@@ -115,6 +117,22 @@ EXPECTED_INTERFACES = {
         "d3e22b03a7e03e9970ac9db049eca05b54eddc82de37a8cde58ca30b78dfe3d6",
         "0efb00889da8055212225a52f217bddd1ed443537f7363cbce9df0fdd133fa90",
     ),
+    ("p000_left_turn_t_low", "keep_lane_smarts2022"): (
+        "0662bf08ab4d652516117c2d8c28f62cbf55387810ca11afbac7dc968b243468",
+        "7ea2ea15a62e2e443cd9449713aed595e491666ead9b51ad692f4fbe322bea36",
+    ),
+    ("p020_cruise_3lane_curve_low_3agents", "keep_lane_smarts2022"): (
+        "2f4525d0bdf1eebc1a3f93e99b9d923dd1a3e4b534123a5961a72431d6cec4e2",
+        "5cfa2bba5a5ba42dbbb9b91b0c3cdaee9c76436c7439b9ba15af065f068f55a3",
+    ),
+    ("p029_replay_i80_bubble", "keep_lane_smarts2022"): (
+        "918a523cda3135c555cf107847d0cba8682ae175768dba4a59c8b48d48786f70",
+        "6558b14617058417dbd96ddf0d7cf76aff7ffbd01903b20d15c743aff2c76e50",
+    ),
+    ("p030_replay_cruise", "keep_lane_smarts2022"): (
+        "ac8d0f1afd1cb798001dfe4e3c1720f725042a1941d7bbb60e191f6abde01058",
+        "d9aa00123b5e06f9fb5199b609243c8673dd31176c3fd94176a903d060418919",
+    ),
 }
 
 # junction, three agents, replay in a reactive bubble, replay outside SUMO
@@ -135,6 +153,10 @@ INTERFACES = {
         max_waypoint_paths=3,
         waypoints_per_path=20,
         observation_radius=60.0,
+    ),
+    # The smarts2022 format's dicts: one waypoint more per path, and the road waypoints.
+    "keep_lane_smarts2022": AgentInterface(
+        action_space="LaneWithContinuousSpeed", observation_format="smarts2022", road_waypoints=True
     ),
     "continuous_random": AgentInterface(action_space="Continuous", observation_radius=150.0),
     "relative_random": AgentInterface(action_space="RelativeTargetPose"),
@@ -200,7 +222,9 @@ class _SeededRandom:
 
 def _agent(name: str):
     return (
-        _KeepLane() if name == "keep_lane_rasters" else _SeededRandom(INTERFACES[name].action_space)
+        _KeepLane()
+        if name.startswith("keep_lane")
+        else _SeededRandom(INTERFACES[name].action_space)
     )
 
 
