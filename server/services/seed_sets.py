@@ -11,6 +11,7 @@ from __future__ import annotations
 from sqlalchemy import delete, select
 from sqlalchemy.orm import Session
 
+from arena.errors import InfrastructureError
 from evaluator.scoring import MetricSamples
 from evaluator.scoring.seeds import (
     METRICS,
@@ -35,9 +36,9 @@ from server.status import (
 )
 
 
-class SeedsApart(Exception):
+class SeedsApart(InfrastructureError):
     """The seeds' runs were made on different suites (the phase's suite changed between them):
-    they cannot be scored together."""
+    they cannot be scored together (not the team's fault: an organiser re-runs them)."""
 
 
 def several(job: TrainingJob | None) -> bool:

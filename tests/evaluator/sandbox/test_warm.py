@@ -34,9 +34,12 @@ others = 0
 for p in os.listdir('/proc'):
     if p.isdigit() and int(p) not in (1, os.getpid()):
         try:
-            others += open(f'/proc/{p}/comm').read().strip() != 'arena-holder'
+            stat = open(f'/proc/{p}/stat').read()
         except OSError:  # ended since the listing: the process backend sees the host's /proc
-            pass
+            continue
+        # This episode's own namespace holder is our child (just forked: it may not have taken
+        # its name yet); a process left by an earlier episode would be the zygote's.
+        others += int(stat.rsplit(')', 1)[1].split()[1]) != os.getpid()
 with open('/proc/sysvipc/shm') as table:
     segments = len(table.readlines()) - 1
 if private and EPISODES == 1:
