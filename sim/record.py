@@ -19,7 +19,7 @@ import numpy as np
 from arena.outcome import AgentOutcome
 from arena.record_format import EVENT_FLAGS, FORMAT_VERSION, NEIGHBOUR_FLOATS, STEP_FLOATS
 from arena.scenario import Mission
-from sim.vehicle.states import VehicleStates
+from sim.vehicle.states import FIELDS, VehicleStates
 
 
 class RecordRow(NamedTuple):
@@ -125,6 +125,8 @@ class AgentTrack(Sequence[RecordRow]):
 
 # RecordRow's floats in the track's column order (STEP_FLOATS): x .. vy, then the lane's.
 assert RecordRow._fields[1:7] + RecordRow._fields[9:13] == STEP_FLOATS
+# A neighbour's row of VehicleStates.values is its record values.
+assert FIELDS == NEIGHBOUR_FLOATS
 
 
 class EpisodeRecorder:
@@ -218,10 +220,9 @@ class EpisodeRecorder:
             row_of = np.repeat(np.arange(n), count)
             slot_of = np.arange(len(row_of)) - np.repeat(np.cumsum(count) - count, count)
             out["nbr_valid"][a, row_of, slot_of] = True
-            for name in NEIGHBOUR_FLOATS:
-                out[f"nbr_{name}"][a, row_of, slot_of] = np.concatenate(
-                    [getattr(nbr, name) for nbr in rows]
-                )
+            values = np.concatenate([nbr.values for nbr in rows])
+            for j, name in enumerate(NEIGHBOUR_FLOATS):
+                out[f"nbr_{name}"][a, row_of, slot_of] = values[:, j]
             ids = np.array(list(chain.from_iterable(nbr.ids for nbr in rows)), dtype=str)
             nbr_ids.append((a, row_of, slot_of, ids))
         out["lane_id"] = _str_array(lane_ids)

@@ -347,7 +347,7 @@ class Simulation:
             ]
         )
         lanes = [self._lanes[o.id].lane.id if o.id in self._lanes else "" for o in live]
-        return replay, VehicleStates([o.id for o in live], *rows.T, lanes)
+        return replay, VehicleStates.of([o.id for o in live], rows, lanes)
 
     def _surroundings(
         self, v: MissionVehicle, replay: VehicleStates, egos: VehicleStates
