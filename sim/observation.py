@@ -102,24 +102,23 @@ def neighbour_states(
     ``VehicleObservation.lane_position``; the smarts2022 format only, as it costs a projection
     per neighbour and step)."""
     out = []
-    xs, ys = neighbours.x.tolist(), neighbours.y.tolist()
-    hs, vs = neighbours.heading.tolist(), neighbours.speed.tolist()
-    ls, ws = neighbours.length.tolist(), neighbours.width.tolist()
-    for i, (vid, lane) in enumerate(
-        zip(neighbours.ids, neighbour_lanes(neighbours, road), strict=True)
+    lanes = neighbour_lanes(neighbours, road)
+    # Every neighbour's values in one tolist (rows of x, y, heading, speed, length, width).
+    for vid, lane, (x, y, heading, speed, length, width) in zip(
+        neighbours.ids, lanes, neighbours.values.tolist(), strict=True
     ):
         state = {
             "id": vid,
-            "position": [xs[i], ys[i], 0.0],
-            "heading": hs[i],
-            "speed": vs[i],
-            "bounding_box": [ls[i], ws[i], DEFAULT_HEIGHT],
+            "position": [x, y, 0.0],
+            "heading": heading,
+            "speed": speed,
+            "bounding_box": [length, width, DEFAULT_HEIGHT],
             "road_id": lane.edge_id,
             "lane_id": lane.id,
             "lane_index": lane.index,
         }
         if lane_positions:
-            s, t, _ = lane.project(xs[i], ys[i])
+            s, t, _ = lane.project(x, y)
             state["lane_position"] = [s, t]
         out.append(state)
     return out
