@@ -90,9 +90,11 @@ class VehicleStates:
         in their present order), and those distances [m]."""
         distance = np.hypot(self.x - x, self.y - y)
         # A stable sort of all, cut after those within the radius: the same order as sorting
-        # only those, with one fancy index fewer.
-        order = np.argsort(distance, kind="stable")[: np.count_nonzero(distance <= radius)]
-        return self.select(order), distance[order]
+        # only those, with fewer numpy calls (each costs more than the arithmetic here).
+        order = distance.argsort(kind="stable")  # the method: np.argsort adds a wrapper
+        distance = distance[order]
+        within = int(distance.searchsorted(radius, side="right"))
+        return self.select(order[:within]), distance[:within]
 
     def without(self, ids: set[str]) -> VehicleStates:
         """These states minus the vehicles whose id is in ``ids``."""
