@@ -130,7 +130,7 @@ def neighbour_lanes(neighbours: VehicleStates, road: RoadNetwork) -> list[Lane]:
     found = [lanes.get(lane_id) for lane_id in neighbours.lane_id]
     unknown = [i for i, lane in enumerate(found) if lane is None]
     if unknown:
-        xy = np.stack([neighbours.x[unknown], neighbours.y[unknown]], 1)
+        xy = neighbours.values[unknown, :2]
         for i, lane in zip(unknown, road.nearest_lanes(xy), strict=True):
             found[i] = lane
     return found

@@ -46,7 +46,7 @@ class ReplayTable:
         """Row indices of the replayed (not handed over) vehicles existing at ``step``."""
         if step >= len(self.motion):
             return np.zeros(0, dtype=int)
-        return np.flatnonzero(self.active & ~np.isnan(self.motion[step, :, 0]))
+        return (self.active & ~np.isnan(self.motion[step, :, 0])).nonzero()[0]
 
     def states(self, step: int) -> VehicleStates:
         rows = self.present(step)
