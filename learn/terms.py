@@ -8,6 +8,8 @@ late in an episode as early.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 from evaluator.scoring.profile import ScoringProfile
 from learn.running_terms import RUNNING_TERMS, RunningTerm
 from sim.record import RecordRow
@@ -28,7 +30,7 @@ class EpisodeTerms:
         self._profile = profile
         self._agents: dict[str, _AgentTerms] = {}
 
-    def step(self, agent_id: str, rows: list[RecordRow]) -> dict[str, float]:
+    def step(self, agent_id: str, rows: Sequence[RecordRow]) -> dict[str, float]:
         """Every term of the newest of ``rows`` (the agent's record so far, oldest first: the
         rows not seen before are fed in order); empty before the agent has driven."""
         agent = self._agents.get(agent_id)

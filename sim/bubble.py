@@ -30,10 +30,9 @@ class ReactiveBubble:
         for vid in sorted(self._in_sumo - present_ids):  # recording ended: it leaves
             traffic.remove(vid)
             self._in_sumo.discard(vid)
-        for k in present:
+        motion = table.motion[step].take(present, 0).tolist()  # x, y, heading, speed of each
+        for k, (x, y, heading, speed) in zip(present.tolist(), motion, strict=True):
             vid = table.ids[k]
-            x, y = float(table.x[k, step]), float(table.y[k, step])
-            heading, speed = float(table.heading[k, step]), float(table.speed[k, step])
             if vid not in self._in_sumo:
                 route = route_ahead(self.road, x, y, heading)
                 traffic.add_vehicle(vid, route, table.length[k], table.width[k])

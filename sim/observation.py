@@ -102,24 +102,23 @@ def neighbour_states(
     ``VehicleObservation.lane_position``; the smarts2022 format only, as it costs a projection
     per neighbour and step)."""
     out = []
-    xs, ys = neighbours.x.tolist(), neighbours.y.tolist()
-    hs, vs = neighbours.heading.tolist(), neighbours.speed.tolist()
-    ls, ws = neighbours.length.tolist(), neighbours.width.tolist()
-    for i, (vid, lane) in enumerate(
-        zip(neighbours.ids, neighbour_lanes(neighbours, road), strict=True)
+    lanes = neighbour_lanes(neighbours, road)
+    # Every neighbour's values in one tolist (rows of x, y, heading, speed, length, width).
+    for vid, lane, (x, y, heading, speed, length, width) in zip(
+        neighbours.ids, lanes, neighbours.values.tolist(), strict=True
     ):
         state = {
             "id": vid,
-            "position": [xs[i], ys[i], 0.0],
-            "heading": hs[i],
-            "speed": vs[i],
-            "bounding_box": [ls[i], ws[i], DEFAULT_HEIGHT],
+            "position": [x, y, 0.0],
+            "heading": heading,
+            "speed": speed,
+            "bounding_box": [length, width, DEFAULT_HEIGHT],
             "road_id": lane.edge_id,
             "lane_id": lane.id,
             "lane_index": lane.index,
         }
         if lane_positions:
-            s, t, _ = lane.project(xs[i], ys[i])
+            s, t, _ = lane.project(x, y)
             state["lane_position"] = [s, t]
         out.append(state)
     return out
@@ -131,7 +130,7 @@ def neighbour_lanes(neighbours: VehicleStates, road: RoadNetwork) -> list[Lane]:
     found = [lanes.get(lane_id) for lane_id in neighbours.lane_id]
     unknown = [i for i, lane in enumerate(found) if lane is None]
     if unknown:
-        xy = np.stack([neighbours.x[unknown], neighbours.y[unknown]], 1)
+        xy = neighbours.values[unknown, :2]
         for i, lane in zip(unknown, road.nearest_lanes(xy), strict=True):
             found[i] = lane
     return found

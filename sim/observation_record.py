@@ -121,16 +121,15 @@ class ObservationRecord:
         if not n:
             return
         if len(neighbours) > n:  # the nearest are kept (the states are nearest first)
-            neighbours = neighbours.select(np.arange(n))
+            neighbours = neighbours.first(n)
+        values = neighbours.values  # x, y, heading, speed, length, width
         mask, position, heading, speed = self._nbr
         mask[:n] = 1
-        position[:n, 0] = neighbours.x
-        position[:n, 1] = neighbours.y
-        heading[:n] = neighbours.heading
-        speed[:n] = neighbours.speed
+        position[:n, :2] = values[:, :2]
+        heading[:n] = values[:, 2]
+        speed[:n] = values[:, 3]
         box = self._nbr_box
-        box[:n, 0] = neighbours.length
-        box[:n, 1] = neighbours.width
+        box[:n, :2] = values[:, 4:]
         box[:n, 2] = DEFAULT_HEIGHT
         self._nbr_lane[:n] = [lane.index for lane in neighbour_lanes(neighbours, road)]
 

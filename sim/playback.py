@@ -23,15 +23,16 @@ class ReplayTable:
         self.ids = sorted(trajectories)
         first = {v: round(float(tr.time[0]) / dt) for v, tr in trajectories.items()}
         n_steps = max((first[v] + len(tr.time) for v, tr in trajectories.items()), default=0)
-        shape = (len(self.ids), n_steps)
-        self.x, self.y, self.heading, self.speed = (np.full(shape, np.nan) for _ in range(4))
-        self.length = np.array([trajectories[v].length for v in self.ids])  # (n,) [m]
-        self.width = np.array([trajectories[v].width for v in self.ids])  # (n,) [m]
+        # Step-major, each vehicle's x, y, heading, speed at a step side by side: a step's
+        # states are one gather of contiguous rows.
+        self.motion = np.full((n_steps, len(self.ids), 4), np.nan)
+        # length, width [m] of each vehicle
+        dims = [(trajectories[v].length, trajectories[v].width) for v in self.ids]
+        self.dims = np.array(dims, dtype=np.float64).reshape(len(self.ids), 2)
         for k, v in enumerate(self.ids):
             tr = trajectories[v]
             span = slice(first[v], first[v] + len(tr.time))
-            self.x[k, span], self.y[k, span] = tr.x, tr.y
-            self.heading[k, span], self.speed[k, span] = tr.heading, tr.speed
+            self.motion[span, k] = np.stack([tr.x, tr.y, tr.heading, tr.speed], axis=1)
         self.active = np.ones(len(self.ids), dtype=bool)  # False once handed to SUMO
 
     def fresh(self) -> ReplayTable:
@@ -43,22 +44,17 @@ class ReplayTable:
 
     def present(self, step: int) -> np.ndarray:
         """Row indices of the replayed (not handed over) vehicles existing at ``step``."""
-        if step >= self.x.shape[1]:
+        if step >= len(self.motion):
             return np.zeros(0, dtype=int)
-        return np.flatnonzero(self.active & ~np.isnan(self.x[:, step]))
+        return (self.active & ~np.isnan(self.motion[step, :, 0])).nonzero()[0]
 
     def states(self, step: int) -> VehicleStates:
         rows = self.present(step)
         if not len(rows):
             # Past the end of the recording there is no column to index, not even with no rows.
             return VehicleStates.empty()
-        return VehicleStates(
-            [self.ids[k] for k in rows],
-            self.x[rows, step],
-            self.y[rows, step],
-            self.heading[rows, step],
-            self.speed[rows, step],
-            self.length[rows],
-            self.width[rows],
-            [""] * len(rows),
-        )
+        values = np.concatenate([self.motion[step].take(rows, 0), self.dims.take(rows, 0)], 1)
+        return VehicleStates.of([self.ids[k] for k in rows], values, [""] * len(rows))
+
+    length = property(lambda self: self.dims[:, 0], doc="(vehicles,) [m]")
+    width = property(lambda self: self.dims[:, 1], doc="(vehicles,) [m]")

@@ -9,20 +9,22 @@ from __future__ import annotations
 
 import io
 import zipfile
+from collections.abc import Sequence
+from itertools import chain
 from pathlib import Path
-from typing import NamedTuple
+from typing import NamedTuple, overload
 
 import numpy as np
 
 from arena.outcome import AgentOutcome
 from arena.record_format import EVENT_FLAGS, FORMAT_VERSION, NEIGHBOUR_FLOATS, STEP_FLOATS
 from arena.scenario import Mission
-from sim.vehicle.states import VehicleStates
+from sim.vehicle.states import FIELDS, VehicleStates
 
 
 class RecordRow(NamedTuple):
-    """One agent-step: the state after the step was applied. (A NamedTuple: immutable, and
-    several times cheaper to make than a frozen dataclass, once per agent-step.)"""
+    """One agent-step: the state after the step was applied, as :class:`AgentTrack` hands it
+    back (learn's running terms read them)."""
 
     step: int
     x: float
@@ -42,15 +44,111 @@ class RecordRow(NamedTuple):
     neighbours: VehicleStates  # within the observation radius, nearest first
 
 
+_FLOATS = len(STEP_FLOATS)
+_FLAGS = len(EVENT_FLAGS)
+
+
+class AgentTrack(Sequence[RecordRow]):
+    """One agent's rows so far, kept as flat columns (Python lists, extended per row) that the
+    archive converts once. Reads as a sequence of :class:`RecordRow`, made on access.
+
+    Lists, not preallocated numpy arrays: a row's ~30 values and its neighbours cost ~0.2 µs to
+    append and ~1.2 µs to convert at the end, where writing them into arrays grown by doubling
+    costs ~3 µs per row (numpy's per-assignment overhead), and learn, which reads every row but
+    writes no archive, pays only the appends.
+    """
+
+    def __init__(self) -> None:
+        self.floats: list[float] = []  # STEP_FLOATS of each row, row after row
+        self.ints: list[int] = []  # step, lane_index of each row
+        self.bools: list[bool] = []  # in_junction, then the flags in EVENT_FLAGS order
+        self.lane_ids: list[str] = []
+        self.neighbours: list[VehicleStates] = []  # each row's (immutable: kept, not copied)
+
+    def add(
+        self,
+        step: int,
+        floats: tuple[float, ...],
+        lane_id: str,
+        lane_index: int,
+        in_junction: bool,
+        flags: tuple[bool, ...],
+        neighbours: VehicleStates,
+    ) -> None:
+        """Append a row: ``floats`` in STEP_FLOATS order, ``flags`` in EVENT_FLAGS order."""
+        self.floats += floats
+        self.ints += (step, lane_index)
+        self.bools.append(in_junction)
+        self.bools += flags
+        self.lane_ids.append(lane_id)
+        self.neighbours.append(neighbours)
+
+    def __len__(self) -> int:
+        return len(self.lane_ids)
+
+    @overload
+    def __getitem__(self, index: int) -> RecordRow: ...
+
+    @overload
+    def __getitem__(self, index: slice) -> list[RecordRow]: ...
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            return [self._row(t) for t in range(*index.indices(len(self)))]
+        return self._row(range(len(self))[index])  # negative indices; IndexError past the end
+
+    def _row(self, t: int) -> RecordRow:
+        f = self.floats[t * _FLOATS : (t + 1) * _FLOATS]
+        b = self.bools[t * (1 + _FLAGS) : (t + 1) * (1 + _FLAGS)]
+        step, lane_index = self.ints[2 * t : 2 * t + 2]
+        return RecordRow(
+            step,
+            *f[:6],
+            self.lane_ids[t],
+            lane_index,
+            *f[6:],
+            b[0],
+            tuple(b[1:]),
+            self.neighbours[t],
+        )
+
+    def columns(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(rows, STEP_FLOATS) floats, (rows, 2) ints (step, lane_index) and (rows, 1 + flags)
+        bools (in_junction, flags)."""
+        n = len(self)
+        return (
+            np.array(self.floats, dtype=np.float64).reshape(n, _FLOATS),
+            np.array(self.ints, dtype=np.int64).reshape(n, 2),
+            np.array(self.bools, dtype=bool).reshape(n, 1 + _FLAGS),
+        )
+
+
+# RecordRow's floats in the track's column order (STEP_FLOATS): x .. vy, then the lane's.
+assert RecordRow._fields[1:7] + RecordRow._fields[9:13] == STEP_FLOATS
+# A neighbour's row of VehicleStates.values is its record values.
+assert FIELDS == NEIGHBOUR_FLOATS
+
+
 class EpisodeRecorder:
-    """Collects rows during an episode and writes the archive at the end."""
+    """Collects each agent's rows during an episode and writes the archive at the end."""
 
     def __init__(self, agent_ids: list[str]) -> None:
         self.agent_ids = agent_ids
-        self.rows: dict[str, list[RecordRow]] = {a: [] for a in agent_ids}
+        self.rows: dict[str, AgentTrack] = {a: AgentTrack() for a in agent_ids}
 
-    def add(self, agent_id: str, row: RecordRow) -> None:
-        self.rows[agent_id].append(row)
+    def add(
+        self,
+        agent_id: str,
+        step: int,
+        floats: tuple[float, ...],
+        lane_id: str,
+        lane_index: int,
+        in_junction: bool,
+        flags: tuple[bool, ...],
+        neighbours: VehicleStates,
+    ) -> None:
+        """One row of ``agent_id`` (see :meth:`AgentTrack.add`)."""
+        self.rows[agent_id].add(step, floats, lane_id, lane_index, in_junction, flags, neighbours)
 
     def arrays(
         self,
@@ -60,9 +158,12 @@ class EpisodeRecorder:
     ) -> dict[str, np.ndarray]:
         """Every record array by name (see docs/records.md); ``outcomes`` and ``missions`` in
         the order of the recorder's agent ids."""
-        n_agents = len(self.agent_ids)
-        n_rows = max((len(r) for r in self.rows.values()), default=0)
-        n_slots = max([1] + [len(row.neighbours) for rows in self.rows.values() for row in rows])
+        tracks = [self.rows[a] for a in self.agent_ids]
+        n_agents = len(tracks)
+        n_rows = max((len(track) for track in tracks), default=0)
+        # neighbours of each row of each track
+        counts = [np.fromiter(map(len, t.neighbours), np.int64, len(t)) for t in tracks]
+        n_slots = max([1] + [int(c.max(initial=0)) for c in counts])
         out: dict[str, np.ndarray] = {
             "format_version": np.array(FORMAT_VERSION),
             "scenario_id": _str_array(meta["scenario_id"]),
@@ -98,36 +199,35 @@ class EpisodeRecorder:
         for name in NEIGHBOUR_FLOATS:
             out[f"nbr_{name}"] = np.full(nbr_shape, np.nan)
         nbr_ids = []  # (agent, rows, slots, ids) of each agent with neighbours
-        for a, agent_id in enumerate(self.agent_ids):
-            rows = self.rows[agent_id]
-            if not rows:
+        for a, track in enumerate(tracks):
+            n = len(track)
+            if not n:
                 continue
-            n = len(rows)
+            floats, ints, bools = track.columns()
             out["valid"][a, :n] = True
-            out["step"][a, :n] = [r.step for r in rows]
-            out["lane_index"][a, :n] = [r.lane_index for r in rows]
-            out["in_junction"][a, :n] = [r.in_junction for r in rows]
-            for name in STEP_FLOATS:
-                out[name][a, :n] = [getattr(r, name) for r in rows]
-            flags = np.array([r.flags for r in rows], dtype=bool)
+            out["step"][a, :n] = ints[:, 0]
+            out["lane_index"][a, :n] = ints[:, 1]
+            out["in_junction"][a, :n] = bools[:, 0]
+            for j, name in enumerate(STEP_FLOATS):
+                out[name][a, :n] = floats[:, j]
             for j, name in enumerate(EVENT_FLAGS):
-                out[name][a, :n] = flags[:, j]
-            lane_ids[a][:n] = [r.lane_id for r in rows]
+                out[name][a, :n] = bools[:, 1 + j]
+            lane_ids[a][:n] = track.lane_ids
             # Every neighbour of every row at once: row t's k neighbours go to slots 0..k-1.
-            counts = np.array([len(r.neighbours) for r in rows], dtype=np.int64)
-            if counts.sum() == 0:
+            rows, count = track.neighbours, counts[a]
+            if count.sum() == 0:
                 continue
-            row_of = np.repeat(np.arange(n), counts)
-            slot_of = np.arange(len(row_of)) - np.repeat(np.cumsum(counts) - counts, counts)
+            row_of = np.repeat(np.arange(n), count)
+            slot_of = np.arange(len(row_of)) - np.repeat(np.cumsum(count) - count, count)
             out["nbr_valid"][a, row_of, slot_of] = True
-            for name in NEIGHBOUR_FLOATS:
-                out[f"nbr_{name}"][a, row_of, slot_of] = np.concatenate(
-                    [getattr(r.neighbours, name) for r in rows]
-                )
-            nbr_ids.append((a, row_of, slot_of, [i for r in rows for i in r.neighbours.ids]))
+            values = np.concatenate([nbr.values for nbr in rows])
+            for j, name in enumerate(NEIGHBOUR_FLOATS):
+                out[f"nbr_{name}"][a, row_of, slot_of] = values[:, j]
+            ids = np.array(list(chain.from_iterable(nbr.ids for nbr in rows)), dtype=str)
+            nbr_ids.append((a, row_of, slot_of, ids))
         out["lane_id"] = _str_array(lane_ids)
         # As _str_array would make it from nested lists: fixed width of the longest id.
-        width = max([1] + [len(i) for *_, ids in nbr_ids for i in ids])
+        width = max([1] + [ids.dtype.itemsize // 4 for *_, ids in nbr_ids])
         out["nbr_id"] = np.full(nbr_shape, "", dtype=f"<U{width}")
         for a, row_of, slot_of, ids in nbr_ids:
             out["nbr_id"][a, row_of, slot_of] = ids

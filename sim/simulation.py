@@ -34,7 +34,7 @@ from sim.observation import build_observation
 from sim.observation_arrays import ObservationLayout
 from sim.observation_record import ArraysObservation, ObservationRecord
 from sim.playback import ReplayTable
-from sim.record import EpisodeRecorder, RecordRow, write_npz
+from sim.record import EpisodeRecorder, write_npz
 from sim.road import LanePosition, RoadNetwork
 from sim.road.waypoints import (
     path_starts,
@@ -347,7 +347,7 @@ class Simulation:
             ]
         )
         lanes = [self._lanes[o.id].lane.id if o.id in self._lanes else "" for o in live]
-        return replay, VehicleStates([o.id for o in live], *rows.T, lanes)
+        return replay, VehicleStates.of([o.id for o in live], rows, lanes)
 
     def _surroundings(
         self, v: MissionVehicle, replay: VehicleStates, egos: VehicleStates
@@ -393,32 +393,32 @@ class Simulation:
         vx, vy = v.kinematics.velocity
         self.recorder.add(
             v.id,
-            RecordRow(
-                step=step,
-                x=pose.x,
-                y=pose.y,
-                heading=pose.heading,
-                speed=pose.speed,
-                vx=float(vx),
-                vy=float(vy),
-                lane_id=lane.lane.id,
-                lane_index=lane.lane.index,
-                lane_offset=lane.t,
-                lane_width=lane.lane.width,
-                lane_heading=lane.heading,
-                speed_limit=lane.lane.speed_limit,
-                in_junction=in_junction,
-                flags=(
-                    bool(events.collisions),
-                    events.off_road,
-                    events.off_route,
-                    events.on_shoulder,
-                    events.wrong_way,
-                    events.not_moving,
-                    events.reached_goal,
-                ),
-                neighbours=near,
+            step,
+            (  # in STEP_FLOATS order
+                pose.x,
+                pose.y,
+                pose.heading,
+                pose.speed,
+                float(vx),
+                float(vy),
+                lane.t,
+                lane.lane.width,
+                lane.heading,
+                lane.lane.speed_limit,
             ),
+            lane.lane.id,
+            lane.lane.index,
+            in_junction,
+            (  # in EVENT_FLAGS order
+                bool(events.collisions),
+                events.off_road,
+                events.off_route,
+                events.on_shoulder,
+                events.wrong_way,
+                events.not_moving,
+                events.reached_goal,
+            ),
+            near,
         )
         return events
 

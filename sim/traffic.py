@@ -229,10 +229,7 @@ class SumoTraffic:
                 width,
             )
             lanes.append(r[lane])
-        rows = np.array(flat).reshape(len(ids), 6)
-        return VehicleStates(
-            ids, rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3], rows[:, 4], rows[:, 5], lanes
-        )
+        return VehicleStates.of(ids, np.array(flat).reshape(len(ids), 6), lanes)
 
     def lane_index(self, vid: str) -> int:
         return self._ls.vehicle.getLaneIndex(vid)

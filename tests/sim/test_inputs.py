@@ -51,7 +51,7 @@ def test_the_recording_is_replayed_anew_in_every_episode(tmp_path):
     first = inputs.replay.fresh()
     first.active[:] = False  # handed to SUMO during one episode
     assert inputs.replay.fresh().active.all()
-    assert inputs.replay.fresh().x is inputs.replay.x  # the recording itself is shared
+    assert inputs.replay.fresh().motion is inputs.replay.motion  # the recording itself is shared
 
 
 def test_cache_parses_once_per_content_and_again_after_an_edit(tmp_path):
@@ -62,7 +62,7 @@ def test_cache_parses_once_per_content_and_again_after_an_edit(tmp_path):
     (folder / "traffic.csv").write_text(REPLAY_CSV.replace("10.000", "11.000"))
     edited = cache.open(folder)
     assert os.fstat(edited).st_ino != packed
-    assert float(read_inputs(edited).replay.speed[0, 0]) == 11.0
+    assert float(read_inputs(edited).replay.motion[0, 0, 3]) == 11.0  # speed at step 0
 
 
 def test_cached_inputs_cannot_be_written(tmp_path):
