@@ -81,7 +81,15 @@ def timed_evaluation(
     agent: Path, suite: Path, out: Path, jobs: int, sandbox: SandboxKind, ids: list[str] | None
 ) -> SuiteRun:
     started = time.perf_counter()
-    summary = evaluate(agent, suite, out_dir=out, scenario_ids=ids, jobs=jobs, sandbox=sandbox)
+    summary = evaluate(
+        agent,
+        suite,
+        settings=get_settings(),
+        out_dir=out,
+        scenario_ids=ids,
+        jobs=jobs,
+        sandbox=sandbox,
+    )
     wall = time.perf_counter() - started
     if summary.uncharged:
         print(f"  warning: uncharged scenarios {', '.join(summary.uncharged)}", file=sys.stderr)
@@ -155,7 +163,7 @@ def main() -> None:
     args = parser.parse_args()
     if args.keep and args.keep.exists():
         parser.error(f"{args.keep} exists: results there would be resumed, not timed")
-    seed = get_settings().development_seed
+    seed = get_settings().suites.development_seed
     with tempfile.TemporaryDirectory(prefix="arena-bench-") as tmp:
         work = args.keep or Path(tmp)
         suite = args.suite

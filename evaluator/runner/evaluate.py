@@ -23,7 +23,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Protocol
 
-from arena.config import SandboxKind, get_settings
+from arena.config import SandboxKind, SandboxSettings, Settings
 from arena.episodes import Episode, episodes_of
 from arena.errors import ArenaError, SandboxUnavailable
 from arena.outcome import ScenarioStatus
@@ -66,6 +66,7 @@ def evaluate(
     source: Path,
     suite_dir: Path,
     *,
+    settings: Settings,
     out_dir: Path,
     scenario_ids: Sequence[str] | None = None,
     jobs: int = 1,
@@ -87,15 +88,19 @@ def evaluate(
     When the first ``fail_fast_after`` episodes all end with the agent failing to start, the
     rest are not run (the summary stays incomplete): one error, not one per scenario.
     ``model_dir`` is a trained output (``arena train``) the policy reads as ARENA_MODEL_DIR; the
-    results then belong to the submission and that model together.
+    results then belong to the submission and that model together. ``settings``: the intake's
+    limits, the sandbox's and the data folder (the requirements' cache, the sandboxes' owner).
     """
     scoring_profile = load_profile(profile)
-    sandbox = _usable_sandbox(sandbox)
+    sandbox = _usable_sandbox(sandbox, settings.sandbox)
+    data_dir = settings.storage.resolved_data_dir
     suite = load_suite(suite_dir).select(scenario_ids)
     out_dir = Path(out_dir)
     with tempfile.TemporaryDirectory(prefix="arena-submission-") as tmp:
         Path(tmp).chmod(0o755)  # sandboxes run the agent as another user, who must enter it
-        submission = prepare_submission(Path(source), Path(tmp) / "submission")
+        submission = prepare_submission(
+            Path(source), Path(tmp) / "submission", settings.intake, settings.sandbox, data_dir
+        )
         identity = submission.sha256
         if model_dir is not None:
             submission, identity = _with_model(submission, Path(model_dir))
@@ -116,6 +121,8 @@ def evaluate(
                 submission,
                 suite.scenario_dir(episode.scenario_id),
                 out_dir / RECORDS_DIR,
+                config=settings.sandbox,
+                data_dir=data_dir,
                 sandbox=sandbox,
                 episode=episode.index,
             )
@@ -196,11 +203,11 @@ class _StartWatch:
             self.seen = -1  # it started once: every scenario runs
 
 
-def _usable_sandbox(kind: SandboxKind | None) -> SandboxKind:
+def _usable_sandbox(kind: SandboxKind | None, config: SandboxSettings) -> SandboxKind:
     """The concrete sandbox, checked once: a missing daemon or tool fails the evaluation before
     any scenario, instead of every scenario failing on it."""
-    kind = resolve_kind(kind)
-    reason = backend(kind).unavailable_reason(get_settings())
+    kind = resolve_kind(kind, config)
+    reason = backend(kind).unavailable_reason(config)
     if reason is not None:
         raise SandboxUnavailable(f"sandbox {kind.value} cannot run here: {reason}")
     return kind

@@ -9,7 +9,7 @@ from __future__ import annotations
 import time
 from typing import Any, NoReturn
 
-from arena.config import Settings
+from arena.config import SandboxSettings
 from arena.errors import AgentFailed
 from arena.outcome import DoneReason
 from evaluator.sandbox.array_frames import ArrayFrames
@@ -33,7 +33,7 @@ class AgentHandle:
     observations travel."""
 
     def __init__(
-        self, sandbox: Sandbox, settings: Settings, interface: AgentInterface | None = None
+        self, sandbox: Sandbox, config: SandboxSettings, interface: AgentInterface | None = None
     ) -> None:
         self._sandbox = sandbox
         self._arrays = (
@@ -41,10 +41,10 @@ class AgentHandle:
             if interface is not None and interface.observation_format is ObservationFormat.arrays
             else None
         )
-        self._step_cpu_s = settings.step_cpu_s
-        self._step_timeout_s = settings.step_timeout_s
-        self._episode_cpu_s = settings.episode_cpu_s
-        self._init_timeout_s = settings.init_timeout_s
+        self._step_cpu_s = config.step_cpu_s
+        self._step_timeout_s = config.step_timeout_s
+        self._episode_cpu_s = config.episode_cpu_s
+        self._init_timeout_s = config.init_timeout_s
         self._meter: CpuMeter | None = None
         self._cpu_mark: float | None = None  # the meter after the last answer [s]
         self.episode_cpu_s = 0.0  # agent CPU time of this episode's acts so far [s]

@@ -499,7 +499,7 @@ def reap(session: Session, settings: Settings, *, queue_empty: bool) -> Reaped:
             select(Submission)
             .where(
                 Submission.status == SubmissionStatus.queued,
-                Submission.queued_at < moment - timedelta(seconds=settings.lease_seconds),
+                Submission.queued_at < moment - timedelta(seconds=settings.service.lease_seconds),
             )
             .with_for_update()
         )

@@ -59,7 +59,7 @@ def _when(moment: datetime) -> str:
 
 
 def daily_quota(phase: Phase, settings: Settings) -> int:
-    return phase.daily_quota if phase.daily_quota is not None else settings.daily_quota
+    return phase.daily_quota if phase.daily_quota is not None else settings.service.daily_quota
 
 
 def suite_dir(phase: Phase, settings: Settings) -> Path:
@@ -67,13 +67,13 @@ def suite_dir(phase: Phase, settings: Settings) -> Path:
 
 
 def scoring_profile(phase: Phase, settings: Settings) -> str:
-    return phase.scoring_profile or settings.scoring_profile
+    return phase.scoring_profile or settings.evaluation.scoring_profile
 
 
 def episodes_per_scenario(phase: Phase, settings: Settings) -> int:
     if phase.episodes_per_scenario is not None:
         return phase.episodes_per_scenario
-    return settings.episodes_per_scenario
+    return settings.evaluation.episodes_per_scenario
 
 
 def episodes_cost(per_scenario: int) -> str:
