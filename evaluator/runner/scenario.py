@@ -141,8 +141,8 @@ def new_run_key() -> str:
 def sandbox_labels(run_key: str, attempt: int | None = None) -> dict[str, str]:
     """The labels on the sandbox of one attempt (``attempt``) of one scenario run (``run_key``,
     from :func:`new_run_key`); without ``attempt``, those every attempt of the run carries.
-    ``evaluator.sandbox.cleanup(labels)`` removes what a dead episode left behind, and only that:
-    labels never depend on the zip's content, which two teams can share."""
+    ``evaluator.sandbox.cleanup(config, labels)`` removes what a dead episode left behind, and
+    only that: labels never depend on the zip's content, which two teams can share."""
     labels = {"arena.run": run_key}
     if attempt is not None:
         labels["arena.attempt"] = str(attempt)

@@ -13,7 +13,7 @@ three socket pairs and passes one end of each to the zygote, which forks the epi
 The other ends travel in a :class:`ForkedAgent` to the simulator's episode process, where
 :class:`ForkedSandbox` plays the part of a started sandbox for :class:`AgentHandle`, so the agent
 fails, times out and is killed exactly as a cold one. The evaluating process keeps its own copy
-of the lifeline: ``evaluator.sandbox.cleanup(labels)`` pulls it to kill a leased agent.
+of the lifeline: ``evaluator.sandbox.cleanup(config, labels)`` pulls it to kill a leased agent.
 """
 
 from __future__ import annotations
