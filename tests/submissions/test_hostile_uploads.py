@@ -285,6 +285,13 @@ def test_requirements_that_conflict_are_refused_naming_the_conflict(
     text = "smallpkg==1.0\nsmallpkg>=2\n"
     upload = write_zip(tmp_path / "a.zip", with_policy(**{"requirements.txt": text}))
     with pytest.raises(IntakeError) as caught:
-        prepare_submission(upload, tmp_path / "a", local_index(tmp_path, wheelhouse))
+        settings = local_index(tmp_path, wheelhouse)
+        prepare_submission(
+            upload,
+            tmp_path / "a",
+            settings.intake,
+            settings.sandbox,
+            settings.storage.resolved_data_dir,
+        )
     assert "smallpkg==1.0" in str(caught.value) and "smallpkg>=2" in str(caught.value)
     assert "conflicting" in str(caught.value)
