@@ -246,9 +246,11 @@ class Settings(BaseModel):
         """Every group from the environment and `env_file` (None: the environment only), but
         those given."""
         read = {
-            name: field.annotation(_env_file=env_file) for name, field in cls.model_fields.items()
+            name: field.annotation(_env_file=env_file)
+            for name, field in cls.model_fields.items()
+            if name not in groups
         }
-        return cls(**(read | groups))
+        return cls(**read, **groups)
 
 
 @lru_cache

@@ -129,3 +129,11 @@ def test_with_fields_changes_only_what_it_names():
     assert (changed.sandbox.step_cpu_s, changed.sandbox.init_timeout_s) == (3.0, 7.0)
     assert base.sandbox.step_cpu_s == 2.0
     assert changed.storage is base.storage
+
+
+def test_load_keeps_the_groups_it_is_given(monkeypatch):
+    monkeypatch.setenv("ARENA_DATA_DIR", "/from-env")
+    given = StorageSettings(_env_file=None, data_dir="/given")
+    settings = Settings.load(env_file=None, storage=given)
+    assert settings.storage is given
+    assert Settings.load(env_file=None).storage.data_dir == Path("/from-env")
