@@ -19,10 +19,10 @@ def cache_dir(tmp_path_factory) -> Path:
 @pytest.fixture(scope="session")
 def scenes_dir() -> Path:
     """The shipped naturalistic scenes (scenarios/data/naturalistic/commonroad-ngsim)."""
-    from arena.config import Settings
+    from arena.config import get_settings
     from scenarios.recorded.naturalistic import shipped_scenes_dir
 
-    folder = shipped_scenes_dir(Settings().suites.naturalistic_dir)
+    folder = shipped_scenes_dir(get_settings().suites.naturalistic_dir)
     # The scenes ship in the repository: missing ones are a broken checkout or setting, never a
     # reason to skip.
     if not (folder / "PROVENANCE.md").exists():
