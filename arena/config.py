@@ -1,7 +1,9 @@
-"""The one settings object of Driving Arena.
+"""The settings of Driving Arena, grouped by concern.
 
 Every tunable (paths, limits, service URLs, sandbox choice) is read here from the environment
-(prefix ``ARENA_``) or an ``.env`` file, validated once, and handed out by :func:`get_settings`.
+(``ARENA_<FIELD>``; the sandbox's kind is ``ARENA_SANDBOX``) or an ``.env`` file, validated
+once, and handed out by :func:`get_settings`. Only entry points (command lines, the service's
+dependencies and tasks) call it; each layer below takes the group it needs as a parameter.
 No other module reads ``os.environ`` for configuration.
 """
 
@@ -10,9 +12,9 @@ from __future__ import annotations
 from enum import StrEnum
 from functools import lru_cache
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
-from pydantic import BeforeValidator, Field
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from arena.cpu_limits import CpuLimits
@@ -40,21 +42,62 @@ def _seed_or_none(value: object) -> object:
     return parse_seed(value) if isinstance(value, str | int) else value
 
 
-class Settings(BaseSettings):
+class _Group(BaseSettings):
+    """One concern's settings, read from ``ARENA_<FIELD>`` in the environment or ``.env``.
+
+    Each group reads only its own names; the others' in the same ``.env`` are not its business
+    (hence extra="ignore"), but a keyword that is none of its fields is a mistake in the caller
+    and fails instead of being dropped.
+    """
+
     model_config = SettingsConfigDict(
-        env_prefix="ARENA_", env_file=".env", extra="ignore", frozen=True
+        env_prefix="ARENA_", env_file=".env", extra="ignore", frozen=True, populate_by_name=True
     )
 
-    # Where everything the service writes lives (database, uploads, results, scenario builds).
-    data_dir: Path = Path(".arena")
+    def __init__(self, **values: Any) -> None:
+        fields = type(self).model_fields
+        known = set(fields) | {f.validation_alias for f in fields.values() if f.validation_alias}
+        unknown = sorted(k for k in values if not k.startswith("_") and k not in known)
+        if unknown:
+            raise TypeError(f"{type(self).__name__} has no field {', '.join(unknown)}")
+        super().__init__(**values)
 
+    @classmethod
+    def env_names(cls) -> dict[str, str]:
+        """Each field's environment variable."""
+        return {
+            name: str(field.validation_alias or f"ARENA_{name}").upper()
+            for name, field in cls.model_fields.items()
+        }
+
+
+class StorageSettings(_Group):
+    """Where everything the service writes lives, and its backends."""
+
+    # The database, uploads, results, scenario builds.
+    data_dir: Path = Path(".arena")
     # Service backends. Empty: the embedded default under data_dir (SQLite + SQLAlchemy broker).
     database_url: str = ""
     broker_url: str = ""
     # Where uploads and episode records live between processes (server/core/artifacts.py).
     artifact_store: ArtifactBackend = ArtifactBackend.folder
 
-    # Scenario suites.
+    @property
+    def resolved_data_dir(self) -> Path:
+        return self.data_dir.expanduser().resolve()
+
+    @property
+    def resolved_database_url(self) -> str:
+        return self.database_url or f"sqlite:///{self.resolved_data_dir / 'arena.db'}"
+
+    @property
+    def resolved_broker_url(self) -> str:
+        return self.broker_url or f"sqla+sqlite:///{self.resolved_data_dir / 'broker.db'}"
+
+
+class SuiteSettings(_Group):
+    """The scenario suites: their seeds and folders."""
+
     development_seed: int = 20221128
     # The organisers' secret seed for the hidden suite; never committed, only set in deployment.
     # A number or a passphrase (arena/seeds.py: how to pick a strong one).
@@ -64,12 +107,13 @@ class Settings(BaseSettings):
     # The naturalistic scenes (CommonRoad NGSIM); None: the shipped
     # scenarios/data/naturalistic/commonroad-ngsim.
     naturalistic_dir: Path | None = None
-    # Episodes of each reactive scenario, each with other traffic (arena/episodes.py); the
-    # metrics average them. Evaluation takes about this many times as long. A phase may override.
-    episodes_per_scenario: int = Field(default=1, ge=1)
 
-    # Sandbox.
-    sandbox: SandboxKind = SandboxKind.auto
+
+class SandboxSettings(_Group):
+    """Where a participant's code runs, and its limits."""
+
+    # ARENA_SANDBOX, as before the settings were grouped.
+    kind: SandboxKind = Field(default=SandboxKind.auto, validation_alias="ARENA_SANDBOX")
     agent_image: str = "driving-arena-agent:latest"
     # A folder at the same path for this process and for the Docker daemon, when the worker
     # runs in a container and starts its agents beside it (docker-compose.yml): the agent
@@ -107,8 +151,38 @@ class Settings(BaseSettings):
     warm_agents: bool = True
     warm_agent_idle_s: float = 120.0
 
-    # Track 2 training (docs/dataset.md): `train.py` runs in the sandbox with the memory and CPU
-    # limits above, the dataset mounted read-only and a writable output folder.
+    @property
+    def cpu_limits(self) -> CpuLimits:
+        return CpuLimits(self.step_cpu_s, self.episode_cpu_s, self.evaluation_cpu_s)
+
+
+class IntakeSettings(_Group):
+    """The checks an upload passes before it is accepted."""
+
+    max_zip_bytes: int = 100 * 1024**2
+    max_unzipped_bytes: int = 500 * 1024**2
+    max_zip_entries: int = 10_000
+    max_compression_ratio: float = 200.0
+    # Requirements: the downloaded wheels, and all of them unpacked (bytes and files).
+    max_deps_download_bytes: int = 400 * 1024**2
+    max_deps_bytes: int = 1536 * 1024**2
+    max_deps_files: int = 30_000
+    # Extra `pip download` options (e.g. `["--no-index", "--find-links", "/srv/wheels"]`); the
+    # package index itself comes from the host's pip configuration.
+    pip_options: list[str] = Field(default_factory=list)
+    # The validation of an upload (agent_runtime/intake.py in the sandbox): its memory, its wall
+    # time [s] (per step: the zip, then the wheels). Disk: the unzipped and deps caps above.
+    intake_memory_bytes: int = 1024**3
+    intake_timeout_s: float = 300.0
+
+
+class TrainingSettings(_Group):
+    """Track 2 training (docs/dataset.md).
+
+    `train.py` runs in the sandbox with the sandbox's memory and CPU limits, the dataset
+    mounted read-only and a writable output folder.
+    """
+
     # The dataset the service mounts (`arena dataset build --out DIR`); None: offline
     # submissions cannot be trained.
     train_dataset_dir: Path | None = None
@@ -126,24 +200,20 @@ class Settings(BaseSettings):
     train_checkpoint_interval_s: float = Field(default=60.0, ge=0)
     train_checkpoint_bytes: int = 256 * 1024**2
 
-    # Intake limits.
-    max_zip_bytes: int = 100 * 1024**2
-    max_unzipped_bytes: int = 500 * 1024**2
-    max_zip_entries: int = 10_000
-    max_compression_ratio: float = 200.0
-    # Requirements: the downloaded wheels, and all of them unpacked (bytes and files).
-    max_deps_download_bytes: int = 400 * 1024**2
-    max_deps_bytes: int = 1536 * 1024**2
-    max_deps_files: int = 30_000
-    # Extra `pip download` options (e.g. `["--no-index", "--find-links", "/srv/wheels"]`); the
-    # package index itself comes from the host's pip configuration.
-    pip_options: list[str] = Field(default_factory=list)
-    # The validation of an upload (agent_runtime/intake.py in the sandbox): its memory, its wall
-    # time [s] (per step: the zip, then the wheels). Disk: the unzipped and deps caps above.
-    intake_memory_bytes: int = 1024**3
-    intake_timeout_s: float = 300.0
 
-    # Service.
+class EvaluationSettings(_Group):
+    """How a submission is evaluated and scored (a phase may override the first two)."""
+
+    # Episodes of each reactive scenario, each with other traffic (arena/episodes.py); the
+    # metrics average them. Evaluation takes about this many times as long.
+    episodes_per_scenario: int = Field(default=1, ge=1)
+    scoring_profile: str = "driving-smarts-2022"
+    jobs: int = Field(default=2, ge=1)
+
+
+class ServiceSettings(_Group):
+    """The web service and its workers."""
+
     daily_quota: int = 5
     admin_token: str | None = None
     # A claim's lease [s]: renewed every third of it; a dead worker's scenario is re-sent after
@@ -152,8 +222,6 @@ class Settings(BaseSettings):
     # A submission queued, training or running longer than this [s] is listed by
     # `arena admin status` as overdue.
     overdue_after_s: float = Field(default=3600.0, gt=0)
-    scoring_profile: str = "driving-smarts-2022"
-    jobs: int = Field(default=2, ge=1)
     # Prefix on every broker key, so several deployments (or test sessions) can share one Redis.
     broker_key_prefix: str = ""
     # How often a worker looks for evaluations whose lease expired [s].
@@ -164,21 +232,34 @@ class Settings(BaseSettings):
     http_header_timeout_s: float = 10.0
     http_keep_alive_s: float = 5.0
 
-    @property
-    def cpu_limits(self) -> CpuLimits:
-        return CpuLimits(self.step_cpu_s, self.episode_cpu_s, self.evaluation_cpu_s)
 
-    @property
-    def resolved_data_dir(self) -> Path:
-        return self.data_dir.expanduser().resolve()
+class Settings(BaseModel):
+    """Every group; each layer is handed the group (or groups) it needs, not the whole.
 
-    @property
-    def resolved_database_url(self) -> str:
-        return self.database_url or f"sqlite:///{self.resolved_data_dir / 'arena.db'}"
+    ``Settings()`` reads each group from the environment and ``.env``; a flat field
+    (``Settings(step_cpu_s=2)``) is refused, it belongs to a group.
+    """
 
-    @property
-    def resolved_broker_url(self) -> str:
-        return self.broker_url or f"sqla+sqlite:///{self.resolved_data_dir / 'broker.db'}"
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    storage: StorageSettings = Field(default_factory=StorageSettings)
+    suites: SuiteSettings = Field(default_factory=SuiteSettings)
+    sandbox: SandboxSettings = Field(default_factory=SandboxSettings)
+    intake: IntakeSettings = Field(default_factory=IntakeSettings)
+    training: TrainingSettings = Field(default_factory=TrainingSettings)
+    evaluation: EvaluationSettings = Field(default_factory=EvaluationSettings)
+    service: ServiceSettings = Field(default_factory=ServiceSettings)
+
+    @classmethod
+    def load(cls, env_file: Path | str | None = ".env", **groups: _Group) -> Settings:
+        """Every group from the environment and `env_file` (None: the environment only), but
+        those given."""
+        read = {
+            name: field.annotation(_env_file=env_file)
+            for name, field in cls.model_fields.items()
+            if name not in groups
+        }
+        return cls(**read, **groups)
 
 
 @lru_cache

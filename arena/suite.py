@@ -144,12 +144,14 @@ def write_manifest(root: Path, manifest: SuiteManifest) -> None:
 
 def public_suite_dir(settings: Settings) -> Path:
     """The public set: configured, else the one shipped in the repository."""
-    return settings.public_suite_dir or SHIPPED_PUBLIC_DIR
+    return settings.suites.public_suite_dir or SHIPPED_PUBLIC_DIR
 
 
 def hidden_suite_dir(settings: Settings) -> Path:
     """The hidden suite every submission is evaluated on."""
-    return settings.hidden_suite_dir or settings.resolved_data_dir / "suites" / HIDDEN
+    return (
+        settings.suites.hidden_suite_dir or settings.storage.resolved_data_dir / "suites" / HIDDEN
+    )
 
 
 def resolve_suite(suite: str | Path, settings: Settings) -> Path:

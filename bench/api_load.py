@@ -27,12 +27,12 @@ from pathlib import Path
 
 import numpy as np
 
-from arena.config import Settings
 from server.core.db import Database
 from server.core.migrate import upgrade_database
 from server.models import utcnow
 from tests.evaluator.scoring.builders import simulated
 from tests.server.builders import make_team, seed_scored
+from tests.settings import env_only
 
 # The benchmark seeds its database with the service tests' builders.
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -127,7 +127,10 @@ def _free_port() -> int:
 def _start_api(settings, host: str, port: int, log: Path) -> subprocess.Popen:
     """``arena serve`` (one uvicorn process), configured through the environment."""
     env = {k: v for k, v in os.environ.items() if not k.startswith("ARENA_")}
-    env |= {"ARENA_DATA_DIR": str(settings.data_dir), "ARENA_DATABASE_URL": settings.database_url}
+    env |= {
+        "ARENA_DATA_DIR": str(settings.storage.data_dir),
+        "ARENA_DATABASE_URL": settings.storage.database_url,
+    }
     command = [sys.executable, "-c", "from arena.cli import app; app()", "serve"]
     server = subprocess.Popen(
         [*command, "--host", host, "--port", str(port)],
@@ -161,10 +164,11 @@ def main() -> None:
 
     workdir = Path(tempfile.mkdtemp(prefix="arena-bench-"))
     try:
-        settings = Settings(
-            _env_file=None, data_dir=workdir, database_url=args.database_url, admin_token="bench"
+        settings = env_only(
+            storage={"data_dir": workdir, "database_url": args.database_url},
+            service={"admin_token": "bench"},
         )
-        seed(settings.resolved_database_url, random.Random(7))
+        seed(settings.storage.resolved_database_url, random.Random(7))
         host, port = "127.0.0.1", _free_port()
         server = _start_api(settings, host, port, workdir / "api.log")
         try:

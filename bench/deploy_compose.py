@@ -45,10 +45,10 @@ from pathlib import Path
 import docker
 import httpx
 
-from arena.config import Settings
 from arena.suite import SHIPPED_PUBLIC_DIR
 from evaluator.sandbox.backend import OWNER_LABEL, owner_labels
 from submissions.intake import pack_folder
+from tests.settings import env_only
 
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLES = REPO / "submissions" / "examples"
@@ -166,7 +166,9 @@ class Stack:
 
     def agent_containers(self) -> list:
         """Running agent sandboxes of this deployment's workers (their data folder's label)."""
-        label = owner_labels(Settings(_env_file=None, data_dir=self.data))[OWNER_LABEL]
+        label = owner_labels(env_only(storage={"data_dir": self.data}).storage.resolved_data_dir)[
+            OWNER_LABEL
+        ]
         filters = {"label": f"{OWNER_LABEL}={label}"}
         return docker.from_env().containers.list(filters=filters)
 

@@ -103,6 +103,7 @@ def timed_evaluation(
     summary = evaluate(
         agent,
         suite,
+        settings=get_settings(),
         out_dir=out,
         scenario_ids=ids,
         jobs=jobs,
@@ -242,7 +243,7 @@ def main() -> None:
         parser.error("--episodes and --only measure different things: one at a time")
     if args.keep and args.keep.exists():
         parser.error(f"{args.keep} exists: results there would be resumed, not timed")
-    seed = get_settings().development_seed
+    seed = get_settings().suites.development_seed
     with tempfile.TemporaryDirectory(prefix="arena-bench-") as tmp:
         work = args.keep or Path(tmp)
         suite = args.suite

@@ -47,7 +47,7 @@ import httpx
 from sqlalchemy import func, select
 from sqlalchemy.exc import SQLAlchemyError
 
-from arena.config import ArtifactBackend, SandboxKind, Settings
+from arena.config import ArtifactBackend, SandboxKind, Settings, get_settings
 from arena.suite import SHIPPED_PUBLIC_DIR
 from evaluator.sandbox import check_service_kind
 from evaluator.sandbox.backend import SANDBOX_LABEL
@@ -63,6 +63,7 @@ from tests.server.service_stack import (
     start_worker,
     upload_folder,
 )
+from tests.settings import env_only, with_fields
 
 # [s] The paced agent's pause per step: ~300 steps make a scenario last seconds, long enough
 # for a fault to land mid-episode (the examples finish one in about a second).
@@ -477,26 +478,28 @@ class Campaign:
             flush=True,
         )
 
-    def settings(self, name: str, **changes) -> Settings:
+    def settings(self, name: str, **changes: dict) -> Settings:
         """The settings of one machine of the service: its own data folder."""
         folder = self.root / name
         folder.mkdir(mode=0o755, exist_ok=True)
-        values = dict(
-            _env_file=None,
-            data_dir=folder,
-            database_url=self.postgres.url("arena"),
-            broker_url=self.redis.url,
-            artifact_store=ArtifactBackend.database,
-            hidden_suite_dir=self.suite,
-            public_suite_dir=self.suite,
-            sandbox=self.kind,
-            lease_seconds=self.args.lease_seconds,
-            reaper_interval_s=self.args.reaper_interval_s,
-            daily_quota=1000,
-            jobs=1,
-            admin_token="faults-admin",
+        machine = env_only(
+            storage={
+                "data_dir": folder,
+                "database_url": self.postgres.url("arena"),
+                "broker_url": self.redis.url,
+                "artifact_store": ArtifactBackend.database,
+            },
+            suites={"hidden_suite_dir": self.suite, "public_suite_dir": self.suite},
+            sandbox={"kind": self.kind},
+            service={
+                "lease_seconds": self.args.lease_seconds,
+                "reaper_interval_s": self.args.reaper_interval_s,
+                "daily_quota": 1000,
+                "admin_token": "faults-admin",
+            },
+            evaluation={"jobs": 1},
         )
-        return Settings(**(values | changes))
+        return with_fields(machine, **changes)
 
     def _paced_agent(self) -> Path:
         """keep_lane with a pause per step (same actions, slower scenarios)."""
@@ -670,8 +673,10 @@ class Campaign:
     # faults of the embedded service (`arena up`) ---------------------------------------------
 
     def start_up(self) -> None:
-        settings = self.settings("up", artifact_store=ArtifactBackend.folder, jobs=2)
-        self.up_dir = settings.data_dir
+        settings = self.settings(
+            "up", storage={"artifact_store": ArtifactBackend.folder}, evaluation={"jobs": 2}
+        )
+        self.up_dir = settings.storage.data_dir
         self.up_port = free_port()
         command = [*ARENA, "up", "--host", "127.0.0.1", "--port", str(self.up_port)]
         self.up = start(command, environment(settings), self.root / "up.log")
@@ -824,7 +829,7 @@ def main() -> None:
     parser.add_argument("--reaper-interval-s", type=float, default=10.0)
     parser.add_argument("--keep", action="store_true", help="keep the logs and data folder")
     args = parser.parse_args()
-    args.sandbox = check_service_kind(args.sandbox or "auto").value
+    args.sandbox = check_service_kind(args.sandbox or "auto", get_settings().sandbox).value
     signal.signal(signal.SIGALRM, _on_alarm)
     signal.signal(signal.SIGTERM, _on_term)
     signal.alarm(args.timeout)

@@ -41,6 +41,8 @@ from pathlib import Path
 
 import httpx
 
+from tests.settings import env_only
+
 # The benchmark seeds its database with the service tests' builders.
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
@@ -287,8 +289,6 @@ def main() -> None:
     parser.add_argument("--timeout", type=float, default=600.0, help="for every verdict [s]")
     args = parser.parse_args()
 
-    from arena.config import Settings
-
     work = Path(tempfile.mkdtemp(prefix="arena-hostile-"))
     rng = random.Random(23)
     try:
@@ -296,10 +296,10 @@ def main() -> None:
         fat_wheel(wheels)
         dataset = work / "dataset"
         dataset.mkdir()
-        settings = Settings(_env_file=None, data_dir=work / "data", admin_token="bench")
+        settings = env_only(storage={"data_dir": work / "data"}, service={"admin_token": "bench"})
         env = {k: v for k, v in os.environ.items() if not k.startswith("ARENA_")}
         env |= {
-            "ARENA_DATA_DIR": str(settings.data_dir),
+            "ARENA_DATA_DIR": str(settings.storage.data_dir),
             "ARENA_SANDBOX": args.sandbox,
             "ARENA_TRAIN_DATASET_DIR": str(dataset),
             # The requirements come from the local wheel folder: nothing leaves the machine.
@@ -315,7 +315,9 @@ def main() -> None:
             "offline-without-train": with_requirements(zips / "offline.zip", "fatpkg==1.0"),
         }
         parallel = with_requirements(zips / "parallel.zip", "fatpkg==1.0")
-        tokens = list(seed(settings.resolved_database_url, PER_KIND * len(payloads) + 1).values())
+        tokens = list(
+            seed(settings.storage.resolved_database_url, PER_KIND * len(payloads) + 1).values()
+        )
         port = free_port()
         url = f"http://{HOST}:{port}"
         api = start([*ARENA, "serve", "--host", HOST, "--port", str(port)], env, work / "api.log")

@@ -44,6 +44,7 @@ from evaluator.sandbox import backend, start
 from evaluator.sandbox.warm import WarmAgent
 from submissions.intake import prepare_submission
 from submissions.sample import sample_observation
+from tests.settings import with_fields
 
 TRIVIAL_POLICY = """
 class Policy:
@@ -108,14 +109,20 @@ def main() -> None:
     args = parser.parse_args()
 
     base = Path(tempfile.mkdtemp(prefix="arena-bench-"))
-    settings = Settings(data_dir=base / "data")
+    settings = with_fields(Settings(), storage={"data_dir": base / "data"})
     submissions = {}
     for name in FORMATS:
         source = base / f"src-{name}"
         source.mkdir()
         (source / "policy.py").write_text(TRIVIAL_POLICY)
         (source / "agent.yaml").write_text(f"observation_format: {name}\n")
-        submissions[name] = prepare_submission(source, base / f"submission-{name}", settings)
+        submissions[name] = prepare_submission(
+            source,
+            base / f"submission-{name}",
+            settings.intake,
+            settings.sandbox,
+            settings.storage.resolved_data_dir,
+        )
 
     # row -> format -> (times, floor times) [ms]
     results: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]] = {}
@@ -129,18 +136,30 @@ def main() -> None:
     labels = {"bench": "roundtrip"}
     for name in args.kinds.split(","):
         kind = SandboxKind(name)
-        reason = backend(kind).unavailable_reason(settings)
+        reason = backend(kind).unavailable_reason(settings.sandbox)
         if reason:
             print(f"{name}: skipped ({reason})")
             continue
         # Formats interleaved per row, so that both see the same load on a shared machine.
         for fmt, submission in submissions.items():
-            with start(submission, kind=kind, settings=settings, labels=labels) as handle:
+            with start(
+                submission,
+                kind=kind,
+                config=settings.sandbox,
+                data_dir=settings.storage.resolved_data_dir,
+                labels=labels,
+            ) as handle:
                 results.setdefault(name, {})[fmt] = both(handle.act, fmt, args.steps)
         if kind is SandboxKind.docker:
             for fmt, submission in submissions.items():
-                warm = WarmAgent.start(submission, kind, settings, labels=labels)
-                forked = warm.fork(settings, labels)
+                warm = WarmAgent.start(
+                    submission,
+                    kind,
+                    settings.sandbox,
+                    settings.storage.resolved_data_dir,
+                    labels=labels,
+                )
+                forked = warm.fork(settings.sandbox, labels)
                 try:
                     with forked.start() as handle:
                         row = results.setdefault("docker (forked)", {})
@@ -188,10 +207,18 @@ def floor_round_trip_ms(
     source.mkdir()
     (source / "policy.py").write_text(TRIVIAL_POLICY)
     (source / "agent.yaml").write_text(f"observation_format: {fmt}\n")
-    submission = prepare_submission(source, base / "submission", settings)
+    submission = prepare_submission(
+        source,
+        base / "submission",
+        settings.intake,
+        settings.sandbox,
+        settings.storage.resolved_data_dir,
+    )
     labels = {"bench": "floor"}
-    warm = WarmAgent.start(submission, kind, settings, labels=labels)
-    forked = warm.fork(settings, labels)
+    warm = WarmAgent.start(
+        submission, kind, settings.sandbox, settings.storage.resolved_data_dir, labels=labels
+    )
+    forked = warm.fork(settings.sandbox, labels)
     try:
         with forked.start() as handle:
             return float(np.median(timings_ms(handle.act, empty(fmt), steps)))

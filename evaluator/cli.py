@@ -106,15 +106,16 @@ def evaluate(
             summary = run_evaluation(
                 path,
                 resolve_suite(suite, settings),
+                settings=settings,
                 out_dir=out,
                 per_submission=per_submission,
                 force=force,
                 scenario_ids=scenario,
-                jobs=jobs or settings.jobs,
-                sandbox=sandbox or settings.sandbox,
-                profile=profile or settings.scoring_profile,
+                jobs=jobs or settings.evaluation.jobs,
+                sandbox=sandbox or settings.sandbox.kind,
+                profile=profile or settings.evaluation.scoring_profile,
                 progress=progress,
-                episodes_per_scenario=episodes or settings.episodes_per_scenario,
+                episodes_per_scenario=episodes or settings.evaluation.episodes_per_scenario,
                 model_dir=model,
             )
     finally:
@@ -127,7 +128,7 @@ def evaluate(
         console.print(f"results in {out} (agent logs in {out / 'logs'})")
     notes = make_console(stderr=True) if as_json else console
     explain_failures(summary, out, notes, verbose=verbose)
-    over_budget = _report_agent_cpu(out, settings.cpu_limits, notes)
+    over_budget = _report_agent_cpu(out, settings.sandbox.cpu_limits, notes)
     if over_budget or any(is_agent_fault(episode.agents) for _, episode in _episodes(summary)):
         raise typer.Exit(1)
 
@@ -195,12 +196,19 @@ def train(
     from submissions.intake import prepare_submission
 
     settings = get_settings()
+    training = settings.training
     if timeout is not None:
-        settings = settings.model_copy(update={"train_timeout_s": timeout})
+        training = training.model_copy(update={"train_timeout_s": timeout})
     console = make_console()
     with _exit_on_error(console), tempfile.TemporaryDirectory(prefix="arena-train-") as tmp:
         Path(tmp).chmod(0o755)  # the sandbox user must enter the submission
-        submission = prepare_submission(path, Path(tmp) / "submission", settings)
+        submission = prepare_submission(
+            path,
+            Path(tmp) / "submission",
+            settings.intake,
+            settings.sandbox,
+            settings.storage.resolved_data_dir,
+        )
         with console.status("training") as status:
 
             def progress(elapsed: float, log: str) -> bool:
@@ -212,8 +220,10 @@ def train(
                 submission,
                 dataset,
                 out,
+                training=training,
+                config=settings.sandbox,
+                data_dir=settings.storage.resolved_data_dir,
                 kind=sandbox,
-                settings=settings,
                 on_progress=progress,
                 seed=seed,
             )
@@ -279,7 +289,7 @@ def score(
         raise typer.Exit(2)
     with _exit_on_error(console):
         summary = score_results_dir(
-            results_dir, load_profile(profile or get_settings().scoring_profile)
+            results_dir, load_profile(profile or get_settings().evaluation.scoring_profile)
         )
     write_summary(summary, results_dir)
     _report(summary, results_dir, console, as_json, per_scenario)

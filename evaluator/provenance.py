@@ -20,7 +20,6 @@ from importlib import metadata
 import numpy as np
 from pydantic import BaseModel, ConfigDict
 
-from arena.config import Settings
 from arena.scenario import content_hash
 from arena.suite import Suite
 
@@ -189,9 +188,10 @@ def manifest_of(
     )
 
 
-def environment(sandbox: str, settings: Settings) -> Environment:
-    """The environment an episode run now, here, with backend ``sandbox`` would have."""
-    image = _docker_image_id(settings.agent_image) if sandbox == "docker" else None
+def environment(sandbox: str, agent_image: str) -> Environment:
+    """The environment an episode run now, here, with backend ``sandbox`` (and, with Docker,
+    the image ``agent_image``) would have."""
+    image = _docker_image_id(agent_image) if sandbox == "docker" else None
     return _versions(sandbox, image)
 
 

@@ -22,9 +22,15 @@ from pathlib import Path
 from types import SimpleNamespace
 
 from agent_runtime import intake as rules
-from arena.config import SandboxKind, Settings
+from arena.config import IntakeSettings, SandboxKind, SandboxSettings
 from arena.errors import IntakeError
-from evaluator.sandbox.backend import DATASET_MOUNT, MODEL_MOUNT, RUNTIME_MOUNT, TRAIN_SCRIPT
+from evaluator.sandbox.backend import (
+    DATASET_MOUNT,
+    MODEL_MOUNT,
+    RUNTIME_MOUNT,
+    TRAIN_SCRIPT,
+    Training,
+)
 from submissions.intake import PreparedSubmission, prepare_submission
 from submissions.intake.runner import IntakeRunner, read_report
 
@@ -40,34 +46,35 @@ def _stub(mode: str) -> str:
     )
 
 
-def intake_settings(settings: Settings) -> Settings:
+def intake_limits(
+    intake: IntakeSettings, config: SandboxSettings, inputs: Path, output: Path
+) -> tuple[SandboxSettings, Training]:
     """The sandbox limits of an intake step: its own memory and time; no file larger than what
     the zip (or the wheels) may unpack to."""
-    return settings.model_copy(
-        update={
-            "agent_memory_bytes": settings.intake_memory_bytes,
-            "train_timeout_s": settings.intake_timeout_s,
-            "train_output_bytes": max(settings.max_unzipped_bytes, settings.max_deps_bytes),
-            "train_gpu": False,
-        }
-    )
+    memory = config.model_copy(update={"agent_memory_bytes": intake.intake_memory_bytes})
+    file_cap = max(intake.max_unzipped_bytes, intake.max_deps_bytes)
+    return memory, Training(inputs, output, intake.intake_timeout_s, file_cap)
 
 
 def sandboxed(
-    settings: Settings, kind: SandboxKind | str | None = None, labels: dict[str, str] | None = None
+    intake: IntakeSettings,
+    config: SandboxSettings,
+    data_dir: Path,
+    kind: SandboxKind | str | None = None,
+    labels: dict[str, str] | None = None,
 ) -> IntakeRunner:
-    """An intake runner that runs each step in a sandbox of ``kind``."""
+    """An intake runner that runs each step in a sandbox of ``kind`` (owned by ``data_dir``)."""
 
     def run(mode: str, inputs: Path, output: Path) -> dict:
         from evaluator import sandbox
 
-        limits = intake_settings(settings)
-        disk_cap = settings.max_unzipped_bytes if mode == "submission" else settings.max_deps_bytes
-        files_cap = settings.max_zip_entries if mode == "submission" else settings.max_deps_files
+        limits, batch = intake_limits(intake, config, inputs, output)
+        disk_cap = intake.max_unzipped_bytes if mode == "submission" else intake.max_deps_bytes
+        files_cap = intake.max_zip_entries if mode == "submission" else intake.max_deps_files
         # Room for the report and the scratch copy of one nested archive.
         disk_cap, files_cap = 2 * disk_cap + 1024**2, files_cap + 16
         # A worker in a container makes the stub where the Docker daemon sees the same path.
-        shared = settings.sandbox_shared_dir
+        shared = config.sandbox_shared_dir
         if shared is not None:
             shared.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory(prefix="arena-intake-stub-", dir=shared) as stub_dir:
@@ -78,19 +85,19 @@ def sandboxed(
             started = time.monotonic()
             box = sandbox.start_training(
                 SimpleNamespace(root=program, deps_dir=None),
-                inputs,
-                output,
+                batch,
+                config=limits,
+                data_dir=data_dir,
                 kind=kind,
                 labels=labels,
-                settings=limits,
             )
             try:
                 while (status := box.exit_status(POLL_S)) is None:
-                    if time.monotonic() - started > settings.intake_timeout_s:
+                    if time.monotonic() - started > intake.intake_timeout_s:
                         raise IntakeError(
                             rules.ARCHIVE,
                             "intake-timeout",
-                            f"checking took longer than {settings.intake_timeout_s:g} s",
+                            f"checking took longer than {intake.intake_timeout_s:g} s",
                         )
                     size, count = _usage(output)
                     if size > disk_cap:
@@ -108,7 +115,7 @@ def sandboxed(
             raise IntakeError(
                 rules.ARCHIVE,
                 "intake-memory",
-                f"checking it needed more than {settings.intake_memory_bytes // 1024**2} MiB",
+                f"checking it needed more than {intake.intake_memory_bytes // 1024**2} MiB",
             )
         if status.code != 0:
             if "File too large" in log or status.code in (-25, 128 + 25):
@@ -152,18 +159,22 @@ def _usage(folder: Path) -> tuple[int, int]:
 def validate(
     upload: Path,
     dest: Path,
-    settings: Settings,
+    intake: IntakeSettings,
+    config: SandboxSettings,
+    data_dir: Path,
     *,
     kind: SandboxKind | str | None = None,
     labels: dict[str, str] | None = None,
     needs_training: bool = False,
 ) -> PreparedSubmission:
     """:func:`~submissions.intake.prepare_submission` of ``upload`` into ``dest``, every step
-    in the sandbox."""
+    in the sandbox (of ``config``, owned by ``data_dir``, where the requirements are kept)."""
     return prepare_submission(
         upload,
         dest,
-        settings,
-        runner=sandboxed(settings, kind, labels),
+        intake,
+        config,
+        data_dir,
+        runner=sandboxed(intake, config, data_dir, kind, labels),
         needs_training=needs_training,
     )

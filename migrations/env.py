@@ -17,7 +17,7 @@ def _url() -> str:
     url = config.get_main_option("sqlalchemy.url")
     if url:
         return url
-    return get_settings().resolved_database_url
+    return get_settings().storage.resolved_database_url
 
 
 def render_item(type_: str, obj, autogen_context):

@@ -41,7 +41,7 @@ def _cache_dir() -> Path:
     # deferred: CLI start-up time
     from arena.config import get_settings
 
-    return get_settings().resolved_data_dir / "cache" / "scenarios"
+    return get_settings().storage.resolved_data_dir / "cache" / "scenarios"
 
 
 def _hidden_seed(seed: str | None, dev: bool) -> int:
@@ -55,10 +55,10 @@ def _hidden_seed(seed: str | None, dev: bool) -> int:
             return parse_seed(seed)
         except SeedError as exc:
             raise typer.BadParameter(str(exc), param_hint="--seed") from None
-    if settings.hidden_seed is not None:
-        return settings.hidden_seed
+    if settings.suites.hidden_seed is not None:
+        return settings.suites.hidden_seed
     if dev:
-        return settings.development_seed
+        return settings.suites.development_seed
     raise typer.BadParameter(
         "no hidden seed: pass --seed, set ARENA_HIDDEN_SEED in the organisers' environment, or "
         "use --dev for the development seed (never for a real competition)",

@@ -168,7 +168,7 @@ def image_names(tag: str) -> dict[str, str]:
 
 
 def cache_dir() -> Path:
-    return get_settings().resolved_data_dir / "compose-images"
+    return get_settings().storage.resolved_data_dir / "compose-images"
 
 
 def project_requirements() -> list[str]:
@@ -257,7 +257,9 @@ def exists(client: docker.DockerClient, image: str) -> bool:
 def import_root(client: docker.DockerClient, image: str, digest: str, force: bool) -> None:
     tarball = cache_dir() / f"root-bookworm-{digest_of(*ROOT_PACKAGES)[:12]}.tar"
     if force or not tarball.is_file():
-        build_rootfs_tarball(tarball, debian_mirror(get_settings()), log, packages=ROOT_PACKAGES)
+        build_rootfs_tarball(
+            tarball, debian_mirror(get_settings().sandbox), log, packages=ROOT_PACKAGES
+        )
     repository, tag = image.split(":")
     log(f"docker import {tarball.name} as {image}")
     client.api.import_image_from_file(

@@ -69,7 +69,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         redoc_url=None,
     )
     app.state.settings = settings
-    app.state.db = Database(settings.resolved_database_url)
+    app.state.db = Database(settings.storage.resolved_database_url)
     app.state.queue = TaskQueue(settings)
     app.state.leaderboard = LeaderboardCache(app.state.db)
 

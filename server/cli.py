@@ -48,10 +48,10 @@ class _Context:
 
         self.settings = get_settings()
         try:
-            check_database_ready(self.settings.resolved_database_url)
+            check_database_ready(self.settings.storage.resolved_database_url)
         except DatabaseNotReady as exc:
             raise _fail(exc) from None
-        self.db = Database(self.settings.resolved_database_url)
+        self.db = Database(self.settings.storage.resolved_database_url)
         self.queue = TaskQueue(self.settings)
         self.store = artifact_store(self.settings, self.db)
 
@@ -82,7 +82,7 @@ def db_upgrade(revision: str = "head") -> None:
     from arena.config import get_settings
     from server.core.migrate import current_revision, upgrade_database
 
-    url = get_settings().resolved_database_url
+    url = get_settings().storage.resolved_database_url
     upgrade_database(url, revision)
     console.print(f"database at revision [bold]{current_revision(url)}[/bold]")
 
@@ -633,7 +633,7 @@ def status() -> None:
         )
     else:
         console.print("stuck runs: none")
-    limit = ctx.settings.overdue_after_s
+    limit = ctx.settings.service.overdue_after_s
     if state.overdue:
         print_rows(
             console,
@@ -702,7 +702,7 @@ def serve(host: str = "127.0.0.1", port: int = 8000, workers: int = 1) -> None:
         workers=workers,
         # Slow clients hold no worker: headers have a deadline, idle keep-alives end.
         http=HeaderDeadlineProtocol,
-        timeout_keep_alive=get_settings().http_keep_alive_s,
+        timeout_keep_alive=get_settings().service.http_keep_alive_s,
     )
 
 

@@ -45,18 +45,18 @@ class AlreadyServed(ArenaError, RuntimeError):
 
 def run_embedded(console: Console, *, host: str, port: int, demo_team: str) -> None:
     settings = get_settings()
-    data = settings.resolved_data_dir
+    data = settings.storage.resolved_data_dir
     data.mkdir(parents=True, exist_ok=True)
     lock = _lock_data_folder(data)  # held until this process ends, however it ends
     _check_port_free(host, port)
     env = dict(os.environ)
     env["ARENA_DATA_DIR"] = str(data)
 
-    admin_token = settings.admin_token or _stored_admin_token(data)
+    admin_token = settings.service.admin_token or _stored_admin_token(data)
     env["ARENA_ADMIN_TOKEN"] = admin_token
 
-    console.print(f"database: {settings.resolved_database_url}")
-    upgrade_database(settings.resolved_database_url)
+    console.print(f"database: {settings.storage.resolved_database_url}")
+    upgrade_database(settings.storage.resolved_database_url)
 
     env["ARENA_PUBLIC_SUITE_DIR"] = str(_public_suite(console, settings, env))
     hidden = _hidden_suite(console, settings, env)
@@ -64,7 +64,7 @@ def run_embedded(console: Console, *, host: str, port: int, demo_team: str) -> N
     for warning in close_service_folders(data, hidden):
         console.print(f"[red]{warning}[/red]")
 
-    kind = sandbox.check_service_kind(settings=settings)
+    kind = sandbox.check_service_kind(None, settings.sandbox)
     env["ARENA_SANDBOX"] = kind.value
     console.print(f"sandbox: [bold]{kind.value}[/bold]")
 
@@ -155,7 +155,8 @@ def _remove_leftover_sandboxes(console: Console, settings: Settings) -> None:
     """Agents of episodes the stopped worker left behind (it was this data folder's only
     worker); other services' and local evaluations' sandboxes on this host are not ours."""
     try:
-        removed = sandbox.cleanup(owner_labels(settings))
+        owner = owner_labels(settings.storage.resolved_data_dir)
+        removed = sandbox.cleanup(settings.sandbox, owner)
     except ArenaError as exc:
         console.print(f"[yellow]could not look for leftover sandboxes: {exc}[/yellow]")
         return
@@ -183,7 +184,7 @@ def _build_suite(console: Console, env: dict, suite: str, out: Path, seed: int |
 def _public_suite(console: Console, settings: Settings, env: dict) -> Path:
     folder = public_suite_dir(settings)
     if not (folder / "manifest.json").exists():
-        folder = settings.resolved_data_dir / "suites" / "public"
+        folder = settings.storage.resolved_data_dir / "suites" / "public"
         if not (folder / "manifest.json").exists():
             _build_suite(console, env, "public", folder, None)
     console.print(f"public suite: {folder}")
@@ -197,12 +198,12 @@ def _hidden_suite(console: Console, settings: Settings, env: dict) -> Path:
         # Said at every start, not only the first: a demo folder must not drift into a
         # competition unnoticed.
         built_from = load_suite(folder).manifest.seed_fingerprint
-        if built_from == seed_fingerprint(settings.development_seed):
-            _warn_development_seed(console, settings.development_seed)
+        if built_from == seed_fingerprint(settings.suites.development_seed):
+            _warn_development_seed(console, settings.suites.development_seed)
         return folder
-    seed = settings.hidden_seed
+    seed = settings.suites.hidden_seed
     if seed is None:
-        seed = settings.development_seed
+        seed = settings.suites.development_seed
         _warn_development_seed(console, seed)
     _build_suite(console, env, "hidden", folder, seed)
     return folder
@@ -224,8 +225,8 @@ def _demo_team_token(settings: Settings, name: str) -> str:
     """The demo team's token, the same across restarts: kept for the local organiser in the data
     folder (owner-readable only; the database stores tokens hashed). A token that no longer
     works (revoked with `teams rotate-token`) is replaced."""
-    stored = settings.resolved_data_dir / "demo_token"
-    db = Database(settings.resolved_database_url)
+    stored = settings.storage.resolved_data_dir / "demo_token"
+    db = Database(settings.storage.resolved_database_url)
     try:
         with db.session() as session:
             if stored.exists():

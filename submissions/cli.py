@@ -20,9 +20,11 @@ def report_checked(zip_path: Path, install: bool) -> None:
     import tempfile
 
     # deferred: CLI start-up time
+    from arena.config import get_settings
     from arena.errors import IntakeError
     from submissions.intake import check_zip, prepare_submission
 
+    settings = get_settings()
     try:
         if install:
             # Resolving requirements can take a minute (a torch wheel): say what is going on.
@@ -31,11 +33,17 @@ def report_checked(zip_path: Path, install: bool) -> None:
                 tempfile.TemporaryDirectory(prefix="arena-check-") as tmp,
                 errors.status(message, spinner="dots"),
             ):
-                prepared = prepare_submission(zip_path, Path(tmp) / "submission")
+                prepared = prepare_submission(
+                    zip_path,
+                    Path(tmp) / "submission",
+                    settings.intake,
+                    settings.sandbox,
+                    settings.storage.resolved_data_dir,
+                )
                 interface, sha256, size = prepared.interface, prepared.sha256, prepared.size
                 notes = prepared.notes
         else:
-            checked = check_zip(zip_path)
+            checked = check_zip(zip_path, settings.intake, settings.sandbox)
             interface, sha256, size = checked.interface, checked.sha256, checked.size
             notes = checked.notes
     except IntakeError as error:

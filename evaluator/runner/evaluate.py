@@ -24,7 +24,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Protocol
 
-from arena.config import SandboxKind, get_settings
+from arena.config import SandboxKind, SandboxSettings, Settings
 from arena.cpu_limits import CpuLimits
 from arena.episodes import Episode, episodes_of
 from arena.errors import ArenaError, SandboxUnavailable
@@ -69,6 +69,7 @@ def evaluate(
     source: Path,
     suite_dir: Path,
     *,
+    settings: Settings,
     out_dir: Path,
     scenario_ids: Sequence[str] | None = None,
     jobs: int = 1,
@@ -91,19 +92,23 @@ def evaluate(
     When the first ``fail_fast_after`` episodes all end with the agent failing to start, the
     rest are not run (the summary stays incomplete): one error, not one per scenario.
     ``model_dir`` is a trained output (``arena train``) the policy reads as ARENA_MODEL_DIR; the
-    results then belong to the submission and that model together.
-    The agent acts under ``cpu_limits`` (default: the settings'); once the CPU its episodes used
-    passes the evaluation's budget, the rest are not run (the summary stays incomplete, and
-    ``agent_cpu.json`` says why).
+    results then belong to the submission and that model together. ``settings``: the intake's
+    limits, the sandbox's and the data folder (the requirements' cache, the sandboxes' owner).
+    The agent acts under ``cpu_limits`` (default: the sandbox settings'); once the CPU its
+    episodes used passes the evaluation's budget, the rest are not run (the summary stays
+    incomplete, and ``agent_cpu.json`` says why).
     """
-    cpu_limits = cpu_limits or get_settings().cpu_limits
+    cpu_limits = cpu_limits or settings.sandbox.cpu_limits
     scoring_profile = load_profile(profile)
-    sandbox = _usable_sandbox(sandbox)
+    sandbox = _usable_sandbox(sandbox, settings.sandbox)
+    data_dir = settings.storage.resolved_data_dir
     suite = load_suite(suite_dir).select(scenario_ids)
     out_dir = Path(out_dir)
     with tempfile.TemporaryDirectory(prefix="arena-submission-") as tmp:
         Path(tmp).chmod(0o755)  # sandboxes run the agent as another user, who must enter it
-        submission = prepare_submission(Path(source), Path(tmp) / "submission")
+        submission = prepare_submission(
+            Path(source), Path(tmp) / "submission", settings.intake, settings.sandbox, data_dir
+        )
         identity = submission.sha256
         if model_dir is not None:
             submission, identity = _with_model(submission, Path(model_dir))
@@ -115,7 +120,13 @@ def evaluate(
         (out_dir / LOGS_DIR).mkdir(exist_ok=True)
         pins = (submission.sha256, _model_digest(model_dir))
         run = ResultsFolder(
-            out_dir, suite, scoring_profile, identity, episodes_per_scenario, pins, cpu_limits
+            out_dir,
+            suite,
+            scoring_profile,
+            identity,
+            episodes_per_scenario,
+            pins,
+            cpu_limits=cpu_limits,
         )
         todo = run.resume()
         if progress:
@@ -126,6 +137,8 @@ def evaluate(
                 submission,
                 suite.scenario_dir(episode.scenario_id),
                 out_dir / RECORDS_DIR,
+                config=settings.sandbox,
+                data_dir=data_dir,
                 sandbox=sandbox,
                 episode=episode.index,
                 limits=cpu_limits,
@@ -208,11 +221,11 @@ class _StartWatch:
             self.seen = -1  # it started once: every scenario runs
 
 
-def _usable_sandbox(kind: SandboxKind | None) -> SandboxKind:
+def _usable_sandbox(kind: SandboxKind | None, config: SandboxSettings) -> SandboxKind:
     """The concrete sandbox, checked once: a missing daemon or tool fails the evaluation before
     any scenario, instead of every scenario failing on it."""
-    kind = resolve_kind(kind)
-    reason = backend(kind).unavailable_reason(get_settings())
+    kind = resolve_kind(kind, config)
+    reason = backend(kind).unavailable_reason(config)
     if reason is not None:
         raise SandboxUnavailable(f"sandbox {kind.value} cannot run here: {reason}")
     return kind
@@ -243,7 +256,8 @@ class ResultsFolder:
         submission: str,
         episodes_per_scenario: int = 1,
         pins: tuple[str, str | None] | None = None,
-        cpu_limits: CpuLimits | None = None,
+        *,
+        cpu_limits: CpuLimits,
     ) -> None:
         """``pins``: the sha256 of the submission's zip and of its trained model (or None), for
         the reproducibility manifest (``submission`` is the identity of the pair);
@@ -260,7 +274,7 @@ class ResultsFolder:
         self.running: set[Episode] = set()
         self.cache: dict[Episode, ScoredEntry] = {}
         self.timings: dict[str, float] = {}  # episode name -> wall time [s]
-        self.cpu = CpuLedger(out_dir, cpu_limits or get_settings().cpu_limits)
+        self.cpu = CpuLedger(out_dir, cpu_limits)
         self.lock = threading.Lock()
 
     @property

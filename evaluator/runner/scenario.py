@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from arena.config import SandboxKind, get_settings
+from arena.config import SandboxKind, SandboxSettings
 from arena.cpu_limits import CpuLimits
 from arena.episodes import Episode, traffic_seed
 from arena.outcome import AgentOutcome, DoneReason, ScenarioStatus
@@ -41,11 +41,18 @@ class SandboxedAgentFactory:
     submission: PreparedSubmission
     kind: SandboxKind | None
     labels: dict[str, str]
+    config: SandboxSettings
+    data_dir: Path
     limits: CpuLimits | None = None
 
     def __call__(self) -> Agent:
         return sandboxes.start(
-            self.submission, kind=self.kind, labels=self.labels, limits=self.limits
+            self.submission,
+            config=self.config,
+            data_dir=self.data_dir,
+            kind=self.kind,
+            labels=self.labels,
+            limits=self.limits,
         )
 
     @property
@@ -74,17 +81,19 @@ def agent_factory(
     submission: PreparedSubmission,
     kind: SandboxKind,
     labels: dict[str, str],
+    config: SandboxSettings,
+    data_dir: Path,
     limits: CpuLimits | None = None,
 ) -> Iterator[SandboxedAgentFactory | ForkedAgentFactory]:
     """How one episode gets its agent: forked in a warm sandbox when the setting allows and the
     submission's zygote started, else in a sandbox of its own; either acts under ``limits``."""
-    settings = get_settings()
-    if not settings.warm_agents:
-        yield SandboxedAgentFactory(submission, kind, labels, limits)
+    cold = SandboxedAgentFactory(submission, kind, labels, config, data_dir, limits)
+    if not config.warm_agents:
+        yield cold
         return
-    with warm_agents().lease(submission, kind, labels, settings) as forked:
+    with warm_agents().lease(submission, kind, labels, config, data_dir) as forked:
         if forked is None:
-            yield SandboxedAgentFactory(submission, kind, labels, limits)
+            yield cold
         else:
             yield ForkedAgentFactory(forked, limits)
 
@@ -140,8 +149,8 @@ def new_run_key() -> str:
 def sandbox_labels(run_key: str, attempt: int | None = None) -> dict[str, str]:
     """The labels on the sandbox of one attempt (``attempt``) of one scenario run (``run_key``,
     from :func:`new_run_key`); without ``attempt``, those every attempt of the run carries.
-    ``evaluator.sandbox.cleanup(labels)`` removes what a dead episode left behind, and only that:
-    labels never depend on the zip's content, which two teams can share."""
+    ``evaluator.sandbox.cleanup(config, labels)`` removes what a dead episode left behind, and
+    only that: labels never depend on the zip's content, which two teams can share."""
     labels = {"arena.run": run_key}
     if attempt is not None:
         labels["arena.attempt"] = str(attempt)
@@ -153,6 +162,8 @@ def run_scenario(
     scenario_dir: Path,
     records_dir: Path,
     *,
+    config: SandboxSettings,
+    data_dir: Path,
     sandbox: SandboxKind | None = None,
     run_key: str | None = None,
     episode: int = 0,
@@ -164,10 +175,12 @@ def run_scenario(
 
     Agent failures come back as a ``done`` outcome whose agents carry the reason. Infrastructure
     errors (sandbox unavailable) are raised so the caller can retry the job. ``run_key`` labels
-    the sandboxes (:func:`sandbox_labels`); a fresh one is made when not given. The agent acts
-    under ``limits`` (default: the settings'); the outcome says the CPU it used.
+    the sandboxes (:func:`sandbox_labels`); a fresh one is made when not given. The agent runs
+    in a sandbox of ``config`` (``sandbox``: its kind, None: the setting's) owned by
+    ``data_dir``, and acts under ``limits`` (default: ``config``'s); the outcome says the CPU
+    it used.
     """
-    kind = sandboxes.resolve_kind(sandbox)
+    kind = sandboxes.resolve_kind(sandbox, config)
     scenario = load_scenario(scenario_dir)
     key = Episode(scenario.id, episode)
     record_path = Path(records_dir) / f"{key.name}{RECORD_SUFFIX}"
@@ -179,14 +192,14 @@ def run_scenario(
     for attempt in range(1, SIMULATOR_ATTEMPTS + 1):
         labels = sandbox_labels(run_key, attempt)
         record_path.unlink(missing_ok=True)
-        with agent_factory(submission, kind, labels, limits) as factory:
+        with agent_factory(submission, kind, labels, config, data_dir, limits) as factory:
             result = run_episode_isolated(
                 scenario_dir,
                 factory,
                 submission.interface,
                 record_path=record_path,
                 seed=seed,
-                episode_timeout_s=get_settings().episode_timeout_s,
+                episode_timeout_s=config.episode_timeout_s,
             )
         logs.append(_log_text(result, attempt, key))
         lost_sandbox = any(a.reason is DoneReason.sandbox_error for a in result.agents)
@@ -194,12 +207,12 @@ def run_scenario(
             return dataclasses.replace(
                 _outcome(result, record_path, "\n".join(logs), attempt, started, episode),
                 seed=seed,
-                environment=environment(kind.value, get_settings()),
+                environment=environment(kind.value, config.agent_image),
             )
         # The episode's process died, SUMO failed, or a sandbox ended before our runner started
         # in it (killed from outside, the daemon failed): none of it is the agent's doing, so
         # the episode runs again. Its agent's sandbox may never have been closed.
-        sandboxes.cleanup(labels)
+        sandboxes.cleanup(config, labels)
     record_path.unlink(missing_ok=True)
     if result.simulator_error is None:
         return ScenarioOutcome.ours(

@@ -9,9 +9,10 @@ per sandbox can be made. ``auto`` means Docker when a daemon answers, else bubbl
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
-from arena.config import SandboxKind, Settings, get_settings
+from arena.config import SandboxKind, SandboxSettings
 from arena.cpu_limits import CpuLimits
 from arena.errors import SandboxUnavailable
 from evaluator.sandbox.backend import SANDBOX_LABEL, Backend, LaunchSpec, Sandbox, Training
@@ -64,30 +65,24 @@ def backend(kind: SandboxKind) -> Backend:
     raise ValueError(f"{kind} is not a concrete sandbox kind")
 
 
-def resolve_kind(
-    kind: SandboxKind | str | None = None, settings: Settings | None = None
-) -> SandboxKind:
-    """The concrete backend for ``kind`` (default: the setting); ``auto`` prefers Docker."""
-    settings = settings or get_settings()
-    kind = SandboxKind(kind or settings.sandbox)
+def resolve_kind(kind: SandboxKind | str | None, config: SandboxSettings) -> SandboxKind:
+    """The concrete backend for ``kind`` (None: the setting); ``auto`` prefers Docker."""
+    kind = SandboxKind(kind or config.kind)
     if kind is not SandboxKind.auto:
         return kind
-    if backend(SandboxKind.docker).unavailable_reason(settings) is None:
+    if backend(SandboxKind.docker).unavailable_reason(config) is None:
         return SandboxKind.docker
-    reason = backend(SandboxKind.bubblewrap).unavailable_reason(settings)
+    reason = backend(SandboxKind.bubblewrap).unavailable_reason(config)
     if reason is None:
         return SandboxKind.bubblewrap
     raise SandboxUnavailable(f"neither Docker nor bubblewrap can run agents here: {reason}")
 
 
-def check_service_kind(
-    kind: SandboxKind | str | None = None, settings: Settings | None = None
-) -> SandboxKind:
+def check_service_kind(kind: SandboxKind | str | None, config: SandboxSettings) -> SandboxKind:
     """The backend the service will use: one that holds the sandbox contract here, or
     :class:`SandboxUnavailable` saying why not."""
-    settings = settings or get_settings()
-    resolved = resolve_kind(kind, settings)
-    gap = backend(resolved).contract_gap(settings)
+    resolved = resolve_kind(kind, config)
+    gap = backend(resolved).contract_gap(config)
     if gap is not None:
         raise SandboxUnavailable(
             f"the service never runs agents with sandbox {resolved.value!r}: {gap}"
@@ -98,22 +93,23 @@ def check_service_kind(
 def start(
     submission,
     *,
+    config: SandboxSettings,
+    data_dir: Path,
     kind: SandboxKind | str | None = None,
     labels: dict[str, str] | None = None,
-    settings: Settings | None = None,
     limits: CpuLimits | None = None,
 ) -> AgentHandle:
-    """Start ``submission`` (a PreparedSubmission) and wait until its Policy is built; its acts
-    run under ``limits`` (default: the settings').
+    """Start ``submission`` (a PreparedSubmission) and wait until its Policy is built; the
+    sandbox is owned by (labelled with) the resolved ``data_dir``; its acts run under
+    ``limits`` (default: ``config``'s).
 
     Raises :class:`~arena.errors.AgentFailed` when the policy fails to import or construct
     in ``init_timeout_s``, :class:`~arena.errors.SandboxUnavailable` when the sandbox itself
     cannot start.
     """
-    settings = settings or get_settings()
-    chosen = backend(resolve_kind(kind, settings))
-    sandbox = chosen.launch(LaunchSpec.of_agent(submission, settings, labels))
-    handle = AgentHandle(sandbox, settings, submission.interface, limits)
+    chosen = backend(resolve_kind(kind, config))
+    sandbox = chosen.launch(LaunchSpec.of_agent(submission, config, data_dir, labels))
+    handle = AgentHandle(sandbox, config, submission.interface, limits)
     try:
         handle.handshake()
     except BaseException:
@@ -124,32 +120,31 @@ def start(
 
 def start_training(
     submission,
-    dataset: Path,
-    output: Path,
+    training: Training,
     *,
+    config: SandboxSettings,
+    data_dir: Path,
     kind: SandboxKind | str | None = None,
     labels: dict[str, str] | None = None,
-    settings: Settings | None = None,
-    seed: int = 0,
 ) -> Sandbox:
-    """Start ``submission``'s ``train.py`` (see :mod:`evaluator.training`) with ``seed`` in
-    ``ARENA_TRAIN_SEED``; it runs until it exits or is killed. Raises
-    :class:`~arena.errors.SandboxUnavailable`."""
-    settings = settings or get_settings()
-    chosen = backend(resolve_kind(kind, settings))
+    """Start ``submission``'s ``train.py`` (see :mod:`evaluator.training`) on ``training``'s
+    folders, limits and seed (``ARENA_TRAIN_SEED``); it runs until it exits or is killed.
+    Raises :class:`~arena.errors.SandboxUnavailable`."""
+    chosen = backend(resolve_kind(kind, config))
     spec = LaunchSpec(
         submission=submission.root,
         deps=submission.deps_dir,
-        settings=settings,
+        config=config,
+        data_dir=data_dir,
         labels=dict(labels or {}),
-        training=Training(
-            dataset=Path(dataset).resolve(), output=Path(output).resolve(), seed=seed
+        training=dataclasses.replace(
+            training, dataset=training.dataset.resolve(), output=training.output.resolve()
         ),
     )
     return chosen.launch(spec)
 
 
-def cleanup(labels: dict[str, str] | None = None) -> int:
+def cleanup(config: SandboxSettings, labels: dict[str, str] | None = None) -> int:
     """Remove leftover sandboxes of every backend carrying ``labels`` (default: all of ours),
     and kill this process's leased warm agents carrying them."""
     # deferred: the warm pool imports this package (evaluator.sandbox.warm uses backend())
@@ -158,5 +153,5 @@ def cleanup(labels: dict[str, str] | None = None) -> int:
     wanted = {SANDBOX_LABEL: "1", **(labels or {})}
     removed = warm_agents().kill(wanted)
     for kind in (SandboxKind.docker, SandboxKind.bubblewrap):
-        removed += backend(kind).cleanup(wanted)
+        removed += backend(kind).cleanup(wanted, config)
     return removed

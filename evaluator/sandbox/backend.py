@@ -12,7 +12,7 @@ from typing import Protocol
 
 import agent_runtime
 from agent_runtime import confine
-from arena.config import SandboxKind, Settings
+from arena.config import SandboxKind, SandboxSettings
 from evaluator.sandbox.channel import Channel
 from evaluator.sandbox.cpu import CpuMeter
 
@@ -63,10 +63,14 @@ def runtime_dir() -> Path:
 
 @dataclass(frozen=True)
 class Training:
-    """A training run instead of an agent: the dataset (read-only) and the output folder."""
+    """A training run instead of an agent: the dataset (read-only), the output folder, and the
+    run's own limits (an upload's validation runs this way under the intake's)."""
 
     dataset: Path
     output: Path
+    timeout_s: float
+    output_bytes: int  # no single file larger
+    gpu: bool = False
     seed: int = 0  # ARENA_TRAIN_SEED
 
     def env(self, dataset: str, output: str) -> dict[str, str]:
@@ -86,7 +90,8 @@ class LaunchSpec:
 
     submission: Path
     deps: Path | None
-    settings: Settings
+    config: SandboxSettings
+    data_dir: Path  # the owner of the sandbox (owner_labels)
     labels: dict[str, str] = field(default_factory=dict)
     observation_format: str = "native"  # agent.yaml's, passed to the runner
     action_space: str = "TargetPose"
@@ -99,14 +104,20 @@ class LaunchSpec:
 
     @classmethod
     def of_agent(
-        cls, submission, settings: Settings, labels: dict[str, str] | None, **options
+        cls,
+        submission,
+        config: SandboxSettings,
+        data_dir: Path,
+        labels: dict[str, str] | None,
+        **options,
     ) -> LaunchSpec:
         """The spec of ``submission``'s (a PreparedSubmission) agent, as its ``agent.yaml`` and
         trained output say; ``options``: zygote."""
         return cls(
             submission=submission.root,
             deps=submission.deps_dir,
-            settings=settings,
+            config=config,
+            data_dir=data_dir,
             labels=dict(labels or {}),
             observation_format=str(submission.interface.observation_format),
             action_space=str(submission.interface.action_space),
@@ -145,10 +156,10 @@ class LaunchSpec:
 
     def cpu_seconds(self) -> float:
         """CPU time the sandbox may burn where no cgroup caps its share (bubblewrap)."""
-        settings = self.settings
+        config = self.config
         if self.training is not None:
-            return settings.train_timeout_s * settings.agent_cpus + settings.init_timeout_s
-        return settings.init_timeout_s + settings.episode_timeout_s
+            return self.training.timeout_s * config.agent_cpus + config.init_timeout_s
+        return config.init_timeout_s + config.episode_timeout_s
 
     @property
     def all_labels(self) -> dict[str, str]:
@@ -156,7 +167,7 @@ class LaunchSpec:
             **self.labels,
             SANDBOX_LABEL: "1",
             INSTANCE_LABEL: self.instance,
-            **owner_labels(self.settings),
+            **owner_labels(self.data_dir),
         }
 
     @property
@@ -178,9 +189,7 @@ class LaunchSpec:
     def format_args(self) -> list[str]:
         """The runner's options beyond its folders: the observation format, warm mode."""
         zygote = (
-            ["--zygote", "--scratch-bytes", str(self.settings.agent_tmp_bytes)]
-            if self.zygote
-            else []
+            ["--zygote", "--scratch-bytes", str(self.config.agent_tmp_bytes)] if self.zygote else []
         )
         if self.observation_format == "native":
             return zygote
@@ -249,20 +258,21 @@ class Sandbox(Protocol):
 class Backend(Protocol):
     kind: SandboxKind
 
-    def unavailable_reason(self, settings: Settings) -> str | None:
+    def unavailable_reason(self, config: SandboxSettings) -> str | None:
         """Why this backend cannot run here, or None when it can."""
 
-    def contract_gap(self, settings: Settings) -> str | None:
+    def contract_gap(self, config: SandboxSettings) -> str | None:
         """Why it does not hold the sandbox contract here (docs/sandbox.md), so the service
         refuses it, or None when it does (the one answer to what the service runs agents with)."""
 
     def launch(self, spec: LaunchSpec) -> Sandbox: ...
 
-    def cleanup(self, labels: dict[str, str]) -> int:
+    def cleanup(self, labels: dict[str, str], config: SandboxSettings) -> int:
         """Kill and remove every sandbox carrying all ``labels``; returns how many."""
 
 
-def owner_labels(settings: Settings) -> dict[str, str]:
-    """The label every sandbox started with ``settings`` carries: its data folder's digest."""
-    digest = hashlib.sha256(str(settings.resolved_data_dir).encode()).hexdigest()[:16]
+def owner_labels(data_dir: Path) -> dict[str, str]:
+    """The label every sandbox started for the service (or run) whose data folder is the
+    resolved ``data_dir`` carries: that folder's digest."""
+    digest = hashlib.sha256(str(data_dir).encode()).hexdigest()[:16]
     return {OWNER_LABEL: digest}

@@ -25,7 +25,7 @@ import tempfile
 from pathlib import Path
 
 from agent_runtime import confine
-from arena.config import SandboxKind, Settings
+from arena.config import SandboxKind, SandboxSettings
 from arena.errors import SandboxUnavailable
 from evaluator.sandbox import cgroup
 from evaluator.sandbox.backend import (
@@ -94,7 +94,7 @@ def staged(binds: dict[str, Path]) -> tuple[Path, dict[str, Path], list[str]]:
 class BubblewrapBackend:
     kind = SandboxKind.bubblewrap
 
-    def unavailable_reason(self, settings: Settings) -> str | None:
+    def unavailable_reason(self, config: SandboxSettings) -> str | None:
         if shutil.which("bwrap") is None:
             return "bubblewrap is not installed (apt-get install bubblewrap)"
         if os.geteuid() == 0 and not all(map(shutil.which, ("unshare", "setpriv", "mount"))):
@@ -108,7 +108,7 @@ class BubblewrapBackend:
             return f"{RUNTIME_PYTHON} has no numpy (apt-get install python3-numpy)"
         return None
 
-    def contract_gap(self, settings: Settings) -> str | None:
+    def contract_gap(self, config: SandboxSettings) -> str | None:
         """Why bubblewrap here does not hold the sandbox contract (docs/sandbox.md), or None."""
         reason = confine.supported() or cgroup.unavailable_reason()
         if reason:
@@ -116,7 +116,7 @@ class BubblewrapBackend:
         return None
 
     def launch(self, spec: LaunchSpec) -> PopenSandbox:
-        settings = spec.settings
+        config = spec.config
         binds = {RUNTIME_MOUNT: runtime_dir(), SUBMISSION_MOUNT: spec.submission}
         if spec.deps:
             binds[DEPS_MOUNT] = spec.deps
@@ -132,7 +132,7 @@ class BubblewrapBackend:
         group = self._group(spec)
         control, child_end = control_pair(spec.zygote)
         seccomp = seccomp_fd(spec.seccomp_program())
-        file_bytes = settings.train_output_bytes if training else None
+        file_bytes = spec.training.output_bytes if spec.training is not None else None
         if group is not None:
             rlimits = rlimit_setter(None, None, file_bytes=file_bytes)
 
@@ -141,8 +141,8 @@ class BubblewrapBackend:
                 rlimits()
         else:  # per process only: local runs (the service refuses this, see contract_gap)
             preexec = rlimit_setter(
-                settings.agent_memory_bytes,
-                settings.agent_pids,
+                config.agent_memory_bytes,
+                config.agent_pids,
                 cpu_seconds=spec.cpu_seconds(),
                 file_bytes=file_bytes,
             )
@@ -168,7 +168,7 @@ class BubblewrapBackend:
                 os.close(child_end)
         return PopenSandbox(
             process,
-            settings.agent_log_tail_bytes,
+            config.agent_log_tail_bytes,
             spec.instance_labels,
             cleanup=stage,
             control=control,
@@ -181,9 +181,11 @@ class BubblewrapBackend:
         found = cgroup.hierarchy()
         if not isinstance(found, cgroup.Hierarchy):
             return None
-        settings = spec.settings
+        config = spec.config
         limits = cgroup.Limits(
-            settings.agent_memory_bytes, settings.agent_pids, settings.agent_cpus
+            config.agent_memory_bytes,
+            config.agent_pids,
+            config.agent_cpus,
         )
         return cgroup.SandboxGroup.create(found, cgroup.GROUP_PREFIX + spec.instance, limits)
 
@@ -194,7 +196,7 @@ class BubblewrapBackend:
         seccomp: int,
         group: cgroup.SandboxGroup | None,
     ) -> list[str]:
-        settings = spec.settings
+        config = spec.config
         mounts = []
         for target, source in binds.items():
             writable = spec.training is not None and target == MODEL_MOUNT
@@ -230,11 +232,11 @@ class BubblewrapBackend:
             "--remount-ro",
             "/dev",
             "--size",
-            str(settings.agent_tmp_bytes),
+            str(config.agent_tmp_bytes),
             "--tmpfs",
             "/dev/shm",
             "--size",
-            str(settings.agent_tmp_bytes),
+            str(config.agent_tmp_bytes),
             "--tmpfs",
             "/tmp",
             *mounts,
@@ -257,7 +259,7 @@ class BubblewrapBackend:
             *spec.python_args(),
         ]
 
-    def cleanup(self, labels: dict[str, str]) -> int:
+    def cleanup(self, labels: dict[str, str], config: SandboxSettings) -> int:
         killed = kill_labelled(labels)
         cgroup.remove_orphans()
         return killed

@@ -19,12 +19,16 @@ def build_image(
 ) -> None:
     """Build the agent runtime image offline (debootstrap + docker import)."""
     # deferred: CLI start-up time
+    from arena.config import get_settings
     from arena.errors import SandboxUnavailable
     from evaluator.sandbox.image import build_image as build
 
+    settings = get_settings()
     try:
         with console.status("building the agent runtime image"):
-            image_id = build(force=force, log=console.print)
+            image_id = build(
+                settings.sandbox, settings.storage.resolved_data_dir, force=force, log=console.print
+            )
     except SandboxUnavailable as error:
         errors.print(f"[bold red]cannot build the image[/]: {error}")
         raise typer.Exit(1) from error
@@ -43,10 +47,11 @@ def cleanup(
     evaluating, or pass the labels of the evaluation to clean up after.
     """
     # deferred: CLI start-up time
+    from arena.config import get_settings
     from evaluator.sandbox import cleanup as remove
 
     labels = dict(item.split("=", 1) for item in label or [])
-    console.print(f"removed {remove(labels)} leftover sandbox(es)")
+    console.print(f"removed {remove(get_settings().sandbox, labels)} leftover sandbox(es)")
 
 
 @sandbox_app.command("status")
@@ -57,14 +62,14 @@ def status() -> None:
     from arena.errors import SandboxUnavailable
     from evaluator.sandbox import backend, resolve_kind
 
-    settings = get_settings()
+    config = get_settings().sandbox
     for kind in (SandboxKind.docker, SandboxKind.bubblewrap, SandboxKind.process):
-        reason = backend(kind).unavailable_reason(settings)
+        reason = backend(kind).unavailable_reason(config)
         note = " (no isolation: local use only)" if kind is SandboxKind.process else ""
         shown = "[green]available[/]" if reason is None else f"[red]unavailable[/]: {reason}"
         console.print(f"{kind.value:>10}: {shown}{note}")
     try:
-        console.print(f"setting {settings.sandbox.value!r} -> {resolve_kind().value}")
+        console.print(f"setting {config.kind.value!r} -> {resolve_kind(None, config).value}")
     except SandboxUnavailable as error:
-        errors.print(f"setting {settings.sandbox.value!r}: {error}")
+        errors.print(f"setting {config.kind.value!r}: {error}")
         raise typer.Exit(1) from error

@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from agent_runtime import confine
-from arena.config import SandboxKind, Settings, get_settings
+from arena.config import SandboxKind, SandboxSettings
 from arena.errors import SandboxUnavailable
 from evaluator.sandbox.backend import (
     DATASET_MOUNT,
@@ -53,28 +53,29 @@ SOCKET_DIR_PREFIX = "arena-agent-"
 ORPHAN_SOCKET_DIR_AGE_S = 60.0
 
 
-def socket_dir_for(instance: str, settings: Settings | None = None) -> Path:
-    shared = (settings or get_settings()).sandbox_shared_dir
+def socket_dir_for(instance: str, shared: Path | None) -> Path:
+    """Where the protocol socket of sandbox ``instance`` is made: in the shared folder
+    (``ARENA_SANDBOX_SHARED_DIR``) when there is one."""
     root = Path(tempfile.gettempdir()) if shared is None else shared
     return root / f"{SOCKET_DIR_PREFIX}{instance}"
 
 
-def runtime_source(settings: Settings) -> Path:
+def runtime_source(shared: Path | None) -> Path:
     """The agent runtime folder the daemon binds: the package itself, or, with
     ``ARENA_SANDBOX_SHARED_DIR`` (a worker in a container), a copy of it there, one per content
     (several workers and threads make it at once: each copies, then renames)."""
     package = runtime_dir()
-    if settings.sandbox_shared_dir is None:
+    if shared is None:
         return package
     digest = hashlib.sha256()
     files = sorted(p for p in package.rglob("*.py") if "__pycache__" not in p.parts)
     for path in files:
         digest.update(str(path.relative_to(package)).encode() + b"\0" + path.read_bytes())
-    target = settings.sandbox_shared_dir / f"agent-runtime-{digest.hexdigest()[:16]}"
+    target = shared / f"agent-runtime-{digest.hexdigest()[:16]}"
     if not target.is_dir():
         # The first launch may be an upload's validation, before any agent made the folder.
-        settings.sandbox_shared_dir.mkdir(parents=True, exist_ok=True)
-        partial = Path(tempfile.mkdtemp(prefix=".agent-runtime-", dir=settings.sandbox_shared_dir))
+        shared.mkdir(parents=True, exist_ok=True)
+        partial = Path(tempfile.mkdtemp(prefix=".agent-runtime-", dir=shared))
         for path in files:
             (partial / path.relative_to(package)).parent.mkdir(parents=True, exist_ok=True)
             shutil.copyfile(path, partial / path.relative_to(package))
@@ -89,9 +90,9 @@ def runtime_source(settings: Settings) -> Path:
     return target
 
 
-def remove_orphan_socket_dirs(live_instances: set[str]) -> None:
+def remove_orphan_socket_dirs(live_instances: set[str], shared: Path | None) -> None:
     cutoff = time.time() - ORPHAN_SOCKET_DIR_AGE_S
-    for path in socket_dir_for("").parent.glob(f"{SOCKET_DIR_PREFIX}*"):
+    for path in socket_dir_for("", shared).parent.glob(f"{SOCKET_DIR_PREFIX}*"):
         orphan = path.name.removeprefix(SOCKET_DIR_PREFIX) not in live_instances
         with contextlib.suppress(FileNotFoundError):
             if orphan and path.stat().st_mtime < cutoff:
@@ -114,10 +115,10 @@ def container_options(spec: LaunchSpec, socket_dir: Path | None) -> dict[str, An
     # deferred: the docker client is needed only with the Docker sandbox
     from docker.types import DeviceRequest, LogConfig, Ulimit
 
-    settings = spec.settings
+    config = spec.config
     volumes = {
         str(spec.submission): {"bind": SUBMISSION_MOUNT, "mode": "ro"},
-        str(runtime_source(settings)): {"bind": RUNTIME_MOUNT, "mode": "ro"},
+        str(runtime_source(config.sandbox_shared_dir)): {"bind": RUNTIME_MOUNT, "mode": "ro"},
     }
     if spec.deps:
         volumes[str(spec.deps)] = {"bind": DEPS_MOUNT, "mode": "ro"}
@@ -126,9 +127,9 @@ def container_options(spec: LaunchSpec, socket_dir: Path | None) -> dict[str, An
     if spec.training is not None:
         volumes[str(spec.training.dataset)] = {"bind": DATASET_MOUNT, "mode": "ro"}
         volumes[str(spec.training.output)] = {"bind": MODEL_MOUNT, "mode": "rw"}
-        cap = settings.train_output_bytes
+        cap = spec.training.output_bytes
         extra["ulimits"] = [Ulimit(name="fsize", soft=cap, hard=cap)]
-        if settings.train_gpu:
+        if spec.training.gpu:
             extra["device_requests"] = [DeviceRequest(count=-1, capabilities=[["gpu"]])]
     else:
         if spec.model is not None:
@@ -137,7 +138,7 @@ def container_options(spec: LaunchSpec, socket_dir: Path | None) -> dict[str, An
         volumes[str(socket_dir)] = {"bind": SOCKET_MOUNT, "mode": "ro"}
         command += ["--socket", f"{SOCKET_MOUNT}/{SOCKET_NAME}"]
     return {
-        "image": settings.agent_image,
+        "image": config.agent_image,
         "command": command,
         "detach": True,
         # A warm parent is the container's PID 1 itself: no signal from its children reaches
@@ -145,11 +146,11 @@ def container_options(spec: LaunchSpec, socket_dir: Path | None) -> dict[str, An
         "init": not spec.zygote,
         "network_mode": "none",
         "read_only": True,
-        "tmpfs": {"/tmp": f"rw,nosuid,nodev,size={settings.agent_tmp_bytes},mode=1777"},
-        "mem_limit": settings.agent_memory_bytes,
-        "memswap_limit": settings.agent_memory_bytes,
-        "nano_cpus": int(settings.agent_cpus * 1e9),
-        "pids_limit": settings.agent_pids,
+        "tmpfs": {"/tmp": f"rw,nosuid,nodev,size={config.agent_tmp_bytes},mode=1777"},
+        "mem_limit": config.agent_memory_bytes,
+        "memswap_limit": config.agent_memory_bytes,
+        "nano_cpus": int(config.agent_cpus * 1e9),
+        "pids_limit": config.agent_pids,
         "cap_drop": ["ALL"],
         "security_opt": ["no-new-privileges", f"seccomp={spec.seccomp_profile()}"],
         "user": UNPRIVILEGED_USER,
@@ -284,7 +285,7 @@ class DockerSandbox:
 class DockerBackend:
     kind = SandboxKind.docker
 
-    def unavailable_reason(self, settings: Settings) -> str | None:
+    def unavailable_reason(self, config: SandboxSettings) -> str | None:
         # deferred: the docker client is needed only with the Docker sandbox
         import docker.errors
 
@@ -294,12 +295,12 @@ class DockerBackend:
         except docker.errors.DockerException as error:
             return f"no Docker daemon answers ({error})"
         try:
-            client.images.get(settings.agent_image)
+            client.images.get(config.agent_image)
         except docker.errors.ImageNotFound:
-            return f"image {settings.agent_image} is missing (run `arena sandbox build-image`)"
+            return f"image {config.agent_image} is missing (run `arena sandbox build-image`)"
         return None
 
-    def contract_gap(self, settings: Settings) -> str | None:
+    def contract_gap(self, config: SandboxSettings) -> str | None:
         """A container holds every limit of the contract; only the filter needs a table for this
         machine's architecture."""
         return confine.supported()
@@ -313,8 +314,8 @@ class DockerBackend:
                 container = docker_client().containers.run(**container_options(spec, None))
             except docker.errors.DockerException as error:
                 raise SandboxUnavailable(f"cannot start the training container: {error}") from error
-            return DockerSandbox(container, None, None, spec.settings.agent_log_tail_bytes)
-        socket_dir = socket_dir_for(spec.instance, spec.settings)
+            return DockerSandbox(container, None, None, spec.config.agent_log_tail_bytes)
+        socket_dir = socket_dir_for(spec.instance, spec.config.sandbox_shared_dir)
         listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         try:
             socket_dir.parent.mkdir(parents=True, exist_ok=True)
@@ -328,9 +329,9 @@ class DockerBackend:
             listener.close()
             shutil.rmtree(socket_dir, ignore_errors=True)
             raise SandboxUnavailable(f"cannot start the agent container: {error}") from error
-        return DockerSandbox(container, listener, socket_dir, spec.settings.agent_log_tail_bytes)
+        return DockerSandbox(container, listener, socket_dir, spec.config.agent_log_tail_bytes)
 
-    def cleanup(self, labels: dict[str, str]) -> int:
+    def cleanup(self, labels: dict[str, str], config: SandboxSettings) -> int:
         # deferred: the docker client is needed only with the Docker sandbox
         import docker.errors
         import requests.exceptions
@@ -346,5 +347,7 @@ class DockerBackend:
         except (docker.errors.DockerException, requests.exceptions.RequestException):
             # No daemon, no containers: cleaning up must not break the other backends' runs.
             return 0
-        remove_orphan_socket_dirs({c.labels.get(INSTANCE_LABEL, "") for c in ours})
+        remove_orphan_socket_dirs(
+            {c.labels.get(INSTANCE_LABEL, "") for c in ours}, config.sandbox_shared_dir
+        )
         return len(containers)

@@ -9,7 +9,7 @@ from __future__ import annotations
 import time
 from typing import Any, NoReturn
 
-from arena.config import Settings
+from arena.config import SandboxSettings
 from arena.cpu_limits import CpuLimits
 from arena.errors import AgentFailed
 from arena.outcome import DoneReason
@@ -36,7 +36,7 @@ class AgentHandle:
     def __init__(
         self,
         sandbox: Sandbox,
-        settings: Settings,
+        config: SandboxSettings,
         interface: AgentInterface | None = None,
         limits: CpuLimits | None = None,
     ) -> None:
@@ -47,13 +47,13 @@ class AgentHandle:
             if interface is not None and interface.observation_format is ObservationFormat.arrays
             else None
         )
-        limits = limits or settings.cpu_limits
+        limits = limits or config.cpu_limits
         # run_episode then has the simulator write the arrays records in place (sim.agent)
         self.takes_arrays = self._arrays is not None
         self._step_cpu_s = limits.step_s
-        self._step_timeout_s = settings.step_timeout_s
+        self._step_timeout_s = config.step_timeout_s
         self._episode_cpu_s = limits.episode_s
-        self._init_timeout_s = settings.init_timeout_s
+        self._init_timeout_s = config.init_timeout_s
         self._meter: CpuMeter | None = None
         self._cpu_mark: float | None = None  # the meter after the last answer [s]
         self.episode_cpu_s = 0.0  # agent CPU time of this episode's acts so far [s]

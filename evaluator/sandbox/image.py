@@ -15,7 +15,7 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
-from arena.config import Settings, get_settings
+from arena.config import SandboxSettings
 from arena.errors import SandboxUnavailable
 
 DEBIAN_SUITE = "bookworm"
@@ -41,16 +41,16 @@ IMAGE_CHANGES = (
 )
 
 
-def rootfs_cache(settings: Settings) -> Path:
-    return settings.resolved_data_dir / "sandbox" / f"agent-rootfs-{DEBIAN_SUITE}.tar"
+def rootfs_cache(data_dir: Path) -> Path:
+    return data_dir / "sandbox" / f"agent-rootfs-{DEBIAN_SUITE}.tar"
 
 
-def debian_mirror(settings: Settings, apt_sources: tuple[Path, ...] = APT_SOURCES) -> str:
+def debian_mirror(config: SandboxSettings, apt_sources: tuple[Path, ...] = APT_SOURCES) -> str:
     """The mirror to bootstrap from: the ``debian_mirror`` setting, else the Debian mirror the
     host's apt is configured with (one-line or deb822 sources), so debootstrap goes where apt is
     allowed to. No host name is built in: without either, a clear error."""
-    if settings.debian_mirror:
-        return settings.debian_mirror.rstrip("/")
+    if config.debian_mirror:
+        return config.debian_mirror.rstrip("/")
     files = []
     for source in apt_sources:
         files += sorted(source.glob("*")) if source.is_dir() else [source]
@@ -131,29 +131,30 @@ def _unmount_below(root: Path) -> None:
 
 
 def build_image(
-    settings: Settings | None = None,
+    config: SandboxSettings,
+    data_dir: Path,
     *,
     force: bool = False,
     log: Callable[[str], None] = print,
 ) -> str:
-    """Make ``settings.agent_image`` exist in the local Docker daemon; returns its id."""
+    """Make ``config.agent_image`` exist in the local Docker daemon, its Debian root file
+    system cached under ``data_dir``; returns its id."""
     # deferred: the docker client is needed only with the Docker sandbox
     import docker
     import docker.errors
 
-    settings = settings or get_settings()
     try:
         client = docker.from_env()
         client.ping()
     except docker.errors.DockerException as error:
         raise SandboxUnavailable(f"no Docker daemon answers: {error}") from error
-    image = settings.agent_image
+    image = config.agent_image
     if not force and image_exists(client, image):
         log(f"{image} already present")
         return client.images.get(image).id
-    tarball = rootfs_cache(settings)
+    tarball = rootfs_cache(data_dir)
     if force or not tarball.is_file():
-        build_rootfs_tarball(tarball, debian_mirror(settings), log)
+        build_rootfs_tarball(tarball, debian_mirror(config), log)
     repository, _, tag = image.rpartition(":") if ":" in image else (image, "", "latest")
     log(f"docker import {tarball.name} as {image}")
     client.api.import_image_from_file(

@@ -17,7 +17,7 @@ import os
 import subprocess
 import sys
 
-from arena.config import SandboxKind, Settings
+from arena.config import SandboxKind, SandboxSettings
 from evaluator.sandbox.backend import (
     MODEL_ENV,
     RUNTIME_ENV,
@@ -41,10 +41,10 @@ from evaluator.sandbox.subprocess_sandbox import (
 class ProcessBackend:
     kind = SandboxKind.process
 
-    def contract_gap(self, settings: Settings) -> str | None:
+    def contract_gap(self, config: SandboxSettings) -> str | None:
         return "it does not isolate agents; use docker or bubblewrap"
 
-    def unavailable_reason(self, settings: Settings) -> str | None:
+    def unavailable_reason(self, config: SandboxSettings) -> str | None:
         return None
 
     def launch(self, spec: LaunchSpec) -> PopenSandbox:
@@ -64,7 +64,7 @@ class ProcessBackend:
         else:
             deps = ["--deps", str(spec.deps)] if spec.deps else []
             command = [
-                agent_python(spec.settings.agent_python_version),
+                agent_python(spec.config.agent_python_version),
                 "-I",
                 "-B",
                 str(runtime_dir() / RUNTIME_MAIN),
@@ -84,19 +84,22 @@ class ProcessBackend:
                 env=env,
                 start_new_session=True,
                 preexec_fn=rlimit_setter(
-                    spec.settings.agent_memory_bytes,
+                    spec.config.agent_memory_bytes,
                     None,
-                    file_bytes=spec.settings.train_output_bytes if training else None,
+                    file_bytes=training.output_bytes if training else None,
                 ),
             )
         finally:
             if child_end is not None:
                 os.close(child_end)
         return PopenSandbox(
-            process, spec.settings.agent_log_tail_bytes, spec.instance_labels, control=control
+            process,
+            spec.config.agent_log_tail_bytes,
+            spec.instance_labels,
+            control=control,
         )
 
-    def cleanup(self, labels: dict[str, str]) -> int:
+    def cleanup(self, labels: dict[str, str], config: SandboxSettings) -> int:
         return kill_labelled(labels)
 
 

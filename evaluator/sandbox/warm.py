@@ -13,7 +13,7 @@ three socket pairs and passes one end of each to the zygote, which forks the epi
 The other ends travel in a :class:`ForkedAgent` to the simulator's episode process, where
 :class:`ForkedSandbox` plays the part of a started sandbox for :class:`AgentHandle`, so the agent
 fails, times out and is killed exactly as a cold one. The evaluating process keeps its own copy
-of the lifeline: ``evaluator.sandbox.cleanup(labels)`` pulls it to kill a leased agent.
+of the lifeline: ``evaluator.sandbox.cleanup(config, labels)`` pulls it to kill a leased agent.
 """
 
 from __future__ import annotations
@@ -28,8 +28,9 @@ import select
 import socket
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
-from arena.config import SandboxKind, Settings
+from arena.config import SandboxKind, SandboxSettings
 from arena.cpu_limits import CpuLimits
 from arena.errors import SandboxUnavailable
 from evaluator.sandbox.backend import SANDBOX_LABEL, ExitStatus, LaunchSpec, Sandbox
@@ -62,7 +63,7 @@ class ForkedAgent:
     protocol: socket.socket
     lifeline: socket.socket
     log: socket.socket
-    settings: Settings
+    config: SandboxSettings
     labels: dict[str, str] = field(default_factory=dict)
     interface: AgentInterface | None = None  # the submission's agent.yaml
     meter: CpuMeter | None = None  # the zygote's sandbox: its idle parent uses no CPU
@@ -78,8 +79,8 @@ class ForkedAgent:
 
     def start(self, limits: CpuLimits | None = None) -> AgentHandle:
         """The agent's handle, after its hello and ready (in the episode process); its acts
-        run under ``limits`` (default: the settings')."""
-        handle = AgentHandle(ForkedSandbox(self), self.settings, self.interface, limits)
+        run under ``limits`` (default: the sandbox settings')."""
+        handle = AgentHandle(ForkedSandbox(self), self.config, self.interface, limits)
         try:
             handle.handshake()
         except BaseException:
@@ -93,7 +94,7 @@ class ForkedSandbox:
 
     def __init__(self, agent: ForkedAgent) -> None:
         self._agent = agent
-        self._stderr = LogTail(agent.log, agent.settings.agent_log_tail_bytes)
+        self._stderr = LogTail(agent.log, agent.config.agent_log_tail_bytes)
         self._status: ExitStatus | None = None
         self._status_read = False
 
@@ -161,7 +162,8 @@ class WarmAgent:
         cls,
         submission,
         kind: SandboxKind,
-        settings: Settings,
+        config: SandboxSettings,
+        data_dir: Path,
         labels: dict[str, str] | None = None,
     ) -> WarmAgent:
         """Start ``submission``'s zygote. Raises :class:`SandboxUnavailable` when it does not say
@@ -171,10 +173,10 @@ class WarmAgent:
         from evaluator.sandbox import backend
 
         spec = LaunchSpec.of_agent(
-            submission, settings, {**(labels or {}), WARM_LABEL: "1"}, zygote=True
+            submission, config, data_dir, {**(labels or {}), WARM_LABEL: "1"}, zygote=True
         )
         sandbox = backend(kind).launch(spec)
-        deadline = time.monotonic() + settings.init_timeout_s
+        deadline = time.monotonic() + config.init_timeout_s
         try:
             channel = sandbox.connect(deadline)
             hello = channel.receive(deadline)
@@ -191,7 +193,7 @@ class WarmAgent:
             raise
         return cls(sandbox, channel, kind, submission.interface)
 
-    def fork(self, settings: Settings, labels: dict[str, str]) -> ForkedAgent:
+    def fork(self, config: SandboxSettings, labels: dict[str, str]) -> ForkedAgent:
         """A new agent for one episode. Raises :class:`SandboxUnavailable` when the zygote is
         gone."""
         ours, theirs = zip(*(socket.socketpair() for _ in range(3)), strict=True)
@@ -215,7 +217,7 @@ class WarmAgent:
         self.last_used = time.monotonic()
         return ForkedAgent(
             *ours,
-            settings=settings,
+            config=config,
             labels={SANDBOX_LABEL: "1", **labels},
             interface=self.interface,
             meter=self.meter,

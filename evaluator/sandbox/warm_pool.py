@@ -18,7 +18,7 @@ from contextlib import contextmanager
 from functools import lru_cache
 from pathlib import Path
 
-from arena.config import SandboxKind, Settings
+from arena.config import SandboxKind, SandboxSettings
 from arena.errors import SandboxUnavailable
 from evaluator.sandbox.warm import KILL_WAIT_S, ForkedAgent, WarmAgent
 
@@ -41,19 +41,24 @@ class WarmAgents:
 
     @contextmanager
     def lease(
-        self, submission, kind: SandboxKind, labels: dict[str, str], settings: Settings
+        self,
+        submission,
+        kind: SandboxKind,
+        labels: dict[str, str],
+        config: SandboxSettings,
+        data_dir: Path,
     ) -> Iterator[ForkedAgent | None]:
         """A freshly forked agent of ``submission`` for one episode, or None when this
         submission runs cold. Raises nothing of the zygote's: it falls back to cold."""
         # A retrained model is another agent: it gets a zygote of its own.
         key = (submission.sha256, submission.model_dir, kind)
-        self.close_idle(settings.warm_agent_idle_s)
-        warm = self._take(key, submission, settings)
+        self.close_idle(config.warm_agent_idle_s)
+        warm = self._take(key, submission, config, data_dir)
         if warm is None:
             yield None
             return
         try:
-            agent = warm.fork(settings, labels)
+            agent = warm.fork(config, labels)
         except SandboxUnavailable as error:
             log.warning("warm agent lost, this episode starts cold: %s", error)
             warm.close()
@@ -103,7 +108,9 @@ class WarmAgents:
         for warm in closing:
             warm.close()
 
-    def _take(self, key: Key, submission, settings: Settings) -> WarmAgent | None:
+    def _take(
+        self, key: Key, submission, config: SandboxSettings, data_dir: Path
+    ) -> WarmAgent | None:
         while True:
             with self._lock:
                 if key in self._cold:
@@ -116,7 +123,7 @@ class WarmAgents:
                 return warm
             warm.close()
         try:
-            return WarmAgent.start(submission, key[2], settings, labels=self._labels)
+            return WarmAgent.start(submission, key[2], config, data_dir, labels=self._labels)
         except SandboxUnavailable as error:
             log.warning("no warm agent for %s, its episodes start cold: %s", key[0], error)
             with self._lock:

@@ -17,10 +17,10 @@ from dataclasses import dataclass
 from enum import StrEnum
 from pathlib import Path
 
-from arena.config import SandboxKind, Settings, get_settings
+from arena.config import SandboxKind, SandboxSettings, TrainingSettings
 from arena.errors import ArenaError, DatasetError, IntakeError
 from evaluator import sandbox
-from evaluator.sandbox.backend import TRAIN_SCRIPT, ExitStatus
+from evaluator.sandbox.backend import TRAIN_SCRIPT, ExitStatus, Training
 from evaluator.training.checkpoint import hand_to_sandbox_user, restore
 from evaluator.training.model import OutputUsage, output_usage, regular_files
 
@@ -65,9 +65,11 @@ def train(
     dataset: Path,
     output: Path,
     *,
+    training: TrainingSettings,
+    config: SandboxSettings,
+    data_dir: Path,
     kind: SandboxKind | str | None = None,
     labels: dict[str, str] | None = None,
-    settings: Settings | None = None,
     on_progress: Progress | None = None,
     progress_every_s: float = 2.0,
     resume_from: Path | None = None,
@@ -75,13 +77,13 @@ def train(
 ) -> TrainingResult:
     """Run ``submission``'s (a PreparedSubmission) ``train.py`` into the empty folder ``output``,
     which first receives the snapshot ``resume_from`` (:mod:`evaluator.training.checkpoint`)
-    when the training resumes. ``seed`` reaches ``train.py`` as ``ARENA_TRAIN_SEED``.
+    when the training resumes. It runs under ``training``'s limits, in a sandbox of ``config``
+    owned by ``data_dir``. ``seed`` reaches ``train.py`` as ``ARENA_TRAIN_SEED``.
 
     ``on_progress(elapsed_s, log_tail)`` is called every ``progress_every_s``; returning False
     kills the run and raises :class:`TrainingStopped`. Raises
     :class:`~arena.errors.SandboxUnavailable` when the sandbox cannot start (ours, retried).
     """
-    settings = settings or get_settings()
     if not submission.trains:
         raise IntakeError(TRAIN_SCRIPT, "train-missing", "the submission has no train.py to run")
     dataset = Path(dataset)
@@ -93,10 +95,18 @@ def train(
     _writable_output(Path(output))
     if resume_from is not None:
         restore(resume_from, Path(output))
-    caps = _Caps.of(settings)
+    caps = _Caps.of(training)
     started = time.monotonic()
+    run = Training(
+        dataset,
+        Path(output),
+        training.train_timeout_s,
+        training.train_output_bytes,
+        training.train_gpu,
+        seed,
+    )
     box = sandbox.start_training(
-        submission, dataset, output, kind=kind, labels=labels, settings=settings, seed=seed
+        submission, run, config=config, data_dir=data_dir, kind=kind, labels=labels
     )
     next_report = started + progress_every_s
     next_check = started + OUTPUT_CHECK_S
@@ -104,13 +114,13 @@ def train(
         while (status := box.exit_status(POLL_S)) is None:
             now = time.monotonic()
             elapsed = now - started
-            if elapsed > settings.train_timeout_s:
+            if elapsed > training.train_timeout_s:
                 return _ended(
                     box,
                     output,
                     started,
                     TrainFailure.train_timeout,
-                    f"training ran past its budget of {settings.train_timeout_s:g} s",
+                    f"training ran past its budget of {training.train_timeout_s:g} s",
                     caps,
                 )
             if now >= next_check:
@@ -150,9 +160,9 @@ class _Caps:
     depth: int
 
     @classmethod
-    def of(cls, settings: Settings) -> _Caps:
+    def of(cls, training: TrainingSettings) -> _Caps:
         return cls(
-            settings.train_output_bytes, settings.train_output_files, settings.train_output_depth
+            training.train_output_bytes, training.train_output_files, training.train_output_depth
         )
 
     def usage(self, output: Path) -> OutputUsage:

@@ -46,7 +46,7 @@ def build(
     )
 
     settings = get_settings()
-    scenes = scenes or shipped_scenes_dir()
+    scenes = scenes or shipped_scenes_dir(settings.suites.naturalistic_dir)
     try:
         files = len(scene_files(scenes))
     except NaturalisticImportError as exc:
@@ -62,7 +62,7 @@ def build(
         try:
             manifest = build_dataset(
                 out,
-                settings.resolved_data_dir / "cache" / "scenarios",
+                settings.storage.resolved_data_dir / "cache" / "scenarios",
                 scenes,
                 public_suite_dir(settings) if public else None,
                 exclude_suite,

@@ -22,7 +22,6 @@ from pathlib import Path
 import numpy as np
 import sumolib
 
-from arena.config import get_settings
 from arena.errors import ArenaError
 from arena.scenario import (
     GOAL_RADIUS_M,
@@ -350,11 +349,10 @@ def write_naturalistic(
     return write_scenario(folder, scenario, net_path)
 
 
-def shipped_scenes_dir() -> Path:
+def shipped_scenes_dir(configured: Path | None) -> Path:
     """The naturalistic scenes shipped with the package, with their licence and provenance:
-    ``scenarios/data/naturalistic/commonroad-ngsim`` (setting ``ARENA_NATURALISTIC_DIR``
-    overrides)."""
-    configured = get_settings().naturalistic_dir
+    ``scenarios/data/naturalistic/commonroad-ngsim``, unless ``configured`` (the setting
+    ``ARENA_NATURALISTIC_DIR``) names others."""
     if configured is not None:
         return configured
     return Path(__file__).resolve().parents[1] / "data" / "naturalistic" / "commonroad-ngsim"

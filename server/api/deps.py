@@ -79,9 +79,11 @@ CurrentTeam = Annotated[Team, Depends(get_current_team)]
 
 
 def require_admin(settings: SettingsDep, credentials: Credentials) -> None:
-    if settings.admin_token is None:
+    if settings.service.admin_token is None:
         raise HTTPException(status.HTTP_403_FORBIDDEN, "no admin token is configured")
-    if credentials is None or not same_secret(credentials.credentials, settings.admin_token):
+    if credentials is None or not same_secret(
+        credentials.credentials, settings.service.admin_token
+    ):
         raise _unauthorized("admin token required")
 
 
@@ -91,9 +93,9 @@ AdminDep = Depends(require_admin)
 def is_admin(settings: SettingsDep, credentials: Credentials) -> bool:
     """Whether the caller sent the admin token (for routes that show organisers more)."""
     return (
-        settings.admin_token is not None
+        settings.service.admin_token is not None
         and credentials is not None
-        and same_secret(credentials.credentials, settings.admin_token)
+        and same_secret(credentials.credentials, settings.service.admin_token)
     )
 
 

@@ -77,7 +77,7 @@ def with_nonce(html: str, nonce: str) -> str:
 def asset(context, mount: str, path: str) -> str:
     """The URL of a static file: a path under the configured base URL, never from ``Host``."""
     request = context["request"]
-    base = request.app.state.settings.public_base_url
+    base = request.app.state.settings.service.public_base_url
     return base + str(request.app.url_path_for(mount, path=path))
 
 

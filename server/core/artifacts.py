@@ -152,6 +152,6 @@ class DatabaseStore:
 
 
 def artifact_store(settings: Settings, db: Database) -> ArtifactStore:
-    if settings.artifact_store is ArtifactBackend.database:
+    if settings.storage.artifact_store is ArtifactBackend.database:
         return DatabaseStore(db)
-    return FolderStore(settings.resolved_data_dir)
+    return FolderStore(settings.storage.resolved_data_dir)

@@ -29,7 +29,7 @@ def is_embedded_broker(broker_url: str) -> bool:
 
 
 def celery_config(settings: Settings) -> dict[str, Any]:
-    broker = settings.resolved_broker_url
+    broker = settings.storage.resolved_broker_url
     config: dict[str, Any] = {
         "broker_url": broker,
         "imports": ["server.worker.tasks"],
@@ -45,7 +45,7 @@ def celery_config(settings: Settings) -> dict[str, Any]:
         # start those from prefork's daemonic children. The runner enforces the episode time
         # limits itself; the task time limits below need prefork and are a backstop only there.
         "worker_pool": "threads",
-        "worker_concurrency": settings.jobs,
+        "worker_concurrency": settings.evaluation.jobs,
         "worker_hijack_root_logger": False,
         "broker_connection_retry_on_startup": True,
         "broker_connection_max_retries": None,
@@ -58,8 +58,8 @@ def celery_config(settings: Settings) -> dict[str, Any]:
         # Unacknowledged messages come back after this long; the lease reaper re-queues lost work
         # much sooner, and results are idempotent, so a late redelivery only costs a no-op.
         options: dict[str, Any] = {"visibility_timeout": 6 * 3600}
-        if settings.broker_key_prefix:
-            options["global_keyprefix"] = settings.broker_key_prefix
+        if settings.service.broker_key_prefix:
+            options["global_keyprefix"] = settings.service.broker_key_prefix
         config["broker_transport_options"] = options
     return config
 

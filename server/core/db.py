@@ -82,4 +82,4 @@ class Database:
 
 @lru_cache
 def get_database() -> Database:
-    return Database(get_settings().resolved_database_url)
+    return Database(get_settings().storage.resolved_database_url)

@@ -21,7 +21,7 @@ from arena.config import get_settings
 class HeaderDeadlineProtocol(H11Protocol):
     def __init__(self, *args, **kwargs) -> None:
         super().__init__(*args, **kwargs)
-        self.header_timeout_s = get_settings().http_header_timeout_s
+        self.header_timeout_s = get_settings().service.http_header_timeout_s
         self._header_deadline: asyncio.TimerHandle | None = None
 
     def connection_made(self, transport: asyncio.Transport) -> None:  # type: ignore[override]

@@ -78,7 +78,7 @@ class TaskQueue:
 
     def revoke(self, task_ids: list[str]) -> None:
         """Best effort: tasks also check the run's status before doing anything."""
-        if task_ids and not is_embedded_broker(self.settings.resolved_broker_url):
+        if task_ids and not is_embedded_broker(self.settings.storage.resolved_broker_url):
             self.celery.control.revoke(task_ids)
 
     def depth(self) -> int:
@@ -92,7 +92,7 @@ class TaskQueue:
 
     def workers(self) -> list[str] | None:
         """Names of the workers that answer a ping; None where the broker cannot broadcast."""
-        if is_embedded_broker(self.settings.resolved_broker_url):
+        if is_embedded_broker(self.settings.storage.resolved_broker_url):
             return None
         replies = self.celery.control.ping(timeout=1.0) or []
         return sorted(name for reply in replies for name in reply)

@@ -110,7 +110,8 @@ def _lost_work(settings: Settings, run: EvaluationRun, submission_id: int) -> Ru
         raise Conflict(
             f"submission {submission_id}: its evaluation (run {run.id}, {run.status}, "
             f"{done}/{run.episode_count} episodes done) is alive: a worker renewed it within "
-            f"the last {settings.lease_seconds} s, so nothing is lost and nothing is re-sent. "
+            f"the last {settings.service.lease_seconds} s, so nothing is lost and nothing is "
+            "re-sent. "
             "Work a dead worker held is re-sent by the reaper; requeue again if its lease runs "
             "out and it still does not move"
         )
@@ -361,7 +362,7 @@ def service_status(db: Database, settings: Settings, queue: TaskQueue) -> Servic
             if run.lease_expires_at is not None and run.lease_expires_at < moment
         ]
         running = sum(run.status == RunStatus.running for run in active)
-        overdue = _overdue(session, moment - timedelta(seconds=settings.overdue_after_s))
+        overdue = _overdue(session, moment - timedelta(seconds=settings.service.overdue_after_s))
         broken = phases.misconfigured(session, settings)
     try:
         depth = queue.depth()

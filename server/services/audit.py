@@ -174,7 +174,7 @@ def _audit(
     recorded = target.manifest
     try:
         suite = load_suite(target.suite_dir)
-        kind = sandbox.check_service_kind(settings=settings)
+        kind = sandbox.check_service_kind(None, settings.sandbox)
     except ArenaError as exc:
         raise Conflict(f"cannot audit submission {target.submission_id} here: {exc}") from exc
     with tempfile.TemporaryDirectory(prefix="arena-audit-") as tmp:
@@ -184,7 +184,7 @@ def _audit(
         model = (
             store.fetch(target.model_key, scratch / "model.tar.gz") if target.model_key else None
         )
-        here = environment(kind.value, settings)
+        here = environment(kind.value, settings.sandbox.agent_image)
         current = manifest_of(
             suite,
             [EpisodeRun(e.scenario_id, e.episode, _seed(suite, e), here) for e in target.episodes],
@@ -214,13 +214,16 @@ def _rerun(
     progress: Callable[[int, int], None],
 ) -> AuditReport:
     # Checked in the sandbox, as a worker does: nothing of the team's is parsed on this host.
-    submission = validate(upload, scratch / "prepared", settings, kind=kind)
+    data_dir = settings.storage.resolved_data_dir
+    submission = validate(
+        upload, scratch / "prepared", settings.intake, settings.sandbox, data_dir, kind=kind
+    )
     if model is not None:
         submission = dataclasses.replace(
             submission, model_dir=unpack_model(model, scratch / "model")
         )
     try:
-        return _rerun_episodes(target, suite, kind, store, scratch, submission, progress)
+        return _rerun_episodes(target, suite, kind, settings, store, scratch, submission, progress)
     finally:
         # Its warm agents bind the scratch folder, which goes when the audit ends: a later
         # audit of the same zip must not find them idle.
@@ -231,6 +234,7 @@ def _rerun_episodes(
     target: _Target,
     suite: Suite,
     kind: SandboxKind,
+    settings: Settings,
     store: ArtifactStore,
     scratch: Path,
     submission,
@@ -241,6 +245,8 @@ def _rerun_episodes(
             submission,
             suite.scenario_dir(stored.scenario_id),
             scratch / "records",
+            config=settings.sandbox,
+            data_dir=settings.storage.resolved_data_dir,
             sandbox=kind,
             episode=stored.episode,
             limits=target.limits,

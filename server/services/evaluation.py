@@ -264,7 +264,9 @@ def claim_scenario(
 def run_cpu_limits(run: EvaluationRun, settings: Settings) -> CpuLimits:
     """The CPU limits the run is evaluated under: those recorded when it was made (the
     settings' for a run made before they were)."""
-    return settings.cpu_limits.overridden(run.step_cpu_s, run.episode_cpu_s, run.evaluation_cpu_s)
+    return settings.sandbox.cpu_limits.overridden(
+        run.step_cpu_s, run.episode_cpu_s, run.evaluation_cpu_s
+    )
 
 
 def agent_cpu_used(session: Session, run_id: int) -> float:
@@ -570,7 +572,7 @@ def reap(session: Session, settings: Settings, *, queue_empty: bool) -> Reaped:
             select(Submission)
             .where(
                 Submission.status == SubmissionStatus.queued,
-                Submission.queued_at < moment - timedelta(seconds=settings.lease_seconds),
+                Submission.queued_at < moment - timedelta(seconds=settings.service.lease_seconds),
             )
             .with_for_update()
         )

@@ -29,7 +29,7 @@ class LeasedRow(Protocol):
 
 
 def lease_until(settings: Settings) -> datetime:
-    return now() + timedelta(seconds=settings.lease_seconds)
+    return now() + timedelta(seconds=settings.service.lease_seconds)
 
 
 def alive(lease_expires_at: datetime | None) -> bool:

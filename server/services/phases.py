@@ -62,7 +62,7 @@ def _when(moment: datetime) -> str:
 
 
 def daily_quota(phase: Phase, settings: Settings) -> int:
-    return phase.daily_quota if phase.daily_quota is not None else settings.daily_quota
+    return phase.daily_quota if phase.daily_quota is not None else settings.service.daily_quota
 
 
 def suite_dir(phase: Phase, settings: Settings) -> Path:
@@ -70,18 +70,18 @@ def suite_dir(phase: Phase, settings: Settings) -> Path:
 
 
 def scoring_profile(phase: Phase, settings: Settings) -> str:
-    return phase.scoring_profile or settings.scoring_profile
+    return phase.scoring_profile or settings.evaluation.scoring_profile
 
 
 def episodes_per_scenario(phase: Phase, settings: Settings) -> int:
     if phase.episodes_per_scenario is not None:
         return phase.episodes_per_scenario
-    return settings.episodes_per_scenario
+    return settings.evaluation.episodes_per_scenario
 
 
 def cpu_limits(phase: Phase, settings: Settings) -> CpuLimits:
     """The agent's CPU limits in the phase: its overrides, else the settings'."""
-    return settings.cpu_limits.overridden(
+    return settings.sandbox.cpu_limits.overridden(
         phase.step_cpu_s, phase.episode_cpu_s, phase.evaluation_cpu_s
     )
 

@@ -55,7 +55,7 @@ def released_suite(session, settings: Settings, name: str) -> Path:
             "phase closes"
         )
     suite = load_suite(suite_dir(phase, settings))
-    folder = settings.resolved_data_dir / "released"
+    folder = settings.storage.resolved_data_dir / "released"
     path = folder / f"{phase.name}-{suite.sha256[:16]}.zip"
     if not path.exists():
         folder.mkdir(parents=True, exist_ok=True)

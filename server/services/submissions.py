@@ -172,7 +172,7 @@ def accept_upload(
     archives, compiling, requirements) is the validation job's, in the sandbox. A zip that fails
     the cheap checks leaves no trace."""
     method_name = check_names(new)
-    if new.track == Track.offline and settings.train_dataset_dir is None:
+    if new.track == Track.offline and settings.training.train_dataset_dir is None:
         raise InvalidUpload(
             "track: this service cannot train offline submissions yet (no dataset: the "
             "organisers set ARENA_TRAIN_DATASET_DIR to a folder of `arena dataset build`)"
@@ -191,7 +191,7 @@ def accept_upload(
     store = artifact_store(settings, db)
     try:
         try:
-            check_directory(upload, settings)
+            check_directory(upload, settings.intake)
         except IntakeError as exc:
             raise InvalidUpload(str(exc)) from exc
         store.put(key, upload)

@@ -47,9 +47,9 @@ class ClaimCheckpoints:
         self.staging = staging
         self.watch = CheckpointWatch(
             output,
-            interval_s=settings.train_checkpoint_interval_s,
-            max_bytes=settings.train_checkpoint_bytes,
-            max_entries=settings.train_output_files,
+            interval_s=settings.training.train_checkpoint_interval_s,
+            max_bytes=settings.training.train_checkpoint_bytes,
+            max_entries=settings.training.train_output_files,
         )
         self._saved = False
 

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from sqlalchemy.orm import Session
 
-from arena.config import Settings
+from arena.config import Settings, get_settings
 from evaluator import sandbox
 from evaluator.runner import new_run_key, sandbox_labels
 from evaluator.runner import run_scenario as run_episode
@@ -67,7 +67,8 @@ class Episodes:
         run_key = f"r{claim.run_id}a{claim.attempt}-{new_run_key()}"
         # A lost claim kills every sandbox of the episode (all its attempts carry these labels):
         # the runner then returns, and its result is refused by the fence.
-        lease.stop_with(partial(sandbox.cleanup, sandbox_labels(run_key)))
+        settings = get_settings()
+        lease.stop_with(partial(sandbox.cleanup, settings.sandbox, sandbox_labels(run_key)))
         # This worker's own scratch folder, one per claim: an episode whose claim was superseded
         # never touches the live one's files.
         records = local.scratch() / "records" / str(claim.run_id) / f"claim-{claim.attempt}"
@@ -78,6 +79,8 @@ class Episodes:
             submission,
             Path(claim.scenario_dir),
             records,
+            config=settings.sandbox,
+            data_dir=settings.storage.resolved_data_dir,
             sandbox=local.sandbox_kind(),
             run_key=run_key,
             episode=claim.episode,

@@ -104,7 +104,7 @@ class Heartbeat:
 
     def _run(self) -> None:
         settings = get_settings()
-        interval = beat_interval_s(settings.lease_seconds)
+        interval = beat_interval_s(settings.service.lease_seconds)
         next_beat = time.monotonic() + interval
         while True:
             time.sleep(TICK_S)

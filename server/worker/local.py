@@ -48,13 +48,17 @@ def scratch() -> Path:
     """Files of this worker process alone (no ':' in the name: Docker's volume syntax would
     split a path there). Under the data dir, not a private temporary folder: the sandbox user
     must be able to enter a prepared submission."""
-    return get_settings().resolved_data_dir / "scratch" / f"{socket.gethostname()}-{os.getpid()}"
+    return (
+        get_settings().storage.resolved_data_dir
+        / "scratch"
+        / f"{socket.gethostname()}-{os.getpid()}"
+    )
 
 
 def orphan_scratch() -> list[Path]:
     """Scratch folders of this host's worker processes that no longer run."""
     host = socket.gethostname()
-    folders = (get_settings().resolved_data_dir / "scratch").glob(f"{host}-*")
+    folders = (get_settings().storage.resolved_data_dir / "scratch").glob(f"{host}-*")
     return [
         folder
         for folder in folders
@@ -66,7 +70,7 @@ def orphan_scratch() -> list[Path]:
 def tail(text: str) -> str:
     """The end of a log, as much as the team may see, storable whatever it holds (lone
     surrogates, NULs: a strict encode here crashed the task, an uncharged ``worker_lost``)."""
-    tail_bytes = get_settings().agent_log_tail_bytes
+    tail_bytes = get_settings().sandbox.agent_log_tail_bytes
     cut = text.encode("utf-8", "surrogatepass")[-tail_bytes:].decode("utf-8", "replace")
     return storable_text(cut)
 
@@ -104,7 +108,15 @@ def _prepare(upload_key: str) -> PreparedSubmission:
         final = root / _file_sha256(zip_path)
         described = final / PREPARED_DESCRIPTION
         if not described.is_file():
-            ready = validate(zip_path, staging / "prepared", get_settings(), kind=sandbox_kind())
+            settings = get_settings()
+            ready = validate(
+                zip_path,
+                staging / "prepared",
+                settings.intake,
+                settings.sandbox,
+                settings.storage.resolved_data_dir,
+                kind=sandbox_kind(),
+            )
             (staging / PREPARED_DESCRIPTION).write_bytes(pickle.dumps(ready))
             staging.rename(final)
         # Written by this process into its own scratch folder, which no sandbox can write.
@@ -171,7 +183,7 @@ def forget_finished(upload_keys: set[str], model_keys: set[str]) -> int:
 
 @lru_cache(maxsize=1)
 def sandbox_kind() -> sandbox.SandboxKind:
-    return sandbox.check_service_kind(settings=get_settings())
+    return sandbox.check_service_kind(None, get_settings().sandbox)
 
 
 def clear() -> None:

@@ -154,18 +154,18 @@ def _hand_back_running_jobs(**_: Any) -> None:
 def _close_service_folders(**_: Any) -> None:
     """The data folder and the hidden suite, closed to the agents' uid (server.core.permissions)."""
     settings = get_settings()
-    close_service_folders(settings.resolved_data_dir, hidden_suite_dir(settings))
+    close_service_folders(settings.storage.resolved_data_dir, hidden_suite_dir(settings))
 
 
 @worker_ready.connect
 def _start_reaper(**_: Any) -> None:
-    interval = get_settings().reaper_interval_s
+    interval = get_settings().service.reaper_interval_s
 
     def loop() -> None:
         while not _reaper_stop.wait(interval):
             try:
                 reap_once()
-                warm_agents().close_idle(get_settings().warm_agent_idle_s)
+                warm_agents().close_idle(get_settings().sandbox.warm_agent_idle_s)
                 remove_finished_scratch()
             except Exception:  # a bad round must not end the loop; logged with traceback
                 log.exception("reaper round failed")

@@ -61,7 +61,7 @@ class Trainings:
         """Run the submission's train.py; its progress is shown with each renewal of the lease,
         and a lost claim or a stopping worker ends it (None)."""
         settings = get_settings()
-        if settings.train_dataset_dir is None:
+        if settings.training.train_dataset_dir is None:
             return OurFailure(
                 "no_dataset", "the service has no training dataset (ARENA_TRAIN_DATASET_DIR)"
             )
@@ -81,13 +81,15 @@ class Trainings:
         try:
             return train(
                 local.prepared(claim.upload_key),
-                settings.train_dataset_dir,
+                settings.training.train_dataset_dir,
                 output,
+                training=settings.training,
+                config=settings.sandbox,
+                data_dir=settings.storage.resolved_data_dir,
                 kind=local.sandbox_kind(),
                 labels={"arena.training": f"t{claim.training_id}c{claim.claim}-{new_run_key()}"},
-                settings=settings,
                 on_progress=progress,
-                progress_every_s=beat_interval_s(settings.lease_seconds),
+                progress_every_s=beat_interval_s(settings.service.lease_seconds),
                 resume_from=resume_from,
                 seed=claim.seed,
             )

@@ -56,9 +56,10 @@ class Validations:
 
     def run(self, claim: ValidationClaim, lease: Lease) -> Verdict | None:
         labels = {"arena.validation": f"s{claim.submission_id}c{claim.claim_number}"}
-        lease.stop_with(partial(sandbox.cleanup, labels))
+        settings = get_settings()
+        lease.stop_with(partial(sandbox.cleanup, settings.sandbox, labels))
         verdict = judge(
-            claim, get_settings(), local.store(), local.sandbox_kind(), labels, local.scratch()
+            claim, settings, local.store(), local.sandbox_kind(), labels, local.scratch()
         )
         return None if lease.stopped else verdict
 
@@ -94,7 +95,9 @@ def judge(
             validate(
                 zip_path,
                 folder / "prepared",
-                settings,
+                settings.intake,
+                settings.sandbox,
+                settings.storage.resolved_data_dir,
                 kind=kind,
                 labels=labels,
                 needs_training=claim.needs_training,
@@ -139,7 +142,9 @@ def record(
     with db.read_session() as session:
         in_use = validation.deps_in_use(session)
     # Young folders may belong to a validation not yet recorded.
-    collect_garbage(settings, in_use, min_age_s=4 * settings.intake_timeout_s)
+    collect_garbage(
+        settings.storage.resolved_data_dir, in_use, min_age_s=4 * settings.intake.intake_timeout_s
+    )
 
 
 VALIDATIONS = Validations()

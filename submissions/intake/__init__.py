@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from agent_runtime import intake as rules
-from arena.config import Settings, get_settings
+from arena.config import IntakeSettings, SandboxSettings
 from arena.errors import IntakeError
 from sim.interface import AgentInterface
 from submissions.intake.archive import make_read_only, remove_tree
@@ -63,7 +63,9 @@ def file_sha256(path: Path) -> str:
 def prepare_submission(
     source: Path,
     dest: Path,
-    settings: Settings | None = None,
+    intake: IntakeSettings,
+    sandbox: SandboxSettings,
+    data_dir: Path,
     *,
     runner: IntakeRunner = in_process,
     needs_training: bool = False,
@@ -74,9 +76,9 @@ def prepare_submission(
 
     ``needs_training``: refuse a zip without ``train.py`` (an offline submission), before its
     requirements are installed. Raises :class:`~arena.errors.IntakeError` naming the entry and
-    the rule at fault; nothing is left in ``dest`` then.
+    the rule at fault; nothing is left in ``dest`` then. Requirements are resolved for the
+    ``sandbox``'s interpreter and kept under ``data_dir``.
     """
-    settings = settings or get_settings()
     source = Path(source)
     dest = Path(dest)
     if source.is_dir():
@@ -84,7 +86,9 @@ def prepare_submission(
             return prepare_submission(
                 pack_folder(source, Path(tmp) / "agent.zip"),
                 dest,
-                settings,
+                intake,
+                sandbox,
+                data_dir,
                 runner=runner,
                 needs_training=needs_training,
                 install=install,
@@ -94,7 +98,7 @@ def prepare_submission(
     dest.parent.mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix=".intake-", dir=dest.parent))
     try:
-        write_inputs(work / "in", settings, {rules.UPLOAD: source})
+        write_inputs(work / "in", intake, {rules.UPLOAD: source})
         verdict = runner("submission", work / "in", work / "out")
     except IntakeError as error:
         # A script that fails its checks after extraction: the porting notes are still told.
@@ -122,7 +126,11 @@ def prepare_submission(
         interface = load_interface(dest)
         explanation = load_explanation(dest)
         requirements = read_text(dest, REQUIREMENTS) or ""
-        installed = install_requirements(requirements, settings, runner) if install else None
+        installed = (
+            install_requirements(requirements, intake, sandbox, data_dir, runner)
+            if install
+            else None
+        )
     except IntakeError as error:
         remove_tree(dest)
         raise with_porting_notes(error, notes) from error
@@ -144,8 +152,9 @@ def prepare_submission(
     )
 
 
-def check_zip(path: Path, settings: Settings | None = None) -> PreparedSubmission:
+def check_zip(path: Path, intake: IntakeSettings, sandbox: SandboxSettings) -> PreparedSubmission:
     """Every rule that can be judged from the zip alone (requirements are not installed);
     nothing is kept."""
     with tempfile.TemporaryDirectory(prefix="arena-check-") as tmp:
-        return prepare_submission(path, Path(tmp) / "submission", settings, install=False)
+        work = Path(tmp)
+        return prepare_submission(path, work / "submission", intake, sandbox, work, install=False)

@@ -11,20 +11,20 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from agent_runtime import intake as rules
-from arena.config import Settings
+from arena.config import IntakeSettings
 from arena.errors import IntakeError
 
 ARCHIVE = rules.ARCHIVE
 
 
-def limits(settings: Settings) -> rules.Limits:
+def limits(intake: IntakeSettings) -> rules.Limits:
     return rules.Limits(
-        max_zip_bytes=settings.max_zip_bytes,
-        max_unzipped_bytes=settings.max_unzipped_bytes,
-        max_entries=settings.max_zip_entries,
-        max_compression_ratio=settings.max_compression_ratio,
-        max_deps_bytes=settings.max_deps_bytes,
-        max_deps_files=settings.max_deps_files,
+        max_zip_bytes=intake.max_zip_bytes,
+        max_unzipped_bytes=intake.max_unzipped_bytes,
+        max_entries=intake.max_zip_entries,
+        max_compression_ratio=intake.max_compression_ratio,
+        max_deps_bytes=intake.max_deps_bytes,
+        max_deps_files=intake.max_deps_files,
     )
 
 
@@ -37,10 +37,10 @@ def rejections() -> Iterator[None]:
         raise IntakeError(error.entry, error.rule, error.message) from error
 
 
-def check_directory(path: Path, settings: Settings) -> None:
+def check_directory(path: Path, intake: IntakeSettings) -> None:
     """What the zip's directory alone tells (size, entries, names, kinds, declared sizes and
     ratios): no entry is inflated, so the API can afford it on every upload."""
-    chosen = limits(settings)
+    chosen = limits(intake)
     with rejections(), rules.open_zip(path, chosen) as archive:
         rules.check_directory(archive, chosen, rules.submission_budget(chosen))
 

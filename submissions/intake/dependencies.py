@@ -31,7 +31,7 @@ from pathlib import Path
 from packaging.requirements import InvalidRequirement, Requirement
 
 from agent_runtime import intake as rules
-from arena.config import Settings
+from arena.config import IntakeSettings, SandboxSettings
 from arena.errors import IntakeError
 from submissions.intake.archive import make_read_only, remove_tree
 from submissions.intake.contents import REQUIREMENTS
@@ -70,13 +70,13 @@ def parse_requirements(text: str) -> list[str]:
     return sorted(lines)
 
 
-def sandbox_target(settings: Settings) -> list[str]:
+def sandbox_target(sandbox: SandboxSettings) -> list[str]:
     """pip's options selecting wheels for the sandbox's CPython and glibc on this machine's
     architecture: every manylinux tag that glibc runs (pip does not widen a PEP 600 tag itself)."""
-    version = settings.agent_python_version
+    version = sandbox.agent_python_version
     abi = "cp" + version.replace(".", "")
     arch = platform.machine()
-    major, minor = (int(part) for part in settings.agent_glibc_version.split("."))
+    major, minor = (int(part) for part in sandbox.agent_glibc_version.split("."))
     platforms = [f"manylinux_{major}_{m}_{arch}" for m in range(minor, 4, -1)]
     platforms += [f"{legacy}_{arch}" for legacy in ("manylinux2014", "manylinux2010", "manylinux1")]
     options = ["--python-version", version, "--implementation", "cp", "--abi", abi]
@@ -89,20 +89,24 @@ def requirements_key(requirements: list[str], target: list[str]) -> str:
     return hashlib.sha256("\n".join([*target, *requirements]).encode()).hexdigest()[:32]
 
 
-def deps_cache(settings: Settings) -> Path:
-    return settings.resolved_data_dir / DEPS_CACHE
+def deps_cache(data_dir: Path) -> Path:
+    return data_dir / DEPS_CACHE
 
 
 def install_requirements(
-    text: str, settings: Settings, runner: IntakeRunner
+    text: str,
+    intake: IntakeSettings,
+    sandbox: SandboxSettings,
+    data_dir: Path,
+    runner: IntakeRunner,
 ) -> InstalledRequirements | None:
     """The folder holding the installed requirements, or None when there are none."""
     requirements = parse_requirements(text)
     if not requirements:
         return None
-    sandbox = sandbox_target(settings)
-    key = requirements_key(requirements, sandbox)
-    cache = deps_cache(settings)
+    target_options = sandbox_target(sandbox)
+    key = requirements_key(requirements, target_options)
+    cache = deps_cache(data_dir)
     target = cache / key
     if (target / COMPLETE_MARKER).is_file():
         return InstalledRequirements(key, target)
@@ -113,10 +117,10 @@ def install_requirements(
         listed.write_text("\n".join(requirements) + "\n")
         wheels = work / "wheels"
         try:
-            download_wheels(listed, wheels, settings, sandbox)
+            download_wheels(listed, wheels, intake, sandbox, target_options)
         except IntakeError as error:
-            raise explain_missing_wheel(error, text, settings.agent_python_version) from error
-        write_inputs(work / "in", settings, {rules.WHEELS_DIR: wheels})
+            raise explain_missing_wheel(error, text, sandbox.agent_python_version) from error
+        write_inputs(work / "in", intake, {rules.WHEELS_DIR: wheels})
         runner("wheels", work / "in", work / "out")
         installed = work / "out" / rules.DEPS_DIR
         (installed / COMPLETE_MARKER).write_text("\n".join(requirements) + "\n")
@@ -140,7 +144,9 @@ def install_requirements(
     return InstalledRequirements(key, target)
 
 
-def download_wheels(listed: Path, wheels: Path, settings: Settings, target: list[str]) -> None:
+def download_wheels(
+    listed: Path, wheels: Path, intake: IntakeSettings, sandbox: SandboxSettings, target: list[str]
+) -> None:
     """``pip download`` of the listed requirements' wheels (and their dependencies' wheels) for
     the sandbox's interpreter (``target``: :func:`sandbox_target`), stopped once the download
     folder holds more than the cap."""
@@ -153,16 +159,16 @@ def download_wheels(listed: Path, wheels: Path, settings: Settings, target: list
         "download",
         "--only-binary=:all:",
         *target,
-        *settings.pip_options,
+        *intake.pip_options,
         "--dest",
         str(wheels),
         "-r",
         str(listed),
     ]
-    cap = settings.max_deps_download_bytes
+    cap = intake.max_deps_download_bytes
     failure = (
         "could not be resolved to wheels for the sandbox's Python "
-        f"{settings.agent_python_version} (source distributions are not accepted)"
+        f"{sandbox.agent_python_version} (source distributions are not accepted)"
     )
     with tempfile.TemporaryFile() as log:
         process = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT)
@@ -215,11 +221,11 @@ def pip_error_summary(output: str) -> str:
     return " / ".join((kept or lines)[-3:])
 
 
-def collect_garbage(settings: Settings, keys_in_use: set[str], min_age_s: float = 0.0) -> int:
+def collect_garbage(data_dir: Path, keys_in_use: set[str], min_age_s: float = 0.0) -> int:
     """Delete the requirement folders whose key no kept submission uses; returns how many.
     Folders being installed (``.deps-*``) and those younger than ``min_age_s`` (installed for
     a validation not yet recorded) are left alone."""
-    cache = deps_cache(settings)
+    cache = deps_cache(data_dir)
     if not cache.is_dir():
         return 0
     removed = 0

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Protocol
 
 from agent_runtime import intake as rules
-from arena.config import Settings
+from arena.config import IntakeSettings
 from arena.errors import IntakeError
 from submissions.intake.archive import limits
 
@@ -29,11 +29,11 @@ class IntakeRunner(Protocol):
     def __call__(self, mode: str, inputs: Path, output: Path) -> dict: ...
 
 
-def write_inputs(inputs: Path, settings: Settings, files: dict[str, Path]) -> None:
+def write_inputs(inputs: Path, intake: IntakeSettings, files: dict[str, Path]) -> None:
     """``inputs/limits.json`` and each of ``files`` (name in the folder: host path), linked
     when the filesystem allows (a 100 MiB zip is not copied for nothing)."""
     inputs.mkdir(parents=True, exist_ok=True)
-    (inputs / rules.LIMITS).write_text(json.dumps(dataclasses.asdict(limits(settings))))
+    (inputs / rules.LIMITS).write_text(json.dumps(dataclasses.asdict(limits(intake))))
     for name, source in files.items():
         target = inputs / name
         if source.is_dir():

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from arena.config import SandboxKind
+from arena.config import SandboxKind, get_settings
 from evaluator.runner import evaluate
 
 pytestmark = pytest.mark.slow
@@ -43,7 +43,14 @@ def public_suite() -> Path:
 )
 def test_a_ds2022_agent_runs_unmodified_on_the_numpy_it_pinned(kind, public_suite, tmp_path):
     out = tmp_path / "out"
-    summary = evaluate(AGENT, public_suite, out_dir=out, scenario_ids=SCENARIOS, sandbox=kind)
+    summary = evaluate(
+        AGENT,
+        public_suite,
+        settings=get_settings(),
+        out_dir=out,
+        scenario_ids=SCENARIOS,
+        sandbox=kind,
+    )
     reasons = {(s.id, a.id): a.reason for s in summary.scenarios for a in s.agents}
     logs = "\n".join(p.read_text(errors="replace") for p in (out / "logs").glob("*.txt"))
     assert summary.complete and summary.uncharged == (), logs[-3000:]

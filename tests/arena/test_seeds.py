@@ -26,6 +26,6 @@ def test_an_empty_or_negative_seed_is_refused(bad):
 
 def test_the_setting_takes_a_passphrase_too(monkeypatch):
     monkeypatch.setenv("ARENA_HIDDEN_SEED", "s3cret phrase")
-    assert Settings().hidden_seed == parse_seed("s3cret phrase")
+    assert Settings().suites.hidden_seed == parse_seed("s3cret phrase")
     monkeypatch.setenv("ARENA_HIDDEN_SEED", "")
-    assert Settings().hidden_seed is None
+    assert Settings().suites.hidden_seed is None

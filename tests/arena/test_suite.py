@@ -4,9 +4,9 @@ import json
 
 import pytest
 
-from arena.config import Settings
 from arena.errors import SuiteError
 from arena.suite import SHIPPED_PUBLIC_DIR, load_suite, public_suite_dir, resolve_suite
+from tests.settings import env_only
 
 
 def write_suite(folder, ids_families, suite="unit", **extra_entry):
@@ -50,10 +50,10 @@ def test_shipped_manifest_round_trips_byte_for_byte():
 
 
 def test_public_and_hidden_are_located_from_the_settings(tmp_path):
-    settings = Settings(_env_file=None, data_dir=tmp_path)
+    settings = env_only(storage={"data_dir": tmp_path})
     assert public_suite_dir(settings) == SHIPPED_PUBLIC_DIR
     assert resolve_suite("public", settings) == SHIPPED_PUBLIC_DIR
     assert resolve_suite("hidden", settings) == tmp_path.resolve() / "suites" / "hidden"
-    configured = Settings(_env_file=None, public_suite_dir=tmp_path / "p")
+    configured = env_only(suites={"public_suite_dir": tmp_path / "p"})
     assert resolve_suite("public", configured) == tmp_path / "p"
     assert resolve_suite(tmp_path / "x", settings) == tmp_path / "x"

@@ -19,9 +19,10 @@ def cache_dir(tmp_path_factory) -> Path:
 @pytest.fixture(scope="session")
 def scenes_dir() -> Path:
     """The shipped naturalistic scenes (scenarios/data/naturalistic/commonroad-ngsim)."""
+    from arena.config import get_settings
     from scenarios.recorded.naturalistic import shipped_scenes_dir
 
-    folder = shipped_scenes_dir()
+    folder = shipped_scenes_dir(get_settings().suites.naturalistic_dir)
     # The scenes ship in the repository: missing ones are a broken checkout or setting, never a
     # reason to skip.
     if not (folder / "PROVENANCE.md").exists():
@@ -32,7 +33,7 @@ def scenes_dir() -> Path:
 @pytest.fixture(scope="session")
 def hidden_dev(tmp_path_factory, cache_dir) -> Path:
     out = tmp_path_factory.mktemp("hidden") / "suite"
-    build_suite("hidden", get_settings().development_seed, out, cache_dir)
+    build_suite("hidden", get_settings().suites.development_seed, out, cache_dir)
     return out
 
 

@@ -67,9 +67,9 @@ def test_manifest_hashes_match_folders_and_hide_the_seed(hidden_dev):
     assert "seed" not in data
     from arena.config import get_settings
 
-    assert data["seed_fingerprint"] == seed_fingerprint(get_settings().development_seed)
+    assert data["seed_fingerprint"] == seed_fingerprint(get_settings().suites.development_seed)
     text = (hidden_dev / "manifest.json").read_text()
-    assert str(get_settings().development_seed) not in text
+    assert str(get_settings().suites.development_seed) not in text
     for e in data["scenarios"][::9]:
         assert content_hash(hidden_dev / e["id"]) == e["hash"]
 
@@ -78,7 +78,9 @@ def test_manifest_hashes_match_folders_and_hide_the_seed(hidden_dev):
 def test_same_seed_same_bytes_other_seed_other_hashes(hidden_dev, tmp_path, cache_dir):
     from arena.config import get_settings
 
-    again = build_suite("hidden", get_settings().development_seed, tmp_path / "again", cache_dir)
+    again = build_suite(
+        "hidden", get_settings().suites.development_seed, tmp_path / "again", cache_dir
+    )
     assert [e.hash for e in again.scenarios] == [
         e["hash"] for e in manifest(hidden_dev)["scenarios"]
     ]

@@ -209,14 +209,14 @@ def validate_uploads(db: Database, settings: Settings, worker: str = "test-worke
             )
         )
     store = artifact_store(settings, db)
-    kind = check_service_kind(settings=settings)
+    kind = check_service_kind(None, settings.sandbox)
     queue = TaskQueue(settings)
     try:
         for submission_id in pending:
             with db.session() as session:
                 claim = validation.claim(session, settings, submission_id, worker)
             assert claim is not None
-            scratch = settings.resolved_data_dir / "scratch" / worker
+            scratch = settings.storage.resolved_data_dir / "scratch" / worker
             verdict = judge(claim, settings, store, kind, {"arena.test": worker}, scratch)
             record(claim, worker, verdict, settings, db, store, queue)
     finally:

@@ -21,6 +21,7 @@ from server.core.db import Database
 from server.core.migrate import upgrade_database
 from server.models import Base
 from tests.server.builders import default_phases, write_suite
+from tests.settings import env_only
 
 POSTGRES_ADMIN = "postgresql://postgres@127.0.0.1:5432/test"
 REDIS_URL = "redis://127.0.0.1:6379/0"
@@ -88,24 +89,22 @@ def suite_dir(tmp_path) -> Path:
 @pytest.fixture
 def settings(tmp_path, database_url, broker, suite_dir) -> Settings:
     url, prefix = broker
-    return Settings(
-        _env_file=None,
-        data_dir=tmp_path / "data",
-        database_url=database_url,
-        broker_url=url,
-        broker_key_prefix=prefix,
-        hidden_suite_dir=suite_dir,
-        public_suite_dir=suite_dir,
-        admin_token=ADMIN_TOKEN,
-        daily_quota=3,
-        lease_seconds=60,
-        train_dataset_dir=tmp_path / "dataset",
+    return env_only(
+        storage={"data_dir": tmp_path / "data", "database_url": database_url, "broker_url": url},
+        service={
+            "broker_key_prefix": prefix,
+            "admin_token": ADMIN_TOKEN,
+            "daily_quota": 3,
+            "lease_seconds": 60,
+        },
+        suites={"hidden_suite_dir": suite_dir, "public_suite_dir": suite_dir},
+        training={"train_dataset_dir": tmp_path / "dataset"},
     )
 
 
 @pytest.fixture
 def db(settings) -> Iterator[Database]:
-    database = Database(settings.database_url)
+    database = Database(settings.storage.database_url)
     yield database
     # Empty every table (children first) so the next test starts clean on the shared database,
     # then put back the default phases the migrations create.

@@ -28,9 +28,12 @@ def free_port() -> int:
 def environment(settings: Settings, **extra: str) -> dict[str, str]:
     """The settings as ARENA_* variables for a child process."""
     env = {k: v for k, v in os.environ.items() if not k.startswith("ARENA_")}
-    for name, value in settings.model_dump().items():
-        if value is not None:
-            env[f"ARENA_{name.upper()}"] = str(value.value if hasattr(value, "value") else value)
+    for group in Settings.model_fields:
+        fields = getattr(settings, group)
+        for name, variable in fields.env_names().items():
+            value = getattr(fields, name)
+            if value is not None:
+                env[variable] = str(value.value if hasattr(value, "value") else value)
     env.update(extra)
     return env
 

@@ -24,11 +24,11 @@ runner = CliRunner()
 @pytest.fixture
 def arena(settings, db, monkeypatch):
     for name, value in {
-        "DATA_DIR": settings.data_dir,
-        "DATABASE_URL": settings.database_url,
-        "BROKER_URL": settings.broker_url,
-        "BROKER_KEY_PREFIX": settings.broker_key_prefix,
-        "HIDDEN_SUITE_DIR": settings.hidden_suite_dir,
+        "DATA_DIR": settings.storage.data_dir,
+        "DATABASE_URL": settings.storage.database_url,
+        "BROKER_URL": settings.storage.broker_url,
+        "BROKER_KEY_PREFIX": settings.service.broker_key_prefix,
+        "HIDDEN_SUITE_DIR": settings.suites.hidden_suite_dir,
     }.items():
         monkeypatch.setenv(f"ARENA_{name}", str(value))
     get_settings.cache_clear()
@@ -232,7 +232,7 @@ def test_status_lists_overdue_work_and_broken_phases(arena, db, settings, monkey
     assert [line.split("\t")[:4] for line in overdue] == [[str(late), "alpha", "final", "queued"]]
     import shutil
 
-    shutil.rmtree(settings.hidden_suite_dir)
+    shutil.rmtree(settings.suites.hidden_suite_dir)
     output = arena("status")
     assert "BROKEN PHASES" in output and "final\tphase 'final': suite 'hidden'" in output
 

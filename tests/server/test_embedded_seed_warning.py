@@ -8,6 +8,7 @@ from arena.suite import SuiteManifest, write_manifest
 from arena.terminal import make_console
 from scenarios.suites import seed_fingerprint
 from server.embedded import _hidden_suite
+from tests.settings import with_fields
 
 
 def built_suite(folder, seed: int):
@@ -19,13 +20,21 @@ def built_suite(folder, seed: int):
 
 
 def test_a_development_seed_suite_is_warned_about_on_restart(tmp_path, capsys):
-    settings = Settings(data_dir=tmp_path, hidden_suite_dir=built_suite(tmp_path / "dev", 20221128))
+    settings = with_fields(
+        Settings(),
+        storage={"data_dir": tmp_path},
+        suites={"hidden_suite_dir": built_suite(tmp_path / "dev", 20221128)},
+    )
     assert _hidden_suite(make_console(), settings, {}) == tmp_path / "dev"
     out = capsys.readouterr().out
     assert "the hidden suite is built from the PUBLIC DEVELOPMENT SEED 20221128" in out
 
 
 def test_a_secret_seed_suite_is_not(tmp_path, capsys):
-    settings = Settings(data_dir=tmp_path, hidden_suite_dir=built_suite(tmp_path / "s", 99))
+    settings = with_fields(
+        Settings(),
+        storage={"data_dir": tmp_path},
+        suites={"hidden_suite_dir": built_suite(tmp_path / "s", 99)},
+    )
     _hidden_suite(make_console(), settings, {})
     assert "DEVELOPMENT SEED" not in capsys.readouterr().out

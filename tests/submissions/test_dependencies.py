@@ -10,26 +10,45 @@ from arena.config import Settings
 from arena.errors import IntakeError
 from submissions.intake import prepare_submission
 from submissions.intake.dependencies import parse_requirements
+from tests.settings import with_fields
 from tests.submissions.zips import with_policy, write_zip
 
 pytestmark = pytest.mark.slow
 
 
 def test_requirements_install_from_wheels_and_are_cached(tmp_path: Path) -> None:
-    settings = Settings(data_dir=tmp_path / "data")
+    settings = with_fields(Settings(), storage={"data_dir": tmp_path / "data"})
     upload = write_zip(tmp_path / "a.zip", with_policy(**{"requirements.txt": "six==1.16.0\n"}))
-    first = prepare_submission(upload, tmp_path / "a", settings)
+    first = prepare_submission(
+        upload,
+        tmp_path / "a",
+        settings.intake,
+        settings.sandbox,
+        settings.storage.resolved_data_dir,
+    )
     assert first.deps_dir is not None and (first.deps_dir / "six.py").is_file()
-    second = prepare_submission(upload, tmp_path / "b", settings)
+    second = prepare_submission(
+        upload,
+        tmp_path / "b",
+        settings.intake,
+        settings.sandbox,
+        settings.storage.resolved_data_dir,
+    )
     assert second.deps_dir == first.deps_dir
 
 
 def test_a_requirement_without_a_wheel_is_rejected(tmp_path: Path) -> None:
-    settings = Settings(data_dir=tmp_path / "data")
+    settings = with_fields(Settings(), storage={"data_dir": tmp_path / "data"})
     # PyYAML 5.1 (2019) published no wheels for CPython 3.11 on Linux: source only.
     upload = write_zip(tmp_path / "a.zip", with_policy(**{"requirements.txt": "PyYAML==5.1\n"}))
     with pytest.raises(IntakeError) as caught:
-        prepare_submission(upload, tmp_path / "a", settings)
+        prepare_submission(
+            upload,
+            tmp_path / "a",
+            settings.intake,
+            settings.sandbox,
+            settings.storage.resolved_data_dir,
+        )
     assert (caught.value.entry, caught.value.rule) == ("requirements.txt:1", "no-wheel")
     assert not (tmp_path / "a").exists()
 
@@ -64,21 +83,43 @@ def test_requirements_resolve_for_the_sandbox_python_not_the_hosts(tmp_path: Pat
     3.12: a sandbox on 3.12 refuses the pin, naming its Python, though the host could install it."""
     requirements = {"requirements.txt": "numpy==1.23.5\n"}
     upload = write_zip(tmp_path / "a.zip", with_policy(**requirements))
-    sandbox_311 = Settings(data_dir=tmp_path / "data")
-    installed = prepare_submission(upload, tmp_path / "a", sandbox_311)
+    sandbox_311 = with_fields(Settings(), storage={"data_dir": tmp_path / "data"})
+    installed = prepare_submission(
+        upload,
+        tmp_path / "a",
+        sandbox_311.intake,
+        sandbox_311.sandbox,
+        sandbox_311.storage.resolved_data_dir,
+    )
     assert installed.deps_dir is not None
     assert (installed.deps_dir / "numpy-1.23.5.dist-info").is_dir()
-    sandbox_312 = Settings(data_dir=tmp_path / "data", agent_python_version="3.12")
+    sandbox_312 = with_fields(
+        Settings(),
+        storage={"data_dir": tmp_path / "data"},
+        sandbox={"agent_python_version": "3.12"},
+    )
     with pytest.raises(IntakeError) as caught:
-        prepare_submission(upload, tmp_path / "b", sandbox_312)
+        prepare_submission(
+            upload,
+            tmp_path / "b",
+            sandbox_312.intake,
+            sandbox_312.sandbox,
+            sandbox_312.storage.resolved_data_dir,
+        )
     assert caught.value.rule == "no-wheel" and "3.12" in str(caught.value)
 
 
 def test_requirements_that_conflict_are_refused_naming_the_conflict(tmp_path: Path) -> None:
-    settings = Settings(data_dir=tmp_path / "data")
+    settings = with_fields(Settings(), storage={"data_dir": tmp_path / "data"})
     text = "numpy==1.23.5\nnumpy>=2\n"
     upload = write_zip(tmp_path / "a.zip", with_policy(**{"requirements.txt": text}))
     with pytest.raises(IntakeError) as caught:
-        prepare_submission(upload, tmp_path / "a", settings)
+        prepare_submission(
+            upload,
+            tmp_path / "a",
+            settings.intake,
+            settings.sandbox,
+            settings.storage.resolved_data_dir,
+        )
     assert "numpy==1.23.5" in str(caught.value) and "numpy>=2" in str(caught.value)
     assert "conflicting" in str(caught.value)

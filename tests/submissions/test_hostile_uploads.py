@@ -19,6 +19,7 @@ from evaluator.validation import validate
 from submissions.intake import prepare_submission
 from submissions.intake.archive import check_directory
 from submissions.intake.dependencies import collect_garbage, deps_cache
+from tests.settings import with_fields
 from tests.submissions.zips import GOOD_POLICY, entry, with_policy, write_zip
 
 MiB = 1024**2
@@ -41,10 +42,19 @@ def nested_zip_upload(path: Path, inner_bytes: int) -> Path:
 def test_a_nested_zip_is_checked_from_disk_not_read_whole_into_memory(tmp_path: Path) -> None:
     upload = nested_zip_upload(tmp_path / "upload.zip", 96 * MiB)
     assert upload.stat().st_size < 2 * MiB
-    settings = Settings(data_dir=tmp_path / "data", max_compression_ratio=5000)
+    settings = with_fields(
+        Settings(), storage={"data_dir": tmp_path / "data"}, intake={"max_compression_ratio": 5000}
+    )
     tracemalloc.start()
     try:
-        prepared = prepare_submission(upload, tmp_path / "sub", settings, install=False)
+        prepared = prepare_submission(
+            upload,
+            tmp_path / "sub",
+            settings.intake,
+            settings.sandbox,
+            settings.storage.resolved_data_dir,
+            install=False,
+        )
         _, peak = tracemalloc.get_traced_memory()
     finally:
         tracemalloc.stop()
@@ -64,7 +74,7 @@ def test_a_directory_larger_than_its_entries_need_is_refused_before_it_is_parsed
             archive.writestr(info, b"x")
         archive.writestr(entry("policy.py"), GOOD_POLICY)
     with pytest.raises(IntakeError) as caught:
-        check_directory(upload, Settings(data_dir=tmp_path / "data"))
+        check_directory(upload, Settings().intake)
     assert (caught.value.entry, caught.value.rule) == ("<zip>", "central-directory")
 
 
@@ -73,7 +83,10 @@ def test_an_entry_count_far_past_the_limit_is_refused_from_the_end_record(tmp_pa
         tmp_path / "upload.zip", with_policy(**{f"f{n}.txt": "" for n in range(300)})
     )
     with pytest.raises(IntakeError) as caught:
-        check_directory(upload, Settings(data_dir=tmp_path / "data", max_zip_entries=100))
+        check_directory(
+            upload,
+            with_fields(Settings(), intake={"max_zip_entries": 100}).intake,
+        )
     assert (caught.value.entry, caught.value.rule) == ("<zip>", "max-entries")
 
 
@@ -87,9 +100,20 @@ def test_a_policy_too_big_to_compile_in_the_intake_memory_is_rejected_in_the_san
     numbers = random.Random(0).choices(range(10**6), k=3 * 10**6)  # ~20 MiB, little to compress
     source = "class Policy:\n    pass\nx = [" + ",".join(map(str, numbers)) + "]\n"
     upload = write_zip(tmp_path / "upload.zip", {"policy.py": source})
-    settings = Settings(data_dir=tmp_path / "data", intake_memory_bytes=384 * MiB)
+    settings = with_fields(
+        Settings(),
+        storage={"data_dir": tmp_path / "data"},
+        intake={"intake_memory_bytes": 384 * MiB},
+    )
     with pytest.raises(IntakeError) as caught:
-        validate(upload, tmp_path / "sub", settings, kind=kind)
+        validate(
+            upload,
+            tmp_path / "sub",
+            settings.intake,
+            settings.sandbox,
+            settings.storage.resolved_data_dir,
+            kind=kind,
+        )
     assert caught.value.rule in ("policy-too-deep", "intake-memory")
     assert not (tmp_path / "sub").exists()
 
@@ -133,12 +157,12 @@ def wheelhouse(tmp_path: Path) -> Path:
     return folder
 
 
-def local_index(tmp_path: Path, wheelhouse: Path, **overrides) -> Settings:
-    return Settings(
-        data_dir=tmp_path / "data",
-        pip_options=["--no-index", "--find-links", str(wheelhouse)],
-        **overrides,
+def local_index(tmp_path: Path, wheelhouse: Path, **overrides: dict) -> Settings:
+    options = ["--no-index", "--find-links", str(wheelhouse)]
+    local = with_fields(
+        Settings(), storage={"data_dir": tmp_path / "data"}, intake={"pip_options": options}
     )
+    return with_fields(local, **overrides)
 
 
 @pytest.mark.slow  # the intake in the service's sandbox
@@ -148,9 +172,23 @@ def test_requirements_unpack_in_the_sandbox_and_are_cached_by_content(
 ) -> None:
     settings = local_index(tmp_path, wheelhouse)
     upload = write_zip(tmp_path / "a.zip", with_policy(**{"requirements.txt": "smallpkg==1.0\n"}))
-    first = validate(upload, tmp_path / "a", settings, kind=kind)
+    first = validate(
+        upload,
+        tmp_path / "a",
+        settings.intake,
+        settings.sandbox,
+        settings.storage.resolved_data_dir,
+        kind=kind,
+    )
     assert first.deps_dir is not None and (first.deps_dir / "smallpkg" / "__init__.py").is_file()
-    second = validate(upload, tmp_path / "b", settings, kind=kind)
+    second = validate(
+        upload,
+        tmp_path / "b",
+        settings.intake,
+        settings.sandbox,
+        settings.storage.resolved_data_dir,
+        kind=kind,
+    )
     assert (second.deps_key, second.deps_dir) == (first.deps_key, first.deps_dir)
 
 
@@ -160,22 +198,35 @@ def test_wheels_unpacking_past_the_deps_cap_are_rejected_and_leave_nothing(
 ) -> None:
     """A 1.5 MB wheel once unpacked 1.6 GB into the data folder: archive limits did not apply to
     wheels. Now every wheel together is capped."""
-    settings = local_index(tmp_path, wheelhouse, max_deps_bytes=2 * MiB)
+    settings = local_index(tmp_path, wheelhouse, intake={"max_deps_bytes": 2 * MiB})
     upload = write_zip(tmp_path / "a.zip", with_policy(**{"requirements.txt": "fatpkg==1.0\n"}))
     with pytest.raises(IntakeError) as caught:
-        validate(upload, tmp_path / "a", settings, kind="bubblewrap")
+        validate(
+            upload,
+            tmp_path / "a",
+            settings.intake,
+            settings.sandbox,
+            settings.storage.resolved_data_dir,
+            kind="bubblewrap",
+        )
     assert caught.value.rule == "max-unzipped-bytes"
     assert "requirements" in caught.value.message
     assert not (tmp_path / "a").exists()
-    assert not any(deps_cache(settings).iterdir())
+    assert not any(deps_cache(settings.storage.resolved_data_dir).iterdir())
 
 
 @pytest.mark.slow  # the intake in the service's sandbox
 def test_the_download_of_wheels_is_capped(tmp_path: Path, wheelhouse: Path) -> None:
-    settings = local_index(tmp_path, wheelhouse, max_deps_download_bytes=1 * MiB)
+    settings = local_index(tmp_path, wheelhouse, intake={"max_deps_download_bytes": 1 * MiB})
     upload = write_zip(tmp_path / "a.zip", with_policy(**{"requirements.txt": "fatpkg==1.0\n"}))
     with pytest.raises(IntakeError) as caught:
-        prepare_submission(upload, tmp_path / "a", settings)
+        prepare_submission(
+            upload,
+            tmp_path / "a",
+            settings.intake,
+            settings.sandbox,
+            settings.storage.resolved_data_dir,
+        )
     assert caught.value.rule == "max-deps-download"
 
 
@@ -185,10 +236,16 @@ def test_requirement_folders_no_submission_uses_are_collected(
 ) -> None:
     settings = local_index(tmp_path, wheelhouse)
     upload = write_zip(tmp_path / "a.zip", with_policy(**{"requirements.txt": "smallpkg==1.0\n"}))
-    prepared = prepare_submission(upload, tmp_path / "a", settings)
-    assert collect_garbage(settings, {prepared.deps_key}) == 0
+    prepared = prepare_submission(
+        upload,
+        tmp_path / "a",
+        settings.intake,
+        settings.sandbox,
+        settings.storage.resolved_data_dir,
+    )
+    assert collect_garbage(settings.storage.resolved_data_dir, {prepared.deps_key}) == 0
     assert prepared.deps_dir.is_dir()
-    assert collect_garbage(settings, set()) == 1
+    assert collect_garbage(settings.storage.resolved_data_dir, set()) == 1
     assert not prepared.deps_dir.exists()
 
 
@@ -199,12 +256,24 @@ def test_requirements_resolve_for_the_sandbox_python_not_the_hosts(
     """The wheel is chosen for the sandbox's interpreter (agent_python_version), whatever Python
     the host runs: a 3.12-only wheel is refused for a 3.11 sandbox, naming its Python."""
     upload = write_zip(tmp_path / "a.zip", with_policy(**{"requirements.txt": "onlynew==1.0\n"}))
-    sandbox_312 = local_index(tmp_path, wheelhouse, agent_python_version="3.12")
-    installed = prepare_submission(upload, tmp_path / "a", sandbox_312)
+    sandbox_312 = local_index(tmp_path, wheelhouse, sandbox={"agent_python_version": "3.12"})
+    installed = prepare_submission(
+        upload,
+        tmp_path / "a",
+        sandbox_312.intake,
+        sandbox_312.sandbox,
+        sandbox_312.storage.resolved_data_dir,
+    )
     assert installed.deps_dir is not None and (installed.deps_dir / "onlynew").is_dir()
-    sandbox_311 = local_index(tmp_path, wheelhouse, agent_python_version="3.11")
+    sandbox_311 = local_index(tmp_path, wheelhouse, sandbox={"agent_python_version": "3.11"})
     with pytest.raises(IntakeError) as caught:
-        prepare_submission(upload, tmp_path / "b", sandbox_311)
+        prepare_submission(
+            upload,
+            tmp_path / "b",
+            sandbox_311.intake,
+            sandbox_311.sandbox,
+            sandbox_311.storage.resolved_data_dir,
+        )
     assert caught.value.rule == "no-wheel" and "CPython 3.11" in caught.value.message
     assert caught.value.entry == "requirements.txt:1"
 
@@ -216,6 +285,13 @@ def test_requirements_that_conflict_are_refused_naming_the_conflict(
     text = "smallpkg==1.0\nsmallpkg>=2\n"
     upload = write_zip(tmp_path / "a.zip", with_policy(**{"requirements.txt": text}))
     with pytest.raises(IntakeError) as caught:
-        prepare_submission(upload, tmp_path / "a", local_index(tmp_path, wheelhouse))
+        settings = local_index(tmp_path, wheelhouse)
+        prepare_submission(
+            upload,
+            tmp_path / "a",
+            settings.intake,
+            settings.sandbox,
+            settings.storage.resolved_data_dir,
+        )
     assert "smallpkg==1.0" in str(caught.value) and "smallpkg>=2" in str(caught.value)
     assert "conflicting" in str(caught.value)

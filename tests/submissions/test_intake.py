@@ -11,6 +11,7 @@ from arena.config import Settings
 from arena.errors import IntakeError, ParticipantError
 from sim.interface import ActionSpace
 from submissions.intake import prepare_submission
+from tests.settings import with_fields
 from tests.submissions.zips import (
     GOOD_POLICY,
     bad_crc_zip,
@@ -27,12 +28,18 @@ MIB = 1024**2
 
 @pytest.fixture
 def settings(tmp_path: Path) -> Settings:
-    return Settings(data_dir=tmp_path / "data")
+    return with_fields(Settings(), storage={"data_dir": tmp_path / "data"})
 
 
 @pytest.mark.parametrize("name", ["random", "keep_lane"])
 def test_examples_pass_intake_and_extract_read_only(name: str, tmp_path: Path, settings) -> None:
-    prepared = prepare_submission(EXAMPLES / name, tmp_path / "sub", settings)
+    prepared = prepare_submission(
+        EXAMPLES / name,
+        tmp_path / "sub",
+        settings.intake,
+        settings.sandbox,
+        settings.storage.resolved_data_dir,
+    )
     assert (prepared.root / "policy.py").is_file()
     assert prepared.deps_dir is None
     assert len(prepared.sha256) == 64 and prepared.size > 0
@@ -54,20 +61,44 @@ def test_zips_without_unix_file_types_are_plain_files(
     policy = entry("policy.py", mode)
     policy.create_system = create_system
     upload = write_zip(tmp_path / "upload.zip", {policy: GOOD_POLICY})
-    prepared = prepare_submission(upload, tmp_path / "sub", settings)
+    prepared = prepare_submission(
+        upload,
+        tmp_path / "sub",
+        settings.intake,
+        settings.sandbox,
+        settings.storage.resolved_data_dir,
+    )
     assert (prepared.root / "policy.py").read_text() == GOOD_POLICY
 
 
 def test_agent_yaml_is_validated_into_the_interface(tmp_path: Path, settings) -> None:
-    prepared = prepare_submission(EXAMPLES / "keep_lane", tmp_path / "sub", settings)
+    prepared = prepare_submission(
+        EXAMPLES / "keep_lane",
+        tmp_path / "sub",
+        settings.intake,
+        settings.sandbox,
+        settings.storage.resolved_data_dir,
+    )
     assert prepared.interface.action_space is ActionSpace.LaneWithContinuousSpeed
 
 
 def test_preparing_again_replaces_the_folder(tmp_path: Path, settings) -> None:
     zip_path = write_zip(tmp_path / "a.zip", with_policy(**{"model/w.txt": "1"}))
-    first = prepare_submission(zip_path, tmp_path / "sub", settings)
+    first = prepare_submission(
+        zip_path,
+        tmp_path / "sub",
+        settings.intake,
+        settings.sandbox,
+        settings.storage.resolved_data_dir,
+    )
     write_zip(zip_path, with_policy())
-    second = prepare_submission(zip_path, tmp_path / "sub", settings)
+    second = prepare_submission(
+        zip_path,
+        tmp_path / "sub",
+        settings.intake,
+        settings.sandbox,
+        settings.storage.resolved_data_dir,
+    )
     assert first.root == second.root and not (second.root / "model").exists()
 
 
@@ -75,7 +106,7 @@ def noise(size: int) -> bytes:
     return os.urandom(size)
 
 
-SMALL = {"max_unzipped_bytes": int(2.5 * MIB)}
+SMALL = {"intake": {"max_unzipped_bytes": int(2.5 * MIB)}}
 # (name, files or raw bytes, entry named in the error, rule, settings overrides)
 REJECTIONS = [
     ("empty file", b"", "<zip>", "empty-file", {}),
@@ -96,12 +127,12 @@ REJECTIONS = [
     ("pip option in requirements", with_policy(**{"requirements.txt": "--index-url http://x/\nsix\n"}), "requirements.txt:1", "requirements-option", {}),
     ("url in requirements", with_policy(**{"requirements.txt": "six @ https://example.org/six.whl\n"}), "requirements.txt:1", "requirements-url", {}),
     ("zip bomb", with_policy(**{"weights.bin": bytes(40 * MIB)}), "weights.bin", "compression-ratio", {}),
-    ("too many entries", with_policy(**{f"f{i}.txt": "x" for i in range(6)}), "f4.txt", "max-entries", {"max_zip_entries": 5}),
+    ("too many entries", with_policy(**{f"f{i}.txt": "x" for i in range(6)}), "f4.txt", "max-entries", {"intake": {"max_zip_entries": 5}}),
     ("too large unzipped", with_policy(**{n: noise(900_000) for n in "abc"}), "c", "max-unzipped-bytes", SMALL),
     ("nested zip bomb", with_policy(**{"inner.zip": zip_bytes({f"{i}.bin": bytes(MIB) for i in range(3)})}), "inner.zip!2.bin", "max-unzipped-bytes", SMALL),
     ("archives nested too deep", with_policy(**{"a.zip": zip_bytes({"b.zip": zip_bytes({"c.zip": zip_bytes({"d.txt": "x"})})})}), "a.zip!b.zip!c.zip", "nested-archive", {}),
     ("nested gzip bomb", with_policy(**{"data.gz": gzip_bytes(bytes(5 * MIB))}), "data.gz (inflated)", "max-unzipped-bytes", SMALL),
-    ("too large zip", with_policy(**{"noise.bin": noise(MIB + 1000)}), "<zip>", "max-zip-bytes", {"max_zip_bytes": MIB}),
+    ("too large zip", with_policy(**{"noise.bin": noise(MIB + 1000)}), "<zip>", "max-zip-bytes", {"intake": {"max_zip_bytes": MIB}}),
     # Each of these gave a 500 (an uncaught exception) instead of a rule.
     ("deeply nested sum", {"policy.py": "x = " + "1+" * 100_000 + "1\nclass Policy: pass\n"}, "policy.py", "policy-too-deep", {}),
     ("deeply nested unary", {"policy.py": "x = " + "-" * 100_000 + "1\nclass Policy: pass\n"}, "policy.py", "policy-too-deep", {}),
@@ -120,14 +151,20 @@ REJECTIONS = [
 def test_hostile_zips_are_rejected_naming_entry_and_rule(
     content, entry_name: str, rule: str, overrides: dict, tmp_path: Path
 ) -> None:
-    settings = Settings(data_dir=tmp_path / "data", **overrides)
+    settings = with_fields(Settings(), storage={"data_dir": tmp_path / "data"}, **overrides)
     upload = tmp_path / "upload.zip"
     if isinstance(content, bytes):
         upload.write_bytes(content)
     else:
         write_zip(upload, content)
     with pytest.raises(IntakeError) as caught:
-        prepare_submission(upload, tmp_path / "sub", settings)
+        prepare_submission(
+            upload,
+            tmp_path / "sub",
+            settings.intake,
+            settings.sandbox,
+            settings.storage.resolved_data_dir,
+        )
     error = caught.value
     assert (error.entry, error.rule) == (entry_name, rule)
     assert entry_name in str(error) and rule in str(error)
@@ -137,11 +174,19 @@ def test_hostile_zips_are_rejected_naming_entry_and_rule(
 
 def test_a_rejected_zip_leaves_the_previous_extraction_alone(tmp_path: Path, settings) -> None:
     good = prepare_submission(
-        write_zip(tmp_path / "good.zip", with_policy()), tmp_path / "sub", settings
+        write_zip(tmp_path / "good.zip", with_policy()),
+        tmp_path / "sub",
+        settings.intake,
+        settings.sandbox,
+        settings.storage.resolved_data_dir,
     )
     with pytest.raises(IntakeError):
         prepare_submission(
-            write_zip(tmp_path / "bad.zip", {"x.txt": "no policy"}), tmp_path / "sub", settings
+            write_zip(tmp_path / "bad.zip", {"x.txt": "no policy"}),
+            tmp_path / "sub",
+            settings.intake,
+            settings.sandbox,
+            settings.storage.resolved_data_dir,
         )
     assert (good.root / "policy.py").is_file()
 
@@ -149,16 +194,34 @@ def test_a_rejected_zip_leaves_the_previous_extraction_alone(tmp_path: Path, set
 def test_folder_and_its_zip_give_the_same_submission(tmp_path: Path, settings) -> None:
     from submissions.intake import pack_folder
 
-    from_folder = prepare_submission(EXAMPLES / "random", tmp_path / "a", settings)
+    from_folder = prepare_submission(
+        EXAMPLES / "random",
+        tmp_path / "a",
+        settings.intake,
+        settings.sandbox,
+        settings.storage.resolved_data_dir,
+    )
     zipped = pack_folder(EXAMPLES / "random", tmp_path / "random.zip")
-    from_zip = prepare_submission(zipped, tmp_path / "b", settings)
+    from_zip = prepare_submission(
+        zipped,
+        tmp_path / "b",
+        settings.intake,
+        settings.sandbox,
+        settings.storage.resolved_data_dir,
+    )
     assert from_folder.sha256 == from_zip.sha256
 
 
 def test_zip_entries_keep_their_folders(tmp_path: Path, settings) -> None:
     files = with_policy(**{"model/weights.npy": b"\x93NUMPY", "model/": b""})
     files[entry("model/", 0o040755)] = files.pop("model/")
-    prepared = prepare_submission(write_zip(tmp_path / "a.zip", files), tmp_path / "sub", settings)
+    prepared = prepare_submission(
+        write_zip(tmp_path / "a.zip", files),
+        tmp_path / "sub",
+        settings.intake,
+        settings.sandbox,
+        settings.storage.resolved_data_dir,
+    )
     assert (prepared.root / "model" / "weights.npy").read_bytes() == b"\x93NUMPY"
 
 
@@ -166,28 +229,44 @@ def test_policy_is_never_executed_on_the_host(tmp_path: Path, settings) -> None:
     marker = tmp_path / "ran"
     source = f"open({str(marker)!r}, 'w').write('x')\n{GOOD_POLICY}"
     prepare_submission(
-        write_zip(tmp_path / "a.zip", {"policy.py": source}), tmp_path / "sub", settings
+        write_zip(tmp_path / "a.zip", {"policy.py": source}),
+        tmp_path / "sub",
+        settings.intake,
+        settings.sandbox,
+        settings.storage.resolved_data_dir,
     )
     assert not marker.exists()
 
 
 def test_policy_name_may_be_imported_or_assigned(tmp_path: Path, settings) -> None:
     files = {"policy.py": "from agent import MyAgent as Policy\n", "agent.py": GOOD_POLICY}
-    prepare_submission(write_zip(tmp_path / "a.zip", files), tmp_path / "sub", settings)
+    prepare_submission(
+        write_zip(tmp_path / "a.zip", files),
+        tmp_path / "sub",
+        settings.intake,
+        settings.sandbox,
+        settings.storage.resolved_data_dir,
+    )
 
 
 def test_a_zip_failing_extraction_installs_no_requirements(tmp_path: Path) -> None:
     """Requirements used to be installed before extraction: a zip with a damaged entry left
     them behind on every rejected try, at no cost to the team's quota."""
-    settings = Settings(data_dir=tmp_path / "data")
+    settings = with_fields(Settings(), storage={"data_dir": tmp_path / "data"})
     files = with_policy(**{"requirements.txt": "six==1.16.0\n", "weights.txt": "w" * 400})
     upload = tmp_path / "upload.zip"
     upload.write_bytes(bad_crc_zip(files))
     with pytest.raises(IntakeError) as caught:
-        prepare_submission(upload, tmp_path / "sub", settings)
+        prepare_submission(
+            upload,
+            tmp_path / "sub",
+            settings.intake,
+            settings.sandbox,
+            settings.storage.resolved_data_dir,
+        )
     assert (caught.value.entry, caught.value.rule) == ("weights.txt", "corrupt-entry")
     assert not (tmp_path / "sub").exists()
-    deps = settings.resolved_data_dir / "deps"
+    deps = settings.storage.resolved_data_dir / "deps"
     assert not deps.exists() or not any(deps.iterdir())
 
 
@@ -204,6 +283,12 @@ def test_a_typo_in_agent_yaml_gets_the_nearest_allowed_name(
 ) -> None:
     upload = write_zip(tmp_path / "a.zip", with_policy(**{"agent.yaml": yaml_text}))
     with pytest.raises(IntakeError) as caught:
-        prepare_submission(upload, tmp_path / "sub", settings)
+        prepare_submission(
+            upload,
+            tmp_path / "sub",
+            settings.intake,
+            settings.sandbox,
+            settings.storage.resolved_data_dir,
+        )
     assert suggestion in str(caught.value)
     assert "Extra inputs are not permitted" not in str(caught.value)

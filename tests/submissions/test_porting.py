@@ -13,7 +13,11 @@ from arena.errors import IntakeError
 from evaluator.validation import validate
 from submissions.intake import check_zip, prepare_submission
 from submissions.intake.porting import explain_missing_wheel
+from tests.settings import with_fields
 from tests.submissions.zips import GOOD_POLICY, write_zip
+
+# check_zip judges the zip alone: the intake's limits and the sandbox's Python.
+ZIP_ONLY = (Settings().intake, Settings().sandbox)
 
 SMARTS_POLICY = (
     GOOD_POLICY
@@ -29,7 +33,7 @@ def test_smarts_leftovers_get_notes_naming_them(tmp_path: Path) -> None:
     upload = write_zip(
         tmp_path / "a.zip", {"policy.py": SMARTS_POLICY, "config.yaml": "img_meters: 50\n"}
     )
-    notes = check_zip(upload, Settings(data_dir=tmp_path / "data")).notes
+    notes = check_zip(upload, *ZIP_ONLY).notes
     assert len(notes) == 2
     assert "submitted_wrappers()" in notes[0] and "observation_format: smarts2022" in notes[0]
     assert notes[1].startswith("config.yaml") and "agent.yaml" in notes[1]
@@ -39,7 +43,7 @@ def test_a_plain_submission_gets_no_notes(tmp_path: Path) -> None:
     # The name in a comment or string is not a definition.
     policy = GOOD_POLICY + "\n# no submitted_wrappers here\n"
     upload = write_zip(tmp_path / "a.zip", {"policy.py": policy})
-    assert check_zip(upload, Settings(data_dir=tmp_path / "data")).notes == ()
+    assert check_zip(upload, *ZIP_ONLY).notes == ()
 
 
 def test_check_prints_the_porting_notes(tmp_path: Path) -> None:
@@ -68,13 +72,19 @@ def test_missing_wheel_of_a_dependency_is_named_as_one() -> None:
 @pytest.mark.slow
 def test_a_smarts_requirement_without_a_wheel_names_its_line_and_versions(tmp_path: Path) -> None:
     """The 1st-place team's Panda3D pin (resolved from PyPI, as the service does)."""
-    settings = Settings(data_dir=tmp_path / "data")
+    settings = with_fields(Settings(), storage={"data_dir": tmp_path / "data"})
     requirements = "# from the SMARTS 2022 submission\nsix==1.16.0\nPanda3D==1.10.9\n"
     upload = write_zip(
         tmp_path / "a.zip", {"policy.py": GOOD_POLICY, "requirements.txt": requirements}
     )
     with pytest.raises(IntakeError) as caught:
-        prepare_submission(upload, tmp_path / "a", settings)
+        prepare_submission(
+            upload,
+            tmp_path / "a",
+            settings.intake,
+            settings.sandbox,
+            settings.storage.resolved_data_dir,
+        )
     error = caught.value
     assert (error.entry, error.rule) == ("requirements.txt:3", "no-wheel")
     assert error.message.startswith("Panda3D==1.10.9 has no wheel for the sandbox's CPython 3.11")
@@ -96,8 +106,12 @@ DS2022_POLICY = (
 def test_what_ds2022_agents_needed_is_named(tmp_path: Path) -> None:
     """The three published 2022 agents imported smarts and gym and used np.float: each gets a
     note saying what to do, by observation format."""
-    settings = Settings(data_dir=tmp_path / "data")
-    native = check_zip(write_zip(tmp_path / "a.zip", {"policy.py": DS2022_POLICY}), settings)
+    settings = with_fields(Settings(), storage={"data_dir": tmp_path / "data"})
+    native = check_zip(
+        write_zip(tmp_path / "a.zip", {"policy.py": DS2022_POLICY}),
+        settings.intake,
+        settings.sandbox,
+    )
     text = " ".join(native.notes)
     assert "smarts.core.utils.math" in text and "observation_format: smarts2022" in text
     assert "imports gym" in text
@@ -111,7 +125,8 @@ def test_what_ds2022_agents_needed_is_named(tmp_path: Path) -> None:
                 "requirements.txt": "numpy==1.23.5\n",
             },
         ),
-        settings,
+        settings.intake,
+        settings.sandbox,
     )
     (missing, gym_note) = smarts.notes  # np.float is fine with numpy 1.23.5 pinned
     assert "smarts.core.smarts" in missing and "smarts.core.utils.math" not in missing
@@ -124,7 +139,7 @@ def test_a_rejected_port_still_gets_its_notes(tmp_path: Path) -> None:
         {"policy.py": DS2022_POLICY, "agent.yaml": "observation_format: smarts2022\nbogus: 1\n"},
     )
     with pytest.raises(IntakeError) as caught:
-        check_zip(upload, Settings(data_dir=tmp_path / "data"))
+        check_zip(upload, *ZIP_ONLY)
     assert caught.value.entry == "agent.yaml"
     assert "Porting note" in caught.value.message and "smarts.core.smarts" in caught.value.message
 
@@ -134,7 +149,7 @@ def test_every_python_file_is_scanned_not_only_policy_py(tmp_path: Path) -> None
         tmp_path / "a.zip",
         {"policy.py": GOOD_POLICY, "agent/helpers.py": "import numpy\nX = numpy.float\n"},
     )
-    notes = " ".join(check_zip(upload, Settings(data_dir=tmp_path / "data")).notes)
+    notes = " ".join(check_zip(upload, *ZIP_ONLY).notes)
     assert "np.float" in notes
 
 
@@ -145,7 +160,7 @@ def test_a_port_whose_script_is_refused_still_gets_its_notes(tmp_path: Path) -> 
         tmp_path / "a.zip", {"policy.py": DS2022_POLICY, "train.py": "def broken(:\n"}
     )
     with pytest.raises(IntakeError) as caught:
-        check_zip(upload, Settings(data_dir=tmp_path / "data"))
+        check_zip(upload, *ZIP_ONLY)
     assert caught.value.rule == "train-syntax"
     assert "Porting note" in caught.value.message and "imports gym" in caught.value.message
 
@@ -154,11 +169,13 @@ def test_a_port_whose_script_is_refused_still_gets_its_notes(tmp_path: Path) -> 
 @pytest.mark.parametrize("kind", ["bubblewrap", "docker"])
 def test_the_service_scans_the_python_files_in_the_sandbox(tmp_path: Path, kind: str) -> None:
     """The notes of the service's intake come from the sandbox's scan, accepted or refused."""
-    settings = Settings(data_dir=tmp_path / "data")
+    settings = with_fields(Settings(), storage={"data_dir": tmp_path / "data"})
     accepted = validate(
         write_zip(tmp_path / "a.zip", {"policy.py": DS2022_POLICY}),
         tmp_path / "a",
-        settings,
+        settings.intake,
+        settings.sandbox,
+        settings.storage.resolved_data_dir,
         kind=kind,
     )
     assert any("smarts.core.smarts" in note for note in accepted.notes)
@@ -166,6 +183,13 @@ def test_the_service_scans_the_python_files_in_the_sandbox(tmp_path: Path, kind:
         tmp_path / "b.zip", {"policy.py": DS2022_POLICY, "train.py": "def broken(:\n"}
     )
     with pytest.raises(IntakeError) as caught:
-        validate(refused, tmp_path / "b", settings, kind=kind)
+        validate(
+            refused,
+            tmp_path / "b",
+            settings.intake,
+            settings.sandbox,
+            settings.storage.resolved_data_dir,
+            kind=kind,
+        )
     assert caught.value.rule == "train-syntax" and "np.float" in caught.value.message
     assert not (tmp_path / "b").exists()

@@ -61,7 +61,7 @@ async def create_submission(
     with db.read_session() as session:
         validation.check_not_busy(session, team.id)
     form = await receive_form(
-        request, settings.resolved_data_dir / "uploads", settings.max_zip_bytes
+        request, settings.storage.resolved_data_dir / "uploads", settings.intake.max_zip_bytes
     )
     try:
         try:
@@ -87,7 +87,9 @@ async def create_submission(
     finally:
         form.file_path.unlink(missing_ok=True)
     # Relative (or under the configured base URL): never built from the request's Host header.
-    response.headers["Location"] = f"{settings.public_base_url}/api/v1/submissions/{created.id}"
+    response.headers["Location"] = (
+        f"{settings.service.public_base_url}/api/v1/submissions/{created.id}"
+    )
     with db.read_session() as session:
         submission = submissions.get_submission(session, created.id)
         return standing.team_view(session, settings, submission)

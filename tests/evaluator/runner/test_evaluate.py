@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from arena.config import get_settings
 from arena.episodes import traffic_seed
 from arena.outcome import ScenarioStatus
 from arena.scenario import load_scenario
@@ -56,7 +57,15 @@ def steady(tmp_path: Path, crash_at=None) -> Path:
 
 
 def run(source: Path, suite: Path, out: Path, ids=None, jobs: int = 2):
-    return evaluate(source, suite, out_dir=out, scenario_ids=ids, jobs=jobs, sandbox=TEST_SANDBOX)
+    return evaluate(
+        source,
+        suite,
+        settings=get_settings(),
+        out_dir=out,
+        scenario_ids=ids,
+        jobs=jobs,
+        sandbox=TEST_SANDBOX,
+    )
 
 
 def test_same_submission_twice_gives_identical_summary_and_records(public_suite, tmp_path):
@@ -176,6 +185,7 @@ def test_evaluate_in_docker_sandbox(public_suite, tmp_path):
     summary = evaluate(
         steady(tmp_path),
         public_suite,
+        settings=get_settings(),
         out_dir=tmp_path / "out",
         scenario_ids=ids,
         sandbox=SandboxKind.docker,
@@ -198,6 +208,7 @@ def test_episodes_repeat_reactive_scenarios_with_other_traffic(public_suite, tmp
     twice = evaluate(
         source,
         public_suite,
+        settings=get_settings(),
         out_dir=tmp_path / "twice",
         scenario_ids=ids,
         jobs=2,
@@ -233,6 +244,7 @@ def test_episodes_repeat_reactive_scenarios_with_other_traffic(public_suite, tmp
     again = evaluate(
         source,
         public_suite,
+        settings=get_settings(),
         out_dir=tmp_path / "once",
         scenario_ids=ids,
         sandbox=TEST_SANDBOX,
@@ -257,8 +269,8 @@ def test_warm_and_cold_agents_give_identical_summary_and_records(
         get_settings.cache_clear()
         out[warm] = tmp_path / f"warm-{warm}"
         evaluate(
-            example("planner"), public_suite, out_dir=out[warm], scenario_ids=ids,
-            sandbox=SandboxKind.docker,
+            example("planner"), public_suite, settings=get_settings(), out_dir=out[warm],
+            scenario_ids=ids, sandbox=SandboxKind.docker,
         )  # fmt: skip
     get_settings.cache_clear()
     assert (out[True] / "summary.json").read_bytes() == (out[False] / "summary.json").read_bytes()

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from arena.config import SandboxSettings
 from arena.episodes import Episode
 from arena.outcome import AgentOutcome, ScenarioStatus
 from arena.suite import ManifestEntry, Suite, SuiteManifest
@@ -143,7 +144,13 @@ def test_summary_json_has_the_documented_shape(tmp_path, outcomes):
 def test_broken_record_is_reported_uncharged_not_scored(tmp_path):
     from evaluator.runner.evaluate import ResultsFolder
 
-    folder = ResultsFolder(tmp_path, SUITE.select(["cruise_a", "merge_a"]), PROFILE, "s")
+    folder = ResultsFolder(
+        tmp_path,
+        SUITE.select(["cruise_a", "merge_a"]),
+        PROFILE,
+        "s",
+        cpu_limits=SandboxSettings().cpu_limits,
+    )
     (tmp_path / "logs").mkdir()
     folder.resume()
     good = done(tmp_path, "cruise_a", [AgentSpec(weaving(50), done_step=50)])

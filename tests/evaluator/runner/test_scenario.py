@@ -7,10 +7,11 @@ from pathlib import Path
 
 import pytest
 
-from arena.config import SandboxKind
+from arena.config import SandboxKind, get_settings
 from arena.outcome import ScenarioStatus
 from evaluator.runner import evaluate, run_scenario
 from tests.evaluator.runner.conftest import TEST_SANDBOX, write_policy
+from tests.settings import sandbox_args
 
 pytestmark = pytest.mark.slow
 
@@ -21,12 +22,20 @@ class Policy:
 """
 
 
-@pytest.fixture
-def submission(tmp_path):
+def prepared(source: Path, dest: Path):
+    """The submission prepared as the service's settings say (the intake runs on this host)."""
     from submissions.intake import prepare_submission
 
+    settings = get_settings()
+    return prepare_submission(
+        source, dest, settings.intake, settings.sandbox, settings.storage.resolved_data_dir
+    )
+
+
+@pytest.fixture
+def submission(tmp_path):
     source = write_policy(tmp_path / "cruise", CRUISE)
-    return prepare_submission(source, tmp_path / "prepared")
+    return prepared(source, tmp_path / "prepared")
 
 
 def scenario(folder: Path, *, broken: bool = False) -> Path:
@@ -41,7 +50,11 @@ def scenario(folder: Path, *, broken: bool = False) -> Path:
 
 def test_clean_episode_is_done_with_its_record(submission, tmp_path):
     outcome = run_scenario(
-        submission, scenario(tmp_path / "ok"), tmp_path / "records", sandbox=TEST_SANDBOX
+        submission,
+        scenario(tmp_path / "ok"),
+        tmp_path / "records",
+        **sandbox_args(get_settings()),
+        sandbox=TEST_SANDBOX,
     )
     assert outcome.status == ScenarioStatus.done and outcome.attempts == 1
     assert [(a.id, a.reason) for a in outcome.agents] == [("Agent_0", "reached_goal")]
@@ -54,6 +67,7 @@ def test_simulator_error_is_retried_once_then_reported(submission, tmp_path):
         submission,
         scenario(tmp_path / "bad", broken=True),
         tmp_path / "records",
+        **sandbox_args(get_settings()),
         sandbox=TEST_SANDBOX,
     )
     assert outcome.status == ScenarioStatus.simulator_error
@@ -73,6 +87,7 @@ def test_uncharged_scenario_leaves_n_and_is_listed(tmp_path):
     summary = evaluate(
         write_policy(tmp_path / "cruise", CRUISE),
         suite,
+        settings=get_settings(),
         out_dir=tmp_path / "out",
         sandbox=TEST_SANDBOX,
     )
@@ -93,8 +108,6 @@ def test_uncharged_scenario_leaves_n_and_is_listed(tmp_path):
 def test_an_agent_cannot_choose_an_uncharged_simulator_error(tmp_path, action, rule):
     """Bailing out through a value that broke the simulator left the scenario out of N: a
     planner doing so after 240 steps ranked first. Now it is the agent's invalid_action."""
-    from submissions.intake import prepare_submission
-
     body = f"""
 class Policy:
     def __init__(self):
@@ -110,9 +123,13 @@ class Policy:
         return out
 """
     source = write_policy(tmp_path / "bail", body, action_space="TargetPose")
-    submission = prepare_submission(source, tmp_path / "prepared")
+    submission = prepared(source, tmp_path / "prepared")
     outcome = run_scenario(
-        submission, scenario(tmp_path / "ok"), tmp_path / "records", sandbox=TEST_SANDBOX
+        submission,
+        scenario(tmp_path / "ok"),
+        tmp_path / "records",
+        **sandbox_args(get_settings()),
+        sandbox=TEST_SANDBOX,
     )
     assert outcome.status == ScenarioStatus.done and outcome.attempts == 1
     assert [(a.reason, a.steps) for a in outcome.agents] == [("invalid_action", 3)]
@@ -125,7 +142,9 @@ def test_sandboxed_factory_preloads_only_modules_that_exist(submission, kind):
 
     from evaluator.runner.scenario import SandboxedAgentFactory
 
-    modules = SandboxedAgentFactory(submission, kind, {}).preload_modules
+    settings = get_settings()
+    factory = SandboxedAgentFactory(submission, kind, {}, **sandbox_args(settings))
+    modules = factory.preload_modules
     assert "evaluator.sandbox" in modules
     assert all(importlib.util.find_spec(m) is not None for m in modules)
     if kind is SandboxKind.docker:
@@ -147,12 +166,17 @@ def test_a_sandbox_lost_before_the_runner_started_is_retried_then_not_charged(
     script = (
         "import json, sys\n"
         "from pathlib import Path\n"
+        "from arena.config import get_settings\n"
         "from evaluator.runner import run_scenario\n"
         "from submissions.intake import prepare_submission\n"
+        "from tests.settings import sandbox_args\n"
         f"source = Path({str(tmp_path / 'cruise')!r})\n"
-        "s = prepare_submission(source, Path(sys.argv[1]))\n"
+        "settings = get_settings()\n"
+        "group = settings.intake, settings.sandbox, settings.storage.resolved_data_dir\n"
+        "s = prepare_submission(source, Path(sys.argv[1]), *group)\n"
         f"kind = {TEST_SANDBOX.value!r}\n"
-        f"o = run_scenario(s, Path({str(folder)!r}), Path(sys.argv[2]), sandbox=kind)\n"
+        f"o = run_scenario(s, Path({str(folder)!r}), Path(sys.argv[2]), sandbox=kind,\n"
+        "                 **sandbox_args(settings))\n"
         "print(json.dumps([o.status, o.attempts, o.error, o.log, str(o.record_path)]))\n"
     )
     env = {**os.environ, "ARENA_AGENT_MEMORY_BYTES": str(16 * 1024**2)}

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import pytest
 
-from arena.config import SandboxKind
+from arena.config import SandboxKind, get_settings
 from evaluator.runner import evaluate
 from tests.evaluator.runner.conftest import example
 
@@ -36,6 +36,7 @@ def test_smarts_interface_agent_drives_public_scenarios_in_docker(public_suite, 
     summary = evaluate(
         example("smarts_follower"),
         public_suite,
+        settings=get_settings(),
         out_dir=tmp_path / "out",
         scenario_ids=SCENARIOS,
         jobs=2,

@@ -40,4 +40,10 @@ def agent(
     (folder / "policy.py").write_text(text)
     if agent_yaml is not None:
         (folder / "agent.yaml").write_text(agent_yaml)
-    return prepare_submission(folder, root / "submission", settings)
+    return prepare_submission(
+        folder,
+        root / "submission",
+        settings.intake,
+        settings.sandbox,
+        settings.storage.resolved_data_dir,
+    )

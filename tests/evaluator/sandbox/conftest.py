@@ -13,6 +13,7 @@ from evaluator.sandbox import backend, start
 from evaluator.sandbox.backend import SANDBOX_LABEL
 from evaluator.sandbox.subprocess_sandbox import labelled_pids
 from tests.evaluator.sandbox.agents import agent, observation
+from tests.settings import sandbox_args, with_fields
 
 ISOLATING = [
     pytest.param(SandboxKind.bubblewrap, marks=pytest.mark.bwrap, id="bubblewrap"),
@@ -23,13 +24,15 @@ ALL_KINDS = [*ISOLATING, pytest.param(SandboxKind.process, id="process")]
 
 @pytest.fixture(scope="session")
 def settings(tmp_path_factory: pytest.TempPathFactory) -> Settings:
-    return Settings(
-        data_dir=tmp_path_factory.mktemp("data"), init_timeout_s=20.0, step_timeout_s=1.0
+    return with_fields(
+        Settings(),
+        storage={"data_dir": tmp_path_factory.mktemp("data")},
+        sandbox={"init_timeout_s": 20.0, "step_timeout_s": 1.0},
     )
 
 
 def usable(kind: SandboxKind, settings: Settings) -> SandboxKind:
-    reason = backend(kind).unavailable_reason(settings)
+    reason = backend(kind).unavailable_reason(settings.sandbox)
     if reason is not None:
         # CI installs and starts every sandbox (scripts/setup-sandbox.sh): there a missing one is
         # a failure, not a reason to skip the hostile-submission tests.
@@ -72,7 +75,12 @@ def leftovers(kind: SandboxKind, labels: dict[str, str]) -> list:
 def assert_clean_and_healthy(kind: SandboxKind, labels, settings: Settings, good_agent) -> None:
     """Nothing of the last agent is left, and the next agent on this worker runs fine."""
     assert leftovers(kind, labels) == []
-    with start(good_agent, kind=kind, labels=labels, settings=settings) as handle:
+    with start(
+        good_agent,
+        kind=kind,
+        labels=labels,
+        **sandbox_args(settings),
+    ) as handle:
         handle.reset()
         assert handle.act(observation()) == {"Agent_0": [1.0, 0.0]}
     assert leftovers(kind, labels) == []

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from agent_runtime import main as agent_main
+from arena.config import get_settings
 from arena.suite import SHIPPED_PUBLIC_DIR as PUBLIC_SUITE
 from evaluator.sandbox import start
 from evaluator.sandbox.array_frames import ArrayFrames
@@ -16,6 +17,7 @@ from sim.observation_arrays import ObservationEncoder, ObservationLayout
 from submissions.sample import sample_observation
 from tests.evaluator.sandbox.agents import agent
 from tests.evaluator.sandbox.test_warm import zygote
+from tests.settings import sandbox_args
 
 # Fewer neighbour slots than the sample has neighbours: agent.yaml's count must reach the layout.
 AGENT_YAML = "observation_format: arrays\ntop_down_rgb: true\nimg_pixels: 32\nmax_neighbours: 5\n"
@@ -88,14 +90,19 @@ def drive(handle) -> None:
 
 
 def test_the_policy_gets_the_layouts_arrays(any_kind, settings, labels, tmp) -> None:
-    with start(checking_agent(tmp, settings), kind=any_kind, labels=labels, settings=settings) as h:
+    with start(
+        checking_agent(tmp, settings),
+        kind=any_kind,
+        labels=labels,
+        **sandbox_args(settings),
+    ) as h:
         drive(h)
 
 
 def test_a_forked_policy_gets_the_layouts_arrays(any_kind, settings, labels, tmp) -> None:
     with zygote(checking_agent(tmp, settings), any_kind, settings, labels) as warm:
         for _ in range(2):  # a second agent from the same zygote starts from a fresh layout
-            forked = warm.fork(settings, {})
+            forked = warm.fork(settings.sandbox, {})
             try:
                 with forked.start() as handle:
                     drive(handle)
@@ -149,7 +156,12 @@ def test_records_and_scores_do_not_depend_on_the_format(tmp) -> None:
         yaml = source / "agent.yaml"
         yaml.write_text(yaml.read_text() + f"observation_format: {fmt}\n")
         summaries[fmt] = evaluate(
-            source, PUBLIC_SUITE, out_dir=tmp / fmt, scenario_ids=scenarios, sandbox=TEST_SANDBOX
+            source,
+            PUBLIC_SUITE,
+            settings=get_settings(),
+            out_dir=tmp / fmt,
+            scenario_ids=scenarios,
+            sandbox=TEST_SANDBOX,
         )
     native, arrays = summaries["native"], summaries["arrays"]
     assert native.complete and not native.uncharged

@@ -17,6 +17,7 @@ from evaluator.sandbox import check_service_kind, start
 from tests.evaluator.sandbox.agents import agent, observation
 from tests.evaluator.sandbox.conftest import assert_clean_and_healthy
 from tests.evaluator.sandbox.test_warm import episode, zygote
+from tests.settings import sandbox_args, with_fields
 
 MiB = 1024**2
 
@@ -28,17 +29,23 @@ def answer(
     for its second episode (the first ran the same code, so nothing is new to the sandbox)."""
     submission = agent(tmp, settings, act=act, init=init)
     # These acts burn CPU on purpose: the per-step CPU limit is not what they probe.
-    settings = settings.model_copy(
-        update={
-            "step_timeout_s": max(settings.step_timeout_s, 10.0),
-            "step_cpu_s": max(settings.step_cpu_s, 10.0),
-        }
+    settings = with_fields(
+        settings,
+        sandbox={
+            "step_timeout_s": max(settings.sandbox.step_timeout_s, 10.0),
+            "step_cpu_s": max(settings.sandbox.step_cpu_s, 10.0),
+        },
     )
     if warm:
         with zygote(submission, kind, settings, labels) as parent:
             episode(parent, settings)
             return episode(parent, settings)[0]["Agent_0"]
-    with start(submission, kind=kind, labels=labels, settings=settings) as handle:
+    with start(
+        submission,
+        kind=kind,
+        labels=labels,
+        **sandbox_args(settings),
+    ) as handle:
         return handle.act(observation())["Agent_0"]
 
 
@@ -50,13 +57,13 @@ def warm(request) -> bool:
 def test_every_isolating_backend_here_is_one_the_service_accepts(kind, settings) -> None:
     """The tests below run over the backends this machine offers; each must meet the contract,
     or the service would refuse it (and then it is no sandbox of the service's to test)."""
-    assert check_service_kind(kind, settings) is kind
+    assert check_service_kind(kind, settings.sandbox) is kind
 
 
 def test_memory_is_capped_for_all_processes_together(kind, warm, settings, labels, tmp, good_agent):
     """Three children holding 300 MiB each against 512 MiB: not all three survive (under
     per-process RLIMIT_AS each child had the whole limit to itself)."""
-    small = settings.model_copy(update={"agent_memory_bytes": 512 * MiB})
+    small = with_fields(settings, sandbox={"agent_memory_bytes": 512 * MiB})
     act = """
     children = []
     for _ in range(3):
@@ -113,7 +120,12 @@ def test_process_limit_is_per_sandbox_not_per_host_uid(kind, settings, labels, t
         made += 1
     return {k: [float(made), 0.0] for k in obs}
     """
-    with start(hog, kind=kind, labels=labels, settings=settings) as handle:
+    with start(
+        hog,
+        kind=kind,
+        labels=labels,
+        **sandbox_args(settings),
+    ) as handle:
         handle.act(observation())
         made, _ = answer(kind, settings, labels, tmp / "other", forker)
     assert made == 20
@@ -139,7 +151,7 @@ def test_cpu_share_is_capped_for_the_whole_sandbox(kind, settings, labels, tmp) 
     return {k: [used.ru_utime + used.ru_stime, time.monotonic() - began] for k in obs}
     """
     cpu_s, wall_s = answer(kind, settings, labels, tmp, act)
-    assert cpu_s <= settings.agent_cpus * wall_s * 1.15 + 0.2, (cpu_s, wall_s)
+    assert cpu_s <= settings.sandbox.agent_cpus * wall_s * 1.15 + 0.2, (cpu_s, wall_s)
 
 
 def test_dev_is_not_writable_and_shm_is_bounded(kind, warm, settings, labels, tmp) -> None:
@@ -164,7 +176,7 @@ def test_dev_is_not_writable_and_shm_is_bounded(kind, warm, settings, labels, tm
     """
     dev, written_mib = answer(kind, settings, labels, tmp, act, warm=warm)
     assert dev == 0.0
-    assert written_mib * MiB <= settings.agent_tmp_bytes
+    assert written_mib * MiB <= settings.sandbox.agent_tmp_bytes
 
 
 SYSCALL_PROBE = """
@@ -188,7 +200,7 @@ def test_seccomp_refuses_keyrings_and_new_namespaces(kind, warm, settings, label
 
 def test_a_sandbox_too_big_to_start_is_the_agents(kind, settings, labels, tmp) -> None:
     """Sanity of the memory cap at start: a policy allocating beyond it is charged."""
-    small = settings.model_copy(update={"agent_memory_bytes": 256 * MiB})
+    small = with_fields(settings, sandbox={"agent_memory_bytes": 256 * MiB})
     with pytest.raises(AgentFailed) as caught:
         answer(kind, small, labels, tmp, "return {}", init="self.b = np.ones(400 * 1024**2)")
     assert caught.value.reason.value in ("memory_limit", "agent_error", "agent_exited")

@@ -14,6 +14,7 @@ from pathlib import Path
 from tests.evaluator.sandbox.agents import agent
 from tests.evaluator.sandbox.probe_policy import KINDS
 from tests.evaluator.sandbox.test_warm import episode, zygote
+from tests.settings import with_fields
 
 PROBE = Path(__file__).with_name("probe_policy.py")
 EPISODES = 3
@@ -25,7 +26,7 @@ def found(answer: list[dict]) -> set[str]:
 
 def test_no_mark_of_an_episode_reaches_the_next(kind, settings, labels, tmp) -> None:
     submission = agent(tmp, settings, source=PROBE.read_text())
-    roomy = settings.model_copy(update={"step_timeout_s": 10.0})
+    roomy = with_fields(settings, sandbox={"step_timeout_s": 10.0})
     with zygote(submission, kind, roomy, labels) as warm:
         episodes = [episode(warm, roomy, steps=2) for _ in range(EPISODES)]
     for index, (before, after) in enumerate(episodes):

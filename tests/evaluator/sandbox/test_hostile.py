@@ -21,6 +21,7 @@ from arena.outcome import DoneReason
 from evaluator.sandbox import start
 from tests.evaluator.sandbox.agents import agent, observation
 from tests.evaluator.sandbox.conftest import assert_clean_and_healthy
+from tests.settings import sandbox_args, with_fields
 
 REPO = Path(__file__).resolve().parents[3]
 SCENARIO_SECRET = "/tmp/driving-arena-hidden-scenario/scenario.json"
@@ -106,7 +107,7 @@ CASES = [
         init="time.sleep(60)",
         fails_at="start",
         reason=DoneReason.init_timeout,
-        overrides={"init_timeout_s": 3.0},
+        overrides={"sandbox": {"init_timeout_s": 3.0}},
     ),
     Hostile("exiting in act", act="os._exit(3)", reason=DoneReason.agent_exited),
     Hostile(
@@ -190,7 +191,7 @@ def test_hostile_agent_fails_with_its_reason(
     good_agent,
     tmp: Path,
 ) -> None:
-    run_settings = settings.model_copy(update=case.overrides)
+    run_settings = with_fields(settings, **case.overrides)
     submission = agent(
         tmp,
         run_settings,
@@ -199,7 +200,12 @@ def test_hostile_agent_fails_with_its_reason(
         agent_yaml=f"observation_format: {observation_format}\n",
     )
     with pytest.raises(AgentFailed) as caught:
-        handle = start(submission, kind=kind, labels=labels, settings=run_settings)
+        handle = start(
+            submission,
+            kind=kind,
+            labels=labels,
+            **sandbox_args(run_settings),
+        )
         assert case.fails_at == "act", "the agent should not have started"
         with handle:
             handle.reset()
@@ -221,11 +227,16 @@ def test_printing_100_mb_keeps_the_last_64_kib(kind, settings, labels, good_agen
     sys.stderr.flush()
     """
     submission = agent(tmp, settings, init=init)
-    with start(submission, kind=kind, labels=labels, settings=settings) as handle:
+    with start(
+        submission,
+        kind=kind,
+        labels=labels,
+        **sandbox_args(settings),
+    ) as handle:
         assert handle.act(observation()) == {"Agent_0": [1.0, 0.0]}
         handle.close()
         logs = handle.logs()
-    assert len(logs.encode()) <= settings.agent_log_tail_bytes
+    assert len(logs.encode()) <= settings.sandbox.agent_log_tail_bytes
     assert logs.endswith("stdout is the log too\nTHE END\n")
     assert_clean_and_healthy(kind, labels, settings, good_agent)
 
@@ -242,7 +253,12 @@ def test_killing_its_parent_changes_nothing(kind, settings, labels, good_agent, 
     return {k: [float(os.getppid()), 0.0] for k in obs}
     """
     submission = agent(tmp, settings, act=act)
-    with start(submission, kind=kind, labels=labels, settings=settings) as handle:
+    with start(
+        submission,
+        kind=kind,
+        labels=labels,
+        **sandbox_args(settings),
+    ) as handle:
         first = handle.act(observation())
         assert handle.act(observation()) == first
     assert_clean_and_healthy(kind, labels, settings, good_agent)
@@ -265,7 +281,12 @@ def test_actions_the_simulator_judges_arrive_unchanged(
 ) -> None:
     """invalid_action is the simulator's call: the sandbox delivers the action as sent."""
     submission = agent(tmp, settings, act=act)
-    with start(submission, kind=kind, labels=labels, settings=settings) as handle:
+    with start(
+        submission,
+        kind=kind,
+        labels=labels,
+        **sandbox_args(settings),
+    ) as handle:
         actions = handle.act(observation())
         if check == "nan":
             assert math.isnan(actions["Agent_0"][0]) and actions["Agent_0"][1:] == [0.0, 0.0, 0.1]
@@ -304,7 +325,12 @@ def test_no_network_inside_the_sandbox(
     submission = agent(tmp, settings, act=act)
     with (
         pytest.raises(AgentFailed) as caught,
-        start(submission, kind=kind, labels=labels, settings=settings) as handle,
+        start(
+            submission,
+            kind=kind,
+            labels=labels,
+            **sandbox_args(settings),
+        ) as handle,
     ):
         handle.reset()
         handle.act(observation())

@@ -8,6 +8,7 @@ import pytest
 from evaluator.sandbox import start
 from submissions.sample import sample_observation
 from tests.evaluator.sandbox.agents import agent
+from tests.settings import sandbox_args
 
 # The policy reports what it received: type, dtype, shape and a checksum of each raster.
 REPORT = """
@@ -33,7 +34,12 @@ def checksums(obs: dict) -> list[int]:
 def test_sample_rasters_reach_the_policy_as_uint8_arrays(any_kind, settings, labels, tmp) -> None:
     submission = agent(tmp, settings, act=REPORT)
     obs = sample_observation(rasters=True, img_pixels=96, img_meters=48.0)
-    with start(submission, kind=any_kind, labels=labels, settings=settings) as handle:
+    with start(
+        submission,
+        kind=any_kind,
+        labels=labels,
+        **sandbox_args(settings),
+    ) as handle:
         received = handle.act(obs)["Agent_0"]
     assert received == checksums(obs)
     assert received[:3] == [96, 96, 3] and received[3] > 0  # a real picture, not zeros
@@ -48,7 +54,12 @@ def test_the_ppo_example_drives_from_rasters_in_the_sandbox(any_kind, settings, 
     submission = packed_example("ppo", tmp, settings)
     assert submission.deps_dir is not None  # onnxruntime, installed from wheels
     obs = sample_observation(("Agent_0", "Agent_1"), rasters=True, img_pixels=64)
-    with start(submission, kind=any_kind, labels=labels, settings=settings) as handle:
+    with start(
+        submission,
+        kind=any_kind,
+        labels=labels,
+        **sandbox_args(settings),
+    ) as handle:
         actions = handle.act(obs)
     assert set(actions) == {"Agent_0", "Agent_1"}
     for speed, lane_change in actions.values():

@@ -23,18 +23,26 @@ from sim.agent import SomeAgentsFailed
 from submissions.intake import pack_folder, prepare_submission
 from tests.evaluator.sandbox.agents import agent, observation
 from tests.evaluator.sandbox.conftest import leftovers, usable
+from tests.settings import sandbox_args, with_fields
 
 EXAMPLES = Path(__file__).resolve().parents[3] / "submissions" / "examples"
 
 
 def packed_example(name: str, tmp: Path, settings: Settings):
     zipped = pack_folder(EXAMPLES / name, tmp / f"{name}.zip")
-    return prepare_submission(zipped, tmp / name, settings)
+    return prepare_submission(
+        zipped, tmp / name, settings.intake, settings.sandbox, settings.storage.resolved_data_dir
+    )
 
 
 def test_keep_lane_follows_the_lead_vehicle(any_kind, settings, labels, tmp) -> None:
     submission = packed_example("keep_lane", tmp, settings)
-    with start(submission, kind=any_kind, labels=labels, settings=settings) as handle:
+    with start(
+        submission,
+        kind=any_kind,
+        labels=labels,
+        **sandbox_args(settings),
+    ) as handle:
         handle.reset()
         actions = handle.act(observation(("Agent_0", "Agent_1")))
     # The lead is 10 m ahead (centre to centre) at 10 m/s: a 5.5 m gap, below the 8 m minimum.
@@ -45,7 +53,12 @@ def test_keep_lane_follows_the_lead_vehicle(any_kind, settings, labels, tmp) -> 
 
 def test_random_gives_reachable_target_poses(any_kind, settings, labels, tmp) -> None:
     submission = packed_example("random", tmp, settings)
-    with start(submission, kind=any_kind, labels=labels, settings=settings) as handle:
+    with start(
+        submission,
+        kind=any_kind,
+        labels=labels,
+        **sandbox_args(settings),
+    ) as handle:
         for _ in range(20):
             x, y, heading, dt = handle.act(observation())["Agent_0"]
             assert np.hypot(x - 100.0, y) < 2.8 + 10.0 and dt == 0.1 and abs(heading) < 1e-9
@@ -62,7 +75,12 @@ def test_numpy_rasters_cross_intact(any_kind, settings, labels, tmp) -> None:
     image = np.arange(64 * 64 * 3, dtype=np.uint8).reshape(64, 64, 3)
     obs["Agent_0"]["top_down_rgb"] = image
     obs["Agent_0"]["dt"] = np.float32(0.1)
-    with start(submission, kind=any_kind, labels=labels, settings=settings) as handle:
+    with start(
+        submission,
+        kind=any_kind,
+        labels=labels,
+        **sandbox_args(settings),
+    ) as handle:
         total, *shape, dt = handle.act(obs)["Agent_0"]
     assert total == float(image.sum()) + 7 - image[0, 0, 0]
     assert shape == [64, 64, 3] and dt == pytest.approx(0.1)
@@ -76,7 +94,12 @@ def test_prints_go_to_the_log_not_the_protocol(any_kind, settings, labels, tmp) 
     return {k: [3.0, 0.0] for k in obs}
     """
     submission = agent(tmp, settings, act=act, init="print('loaded')")
-    with start(submission, kind=any_kind, labels=labels, settings=settings) as handle:
+    with start(
+        submission,
+        kind=any_kind,
+        labels=labels,
+        **sandbox_args(settings),
+    ) as handle:
         assert handle.act(observation()) == {"Agent_0": [3.0, 0.0]}
         handle.close()
         assert handle.logs() == "loaded\nthinking about ['Agent_0']\nraw fd 1\n"
@@ -86,7 +109,12 @@ def test_a_failure_carries_the_stderr_tail(any_kind, settings, labels, tmp) -> N
     submission = agent(tmp, settings, act="print('about to fail'); 1 / 0")
     with (
         pytest.raises(AgentFailed) as caught,
-        start(submission, kind=any_kind, labels=labels, settings=settings) as handle,
+        start(
+            submission,
+            kind=any_kind,
+            labels=labels,
+            **sandbox_args(settings),
+        ) as handle,
     ):
         handle.act(observation())
     assert caught.value.reason is DoneReason.agent_error
@@ -97,9 +125,14 @@ def test_a_failure_carries_the_stderr_tail(any_kind, settings, labels, tmp) -> N
 
 
 def test_cleanup_removes_what_a_crashed_worker_left(kind, settings, labels, good_agent) -> None:
-    handle = start(good_agent, kind=kind, labels=labels, settings=settings)
+    handle = start(
+        good_agent,
+        kind=kind,
+        labels=labels,
+        **sandbox_args(settings),
+    )
     assert leftovers(kind, labels) != []
-    assert cleanup(labels) >= 1
+    assert cleanup(settings.sandbox, labels) >= 1
     assert leftovers(kind, labels) == []
     with pytest.raises(AgentFailed) as caught:
         handle.act(observation())
@@ -113,16 +146,25 @@ def test_cleanup_removes_socket_folders_of_killed_workers(settings, labels, good
     from evaluator.sandbox.docker_backend import ORPHAN_SOCKET_DIR_AGE_S, socket_dir_for
 
     kind = usable(SandboxKind.docker, settings)
-    stale, fresh = socket_dir_for(uuid.uuid4().hex), socket_dir_for(uuid.uuid4().hex)
+    shared = settings.sandbox.sandbox_shared_dir
+    stale, fresh = (
+        socket_dir_for(uuid.uuid4().hex, shared),
+        socket_dir_for(uuid.uuid4().hex, shared),
+    )
     for folder in (stale, fresh):
         folder.mkdir()
     old = time.time() - 2 * ORPHAN_SOCKET_DIR_AGE_S
     os.utime(stale, (old, old))
-    with start(good_agent, kind=kind, labels=labels, settings=settings) as handle:
+    with start(
+        good_agent,
+        kind=kind,
+        labels=labels,
+        **sandbox_args(settings),
+    ) as handle:
         (container,) = leftovers(kind, labels)
-        live = socket_dir_for(container.labels[INSTANCE_LABEL])
+        live = socket_dir_for(container.labels[INSTANCE_LABEL], shared)
         os.utime(live, (old, old))
-        cleanup({"driving-arena.test": "nothing-of-ours"})
+        cleanup(settings.sandbox, {"driving-arena.test": "nothing-of-ours"})
         assert not stale.exists()
         assert fresh.exists() and live.exists()
         assert handle.act(observation()) is not None
@@ -135,9 +177,14 @@ def test_cleanup_without_a_docker_daemon_still_cleans_bubblewrap(
     settings, labels, good_agent, monkeypatch: pytest.MonkeyPatch, tmp: Path
 ) -> None:
     kind = usable(SandboxKind.bubblewrap, settings)
-    handle = start(good_agent, kind=kind, labels=labels, settings=settings)
+    handle = start(
+        good_agent,
+        kind=kind,
+        labels=labels,
+        **sandbox_args(settings),
+    )
     monkeypatch.setenv("DOCKER_HOST", f"unix://{tmp / 'no-daemon.sock'}")
-    assert cleanup(labels) >= 1
+    assert cleanup(settings.sandbox, labels) >= 1
     assert leftovers(kind, labels) == []
     handle.close()
 
@@ -151,21 +198,32 @@ def test_requirements_are_importable_inside(any_kind, settings, labels, tmp) -> 
         "import six\n\nclass Policy:\n    def act(self, obs):\n"
         "        return {k: [float(six.PY3), 0.0] for k in obs}\n"
     )
-    submission = prepare_submission(folder, tmp / "submission", settings)
-    with start(submission, kind=any_kind, labels=labels, settings=settings) as handle:
+    submission = prepare_submission(
+        folder,
+        tmp / "submission",
+        settings.intake,
+        settings.sandbox,
+        settings.storage.resolved_data_dir,
+    )
+    with start(
+        submission,
+        kind=any_kind,
+        labels=labels,
+        **sandbox_args(settings),
+    ) as handle:
         assert handle.act(observation()) == {"Agent_0": [1.0, 0.0]}
 
 
 def test_auto_prefers_docker_and_the_service_refuses_process(settings) -> None:
     from evaluator.sandbox import backend
 
-    docker_ok = backend(SandboxKind.docker).unavailable_reason(settings) is None
+    docker_ok = backend(SandboxKind.docker).unavailable_reason(settings.sandbox) is None
     expected = SandboxKind.docker if docker_ok else SandboxKind.bubblewrap
-    assert resolve_kind("auto", settings) is expected
-    assert resolve_kind("process", settings) is SandboxKind.process
+    assert resolve_kind("auto", settings.sandbox) is expected
+    assert resolve_kind("process", settings.sandbox) is SandboxKind.process
     with pytest.raises(SandboxUnavailable, match="does not isolate"):
-        check_service_kind("process", settings)
-    assert check_service_kind("auto", settings) is expected
+        check_service_kind("process", settings.sandbox)
+    assert check_service_kind("auto", settings.sandbox) is expected
 
 
 @pytest.mark.slow
@@ -174,7 +232,12 @@ def test_bubblewrap_agent_is_nobody_on_the_host(settings, labels, tmp) -> None:
         pytest.skip("only a root evaluator drops bubblewrap to uid 65534")
     usable(SandboxKind.bubblewrap, settings)
     submission = agent(tmp, settings, act="return {k: [float(os.getuid()), 0.0] for k in obs}")
-    with start(submission, kind="bubblewrap", labels=labels, settings=settings) as handle:
+    with start(
+        submission,
+        kind="bubblewrap",
+        labels=labels,
+        **sandbox_args(settings),
+    ) as handle:
         assert handle.act(observation()) == {"Agent_0": [65534.0, 0.0]}
         pids = leftovers(SandboxKind.bubblewrap, labels)
         assert pids
@@ -190,10 +253,20 @@ def test_cleanup_of_one_run_spares_another_of_the_same_zip(kind, settings, good_
     from evaluator.runner import new_run_key, sandbox_labels
 
     mine, theirs = new_run_key(), new_run_key()
-    first = start(good_agent, kind=kind, labels=sandbox_labels(mine, 1), settings=settings)
-    second = start(good_agent, kind=kind, labels=sandbox_labels(theirs, 1), settings=settings)
+    first = start(
+        good_agent,
+        kind=kind,
+        labels=sandbox_labels(mine, 1),
+        **sandbox_args(settings),
+    )
+    second = start(
+        good_agent,
+        kind=kind,
+        labels=sandbox_labels(theirs, 1),
+        **sandbox_args(settings),
+    )
     with first, second:
-        assert cleanup(sandbox_labels(mine)) >= 1  # every attempt of my run
+        assert cleanup(settings.sandbox, sandbox_labels(mine)) >= 1  # every attempt of my run
         assert leftovers(kind, sandbox_labels(mine)) == []
         assert len(leftovers(kind, sandbox_labels(theirs, 1))) >= 1
         assert second.act(observation()) == {"Agent_0": [1.0, 0.0]}
@@ -216,7 +289,9 @@ def test_nothing_naming_the_scenario_enters_the_sandbox(any_kind, settings, tmp)
     return {k: [float('nan')] * 4 for k in obs}
     """
     submission = agent(tmp / "a", settings, act=act)
-    outcome = run_scenario(submission, scenario, tmp / "records", sandbox=any_kind)
+    outcome = run_scenario(
+        submission, scenario, tmp / "records", **sandbox_args(settings), sandbox=any_kind
+    )
     encoded = outcome.log.split("ENV ", 1)[1].split(" END", 1)[0]
     inside = base64.b64decode(encoded).decode()
     assert "DRIVING_ARENA" in inside or any_kind is SandboxKind.docker
@@ -243,7 +318,12 @@ def test_one_agents_exception_fails_that_agent_only(any_kind, settings, labels, 
     submission = agent(tmp, settings, act=act)
     one = observation()["Agent_0"]
     three = {k: {**one, "ego_vehicle_state": {"id": k}} for k in ("Agent_0", "Agent_1", "Agent_2")}
-    with start(submission, kind=any_kind, labels=labels, settings=settings) as handle:
+    with start(
+        submission,
+        kind=any_kind,
+        labels=labels,
+        **sandbox_args(settings),
+    ) as handle:
         handle.reset()
         with pytest.raises(SomeAgentsFailed) as caught:
             handle.act(three)
@@ -264,7 +344,7 @@ def test_the_step_limit_counts_cpu_time_not_waiting(any_kind, settings, labels, 
     """An act that waits 1.5 s without computing is within a 1 s CPU limit (a busy worker or a
     slow disk is not the agent's time); one that computes for 1.5 s is not, and is stopped by
     its CPU time, not by the wall-clock backstop (whose message names no CPU)."""
-    limits = settings.model_copy(update={"step_cpu_s": 1.0, "step_timeout_s": 120.0})
+    limits = with_fields(settings, sandbox={"step_cpu_s": 1.0, "step_timeout_s": 120.0})
     act = """
     if obs["Agent_0"]["step_count"] == 0:
         time.sleep(1.5)
@@ -277,7 +357,12 @@ def test_the_step_limit_counts_cpu_time_not_waiting(any_kind, settings, labels, 
     submission = agent(tmp, limits, act=act)
     waiting = observation()
     waiting["Agent_0"]["step_count"] = 0
-    with start(submission, kind=any_kind, labels=labels, settings=limits) as handle:
+    with start(
+        submission,
+        kind=any_kind,
+        labels=labels,
+        **sandbox_args(limits),
+    ) as handle:
         handle.reset()
         assert handle.act(waiting) == {"Agent_0": [1.0, 0.0]}
         with pytest.raises(AgentFailed) as caught:
@@ -289,8 +374,8 @@ def test_the_step_limit_counts_cpu_time_not_waiting(any_kind, settings, labels, 
 def test_an_episode_has_a_cpu_budget(kind, settings, labels, tmp) -> None:
     """Acts of 0.4 s of CPU each, under a 1 s step limit, exceed a 1 s episode budget at the
     third; a reset starts the count again."""
-    limits = settings.model_copy(
-        update={"step_cpu_s": 1.0, "episode_cpu_s": 1.0, "step_timeout_s": 120.0}
+    limits = with_fields(
+        settings, sandbox={"step_cpu_s": 1.0, "episode_cpu_s": 1.0, "step_timeout_s": 120.0}
     )
     act = """
     began = time.process_time()
@@ -299,7 +384,12 @@ def test_an_episode_has_a_cpu_budget(kind, settings, labels, tmp) -> None:
     return {k: [1.0, 0.0] for k in obs}
     """
     submission = agent(tmp, limits, act=act)
-    with start(submission, kind=kind, labels=labels, settings=limits) as handle:
+    with start(
+        submission,
+        kind=kind,
+        labels=labels,
+        **sandbox_args(limits),
+    ) as handle:
         handle.reset()
         handle.act(observation())
         handle.act(observation())
@@ -314,7 +404,7 @@ def test_the_runs_own_limits_win_over_the_settings(kind, settings, labels, tmp) 
     """A phase's limits reach the handle as one value: an act of 0.4 s of CPU passes the
     settings' 1 s step limit but not a run's 0.2 s, and what it used before it was stopped is
     counted for the evaluation's budget."""
-    settings = settings.model_copy(update={"step_cpu_s": 1.0, "step_timeout_s": 120.0})
+    settings = with_fields(settings, sandbox={"step_cpu_s": 1.0, "step_timeout_s": 120.0})
     act = """
     began = time.process_time()
     while time.process_time() - began < 0.4:
@@ -323,7 +413,9 @@ def test_the_runs_own_limits_win_over_the_settings(kind, settings, labels, tmp) 
     """
     submission = agent(tmp, settings, act=act)
     tight = CpuLimits(step_s=0.2, episode_s=600.0, evaluation_s=64_800.0)
-    with start(submission, kind=kind, labels=labels, settings=settings, limits=tight) as handle:
+    with start(
+        submission, kind=kind, labels=labels, limits=tight, **sandbox_args(settings)
+    ) as handle:
         handle.reset()
         with pytest.raises(AgentFailed) as caught:
             handle.act(observation())
@@ -342,10 +434,11 @@ def test_the_service_refuses_bubblewrap_that_cannot_cap_each_sandbox(settings) -
     if os.geteuid() != 0:
         pytest.skip("needs root to make a private mount namespace")
     script = (
+        "from arena.config import Settings\n"
         "from evaluator.sandbox import check_service_kind\n"
         "from arena.errors import SandboxUnavailable\n"
         "try:\n"
-        "    check_service_kind('bubblewrap')\n"
+        "    check_service_kind('bubblewrap', Settings().sandbox)\n"
         "    print('accepted')\n"
         "except SandboxUnavailable as error:\n"
         "    print(error)\n"
@@ -358,7 +451,7 @@ def test_the_service_refuses_bubblewrap_that_cannot_cap_each_sandbox(settings) -
         ["unshare", "--mount", "--propagation", "private", "sh", "-c", shell, script],
         capture_output=True,
         text=True,
-        env={**os.environ, "ARENA_DATA_DIR": str(settings.data_dir)},
+        env={**os.environ, "ARENA_DATA_DIR": str(settings.storage.data_dir)},
         timeout=120,
     )
     said = done.stdout.strip()

@@ -22,6 +22,7 @@ from evaluator.sandbox.warm_pool import WarmAgents
 from tests.evaluator.sandbox.agents import agent, observation
 from tests.evaluator.sandbox.conftest import leftovers, usable
 from tests.evaluator.sandbox.test_hostile import CASES, FORMATS, Hostile
+from tests.settings import sandbox_args, with_fields
 
 # Episode 1 leaves a module global, files in /tmp (one in a folder it made unreadable), a
 # System V shared memory segment and a process behind; each episode reports what it found.
@@ -59,7 +60,9 @@ return {k: [float(EPISODES), float(found_file), float(others), float(segments)]
 
 @contextmanager
 def zygote(submission, kind: SandboxKind, settings: Settings, labels) -> Iterator[WarmAgent]:
-    warm = WarmAgent.start(submission, kind, settings, labels=labels)
+    warm = WarmAgent.start(
+        submission, kind, settings.sandbox, settings.storage.resolved_data_dir, labels=labels
+    )
     try:
         yield warm
     finally:
@@ -68,7 +71,7 @@ def zygote(submission, kind: SandboxKind, settings: Settings, labels) -> Iterato
 
 
 def episode(warm: WarmAgent, settings: Settings, steps: int = 1) -> list:
-    forked = warm.fork(settings, {})
+    forked = warm.fork(settings.sandbox, {})
     try:
         with forked.start() as handle:
             handle.reset()
@@ -104,7 +107,7 @@ def test_forked_agents_keep_their_state_apart_under_process(settings, labels, tm
 def test_forked_hostile_agent_fails_with_its_reason(
     case: Hostile, observation_format: str, kind: SandboxKind, settings: Settings, labels, tmp
 ) -> None:
-    run_settings = settings.model_copy(update=case.overrides)
+    run_settings = with_fields(settings, **case.overrides)
     submission = agent(
         tmp,
         run_settings,
@@ -141,10 +144,10 @@ def test_killing_its_parent_changes_nothing_when_forked(kind, settings, labels, 
 
 def test_cleanup_kills_a_leased_agent_and_close_leaves_nothing(kind, settings, labels, tmp) -> None:
     submission = agent(tmp, settings, act="time.sleep(30)")
-    slow = settings.model_copy(update={"step_timeout_s": 60.0})
+    slow = with_fields(settings, sandbox={"step_timeout_s": 60.0})
     pool = WarmAgents(labels)
     run = {"arena.run": labels["driving-arena.test"]}
-    with pool.lease(submission, kind, run, slow) as forked:
+    with pool.lease(submission, kind, run, slow.sandbox, slow.storage.resolved_data_dir) as forked:
         assert forked is not None
         with forked.start() as handle:
             threading.Timer(1.0, pool.kill, args=({**run},)).start()
@@ -164,9 +167,16 @@ def test_a_zygote_that_cannot_start_means_cold_episodes(settings, labels, tmp) -
     zygote has an image to break."""
     kind = usable(SandboxKind.docker, settings)
     submission = agent(tmp, settings)
-    broken = settings.model_copy(update={"agent_image": "driving-arena-no-such-image:0"})
+    broken = with_fields(settings, sandbox={"agent_image": "driving-arena-no-such-image:0"})
     pool = WarmAgents(labels)
-    with pool.lease(submission, kind, {}, broken) as forked:
+    with pool.lease(
+        submission, kind, {}, broken.sandbox, broken.storage.resolved_data_dir
+    ) as forked:
         assert forked is None
-    with sandbox.start(submission, kind=kind, labels=labels, settings=settings) as handle:
+    with sandbox.start(
+        submission,
+        kind=kind,
+        labels=labels,
+        **sandbox_args(settings),
+    ) as handle:
         assert handle.act(observation()) == {"Agent_0": [1.0, 0.0]}

@@ -27,7 +27,7 @@ def scored(tmp_path, scenario_id, agents, profile):
 def test_paper_profile_stays_the_default():
     from arena.config import Settings
 
-    assert load_profile().name == PAPER.name == Settings().scoring_profile
+    assert load_profile().name == PAPER.name == Settings().evaluation.scoring_profile
 
 
 def test_jerk_is_the_squared_change_of_acceleration_not_divided_by_dt():

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from arena.config import SandboxKind, Settings
+from arena.config import SandboxKind, get_settings
 from arena.suite import SHIPPED_PUBLIC_DIR
 from evaluator.runner import evaluate
 from evaluator.training import train
@@ -17,6 +17,7 @@ from scenarios.dataset.collect import collect
 from submissions.intake import prepare_submission
 from tests.evaluator.sandbox.conftest import usable
 from tests.server.builders import EXAMPLES
+from tests.settings import env_only, sandbox_args
 
 EXAMPLE = EXAMPLES / "offline_bc"
 REPLAY = "p033_replay_merge_2agents"
@@ -40,11 +41,24 @@ def dataset(tmp_path) -> Path:
 @pytest.mark.bwrap
 def test_it_trains_in_the_sandbox_and_drives_with_its_model(tmp_path, dataset):
     tmp_path.chmod(0o755)  # the sandbox user enters the submission, dataset and model
-    settings = Settings(_env_file=None, data_dir=tmp_path / "data", train_timeout_s=120)
+    settings = env_only(storage={"data_dir": tmp_path / "data"}, training={"train_timeout_s": 120})
     kind = usable(SandboxKind.bubblewrap, settings)
-    submission = prepare_submission(EXAMPLE, tmp_path / "submission", settings)
+    submission = prepare_submission(
+        EXAMPLE,
+        tmp_path / "submission",
+        settings.intake,
+        settings.sandbox,
+        settings.storage.resolved_data_dir,
+    )
     assert submission.trains
-    result = train(submission, dataset, tmp_path / "model", kind=kind, settings=settings)
+    result = train(
+        submission,
+        dataset,
+        tmp_path / "model",
+        kind=kind,
+        training=settings.training,
+        **sandbox_args(settings),
+    )
     assert result.ok, result.log
     assert "saved weights.npz" in result.log
     weights = np.load(tmp_path / "model" / "weights.npz")
@@ -53,6 +67,7 @@ def test_it_trains_in_the_sandbox_and_drives_with_its_model(tmp_path, dataset):
     summary = evaluate(
         EXAMPLE,
         SHIPPED_PUBLIC_DIR,
+        settings=get_settings(),
         out_dir=tmp_path / "results",
         scenario_ids=[SCENARIO],
         sandbox=kind,
@@ -72,6 +87,7 @@ def test_evaluate_refuses_a_missing_model(tmp_path):
         evaluate(
             EXAMPLE,
             SHIPPED_PUBLIC_DIR,
+            settings=get_settings(),
             out_dir=tmp_path / "results",
             scenario_ids=[SCENARIO],
             sandbox=SandboxKind.process,

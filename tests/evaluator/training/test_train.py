@@ -17,6 +17,7 @@ from evaluator.training.checkpoint import CheckpointWatch, SnapshotFailed, resto
 from submissions.intake import prepare_submission
 from tests.evaluator.sandbox.agents import policy_source
 from tests.evaluator.sandbox.conftest import ALL_KINDS, ISOLATING, usable
+from tests.settings import sandbox_args, with_fields
 
 # Reads the dataset, writes a model and a checkpoint folder: what a real train.py does.
 GOOD = """
@@ -34,11 +35,11 @@ print("seed", os.environ["ARENA_TRAIN_SEED"], flush=True)
 
 @pytest.fixture(scope="module")
 def settings(tmp_path_factory: pytest.TempPathFactory) -> Settings:
-    return Settings(
-        data_dir=tmp_path_factory.mktemp("data"),
-        train_timeout_s=20.0,
-        train_output_bytes=2 * 1024**2,
-        agent_memory_bytes=512 * 1024**2,
+    return with_fields(
+        Settings(),
+        storage={"data_dir": tmp_path_factory.mktemp("data")},
+        training={"train_timeout_s": 20.0, "train_output_bytes": 2 * 1024**2},
+        sandbox={"agent_memory_bytes": 512 * 1024**2},
     )
 
 
@@ -58,13 +59,25 @@ def trainer(root: Path, settings: Settings, script: str):
     (folder / "policy.py").write_text(policy_source())
     (folder / "train.py").write_text(textwrap.dedent(script))
     root.chmod(0o755)
-    return prepare_submission(folder, root / "submission", settings)
+    return prepare_submission(
+        folder,
+        root / "submission",
+        settings.intake,
+        settings.sandbox,
+        settings.storage.resolved_data_dir,
+    )
 
 
 def run(tmp_path, settings, dataset, kind, script, **options):
     submission = trainer(tmp_path, settings, script)
     return train(
-        submission, dataset, tmp_path / "out", kind=kind, settings=settings, **options
+        submission,
+        dataset,
+        tmp_path / "out",
+        kind=kind,
+        training=settings.training,
+        **sandbox_args(settings),
+        **options,
     ), tmp_path / "out"
 
 
@@ -112,7 +125,7 @@ HOSTILE = {
 @pytest.mark.parametrize("failure", list(HOSTILE), ids=str)
 def test_each_failure_has_its_name(tmp_path, settings, dataset, kind, failure):
     script, shown = HOSTILE[failure]
-    fast = settings.model_copy(update={"train_timeout_s": 3.0})
+    fast = with_fields(settings, training={"train_timeout_s": 3.0})
     result, _ = run(tmp_path, fast, dataset, kind, script)
     assert result.failure == failure, result
     assert shown in result.log
@@ -172,7 +185,7 @@ def test_output_is_capped_in_entries_and_depth_without_delaying_progress(
         beats.append(elapsed)
         return True
 
-    few = settings.model_copy(update={"train_output_files": 1000, "train_output_depth": 8})
+    few = with_fields(settings, training={"train_output_files": 1000, "train_output_depth": 8})
     result, _ = run(
         tmp_path, few, dataset, kind, script, on_progress=progress, progress_every_s=0.5
     )
@@ -201,7 +214,13 @@ def test_the_caller_can_stop_a_run(tmp_path, settings, dataset, kind):
 def test_a_missing_dataset_is_named(tmp_path, settings):
     submission = trainer(tmp_path, settings, GOOD)
     with pytest.raises(DatasetError, match="arena dataset build"):
-        train(submission, tmp_path / "nowhere", tmp_path / "out", settings=settings)
+        train(
+            submission,
+            tmp_path / "nowhere",
+            tmp_path / "out",
+            training=settings.training,
+            **sandbox_args(settings),
+        )
 
 
 def test_arena_train_keeps_train_py_output_on_success(tmp_path, dataset):

@@ -56,7 +56,7 @@ def schemathesis(url: str, token: str, report_dir: Path) -> subprocess.Completed
 def test_schemathesis_finds_nothing_with_team_and_admin_tokens(settings, db, tmp_path):
     _, team_token = make_team(db, "alpha")
     with api_server(settings, tmp_path / "api.log") as (url, _):
-        for who, token in (("team", team_token), ("admin", settings.admin_token)):
+        for who, token in (("team", team_token), ("admin", settings.service.admin_token)):
             report = tmp_path / who
             report.mkdir()
             done = schemathesis(url, token, report)

@@ -16,6 +16,7 @@ from server.services.submissions import quota_used
 from server.status import SubmissionStatus
 from server.tracks import Track
 from tests.server.builders import bearer, make_team, pack_example, validate_uploads
+from tests.settings import with_fields
 from tests.submissions.zips import bad_crc_zip
 
 
@@ -79,7 +80,7 @@ def test_upload_is_received_validated_then_queued(client, db, settings, keep_lan
     assert [item["id"] for item in listed] == [body["id"]]
     with db.session() as session:
         stored = session.get(Submission, body["id"])
-        assert (settings.resolved_data_dir / stored.upload_key).is_file()
+        assert (settings.storage.resolved_data_dir / stored.upload_key).is_file()
 
 
 @pytest.mark.parametrize(
@@ -126,7 +127,7 @@ def test_a_zip_whose_contents_break_a_rule_is_rejected_by_its_validation(
     assert "[rule:" in body["status_reason"] and needle in body["status_reason"]
     with db.session() as session:
         upload_key = session.get(Submission, body["id"]).upload_key
-    assert not (settings.resolved_data_dir / upload_key).exists()
+    assert not (settings.storage.resolved_data_dir / upload_key).exists()
     with db.session() as session:
         assert quota_used(session, team_id, "final", Track.freestyle, utcnow()) == 0
 
@@ -178,7 +179,7 @@ def test_daily_quota_per_team_and_track(client, db, settings, keep_lane_zip, tmp
     _, token = make_team(db, "alpha")
     ids = [
         accepted(client, db, settings, token, keep_lane_zip)["id"]
-        for _ in range(settings.daily_quota)
+        for _ in range(settings.service.daily_quota)
     ]
     response = upload(client, token, keep_lane_zip)
     assert response.status_code == 429
@@ -217,7 +218,7 @@ def test_cancel_once_then_conflict(client, db, keep_lane_zip):
 
 def test_upload_declared_over_the_cap_is_refused_before_reading(client, db, settings):
     _, token = make_team(db, "alpha")
-    too_big = settings.max_zip_bytes + 50 * 2**20
+    too_big = settings.intake.max_zip_bytes + 50 * 2**20
 
     def body():  # never consumed: the declared length is enough to refuse
         raise AssertionError("the server read the body of an oversized upload")
@@ -249,8 +250,8 @@ def test_an_offline_submission_without_train_py_is_rejected_before_its_requireme
     body = accepted(client, db, settings, token, zip_bytes(entries), track="offline")
     assert body["status"] == "rejected"
     assert "train.py" in body["status_reason"] and "train-missing" in body["status_reason"]
-    assert not (settings.resolved_data_dir / "deps").exists() or not any(
-        (settings.resolved_data_dir / "deps").iterdir()
+    assert not (settings.storage.resolved_data_dir / "deps").exists() or not any(
+        (settings.storage.resolved_data_dir / "deps").iterdir()
     )
     with db.session() as session:
         assert quota_used(session, team_id, "final", Track.offline, utcnow()) == 0
@@ -279,7 +280,7 @@ def test_offline_uploads_are_refused_while_the_service_has_no_dataset(
     from server.api.deps import get_settings_dep
 
     _, token = make_team(db, "alpha")
-    no_dataset = settings.model_copy(update={"train_dataset_dir": None})
+    no_dataset = with_fields(settings, training={"train_dataset_dir": None})
     client.app.dependency_overrides[get_settings_dep] = lambda: no_dataset
     try:
         response = upload(
@@ -300,14 +301,14 @@ def test_parallel_uploads_take_one_validation_slot_and_one_try(client, db, setti
     from concurrent.futures import ThreadPoolExecutor
 
     _, token = make_team(db, "alpha")
-    for _ in range(settings.daily_quota - 1):
+    for _ in range(settings.service.daily_quota - 1):
         assert accepted(client, db, settings, token, keep_lane_zip)["status"] == "queued"
     with ThreadPoolExecutor(6) as pool:
         answers = list(pool.map(lambda _: upload(client, token, keep_lane_zip), range(6)))
     codes = sorted(answer.status_code for answer in answers)
     # 409: refused by the taken slot, with nothing done on the zip (not 429 after an intake).
     assert codes == [202, 409, 409, 409, 409, 409], codes
-    assert count_submissions(db) == settings.daily_quota
+    assert count_submissions(db) == settings.service.daily_quota
     assert validate_uploads(db, settings) == [
         next(a.json()["id"] for a in answers if a.status_code == 202)
     ]

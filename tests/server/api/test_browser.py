@@ -11,13 +11,13 @@ from pathlib import Path
 import pytest
 from sqlalchemy import select
 
-from arena.config import Settings
 from server.core.db import Database
 from server.core.migrate import upgrade_database
 from server.models import ScenarioResult
 from tests.server.builders import make_team, pack_example
 from tests.server.live import api_server, stop
 from tests.server.service_stack import SCENARIOS, build_small_suite, shared_dir, start_worker
+from tests.settings import env_only, with_fields
 
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMIUM_ARGS = [
@@ -45,15 +45,13 @@ def embedded_settings():
     root = shared_dir("arena-browser-")
     data = root / "data"
     data.mkdir()
-    settings = Settings(
-        _env_file=None,
-        data_dir=data,
-        hidden_suite_dir=build_small_suite(root),
-        sandbox="bubblewrap",
-        lease_seconds=30,
-        reaper_interval_s=5,
+    settings = env_only(
+        storage={"data_dir": data},
+        suites={"hidden_suite_dir": build_small_suite(root)},
+        sandbox={"kind": "bubblewrap"},
+        service={"lease_seconds": 30, "reaper_interval_s": 5},
     )
-    upgrade_database(settings.resolved_database_url)
+    upgrade_database(settings.storage.resolved_database_url)
     yield settings
     shutil.rmtree(root, ignore_errors=True)
 
@@ -61,7 +59,7 @@ def embedded_settings():
 def test_upload_through_the_form_and_read_the_result(embedded_settings, tmp_path):
     from playwright.sync_api import expect, sync_playwright
 
-    db = Database(embedded_settings.resolved_database_url)
+    db = Database(embedded_settings.storage.resolved_database_url)
     _, token = make_team(db, "browser-team")
     db.dispose()
     bad_zip = tmp_path / "bad.zip"
@@ -138,12 +136,12 @@ def test_an_offline_submission_through_the_form_trains_then_ranks(embedded_setti
     from scenarios.dataset.build import TRANSITIONS, write_transitions
     from scenarios.dataset.collect import collect
 
-    dataset = embedded_settings.data_dir.parent / "dataset"
+    dataset = embedded_settings.storage.data_dir.parent / "dataset"
     dataset.mkdir()
     write_transitions(dataset / TRANSITIONS, collect(SHIPPED_PUBLIC_DIR / "p030_replay_cruise"))
     (dataset / TRANSITIONS).chmod(0o644)
-    settings = embedded_settings.model_copy(update={"train_dataset_dir": dataset})
-    db = Database(settings.resolved_database_url)
+    settings = with_fields(embedded_settings, training={"train_dataset_dir": dataset})
+    db = Database(settings.storage.resolved_database_url)
     _, token = make_team(db, "offline-team")
     db.dispose()
     agent_zip = pack_example("offline_bc", tmp_path)

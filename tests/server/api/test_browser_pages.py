@@ -15,7 +15,6 @@ from urllib.parse import urlparse
 
 import pytest
 
-from arena.config import Settings
 from server.core.db import Database
 from server.core.migrate import upgrade_database
 from server.models import EvaluationRun, ScenarioResult, Submission, Track, utcnow
@@ -24,6 +23,7 @@ from tests.server.api.test_browser import CHROMIUM, CHROMIUM_ARGS
 from tests.server.builders import make_team, queued_submission, seed_scored
 from tests.server.live import api_server
 from tests.server.service_stack import shared_dir
+from tests.settings import env_only
 
 pytestmark = [
     pytest.mark.browser,
@@ -38,10 +38,12 @@ PHONE = {"width": 390, "height": 844}
 @pytest.fixture
 def served(tmp_path):
     root = shared_dir("arena-pages-")
-    settings = Settings(_env_file=None, data_dir=root / "data", hidden_suite_dir=root / "suite")
+    settings = env_only(
+        storage={"data_dir": root / "data"}, suites={"hidden_suite_dir": root / "suite"}
+    )
     (root / "data").mkdir()
-    upgrade_database(settings.resolved_database_url)
-    db = Database(settings.resolved_database_url)
+    upgrade_database(settings.storage.resolved_database_url)
+    db = Database(settings.storage.resolved_database_url)
     team_id, token = make_team(db, "pages-team")
     other_id, _ = make_team(db, "other-team")
     ids = [
@@ -236,10 +238,12 @@ def test_submission_page_groups_identical_output_and_hides_empty_sections(tmp_pa
     from playwright.sync_api import expect
 
     root = shared_dir("arena-pages-")
-    settings = Settings(_env_file=None, data_dir=root / "data", hidden_suite_dir=root / "suite")
+    settings = env_only(
+        storage={"data_dir": root / "data"}, suites={"hidden_suite_dir": root / "suite"}
+    )
     (root / "data").mkdir()
-    upgrade_database(settings.resolved_database_url)
-    db = Database(settings.resolved_database_url)
+    upgrade_database(settings.storage.resolved_database_url)
+    db = Database(settings.storage.resolved_database_url)
     team_id, token = make_team(db, "logs-team")
     failed = seed_scored(
         db,

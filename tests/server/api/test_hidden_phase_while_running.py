@@ -60,5 +60,5 @@ def test_metrics_show_episode_outcomes_only_to_the_organisers(client, db, settin
     anonymous = client.get("/api/v1/metrics").text
     assert "arena_queue_depth" in anonymous and "arena_submissions" in anonymous
     assert "arena_episodes" not in anonymous and "collision" not in anonymous
-    organisers = client.get("/api/v1/metrics", headers=bearer(settings.admin_token)).text
+    organisers = client.get("/api/v1/metrics", headers=bearer(settings.service.admin_token)).text
     assert 'arena_episodes{reason="collision",status="done"} 1.0' in organisers

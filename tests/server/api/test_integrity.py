@@ -31,7 +31,7 @@ def test_agent_output_with_any_byte_records_and_reads_back(client, db, settings)
     response = client.get(f"/api/v1/submissions/{submission_id}/logs", headers=bearer(token))
     assert response.status_code == 200
     tails = [s["log_tail"] for s in response.json()["scenarios"]]
-    assert len(tails) == len(load_suite(settings.public_suite_dir).scenarios)
+    assert len(tails) == len(load_suite(settings.suites.public_suite_dir).scenarios)
     for tail in tails:
         assert "\x00" not in tail and "before\ufffdafter" in tail and "\x01\x7f end" in tail
 
@@ -52,7 +52,7 @@ def test_form_fields_are_capped_in_number_and_in_total(client, db, settings):
     big = {f"f{i}": "x" * 60_000 for i in range(6)}  # each under 64 KiB, together 360 KB
     response = upload(client, token, b"zip", **big)
     assert response.status_code == 413 and "in total" in response.json()["detail"]
-    uploads = settings.resolved_data_dir / "uploads"
+    uploads = settings.storage.resolved_data_dir / "uploads"
     assert not uploads.exists() or not any(uploads.iterdir())
 
 
@@ -71,7 +71,7 @@ def test_ids_beyond_the_databases_range_are_refused_not_500(client, db, submissi
     for method, path in team_routes:
         response = client.request(method, path, headers=bearer(token))
         assert response.status_code in (404, 422), (path, response.status_code)
-    admin = bearer(client.app.state.settings.admin_token)
+    admin = bearer(client.app.state.settings.service.admin_token)
     for action in ("disqualify", "requeue", "rerun", "rescore"):
         path = f"/api/v1/admin/submissions/{submission_id}/{action}"
         response = client.post(path, headers=admin)
@@ -80,7 +80,7 @@ def test_ids_beyond_the_databases_range_are_refused_not_500(client, db, submissi
 
 @pytest.mark.parametrize("limit", [-1, 0, 2**31, 2**63])
 def test_admin_list_limit_out_of_range_is_422(client, db, limit):
-    admin = bearer(client.app.state.settings.admin_token)
+    admin = bearer(client.app.state.settings.service.admin_token)
     response = client.get(f"/api/v1/admin/submissions?limit={limit}", headers=admin)
     assert response.status_code == 422
 

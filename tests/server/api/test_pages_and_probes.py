@@ -7,6 +7,7 @@ import pytest
 from server.services import evaluation
 from tests.server.builders import bearer, make_team, queued_submission, scenario_ids, seed_scored
 from tests.server.conftest import ADMIN_TOKEN
+from tests.settings import with_fields
 
 FAMILIES = {
     "cruise": {"completion": 0.0, "time": 300.0, "humanness": 0.1, "rules": 0.0, "scenarios": 2},
@@ -46,7 +47,7 @@ def test_healthz_and_metrics(client, db, settings):
         plan = evaluation.start_evaluation(session, settings, sid)
     with db.session() as session:
         evaluation.claim_scenario(session, settings, plan.run_id, scenario_ids(plan)[0], "w")
-    text = client.get("/api/v1/metrics", headers=bearer(settings.admin_token)).text
+    text = client.get("/api/v1/metrics", headers=bearer(settings.service.admin_token)).text
     assert "arena_queue_depth" in text
     assert "arena_running_evaluations 1.0" in text
     assert 'arena_submissions{status="running"} 1.0' in text
@@ -81,7 +82,7 @@ def test_healthz_degrades_and_uploads_still_land_when_the_broker_is_down(setting
     from tests.server.builders import pack_example
     from tests.server.live import free_port
 
-    down = settings.model_copy(update={"broker_url": f"redis://127.0.0.1:{free_port()}/0"})
+    down = with_fields(settings, storage={"broker_url": f"redis://127.0.0.1:{free_port()}/0"})
     _, token = make_team(db, "alpha")
     with TestClient(create_app(down)) as client:
         response = client.get("/api/v1/healthz")

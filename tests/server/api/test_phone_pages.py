@@ -11,7 +11,6 @@ from datetime import timedelta
 
 import pytest
 
-from arena.config import Settings
 from arena.suite import SHIPPED_PUBLIC_DIR, load_suite
 from server.core.db import Database
 from server.core.migrate import upgrade_database
@@ -32,6 +31,7 @@ from tests.server.api.test_browser_pages import (
 from tests.server.builders import make_team, queued_submission, seed_scored
 from tests.server.live import api_server
 from tests.server.service_stack import shared_dir
+from tests.settings import env_only
 
 pytestmark = [
     pytest.mark.browser,
@@ -80,15 +80,14 @@ def site(tmp_path_factory):
     """A served API with one team's submissions in every state and phase, a closed phase and a
     phase that opens later."""
     root = shared_dir("arena-phone-")
-    settings = Settings(
-        _env_file=None,
-        data_dir=root / "data",
-        hidden_suite_dir=SHIPPED_PUBLIC_DIR,
-        admin_token=ADMIN,
+    settings = env_only(
+        storage={"data_dir": root / "data"},
+        suites={"hidden_suite_dir": SHIPPED_PUBLIC_DIR},
+        service={"admin_token": ADMIN},
     )
     (root / "data").mkdir()
-    upgrade_database(settings.resolved_database_url)
-    db = Database(settings.resolved_database_url)
+    upgrade_database(settings.storage.resolved_database_url)
+    db = Database(settings.storage.resolved_database_url)
     with db.session() as session:
         session.add(
             Phase(

@@ -11,7 +11,6 @@ import shutil
 import httpx
 import pytest
 
-from arena.config import Settings
 from arena.suite import load_suite, public_suite_dir
 from server.core.artifacts import artifact_store
 from server.core.db import Database
@@ -22,11 +21,12 @@ from tests.server.api.test_browser_pages import DESKTOP, PHONE, browser, offline
 from tests.server.builders import bearer, make_team, seed_scored
 from tests.server.live import api_server
 from tests.server.service_stack import shared_dir
+from tests.settings import env_only
 from tests.sim.builders import recorded_episode
 
 __all__ = ["browser"]  # the Chromium fixture, shared with the other page tests
 ADMIN = "organiser-secret"
-PUBLIC_SUITE = load_suite(public_suite_dir(Settings(_env_file=None)))
+PUBLIC_SUITE = load_suite(public_suite_dir(env_only()))
 PUBLIC_ID = "p000_left_turn_t_low"
 
 # A live API process over a recorded episode (module fixture `served`).
@@ -55,12 +55,14 @@ def with_episode(db, store, submission_id: int, suite, record) -> None:
 @pytest.fixture(scope="module")
 def served(tmp_path_factory):
     root = shared_dir("arena-replays-")
-    settings = Settings(
-        _env_file=None, data_dir=root / "data", hidden_suite_dir=root / "hidden", admin_token=ADMIN
+    settings = env_only(
+        storage={"data_dir": root / "data"},
+        suites={"hidden_suite_dir": root / "hidden"},
+        service={"admin_token": ADMIN},
     )
     (root / "data").mkdir()
-    upgrade_database(settings.resolved_database_url)
-    db = Database(settings.resolved_database_url)
+    upgrade_database(settings.storage.resolved_database_url)
+    db = Database(settings.storage.resolved_database_url)
     suite, record = recorded_episode(root / "episode")
     store = artifact_store(settings, db)
     team_id, token = make_team(db, "watchers")

@@ -13,6 +13,7 @@ import pytest
 
 from tests.server.builders import bearer, make_team, pack_example
 from tests.server.live import api_server
+from tests.settings import with_fields
 
 PAGES = (
     "/",
@@ -76,7 +77,7 @@ def test_the_upload_location_is_a_path(client, db, tmp_path):
 @pytest.mark.slow  # a live API process
 def test_slow_clients_are_cut_off_and_do_not_hold_the_server(settings, db, tmp_path):
     """50 connections trickling their headers once held the API for 40 s and more."""
-    slow = settings.model_copy(update={"http_header_timeout_s": 1.0})
+    slow = with_fields(settings, service={"http_header_timeout_s": 1.0})
     with api_server(slow, tmp_path / "api.log") as (url, _):
         port = int(url.rsplit(":", 1)[1])
         sockets = []

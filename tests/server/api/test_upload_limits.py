@@ -48,7 +48,7 @@ def test_150_mib_upload_is_refused_without_filling_memory(settings, db, tmp_path
         growth = peak_rss_bytes(process.pid) - before
         assert growth < 40 * 2**20, f"server memory grew by {growth / 2**20:.0f} MiB"
         # Nothing of the refused upload is left on disk, and nothing was recorded.
-        uploads = settings.resolved_data_dir / "uploads"
+        uploads = settings.storage.resolved_data_dir / "uploads"
         assert not any(uploads.iterdir()) if uploads.exists() else True
         assert httpx.get(f"{url}/api/v1/submissions", headers=bearer(token)).json() == []
 

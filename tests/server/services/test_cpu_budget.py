@@ -14,6 +14,7 @@ from server.models import EvaluationRun, Submission
 from server.services import evaluation, phases
 from server.services.errors import InvalidInput
 from tests.server.builders import agent, bearer, make_team, queued_submission
+from tests.settings import with_fields
 
 # The suite fixture has three scenarios, one episode each.
 TINY = phases.PhaseChanges(step_cpu_s=0.1, episode_cpu_s=0.5, evaluation_cpu_s=1.0)
@@ -88,7 +89,7 @@ def test_a_run_under_its_budget_is_scored(client, db, settings):
 
 
 def test_the_phase_override_wins_over_the_setting(client, db, settings):
-    settings = settings.model_copy(update={"evaluation_cpu_s": 1000.0})
+    settings = with_fields(settings, sandbox={"evaluation_cpu_s": 1000.0})
     team, token = make_team(db, "a")
 
     # Without an override the setting applies: 3 x 0.6 s is well under 1000 s.
@@ -123,7 +124,7 @@ def test_the_phase_override_wins_over_the_setting(client, db, settings):
 
     # Cleared, the settings' apply again.
     phase = phases.set_phase(db, settings, "final", phases.PhaseChanges(default_cpu_limits=True))
-    assert phases.cpu_limits(phase, settings) == settings.cpu_limits
+    assert phases.cpu_limits(phase, settings) == settings.sandbox.cpu_limits
 
 
 def test_the_phase_refuses_limits_that_do_not_grow(db, settings):
@@ -143,6 +144,9 @@ def test_a_hidden_phase_shows_the_cpu_only_once_the_run_is_over(client, db, sett
     detail = client.get(f"/api/v1/submissions/{sid}", headers=bearer(token)).json()
     assert detail["status"] == "running"
     if shown:
-        assert detail["agent_cpu"] == {"used_s": 0.25, "budget_s": settings.evaluation_cpu_s}
+        assert detail["agent_cpu"] == {
+            "used_s": 0.25,
+            "budget_s": settings.sandbox.evaluation_cpu_s,
+        }
     else:
         assert detail["agent_cpu"] is None

@@ -150,7 +150,7 @@ def test_a_hidden_phase_gives_the_team_no_agent_output_and_no_scenario_detail(cl
 def phases_suite_ids(settings) -> list[str]:
     from arena.suite import load_suite
 
-    return [entry.id for entry in load_suite(settings.hidden_suite_dir).scenarios]
+    return [entry.id for entry in load_suite(settings.suites.hidden_suite_dir).scenarios]
 
 
 def test_organisers_read_the_agent_output_of_a_hidden_phase(db, settings):
@@ -216,7 +216,7 @@ def test_a_phase_broken_after_it_was_set_fails_its_runs_with_a_reason(db, settin
     from server.services import evaluation
     from server.status import SubmissionStatus
 
-    shutil.rmtree(settings.hidden_suite_dir)
+    shutil.rmtree(settings.suites.hidden_suite_dir)
     team_id, _ = make_team(db, "alpha")
     submission_id = queued_submission(db, team_id)
     with db.session() as session:
@@ -226,7 +226,9 @@ def test_a_phase_broken_after_it_was_set_fails_its_runs_with_a_reason(db, settin
         assert submission.status == SubmissionStatus.failed
         assert "phase 'final'" in submission.status_reason
         assert "organisers" in submission.status_reason
-        assert str(settings.hidden_suite_dir) not in submission.status_reason  # a hidden path
+        assert (
+            str(settings.suites.hidden_suite_dir) not in submission.status_reason
+        )  # a hidden path
         assert set(phases.misconfigured(session, settings)) == {"validation", "final"}
 
 
@@ -236,11 +238,11 @@ def test_an_upload_to_a_broken_phase_is_refused_and_costs_nothing(
     import shutil
 
     _, token = make_team(db, "alpha")
-    shutil.rmtree(settings.hidden_suite_dir)
+    shutil.rmtree(settings.suites.hidden_suite_dir)
     response = upload(client, token, keep_lane_zip)
     assert response.status_code == 403
     assert "cannot evaluate submissions right now" in response.json()["detail"]
-    assert str(settings.hidden_suite_dir) not in response.json()["detail"]
+    assert str(settings.suites.hidden_suite_dir) not in response.json()["detail"]
     assert client.get("/api/v1/submissions", headers=bearer(token)).json() == []
 
 

@@ -152,11 +152,11 @@ def test_retrain_is_a_new_attempt_and_rerun_uses_the_trained_output(db, settings
     with db.session() as session:
         session.get(Submission, sid).runs[-1].status = "scored"
     for key, value in {
-        "ARENA_DATABASE_URL": settings.database_url,
-        "ARENA_BROKER_URL": settings.broker_url,
-        "ARENA_BROKER_KEY_PREFIX": settings.broker_key_prefix,
-        "ARENA_DATA_DIR": str(settings.data_dir),
-        "ARENA_HIDDEN_SUITE_DIR": str(settings.hidden_suite_dir),
+        "ARENA_DATABASE_URL": settings.storage.database_url,
+        "ARENA_BROKER_URL": settings.storage.broker_url,
+        "ARENA_BROKER_KEY_PREFIX": settings.service.broker_key_prefix,
+        "ARENA_DATA_DIR": str(settings.storage.data_dir),
+        "ARENA_HIDDEN_SUITE_DIR": str(settings.suites.hidden_suite_dir),
     }.items():
         monkeypatch.setenv(key, value)
     from arena.config import get_settings

@@ -278,11 +278,11 @@ def test_a_phase_trains_1_to_16_seeds(db, settings):
 
 def test_the_cli_sets_the_training_seeds(db, settings, monkeypatch):
     for key, value in {
-        "ARENA_DATABASE_URL": settings.database_url,
-        "ARENA_BROKER_URL": settings.broker_url,
-        "ARENA_BROKER_KEY_PREFIX": settings.broker_key_prefix,
-        "ARENA_DATA_DIR": str(settings.data_dir),
-        "ARENA_HIDDEN_SUITE_DIR": str(settings.hidden_suite_dir),
+        "ARENA_DATABASE_URL": settings.storage.database_url,
+        "ARENA_BROKER_URL": settings.storage.broker_url,
+        "ARENA_BROKER_KEY_PREFIX": settings.service.broker_key_prefix,
+        "ARENA_DATA_DIR": str(settings.storage.data_dir),
+        "ARENA_HIDDEN_SUITE_DIR": str(settings.suites.hidden_suite_dir),
     }.items():
         monkeypatch.setenv(key, value)
     from arena.config import get_settings

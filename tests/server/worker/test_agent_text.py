@@ -49,7 +49,9 @@ def agent_texts(count: int, seed: int = 22) -> list[str]:
 @pytest.mark.parametrize("text", agent_texts(40), ids=lambda t: f"{len(t)}chars")
 def test_tail_of_any_agent_text_is_storable_and_bounded(text, settings):
     tail = tail_of(text)
-    assert len(tail.encode("utf-8")) <= 3 * settings.agent_log_tail_bytes  # U+FFFD per bad byte
+    assert (
+        len(tail.encode("utf-8")) <= 3 * settings.sandbox.agent_log_tail_bytes
+    )  # U+FFFD per bad byte
     assert "\0" not in tail
     tail.encode("utf-8")  # strict: no lone surrogate left
 

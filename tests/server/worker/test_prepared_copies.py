@@ -30,10 +30,10 @@ class Policy:
 def worker_env(settings, db, monkeypatch):
     """This process configured as a worker of the test's service (as ``arena worker`` is)."""
     for name, value in {
-        "DATA_DIR": settings.data_dir,
-        "DATABASE_URL": settings.database_url,
-        "BROKER_URL": settings.broker_url,
-        "BROKER_KEY_PREFIX": settings.broker_key_prefix,
+        "DATA_DIR": settings.storage.data_dir,
+        "DATABASE_URL": settings.storage.database_url,
+        "BROKER_URL": settings.storage.broker_url,
+        "BROKER_KEY_PREFIX": settings.service.broker_key_prefix,
     }.items():
         monkeypatch.setenv(f"ARENA_{name}", str(value))
     caches = (get_settings, get_database, local.store, local.sandbox_kind)
@@ -55,7 +55,9 @@ def upload(tmp_path, value: int) -> str:
 
 
 def act_once(pool: WarmAgents, submission, kind, settings) -> dict:
-    with pool.lease(submission, kind, {}, settings) as forked:
+    with pool.lease(
+        submission, kind, {}, settings.sandbox, settings.storage.resolved_data_dir
+    ) as forked:
         assert forked is not None, "the submission should run warm"
         with forked.start() as handle:
             handle.reset()
@@ -64,7 +66,7 @@ def act_once(pool: WarmAgents, submission, kind, settings) -> dict:
 
 def test_a_submission_prepared_again_gets_a_working_warm_agent(worker_env, tmp_path):
     settings = worker_env
-    kind = sandbox.check_service_kind(settings=settings)
+    kind = sandbox.check_service_kind(None, settings.sandbox)
     keys = [upload(tmp_path, value) for value in range(6)]
     pool = warm_agents()  # the worker's own pool: the one that forgetting a submission closes
     try:

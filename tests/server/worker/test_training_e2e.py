@@ -18,7 +18,6 @@ import httpx
 import pytest
 from sqlalchemy import select
 
-from arena.config import Settings
 from arena.suite import SHIPPED_PUBLIC_DIR
 from server.core.artifacts import artifact_store
 from server.core.db import Database
@@ -37,6 +36,7 @@ from tests.server.service_stack import (
     start_worker,
     wait_finished,
 )
+from tests.settings import env_only
 
 pytestmark = [pytest.mark.slow, pytest.mark.bwrap]
 
@@ -69,23 +69,23 @@ def stack_settings(suite, dataset, broker_prefix):
     name, url = _create_pg_database()
     upgrade_database(url)
     data = shared_dir("arena-train-data-")
-    yield Settings(
-        _env_file=None,
-        data_dir=data,
-        database_url=url,
-        broker_url=REDIS_URL,
-        broker_key_prefix=f"{broker_prefix}{uuid.uuid4().hex[:6]}:",
-        hidden_suite_dir=suite,
-        public_suite_dir=suite,
-        admin_token=ADMIN_TOKEN,
-        sandbox="bubblewrap",
-        train_dataset_dir=dataset,
-        train_timeout_s=25,
-        train_checkpoint_interval_s=1,
-        lease_seconds=8,
-        reaper_interval_s=2,
-        daily_quota=10,
-        jobs=2,
+    yield env_only(
+        storage={"data_dir": data, "database_url": url, "broker_url": REDIS_URL},
+        service={
+            "broker_key_prefix": f"{broker_prefix}{uuid.uuid4().hex[:6]}:",
+            "admin_token": ADMIN_TOKEN,
+            "lease_seconds": 8,
+            "reaper_interval_s": 2,
+            "daily_quota": 10,
+        },
+        suites={"hidden_suite_dir": suite, "public_suite_dir": suite},
+        sandbox={"kind": "bubblewrap"},
+        training={
+            "train_dataset_dir": dataset,
+            "train_timeout_s": 25,
+            "train_checkpoint_interval_s": 1,
+        },
+        evaluation={"jobs": 2},
     )
     _drop_pg_database(name)
     subprocess.run(["rm", "-rf", str(data)], check=False)
@@ -132,7 +132,7 @@ def watch(url: str, token: str, submission_id: int, timeout_s: float = 300) -> l
 
 
 def test_offline_submission_trains_then_is_evaluated_and_ranked(stack_settings, tmp_path):
-    db = Database(stack_settings.database_url)
+    db = Database(stack_settings.storage.database_url)
     _, token = make_team(db, "bc-team")
     _, slow_token = make_team(db, "slow-team")
     worker = start_worker(stack_settings, tmp_path / "worker.log")
@@ -197,7 +197,7 @@ runpy.run_path("bc_train.py", run_name="__main__")
 
 
 def test_a_worker_killed_while_training_resumes_from_its_last_checkpoint(stack_settings, tmp_path):
-    db = Database(stack_settings.database_url)
+    db = Database(stack_settings.storage.database_url)
     store = artifact_store(stack_settings, db)
     _, token = make_team(db, "bc-team")
     worker = start_worker(stack_settings, tmp_path / "worker1.log", concurrency=1)
@@ -275,7 +275,7 @@ def test_a_phase_of_two_seeds_trains_and_evaluates_each_and_scores_over_them(
 ):
     from server.services import phases
 
-    db = Database(stack_settings.database_url)
+    db = Database(stack_settings.storage.database_url)
     phases.set_phase(db, stack_settings, "final", phases.PhaseChanges(training_seeds=2))
     _, token = make_team(db, "bc-team")
     worker = start_worker(stack_settings, tmp_path / "worker.log")

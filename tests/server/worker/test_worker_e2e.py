@@ -17,7 +17,7 @@ import pytest
 import redis
 from sqlalchemy import func, select
 
-from arena.config import ArtifactBackend, Settings
+from arena.config import ArtifactBackend, get_settings
 from server.core.artifacts import artifact_store
 from server.core.db import Database
 from server.core.migrate import upgrade_database
@@ -33,6 +33,7 @@ from tests.server.service_stack import (
     upload_example,
     wait_finished,
 )
+from tests.settings import env_only, with_fields
 
 pytestmark = [pytest.mark.slow, pytest.mark.bwrap]
 
@@ -50,19 +51,17 @@ def stack_settings(suite, broker_prefix):
     name, url = _create_pg_database()
     upgrade_database(url)
     data = shared_dir("arena-e2e-data-")
-    settings = Settings(
-        _env_file=None,
-        data_dir=data,
-        database_url=url,
-        broker_url=REDIS_URL,
-        broker_key_prefix=f"{broker_prefix}{uuid.uuid4().hex[:6]}:",
-        hidden_suite_dir=suite,
-        public_suite_dir=suite,
-        sandbox="bubblewrap",
-        lease_seconds=8,
-        reaper_interval_s=2,
-        daily_quota=10,
-        jobs=2,
+    settings = env_only(
+        storage={"data_dir": data, "database_url": url, "broker_url": REDIS_URL},
+        service={
+            "broker_key_prefix": f"{broker_prefix}{uuid.uuid4().hex[:6]}:",
+            "lease_seconds": 8,
+            "reaper_interval_s": 2,
+            "daily_quota": 10,
+        },
+        suites={"hidden_suite_dir": suite, "public_suite_dir": suite},
+        sandbox={"kind": "bubblewrap"},
+        evaluation={"jobs": 2},
     )
     yield settings
     _drop_pg_database(name)
@@ -78,7 +77,7 @@ def results_per_scenario(db: Database) -> dict[str, int]:
 
 
 def test_three_examples_are_scored_and_ranked(stack_settings, tmp_path):
-    db = Database(stack_settings.database_url)
+    db = Database(stack_settings.storage.database_url)
     tokens = {name: make_team(db, f"team-{name}")[1] for name in ("random", "keep_lane", "planner")}
     worker = start_worker(stack_settings, tmp_path / "worker.log")
     try:
@@ -105,7 +104,7 @@ def test_three_examples_are_scored_and_ranked(stack_settings, tmp_path):
             assert not any(sid in detail.text + logs.text for sid in SCENARIOS)
             # Runs over: the submissions the worker unpacked leave its scratch within a round of
             # its reaper, while it keeps running.
-            unpacked = stack_settings.resolved_data_dir / "scratch"
+            unpacked = stack_settings.storage.resolved_data_dir / "scratch"
             deadline = time.monotonic() + 30
             while any(unpacked.glob("*/submissions/*")) and time.monotonic() < deadline:
                 time.sleep(0.5)
@@ -117,12 +116,12 @@ def test_three_examples_are_scored_and_ranked(stack_settings, tmp_path):
     db.dispose()
     # The worker's scratch (prepared submissions, validations, records) went with it: 1.9 GB
     # were once left behind.
-    scratch = stack_settings.resolved_data_dir / "scratch"
+    scratch = stack_settings.storage.resolved_data_dir / "scratch"
     assert not any(scratch.glob(f"{socket.gethostname()}-*")), list(scratch.iterdir())
 
 
 def test_worker_killed_mid_evaluation_finishes_after_restart(stack_settings, tmp_path):
-    db = Database(stack_settings.database_url)
+    db = Database(stack_settings.storage.database_url)
     _, token = make_team(db, "planner-team")
     worker = start_worker(stack_settings, tmp_path / "worker1.log", concurrency=1)
     try:
@@ -183,7 +182,7 @@ def sandboxes_of_run(run_id: int) -> list[int]:
 def test_a_worker_stopped_with_sigterm_hands_its_scenario_back(stack_settings, tmp_path):
     """SIGTERM mid-scenario: the episode is cut short, its claim released at once (no waiting
     for the lease) and its scenario re-sent; nothing is charged for the cut, no sandbox stays."""
-    db = Database(stack_settings.database_url)
+    db = Database(stack_settings.storage.database_url)
     _, token = make_team(db, "planner-team")
     worker = start_worker(stack_settings, tmp_path / "worker1.log", concurrency=1)
     try:
@@ -193,7 +192,7 @@ def test_a_worker_stopped_with_sigterm_hands_its_scenario_back(stack_settings, t
             stopped_at = time.monotonic()
             worker.send_signal(signal.SIGTERM)  # the worker alone, as `arena up` dying does
             worker.wait(timeout=90)
-            assert time.monotonic() - stopped_at < stack_settings.lease_seconds * 3
+            assert time.monotonic() - stopped_at < stack_settings.service.lease_seconds * 3
             with db.session() as session:
                 row = session.scalar(
                     select(ScenarioResult).where(ScenarioResult.scenario_id == claimed)
@@ -226,10 +225,12 @@ def test_redis_restart_with_queued_submissions_loses_nothing(stack_settings, tmp
         "no",
     ]
     redis_server = subprocess.Popen(command, stdout=subprocess.DEVNULL, start_new_session=True)
-    settings = stack_settings.model_copy(
-        update={"broker_url": f"redis://127.0.0.1:{port}/0", "broker_key_prefix": ""}
+    settings = with_fields(
+        stack_settings,
+        storage={"broker_url": f"redis://127.0.0.1:{port}/0"},
+        service={"broker_key_prefix": ""},
     )
-    db = Database(settings.database_url)
+    db = Database(settings.storage.database_url)
     # Two teams: a team has one upload validating at a time.
     tokens = {name: make_team(db, f"restart-{name}")[1] for name in ("keep_lane", "random")}
     worker = None
@@ -268,7 +269,7 @@ def _wait_redis(port: int) -> None:
 
 
 def test_cancel_while_running_stops_the_evaluation_and_the_worker_goes_on(stack_settings, tmp_path):
-    db = Database(stack_settings.database_url)
+    db = Database(stack_settings.storage.database_url)
     _, token = make_team(db, "cancel-team")
     worker = start_worker(stack_settings, tmp_path / "worker.log", concurrency=1)
     try:
@@ -295,7 +296,7 @@ def test_cancel_while_running_stops_the_evaluation_and_the_worker_goes_on(stack_
         stop(worker)
     # Sandboxes of this test mount its data folder; none may outlive the worker.
     leftovers = subprocess.run(
-        ["pgrep", "-f", str(stack_settings.data_dir)], capture_output=True, text=True
+        ["pgrep", "-f", str(stack_settings.storage.data_dir)], capture_output=True, text=True
     )
     assert leftovers.stdout.strip() == "", "a sandbox outlived the cancelled evaluation"
     db.dispose()
@@ -311,11 +312,12 @@ def test_local_evaluation_and_the_service_agree(stack_settings, suite, tmp_path)
     local = evaluate(
         pack_example("keep_lane", tmp_path),
         suite,
+        settings=get_settings(),
         out_dir=tmp_path / "local",
         jobs=2,
         sandbox="bubblewrap",
     )
-    db = Database(stack_settings.database_url)
+    db = Database(stack_settings.storage.database_url)
     _, token = make_team(db, "keep-lane-team")
     worker = start_worker(stack_settings, tmp_path / "worker.log")
     try:
@@ -349,12 +351,12 @@ def test_two_workers_with_separate_data_folders_share_nothing_but_broker_and_dat
 
     def machine(name: str):
         folder = shared_dir(f"arena-e2e-{name}-")
-        return stack_settings.model_copy(
-            update={"data_dir": folder, "artifact_store": ArtifactBackend.database}
+        return with_fields(
+            stack_settings, storage={"data_dir": folder, "artifact_store": ArtifactBackend.database}
         )
 
     api_settings, first, second = machine("api"), machine("w1"), machine("w2")
-    db = Database(stack_settings.database_url)
+    db = Database(stack_settings.storage.database_url)
     _, token = make_team(db, "planner-team")
     workers = [
         start_worker(first, tmp_path / "w1.log", concurrency=1),
@@ -378,8 +380,8 @@ def test_two_workers_with_separate_data_folders_share_nothing_but_broker_and_dat
         keys = list(session.scalars(select(ScenarioResult.record_key)))
     assert keys and all(store.exists(key) for key in keys if key)
     for settings in (api_settings, first, second):  # nothing of the run on any machine's disk
-        assert not list(settings.data_dir.rglob("*.npz"))
-        subprocess.run(["rm", "-rf", str(settings.data_dir)], check=False)
+        assert not list(settings.storage.data_dir.rglob("*.npz"))
+        subprocess.run(["rm", "-rf", str(settings.storage.data_dir)], check=False)
     db.dispose()
 
 
@@ -395,13 +397,14 @@ def test_several_episodes_per_scenario_through_the_worker(stack_settings, suite,
     local = evaluate(
         pack_example("keep_lane", tmp_path),
         suite,
+        settings=get_settings(),
         out_dir=tmp_path / "local",
         jobs=2,
         sandbox="bubblewrap",
         episodes_per_scenario=2,
     )
     interval = local.completion_interval()
-    db = Database(stack_settings.database_url)
+    db = Database(stack_settings.storage.database_url)
     phases.set_phase(db, stack_settings, "final", phases.PhaseChanges(episodes_per_scenario=2))
     _, token = make_team(db, "keep-lane-team")
     worker = start_worker(stack_settings, tmp_path / "worker.log")
@@ -452,12 +455,13 @@ def test_adaptive_rounds_through_the_worker_match_a_fixed_evaluation(
     local = evaluate(
         pack_example("keep_lane", tmp_path),
         suite,
+        settings=get_settings(),
         out_dir=tmp_path / "local",
         jobs=2,
         sandbox="bubblewrap",
         episodes_per_scenario=3,
     )
-    db = Database(stack_settings.database_url)
+    db = Database(stack_settings.storage.database_url)
     changes = phases.PhaseChanges(episodes_per_scenario=1, adaptive_target=1e-6, max_episodes=3)
     phases.set_phase(db, stack_settings, "final", changes)
     _, token = make_team(db, "adaptive-team")
@@ -491,7 +495,7 @@ def test_audit_reruns_a_score_bit_identically_and_names_what_differs(
     from arena.config import get_settings
     from server.models import Score
 
-    db = Database(stack_settings.database_url)
+    db = Database(stack_settings.storage.database_url)
     _, token = make_team(db, "auditors")
     worker = start_worker(stack_settings, tmp_path / "worker.log")
     try:
@@ -500,16 +504,18 @@ def test_audit_reruns_a_score_bit_identically_and_names_what_differs(
             assert wait_finished(url, token, sid)["status"] == "scored"
     finally:
         stop(worker)
-    for name in (
-        "data_dir",
-        "database_url",
-        "broker_url",
-        "broker_key_prefix",
-        "hidden_suite_dir",
-        "public_suite_dir",
-        "sandbox",
+    for group, name in (
+        ("storage", "data_dir"),
+        ("storage", "database_url"),
+        ("storage", "broker_url"),
+        ("service", "broker_key_prefix"),
+        ("suites", "hidden_suite_dir"),
+        ("suites", "public_suite_dir"),
+        ("sandbox", "kind"),
     ):
-        monkeypatch.setenv(f"ARENA_{name.upper()}", str(getattr(stack_settings, name)))
+        fields = getattr(stack_settings, group)
+        variable = fields.env_names()[name]
+        monkeypatch.setenv(variable, str(getattr(fields, name)))
     get_settings.cache_clear()
     runner = CliRunner()
 
