@@ -281,6 +281,7 @@ class LeaderboardCache:
     at most every ``recheck_s`` seconds, so a new score shows within that delay and a burst of
     requests costs no database work at all. While one request recomputes a board, the others are
     served the board it replaces (only the very first computation of a board is waited for).
+    Each board has its own lock: computing one never holds up a request for another.
     """
 
     def __init__(self, db: Database, recheck_s: float = 1.0) -> None:
@@ -288,7 +289,10 @@ class LeaderboardCache:
         self.recheck_s = recheck_s
         self._cached: dict[tuple[str, Track], _Cached] = {}
         self._replicates: dict[tuple[str, Track], Replicates] = {}
-        self._lock = threading.Lock()
+        self._locks: dict[tuple[str, Track], threading.Lock] = {}
+
+    def _lock(self, key: tuple[str, Track]) -> threading.Lock:
+        return self._locks.setdefault(key, threading.Lock())  # atomic: one lock per board
 
     def fresh(self, track: Track, phase: str = DEFAULT_PHASE) -> _Cached | None:
         """The cached board if it needs no database look (cheap enough for the event loop)."""
@@ -301,14 +305,16 @@ class LeaderboardCache:
         cached = self.fresh(track, phase)
         if cached is not None:
             return cached
+        key = (phase, track)
         moment = time.monotonic()
-        stale = self._cached.get((phase, track))
-        if not self._lock.acquire(blocking=stale is None):
+        stale = self._cached.get(key)
+        lock = self._lock(key)
+        if not lock.acquire(blocking=stale is None):
             # Another request is re-ranking (a new score resamples its entry): the board it
             # replaces is served meanwhile, so a burst never queues behind the computation.
             return stale
         try:
-            cached = self._cached.get((phase, track))
+            cached = self._cached.get(key)
             if cached is not None and cached.checked_at >= moment:
                 # Checked while this request waited for the lock: nothing older is served.
                 return cached
@@ -316,22 +322,31 @@ class LeaderboardCache:
                 get_phase(session, phase)  # an unknown phase is a 404, never cached
                 current = generation(session)
                 if cached is None or cached.generation != current:
-                    known = self._replicates.setdefault((phase, track), {})
-                    board = compute(session, track, phase, known)
-                    cached = _Cached(current, moment, board, board.model_dump_json().encode())
+                    cached = self._compute(session, key, current, moment)
                 else:
                     cached.checked_at = moment
-            self._cached[(phase, track)] = cached
+            self._cached[key] = cached
             return cached
         finally:
-            self._lock.release()
+            lock.release()
+
+    def _compute(
+        self, session: Session, key: tuple[str, Track], current: int, moment: float
+    ) -> _Cached:
+        phase, track = key
+        board = compute(session, track, phase, self._replicates.setdefault(key, {}))
+        return _Cached(current, moment, board, board.model_dump_json().encode())
 
     def warm(self) -> None:
-        """Compute every phase's boards once, so that the first request after a start finds
-        the bootstrap replicates made (seconds for a few hundred entries) and only looks at the
-        generation: a score written meanwhile still shows at once."""
+        """Compute every board no request has asked for yet, so that the first request after a
+        start finds the bootstrap replicates made (seconds for a few hundred entries). A warmed
+        board counts as never checked: its first request still looks at the generation, so a
+        score written meanwhile shows at once."""
         with self.db.read_session() as session:
-            names = [phase.name for phase in list_phases(session)]
-        for name in names:
-            for track in Track:
-                self.get(track, name).checked_at = -math.inf
+            keys = [(phase.name, track) for phase in list_phases(session) for track in Track]
+        for key in keys:
+            with self._lock(key):
+                if key in self._cached:
+                    continue  # a request came first
+                with self.db.read_session() as session:
+                    self._cached[key] = self._compute(session, key, generation(session), -math.inf)

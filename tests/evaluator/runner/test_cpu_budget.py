@@ -8,6 +8,7 @@ import json
 
 import pytest
 
+from arena.config import get_settings
 from arena.cpu_limits import CpuLimits
 from evaluator.runner import evaluate
 from evaluator.runner.cpu_budget import AGENT_CPU_FILE, read_agent_cpu
@@ -48,6 +49,7 @@ def run(source, suite, out, ids, budget_s: float, force: bool = False):
     return evaluate(
         source,
         suite,
+        settings=get_settings(),
         out_dir=out,
         scenario_ids=ids,
         jobs=1,
@@ -107,7 +109,6 @@ def test_arena_evaluate_says_the_budget_was_passed_and_exits_1(public_suite, tmp
     from typer.testing import CliRunner
 
     from arena.cli import app
-    from arena.config import get_settings
 
     ids = few_scenarios(public_suite, 2)
     source = write_policy(tmp_path / "busy", BUSY_POLICY)

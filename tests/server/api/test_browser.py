@@ -120,7 +120,7 @@ def test_upload_through_the_form_and_read_the_result(embedded_settings, tmp_path
     finally:
         stop(worker)
     # Every episode's agent CPU was measured in the worker's sandbox and stored.
-    db = Database(embedded_settings.resolved_database_url)
+    db = Database(embedded_settings.storage.resolved_database_url)
     with db.read_session() as session:
         used = session.scalars(select(ScenarioResult.agent_cpu_s)).all()
     db.dispose()

@@ -207,9 +207,20 @@ def test_while_a_board_is_recomputed_the_previous_one_is_served(settings, db):
     cache = LeaderboardCache(db, recheck_s=0)
     assert cache.get(Track.freestyle).board.entries == []
     seed_scored(db, team, (0.5, 500.0, 0.2, 0.0))
-    with cache._lock:  # another request is computing
+    with cache._lock(("final", Track.freestyle)):  # another request is computing it
         assert cache.get(Track.freestyle).board.entries == []
     assert [e.team for e in cache.get(Track.freestyle).board.entries] == ["a"]
+
+
+def test_computing_one_board_holds_up_no_other(settings, db):
+    """The start-up warm-up computing another phase's board must not make a request for this
+    one take its older board."""
+    team, _ = make_team(db, "a")
+    cache = LeaderboardCache(db, recheck_s=0)
+    assert cache.get(Track.freestyle).board.entries == []
+    seed_scored(db, team, (0.5, 500.0, 0.2, 0.0))
+    with cache._lock(("validation", Track.freestyle)), cache._lock(("final", Track.offline)):
+        assert [e.team for e in cache.get(Track.freestyle).board.entries] == ["a"]
 
 
 def test_the_generalisation_gap_to_another_phase(client, db):
