@@ -12,9 +12,11 @@ evaluator path from the simulator's observation dict to the actions, once per fo
 
 - ``native``: pickle the observation dicts, frame, write; the runner unpickles, calls the policy,
   answers in JSON; we decode the JSON.
-- ``arrays``: encode the observation into its fixed-shape record (``sim/observation_arrays.py``),
-  write the binary act frame; the runner copies each record and makes its numpy views, calls the
-  policy, answers in JSON; we decode the JSON.
+- ``arrays``: the simulator writes each agent's observation into its fixed-shape record in place
+  (``Simulation(arrays=True)``; here the round's record is written before the clock, by the
+  encoder, into one record per agent reused every round, as the simulator's is); write the binary
+  act frame of the records as they are; the runner copies each record and makes its numpy views,
+  calls the policy, answers in JSON; we decode the JSON.
 
 ``docker (forked)`` is an agent forked in a warm Docker sandbox, as evaluations run them
 (docs/protocol.md). The ``floor`` columns are the same round trip with an empty observation
@@ -42,6 +44,9 @@ import numpy as np
 from arena.config import SandboxKind, Settings
 from evaluator.sandbox import backend, start
 from evaluator.sandbox.warm import WarmAgent
+from sim.interface import AgentInterface
+from sim.observation_arrays import ObservationEncoder, ObservationLayout
+from sim.observation_record import ArraysObservation
 from submissions.intake import prepare_submission
 from submissions.sample import sample_observation
 from tests.settings import with_fields
@@ -88,6 +93,25 @@ def driving(step: int) -> dict[str, dict]:
             for waypoint in path:
                 waypoint["pos"][0] += dx
     return obs
+
+
+def in_place(interface: AgentInterface) -> Observations:
+    """``driving``'s observations as the simulator hands them to an arrays agent: each agent's
+    record rewritten in place every round (:class:`sim.observation_record.ArraysObservation`)."""
+    layout = ObservationLayout(interface)
+    records: dict[str, tuple[ObservationEncoder, bytearray]] = {}
+
+    def observations(step: int) -> dict[str, ArraysObservation]:
+        out = {}
+        for agent_id, observation in driving(step).items():
+            encoder, record = records.setdefault(
+                agent_id, (ObservationEncoder(layout), bytearray(layout.size))
+            )
+            encoder.write(observation, record)
+            out[agent_id] = ArraysObservation(record, layout.arrays(record), False, None, "", "")
+        return out
+
+    return observations
 
 
 def empty(fmt: str) -> Observations:
@@ -149,7 +173,7 @@ def main() -> None:
                 data_dir=settings.storage.resolved_data_dir,
                 labels=labels,
             ) as handle:
-                results.setdefault(name, {})[fmt] = both(handle.act, fmt, args.steps)
+                results.setdefault(name, {})[fmt] = both(handle.act, submission, args.steps)
         if kind is SandboxKind.docker:
             for fmt, submission in submissions.items():
                 warm = WarmAgent.start(
@@ -163,7 +187,7 @@ def main() -> None:
                 try:
                     with forked.start() as handle:
                         row = results.setdefault("docker (forked)", {})
-                        row[fmt] = both(handle.act, fmt, args.steps)
+                        row[fmt] = both(handle.act, submission, args.steps)
                 finally:
                     forked.close()
                     warm.close()
@@ -227,9 +251,12 @@ def floor_round_trip_ms(
         warm.close()
 
 
-def both(act, fmt: str, steps: int) -> tuple[np.ndarray, np.ndarray]:
-    """Round trips with fresh driving observations and with an empty observation [ms]."""
-    return timings_ms(act, driving, steps), timings_ms(act, empty(fmt), steps)
+def both(act, submission, steps: int) -> tuple[np.ndarray, np.ndarray]:
+    """Round trips with fresh driving observations, as the simulator hands them to the
+    submission's format, and with an empty observation [ms]."""
+    fmt = submission.interface.observation_format
+    fresh = in_place(submission.interface) if fmt == "arrays" else driving
+    return timings_ms(act, fresh, steps), timings_ms(act, empty(fmt), steps)
 
 
 def median_of(results: dict, name: str, fmt: str, column: int) -> float:
