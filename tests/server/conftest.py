@@ -14,8 +14,10 @@ import pytest
 import redis
 from fastapi.testclient import TestClient
 from sqlalchemy import text
+from typer.testing import CliRunner
 
-from arena.config import Settings
+from arena.cli import app
+from arena.config import Settings, get_settings
 from server.app import create_app
 from server.core.db import Database
 from server.core.migrate import upgrade_database
@@ -119,3 +121,27 @@ def db(settings) -> Iterator[Database]:
 def client(settings, db) -> Iterator[TestClient]:
     with TestClient(create_app(settings)) as test_client:
         yield test_client
+
+
+@pytest.fixture
+def arena(settings, db, monkeypatch):
+    """`arena admin ...` configured like a deployment, through ARENA_* variables naming this
+    test's database, broker and folders: ``arena("phases", "list")`` gives the output and
+    checks the exit status (``ok=False``: it must fail)."""
+    for name, value in {
+        "DATA_DIR": settings.storage.data_dir,
+        "DATABASE_URL": settings.storage.database_url,
+        "BROKER_URL": settings.storage.broker_url,
+        "BROKER_KEY_PREFIX": settings.service.broker_key_prefix,
+        "HIDDEN_SUITE_DIR": settings.suites.hidden_suite_dir,
+    }.items():
+        monkeypatch.setenv(f"ARENA_{name}", str(value))
+    get_settings.cache_clear()
+
+    def invoke(*args: str, ok: bool = True) -> str:
+        result = CliRunner().invoke(app, ["admin", *args])
+        assert (result.exit_code == 0) == ok, result.output
+        return result.output
+
+    yield invoke
+    get_settings.cache_clear()

@@ -21,27 +21,6 @@ from tests.server.worker.test_evaluation_flow import run_everything, start
 runner = CliRunner()
 
 
-@pytest.fixture
-def arena(settings, db, monkeypatch):
-    for name, value in {
-        "DATA_DIR": settings.storage.data_dir,
-        "DATABASE_URL": settings.storage.database_url,
-        "BROKER_URL": settings.storage.broker_url,
-        "BROKER_KEY_PREFIX": settings.service.broker_key_prefix,
-        "HIDDEN_SUITE_DIR": settings.suites.hidden_suite_dir,
-    }.items():
-        monkeypatch.setenv(f"ARENA_{name}", str(value))
-    get_settings.cache_clear()
-
-    def invoke(*args: str, ok: bool = True) -> str:
-        result = runner.invoke(app, ["admin", *args])
-        assert (result.exit_code == 0) == ok, result.output
-        return result.output
-
-    yield invoke
-    get_settings.cache_clear()
-
-
 def test_db_upgrade_is_idempotent(arena):
     from server.core.migrate import head_revision
 

@@ -7,9 +7,7 @@ from __future__ import annotations
 from datetime import timedelta
 
 import pytest
-from typer.testing import CliRunner
 
-from arena.cli import app
 from server.models import Submission, TrainingJob, utcnow
 from server.services import evaluation, submissions, training
 from server.services.errors import Conflict
@@ -135,7 +133,7 @@ def test_cancelling_stops_the_training(db, settings, client):
     assert trained(db, settings, job, "w1") is None
 
 
-def test_retrain_is_a_new_attempt_and_rerun_uses_the_trained_output(db, settings, monkeypatch):
+def test_retrain_is_a_new_attempt_and_rerun_uses_the_trained_output(db, settings, arena):
     sid = offline(db)
     job = claim(db, settings, started(db, settings, sid), "w1")
     plan = trained(db, settings, job, "w1")
@@ -151,23 +149,7 @@ def test_retrain_is_a_new_attempt_and_rerun_uses_the_trained_output(db, settings
     assert rerun.run_id != plan.run_id
     with db.session() as session:
         session.get(Submission, sid).runs[-1].status = "scored"
-    for key, value in {
-        "ARENA_DATABASE_URL": settings.storage.database_url,
-        "ARENA_BROKER_URL": settings.storage.broker_url,
-        "ARENA_BROKER_KEY_PREFIX": settings.service.broker_key_prefix,
-        "ARENA_DATA_DIR": str(settings.storage.data_dir),
-        "ARENA_HIDDEN_SUITE_DIR": str(settings.suites.hidden_suite_dir),
-    }.items():
-        monkeypatch.setenv(key, value)
-    from arena.config import get_settings
-
-    get_settings.cache_clear()
-    try:
-        result = CliRunner().invoke(app, ["admin", "retrain", str(sid)])
-    finally:
-        get_settings.cache_clear()
-    assert result.exit_code == 0, result.output
-    assert "training attempt 2 queued" in result.output
+    assert "training attempt 2 queued" in arena("retrain", str(sid))
     with db.session() as session:
         jobs = session.get(Submission, sid).trainings
         assert [(j.attempt, j.status) for j in jobs] == [(1, "trained"), (2, "queued")]
