@@ -44,9 +44,6 @@ if ! docker info >/dev/null 2>&1; then
 fi
 
 # The agent image (offline: debootstrap + docker import; the root tarball is cached in the data dir).
-image="$(python3 -c 'from arena.config import get_settings; print(get_settings().agent_image)')"
-if ! docker image inspect "$image" >/dev/null 2>&1; then
-  log "building $image"
-  python3 -c 'from arena.cli import app; app()' sandbox build-image
-fi
-log "ready: bubblewrap, dockerd and $image"
+# The command is idempotent: it only reports an image that is already there.
+python3 -c 'from arena.cli import app; app()' sandbox build-image
+log "ready: bubblewrap and dockerd"
