@@ -20,7 +20,6 @@ from tests.server.builders import (
     queued_submission,
     seed_scored,
 )
-from tests.server.test_admin_cli import arena  # noqa: F401  (the fixture)
 
 FORMULA = '=HYPERLINK("http://127.0.0.1/x","click")'
 MARKUP = "lane [/] keeper [bold red]x"
@@ -40,7 +39,7 @@ def test_a_formula_in_a_method_name_stays_text_in_the_public_csv(client, db, nam
     assert row[header.index("completion")] == "0.5"  # numbers are left alone
 
 
-def test_the_organisers_export_defuses_formulas_too(arena, db):  # noqa: F811
+def test_the_organisers_export_defuses_formulas_too(arena, db):
     team, _ = make_team(db, "alpha")
     seed_scored(db, team, (0.5, 100.0, 0.1, 0.1), method_name=FORMULA)
     header, row = rows_of(arena("leaderboard", "export", "--phase", "final"))
@@ -66,7 +65,7 @@ def test_markup_in_a_method_name_neither_crashes_nor_styles_a_terminal_table():
     assert "\x1b]" not in shown and "\x07" not in shown
 
 
-def test_admin_submissions_list_on_a_terminal_shows_markup_as_text(arena, db, monkeypatch):  # noqa: F811
+def test_admin_submissions_list_on_a_terminal_shows_markup_as_text(arena, db, monkeypatch):
     import server.cli
 
     team, _ = make_team(db, "alpha")
@@ -79,7 +78,7 @@ def test_admin_submissions_list_on_a_terminal_shows_markup_as_text(arena, db, mo
 
 
 def test_the_organisers_log_view_shows_escape_sequences_and_marks_the_agents_lines(
-    arena,  # noqa: F811
+    arena,
     db,
     settings,
 ):
