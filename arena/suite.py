@@ -16,7 +16,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, ValidationError
 
-from arena.config import Settings
+from arena.config import SuiteSettings
 from arena.errors import SuiteError
 from arena.scenario import DataLabel, Family
 
@@ -142,22 +142,21 @@ def write_manifest(root: Path, manifest: SuiteManifest) -> None:
     (Path(root) / MANIFEST_FILE).write_text(manifest.to_json())
 
 
-def public_suite_dir(settings: Settings) -> Path:
+def public_suite_dir(suites: SuiteSettings) -> Path:
     """The public set: configured, else the one shipped in the repository."""
-    return settings.suites.public_suite_dir or SHIPPED_PUBLIC_DIR
+    return suites.public_suite_dir or SHIPPED_PUBLIC_DIR
 
 
-def hidden_suite_dir(settings: Settings) -> Path:
-    """The hidden suite every submission is evaluated on."""
-    return (
-        settings.suites.hidden_suite_dir or settings.storage.resolved_data_dir / "suites" / HIDDEN
-    )
+def hidden_suite_dir(suites: SuiteSettings, data_dir: Path) -> Path:
+    """The hidden suite every submission is evaluated on: configured, else under the (resolved)
+    data folder."""
+    return suites.hidden_suite_dir or data_dir / "suites" / HIDDEN
 
 
-def resolve_suite(suite: str | Path, settings: Settings) -> Path:
+def resolve_suite(suite: str | Path, suites: SuiteSettings, data_dir: Path) -> Path:
     """``public`` and ``hidden`` name the configured suites; anything else is a suite folder."""
     if str(suite) == PUBLIC:
-        return public_suite_dir(settings)
+        return public_suite_dir(suites)
     if str(suite) == HIDDEN:
-        return hidden_suite_dir(settings)
+        return hidden_suite_dir(suites, data_dir)
     return Path(suite)

@@ -99,11 +99,14 @@ def timed_evaluation(
     episodes: int = 1,
 ) -> SuiteRun:
     """``episodes`` of each reactive scenario; ``scenario_s`` is then by episode name."""
+    settings = get_settings()
     started = time.perf_counter()
     summary = evaluate(
         agent,
         suite,
-        settings=get_settings(),
+        intake=settings.intake,
+        config=settings.sandbox,
+        data_dir=settings.storage.resolved_data_dir,
         out_dir=out,
         scenario_ids=ids,
         jobs=jobs,

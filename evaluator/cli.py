@@ -105,8 +105,10 @@ def evaluate(
         with _exit_on_error(console):
             summary = run_evaluation(
                 path,
-                resolve_suite(suite, settings),
-                settings=settings,
+                resolve_suite(suite, settings.suites, settings.storage.resolved_data_dir),
+                intake=settings.intake,
+                config=settings.sandbox,
+                data_dir=settings.storage.resolved_data_dir,
                 out_dir=out,
                 per_submission=per_submission,
                 force=force,
@@ -329,6 +331,7 @@ def replay(
     from arena.suite import resolve_suite
     from evaluator.viewer.export import find_record, write_replay
 
+    settings = get_settings()
     console = make_console(stderr=True)
     with _exit_on_error(console):
         record = find_record(source, scenario_id)
@@ -336,7 +339,7 @@ def replay(
         with _FrameProgress(console) as progress:
             write_replay(
                 record,
-                resolve_suite(suite, get_settings()),
+                resolve_suite(suite, settings.suites, settings.storage.resolved_data_dir),
                 fmt,
                 out,
                 every=every,

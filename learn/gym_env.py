@@ -8,6 +8,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from arena.config import Settings, get_settings
 from evaluator.scoring import DEFAULT_PROFILE
 from learn.protocol import Config, Reply, Simulator, SimulatorMode, check_simulator_mode
 from learn.reward import RewardFn, RewardInput, default_reward
@@ -68,7 +69,9 @@ class DrivingArenaEnv(gym.Env):
     ``simulator`` (where the simulator runs: ``"auto"``, ``"in_process"`` or ``"subprocess"``,
     see :func:`learn.simulators.open_simulator`) and ``render_mode`` (``"rgb_array"``:
     ``render()`` returns a top-down picture around the agent with its goal, :mod:`learn.render`;
-    for ``gymnasium.wrappers.RecordVideo``).
+    for ``gymnasium.wrappers.RecordVideo``) and ``settings`` (where the suites ``public`` and
+    ``hidden`` are; default: read from the environment, since ``gymnasium.make`` has none to
+    hand).
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}  # noqa: RUF012 - gymnasium's
@@ -84,13 +87,21 @@ class DrivingArenaEnv(gym.Env):
         traffic_seed: str = "scenario",
         simulator: SimulatorMode = "auto",
         render_mode: str | None = None,
+        settings: Settings | None = None,
         **interface_options: Any,
     ) -> None:
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ValueError(f"render_mode is 'rgb_array' or None, not {render_mode!r}")
         self.render_mode = render_mode
         self.interface = AgentInterface(action_space=action_space, **interface_options)
-        self.scenarios = scenario_dirs(suite, scenario, agents=(1, 1))
+        settings = settings or get_settings()
+        self.scenarios = scenario_dirs(
+            suite,
+            scenario,
+            suites=settings.suites,
+            data_dir=settings.storage.resolved_data_dir,
+            agents=(1, 1),
+        )
         self.observation_space = observation_space(self.interface)
         self.action_space = _action_space(self.interface)
         self.reward_fn = reward_fn or default_reward

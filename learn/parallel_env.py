@@ -11,6 +11,7 @@ import numpy as np
 from gymnasium.utils import seeding
 from pettingzoo import ParallelEnv
 
+from arena.config import Settings, get_settings
 from arena.scenario import load_scenario
 from learn.gym_env import EpisodeState, _profile_name, start_episode, step_outcome
 from learn.protocol import Config, Simulator, SimulatorMode, check_simulator_mode
@@ -40,10 +41,18 @@ class DrivingArenaParallelEnv(ParallelEnv):
         profile: str | None = None,
         traffic_seed: str = "scenario",
         simulator: SimulatorMode = "auto",
+        settings: Settings | None = None,
         **interface_options: Any,
     ) -> None:
         self.interface = AgentInterface(action_space=action_space, **interface_options)
-        self.scenarios = scenario_dirs(suite, scenario, agents=agents)
+        settings = settings or get_settings()
+        self.scenarios = scenario_dirs(
+            suite,
+            scenario,
+            suites=settings.suites,
+            data_dir=settings.storage.resolved_data_dir,
+            agents=agents,
+        )
         ids = {m.agent_id for folder in self.scenarios for m in load_scenario(folder).missions}
         self.possible_agents = sorted(ids)
         self.agents: list[str] = []

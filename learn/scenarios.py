@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from arena.config import get_settings
+from arena.config import SuiteSettings
 from arena.scenario import SCENARIO_FILE, load_scenario
 from arena.suite import resolve_suite
 
@@ -13,15 +13,19 @@ def scenario_dirs(
     suite: str | Path = "public",
     scenario: str | Path | None = None,
     *,
+    suites: SuiteSettings,
+    data_dir: Path,
     agents: tuple[int, int] = (1, 3),
 ) -> tuple[Path, ...]:
     """The scenario folders of ``suite`` (``public``, a built suite folder, or one scenario's
     folder) whose number of mission agents is within ``agents`` (inclusive), sorted by name.
-    ``scenario`` narrows them to one: an id in the suite or a scenario folder."""
+    ``scenario`` narrows them to one: an id in the suite or a scenario folder. ``suites`` and
+    ``data_dir`` locate the suites ``public`` and ``hidden`` name (see
+    :func:`arena.suite.resolve_suite`)."""
     if scenario is not None and (Path(scenario) / SCENARIO_FILE).is_file():
         folders = [Path(scenario)]
     else:
-        root = resolve_suite(suite, get_settings())
+        root = resolve_suite(suite, suites, data_dir)
         if (root / SCENARIO_FILE).is_file():
             folders = [root]
         else:

@@ -221,7 +221,10 @@ def _suite(directory: str | Path):
     from arena.suite import load_suite, resolve_suite
 
     try:
-        return load_suite(resolve_suite(directory, get_settings()))
+        settings = get_settings()
+        return load_suite(
+            resolve_suite(directory, settings.suites, settings.storage.resolved_data_dir)
+        )
     except SuiteError as exc:
         raise typer.BadParameter(str(exc)) from exc
 
@@ -244,7 +247,7 @@ def show(
 
     folder = Path(scenario)
     if not (folder / "scenario.json").exists():
-        folder = (suite_dir or public_suite_dir(get_settings())) / scenario
+        folder = (suite_dir or public_suite_dir(get_settings().suites)) / scenario
     if not (folder / "scenario.json").exists():
         raise typer.BadParameter(f"no scenario {scenario!r} in {folder.parent}")
     out.write_text(draw_scenario(folder, step))

@@ -37,3 +37,9 @@ def sandbox_args(settings: Settings) -> dict[str, Any]:
     """What the sandbox layer takes (``evaluator.sandbox.start``, ``run_scenario``, ``train``):
     the sandbox group and the data folder that owns the sandboxes."""
     return {"config": settings.sandbox, "data_dir": settings.storage.resolved_data_dir}
+
+
+def evaluate_args(settings: Settings) -> dict[str, Any]:
+    """What ``evaluator.runner.evaluate`` takes of the settings: the intake's limits and the
+    sandbox layer's."""
+    return {"intake": settings.intake, **sandbox_args(settings)}

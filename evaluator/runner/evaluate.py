@@ -24,7 +24,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Protocol
 
-from arena.config import SandboxKind, SandboxSettings, Settings
+from arena.config import IntakeSettings, SandboxKind, SandboxSettings
 from arena.cpu_limits import CpuLimits
 from arena.episodes import Episode, episodes_of
 from arena.errors import ArenaError, SandboxUnavailable
@@ -69,7 +69,9 @@ def evaluate(
     source: Path,
     suite_dir: Path,
     *,
-    settings: Settings,
+    intake: IntakeSettings,
+    config: SandboxSettings,
+    data_dir: Path,
     out_dir: Path,
     scenario_ids: Sequence[str] | None = None,
     jobs: int = 1,
@@ -92,22 +94,21 @@ def evaluate(
     When the first ``fail_fast_after`` episodes all end with the agent failing to start, the
     rest are not run (the summary stays incomplete): one error, not one per scenario.
     ``model_dir`` is a trained output (``arena train``) the policy reads as ARENA_MODEL_DIR; the
-    results then belong to the submission and that model together. ``settings``: the intake's
-    limits, the sandbox's and the data folder (the requirements' cache, the sandboxes' owner).
-    The agent acts under ``cpu_limits`` (default: the sandbox settings'); once the CPU its
-    episodes used passes the evaluation's budget, the rest are not run (the summary stays
-    incomplete, and ``agent_cpu.json`` says why).
+    results then belong to the submission and that model together. ``intake`` and ``config``:
+    the intake's limits and the sandbox's; ``data_dir``: the data folder (the requirements'
+    cache, the sandboxes' owner). The agent acts under ``cpu_limits`` (default: ``config``'s);
+    once the CPU its episodes used passes the evaluation's budget, the rest are not run (the
+    summary stays incomplete, and ``agent_cpu.json`` says why).
     """
-    cpu_limits = cpu_limits or settings.sandbox.cpu_limits
+    cpu_limits = cpu_limits or config.cpu_limits
     scoring_profile = load_profile(profile)
-    sandbox = _usable_sandbox(sandbox, settings.sandbox)
-    data_dir = settings.storage.resolved_data_dir
+    sandbox = _usable_sandbox(sandbox, config)
     suite = load_suite(suite_dir).select(scenario_ids)
     out_dir = Path(out_dir)
     with tempfile.TemporaryDirectory(prefix="arena-submission-") as tmp:
         Path(tmp).chmod(0o755)  # sandboxes run the agent as another user, who must enter it
         submission = prepare_submission(
-            Path(source), Path(tmp) / "submission", settings.intake, settings.sandbox, data_dir
+            Path(source), Path(tmp) / "submission", intake, config, data_dir
         )
         identity = submission.sha256
         if model_dir is not None:
@@ -137,7 +138,7 @@ def evaluate(
                 submission,
                 suite.scenario_dir(episode.scenario_id),
                 out_dir / RECORDS_DIR,
-                config=settings.sandbox,
+                config=config,
                 data_dir=data_dir,
                 sandbox=sandbox,
                 episode=episode.index,

@@ -64,7 +64,7 @@ def build(
                 out,
                 settings.storage.resolved_data_dir / "cache" / "scenarios",
                 scenes,
-                public_suite_dir(settings) if public else None,
+                public_suite_dir(settings.suites) if public else None,
                 exclude_suite,
                 advance,
                 label=DataLabel(label.value) if label else None,

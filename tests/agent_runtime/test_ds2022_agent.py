@@ -12,6 +12,7 @@ import pytest
 
 from arena.config import SandboxKind, get_settings
 from evaluator.runner import evaluate
+from tests.settings import evaluate_args
 
 pytestmark = pytest.mark.slow
 
@@ -46,7 +47,7 @@ def test_a_ds2022_agent_runs_unmodified_on_the_numpy_it_pinned(kind, public_suit
     summary = evaluate(
         AGENT,
         public_suite,
-        settings=get_settings(),
+        **evaluate_args(get_settings()),
         out_dir=out,
         scenario_ids=SCENARIOS,
         sandbox=kind,

@@ -50,10 +50,10 @@ def test_shipped_manifest_round_trips_byte_for_byte():
 
 
 def test_public_and_hidden_are_located_from_the_settings(tmp_path):
-    settings = env_only(storage={"data_dir": tmp_path})
-    assert public_suite_dir(settings) == SHIPPED_PUBLIC_DIR
-    assert resolve_suite("public", settings) == SHIPPED_PUBLIC_DIR
-    assert resolve_suite("hidden", settings) == tmp_path.resolve() / "suites" / "hidden"
-    configured = env_only(suites={"public_suite_dir": tmp_path / "p"})
-    assert resolve_suite("public", configured) == tmp_path / "p"
-    assert resolve_suite(tmp_path / "x", settings) == tmp_path / "x"
+    suites = env_only().suites
+    assert public_suite_dir(suites) == SHIPPED_PUBLIC_DIR
+    assert resolve_suite("public", suites, tmp_path) == SHIPPED_PUBLIC_DIR
+    assert resolve_suite("hidden", suites, tmp_path) == tmp_path / "suites" / "hidden"
+    configured = env_only(suites={"public_suite_dir": tmp_path / "p"}).suites
+    assert resolve_suite("public", configured, tmp_path) == tmp_path / "p"
+    assert resolve_suite(tmp_path / "x", suites, tmp_path) == tmp_path / "x"

@@ -14,6 +14,7 @@ from evaluator.runner import evaluate
 from evaluator.runner.cpu_budget import AGENT_CPU_FILE, read_agent_cpu
 from tests.evaluator.runner.conftest import TEST_SANDBOX, write_policy
 from tests.evaluator.runner.test_evaluate import few_scenarios
+from tests.settings import evaluate_args
 
 pytestmark = [pytest.mark.slow, pytest.mark.integration]
 
@@ -49,7 +50,7 @@ def run(source, suite, out, ids, budget_s: float, force: bool = False):
     return evaluate(
         source,
         suite,
-        settings=get_settings(),
+        **evaluate_args(get_settings()),
         out_dir=out,
         scenario_ids=ids,
         jobs=1,

@@ -21,6 +21,7 @@ from evaluator.runner import evaluate, score_results_dir
 from evaluator.scoring import load_profile
 from evaluator.summary import read_summary
 from tests.evaluator.runner.conftest import TEST_SANDBOX, example, write_policy
+from tests.settings import evaluate_args
 
 pytestmark = pytest.mark.slow
 
@@ -60,7 +61,7 @@ def run(source: Path, suite: Path, out: Path, ids=None, jobs: int = 2):
     return evaluate(
         source,
         suite,
-        settings=get_settings(),
+        **evaluate_args(get_settings()),
         out_dir=out,
         scenario_ids=ids,
         jobs=jobs,
@@ -185,7 +186,7 @@ def test_evaluate_in_docker_sandbox(public_suite, tmp_path):
     summary = evaluate(
         steady(tmp_path),
         public_suite,
-        settings=get_settings(),
+        **evaluate_args(get_settings()),
         out_dir=tmp_path / "out",
         scenario_ids=ids,
         sandbox=SandboxKind.docker,
@@ -208,7 +209,7 @@ def test_episodes_repeat_reactive_scenarios_with_other_traffic(public_suite, tmp
     twice = evaluate(
         source,
         public_suite,
-        settings=get_settings(),
+        **evaluate_args(get_settings()),
         out_dir=tmp_path / "twice",
         scenario_ids=ids,
         jobs=2,
@@ -244,7 +245,7 @@ def test_episodes_repeat_reactive_scenarios_with_other_traffic(public_suite, tmp
     again = evaluate(
         source,
         public_suite,
-        settings=get_settings(),
+        **evaluate_args(get_settings()),
         out_dir=tmp_path / "once",
         scenario_ids=ids,
         sandbox=TEST_SANDBOX,
@@ -269,7 +270,7 @@ def test_warm_and_cold_agents_give_identical_summary_and_records(
         get_settings.cache_clear()
         out[warm] = tmp_path / f"warm-{warm}"
         evaluate(
-            example("planner"), public_suite, settings=get_settings(), out_dir=out[warm],
+            example("planner"), public_suite, **evaluate_args(get_settings()), out_dir=out[warm],
             scenario_ids=ids, sandbox=SandboxKind.docker,
         )  # fmt: skip
     get_settings.cache_clear()

@@ -11,7 +11,7 @@ from arena.config import SandboxKind, get_settings
 from arena.outcome import ScenarioStatus
 from evaluator.runner import evaluate, run_scenario
 from tests.evaluator.runner.conftest import TEST_SANDBOX, write_policy
-from tests.settings import sandbox_args
+from tests.settings import evaluate_args, sandbox_args
 
 pytestmark = pytest.mark.slow
 
@@ -87,7 +87,7 @@ def test_uncharged_scenario_leaves_n_and_is_listed(tmp_path):
     summary = evaluate(
         write_policy(tmp_path / "cruise", CRUISE),
         suite,
-        settings=get_settings(),
+        **evaluate_args(get_settings()),
         out_dir=tmp_path / "out",
         sandbox=TEST_SANDBOX,
     )

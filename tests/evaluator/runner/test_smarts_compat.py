@@ -14,6 +14,7 @@ import pytest
 from arena.config import SandboxKind, get_settings
 from evaluator.runner import evaluate
 from tests.evaluator.runner.conftest import example
+from tests.settings import evaluate_args
 
 pytestmark = pytest.mark.slow
 
@@ -36,7 +37,7 @@ def test_smarts_interface_agent_drives_public_scenarios_in_docker(public_suite, 
     summary = evaluate(
         example("smarts_follower"),
         public_suite,
-        settings=get_settings(),
+        **evaluate_args(get_settings()),
         out_dir=tmp_path / "out",
         scenario_ids=SCENARIOS,
         jobs=2,

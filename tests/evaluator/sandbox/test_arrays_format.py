@@ -17,7 +17,7 @@ from sim.observation_arrays import ObservationEncoder, ObservationLayout
 from submissions.sample import sample_observation
 from tests.evaluator.sandbox.agents import agent
 from tests.evaluator.sandbox.test_warm import zygote
-from tests.settings import sandbox_args
+from tests.settings import evaluate_args, sandbox_args
 
 # Fewer neighbour slots than the sample has neighbours: agent.yaml's count must reach the layout.
 AGENT_YAML = "observation_format: arrays\ntop_down_rgb: true\nimg_pixels: 32\nmax_neighbours: 5\n"
@@ -158,7 +158,7 @@ def test_records_and_scores_do_not_depend_on_the_format(tmp) -> None:
         summaries[fmt] = evaluate(
             source,
             PUBLIC_SUITE,
-            settings=get_settings(),
+            **evaluate_args(get_settings()),
             out_dir=tmp / fmt,
             scenario_ids=scenarios,
             sandbox=TEST_SANDBOX,

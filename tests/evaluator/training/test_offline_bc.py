@@ -17,7 +17,7 @@ from scenarios.dataset.collect import collect
 from submissions.intake import prepare_submission
 from tests.evaluator.sandbox.conftest import usable
 from tests.server.builders import EXAMPLES
-from tests.settings import env_only, sandbox_args
+from tests.settings import env_only, evaluate_args, sandbox_args
 
 EXAMPLE = EXAMPLES / "offline_bc"
 REPLAY = "p033_replay_merge_2agents"
@@ -67,7 +67,7 @@ def test_it_trains_in_the_sandbox_and_drives_with_its_model(tmp_path, dataset):
     summary = evaluate(
         EXAMPLE,
         SHIPPED_PUBLIC_DIR,
-        settings=get_settings(),
+        **evaluate_args(get_settings()),
         out_dir=tmp_path / "results",
         scenario_ids=[SCENARIO],
         sandbox=kind,
@@ -87,7 +87,7 @@ def test_evaluate_refuses_a_missing_model(tmp_path):
         evaluate(
             EXAMPLE,
             SHIPPED_PUBLIC_DIR,
-            settings=get_settings(),
+            **evaluate_args(get_settings()),
             out_dir=tmp_path / "results",
             scenario_ids=[SCENARIO],
             sandbox=SandboxKind.process,

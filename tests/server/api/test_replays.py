@@ -26,7 +26,7 @@ from tests.sim.builders import recorded_episode
 
 __all__ = ["browser"]  # the Chromium fixture, shared with the other page tests
 ADMIN = "organiser-secret"
-PUBLIC_SUITE = load_suite(public_suite_dir(env_only()))
+PUBLIC_SUITE = load_suite(public_suite_dir(env_only().suites))
 PUBLIC_ID = "p000_left_turn_t_low"
 
 # A live API process over a recorded episode (module fixture `served`).

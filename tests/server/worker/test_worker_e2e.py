@@ -33,7 +33,7 @@ from tests.server.service_stack import (
     upload_example,
     wait_finished,
 )
-from tests.settings import env_only, with_fields
+from tests.settings import env_only, evaluate_args, with_fields
 
 pytestmark = [pytest.mark.slow, pytest.mark.bwrap]
 
@@ -312,7 +312,7 @@ def test_local_evaluation_and_the_service_agree(stack_settings, suite, tmp_path)
     local = evaluate(
         pack_example("keep_lane", tmp_path),
         suite,
-        settings=get_settings(),
+        **evaluate_args(get_settings()),
         out_dir=tmp_path / "local",
         jobs=2,
         sandbox="bubblewrap",
@@ -397,7 +397,7 @@ def test_several_episodes_per_scenario_through_the_worker(stack_settings, suite,
     local = evaluate(
         pack_example("keep_lane", tmp_path),
         suite,
-        settings=get_settings(),
+        **evaluate_args(get_settings()),
         out_dir=tmp_path / "local",
         jobs=2,
         sandbox="bubblewrap",
@@ -455,7 +455,7 @@ def test_adaptive_rounds_through_the_worker_match_a_fixed_evaluation(
     local = evaluate(
         pack_example("keep_lane", tmp_path),
         suite,
-        settings=get_settings(),
+        **evaluate_args(get_settings()),
         out_dir=tmp_path / "local",
         jobs=2,
         sandbox="bubblewrap",
