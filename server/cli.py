@@ -53,7 +53,7 @@ class _Context:
             raise _fail(exc) from None
         self.db = Database(self.settings.storage.resolved_database_url)
         self.queue = TaskQueue(self.settings)
-        self.store = artifact_store(self.settings, self.db)
+        self.store = artifact_store(self.settings.storage, self.db)
 
 
 def _fail(exc: Exception) -> typer.Exit:
@@ -219,7 +219,7 @@ def submissions_show(
     ctx = _Context()
     with ctx.db.read_session() as session:
         submission = _run(lambda: submissions.get_submission(session, submission_id))
-        view = standing.team_view(session, ctx.settings, submission)
+        view = standing.team_view(session, ctx.settings.service, ctx.settings.sandbox, submission)
         runs = [
             (
                 run.attempt,
@@ -395,7 +395,9 @@ def submissions_requeue(submission_id: SubmissionId) -> None:
     from server.services import admin
 
     ctx = _Context()
-    console.print(_run(lambda: admin.requeue(ctx.db, ctx.settings, ctx.queue, submission_id)))
+    console.print(
+        _run(lambda: admin.requeue(ctx.db, ctx.settings.service, ctx.queue, submission_id))
+    )
 
 
 # --- rescore / rerun / status ------------------------------------------------------------------
@@ -442,7 +444,7 @@ def rescore(
         for target in targets:
             used, metrics = _run(
                 lambda target=target: admin.rescore_run(
-                    ctx.db, ctx.settings, ctx.store, target.run_id
+                    ctx.db, ctx.settings.evaluation, ctx.store, target.run_id
                 )
             )
             rows.append(
@@ -526,7 +528,13 @@ def audit(
 
             report = _run(
                 lambda target=target, step=step: audits.audit(
-                    ctx.db, ctx.settings, ctx.store, target, progress=step
+                    ctx.db,
+                    ctx.store,
+                    target,
+                    intake=ctx.settings.intake,
+                    config=ctx.settings.sandbox,
+                    data_dir=ctx.settings.storage.resolved_data_dir,
+                    progress=step,
                 )
             )
         clean &= report.identical
@@ -555,7 +563,7 @@ def retrain(submission_id: SubmissionId) -> None:
     from server.services import admin
 
     ctx = _Context()
-    attempt = _run(lambda: admin.retrain(ctx.db, ctx.settings, ctx.queue, submission_id))
+    attempt = _run(lambda: admin.retrain(ctx.db, ctx.settings.service, ctx.queue, submission_id))
     console.print(f"submission {submission_id}: training attempt {attempt} queued")
 
 
@@ -798,10 +806,10 @@ def phases_list() -> None:
                 str(phase.visibility),
                 f"{phase.starts_at:%Y-%m-%d %H:%M}" if phase.starts_at else "-",
                 f"{phase.ends_at:%Y-%m-%d %H:%M}" if phase.ends_at else "-",
-                phases.daily_quota(phase, ctx.settings),
-                f"{phases.episodes_per_scenario(phase, ctx.settings)}"
+                phases.daily_quota(phase, ctx.settings.service),
+                f"{phases.episodes_per_scenario(phase, ctx.settings.evaluation)}"
                 + ("+" if phase.adaptive_target is not None else ""),
-                _cpu_cell(phases.cpu_limits(phase, ctx.settings)),
+                _cpu_cell(phases.cpu_limits(phase, ctx.settings.sandbox)),
                 phase.training_seeds,
                 "yes" if phases.is_open(phase, moment) else "no",
             )
@@ -818,7 +826,7 @@ def phases_list() -> None:
     if released:
         console.print(f"released (suite downloadable, episodes visible): {', '.join(released)}")
     for phase in rows:
-        adaptive = phases.adaptive_cost(phase, ctx.settings)
+        adaptive = phases.adaptive_cost(phase, ctx.settings.evaluation)
         if adaptive is not None:
             console.print(f"{phase.name} (+): {adaptive}", markup=False)
 
@@ -940,13 +948,15 @@ def phases_set(
     phase = _run(lambda: phases.set_phase(ctx.db, ctx.settings, name, changes, dry_run=dry_run))
     outcome = "unchanged (dry run)" if dry_run else "saved"
     console.print(f"phase [bold]{phase.name}[/bold] {outcome}")
-    per_scenario = phases.episodes_per_scenario(phase, ctx.settings)
-    adaptive = phases.adaptive_cost(phase, ctx.settings)
+    per_scenario = phases.episodes_per_scenario(phase, ctx.settings.evaluation)
+    adaptive = phases.adaptive_cost(phase, ctx.settings.evaluation)
     if adaptive is not None:
         console.print(adaptive, markup=False)
     elif per_scenario > 1:
         console.print(phases.episodes_cost(per_scenario))
-    console.print(phases.describe_cpu_limits(phases.cpu_limits(phase, ctx.settings)), markup=False)
+    console.print(
+        phases.describe_cpu_limits(phases.cpu_limits(phase, ctx.settings.sandbox)), markup=False
+    )
     if phase.training_seeds > 1:
         console.print(phases.seeds_cost(phase.training_seeds), markup=False)
 

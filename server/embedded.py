@@ -24,7 +24,7 @@ import httpx
 from rich.console import Console
 from rich.panel import Panel
 
-from arena.config import Settings, get_settings
+from arena.config import SandboxSettings, StorageSettings, SuiteSettings, get_settings
 from arena.errors import ArenaError
 from arena.suite import hidden_suite_dir, load_suite, public_suite_dir
 from evaluator import sandbox
@@ -58,8 +58,8 @@ def run_embedded(console: Console, *, host: str, port: int, demo_team: str) -> N
     console.print(f"database: {settings.storage.resolved_database_url}")
     upgrade_database(settings.storage.resolved_database_url)
 
-    env["ARENA_PUBLIC_SUITE_DIR"] = str(_public_suite(console, settings, env))
-    hidden = _hidden_suite(console, settings, env)
+    env["ARENA_PUBLIC_SUITE_DIR"] = str(_public_suite(console, settings.suites, data, env))
+    hidden = _hidden_suite(console, settings.suites, data, env)
     env["ARENA_HIDDEN_SUITE_DIR"] = str(hidden)
     for warning in close_service_folders(data, hidden):
         console.print(f"[red]{warning}[/red]")
@@ -68,7 +68,7 @@ def run_embedded(console: Console, *, host: str, port: int, demo_team: str) -> N
     env["ARENA_SANDBOX"] = kind.value
     console.print(f"sandbox: [bold]{kind.value}[/bold]")
 
-    token = _demo_team_token(settings, demo_team)
+    token = _demo_team_token(settings.storage, demo_team)
 
     children = [
         _start_child([*ARENA, "worker"], env),
@@ -94,7 +94,7 @@ def run_embedded(console: Console, *, host: str, port: int, demo_team: str) -> N
         console.print("stopping…")
     finally:
         _stop(children)
-        _remove_leftover_sandboxes(console, settings)
+        _remove_leftover_sandboxes(console, settings.sandbox, data)
         lock.close()
 
 
@@ -151,12 +151,12 @@ def _check_port_free(host: str, port: int) -> None:
             ) from None
 
 
-def _remove_leftover_sandboxes(console: Console, settings: Settings) -> None:
+def _remove_leftover_sandboxes(console: Console, config: SandboxSettings, data_dir: Path) -> None:
     """Agents of episodes the stopped worker left behind (it was this data folder's only
     worker); other services' and local evaluations' sandboxes on this host are not ours."""
     try:
-        owner = owner_labels(settings.storage.resolved_data_dir)
-        removed = sandbox.cleanup(settings.sandbox, owner)
+        owner = owner_labels(data_dir)
+        removed = sandbox.cleanup(config, owner)
     except ArenaError as exc:
         console.print(f"[yellow]could not look for leftover sandboxes: {exc}[/yellow]")
         return
@@ -181,29 +181,29 @@ def _build_suite(console: Console, env: dict, suite: str, out: Path, seed: int |
     subprocess.run(command, env=env, check=True)
 
 
-def _public_suite(console: Console, settings: Settings, env: dict) -> Path:
-    folder = public_suite_dir(settings)
+def _public_suite(console: Console, suites: SuiteSettings, data_dir: Path, env: dict) -> Path:
+    folder = public_suite_dir(suites)
     if not (folder / "manifest.json").exists():
-        folder = settings.storage.resolved_data_dir / "suites" / "public"
+        folder = data_dir / "suites" / "public"
         if not (folder / "manifest.json").exists():
             _build_suite(console, env, "public", folder, None)
     console.print(f"public suite: {folder}")
     return folder
 
 
-def _hidden_suite(console: Console, settings: Settings, env: dict) -> Path:
-    folder = hidden_suite_dir(settings)
+def _hidden_suite(console: Console, suites: SuiteSettings, data_dir: Path, env: dict) -> Path:
+    folder = hidden_suite_dir(suites, data_dir)
     if (folder / "manifest.json").exists():
         console.print(f"hidden suite: {folder}")
         # Said at every start, not only the first: a demo folder must not drift into a
         # competition unnoticed.
         built_from = load_suite(folder).manifest.seed_fingerprint
-        if built_from == seed_fingerprint(settings.suites.development_seed):
-            _warn_development_seed(console, settings.suites.development_seed)
+        if built_from == seed_fingerprint(suites.development_seed):
+            _warn_development_seed(console, suites.development_seed)
         return folder
-    seed = settings.suites.hidden_seed
+    seed = suites.hidden_seed
     if seed is None:
-        seed = settings.suites.development_seed
+        seed = suites.development_seed
         _warn_development_seed(console, seed)
     _build_suite(console, env, "hidden", folder, seed)
     return folder
@@ -221,12 +221,12 @@ def _warn_development_seed(console: Console, seed: int) -> None:
     )
 
 
-def _demo_team_token(settings: Settings, name: str) -> str:
+def _demo_team_token(storage: StorageSettings, name: str) -> str:
     """The demo team's token, the same across restarts: kept for the local organiser in the data
     folder (owner-readable only; the database stores tokens hashed). A token that no longer
     works (revoked with `teams rotate-token`) is replaced."""
-    stored = settings.storage.resolved_data_dir / "demo_token"
-    db = Database(settings.storage.resolved_database_url)
+    stored = storage.resolved_data_dir / "demo_token"
+    db = Database(storage.resolved_database_url)
     try:
         with db.session() as session:
             if stored.exists():

@@ -1,5 +1,6 @@
-"""Dependencies of the API routes: the session, the caller's team, the admin check and the
-ownership check. Each is written once here and declared by the handlers that need it."""
+"""Dependencies of the API routes: the settings (whole, or the one group a route needs), the
+session, the artifact store, the caller's team, the admin check and the ownership check. Each is
+written once here and declared by the handlers that need it."""
 
 from __future__ import annotations
 
@@ -10,7 +11,15 @@ from fastapi import Depends, HTTPException, Path, Query, Request, status
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from sqlalchemy.orm import Session
 
-from arena.config import Settings
+from arena.config import (
+    EvaluationSettings,
+    SandboxSettings,
+    ServiceSettings,
+    Settings,
+    StorageSettings,
+    SuiteSettings,
+)
+from server.core.artifacts import ArtifactStore, artifact_store
 from server.core.db import Database
 from server.core.queue import TaskQueue
 from server.models import Submission, Team
@@ -29,6 +38,36 @@ def get_settings_dep(request: Request) -> Settings:
     return request.app.state.settings
 
 
+SettingsDep = Annotated[Settings, Depends(get_settings_dep)]
+
+
+def get_storage_settings(settings: SettingsDep) -> StorageSettings:
+    return settings.storage
+
+
+def get_suite_settings(settings: SettingsDep) -> SuiteSettings:
+    return settings.suites
+
+
+def get_sandbox_settings(settings: SettingsDep) -> SandboxSettings:
+    return settings.sandbox
+
+
+def get_evaluation_settings(settings: SettingsDep) -> EvaluationSettings:
+    return settings.evaluation
+
+
+def get_service_settings(settings: SettingsDep) -> ServiceSettings:
+    return settings.service
+
+
+StorageDep = Annotated[StorageSettings, Depends(get_storage_settings)]
+SuitesDep = Annotated[SuiteSettings, Depends(get_suite_settings)]
+SandboxDep = Annotated[SandboxSettings, Depends(get_sandbox_settings)]
+EvaluationDep = Annotated[EvaluationSettings, Depends(get_evaluation_settings)]
+ServiceDep = Annotated[ServiceSettings, Depends(get_service_settings)]
+
+
 def get_db(request: Request) -> Database:
     return request.app.state.db
 
@@ -41,15 +80,21 @@ async def get_leaderboard_cache(request: Request) -> LeaderboardCache:
     return request.app.state.leaderboard
 
 
-def get_session(db: Annotated[Database, Depends(get_db)]) -> Iterator[Session]:
+DatabaseDep = Annotated[Database, Depends(get_db)]
+
+
+def get_session(db: DatabaseDep) -> Iterator[Session]:
     """A read session for the request; changes go through service functions, which open their
     own short write transactions."""
     with db.read_session() as session:
         yield session
 
 
-SettingsDep = Annotated[Settings, Depends(get_settings_dep)]
-DatabaseDep = Annotated[Database, Depends(get_db)]
+def get_store(storage: StorageDep, db: DatabaseDep) -> ArtifactStore:
+    return artifact_store(storage, db)
+
+
+StoreDep = Annotated[ArtifactStore, Depends(get_store)]
 QueueDep = Annotated[TaskQueue, Depends(get_queue)]
 LeaderboardDep = Annotated[LeaderboardCache, Depends(get_leaderboard_cache)]
 SessionDep = Annotated[Session, Depends(get_session)]
@@ -78,24 +123,22 @@ def get_current_team(db: DatabaseDep, credentials: Credentials) -> Team:
 CurrentTeam = Annotated[Team, Depends(get_current_team)]
 
 
-def require_admin(settings: SettingsDep, credentials: Credentials) -> None:
-    if settings.service.admin_token is None:
+def require_admin(service: ServiceDep, credentials: Credentials) -> None:
+    if service.admin_token is None:
         raise HTTPException(status.HTTP_403_FORBIDDEN, "no admin token is configured")
-    if credentials is None or not same_secret(
-        credentials.credentials, settings.service.admin_token
-    ):
+    if credentials is None or not same_secret(credentials.credentials, service.admin_token):
         raise _unauthorized("admin token required")
 
 
 AdminDep = Depends(require_admin)
 
 
-def is_admin(settings: SettingsDep, credentials: Credentials) -> bool:
+def is_admin(service: ServiceDep, credentials: Credentials) -> bool:
     """Whether the caller sent the admin token (for routes that show organisers more)."""
     return (
-        settings.service.admin_token is not None
+        service.admin_token is not None
         and credentials is not None
-        and same_secret(credentials.credentials, settings.service.admin_token)
+        and same_secret(credentials.credentials, service.admin_token)
     )
 
 

@@ -16,7 +16,7 @@ from typing import Protocol
 
 from sqlalchemy import delete, or_, select
 
-from arena.config import ArtifactBackend, Settings
+from arena.config import ArtifactBackend, StorageSettings
 from arena.errors import ArenaError
 from server.core.db import Database
 from server.models import Artifact, utcnow
@@ -151,7 +151,7 @@ class DatabaseStore:
         return removed.rowcount
 
 
-def artifact_store(settings: Settings, db: Database) -> ArtifactStore:
-    if settings.storage.artifact_store is ArtifactBackend.database:
+def artifact_store(storage: StorageSettings, db: Database) -> ArtifactStore:
+    if storage.artifact_store is ArtifactBackend.database:
         return DatabaseStore(db)
-    return FolderStore(settings.storage.resolved_data_dir)
+    return FolderStore(storage.resolved_data_dir)

@@ -8,7 +8,7 @@ from datetime import datetime, timedelta
 
 from sqlalchemy import func, select
 
-from arena.config import Settings
+from arena.config import EvaluationSettings, ServiceSettings, Settings
 from arena.episodes import Episode
 from arena.outcome import FINISHED, ScenarioStatus
 from evaluator.compare import Side, outcome_text
@@ -40,7 +40,7 @@ from server.status import (
 )
 
 
-def requeue(db: Database, settings: Settings, queue: TaskQueue, submission_id: int) -> str:
+def requeue(db: Database, service: ServiceSettings, queue: TaskQueue, submission_id: int) -> str:
     """Send an unfinished submission's lost work again (after lost messages or a dead worker).
 
     Only work nobody is doing: an evaluation whose lease a worker keeps renewing is healthy and
@@ -77,7 +77,7 @@ def requeue(db: Database, settings: Settings, queue: TaskQueue, submission_id: i
             alive: list[Conflict] = []
             for run in runs:
                 try:
-                    plans.append(_lost_work(settings, run, submission_id))
+                    plans.append(_lost_work(service, run, submission_id))
                 except Conflict as exc:
                     alive.append(exc)
             if alive and not plans and not training_ids:
@@ -103,14 +103,14 @@ def requeue(db: Database, settings: Settings, queue: TaskQueue, submission_id: i
     return "evaluation queued"
 
 
-def _lost_work(settings: Settings, run: EvaluationRun, submission_id: int) -> RunPlan:
+def _lost_work(service: ServiceSettings, run: EvaluationRun, submission_id: int) -> RunPlan:
     moment = utcnow()
     if run.lease_expires_at is not None and run.lease_expires_at > moment:
         done = sum(r.status in FINISHED for r in run.results)
         raise Conflict(
             f"submission {submission_id}: its evaluation (run {run.id}, {run.status}, "
             f"{done}/{run.episode_count} episodes done) is alive: a worker renewed it within "
-            f"the last {settings.service.lease_seconds} s, so nothing is lost and nothing is "
+            f"the last {service.lease_seconds} s, so nothing is lost and nothing is "
             "re-sent. "
             "Work a dead worker held is re-sent by the reaper; requeue again if its lease runs "
             "out and it still does not move"
@@ -124,7 +124,7 @@ def _lost_work(settings: Settings, run: EvaluationRun, submission_id: int) -> Ru
         else:  # a dead worker's claim: released, so the re-sent task can take it
             result.worker, result.lease_expires_at = "", None
     pending = tuple(e for e in evaluation.pending_episodes(run) if e not in held)
-    run.lease_expires_at = leases.lease_until(settings)
+    run.lease_expires_at = leases.lease_until(service)
     return RunPlan(run_id=run.id, episodes=pending, aggregate=not pending and not held)
 
 
@@ -139,11 +139,11 @@ def rerun(db: Database, settings: Settings, queue: TaskQueue, submission_id: int
     return attempt
 
 
-def retrain(db: Database, settings: Settings, queue: TaskQueue, submission_id: int) -> int:
+def retrain(db: Database, service: ServiceSettings, queue: TaskQueue, submission_id: int) -> int:
     """A new training attempt of an offline submission, from scratch, every seed of its phase
     (then their evaluations); returns the attempt number of its first seed's job."""
     with db.session() as session:
-        jobs = training.retrain(session, settings, submission_id)
+        jobs = training.retrain(session, service, submission_id)
         training_ids, attempt = [job.id for job in jobs], jobs[0].attempt
     for training_id in training_ids:
         queue.train(training_id)
@@ -250,7 +250,7 @@ def rescore_targets(
 
 
 def rescore_run(
-    db: Database, settings: Settings, store: ArtifactStore, run_id: int
+    db: Database, evaluation_settings: EvaluationSettings, store: ArtifactStore, run_id: int
 ) -> tuple[str, dict[str, float]]:
     """Recompute a scored run from its stored records (no simulation) with its phase's profile;
     returns the profile's name and the metrics."""
@@ -259,7 +259,7 @@ def rescore_run(
         if run.status != RunStatus.scored:
             raise Conflict(f"run {run_id} is {run.status}; only scored runs can be re-scored")
         phase = phases.get_phase(session, run.submission.phase)
-        profile = scoring_profile(phases.scoring_profile(phase, settings))
+        profile = scoring_profile(phases.scoring_profile(phase, evaluation_settings))
         summary = scoring.run_summary(run, profile, store)
         if summary.uncharged:
             raise Conflict(

@@ -24,7 +24,7 @@ import numpy as np
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from arena.config import SandboxKind, Settings
+from arena.config import IntakeSettings, SandboxKind, SandboxSettings
 from arena.cpu_limits import CpuLimits
 from arena.episodes import Episode, traffic_seed
 from arena.errors import ArenaError
@@ -84,7 +84,7 @@ class _Target:
     label: str  # which of the score's runs: "" for a score of one run, "seed K: " over seeds
 
 
-def _targets(session: Session, settings: Settings, submission_id: int) -> list[_Target]:
+def _targets(session: Session, config: SandboxSettings, submission_id: int) -> list[_Target]:
     """The runs the standing score comes from: one, or each training seed's."""
     submission = session.get(Submission, submission_id)
     if submission is None:
@@ -94,7 +94,7 @@ def _targets(session: Session, settings: Settings, submission_id: int) -> list[_
         return [
             _target(
                 session,
-                settings,
+                config,
                 submission,
                 session.get(EvaluationRun, seed["run_id"]),
                 f"seed {seed['seed']}: ",
@@ -104,11 +104,15 @@ def _targets(session: Session, settings: Settings, submission_id: int) -> list[_
     run = current_run(submission)
     if run is None or run.status != RunStatus.scored or run.score is None:
         raise Conflict(f"submission {submission_id} has no score to audit")
-    return [_target(session, settings, submission, run, "")]
+    return [_target(session, config, submission, run, "")]
 
 
 def _target(
-    session: Session, settings: Settings, submission: Submission, run: EvaluationRun, label: str
+    session: Session,
+    config: SandboxSettings,
+    submission: Submission,
+    run: EvaluationRun,
+    label: str,
 ) -> _Target:
     submission_id = submission.id
     if not run.score.manifest:
@@ -132,24 +136,27 @@ def _target(
             for r in results
             if r.status in FINISHED
         ),
-        limits=run_cpu_limits(run, settings),
+        limits=run_cpu_limits(run, config),
         label=label,
     )
 
 
 def audit(
     db: Database,
-    settings: Settings,
     store: ArtifactStore,
     submission_id: int,
     *,
+    intake: IntakeSettings,
+    config: SandboxSettings,
+    data_dir: Path,
     progress: Callable[[int, int], None] | None = None,
 ) -> AuditReport:
     """Re-run ``submission_id``'s scored episodes under its manifest (each seed's, for a score
-    over training seeds); ``progress(done, total)`` after each episode. The first refusal or
-    difference ends the audit."""
+    over training seeds) as a worker runs them (``intake``, ``config``, ``data_dir``: as
+    :func:`evaluator.runner.evaluate` takes them); ``progress(done, total)`` after each episode.
+    The first refusal or difference ends the audit."""
     with db.read_session() as session:
-        targets = _targets(session, settings, submission_id)
+        targets = _targets(session, config, submission_id)
     total = sum(len(target.episodes) for target in targets)
     compared = 0
 
@@ -158,7 +165,7 @@ def audit(
             progress(compared + done, total)
 
     for target in targets:
-        report = _audit(target, settings, store, counted)
+        report = _audit(target, store, counted, intake=intake, config=config, data_dir=data_dir)
         compared += report.compared
         if not report.identical:
             return dataclasses.replace(report, compared=compared)
@@ -167,14 +174,17 @@ def audit(
 
 def _audit(
     target: _Target,
-    settings: Settings,
     store: ArtifactStore,
     progress: Callable[[int, int], None],
+    *,
+    intake: IntakeSettings,
+    config: SandboxSettings,
+    data_dir: Path,
 ) -> AuditReport:
     recorded = target.manifest
     try:
         suite = load_suite(target.suite_dir)
-        kind = sandbox.check_service_kind(None, settings.sandbox)
+        kind = sandbox.check_service_kind(None, config)
     except ArenaError as exc:
         raise Conflict(f"cannot audit submission {target.submission_id} here: {exc}") from exc
     with tempfile.TemporaryDirectory(prefix="arena-audit-") as tmp:
@@ -184,7 +194,7 @@ def _audit(
         model = (
             store.fetch(target.model_key, scratch / "model.tar.gz") if target.model_key else None
         )
-        here = environment(kind.value, settings.sandbox.agent_image)
+        here = environment(kind.value, config.agent_image)
         current = manifest_of(
             suite,
             [EpisodeRun(e.scenario_id, e.episode, _seed(suite, e), here) for e in target.episodes],
@@ -199,31 +209,53 @@ def _audit(
             return AuditReport(
                 target.submission_id, refused=tuple(target.label + r for r in refused)
             )
-        return _rerun(target, suite, kind, settings, store, scratch, upload, model, progress)
+        return _rerun(
+            target,
+            suite,
+            kind,
+            store,
+            scratch,
+            upload,
+            model,
+            progress,
+            intake=intake,
+            config=config,
+            data_dir=data_dir,
+        )
 
 
 def _rerun(
     target: _Target,
     suite: Suite,
     kind: SandboxKind,
-    settings: Settings,
     store: ArtifactStore,
     scratch: Path,
     upload: Path,
     model: Path | None,
     progress: Callable[[int, int], None],
+    *,
+    intake: IntakeSettings,
+    config: SandboxSettings,
+    data_dir: Path,
 ) -> AuditReport:
     # Checked in the sandbox, as a worker does: nothing of the team's is parsed on this host.
-    data_dir = settings.storage.resolved_data_dir
-    submission = validate(
-        upload, scratch / "prepared", settings.intake, settings.sandbox, data_dir, kind=kind
-    )
+    submission = validate(upload, scratch / "prepared", intake, config, data_dir, kind=kind)
     if model is not None:
         submission = dataclasses.replace(
             submission, model_dir=unpack_model(model, scratch / "model")
         )
     try:
-        return _rerun_episodes(target, suite, kind, settings, store, scratch, submission, progress)
+        return _rerun_episodes(
+            target,
+            suite,
+            kind,
+            store,
+            scratch,
+            submission,
+            progress,
+            config=config,
+            data_dir=data_dir,
+        )
     finally:
         # Its warm agents bind the scratch folder, which goes when the audit ends: a later
         # audit of the same zip must not find them idle.
@@ -234,19 +266,21 @@ def _rerun_episodes(
     target: _Target,
     suite: Suite,
     kind: SandboxKind,
-    settings: Settings,
     store: ArtifactStore,
     scratch: Path,
     submission,
     progress: Callable[[int, int], None],
+    *,
+    config: SandboxSettings,
+    data_dir: Path,
 ) -> AuditReport:
     for done, stored in enumerate(target.episodes, start=1):
         outcome = run_scenario(
             submission,
             suite.scenario_dir(stored.scenario_id),
             scratch / "records",
-            config=settings.sandbox,
-            data_dir=settings.storage.resolved_data_dir,
+            config=config,
+            data_dir=data_dir,
             sandbox=kind,
             episode=stored.episode,
             limits=target.limits,

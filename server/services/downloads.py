@@ -14,7 +14,7 @@ import zipfile
 
 from sqlalchemy.orm import Session
 
-from arena.config import Settings
+from arena.config import SandboxSettings, ServiceSettings
 from server.core.artifacts import ArtifactStore, MissingArtifact
 from server.models import Submission
 from server.services import phases, standing, submissions
@@ -41,9 +41,13 @@ def download_name(submission: Submission) -> str:
 
 
 def submission_zip(
-    session: Session, settings: Settings, store: ArtifactStore, submission: Submission
+    session: Session,
+    service: ServiceSettings,
+    sandbox: SandboxSettings,
+    store: ArtifactStore,
+    submission: Submission,
 ) -> bytes:
-    detail = standing.team_view(session, settings, submission)
+    detail = standing.team_view(session, service, sandbox, submission)
     visible = phases.team_sees_everything(phases.get_phase(session, submission.phase))
     buffer = io.BytesIO()
     with zipfile.ZipFile(buffer, "w") as archive:

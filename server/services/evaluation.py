@@ -15,7 +15,7 @@ from pathlib import Path
 from sqlalchemy import delete, func, select, update
 from sqlalchemy.orm import Session
 
-from arena.config import Settings
+from arena.config import SandboxSettings, ServiceSettings, Settings
 from arena.cpu_limits import CpuLimits
 from arena.episodes import Episode, episode_count, episodes_of
 from arena.errors import SuiteError
@@ -109,10 +109,11 @@ def create_run(
     training: TrainingJob | None = None,
 ) -> RunPlan:
     """A new attempt on the suite of the submission's phase; every episode of it still to run.
-    ``training``: the trained output it evaluates (offline submissions)."""
+    ``training``: the trained output it evaluates (offline submissions). (The whole settings:
+    the phase's defaults come from several groups, the lease from the service's.)"""
     phase = phases.get_phase(session, submission.phase)
     setup = phases.phase_setup(phase, settings)
-    limits = phases.cpu_limits(phase, settings)
+    limits = phases.cpu_limits(phase, settings.sandbox)
     suite, profile, per_scenario = setup.suite, setup.profile, setup.episodes_per_scenario
     episodes = episodes_of(suite.scenarios, per_scenario)
     attempt = 1 + (
@@ -136,7 +137,7 @@ def create_run(
         episode_round=per_scenario,
         scoring_profile=profile.name,
         scoring_version=str(profile.version),
-        lease_expires_at=lease_until(settings),
+        lease_expires_at=lease_until(settings.service),
         training_id=training.id if training is not None else None,
         step_cpu_s=limits.step_s,
         episode_cpu_s=limits.episode_s,
@@ -201,7 +202,8 @@ def rerun(session: Session, settings: Settings, submission_id: int) -> tuple[Run
 
 def claim_scenario(
     session: Session,
-    settings: Settings,
+    service: ServiceSettings,
+    sandbox: SandboxSettings,
     run_id: int,
     scenario_id: str,
     worker: str,
@@ -243,11 +245,11 @@ def claim_scenario(
         )
         session.add(existing)
     existing.attempts += 1
-    leases.take(existing, worker, settings)
+    leases.take(existing, worker, service)
     if run.status == RunStatus.queued:
         run.status = advance(run.status, RunStatus.running, RUN_MOVES)
         run.started_at = now()
-    leases.take(run, worker, settings)
+    leases.take(run, worker, service)
     return ScenarioJob(
         run_id=run_id,
         submission_id=run.submission_id,
@@ -257,16 +259,14 @@ def claim_scenario(
         attempt=existing.attempts,
         episode=episode,
         model_key=run.training.model_key if run.training is not None else None,
-        limits=run_cpu_limits(run, settings),
+        limits=run_cpu_limits(run, sandbox),
     )
 
 
-def run_cpu_limits(run: EvaluationRun, settings: Settings) -> CpuLimits:
+def run_cpu_limits(run: EvaluationRun, sandbox: SandboxSettings) -> CpuLimits:
     """The CPU limits the run is evaluated under: those recorded when it was made (the
-    settings' for a run made before they were)."""
-    return settings.sandbox.cpu_limits.overridden(
-        run.step_cpu_s, run.episode_cpu_s, run.evaluation_cpu_s
-    )
+    sandbox settings' for a run made before they were)."""
+    return sandbox.cpu_limits.overridden(run.step_cpu_s, run.episode_cpu_s, run.evaluation_cpu_s)
 
 
 def agent_cpu_used(session: Session, run_id: int) -> float:
@@ -278,13 +278,13 @@ def agent_cpu_used(session: Session, run_id: int) -> float:
     )
 
 
-def heartbeat(session: Session, settings: Settings, job: ScenarioJob, worker: str) -> bool:
+def heartbeat(session: Session, service: ServiceSettings, job: ScenarioJob, worker: str) -> bool:
     """Extend the lease of ``worker``'s claim on the job's scenario (and the run's); False when
     the claim is no longer this worker's (the run was cancelled, or the reaper gave the
     scenario to another worker): the episode must stop, its result would be refused."""
-    claim = leases.renew(session, settings, ScenarioResult, _claim_of(job, worker))
+    claim = leases.renew(session, service, ScenarioResult, _claim_of(job, worker))
     run_fence = (EvaluationRun.id == job.run_id, EvaluationRun.status.in_(list(ACTIVE_RUN)))
-    run = leases.renew(session, settings, EvaluationRun, run_fence, worker=worker)
+    run = leases.renew(session, service, EvaluationRun, run_fence, worker=worker)
     return claim and run
 
 
@@ -528,7 +528,7 @@ class Reaped:
     submission_ids: tuple[int, ...] = ()
 
 
-def reap(session: Session, settings: Settings, *, queue_empty: bool) -> Reaped:
+def reap(session: Session, service: ServiceSettings, *, queue_empty: bool) -> Reaped:
     """Find work whose lease expired and return it to be sent again.
 
     A scenario whose worker stopped renewing its claim's lease is released and re-sent at once,
@@ -564,7 +564,7 @@ def reap(session: Session, settings: Settings, *, queue_empty: bool) -> Reaped:
         )
         for run in idle:
             pending = pending_episodes(run)
-            run.lease_expires_at = lease_until(settings)
+            run.lease_expires_at = lease_until(service)
             plans.append(RunPlan(run_id=run.id, episodes=pending, aggregate=not pending))
     submission_ids: list[int] = []
     if queue_empty:
@@ -572,7 +572,7 @@ def reap(session: Session, settings: Settings, *, queue_empty: bool) -> Reaped:
             select(Submission)
             .where(
                 Submission.status == SubmissionStatus.queued,
-                Submission.queued_at < moment - timedelta(seconds=settings.service.lease_seconds),
+                Submission.queued_at < moment - timedelta(seconds=service.lease_seconds),
             )
             .with_for_update()
         )

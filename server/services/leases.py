@@ -19,7 +19,7 @@ from typing import Any, Protocol
 from sqlalchemy import Select, select, update
 from sqlalchemy.orm import Session
 
-from arena.config import Settings
+from arena.config import ServiceSettings
 from server.models import utcnow as now
 
 
@@ -28,8 +28,8 @@ class LeasedRow(Protocol):
     lease_expires_at: datetime | None
 
 
-def lease_until(settings: Settings) -> datetime:
-    return now() + timedelta(seconds=settings.service.lease_seconds)
+def lease_until(service: ServiceSettings) -> datetime:
+    return now() + timedelta(seconds=service.lease_seconds)
 
 
 def alive(lease_expires_at: datetime | None) -> bool:
@@ -41,10 +41,10 @@ def held(row: LeasedRow) -> bool:
     return bool(row.worker) and alive(row.lease_expires_at)
 
 
-def take(row: LeasedRow, worker: str, settings: Settings) -> None:
+def take(row: LeasedRow, worker: str, service: ServiceSettings) -> None:
     """``worker`` holds the row from now on (the caller counts the claim)."""
     row.worker = worker
-    row.lease_expires_at = lease_until(settings)
+    row.lease_expires_at = lease_until(service)
 
 
 def drop(row: LeasedRow) -> None:
@@ -53,11 +53,13 @@ def drop(row: LeasedRow) -> None:
     row.lease_expires_at = None
 
 
-def renew(session: Session, settings: Settings, model: type, fence: tuple, **values: Any) -> bool:
+def renew(
+    session: Session, service: ServiceSettings, model: type, fence: tuple, **values: Any
+) -> bool:
     """Extend the lease of the row behind ``fence`` (and write ``values`` with it); False when
     the claim is no longer the caller's: its job must stop, its result would be refused."""
     renewed = session.execute(
-        update(model).where(*fence).values(lease_expires_at=lease_until(settings), **values)
+        update(model).where(*fence).values(lease_expires_at=lease_until(service), **values)
     )
     return renewed.rowcount == 1
 

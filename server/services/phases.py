@@ -10,7 +10,13 @@ from pathlib import Path
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from arena.config import Settings
+from arena.config import (
+    EvaluationSettings,
+    SandboxSettings,
+    ServiceSettings,
+    Settings,
+    SuiteSettings,
+)
 from arena.cpu_limits import CpuLimits
 from arena.errors import ArenaError, SuiteError
 from arena.suite import Suite, load_suite, resolve_suite
@@ -61,27 +67,27 @@ def _when(moment: datetime) -> str:
     return moment.strftime("%Y-%m-%d %H:%M UTC")
 
 
-def daily_quota(phase: Phase, settings: Settings) -> int:
-    return phase.daily_quota if phase.daily_quota is not None else settings.service.daily_quota
+def daily_quota(phase: Phase, service: ServiceSettings) -> int:
+    return phase.daily_quota if phase.daily_quota is not None else service.daily_quota
 
 
-def suite_dir(phase: Phase, settings: Settings) -> Path:
-    return resolve_suite(phase.suite, settings)
+def suite_dir(phase: Phase, suites: SuiteSettings, data_dir: Path) -> Path:
+    return resolve_suite(phase.suite, suites, data_dir)
 
 
-def scoring_profile(phase: Phase, settings: Settings) -> str:
-    return phase.scoring_profile or settings.evaluation.scoring_profile
+def scoring_profile(phase: Phase, evaluation: EvaluationSettings) -> str:
+    return phase.scoring_profile or evaluation.scoring_profile
 
 
-def episodes_per_scenario(phase: Phase, settings: Settings) -> int:
+def episodes_per_scenario(phase: Phase, evaluation: EvaluationSettings) -> int:
     if phase.episodes_per_scenario is not None:
         return phase.episodes_per_scenario
-    return settings.evaluation.episodes_per_scenario
+    return evaluation.episodes_per_scenario
 
 
-def cpu_limits(phase: Phase, settings: Settings) -> CpuLimits:
-    """The agent's CPU limits in the phase: its overrides, else the settings'."""
-    return settings.sandbox.cpu_limits.overridden(
+def cpu_limits(phase: Phase, sandbox: SandboxSettings) -> CpuLimits:
+    """The agent's CPU limits in the phase: its overrides, else the sandbox settings'."""
+    return sandbox.cpu_limits.overridden(
         phase.step_cpu_s, phase.episode_cpu_s, phase.evaluation_cpu_s
     )
 
@@ -126,18 +132,20 @@ class PhaseSetup:
 
 def phase_setup(phase: Phase, settings: Settings) -> PhaseSetup:
     """The phase's suite, profile and episode count, loaded; :class:`PhaseMisconfigured` (saying
-    which part and why) if one of them cannot be used."""
+    which part and why) if one of them cannot be used. (The whole settings: the suites, the
+    data folder and the evaluation defaults.)"""
+    data_dir = settings.storage.resolved_data_dir
     try:
-        suite = load_suite(suite_dir(phase, settings))
+        suite = load_suite(suite_dir(phase, settings.suites, data_dir))
     except SuiteError as exc:
         raise PhaseMisconfigured(f"phase {phase.name!r}: suite {phase.suite!r}: {exc}") from None
     if not suite.scenarios:
         raise PhaseMisconfigured(f"phase {phase.name!r}: suite {phase.suite!r} has no scenarios")
     try:
-        profile = load_profile(scoring_profile(phase, settings))
+        profile = load_profile(scoring_profile(phase, settings.evaluation))
     except ProfileError as exc:
         raise PhaseMisconfigured(f"phase {phase.name!r}: {exc}") from None
-    return PhaseSetup(suite, profile, episodes_per_scenario(phase, settings))
+    return PhaseSetup(suite, profile, episodes_per_scenario(phase, settings.evaluation))
 
 
 def misconfigured(session: Session, settings: Settings) -> dict[str, str]:
@@ -171,12 +179,12 @@ def what_is_hidden(phase: Phase) -> str:
     )
 
 
-def adaptive_cost(phase: Phase, settings: Settings) -> str | None:
+def adaptive_cost(phase: Phase, evaluation: EvaluationSettings) -> str | None:
     """What an adaptive phase's evaluation costs (None for a fixed count), said before it is
     chosen and wherever it is shown."""
     if phase.adaptive_target is None or phase.max_episodes is None:
         return None
-    first = episodes_per_scenario(phase, settings)
+    first = episodes_per_scenario(phase, evaluation)
     return (
         f"adaptive: {first} episode(s) per reactive scenario, then {first} more per round while "
         f"completion's 95% interval is wider than +/-{phase.adaptive_target:g}, up to "
@@ -308,7 +316,7 @@ def _set_phase(
         for field, value in _cpu_changes(changes).items():
             if value is not None:
                 setattr(phase, field, value)
-        limits = cpu_limits(phase, settings)
+        limits = cpu_limits(phase, settings.sandbox)
         if not limits.step_s <= limits.episode_s <= limits.evaluation_s:
             raise InvalidInput(
                 f"the CPU limits must grow: an act's ({limits.step_s:g} s) at most an "

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from sqlalchemy import select
 
-from arena.config import Settings
+from arena.config import SuiteSettings
 from arena.suite import load_suite
 from server.core.db import Database
 from server.models import Phase, utcnow
@@ -45,7 +45,7 @@ def release_phase(db: Database, name: str, moment: datetime | None = None) -> Ph
         return phase
 
 
-def released_suite(session, settings: Settings, name: str) -> Path:
+def released_suite(session, suites: SuiteSettings, data_dir: Path, name: str) -> Path:
     """The zip of a released phase's suite (made once, then served as a file); Forbidden before
     the release."""
     phase = get_phase(session, name)
@@ -54,8 +54,8 @@ def released_suite(session, settings: Settings, name: str) -> Path:
             f"the suite of phase {name!r} is not released: the organisers release it after the "
             "phase closes"
         )
-    suite = load_suite(suite_dir(phase, settings))
-    folder = settings.storage.resolved_data_dir / "released"
+    suite = load_suite(suite_dir(phase, suites, data_dir))
+    folder = data_dir / "released"
     path = folder / f"{phase.name}-{suite.sha256[:16]}.zip"
     if not path.exists():
         folder.mkdir(parents=True, exist_ok=True)

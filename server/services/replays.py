@@ -18,13 +18,12 @@ from pathlib import Path
 
 from sqlalchemy.orm import Session
 
-from arena.config import Settings
+from arena.config import SuiteSettings
 from arena.errors import RecordError
 from arena.suite import public_suite_dir
 from evaluator.viewer.model import load_replay
 from scenarios.verify import verify_scenario
-from server.core.artifacts import MissingArtifact, artifact_store
-from server.core.db import Database
+from server.core.artifacts import ArtifactStore, MissingArtifact
 from server.models import Submission
 from server.services import scenarios
 from server.services.errors import NotFound
@@ -37,8 +36,7 @@ _expert_lock = threading.Lock()
 
 def submission_replay(
     session: Session,
-    settings: Settings,
-    db: Database,
+    store: ArtifactStore,
     submission: Submission,
     scenario_id: str,
     *,
@@ -57,9 +55,7 @@ def submission_replay(
         )
     with tempfile.TemporaryDirectory(prefix="arena-replay-") as scratch:
         try:
-            record = artifact_store(settings, db).fetch(
-                result.record_key, Path(scratch) / "record.npz"
-            )
+            record = store.fetch(result.record_key, Path(scratch) / "record.npz")
         except MissingArtifact:
             raise NotFound(f"the episode record of {scenario_id!r} is no longer stored") from None
         return _replay_json(record, Path(run.suite_dir))
@@ -79,10 +75,10 @@ _public_documents: OrderedDict[str, ReplayDocument] = OrderedDict()
 _PUBLIC_DOCUMENTS_KEPT = 64
 
 
-def public_replay(settings: Settings, db: Database, scenario_id: str) -> ReplayDocument:
+def public_replay(suites: SuiteSettings, store: ArtifactStore, scenario_id: str) -> ReplayDocument:
     """The expert's drive through a public scenario: simulated on the first request, then kept in
     the artifact store under the scenario's content hash, and its JSON in this process."""
-    entry = next((e for e in scenarios.public_scenarios(settings) if e.id == scenario_id), None)
+    entry = next((e for e in scenarios.public_scenarios(suites) if e.id == scenario_id), None)
     if entry is None:
         raise NotFound(f"no public scenario {scenario_id!r}")
     key = f"replays/public/{entry.hash or 'unhashed'}/{scenario_id}.npz"
@@ -91,8 +87,7 @@ def public_replay(settings: Settings, db: Database, scenario_id: str) -> ReplayD
         if cached is not None:
             _public_documents.move_to_end(key)
             return cached
-    suite_dir = public_suite_dir(settings)
-    store = artifact_store(settings, db)
+    suite_dir = public_suite_dir(suites)
     with tempfile.TemporaryDirectory(prefix="arena-replay-") as scratch:
         record = Path(scratch) / f"{scenario_id}.npz"
         with _expert_lock:

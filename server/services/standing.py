@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from sqlalchemy.orm import Session
 
-from arena.config import Settings
+from arena.config import SandboxSettings, ServiceSettings
 from server.models import Submission, Team, utcnow
 from server.schemas import (
     Allowance,
@@ -20,12 +20,12 @@ from server.services import leaderboard, phases, submissions
 from server.tracks import Track
 
 
-def phase_window(session: Session, settings: Settings, name: str) -> PhaseWindow:
-    return _window(phases.get_phase(session, name), settings)
+def phase_window(session: Session, sandbox: SandboxSettings, name: str) -> PhaseWindow:
+    return _window(phases.get_phase(session, name), sandbox)
 
 
-def _window(phase, settings: Settings) -> PhaseWindow:
-    limits = phases.cpu_limits(phase, settings)
+def _window(phase, sandbox: SandboxSettings) -> PhaseWindow:
+    limits = phases.cpu_limits(phase, sandbox)
     return PhaseWindow(
         name=phase.name,
         visibility=str(phase.visibility),
@@ -39,11 +39,11 @@ def _window(phase, settings: Settings) -> PhaseWindow:
     )
 
 
-def standing(session: Session, settings: Settings, submission: Submission) -> Standing:
+def standing(session: Session, service: ServiceSettings, submission: Submission) -> Standing:
     phase = phases.get_phase(session, submission.phase)
     board = leaderboard.compute(session, submission.track, submission.phase)
     ours = next((e for e in board.entries if e.team == submission.team.name), None)
-    quota = phases.daily_quota(phase, settings)
+    quota = phases.daily_quota(phase, service)
     used = submissions.quota_used(
         session, submission.team_id, submission.phase, submission.track, utcnow()
     )
@@ -57,28 +57,32 @@ def standing(session: Session, settings: Settings, submission: Submission) -> St
     )
 
 
-def team_view(session: Session, settings: Settings, submission: Submission) -> SubmissionDetail:
+def team_view(
+    session: Session, service: ServiceSettings, sandbox: SandboxSettings, submission: Submission
+) -> SubmissionDetail:
     """The detail its team sees, with the phase and where the team stands."""
     return submissions.detail(session, submission).model_copy(
         update={
-            "phase_window": phase_window(session, settings, submission.phase),
-            "standing": standing(session, settings, submission),
+            "phase_window": phase_window(session, sandbox, submission.phase),
+            "standing": standing(session, service, submission),
         }
     )
 
 
-def team_status(session: Session, settings: Settings, team: Team) -> TeamStatus:
+def team_status(
+    session: Session, service: ServiceSettings, sandbox: SandboxSettings, team: Team
+) -> TeamStatus:
     """Uploads left today in every phase and track (0 where a phase is not open)."""
     moment = utcnow()
     allowances = []
     for phase in phases.list_phases(session):
-        quota = phases.daily_quota(phase, settings)
+        quota = phases.daily_quota(phase, service)
         for track in Track:
             used = submissions.quota_used(session, team.id, phase.name, track, moment)
             left = max(0, quota - used) if phases.is_open(phase, moment) else 0
             allowances.append(
                 Allowance(
-                    phase=_window(phase, settings),
+                    phase=_window(phase, sandbox),
                     track=track,
                     tries_left_today=left,
                     daily_quota=quota,

@@ -131,7 +131,7 @@ def check_quota(
             f"phase {phase!r} cannot evaluate submissions right now (the organisers' setup of "
             "it is broken; they are told by `arena admin status`); try again later"
         ) from None
-    limit = daily_quota(definition, settings)
+    limit = daily_quota(definition, settings.service)
     if quota_used(session, team_id, phase, track, moment) >= limit:
         raise QuotaExceeded(
             f"daily quota of the {phase!r} phase reached: {limit} submissions per team and "
@@ -187,8 +187,8 @@ def accept_upload(
     def quota(session: Session) -> None:
         check_quota(session, settings, team_id, new.phase, new.track)
 
-    submission_id, key = validation.reserve(db, settings, team_id, fields, quota)
-    store = artifact_store(settings, db)
+    submission_id, key = validation.reserve(db, settings.service, team_id, fields, quota)
+    store = artifact_store(settings.storage, db)
     try:
         try:
             check_directory(upload, settings.intake)

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
-from arena.config import Settings
+from arena.config import ServiceSettings, Settings
 from server.core.queue import RunPlan
 from server.models import Submission, TrainingJob
 from server.models import utcnow as now
@@ -58,7 +58,9 @@ class TrainingClaim:
         return f"{self.training_id} (claim {self.claim})"
 
 
-def _new_set(session: Session, settings: Settings, submission: Submission) -> list[TrainingJob]:
+def _new_set(
+    session: Session, service: ServiceSettings, submission: Submission
+) -> list[TrainingJob]:
     """A new seed set: one queued job per seed of the submission's phase."""
     seeds = phases.get_phase(session, submission.phase).training_seeds
 
@@ -82,7 +84,7 @@ def _new_set(session: Session, settings: Settings, submission: Submission) -> li
             error="",
             model_sha256="",
             model_size=0,
-            lease_expires_at=lease_until(settings),
+            lease_expires_at=lease_until(service),
         )
         for seed in range(seeds)
     ]
@@ -91,7 +93,9 @@ def _new_set(session: Session, settings: Settings, submission: Submission) -> li
     return jobs
 
 
-def start_training(session: Session, settings: Settings, submission_id: int) -> tuple[int, ...]:
+def start_training(
+    session: Session, service: ServiceSettings, submission_id: int
+) -> tuple[int, ...]:
     """The training jobs (one per seed) of a queued offline submission; none for a freestyle
     one or one no longer queued (a duplicate delivery)."""
     submission = lock(session, Submission, submission_id)
@@ -99,10 +103,10 @@ def start_training(session: Session, settings: Settings, submission_id: int) -> 
         return ()
     submission.status = advance(submission.status, SubmissionStatus.training, SUBMISSION_MOVES)
     submission.started_at = now()
-    return tuple(job.id for job in _new_set(session, settings, submission))
+    return tuple(job.id for job in _new_set(session, service, submission))
 
 
-def retrain(session: Session, settings: Settings, submission_id: int) -> list[TrainingJob]:
+def retrain(session: Session, service: ServiceSettings, submission_id: int) -> list[TrainingJob]:
     """A new training attempt, from scratch, of a scored or failed offline submission: a new
     seed set, every seed trained again; its score stands until the new set is scored."""
     submission = lock(session, Submission, submission_id)
@@ -116,7 +120,7 @@ def retrain(session: Session, settings: Settings, submission_id: int) -> list[Tr
     busy = [j for j in submission.trainings if j.status in ACTIVE_TRAINING]
     if busy or any(run.status in ACTIVE_RUN for run in submission.runs):
         raise Conflict(f"submission {submission_id} already has a training or evaluation running")
-    return _new_set(session, settings, submission)
+    return _new_set(session, service, submission)
 
 
 def latest_trained(submission: Submission) -> TrainingJob | None:
@@ -136,7 +140,7 @@ def shown_training(submission: Submission) -> TrainingJob | None:
 
 
 def claim_training(
-    session: Session, settings: Settings, training_id: int, worker: str
+    session: Session, service: ServiceSettings, training_id: int, worker: str
 ) -> TrainingClaim | None:
     """Mark a job as trained by ``worker``; None if it is over or held by a live lease."""
     job = lock(session, TrainingJob, training_id)
@@ -148,7 +152,7 @@ def claim_training(
         job.status = advance(job.status, TrainingStatus.training, TRAINING_MOVES)
         job.started_at = now()
     job.claims += 1
-    leases.take(job, worker, settings)
+    leases.take(job, worker, service)
     return TrainingClaim(
         training_id=job.id,
         submission_id=job.submission_id,
@@ -170,7 +174,7 @@ def _fence(claim: TrainingClaim, worker: str) -> tuple:
 
 def heartbeat(
     session: Session,
-    settings: Settings,
+    service: ServiceSettings,
     claim: TrainingClaim,
     worker: str,
     elapsed_s: float | None = None,
@@ -183,7 +187,7 @@ def heartbeat(
         if elapsed_s is None
         else {"elapsed_s": elapsed_s, "log_tail": storable_text(log_tail or "")}
     )
-    return leases.renew(session, settings, TrainingJob, _fence(claim, worker), **progress)
+    return leases.renew(session, service, TrainingJob, _fence(claim, worker), **progress)
 
 
 def release(session: Session, claim: TrainingClaim, worker: str) -> bool:
@@ -268,7 +272,7 @@ def record_failed(
     return True
 
 
-def reap(session: Session, settings: Settings, *, queue_empty: bool) -> tuple[int, ...]:
+def reap(session: Session, service: ServiceSettings, *, queue_empty: bool) -> tuple[int, ...]:
     """Jobs to send again: those whose worker stopped renewing the lease (released at once),
     and, when the queue is empty, those whose task was lost before any worker held them."""
     moment = now()
@@ -290,6 +294,6 @@ def reap(session: Session, settings: Settings, *, queue_empty: bool) -> tuple[in
         )
         for job in idle:
             if job.lease_expires_at is None or job.lease_expires_at < moment:
-                job.lease_expires_at = lease_until(settings)
+                job.lease_expires_at = lease_until(service)
                 resend.append(job.id)
     return tuple(resend)

@@ -18,7 +18,7 @@ from sqlalchemy import select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from arena.config import Settings
+from arena.config import ServiceSettings
 from server.core.db import Database
 from server.models import Submission, Team, UploadValidation, utcnow
 from server.services import leases
@@ -55,7 +55,7 @@ def check_not_busy(session: Session, team_id: int) -> None:
 
 
 def reserve(
-    db: Database, settings: Settings, team_id: int, fields: dict, check_quota: Callable
+    db: Database, service: ServiceSettings, team_id: int, fields: dict, check_quota: Callable
 ) -> tuple[int, str]:
     """The new submission's id and upload key, ``validating``: the team's one validation slot
     and one try of its quota, taken in one transaction (``check_quota(session)`` raises when
@@ -81,7 +81,7 @@ def reserve(
                     submission_id=submission.id,
                     worker="",
                     claims=0,
-                    lease_expires_at=leases.lease_until(settings),
+                    lease_expires_at=leases.lease_until(service),
                 )
             )
             return submission.id, submission.upload_key
@@ -119,7 +119,7 @@ def _job(session: Session, submission_id: int) -> UploadValidation | None:
 
 
 def claim(
-    session: Session, settings: Settings, submission_id: int, worker: str
+    session: Session, service: ServiceSettings, submission_id: int, worker: str
 ) -> ValidationClaim | None:
     """Take the validation for ``worker``; None when it is over or held by a live lease."""
     submission = lock(session, Submission, submission_id)
@@ -128,7 +128,7 @@ def claim(
         return None
     job.claims += 1
     job.started_at = job.started_at or utcnow()
-    leases.take(job, worker, settings)
+    leases.take(job, worker, service)
     return ValidationClaim(
         submission_id=submission_id,
         upload_key=submission.upload_key,
@@ -146,8 +146,8 @@ def _fence(claim: ValidationClaim, worker: str) -> tuple:
     )
 
 
-def renew(session: Session, settings: Settings, claim: ValidationClaim, worker: str) -> bool:
-    return leases.renew(session, settings, UploadValidation, _fence(claim, worker))
+def renew(session: Session, service: ServiceSettings, claim: ValidationClaim, worker: str) -> bool:
+    return leases.renew(session, service, UploadValidation, _fence(claim, worker))
 
 
 def release(session: Session, claim: ValidationClaim, worker: str) -> bool:
@@ -204,7 +204,7 @@ def record_rejected(
     return True
 
 
-def reap(session: Session, settings: Settings, *, queue_empty: bool) -> list[int]:
+def reap(session: Session, service: ServiceSettings, *, queue_empty: bool) -> list[int]:
     """Validations to send again: those whose worker stopped renewing the lease, and, when the
     queue is empty, those whose task was lost before any worker held them."""
     moment = utcnow()
@@ -228,7 +228,7 @@ def reap(session: Session, settings: Settings, *, queue_empty: bool) -> list[int
             if job.submission_id in resend:
                 continue
             if job.lease_expires_at is None or job.lease_expires_at < moment:
-                job.lease_expires_at = leases.lease_until(settings)
+                job.lease_expires_at = leases.lease_until(service)
                 resend.append(job.submission_id)
     return resend
 

@@ -40,12 +40,14 @@ class Episodes:
         scenario_id: str,
         episode: int = 0,
     ) -> ScenarioJob | None:
-        return evaluation.claim_scenario(session, settings, run_id, scenario_id, worker, episode)
+        return evaluation.claim_scenario(
+            session, settings.service, settings.sandbox, run_id, scenario_id, worker, episode
+        )
 
     def renew(
         self, session: Session, settings: Settings, claim: ScenarioJob, worker: str, **_: object
     ) -> bool:
-        return evaluation.heartbeat(session, settings, claim, worker)
+        return evaluation.heartbeat(session, settings.service, claim, worker)
 
     def release(self, session: Session, claim: ScenarioJob, worker: str) -> bool:
         return evaluation.release_claim(session, claim, worker)
@@ -108,7 +110,7 @@ class Episodes:
         """Lost episodes, runs whose tasks were all lost, and queued submissions whose first
         task never started (see :func:`server.services.evaluation.reap`)."""
         with get_database().session() as session:
-            reaped = evaluation.reap(session, settings, queue_empty=queue_empty)
+            reaped = evaluation.reap(session, settings.service, queue_empty=queue_empty)
         for plan in reaped.plans:
             queue.send(plan)
         for submission_id in reaped.submission_ids:

@@ -41,7 +41,7 @@ def queue() -> TaskQueue:
 
 @lru_cache(maxsize=1)
 def store() -> ArtifactStore:
-    return artifact_store(get_settings(), get_database())
+    return artifact_store(get_settings().storage, get_database())
 
 
 def scratch() -> Path:

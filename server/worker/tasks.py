@@ -92,7 +92,7 @@ def evaluate_submission(*, submission_id: int) -> None:
     settings = get_settings()
     with get_database().session() as session:
         # Offline submissions train first; the training's end starts their evaluation.
-        training_ids = training.start_training(session, settings, submission_id)
+        training_ids = training.start_training(session, settings.service, submission_id)
         plan = (
             None if training_ids else evaluation.start_evaluation(session, settings, submission_id)
         )
@@ -154,7 +154,8 @@ def _hand_back_running_jobs(**_: Any) -> None:
 def _close_service_folders(**_: Any) -> None:
     """The data folder and the hidden suite, closed to the agents' uid (server.core.permissions)."""
     settings = get_settings()
-    close_service_folders(settings.storage.resolved_data_dir, hidden_suite_dir(settings))
+    data_dir = settings.storage.resolved_data_dir
+    close_service_folders(data_dir, hidden_suite_dir(settings.suites, data_dir))
 
 
 @worker_ready.connect

@@ -37,7 +37,7 @@ class Trainings:
     def claim(
         self, session: Session, settings: Settings, worker: str, *, training_id: int
     ) -> TrainingClaim | None:
-        return training.claim_training(session, settings, training_id, worker)
+        return training.claim_training(session, settings.service, training_id, worker)
 
     def renew(
         self,
@@ -49,7 +49,7 @@ class Trainings:
         elapsed_s: float | None = None,
         log_tail: str | None = None,
     ) -> bool:
-        return training.heartbeat(session, settings, claim, worker, elapsed_s, log_tail)
+        return training.heartbeat(session, settings.service, claim, worker, elapsed_s, log_tail)
 
     def release(self, session: Session, claim: TrainingClaim, worker: str) -> bool:
         return training.release(session, claim, worker)
@@ -145,7 +145,7 @@ class Trainings:
 
     def reap(self, settings: Settings, queue: TaskQueue, *, queue_empty: bool) -> int:
         with get_database().session() as session:
-            resend = training.reap(session, settings, queue_empty=queue_empty)
+            resend = training.reap(session, settings.service, queue_empty=queue_empty)
         for training_id in resend:
             queue.train(training_id)
         return len(resend)

@@ -41,12 +41,12 @@ class Validations:
     def claim(
         self, session: Session, settings: Settings, worker: str, *, submission_id: int
     ) -> ValidationClaim | None:
-        return validation.claim(session, settings, submission_id, worker)
+        return validation.claim(session, settings.service, submission_id, worker)
 
     def renew(
         self, session: Session, settings: Settings, claim: ValidationClaim, worker: str, **_: object
     ) -> bool:
-        return validation.renew(session, settings, claim, worker)
+        return validation.renew(session, settings.service, claim, worker)
 
     def release(self, session: Session, claim: ValidationClaim, worker: str) -> bool:
         return validation.release(session, claim, worker)
@@ -71,7 +71,7 @@ class Validations:
 
     def reap(self, settings: Settings, queue: TaskQueue, *, queue_empty: bool) -> int:
         with get_database().session() as session:
-            resend = validation.reap(session, settings, queue_empty=queue_empty)
+            resend = validation.reap(session, settings.service, queue_empty=queue_empty)
         for submission_id in resend:
             queue.validate(submission_id)
         return len(resend)

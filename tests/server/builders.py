@@ -175,7 +175,9 @@ def evaluate_failing_everywhere(
         plan = evaluation.start_evaluation(session, settings, submission_id)
     for scenario_id in scenario_ids(plan)[:episodes]:
         with db.session() as session:
-            job = evaluation.claim_scenario(session, settings, plan.run_id, scenario_id, "w1")
+            job = evaluation.claim_scenario(
+                session, settings.service, settings.sandbox, plan.run_id, scenario_id, "w1"
+            )
         outcome = ScenarioOutcome(
             scenario_id=scenario_id,
             status=ScenarioStatus.done,
@@ -208,13 +210,13 @@ def validate_uploads(db: Database, settings: Settings, worker: str = "test-worke
                 select(Submission.id).where(Submission.status == SubmissionStatus.validating)
             )
         )
-    store = artifact_store(settings, db)
+    store = artifact_store(settings.storage, db)
     kind = check_service_kind(None, settings.sandbox)
     queue = TaskQueue(settings)
     try:
         for submission_id in pending:
             with db.session() as session:
-                claim = validation.claim(session, settings, submission_id, worker)
+                claim = validation.claim(session, settings.service, submission_id, worker)
             assert claim is not None
             scratch = settings.storage.resolved_data_dir / "scratch" / worker
             verdict = judge(claim, settings, store, kind, {"arena.test": worker}, scratch)

@@ -44,7 +44,7 @@ def test_stopping_removes_only_this_data_folders_sandboxes(kind, tmp_path) -> No
     )
     try:
         assert leftovers(kind, of_ours) and leftovers(kind, of_theirs)
-        _remove_leftover_sandboxes(Console(), ours)
+        _remove_leftover_sandboxes(Console(), **sandbox_args(ours))
         assert leftovers(kind, of_ours) == []
         assert other.act(observation()) == {"Agent_0": [1.0, 0.0]}
     finally:

@@ -25,7 +25,7 @@ def test_a_development_seed_suite_is_warned_about_on_restart(tmp_path, capsys):
         storage={"data_dir": tmp_path},
         suites={"hidden_suite_dir": built_suite(tmp_path / "dev", 20221128)},
     )
-    assert _hidden_suite(make_console(), settings, {}) == tmp_path / "dev"
+    assert _hidden_suite(make_console(), settings.suites, tmp_path, {}) == tmp_path / "dev"
     out = capsys.readouterr().out
     assert "the hidden suite is built from the PUBLIC DEVELOPMENT SEED 20221128" in out
 
@@ -36,5 +36,5 @@ def test_a_secret_seed_suite_is_not(tmp_path, capsys):
         storage={"data_dir": tmp_path},
         suites={"hidden_suite_dir": built_suite(tmp_path / "s", 99)},
     )
-    _hidden_suite(make_console(), settings, {})
+    _hidden_suite(make_console(), settings.suites, tmp_path, {})
     assert "DEVELOPMENT SEED" not in capsys.readouterr().out

@@ -11,13 +11,15 @@ from server.api.contract import errors
 from server.api.deps import (
     AdminDep,
     DatabaseDep,
+    EvaluationDep,
     QueueDep,
     RowId,
     ScenarioId,
+    ServiceDep,
     SessionDep,
     SettingsDep,
+    StoreDep,
 )
-from server.core.artifacts import artifact_store
 from server.schemas import SubmissionSummary
 from server.services import admin, replays, submissions
 
@@ -42,12 +44,11 @@ def replay(
     submission_id: SubmissionId,
     scenario_id: ScenarioId,
     session: SessionDep,
-    settings: SettingsDep,
-    db: DatabaseDep,
+    store: StoreDep,
 ) -> dict:
     """Any episode of any submission, hidden phases included."""
     submission = submissions.get_submission(session, submission_id)
-    return replays.submission_replay(session, settings, db, submission, scenario_id, organiser=True)
+    return replays.submission_replay(session, store, submission, scenario_id, organiser=True)
 
 
 @router.post("/submissions/{submission_id}/disqualify", response_model=SubmissionSummary)
@@ -65,9 +66,9 @@ def disqualify(
 
 @router.post("/submissions/{submission_id}/requeue")
 def requeue(
-    submission_id: SubmissionId, db: DatabaseDep, settings: SettingsDep, queue: QueueDep
+    submission_id: SubmissionId, db: DatabaseDep, service: ServiceDep, queue: QueueDep
 ) -> dict[str, str]:
-    return {"result": admin.requeue(db, settings, queue, submission_id)}
+    return {"result": admin.requeue(db, service, queue, submission_id)}
 
 
 @router.post("/submissions/{submission_id}/rerun")
@@ -79,9 +80,9 @@ def rerun(
 
 @router.post("/submissions/{submission_id}/retrain")
 def retrain(
-    submission_id: SubmissionId, db: DatabaseDep, settings: SettingsDep, queue: QueueDep
+    submission_id: SubmissionId, db: DatabaseDep, service: ServiceDep, queue: QueueDep
 ) -> dict[str, int]:
-    return {"attempt": admin.retrain(db, settings, queue, submission_id)}
+    return {"attempt": admin.retrain(db, service, queue, submission_id)}
 
 
 @router.get(
@@ -92,7 +93,7 @@ def retrain(
 def trained_model(
     submission_id: SubmissionId,
     db: DatabaseDep,
-    settings: SettingsDep,
+    store: StoreDep,
     seed: Annotated[int | None, Query(ge=0, lt=16)] = None,
 ) -> Response:
     """The trained output of an offline submission, for audit: the ``.tar.gz`` whose sha256 the
@@ -100,7 +101,7 @@ def trained_model(
     the phase trains several (required then)."""
     model = admin.trained_model(db, submission_id, seed)
     return Response(
-        artifact_store(settings, db).read(model.key),
+        store.read(model.key),
         media_type="application/gzip",
         headers={
             "Content-Disposition": f'attachment; filename="{model.file_name}"',
@@ -111,17 +112,20 @@ def trained_model(
 
 @router.post("/submissions/{submission_id}/rescore")
 async def rescore(
-    submission_id: SubmissionId, db: DatabaseDep, settings: SettingsDep
+    submission_id: SubmissionId,
+    db: DatabaseDep,
+    settings: SettingsDep,
+    evaluation: EvaluationDep,
+    store: StoreDep,
 ) -> dict[str, dict[str, float]]:
     """Re-score the submission's scored attempts with its phase's profile; keyed by attempt.
     (A phase's profile changes with `arena admin rescore --phase NAME --profile P`, which
     re-scores the whole phase: one submission is never ranked by other formulas.)"""
-    from server.core.artifacts import artifact_store
-
-    store = artifact_store(settings, db)
     targets = admin.rescore_targets(db, settings, submission_id=submission_id)
     scored = {}
     for target in targets:
-        _, metrics = await run_in_threadpool(admin.rescore_run, db, settings, store, target.run_id)
+        _, metrics = await run_in_threadpool(
+            admin.rescore_run, db, evaluation, store, target.run_id
+        )
         scored[str(target.attempt)] = metrics
     return scored

@@ -11,15 +11,16 @@ from fastapi import APIRouter, Request
 from fastapi import Path as PathParam
 from fastapi.responses import HTMLResponse
 
-from arena.config import Settings
+from arena.config import EvaluationSettings
 from server.api.deps import (
     MAX_ROW_ID,
+    EvaluationDep,
     GapQuery,
     LeaderboardDep,
     PhaseQuery,
     ScenarioId,
     SessionDep,
-    SettingsDep,
+    SuitesDep,
 )
 from server.api.security import page_templates
 from server.models import Phase, utcnow
@@ -62,23 +63,23 @@ def leaderboard_page(
     )
 
 
-def _costs(phase: Phase, episodes: int, settings: Settings) -> list[str]:
+def _costs(phase: Phase, episodes: int, evaluation: EvaluationSettings) -> list[str]:
     """What makes a score of the phase take longer than one training and one episode each."""
     costs = []
     if episodes > 1 or phase.adaptive_target is not None:
-        costs.append(phases.adaptive_cost(phase, settings) or phases.episodes_cost(episodes))
+        costs.append(phases.adaptive_cost(phase, evaluation) or phases.episodes_cost(episodes))
     if phase.training_seeds > 1:
         costs.append(phases.seeds_cost(phase.training_seeds))
     return costs
 
 
 @router.get("/submit", response_class=HTMLResponse)
-def submit_page(request: Request, session: SessionDep, settings: SettingsDep) -> HTMLResponse:
+def submit_page(request: Request, session: SessionDep, evaluation: EvaluationDep) -> HTMLResponse:
     # Every phase, a closed or future one too (disabled, saying when): a phase that just
     # vanished from the form would leave a team guessing.
     moment = utcnow()
     known = phases.list_phases(session)
-    episodes = {p.name: phases.episodes_per_scenario(p, settings) for p in known}
+    episodes = {p.name: phases.episodes_per_scenario(p, evaluation) for p in known}
     default = DEFAULT_PHASE
     if not any(p.name == default and phases.is_open(p, moment) for p in known):
         default = next((p.name for p in known if phases.is_open(p, moment)), DEFAULT_PHASE)
@@ -93,7 +94,7 @@ def submit_page(request: Request, session: SessionDep, settings: SettingsDep) ->
             "default_phase": default,
             # Said before the upload: several episodes, or training seeds, multiply the time to
             # a score.
-            "costs": {p.name: "; ".join(_costs(p, episodes[p.name], settings)) for p in known},
+            "costs": {p.name: "; ".join(_costs(p, episodes[p.name], evaluation)) for p in known},
         },
     )
 
@@ -158,9 +159,9 @@ def admin_replay_page(
 
 
 @router.get("/scenarios", response_class=HTMLResponse)
-def scenarios_page(request: Request, settings: SettingsDep) -> HTMLResponse:
+def scenarios_page(request: Request, suites: SuitesDep) -> HTMLResponse:
     try:
-        entries = scenarios.public_scenarios(settings)
+        entries = scenarios.public_scenarios(suites)
     except NotFound:
         entries = ()
     return templates.TemplateResponse(request, "scenarios.html", {"scenarios": entries})

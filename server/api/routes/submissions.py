@@ -11,9 +11,12 @@ from server.api.deps import (
     DatabaseDep,
     OwnedSubmission,
     QueueDep,
+    SandboxDep,
     ScenarioId,
+    ServiceDep,
     SessionDep,
     SettingsDep,
+    StoreDep,
 )
 from server.api.upload import receive_form
 from server.schemas import SubmissionDetail, SubmissionLogs, SubmissionSummary
@@ -92,7 +95,7 @@ async def create_submission(
     )
     with db.read_session() as session:
         submission = submissions.get_submission(session, created.id)
-        return standing.team_view(session, settings, submission)
+        return standing.team_view(session, settings.service, settings.sandbox, submission)
 
 
 @router.get("", response_model=list[SubmissionSummary])
@@ -103,11 +106,11 @@ def list_submissions(session: SessionDep, team: CurrentTeam) -> list[SubmissionS
 
 @router.get("/{submission_id}", response_model=SubmissionDetail)
 def get_submission(
-    session: SessionDep, settings: SettingsDep, submission: OwnedSubmission
+    session: SessionDep, service: ServiceDep, sandbox: SandboxDep, submission: OwnedSubmission
 ) -> SubmissionDetail:
     """Status, timings, scores, the phase (dates, what it hides) and where the team stands
     (rank, uploads left today)."""
-    return standing.team_view(session, settings, submission)
+    return standing.team_view(session, service, sandbox, submission)
 
 
 @router.get("/{submission_id}/logs", response_model=SubmissionLogs, responses=errors(403))
@@ -120,14 +123,13 @@ def get_logs(session: SessionDep, submission: OwnedSubmission) -> SubmissionLogs
 @router.get("/{submission_id}/replays/{scenario_id}", responses=errors(403))
 def get_replay(
     session: SessionDep,
-    settings: SettingsDep,
-    db: DatabaseDep,
+    store: StoreDep,
     submission: OwnedSubmission,
     scenario_id: ScenarioId,
 ) -> dict:
     """One episode to watch (the replay page's data: map, every vehicle's pose per step, the
     agents' speed and events), in a phase of full visibility; 403 in a hidden phase."""
-    return replays.submission_replay(session, settings, db, submission, scenario_id)
+    return replays.submission_replay(session, store, submission, scenario_id)
 
 
 @router.get(
@@ -136,15 +138,17 @@ def get_replay(
     responses={200: {"content": {"application/zip": {}}}},
 )
 def download_submission(
-    session: SessionDep, settings: SettingsDep, db: DatabaseDep, submission: OwnedSubmission
+    session: SessionDep,
+    service: ServiceDep,
+    sandbox: SandboxDep,
+    store: StoreDep,
+    submission: OwnedSubmission,
 ) -> Response:
     """A zip of what the team may see: ``submission.json`` (status, scores, failure counts),
     the zip the team uploaded (``upload/agent.zip``), and in a phase of full visibility
     ``logs.json`` and ``logs/<family>-<k>.txt`` per finished scenario."""
-    from server.core.artifacts import artifact_store
-
     return Response(
-        downloads.submission_zip(session, settings, artifact_store(settings, db), submission),
+        downloads.submission_zip(session, service, sandbox, store, submission),
         media_type="application/zip",
         headers={
             "Content-Disposition": f'attachment; filename="{downloads.download_name(submission)}"'

@@ -46,7 +46,9 @@ def test_healthz_and_metrics(client, db, settings):
     with db.session() as session:
         plan = evaluation.start_evaluation(session, settings, sid)
     with db.session() as session:
-        evaluation.claim_scenario(session, settings, plan.run_id, scenario_ids(plan)[0], "w")
+        evaluation.claim_scenario(
+            session, settings.service, settings.sandbox, plan.run_id, scenario_ids(plan)[0], "w"
+        )
     text = client.get("/api/v1/metrics", headers=bearer(settings.service.admin_token)).text
     assert "arena_queue_depth" in text
     assert "arena_running_evaluations 1.0" in text

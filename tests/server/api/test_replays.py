@@ -64,7 +64,7 @@ def served(tmp_path_factory):
     upgrade_database(settings.storage.resolved_database_url)
     db = Database(settings.storage.resolved_database_url)
     suite, record = recorded_episode(root / "episode")
-    store = artifact_store(settings, db)
+    store = artifact_store(settings.storage, db)
     team_id, token = make_team(db, "watchers")
     other_id, _ = make_team(db, "others")
     ids = {

@@ -26,7 +26,13 @@ def evaluate(db, settings, submission_id, succeeds) -> list[int]:
         for episode in plan.episodes:
             with db.session() as session:
                 job = evaluation.claim_scenario(
-                    session, settings, plan.run_id, episode.scenario_id, "w1", episode.index
+                    session,
+                    settings.service,
+                    settings.sandbox,
+                    plan.run_id,
+                    episode.scenario_id,
+                    "w1",
+                    episode.index,
                 )
             outcome = ScenarioOutcome(
                 scenario_id=episode.scenario_id,

@@ -30,7 +30,13 @@ def run_episodes(db, settings, submission_id, cpu_s: float, only: int | None = N
     for episode in plan.episodes[:only]:
         with db.session() as session:
             job = evaluation.claim_scenario(
-                session, settings, plan.run_id, episode.scenario_id, "w1", episode.index
+                session,
+                settings.service,
+                settings.sandbox,
+                plan.run_id,
+                episode.scenario_id,
+                "w1",
+                episode.index,
             )
         claimed.append(job is not None)
         if job is None:
@@ -101,7 +107,12 @@ def test_the_phase_override_wins_over_the_setting(client, db, settings):
     with db.session() as session:
         plan = evaluation.start_evaluation(session, settings, second)
         job = evaluation.claim_scenario(
-            session, settings, plan.run_id, plan.episodes[0].scenario_id, "w1"
+            session,
+            settings.service,
+            settings.sandbox,
+            plan.run_id,
+            plan.episodes[0].scenario_id,
+            "w1",
         )
         run = session.get(EvaluationRun, plan.run_id)
         # The run records the limits it is evaluated under; the worker's job carries them.
@@ -124,7 +135,7 @@ def test_the_phase_override_wins_over_the_setting(client, db, settings):
 
     # Cleared, the settings' apply again.
     phase = phases.set_phase(db, settings, "final", phases.PhaseChanges(default_cpu_limits=True))
-    assert phases.cpu_limits(phase, settings) == settings.sandbox.cpu_limits
+    assert phases.cpu_limits(phase, settings.sandbox) == settings.sandbox.cpu_limits
 
 
 def test_the_phase_refuses_limits_that_do_not_grow(db, settings):

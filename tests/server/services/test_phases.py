@@ -265,7 +265,9 @@ def test_a_run_that_failed_on_our_side_shows_nothing_per_family_in_a_hidden_phas
         plan = evaluation.start_evaluation(session, settings, submission_id)
     for index, scenario_id in enumerate(scenario_ids(plan)):
         with db.session() as session:
-            job = evaluation.claim_scenario(session, settings, plan.run_id, scenario_id, "w1")
+            job = evaluation.claim_scenario(
+                session, settings.service, settings.sandbox, plan.run_id, scenario_id, "w1"
+            )
         ours = index == 0
         outcome = ScenarioOutcome(
             scenario_id=scenario_id,

@@ -30,14 +30,14 @@ def offline(db) -> int:
 def started(db, settings, submission_id: int) -> int | None:
     """The one training job of a phase of one seed; None when nothing started."""
     with db.session() as session:
-        ids = training.start_training(session, settings, submission_id)
+        ids = training.start_training(session, settings.service, submission_id)
     assert len(ids) <= 1
     return ids[0] if ids else None
 
 
 def claim(db, settings, training_id: int, worker: str):
     with db.session() as session:
-        return training.claim_training(session, settings, training_id, worker)
+        return training.claim_training(session, settings.service, training_id, worker)
 
 
 def trained(db, settings, job, worker: str):
@@ -83,7 +83,13 @@ def test_trained_output_starts_the_evaluation_of_that_output(db, settings):
     with db.session() as session:
         first = plan.episodes[0]
         work = evaluation.claim_scenario(
-            session, settings, plan.run_id, first.scenario_id, "w", first.index
+            session,
+            settings.service,
+            settings.sandbox,
+            plan.run_id,
+            first.scenario_id,
+            "w",
+            first.index,
         )
     assert work.model_key == "training/1/model.tar.gz"  # the worker mounts this model
     assert trained(db, settings, job, "w1") is None  # a redelivery changes nothing
@@ -97,12 +103,12 @@ def test_a_dead_workers_training_is_resent_and_its_late_result_refused(db, setti
     with db.session() as session:
         session.get(TrainingJob, training_id).lease_expires_at = utcnow() - timedelta(seconds=1)
     with db.session() as session:
-        assert training.reap(session, settings, queue_empty=False) == (training_id,)
+        assert training.reap(session, settings.service, queue_empty=False) == (training_id,)
     second = claim(db, settings, training_id, "w2")
     assert second.claim == 2
     with db.session() as session:
-        assert not training.heartbeat(session, settings, first, "w1", 5.0, "")  # fenced off
-        assert training.heartbeat(session, settings, second, "w2", 5.0, "epoch 1")
+        assert not training.heartbeat(session, settings.service, first, "w1", 5.0, "")  # fenced off
+        assert training.heartbeat(session, settings.service, second, "w2", 5.0, "epoch 1")
     assert trained(db, settings, first, "w1") is None
     assert trained(db, settings, second, "w2") is not None
 
@@ -128,7 +134,7 @@ def test_cancelling_stops_the_training(db, settings, client):
     job = claim(db, settings, started(db, settings, sid), "w1")
     submissions.cancel(db, TaskQueue(settings), sid)
     with db.session() as session:
-        assert not training.heartbeat(session, settings, job, "w1", 1.0, "")
+        assert not training.heartbeat(session, settings.service, job, "w1", 1.0, "")
         assert session.get(TrainingJob, job.training_id).status == TrainingStatus.cancelled
     assert trained(db, settings, job, "w1") is None
 
@@ -139,7 +145,7 @@ def test_retrain_is_a_new_attempt_and_rerun_uses_the_trained_output(db, settings
     plan = trained(db, settings, job, "w1")
     with db.session() as session:
         with pytest.raises(Conflict, match="only scored or failed"):
-            training.retrain(session, settings, sid)
+            training.retrain(session, settings.service, sid)
         submission = session.get(Submission, sid)
         submission.status = SubmissionStatus.scored
         for run in submission.runs:
@@ -163,6 +169,6 @@ def test_requeue_resends_a_training(db, settings):
     started(db, settings, sid)
     queue = TaskQueue(settings)
     try:
-        assert admin.requeue(db, settings, queue, sid) == "training re-sent"
+        assert admin.requeue(db, settings.service, queue, sid) == "training re-sent"
     finally:
         queue.close()

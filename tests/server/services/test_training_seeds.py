@@ -34,12 +34,12 @@ def offline(db, team: str = "bc") -> int:
 
 def start(db, settings, submission_id: int) -> tuple[int, ...]:
     with db.session() as session:
-        return training.start_training(session, settings, submission_id)
+        return training.start_training(session, settings.service, submission_id)
 
 
 def claim(db, settings, training_id: int):
     with db.session() as session:
-        return training.claim_training(session, settings, training_id, "w1")
+        return training.claim_training(session, settings.service, training_id, "w1")
 
 
 def trained(db, settings, job):
@@ -63,7 +63,13 @@ def evaluate(db, settings, plan, fails: int) -> RunStatus | None:
     for number, episode in enumerate(plan.episodes):
         with db.session() as session:
             job = evaluation.claim_scenario(
-                session, settings, plan.run_id, episode.scenario_id, "w1", episode.index
+                session,
+                settings.service,
+                settings.sandbox,
+                plan.run_id,
+                episode.scenario_id,
+                "w1",
+                episode.index,
             )
         outcome = ScenarioOutcome(
             scenario_id=episode.scenario_id,
@@ -178,12 +184,18 @@ def test_a_seeds_failure_fails_the_submission_naming_it_and_stops_the_others(db,
         assert third_job.status == TrainingStatus.cancelled
         assert submission.runs[0].status == RunStatus.cancelled
     with db.session() as session:  # seed 2's worker learns on its next heartbeat
-        assert not training.heartbeat(session, settings, third, "w1", 1.0, "")
+        assert not training.heartbeat(session, settings.service, third, "w1", 1.0, "")
     with db.session() as session:  # the cancelled run's episode tasks do nothing
         episode = plan.episodes[0]
         assert (
             evaluation.claim_scenario(
-                session, settings, plan.run_id, episode.scenario_id, "w1", episode.index
+                session,
+                settings.service,
+                settings.sandbox,
+                plan.run_id,
+                episode.scenario_id,
+                "w1",
+                episode.index,
             )
             is None
         )
@@ -197,7 +209,13 @@ def test_a_seeds_failed_evaluation_fails_the_submission_naming_it(db, settings):
         run_id = plans[1].run_id
         first = plans[1].episodes[0]
         job = evaluation.claim_scenario(
-            session, settings, run_id, first.scenario_id, "w1", first.index
+            session,
+            settings.service,
+            settings.sandbox,
+            run_id,
+            first.scenario_id,
+            "w1",
+            first.index,
         )
     outcome = ScenarioOutcome(
         scenario_id=first.scenario_id,
@@ -251,7 +269,7 @@ def test_rerun_retrain_and_requeue_act_on_the_whole_set(db, settings):
             for run in session.get(Submission, sid).runs:
                 if run.status == RunStatus.queued:
                     evaluation.cancel_run(session, run)
-        assert admin.retrain(db, settings, queue, sid) == 3  # jobs 3 and 4: seed set 2
+        assert admin.retrain(db, settings.service, queue, sid) == 3  # jobs 3 and 4: seed set 2
         with db.read_session() as session:
             jobs = session.get(Submission, sid).trainings
             assert [(j.seed_set, j.seed, j.status) for j in jobs] == [
@@ -260,7 +278,7 @@ def test_rerun_retrain_and_requeue_act_on_the_whole_set(db, settings):
                 (2, 0, "queued"),
                 (2, 1, "queued"),
             ]
-        assert admin.requeue(db, settings, queue, sid) == "2 trainings re-sent"
+        assert admin.requeue(db, settings.service, queue, sid) == "2 trainings re-sent"
     finally:
         queue.close()
     assert status_of(db, sid) == SubmissionStatus.scored  # the first set's score stands

@@ -66,7 +66,9 @@ def test_agent_text_of_every_kind_is_recorded_and_the_run_aggregates(db, setting
         for scenario_id in scenario_ids(plan):
             text = texts.pop() if texts else "fine"
             with db.session() as session:
-                job = evaluation.claim_scenario(session, settings, plan.run_id, scenario_id, "w")
+                job = evaluation.claim_scenario(
+                    session, settings.service, settings.sandbox, plan.run_id, scenario_id, "w"
+                )
             outcome = ScenarioOutcome(
                 scenario_id=scenario_id,
                 status=ScenarioStatus.done,

@@ -26,7 +26,9 @@ def start(db, settings, submission_id):
 
 def claim(db, settings, run_id, scenario_id, worker="w1"):
     with db.session() as session:
-        return evaluation.claim_scenario(session, settings, run_id, scenario_id, worker)
+        return evaluation.claim_scenario(
+            session, settings.service, settings.sandbox, run_id, scenario_id, worker
+        )
 
 
 def job_of(db, run_id, scenario_id) -> tuple[evaluation.ScenarioJob, str]:
@@ -147,12 +149,14 @@ def test_reaper_resends_stale_claims_and_lost_messages(db, settings, submission_
     first, *rest = scenario_ids(plan)
     w1 = claim(db, settings, plan.run_id, first, "w1")
     with db.session() as session:
-        assert evaluation.reap(session, settings, queue_empty=True).plans == ()  # lease valid
+        assert (
+            evaluation.reap(session, settings.service, queue_empty=True).plans == ()
+        )  # lease valid
     # w1 died: its claim's lease lapses while the rest of the run's stays fresh (other workers
     # renew theirs). The claim alone is released and re-sent at once, even with a busy queue.
     expire_lease(db, plan.run_id, first)
     with db.session() as session:
-        reaped = evaluation.reap(session, settings, queue_empty=False)
+        reaped = evaluation.reap(session, settings.service, queue_empty=False)
     assert [scenario_ids(p) for p in reaped.plans] == [(first,)]
     retaken = claim(db, settings, plan.run_id, first, "w2")
     assert retaken is not None and retaken.attempt == 2  # the task gives up after too many
@@ -160,11 +164,11 @@ def test_reaper_resends_stale_claims_and_lost_messages(db, settings, submission_
     # w1's episode was still running after all: its heartbeat learns it lost the claim, and its
     # result is fenced off.
     with db.session() as session:
-        assert not evaluation.heartbeat(session, settings, w1, "w1")
-        assert evaluation.heartbeat(session, settings, retaken, "w2")
+        assert not evaluation.heartbeat(session, settings.service, w1, "w1")
+        assert evaluation.heartbeat(session, settings.service, retaken, "w2")
     assert finish(db, plan.run_id, first, success=False, claim=(w1, "w1")) is False
     with db.session() as session:  # w2's lease is fresh: not re-sent again
-        assert evaluation.reap(session, settings, queue_empty=True).plans == ()
+        assert evaluation.reap(session, settings.service, queue_empty=True).plans == ()
     finish(db, plan.run_id, first, claim=(retaken, "w2"))
     with db.session() as session:
         row = session.scalar(select(ScenarioResult).where(ScenarioResult.scenario_id == first))
@@ -172,9 +176,9 @@ def test_reaper_resends_stale_claims_and_lost_messages(db, settings, submission_
     expire_lease(db, plan.run_id)
     with db.session() as session:
         # Never claimed, queue busy: the tasks may still be waiting their turn.
-        assert evaluation.reap(session, settings, queue_empty=False).plans == ()
+        assert evaluation.reap(session, settings.service, queue_empty=False).plans == ()
     with db.session() as session:
-        reaped = evaluation.reap(session, settings, queue_empty=True)
+        reaped = evaluation.reap(session, settings.service, queue_empty=True)
     assert [scenario_ids(p) for p in reaped.plans] == [tuple(rest)]
 
 
@@ -182,9 +186,9 @@ def test_reaper_resends_a_submission_whose_first_task_was_lost(db, settings, sub
     with db.session() as session:
         session.execute(update(Submission).values(queued_at=utcnow() - timedelta(hours=1)))
     with db.session() as session:
-        assert evaluation.reap(session, settings, queue_empty=False).submission_ids == ()
+        assert evaluation.reap(session, settings.service, queue_empty=False).submission_ids == ()
     with db.session() as session:
-        assert evaluation.reap(session, settings, queue_empty=True).submission_ids == (
+        assert evaluation.reap(session, settings.service, queue_empty=True).submission_ids == (
             submission_id,
         )
 
@@ -197,7 +201,7 @@ def test_cancel_stops_a_running_evaluation(db, settings, submission_id):
     submissions.cancel(db, TaskQueue(settings), submission_id)
     assert status_of(db, submission_id) == SubmissionStatus.cancelled
     with db.session() as session:
-        assert not evaluation.heartbeat(session, settings, job, "w1")
+        assert not evaluation.heartbeat(session, settings.service, job, "w1")
         # A cancelled run shows no scenario as running.
         running = select(func.count()).where(ScenarioResult.status == "running")
         assert session.scalar(running) == 0
@@ -265,7 +269,7 @@ def test_rescore_recomputes_from_stored_results(db, settings, submission_id):
     assert [(t.run_id, t.submission_id, t.phase) for t in targets] == [
         (plan.run_id, submission_id, "final")
     ]
-    profile, metrics = admin.rescore_run(db, settings, DatabaseStore(db), plan.run_id)
+    profile, metrics = admin.rescore_run(db, settings.evaluation, DatabaseStore(db), plan.run_id)
     assert profile == "driving-smarts-2022"
     assert metrics["completion"] == 0.0 and metrics["time"] == 100.0
     with db.session() as session:
@@ -300,12 +304,20 @@ def test_each_episode_of_a_reactive_scenario_is_a_claim_of_its_own(db, settings,
     ids = sorted({e.scenario_id for e in plan.episodes})
     assert sorted(plan.episodes) == [Episode(sid, k) for sid in ids for k in (0, 1)]
     with db.session() as session, pytest.raises(NotFound, match="no episode 2"):
-        evaluation.claim_scenario(session, settings, plan.run_id, ids[0], "w1", 2)
+        evaluation.claim_scenario(
+            session, settings.service, settings.sandbox, plan.run_id, ids[0], "w1", 2
+        )
     last = []
     for episode in plan.episodes:
         with db.session() as session:
             job = evaluation.claim_scenario(
-                session, settings, plan.run_id, episode.scenario_id, "w1", episode.index
+                session,
+                settings.service,
+                settings.sandbox,
+                plan.run_id,
+                episode.scenario_id,
+                "w1",
+                episode.index,
             )
         assert job.key == episode
         # The first scenario fails in its second episode only.

@@ -36,7 +36,7 @@ from tests.server.service_stack import (
     start_worker,
     wait_finished,
 )
-from tests.settings import env_only
+from tests.settings import env_only, evaluate_args
 
 pytestmark = [pytest.mark.slow, pytest.mark.bwrap]
 
@@ -198,7 +198,7 @@ runpy.run_path("bc_train.py", run_name="__main__")
 
 def test_a_worker_killed_while_training_resumes_from_its_last_checkpoint(stack_settings, tmp_path):
     db = Database(stack_settings.storage.database_url)
-    store = artifact_store(stack_settings, db)
+    store = artifact_store(stack_settings.storage, db)
     _, token = make_team(db, "bc-team")
     worker = start_worker(stack_settings, tmp_path / "worker1.log", concurrency=1)
     try:
@@ -305,8 +305,8 @@ def test_a_phase_of_two_seeds_trains_and_evaluates_each_and_scores_over_them(
         assert sorted(run.training.seed for run in runs) == [0, 1]
         episodes = sum(run.episode_count for run in runs)
     # The audit re-runs each seed's model on its episodes; a changed record names its seed.
-    store = artifact_store(stack_settings, db)
-    report = audit(db, stack_settings, store, sid)
+    store = artifact_store(stack_settings.storage, db)
+    report = audit(db, store, sid, **evaluate_args(stack_settings))
     assert report.identical and report.compared == episodes, report
     with db.session() as session:
         run = session.scalar(
@@ -328,7 +328,7 @@ def test_a_phase_of_two_seeds_trains_and_evaluates_each_and_scores_over_them(
         )
         result.record_key = other.record_key  # seed 0's record stands in for seed 1's
         tampered = result.scenario_id
-    report = audit(db, stack_settings, store, sid)
+    report = audit(db, store, sid, **evaluate_args(stack_settings))
     assert report.difference is not None and report.difference.startswith("seed 1: "), report
     assert tampered in report.difference
     db.dispose()

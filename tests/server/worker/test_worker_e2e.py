@@ -547,7 +547,7 @@ def test_audit_reruns_a_score_bit_identically_and_names_what_differs(
                 .order_by(ScenarioResult.scenario_id)
             )
             key = first.record_key
-        store = artifact_store(stack_settings, db)
+        store = artifact_store(stack_settings.storage, db)
         altered = tmp_path / "altered.npz"
         with np.load(store.fetch(key, tmp_path / "stored.npz")) as record:
             arrays = {name: record[name] for name in record.files}
