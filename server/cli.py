@@ -697,11 +697,14 @@ def leaderboard_export(
 def serve(host: str = "127.0.0.1", port: int = 8000, workers: int = 1) -> None:
     """Run the API and web pages (uvicorn)."""
     # deferred: CLI start-up time
+    from functools import partial
+
     import uvicorn
 
     from arena.config import get_settings
     from server.core.http import HeaderDeadlineProtocol
 
+    service = get_settings().service
     uvicorn.run(
         "server.app:create_app",
         factory=True,
@@ -709,8 +712,8 @@ def serve(host: str = "127.0.0.1", port: int = 8000, workers: int = 1) -> None:
         port=port,
         workers=workers,
         # Slow clients hold no worker: headers have a deadline, idle keep-alives end.
-        http=HeaderDeadlineProtocol,
-        timeout_keep_alive=get_settings().service.http_keep_alive_s,
+        http=partial(HeaderDeadlineProtocol, header_timeout_s=service.http_header_timeout_s),
+        timeout_keep_alive=service.http_keep_alive_s,
     )
 
 
@@ -723,9 +726,10 @@ def worker(
 ) -> None:
     """Run a Celery worker that evaluates submissions."""
     # deferred: CLI start-up time
+    from arena.config import get_settings
     from server.core.celery_app import create_celery_app
 
-    app = create_celery_app()
+    app = create_celery_app(get_settings())
     argv = [
         "worker",
         f"--loglevel={loglevel}",

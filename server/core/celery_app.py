@@ -64,9 +64,9 @@ def celery_config(settings: Settings) -> dict[str, Any]:
     return config
 
 
-def create_celery_app(settings: Settings | None = None) -> Celery:
+def create_celery_app(settings: Settings) -> Celery:
     app = Celery("arena", set_as_current=False)
-    app.conf.update(celery_config(settings or get_settings()))
+    app.conf.update(celery_config(settings))
     return app
 
 
@@ -75,4 +75,5 @@ app = Celery("arena", set_as_current=False)
 
 @app.on_configure.connect
 def _configure_from_settings(sender: Celery, **_: Any) -> None:
+    # The worker's bootstrap (`celery -A`): nothing above it to hand the settings down.
     sender.conf.update(celery_config(get_settings()))

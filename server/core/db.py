@@ -1,4 +1,4 @@
-"""Engine and session factories, built from the settings when first asked for.
+"""Engine and session factories for a database URL.
 
 SQLite (the embedded default) runs in WAL mode with every transaction ``BEGIN IMMEDIATE``: the API
 and several worker processes write the same file, and taking the write lock up front makes a
@@ -11,12 +11,9 @@ from __future__ import annotations
 import os
 from collections.abc import Iterator
 from contextlib import contextmanager
-from functools import lru_cache
 
 from sqlalchemy import Engine, create_engine, event
 from sqlalchemy.orm import Session, sessionmaker
-
-from arena.config import get_settings
 
 
 def make_engine(url: str, *, read_only: bool = False) -> Engine:
@@ -48,7 +45,8 @@ def make_engine(url: str, *, read_only: bool = False) -> Engine:
 
 
 class Database:
-    """An engine and its session factory. One per process (see :func:`get_database`)."""
+    """An engine and its session factory. One per process (the API's app state, the worker's
+    :func:`server.worker.local.database`)."""
 
     def __init__(self, url: str) -> None:
         self.url = url
@@ -78,8 +76,3 @@ class Database:
     def after_fork(self) -> None:
         """Drop connections inherited from a parent process (Celery prefork children)."""
         self.dispose(close=False)
-
-
-@lru_cache
-def get_database() -> Database:
-    return Database(get_settings().storage.resolved_database_url)

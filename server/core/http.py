@@ -3,7 +3,9 @@
 uvicorn bounds idle keep-alive connections (``timeout_keep_alive``) but not a client that sends
 its request line and headers a byte at a time: 50 such connections were once held open for over
 40 s each (slowloris). Here every connection must complete its request headers within
-``ARENA_HTTP_HEADER_TIMEOUT_S`` of connecting (or of its previous response), or it is closed.
+``ARENA_HTTP_HEADER_TIMEOUT_S`` of connecting (or of its previous response), or it is closed;
+uvicorn builds the protocol per connection from what ``arena serve`` hands it (a partial with
+``header_timeout_s``).
 A request body (an upload) streams without this deadline: the receiving coroutine holds no
 worker thread, and its size is capped (server/api/upload.py).
 """
@@ -15,13 +17,11 @@ import asyncio
 import h11
 from uvicorn.protocols.http.h11_impl import H11Protocol
 
-from arena.config import get_settings
-
 
 class HeaderDeadlineProtocol(H11Protocol):
-    def __init__(self, *args, **kwargs) -> None:
+    def __init__(self, *args, header_timeout_s: float, **kwargs) -> None:
         super().__init__(*args, **kwargs)
-        self.header_timeout_s = get_settings().service.http_header_timeout_s
+        self.header_timeout_s = header_timeout_s
         self._header_deadline: asyncio.TimerHandle | None = None
 
     def connection_made(self, transport: asyncio.Transport) -> None:  # type: ignore[override]

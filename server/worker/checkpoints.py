@@ -15,7 +15,7 @@ from pathlib import Path
 
 from sqlalchemy.exc import SQLAlchemyError
 
-from arena.config import Settings
+from arena.config import TrainingSettings
 from evaluator.training.checkpoint import CheckpointWatch, SnapshotFailed
 from server.core.artifacts import ArtifactStore, MissingArtifact
 
@@ -35,7 +35,7 @@ class ClaimCheckpoints:
     def __init__(
         self,
         store: ArtifactStore,
-        settings: Settings,
+        training: TrainingSettings,
         training_id: int,
         claim: int,
         output: Path,
@@ -47,9 +47,9 @@ class ClaimCheckpoints:
         self.staging = staging
         self.watch = CheckpointWatch(
             output,
-            interval_s=settings.training.train_checkpoint_interval_s,
-            max_bytes=settings.training.train_checkpoint_bytes,
-            max_entries=settings.training.train_output_files,
+            interval_s=training.train_checkpoint_interval_s,
+            max_bytes=training.train_checkpoint_bytes,
+            max_entries=training.train_output_files,
         )
         self._saved = False
 

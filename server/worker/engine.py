@@ -34,9 +34,9 @@ Adding a job kind (e.g. validating an uploaded zip in a sandbox):
    ``lease.stop_with(...)`` to be killable from outside and ``lease.report(...)`` to show
    progress) and ``finish``.
 3. A task name in :mod:`server.core.celery_app`, a ``TaskQueue`` method that sends it, and in
-   :mod:`server.worker.tasks` a task ``run_job(KIND, self, <ids>)`` declared with ``arena_task``
-   (``bind=True``, ``max_retries=INFRASTRUCTURE_RETRIES``), with the kind added to ``JOB_KINDS``
-   (the reaper's list).
+   :mod:`server.worker.tasks` a task ``run_job(KIND, self, get_settings(), <ids>)`` declared with
+   ``arena_task`` (``bind=True``, ``max_retries=INFRASTRUCTURE_RETRIES``), with the kind added
+   to ``JOB_KINDS`` (the reaper's list).
 """
 
 from __future__ import annotations
@@ -48,9 +48,8 @@ from typing import Any, Protocol, TypeVar
 from celery import Task
 from sqlalchemy.orm import Session
 
-from arena.config import Settings, get_settings
+from arena.config import ServiceSettings, Settings
 from arena.errors import InfrastructureError
-from server.core.db import get_database
 from server.core.queue import BROKER_ERRORS, TaskQueue
 from server.worker import local
 from server.worker.heartbeat import Lease, heartbeat
@@ -74,10 +73,16 @@ class JobKind(Protocol[ClaimT, ResultT]):
     max_claims: int  # claims of one job (workers dying with it) before it fails as ours
 
     def claim(self, session: Session, settings: Settings, worker: str, **ids: Any) -> ClaimT | None:
-        """Take the job for ``worker``; None when it is over or held by a live lease."""
+        """Take the job for ``worker``; None when it is over or held by a live lease. (The whole
+        settings here and in ``run`` and ``finish``: each kind needs other groups.)"""
 
     def renew(
-        self, session: Session, settings: Settings, claim: ClaimT, worker: str, **progress: Any
+        self,
+        session: Session,
+        service: ServiceSettings,
+        claim: ClaimT,
+        worker: str,
+        **progress: Any,
     ) -> bool:
         """Extend the lease (writing the progress); False when the claim is no longer ours."""
 
@@ -87,39 +92,38 @@ class JobKind(Protocol[ClaimT, ResultT]):
     def send_again(self, queue: TaskQueue, claim: ClaimT) -> None:
         """Send the job's task again (after a release)."""
 
-    def run(self, claim: ClaimT, lease: Lease) -> ResultT | None:
+    def run(self, claim: ClaimT, lease: Lease, settings: Settings) -> ResultT | None:
         """Do the work. Returns None only when it stopped because ``lease.stopped``."""
 
     def ours(self, claim: ClaimT, reason: str, error: str) -> ResultT:
         """The result of a job that failed on our side (not charged to the team)."""
 
-    def finish(self, claim: ClaimT, worker: str, result: ResultT) -> None:
+    def finish(self, claim: ClaimT, worker: str, result: ResultT, settings: Settings) -> None:
         """Write the result through the fence, then send any follow-up task."""
 
-    def reap(self, settings: Settings, queue: TaskQueue, *, queue_empty: bool) -> int:
+    def reap(self, service: ServiceSettings, queue: TaskQueue, *, queue_empty: bool) -> int:
         """Send again the jobs whose lease expired (and, when the queue is empty, those whose
         task was lost before any worker held them); how many."""
 
 
-def run_job(kind: JobKind, task: Task, **ids: Any) -> None:
+def run_job(kind: JobKind, task: Task, settings: Settings, **ids: Any) -> None:
     """The whole life of one job in the Celery ``task`` (bound) that names it by ``ids``."""
-    settings = get_settings()
     worker = local.worker_name()
-    with get_database().session() as session:
+    with local.database().session() as session:
         claim = kind.claim(session, settings, worker, **ids)
     if claim is None:
         return
     if claim.claim_number > kind.max_claims:
         # Every worker that took this job died with it (or was killed): stop handing it out.
         died = f"{claim.claim_number - 1} workers died holding it"
-        kind.finish(claim, worker, kind.ours(claim, WORKER_LOST, died))
+        kind.finish(claim, worker, kind.ours(claim, WORKER_LOST, died), settings)
         return
     try:
-        with heartbeat().hold(kind, claim, worker) as lease:
-            result = kind.run(claim, lease)
+        with heartbeat().hold(kind, claim, worker, settings.service) as lease:
+            result = kind.run(claim, lease, settings)
     except InfrastructureError as exc:
         if task.request.retries < INFRASTRUCTURE_RETRIES:
-            with get_database().session() as session:
+            with local.database().session() as session:
                 kind.release(session, claim, worker)
             countdown = RETRY_BACKOFF_S * (task.request.retries + 1)
             raise task.retry(exc=exc, countdown=countdown) from exc
@@ -136,19 +140,19 @@ def run_job(kind: JobKind, task: Task, **ids: Any) -> None:
             return
         if lease.lost.is_set() or result is None:
             return  # cancelled, or another worker has it: its writes would be fenced off
-    kind.finish(claim, worker, result)
+    kind.finish(claim, worker, result, settings)
 
 
 def hand_back(kind: JobKind, claim: Any, worker: str) -> None:
     """This worker is stopping: release the claim and send the job again for another worker."""
-    with get_database().session() as session:
+    with local.database().session() as session:
         released = kind.release(session, claim, worker)
     if released:
         kind.send_again(local.queue(), claim)
         log.warning("handed %s %s back", kind.name, claim)
 
 
-def reap_once(kinds: tuple[JobKind, ...]) -> dict[str, int]:
+def reap_once(kinds: tuple[JobKind, ...], service: ServiceSettings) -> dict[str, int]:
     """Send again every kind's jobs whose lease expired; how many, per kind."""
     queue = local.queue()
     try:
@@ -156,8 +160,7 @@ def reap_once(kinds: tuple[JobKind, ...]) -> dict[str, int]:
     except BROKER_ERRORS as exc:
         log.warning("reaper cannot read the queue: %s", exc)
         return {}
-    settings = get_settings()
-    resent = {kind.name: kind.reap(settings, queue, queue_empty=queue_empty) for kind in kinds}
+    resent = {kind.name: kind.reap(service, queue, queue_empty=queue_empty) for kind in kinds}
     if any(resent.values()):
         log.warning(
             "reaper re-sent %s", ", ".join(f"{n} {name}(s)" for name, n in resent.items() if n)

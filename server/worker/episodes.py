@@ -10,12 +10,11 @@ from pathlib import Path
 
 from sqlalchemy.orm import Session
 
-from arena.config import Settings, get_settings
+from arena.config import ServiceSettings, Settings
 from evaluator import sandbox
 from evaluator.runner import new_run_key, sandbox_labels
 from evaluator.runner import run_scenario as run_episode
 from evaluator.runner.scenario import ScenarioOutcome
-from server.core.db import get_database
 from server.core.queue import TaskQueue
 from server.services import evaluation
 from server.services.evaluation import ScenarioJob
@@ -45,9 +44,14 @@ class Episodes:
         )
 
     def renew(
-        self, session: Session, settings: Settings, claim: ScenarioJob, worker: str, **_: object
+        self,
+        session: Session,
+        service: ServiceSettings,
+        claim: ScenarioJob,
+        worker: str,
+        **_: object,
     ) -> bool:
-        return evaluation.heartbeat(session, settings.service, claim, worker)
+        return evaluation.heartbeat(session, service, claim, worker)
 
     def release(self, session: Session, claim: ScenarioJob, worker: str) -> bool:
         return evaluation.release_claim(session, claim, worker)
@@ -55,7 +59,7 @@ class Episodes:
     def send_again(self, queue: TaskQueue, claim: ScenarioJob) -> None:
         queue.run_scenario(claim.run_id, claim.key)
 
-    def run(self, claim: ScenarioJob, lease: Lease) -> ScenarioOutcome:
+    def run(self, claim: ScenarioJob, lease: Lease, settings: Settings) -> ScenarioOutcome:
         # Which worker ran what (claim > 1: an earlier claim's worker died or handed it back).
         log.info(
             "run %s: episode %d of %s claimed (claim %d)",
@@ -69,7 +73,6 @@ class Episodes:
         run_key = f"r{claim.run_id}a{claim.attempt}-{new_run_key()}"
         # A lost claim kills every sandbox of the episode (all its attempts carry these labels):
         # the runner then returns, and its result is refused by the fence.
-        settings = get_settings()
         lease.stop_with(partial(sandbox.cleanup, settings.sandbox, sandbox_labels(run_key)))
         # This worker's own scratch folder, one per claim: an episode whose claim was superseded
         # never touches the live one's files.
@@ -97,20 +100,22 @@ class Episodes:
             episode=claim.episode,
         )
 
-    def finish(self, claim: ScenarioJob, worker: str, result: ScenarioOutcome) -> None:
+    def finish(
+        self, claim: ScenarioJob, worker: str, result: ScenarioOutcome, settings: Settings
+    ) -> None:
         """Store the episode; the one that finished the run's last episode sends its scoring."""
         record_key = _store_record(claim, result)
         log_tail = team_log_tail(claim, result)
-        with get_database().session() as session:
+        with local.database().session() as session:
             last = evaluation.record_scenario(session, claim, worker, result, log_tail, record_key)
         if last:
             local.queue().aggregate(claim.run_id)
 
-    def reap(self, settings: Settings, queue: TaskQueue, *, queue_empty: bool) -> int:
+    def reap(self, service: ServiceSettings, queue: TaskQueue, *, queue_empty: bool) -> int:
         """Lost episodes, runs whose tasks were all lost, and queued submissions whose first
         task never started (see :func:`server.services.evaluation.reap`)."""
-        with get_database().session() as session:
-            reaped = evaluation.reap(session, settings.service, queue_empty=queue_empty)
+        with local.database().session() as session:
+            reaped = evaluation.reap(session, service, queue_empty=queue_empty)
         for plan in reaped.plans:
             queue.send(plan)
         for submission_id in reaped.submission_ids:

@@ -24,8 +24,8 @@ from typing import TYPE_CHECKING, Any
 
 from sqlalchemy.exc import SQLAlchemyError
 
-from arena.config import get_settings
-from server.core.db import get_database
+from arena.config import ServiceSettings
+from server.worker import local
 
 if TYPE_CHECKING:  # the engine imports this module; only its types are needed here
     from server.worker.engine import JobKind
@@ -83,13 +83,17 @@ class Heartbeat:
         self._thread: threading.Thread | None = None
 
     @contextmanager
-    def hold(self, kind: JobKind, claim: Any, worker: str) -> Iterator[Lease]:
+    def hold(
+        self, kind: JobKind, claim: Any, worker: str, service: ServiceSettings
+    ) -> Iterator[Lease]:
+        """``service``: the lease's settings; the thread, started with the process's first lease,
+        keeps them (a process has one configuration)."""
         lease = Lease(kind, claim, worker)
         with self._lock:
             self._leases.add(lease)
             if self._thread is None:
                 self._thread = threading.Thread(
-                    target=self._run, name="arena-heartbeat", daemon=True
+                    target=self._run, args=(service,), name="arena-heartbeat", daemon=True
                 )
                 self._thread.start()
         try:
@@ -102,9 +106,8 @@ class Heartbeat:
         with self._lock:
             return list(self._leases)
 
-    def _run(self) -> None:
-        settings = get_settings()
-        interval = beat_interval_s(settings.service.lease_seconds)
+    def _run(self, service: ServiceSettings) -> None:
+        interval = beat_interval_s(service.lease_seconds)
         next_beat = time.monotonic() + interval
         while True:
             time.sleep(TICK_S)
@@ -118,14 +121,14 @@ class Heartbeat:
             next_beat += interval
             for lease in self._held():
                 if not lease.lost.is_set():
-                    self._renew(lease, settings)
+                    self._renew(lease, service)
 
     @staticmethod
-    def _renew(lease: Lease, settings) -> None:
+    def _renew(lease: Lease, service: ServiceSettings) -> None:
         try:
-            with get_database().session() as session:
+            with local.database().session() as session:
                 active = lease.kind.renew(
-                    session, settings, lease.claim, lease.worker, **lease.progress
+                    session, service, lease.claim, lease.worker, **lease.progress
                 )
         except SQLAlchemyError as exc:
             # The database is briefly away: the lease has time left, the next round tries again.

@@ -1,5 +1,7 @@
-"""What one worker process keeps for itself: its name, its scratch folder, its clients (queue,
-artifact store) and the submissions and trained models it already unpacked.
+"""What one worker process keeps for itself: its name, its scratch folder, its clients (database,
+queue, artifact store) and the submissions and trained models it already unpacked. With the task
+bodies (:mod:`server.worker.tasks`) this is the worker's composition root: the settings are read
+here and handed down to the job kinds and the layers below.
 
 Everything here is per process and rebuilt after a fork (:func:`clear`): a worker on another
 machine needs nothing but the database, the broker and the artifact store.
@@ -23,7 +25,7 @@ from evaluator.sandbox.warm_pool import warm_agents
 from evaluator.training import unpack_model
 from evaluator.validation import validate
 from server.core.artifacts import ArtifactStore, artifact_store
-from server.core.db import get_database
+from server.core.db import Database
 from server.core.queue import TaskQueue
 from server.services.storable import storable_text
 from submissions.intake import PreparedSubmission
@@ -35,13 +37,18 @@ def worker_name() -> str:
 
 
 @lru_cache(maxsize=1)
+def database() -> Database:
+    return Database(get_settings().storage.resolved_database_url)
+
+
+@lru_cache(maxsize=1)
 def queue() -> TaskQueue:
     return TaskQueue(get_settings())
 
 
 @lru_cache(maxsize=1)
 def store() -> ArtifactStore:
-    return artifact_store(get_settings().storage, get_database())
+    return artifact_store(get_settings().storage, database())
 
 
 def scratch() -> Path:

@@ -41,7 +41,6 @@ from server.core.celery_app import (
     TASK_TRAIN,
     TASK_VALIDATE,
 )
-from server.core.db import get_database
 from server.core.permissions import close_service_folders
 from server.services import adaptive, evaluation, submissions, training
 from server.worker import engine, heartbeat, local
@@ -84,13 +83,13 @@ def arena_task(name: str, *, time_limit: int, **options: Any):
 )
 def validate_submission(self, *, submission_id: int) -> None:
     """An upload validated in the sandbox: queued (and sent to evaluation) or rejected."""
-    engine.run_job(VALIDATIONS, self, submission_id=submission_id)
+    engine.run_job(VALIDATIONS, self, get_settings(), submission_id=submission_id)
 
 
 @arena_task(TASK_EVALUATE, time_limit=BOOKKEEPING_TIME_LIMIT_S)
 def evaluate_submission(*, submission_id: int) -> None:
     settings = get_settings()
-    with get_database().session() as session:
+    with local.database().session() as session:
         # Offline submissions train first; the training's end starts their evaluation.
         training_ids = training.start_training(session, settings.service, submission_id)
         plan = (
@@ -106,7 +105,7 @@ def evaluate_submission(*, submission_id: int) -> None:
     TASK_TRAIN, time_limit=TRAIN_TIME_LIMIT_S, bind=True, max_retries=INFRASTRUCTURE_RETRIES
 )
 def train_submission(self, *, training_id: int) -> None:
-    engine.run_job(TRAININGS, self, training_id=training_id)
+    engine.run_job(TRAININGS, self, get_settings(), training_id=training_id)
 
 
 @arena_task(
@@ -116,12 +115,14 @@ def train_submission(self, *, training_id: int) -> None:
     max_retries=INFRASTRUCTURE_RETRIES,
 )
 def run_scenario(self, *, run_id: int, scenario_id: str, episode: int = 0) -> None:
-    engine.run_job(EPISODES, self, run_id=run_id, scenario_id=scenario_id, episode=episode)
+    engine.run_job(
+        EPISODES, self, get_settings(), run_id=run_id, scenario_id=scenario_id, episode=episode
+    )
 
 
 @arena_task(TASK_AGGREGATE, time_limit=BOOKKEEPING_TIME_LIMIT_S)
 def aggregate_run(*, run_id: int) -> None:
-    with get_database().session() as session:
+    with local.database().session() as session:
         # An adaptive run whose interval is still too wide gets another round instead.
         plan = adaptive.next_round(session, local.store(), run_id)
         if plan is None:
@@ -132,12 +133,12 @@ def aggregate_run(*, run_id: int) -> None:
 
 def reap_once() -> dict[str, int]:
     """Re-send work whose lease expired, of every job kind (see :func:`engine.reap_once`)."""
-    return engine.reap_once(JOB_KINDS)
+    return engine.reap_once(JOB_KINDS, get_settings().service)
 
 
 def remove_finished_scratch() -> int:
     """Delete this process's unpacked submissions and models whose runs have ended."""
-    with get_database().read_session() as session:
+    with local.database().read_session() as session:
         uploads, models = submissions.keys_in_work(session)
     return local.forget_finished(uploads, models)
 
@@ -201,6 +202,6 @@ def _close_warm_agents(**_: Any) -> None:
 
 @worker_process_init.connect
 def _after_fork(**_: Any) -> None:
-    get_database().after_fork()
+    local.database().after_fork()
     local.clear()
     heartbeat.heartbeat.cache_clear()

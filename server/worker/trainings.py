@@ -10,11 +10,10 @@ from pathlib import Path
 
 from sqlalchemy.orm import Session
 
-from arena.config import Settings, get_settings
+from arena.config import ServiceSettings, Settings
 from arena.errors import DatasetError
 from evaluator.runner import new_run_key
 from evaluator.training import MODEL_ARCHIVE, TrainingResult, TrainingStopped, pack_model, train
-from server.core.db import get_database
 from server.core.queue import TaskQueue
 from server.services import training
 from server.services.training import TrainingClaim
@@ -42,14 +41,14 @@ class Trainings:
     def renew(
         self,
         session: Session,
-        settings: Settings,
+        service: ServiceSettings,
         claim: TrainingClaim,
         worker: str,
         *,
         elapsed_s: float | None = None,
         log_tail: str | None = None,
     ) -> bool:
-        return training.heartbeat(session, settings.service, claim, worker, elapsed_s, log_tail)
+        return training.heartbeat(session, service, claim, worker, elapsed_s, log_tail)
 
     def release(self, session: Session, claim: TrainingClaim, worker: str) -> bool:
         return training.release(session, claim, worker)
@@ -57,10 +56,11 @@ class Trainings:
     def send_again(self, queue: TaskQueue, claim: TrainingClaim) -> None:
         queue.train(claim.training_id)
 
-    def run(self, claim: TrainingClaim, lease: Lease) -> TrainingResult | OurFailure | None:
+    def run(
+        self, claim: TrainingClaim, lease: Lease, settings: Settings
+    ) -> TrainingResult | OurFailure | None:
         """Run the submission's train.py; its progress is shown with each renewal of the lease,
         and a lost claim or a stopping worker ends it (None)."""
-        settings = get_settings()
         if settings.training.train_dataset_dir is None:
             return OurFailure(
                 "no_dataset", "the service has no training dataset (ARENA_TRAIN_DATASET_DIR)"
@@ -68,7 +68,12 @@ class Trainings:
         output = _output(claim)
         shutil.rmtree(output.parent, ignore_errors=True)  # an earlier claim's leftovers here
         saved = checkpoints.ClaimCheckpoints(
-            local.store(), settings, claim.training_id, claim.claim, output, staging=output.parent
+            local.store(),
+            settings.training,
+            claim.training_id,
+            claim.claim,
+            output,
+            staging=output.parent,
         )
         resume_from = saved.latest()
 
@@ -102,13 +107,17 @@ class Trainings:
         return OurFailure(reason, error)
 
     def finish(
-        self, claim: TrainingClaim, worker: str, result: TrainingResult | OurFailure
+        self,
+        claim: TrainingClaim,
+        worker: str,
+        result: TrainingResult | OurFailure,
+        settings: Settings,
     ) -> None:
         """Store the trained output and send its evaluation, or record the failure. Either way
         the training is over: its checkpoints go."""
         checkpoints.discard(local.store(), claim.training_id, claim.claim)
         if isinstance(result, OurFailure):
-            with get_database().session() as session:
+            with local.database().session() as session:
                 training.record_failed(
                     session, claim, worker, failure=result.failure, error=result.error, ours=True
                 )
@@ -116,7 +125,7 @@ class Trainings:
         tail = local.tail(result.log)
         if not result.ok:
             shutil.rmtree(_output(claim).parent, ignore_errors=True)
-            with get_database().session() as session:
+            with local.database().session() as session:
                 training.record_failed(
                     session,
                     claim,
@@ -128,10 +137,10 @@ class Trainings:
                 )
             return
         key, sha256, size = _store_model(claim)
-        with get_database().session() as session:
+        with local.database().session() as session:
             plan = training.record_trained(
                 session,
-                get_settings(),
+                settings,
                 claim,
                 worker,
                 elapsed_s=result.elapsed_s,
@@ -143,9 +152,9 @@ class Trainings:
         if plan is not None:
             local.queue().send(plan)
 
-    def reap(self, settings: Settings, queue: TaskQueue, *, queue_empty: bool) -> int:
-        with get_database().session() as session:
-            resend = training.reap(session, settings.service, queue_empty=queue_empty)
+    def reap(self, service: ServiceSettings, queue: TaskQueue, *, queue_empty: bool) -> int:
+        with local.database().session() as session:
+            resend = training.reap(session, service, queue_empty=queue_empty)
         for training_id in resend:
             queue.train(training_id)
         return len(resend)

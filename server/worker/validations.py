@@ -11,12 +11,18 @@ from pathlib import Path
 
 from sqlalchemy.orm import Session
 
-from arena.config import SandboxKind, Settings, get_settings
+from arena.config import (
+    IntakeSettings,
+    SandboxKind,
+    SandboxSettings,
+    ServiceSettings,
+    Settings,
+)
 from arena.errors import IntakeError
 from evaluator import sandbox
 from evaluator.validation import validate
 from server.core.artifacts import ArtifactStore
-from server.core.db import Database, get_database
+from server.core.db import Database
 from server.core.queue import TaskQueue
 from server.services import validation
 from server.services.validation import ValidationClaim
@@ -44,9 +50,14 @@ class Validations:
         return validation.claim(session, settings.service, submission_id, worker)
 
     def renew(
-        self, session: Session, settings: Settings, claim: ValidationClaim, worker: str, **_: object
+        self,
+        session: Session,
+        service: ServiceSettings,
+        claim: ValidationClaim,
+        worker: str,
+        **_: object,
     ) -> bool:
-        return validation.renew(session, settings.service, claim, worker)
+        return validation.renew(session, service, claim, worker)
 
     def release(self, session: Session, claim: ValidationClaim, worker: str) -> bool:
         return validation.release(session, claim, worker)
@@ -54,24 +65,41 @@ class Validations:
     def send_again(self, queue: TaskQueue, claim: ValidationClaim) -> None:
         queue.validate(claim.submission_id)
 
-    def run(self, claim: ValidationClaim, lease: Lease) -> Verdict | None:
+    def run(self, claim: ValidationClaim, lease: Lease, settings: Settings) -> Verdict | None:
         labels = {"arena.validation": f"s{claim.submission_id}c{claim.claim_number}"}
-        settings = get_settings()
         lease.stop_with(partial(sandbox.cleanup, settings.sandbox, labels))
         verdict = judge(
-            claim, settings, local.store(), local.sandbox_kind(), labels, local.scratch()
+            claim,
+            local.store(),
+            local.sandbox_kind(),
+            labels,
+            local.scratch(),
+            intake=settings.intake,
+            config=settings.sandbox,
+            data_dir=settings.storage.resolved_data_dir,
         )
         return None if lease.stopped else verdict
 
     def ours(self, claim: ValidationClaim, reason: str, error: str) -> Verdict:
         return Verdict(None, f"validation failed on our side ({reason}): {error}", ours=True)
 
-    def finish(self, claim: ValidationClaim, worker: str, result: Verdict) -> None:
-        record(claim, worker, result, get_settings(), get_database(), local.store(), local.queue())
+    def finish(
+        self, claim: ValidationClaim, worker: str, result: Verdict, settings: Settings
+    ) -> None:
+        record(
+            claim,
+            worker,
+            result,
+            local.database(),
+            local.store(),
+            local.queue(),
+            intake=settings.intake,
+            data_dir=settings.storage.resolved_data_dir,
+        )
 
-    def reap(self, settings: Settings, queue: TaskQueue, *, queue_empty: bool) -> int:
-        with get_database().session() as session:
-            resend = validation.reap(session, settings.service, queue_empty=queue_empty)
+    def reap(self, service: ServiceSettings, queue: TaskQueue, *, queue_empty: bool) -> int:
+        with local.database().session() as session:
+            resend = validation.reap(session, service, queue_empty=queue_empty)
         for submission_id in resend:
             queue.validate(submission_id)
         return len(resend)
@@ -79,14 +107,18 @@ class Validations:
 
 def judge(
     claim: ValidationClaim,
-    settings: Settings,
     store: ArtifactStore,
     kind: SandboxKind,
     labels: dict[str, str],
     scratch: Path,
+    *,
+    intake: IntakeSettings,
+    config: SandboxSettings,
+    data_dir: Path,
 ) -> Verdict:
     """The verdict on the claimed upload: its zip fetched into ``scratch`` and validated in the
-    sandbox; the scratch folder is gone when this returns."""
+    sandbox (``intake``, ``config``, ``data_dir``: as :func:`evaluator.validation.validate`
+    takes them); the scratch folder is gone when this returns."""
     folder = scratch / "validation" / f"{claim.submission_id}-c{claim.claim_number}"
     remove_tree(folder)
     try:
@@ -95,9 +127,9 @@ def judge(
             validate(
                 zip_path,
                 folder / "prepared",
-                settings.intake,
-                settings.sandbox,
-                settings.storage.resolved_data_dir,
+                intake,
+                config,
+                data_dir,
                 kind=kind,
                 labels=labels,
                 needs_training=claim.needs_training,
@@ -113,13 +145,15 @@ def record(
     claim: ValidationClaim,
     worker: str,
     result: Verdict,
-    settings: Settings,
     db: Database,
     store: ArtifactStore,
     queue: TaskQueue,
+    *,
+    intake: IntakeSettings,
+    data_dir: Path,
 ) -> None:
     """Queue the submission's evaluation, or record the rejection (its zip and any requirement
-    folder only it used are deleted)."""
+    folder only it used, in ``data_dir``'s cache, are deleted)."""
     with db.session() as session:
         if result.prepared is not None:
             written = validation.record_valid(
@@ -142,9 +176,7 @@ def record(
     with db.read_session() as session:
         in_use = validation.deps_in_use(session)
     # Young folders may belong to a validation not yet recorded.
-    collect_garbage(
-        settings.storage.resolved_data_dir, in_use, min_age_s=4 * settings.intake.intake_timeout_s
-    )
+    collect_garbage(data_dir, in_use, min_age_s=4 * intake.intake_timeout_s)
 
 
 VALIDATIONS = Validations()

@@ -16,6 +16,7 @@ from server.models import EvaluationRun, Phase, Score, Submission, Visibility, u
 from server.services import evaluation, teams
 from server.status import RunStatus, SubmissionStatus
 from server.tracks import Track
+from tests.settings import evaluate_args
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "submissions" / "examples"
 METRICS = ("completion", "time", "humanness", "rules")
@@ -219,8 +220,19 @@ def validate_uploads(db: Database, settings: Settings, worker: str = "test-worke
                 claim = validation.claim(session, settings.service, submission_id, worker)
             assert claim is not None
             scratch = settings.storage.resolved_data_dir / "scratch" / worker
-            verdict = judge(claim, settings, store, kind, {"arena.test": worker}, scratch)
-            record(claim, worker, verdict, settings, db, store, queue)
+            verdict = judge(
+                claim, store, kind, {"arena.test": worker}, scratch, **evaluate_args(settings)
+            )
+            record(
+                claim,
+                worker,
+                verdict,
+                db,
+                store,
+                queue,
+                intake=settings.intake,
+                data_dir=settings.storage.resolved_data_dir,
+            )
     finally:
         queue.close()
     return pending

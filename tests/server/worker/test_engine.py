@@ -13,7 +13,6 @@ import pytest
 from celery import Celery
 
 from arena.config import get_settings
-from server.core.db import get_database
 from server.worker import engine, heartbeat, local
 
 WAIT_S = 10.0  # [s] a generous bound on what takes a heartbeat or two (0.5 s each here)
@@ -45,7 +44,7 @@ class ToyJobs:
         row["claims"] += 1
         return ToyClaim(job, row["claims"])
 
-    def renew(self, session, settings, claim, worker, **progress):
+    def renew(self, session, service, claim, worker, **progress):
         self.renewed.append(progress)
         return self.rows[claim.job]["live"]
 
@@ -56,16 +55,16 @@ class ToyJobs:
     def send_again(self, queue, claim):
         self.resent.append(claim)
 
-    def run(self, claim, lease):
+    def run(self, claim, lease, settings):
         return self.work(claim, lease)
 
     def ours(self, claim, reason, error):
         return ("ours", reason, error)
 
-    def finish(self, claim, worker, result):
+    def finish(self, claim, worker, result, settings):
         self.finished.append(result)
 
-    def reap(self, settings, queue, *, queue_empty):
+    def reap(self, service, queue, *, queue_empty):
         return 0
 
 
@@ -74,7 +73,7 @@ def run(tmp_path, monkeypatch):
     """Runs a ToyJobs job through a real bound Celery task, eagerly."""
     monkeypatch.setenv("ARENA_DATA_DIR", str(tmp_path / "data"))
     monkeypatch.setenv("ARENA_LEASE_SECONDS", "1")  # a renewal every 0.5 s
-    for cache in (get_settings, get_database, local.queue, heartbeat.heartbeat):
+    for cache in (get_settings, local.database, local.queue, heartbeat.heartbeat):
         cache.cache_clear()
     app = Celery("engine-test", set_as_current=False)
     app.conf.task_always_eager = True
@@ -82,13 +81,13 @@ def run(tmp_path, monkeypatch):
     def run_one(kind: ToyJobs, job: str = "a") -> None:
         @app.task(bind=True, max_retries=engine.INFRASTRUCTURE_RETRIES)
         def toy(self, *, job: str) -> None:
-            engine.run_job(kind, self, job=job)
+            engine.run_job(kind, self, get_settings(), job=job)
 
         toy.apply(kwargs={"job": job}, throw=True)
 
     yield run_one
     heartbeat.shutting_down.clear()
-    for cache in (get_settings, get_database, local.queue, heartbeat.heartbeat):
+    for cache in (get_settings, local.database, local.queue, heartbeat.heartbeat):
         cache.cache_clear()
 
 

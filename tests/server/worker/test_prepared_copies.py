@@ -14,7 +14,6 @@ import pytest
 from arena.config import get_settings
 from evaluator import sandbox
 from evaluator.sandbox.warm_pool import WarmAgents, warm_agents
-from server.core.db import get_database
 from server.worker import local
 from submissions.intake.pack import pack_folder
 from submissions.sample import sample_observation
@@ -36,7 +35,7 @@ def worker_env(settings, db, monkeypatch):
         "BROKER_KEY_PREFIX": settings.service.broker_key_prefix,
     }.items():
         monkeypatch.setenv(f"ARENA_{name}", str(value))
-    caches = (get_settings, get_database, local.store, local.sandbox_kind)
+    caches = (get_settings, local.database, local.store, local.sandbox_kind)
     for cache in caches:
         cache.cache_clear()
     yield get_settings()
