@@ -15,6 +15,7 @@ from learn.reward import RewardInput
 from sim.episode import run_episode
 from sim.interface import ActionSpace, AgentInterface
 from tests.learn.conftest import PUBLIC
+from tests.settings import env_only
 
 CRUISE = PUBLIC / "p016_cruise_2lane_low"
 
@@ -111,6 +112,13 @@ def test_reset_seed_chooses_the_scenario_deterministically(closing) -> None:
     drawn = [env.reset(seed=s)[1]["scenario_id"] for s in (5, 6, 7, 5)]
     assert drawn[0] == drawn[3]
     assert len(set(drawn)) > 1 and set(drawn) <= single_agent
+
+
+def test_public_is_the_suite_the_settings_name(closing, short_road) -> None:
+    settings = env_only(suites={"public_suite_dir": short_road.parent})
+    env = DrivingArenaEnv("public", action_space="Continuous", settings=settings)
+    closing(env)
+    assert env.scenarios == (short_road,)
 
 
 def test_reward_function_is_replaceable(closing, short_road) -> None:
