@@ -390,7 +390,8 @@ def submissions_disqualify(
 @submissions_app.command("requeue")
 def submissions_requeue(submission_id: SubmissionId) -> None:
     """Send an unfinished submission's lost work again (lost messages, dead worker); an
-    evaluation a worker is still renewing is healthy and is left alone."""
+    evaluation a worker is still renewing is healthy and is left alone. A training seed lost on
+    our side trains again (the other seeds keep what they did)."""
     # deferred: CLI start-up time
     from server.services import admin
 

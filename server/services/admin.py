@@ -62,8 +62,12 @@ def requeue(db: Database, settings: Settings, queue: TaskQueue, submission_id: i
                 submission.status, SubmissionStatus.queued, SUBMISSION_MOVES
             )
         # A training still held by a live worker ignores the re-sent task; a dead worker's is
-        # handed out by the reaper once its lease expires. Every seed's work goes again.
+        # handed out by the reaper once its lease expires. Every seed's work goes again, and a
+        # seed lost on our side trains again (a new job of the same set).
         training_ids = [job.id for job in submission.trainings if job.status in ACTIVE_TRAINING]
+        replaced = training.replace_lost_seeds(session, settings, submission)
+        training_ids += [job.id for job in replaced]
+        replaced_seeds = [job.seed for job in replaced]
         plans: list[RunPlan] = []
         if submission.status == SubmissionStatus.queued:
             submission.queued_at = utcnow()
@@ -90,6 +94,9 @@ def requeue(db: Database, settings: Settings, queue: TaskQueue, submission_id: i
     if training_ids:
         count = len(training_ids)
         said.append("training re-sent" if count == 1 else f"{count} trainings re-sent")
+    if replaced_seeds:
+        seeds = ", ".join(map(str, replaced_seeds))
+        said.append(f"seed(s) {seeds} lost on our side: trained again")
     if plans:
         episodes = sum(len(plan.episodes) for plan in plans)
         said.append(

@@ -6,6 +6,9 @@ seed's failure fails it naming the seed, and the organisers' operations act on t
 from __future__ import annotations
 
 import dataclasses
+import io
+import json
+import zipfile
 
 import pytest
 from sqlalchemy import select
@@ -52,7 +55,7 @@ def trained(db, settings, job):
             elapsed_s=1.0,
             log_tail="saved",
             model_key=f"training/{job.training_id}/model.tar.gz",
-            model_sha256="a" * 64,
+            model_sha256=f"{job.training_id:064x}",  # each seed's model its own digest
             model_size=10,
         )
 
@@ -171,7 +174,17 @@ def test_a_seeds_failure_fails_the_submission_naming_it_and_stops_the_others(db,
     with db.read_session() as session:
         submission = session.get(Submission, sid)
         assert submission.status == SubmissionStatus.failed
-        assert submission.status_reason == "seed 1 (of 3): train_crashed: exit 1"
+        # What failed, where to read why, and what to do about it.
+        assert submission.status_reason.startswith("seed 1 (of 3): train_crashed: exit 1. ")
+        assert "training log is shown with the training (seed 1)" in submission.status_reason
+        assert "every ARENA_TRAIN_SEED from 0 to 2: fix it" in submission.status_reason
+        assert not submission.failed_on_our_side  # charged: the team's train.py
+        # Nothing of the set is left to run: every job and run is over.
+        assert {job.status for job in submission.trainings} == {
+            TrainingStatus.trained,
+            TrainingStatus.failed,
+            TrainingStatus.cancelled,
+        }
         shown = submissions.detail(session, submission).training  # why it failed
         assert (shown.seed, shown.seeds, shown.failure) == (1, 3, "train_crashed")
         third_job = session.get(TrainingJob, third.training_id)
@@ -299,3 +312,99 @@ def test_each_seeds_model_is_downloaded_by_its_seed(db, settings, client):
     url = f"/api/v1/admin/submissions/{sid}/model"
     assert client.get(url, headers=bearer(ADMIN_TOKEN)).status_code == 422
     assert client.get(url, params={"seed": 5}, headers=bearer(ADMIN_TOKEN)).status_code == 404
+
+
+def test_an_infrastructure_failure_on_one_seed_retries_that_seed_alone(db, settings):
+    """Seed 1 lost on our side (its retries used up, or its workers kept dying): the submission
+    does not fail and the other seeds go on; requeue trains seed 1 again in the same set, and the
+    submission is scored over all three."""
+    set_seeds(db, settings, 3)
+    sid = offline(db)
+    ids = start(db, settings, sid)
+    first, second, third = (claim(db, settings, i) for i in ids)
+    plan0 = trained(db, settings, first)
+    with db.session() as session:
+        assert training.record_failed(
+            session, second, "w1", failure="worker_lost", error="3 workers died", ours=True
+        )
+    with db.read_session() as session:
+        submission = session.get(Submission, sid)
+        assert submission.status == SubmissionStatus.running  # not failed
+        assert not submission.failed_on_our_side
+        assert submission.status_reason.startswith("seed 1 (of 3): training failed on our side")
+        assert [r.status for r in submission.runs] == [RunStatus.queued]  # seed 0's goes on
+        assert session.get(TrainingJob, third.training_id).status == TrainingStatus.training
+    with db.session() as session:  # seed 2's worker keeps its claim
+        assert training.heartbeat(session, settings, third, "w1", 1.0, "")
+    assert evaluate(db, settings, plan0, fails=0) == RunStatus.scored
+    assert evaluate(db, settings, trained(db, settings, third), fails=0) == RunStatus.scored
+    assert status_of(db, sid) == SubmissionStatus.running  # seed 1 is still to come
+    queue = TaskQueue(settings)
+    try:
+        said = admin.requeue(db, settings, queue, sid)
+    finally:
+        queue.close()
+    assert said == "training re-sent; seed(s) 1 lost on our side: trained again"
+    with db.read_session() as session:
+        jobs = session.get(Submission, sid).trainings
+        assert [(j.seed_set, j.seed, j.status) for j in jobs] == [
+            (1, 0, "trained"),
+            (1, 1, "failed"),  # kept: what happened to it
+            (1, 2, "trained"),
+            (1, 1, "queued"),
+        ]
+        assert session.get(Submission, sid).status_reason == ""
+        again = jobs[-1].id
+    assert evaluate(db, settings, trained(db, settings, claim(db, settings, again)), fails=0) == (
+        RunStatus.scored
+    )
+    assert status_of(db, sid) == SubmissionStatus.scored
+    with db.read_session() as session:
+        score = session.scalar(select(SeedSetScore))
+        assert [(s["seed"], s["training_id"]) for s in score.per_seed] == [
+            (0, ids[0]),
+            (1, again),
+            (2, ids[2]),
+        ]
+
+
+def test_one_seed_of_one_lost_on_our_side_fails_uncharged(db, settings):
+    """A set of one seed has nothing to go on with: an organiser retrains it."""
+    sid = offline(db)
+    (only,) = (claim(db, settings, i) for i in start(db, settings, sid))
+    with db.session() as session:
+        training.record_failed(
+            session, only, "w1", failure="SandboxUnavailable", error="no bwrap", ours=True
+        )
+    with db.read_session() as session:
+        submission = session.get(Submission, sid)
+        assert submission.status == SubmissionStatus.failed
+        assert submission.failed_on_our_side
+        assert submission.status_reason == "SandboxUnavailable: no bwrap"
+
+
+def test_failure_counts_and_the_manifest_cover_every_seed(db, settings, client):
+    set_seeds(db, settings, 2)
+    team_id, token = make_team(db, "api")
+    sid = queued_submission(db, team_id, track=Track.offline)
+    ids = start(db, settings, sid)
+    for training_id, fails in zip(ids, (1, 2), strict=True):
+        evaluate(db, settings, trained(db, settings, claim(db, settings, training_id)), fails)
+    shown = client.get(f"/api/v1/submissions/{sid}", headers=bearer(token)).json()
+
+    def collisions(counts: dict) -> int:
+        return sum(reasons.get("collision", 0) for reasons in counts.values())
+
+    assert collisions(shown["failure_reasons"]) == 3  # summed over the seeds
+    per_seed = shown["seed_failure_reasons"]
+    assert [(s["seed"], collisions(s["failure_reasons"])) for s in per_seed] == [(0, 1), (1, 2)]
+    manifest = shown["manifest"]
+    assert manifest["model"] is None
+    assert manifest["seed_models"] == [
+        {"seed": seed, "model": f"{training_id:064x}"} for seed, training_id in enumerate(ids)
+    ]
+    download = client.get(f"/api/v1/submissions/{sid}/download", headers=bearer(token))
+    with zipfile.ZipFile(io.BytesIO(download.content)) as archive:
+        stored = json.loads(archive.read("submission.json"))
+    assert stored["seed_failure_reasons"] == per_seed
+    assert stored["manifest"]["seed_models"] == manifest["seed_models"]
