@@ -329,10 +329,17 @@ def _manifest_rows(manifest) -> list[tuple[str, str]]:
             f"suite {manifest.suite} {manifest.suite_hash[:12]}, "
             f"{len(manifest.scenario_hashes)} scenarios, seeds {manifest.seeds_sha256[:12]}, "
             f"profile {manifest.profile} v{manifest.profile_version}, "
-            f"model {manifest.model or '-'}",
+            f"model {_models_text(manifest)}",
         ),
         ("software", software or "-"),
     ]
+
+
+def _models_text(manifest) -> str:
+    """The trained model's sha256, or each training seed's."""
+    if manifest.seed_models:
+        return "; ".join(f"seed {m.seed} {m.model}" for m in manifest.seed_models)
+    return manifest.model or "-"
 
 
 def _interval_text(interval) -> str:

@@ -11,13 +11,14 @@ from sqlalchemy import func, select
 from arena.config import Settings
 from arena.episodes import Episode
 from arena.outcome import FINISHED, ScenarioStatus
-from evaluator.compare import Side, outcome_text
+from evaluator.compare import METRIC_NAMES, SeedRun, Side, outcome_text
 from evaluator.scoring import Interval, ProfileError, ScoringProfile, load_profile
 from evaluator.scoring import Metrics as ScoringMetrics
+from evaluator.scoring.seeds import Spread
 from server.core.artifacts import ArtifactStore
 from server.core.db import Database
 from server.core.queue import BROKER_ERRORS, TaskQueue
-from server.models import EvaluationRun, Submission, utcnow
+from server.models import EvaluationRun, SeedSetScore, Submission, utcnow
 from server.services import (
     evaluation,
     leases,
@@ -285,40 +286,62 @@ def rescore_run(
 
 
 def comparison_side(db: Database, submission_id: int) -> Side:
-    """A submission's standing evaluation as one side of ``arena admin compare``: its metrics,
-    interval, families and every episode's outcome (hidden phases included: organisers only)."""
+    """A submission's standing score as one side of ``arena admin compare``: its metrics,
+    interval, families and every episode's outcome (hidden phases included: organisers only).
+    Over several training seeds: the seed set's metrics, interval and families, the seeds'
+    spread, and each seed's run with its own metrics and outcomes."""
     with db.read_session() as session:
         submission = session.get(Submission, submission_id)
         if submission is None:
             raise NotFound(f"no submission {submission_id}")
-        run = submissions.current_run(submission)
-        if run is None or run.score is None:
+        score = seed_sets.standing_score(submission)
+        if score is None:
             raise Conflict(f"submission {submission_id} is {submission.status}: no score yet")
-        score = run.score
-        outcomes = {
-            Episode(result.scenario_id, result.episode).name: outcome_text(
-                [result.reason] if result.reason else [], str(result.status)
-            )
-            for result in run.results
-        }
-        metrics = ScoringMetrics(
-            **{name: getattr(score, name) for name in ("completion", "time", "humanness", "rules")}
-        )
+        runs = seed_sets.seed_runs(session, submission, score)
         interval = submissions.completion_interval(score)
-        return Side(
-            label=f"submission {submission.id} of {submission.team.name} ({submission.phase}, "
-            f"attempt {run.attempt}, {submission.method_name})",
-            metrics=metrics,
-            interval=Interval(interval.low, interval.high) if interval else None,
-            families={
-                family: ScoringMetrics(
-                    **{k: values.get(k) for k in ("completion", "time", "humanness", "rules")}
-                )
-                for family, values in score.families.items()
+        common = {
+            "metrics": _compared_metrics(score),
+            "interval": Interval(interval.low, interval.high) if interval else None,
+            "families": {
+                family: _compared_metrics(values) for family, values in score.families.items()
             },
-            outcomes=outcomes,
-            suite=run.manifest_sha256,
+            "suite": runs[0][1].manifest_sha256,
+        }
+        who = f"submission {submission.id} of {submission.team.name} ({submission.phase}"
+        if not isinstance(score, SeedSetScore):
+            ((_, run),) = runs
+            return Side(
+                label=f"{who}, attempt {run.attempt}, {submission.method_name})",
+                outcomes=_outcomes(run),
+                **common,
+            )
+        return Side(
+            label=f"{who}, {len(runs)} training seeds, {submission.method_name})",
+            seeds=tuple(
+                SeedRun(seed, _compared_metrics(run.score), _outcomes(run)) for seed, run in runs
+            ),
+            spread=Spread(
+                low=score.seed_completion_min,
+                high=score.seed_completion_max,
+                std=score.seed_completion_std,
+            ),
+            **common,
         )
+
+
+def _compared_metrics(values) -> ScoringMetrics:
+    """The four metrics of a score, a seed set's score or a family's (a mapping)."""
+    get = values.get if isinstance(values, dict) else lambda name: getattr(values, name)
+    return ScoringMetrics(**{name: get(name) for name in METRIC_NAMES})
+
+
+def _outcomes(run: EvaluationRun) -> dict[str, str]:
+    return {
+        Episode(result.scenario_id, result.episode).name: outcome_text(
+            [result.reason] if result.reason else [], str(result.status)
+        )
+        for result in run.results
+    }
 
 
 @dataclass(frozen=True)

@@ -408,3 +408,46 @@ def test_failure_counts_and_the_manifest_cover_every_seed(db, settings, client):
         stored = json.loads(archive.read("submission.json"))
     assert stored["seed_failure_reasons"] == per_seed
     assert stored["manifest"]["seed_models"] == manifest["seed_models"]
+
+
+def seed_set(db, settings, team: str, fails: tuple[int, ...]) -> int:
+    """An offline submission trained with len(fails) seeds, seed k failing fails[k] scenarios."""
+    set_seeds(db, settings, len(fails))
+    sid = offline(db, team)
+    for training_id, failing in zip(start(db, settings, sid), fails, strict=True):
+        evaluate(db, settings, trained(db, settings, claim(db, settings, training_id)), failing)
+    assert status_of(db, sid) == SubmissionStatus.scored
+    return sid
+
+
+def test_compare_sets_seed_set_scores_side_by_side_and_each_seed(db, settings, arena):
+    a = seed_set(db, settings, "alpha", (1, 2))
+    b = seed_set(db, settings, "beta", (0, 0))
+    with db.read_session() as session:
+        means = {s.submission_id: s.completion for s in session.scalars(select(SeedSetScore)).all()}
+    output = arena("compare", str(a), str(b))
+    assert f"A: submission {a} of alpha (final, 2 training seeds" in output
+    rows = {line.split("\t")[0]: line.split("\t")[1:] for line in output.splitlines()}
+    assert rows["completion"][:2] == [f"{means[a]:.4f}", f"{means[b]:.4f}"]  # the sets' means
+    assert rows["training seeds"] == ["2", "2"]
+    assert rows["seeds' completion"][1] == "0.0000 to 0.0000 (std 0.0000)"
+    assert "per seed (seed k of A beside seed k of B)" in output
+    assert "3 episode(s) ended differently" in output  # seed 0: one, seed 1: two
+    document = json.loads(arena("compare", str(a), str(b), "--json"))
+    seeds = document["seeds"]
+    assert (seeds["a"]["count"], seeds["b"]["completion_max"]) == (2, 0.0)
+    assert [(p["seed_a"], p["seed_b"], len(p["differing_outcomes"])) for p in seeds["pairs"]] == [
+        (0, 0, 1),
+        (1, 1, 2),
+    ]
+    assert {o["b"] for p in seeds["pairs"] for o in p["differing_outcomes"]} == {"reached_goal"}
+    # A submission of one run beside a seed set: its run beside each seed.
+    single = seed_set(db, settings, "gamma", (1,))
+    document = json.loads(arena("compare", str(single), str(a), "--json"))
+    assert document["seeds"]["a"] is None
+    assert [(p["seed_a"], p["seed_b"]) for p in document["seeds"]["pairs"]] == [
+        (None, 0),
+        (None, 1),
+    ]
+    assert [len(p["differing_outcomes"]) for p in document["seeds"]["pairs"]] == [0, 1]
+    assert "its run" in arena("compare", str(single), str(a))
