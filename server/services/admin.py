@@ -70,11 +70,18 @@ def requeue(db: Database, settings: Settings, queue: TaskQueue, submission_id: i
         training_ids += [job.id for job in replaced]
         replaced_seeds = [job.seed for job in replaced]
         plans: list[RunPlan] = []
+        # A seed whose evaluation was lost on our side is evaluated again (a new run).
+        lost_runs = evaluation.rerun_lost_seeds(session, settings, submission)
+        rerun_seeds = [session.get(EvaluationRun, p.run_id).training.seed for p in lost_runs]
         if submission.status == SubmissionStatus.queued:
             submission.queued_at = utcnow()
         else:
-            runs = [run for run in submission.runs if run.status in ACTIVE_RUN]
-            if not runs and not training_ids:
+            runs = [
+                run
+                for run in submission.runs
+                if run.status in ACTIVE_RUN and run.id not in {p.run_id for p in lost_runs}
+            ]
+            if not runs and not training_ids and not lost_runs:
                 raise Conflict(
                     f"submission {submission_id} is {submission.status} with no evaluation in "
                     "progress; use rerun for a new attempt"
@@ -85,11 +92,11 @@ def requeue(db: Database, settings: Settings, queue: TaskQueue, submission_id: i
                     plans.append(_lost_work(settings, run, submission_id))
                 except Conflict as exc:
                     alive.append(exc)
-            if alive and not plans and not training_ids:
+            if alive and not plans and not training_ids and not lost_runs:
                 raise alive[0]
     for training_id in training_ids:
         queue.train(training_id)
-    for plan in plans:
+    for plan in (*plans, *lost_runs):
         queue.send(plan)
     said = []
     if training_ids:
@@ -98,6 +105,9 @@ def requeue(db: Database, settings: Settings, queue: TaskQueue, submission_id: i
     if replaced_seeds:
         seeds = ", ".join(map(str, replaced_seeds))
         said.append(f"seed(s) {seeds} lost on our side: trained again")
+    if rerun_seeds:
+        seeds = ", ".join(map(str, rerun_seeds))
+        said.append(f"seed(s) {seeds} lost on our side: evaluated again")
     if plans:
         episodes = sum(len(plan.episodes) for plan in plans)
         said.append(

@@ -4,11 +4,13 @@ scored once every seed's run is, over the seeds (:mod:`evaluator.scoring.seeds`)
 
 A set of one seed is what every offline submission had before seeds: its run's score is the
 submission's, as for a freestyle submission. A seed's failure through the submission's fault fails
-it (the set can no longer be scored: the other seeds stop). A seed lost on our side (its job's
-retries used up, or every worker that took it died) leaves the others going: that seed waits for
-an organiser's ``arena admin requeue``, which trains it again in the same set
-(:func:`server.services.training.replace_lost_seeds`); a set's jobs are therefore the latest job
-of each seed (:func:`latest_per_seed`).
+it (the set can no longer be scored: the other seeds stop). A seed lost on our side (its training
+job's retries used up or every worker that took it died, or episodes of its run failed on our
+side) leaves the others going: that seed waits for an organiser's ``arena admin submissions
+requeue``, which trains it again in the same set
+(:func:`server.services.training.replace_lost_seeds`; a set's jobs are therefore the latest job
+of each seed, :func:`latest_per_seed`) or evaluates its model again
+(:func:`server.services.evaluation.rerun_lost_seeds`).
 """
 
 from __future__ import annotations
@@ -72,12 +74,13 @@ def training_failed(job: TrainingJob, failure: str, error: str) -> str:
     )
 
 
-def seed_lost(job: TrainingJob, failure: str) -> str:
-    """What the team reads while a seed lost on our side waits for an organiser."""
+def seed_lost(job: TrainingJob, what: str, detail: str, again: str) -> str:
+    """What the team reads while a seed lost on our side (its ``what`` failed, ``detail``
+    saying how) waits for an organiser, who makes it go ``again``."""
     return reason(
         job,
-        f"training failed on our side ({failure}), not the submission's fault; the other seeds "
-        "go on, and this seed trains again once an organiser re-sends it",
+        f"{what} failed on our side ({detail}), not the submission's fault; the other seeds go "
+        f"on, and this seed {again} once an organiser re-sends it",
     )
 
 
@@ -122,6 +125,20 @@ def lost_seeds(submission: Submission) -> list[TrainingJob]:
     if submission.status not in (SubmissionStatus.training, SubmissionStatus.running):
         return []
     return [job for job in latest_set(submission) if job.status == TrainingStatus.failed]
+
+
+def lost_evaluations(submission: Submission) -> list[TrainingJob]:
+    """The latest set's trained seeds whose latest run failed while the submission goes on:
+    lost on our side (a run failing through the submission's fault fails it), waiting for an
+    organiser's requeue."""
+    if submission.status != SubmissionStatus.running:
+        return []
+    lost = []
+    for job in latest_set(submission):
+        runs = [run for run in submission.runs if run.training_id == job.id]
+        if job.status == TrainingStatus.trained and runs and runs[-1].status == RunStatus.failed:
+            lost.append(job)
+    return lost
 
 
 def seed_runs(

@@ -318,7 +318,7 @@ def record_failed(
             submission.id,
         )
         if going:
-            submission.status_reason = seed_sets.seed_lost(job, failure)
+            submission.status_reason = seed_sets.seed_lost(job, "training", failure, "trains again")
         return True
     if going:
         submission.status = advance(submission.status, SubmissionStatus.failed, SUBMISSION_MOVES)

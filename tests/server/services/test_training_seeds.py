@@ -202,7 +202,7 @@ def test_a_seeds_failure_fails_the_submission_naming_it_and_stops_the_others(db,
         )
 
 
-def test_a_seeds_failed_evaluation_fails_the_submission_naming_it(db, settings):
+def test_a_seeds_evaluation_lost_on_our_side_waits_while_the_others_go_on(db, settings):
     set_seeds(db, settings, 2)
     sid = offline(db)
     plans = [trained(db, settings, claim(db, settings, i)) for i in start(db, settings, sid)]
@@ -226,9 +226,29 @@ def test_a_seeds_failed_evaluation_fails_the_submission_naming_it(db, settings):
     assert evaluate(db, settings, rest, fails=0) == RunStatus.failed
     with db.read_session() as session:
         submission = session.get(Submission, sid)
-        assert submission.status == SubmissionStatus.failed
-        assert submission.status_reason.startswith("seed 1 (of 2): 1 scenario(s) failed on our")
-        assert submission.runs[0].status == RunStatus.cancelled  # seed 0's stops
+        assert submission.status == SubmissionStatus.running  # not failed: not the team's
+        assert submission.status_reason.startswith(
+            "seed 1 (of 2): evaluation failed on our side (1 scenario(s)), not the submission's"
+        )
+        assert submission.runs[0].status == RunStatus.queued  # seed 0's goes on
+    assert evaluate(db, settings, plans[0], fails=0) == RunStatus.scored
+    assert status_of(db, sid) == SubmissionStatus.running  # seed 1 still to come
+    queue = TaskQueue(settings)
+    try:
+        said = admin.requeue(db, settings, queue, sid)
+    finally:
+        queue.close()
+    assert said == "seed(s) 1 lost on our side: evaluated again"
+    with db.read_session() as session:
+        submission = session.get(Submission, sid)
+        again = submission.runs[-1]
+        assert (again.training.seed, again.status, again.attempt) == (1, RunStatus.queued, 3)
+        plan = dataclasses.replace(plans[1], run_id=again.id)
+    assert evaluate(db, settings, plan, fails=0) == RunStatus.scored
+    assert status_of(db, sid) == SubmissionStatus.scored
+    with db.read_session() as session:
+        score = session.scalar(select(SeedSetScore))
+        assert [s["run_id"] for s in score.per_seed] == [plans[0].run_id, plan.run_id]
 
 
 def test_seeds_evaluated_on_different_suites_are_not_scored_together(db, settings):
