@@ -599,7 +599,8 @@ def model(
 @admin_app.command("status")
 def status() -> None:
     """Queue depth, workers, submissions by status, runs whose lease expired, submissions
-    waiting longer than ARENA_OVERDUE_AFTER_S, and phases nothing can be evaluated in."""
+    waiting longer than ARENA_OVERDUE_AFTER_S, phases nothing can be evaluated in, and training
+    seeds lost on our side (waiting for a requeue)."""
     # deferred: CLI start-up time
     from server.services import admin
 
@@ -652,6 +653,14 @@ def status() -> None:
         )
     else:
         console.print(f"overdue (same state for more than {limit:.0f} s): none")
+    if state.lost_seeds:
+        print_rows(
+            console,
+            ("submission", "seed", "lost on our side"),
+            [(lost.submission_id, lost.seed, lost.lost) for lost in state.lost_seeds],
+            title="training seeds waiting: `arena admin submissions requeue ID` sends them again",
+            numeric=("submission", "seed"),
+        )
 
 
 def _at(moment) -> str:

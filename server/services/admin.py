@@ -374,6 +374,15 @@ class Overdue:
 
 
 @dataclass(frozen=True)
+class LostSeed:
+    """A training seed lost on our side: it waits for ``arena admin submissions requeue``."""
+
+    submission_id: int
+    seed: int
+    lost: str  # "training" or "evaluation"
+
+
+@dataclass(frozen=True)
 class ServiceStatus:
     queue_depth: int | None
     workers: list[str] | None
@@ -383,6 +392,7 @@ class ServiceStatus:
     overdue: list[Overdue]
     # Phases nothing can be evaluated in, with why.
     broken_phases: dict[str, str]
+    lost_seeds: list[LostSeed]
 
 
 def service_status(db: Database, settings: Settings, queue: TaskQueue) -> ServiceStatus:
@@ -404,6 +414,7 @@ def service_status(db: Database, settings: Settings, queue: TaskQueue) -> Servic
         running = sum(run.status == RunStatus.running for run in active)
         overdue = _overdue(session, moment - timedelta(seconds=settings.service.overdue_after_s))
         broken = phases.misconfigured(session, settings)
+        lost = _lost_seeds(session)
     try:
         depth = queue.depth()
         workers = queue.workers()
@@ -417,7 +428,27 @@ def service_status(db: Database, settings: Settings, queue: TaskQueue) -> Servic
         stuck_runs=stuck,
         overdue=overdue,
         broken_phases=broken,
+        lost_seeds=lost,
     )
+
+
+def _lost_seeds(session) -> list[LostSeed]:
+    """Seeds of submissions under way that were lost on our side, training or evaluation."""
+    going = session.scalars(
+        select(Submission)
+        .where(Submission.status.in_([SubmissionStatus.training, SubmissionStatus.running]))
+        .order_by(Submission.id)
+    )
+    lost = []
+    for submission in going:
+        lost += [
+            LostSeed(submission.id, j.seed, "training") for j in seed_sets.lost_seeds(submission)
+        ]
+        lost += [
+            LostSeed(submission.id, j.seed, "evaluation")
+            for j in seed_sets.lost_evaluations(submission)
+        ]
+    return lost
 
 
 def _overdue(session, before: datetime) -> list[Overdue]:

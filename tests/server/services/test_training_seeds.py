@@ -334,7 +334,7 @@ def test_each_seeds_model_is_downloaded_by_its_seed(db, settings, client):
     assert client.get(url, params={"seed": 5}, headers=bearer(ADMIN_TOKEN)).status_code == 404
 
 
-def test_an_infrastructure_failure_on_one_seed_retries_that_seed_alone(db, settings):
+def test_an_infrastructure_failure_on_one_seed_retries_that_seed_alone(db, settings, arena):
     """Seed 1 lost on our side (its retries used up, or its workers kept dying): the submission
     does not fail and the other seeds go on; requeue trains seed 1 again in the same set, and the
     submission is scored over all three."""
@@ -359,12 +359,12 @@ def test_an_infrastructure_failure_on_one_seed_retries_that_seed_alone(db, setti
     assert evaluate(db, settings, plan0, fails=0) == RunStatus.scored
     assert evaluate(db, settings, trained(db, settings, third), fails=0) == RunStatus.scored
     assert status_of(db, sid) == SubmissionStatus.running  # seed 1 is still to come
-    queue = TaskQueue(settings)
-    try:
-        said = admin.requeue(db, settings, queue, sid)
-    finally:
-        queue.close()
-    assert said == "training re-sent; seed(s) 1 lost on our side: trained again"
+    status = arena("status")  # the organisers are told what waits for them
+    assert "training seeds waiting" in status
+    assert f"{sid}\t1\ttraining" in status.splitlines()
+    said = arena("submissions", "requeue", str(sid))
+    assert said.strip() == "training re-sent; seed(s) 1 lost on our side: trained again"
+    assert "training seeds waiting" not in arena("status")
     with db.read_session() as session:
         jobs = session.get(Submission, sid).trainings
         assert [(j.seed_set, j.seed, j.status) for j in jobs] == [
