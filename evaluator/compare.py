@@ -233,57 +233,62 @@ def _seed_text(seed: int | None, side: Side) -> str:
     return str(seed)
 
 
+def comparison_document(a: Side, b: Side) -> dict:
+    """The comparison as JSON (``--json``, the organisers' REST route): the rows of the tables,
+    and over training seeds each side's seeds and the pairs of runs."""
+    document = {
+        "a": a.label,
+        "b": b.label,
+        "metrics": [
+            dict(zip(("metric", "a", "b", "b_minus_a"), r, strict=True)) for r in metric_rows(a, b)
+        ],
+        "families": [
+            dict(
+                zip(
+                    (
+                        "family",
+                        "completion_a",
+                        "completion_b",
+                        "time_a",
+                        "time_b",
+                        "completion_b_minus_a",
+                    ),
+                    r,
+                    strict=True,
+                )
+            )
+            for r in family_rows(a, b)
+        ],
+        "differing_outcomes": [
+            dict(zip(("episode", "a", "b"), r, strict=True)) for r in differing_outcomes(a, b)
+        ],
+    }
+    if seeded(a, b):
+        document["seeds"] = {
+            "a": _spread_json(a),
+            "b": _spread_json(b),
+            "pairs": [
+                {
+                    "seed_a": pair.seed_a,
+                    "seed_b": pair.seed_b,
+                    "completion_a": pair.completion_a,
+                    "completion_b": pair.completion_b,
+                    "completion_b_minus_a": pair.completion_b_minus_a,
+                    "differing_outcomes": [
+                        dict(zip(("episode", "a", "b"), r, strict=True)) for r in pair.differing
+                    ],
+                }
+                for pair in seed_pairs(a, b)
+            ],
+        }
+    return document
+
+
 def print_comparison(console: Console, a: Side, b: Side, *, as_json: bool = False) -> None:
     """The three tables: metrics (with B - A and whether the intervals overlap), per family,
     and the episodes whose outcome differs."""
     if as_json:
-        document = {
-            "a": a.label,
-            "b": b.label,
-            "metrics": [
-                dict(zip(("metric", "a", "b", "b_minus_a"), r, strict=True))
-                for r in metric_rows(a, b)
-            ],
-            "families": [
-                dict(
-                    zip(
-                        (
-                            "family",
-                            "completion_a",
-                            "completion_b",
-                            "time_a",
-                            "time_b",
-                            "completion_b_minus_a",
-                        ),
-                        r,
-                        strict=True,
-                    )
-                )
-                for r in family_rows(a, b)
-            ],
-            "differing_outcomes": [
-                dict(zip(("episode", "a", "b"), r, strict=True)) for r in differing_outcomes(a, b)
-            ],
-        }
-        if seeded(a, b):
-            document["seeds"] = {
-                "a": _spread_json(a),
-                "b": _spread_json(b),
-                "pairs": [
-                    {
-                        "seed_a": pair.seed_a,
-                        "seed_b": pair.seed_b,
-                        "completion_a": pair.completion_a,
-                        "completion_b": pair.completion_b,
-                        "completion_b_minus_a": pair.completion_b_minus_a,
-                        "differing_outcomes": [
-                            dict(zip(("episode", "a", "b"), r, strict=True)) for r in pair.differing
-                        ],
-                    }
-                    for pair in seed_pairs(a, b)
-                ],
-            }
-        sys.stdout.write(json.dumps(document, indent=2) + "\n")
+        sys.stdout.write(json.dumps(comparison_document(a, b), indent=2) + "\n")
         return
     console.print(f"A: {a.label}", markup=False, highlight=False)
     console.print(f"B: {b.label}", markup=False, highlight=False)

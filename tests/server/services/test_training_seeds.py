@@ -440,7 +440,7 @@ def seed_set(db, settings, team: str, fails: tuple[int, ...]) -> int:
     return sid
 
 
-def test_compare_sets_seed_set_scores_side_by_side_and_each_seed(db, settings, arena):
+def test_compare_sets_seed_set_scores_side_by_side_and_each_seed(db, settings, arena, client):
     a = seed_set(db, settings, "alpha", (1, 2))
     b = seed_set(db, settings, "beta", (0, 0))
     with db.read_session() as session:
@@ -461,6 +461,12 @@ def test_compare_sets_seed_set_scores_side_by_side_and_each_seed(db, settings, a
         (1, 1, 2),
     ]
     assert {o["b"] for p in seeds["pairs"] for o in p["differing_outcomes"]} == {"reached_goal"}
+    # The organisers' REST route answers the same document.
+    compared = client.get(
+        "/api/v1/admin/compare", params={"a": a, "b": b}, headers=bearer(ADMIN_TOKEN)
+    )
+    assert compared.status_code == 200, compared.text
+    assert compared.json() == document
     # A submission of one run beside a seed set: its run beside each seed.
     single = seed_set(db, settings, "gamma", (1,))
     document = json.loads(arena("compare", str(single), str(a), "--json"))
