@@ -277,7 +277,7 @@ const Arena = (() => {
     // Over several training seeds the counts are summed over every seed's run, then each seed's.
     const seeds = s.seed_failure_reasons || [];
     $("failures-scope").textContent = seeds.length > 1
-      ? `episodes, summed over the ${seeds.length} training seeds` : "";
+      ? `(episodes summed over the ${seeds.length} training seeds; each seed's below)` : "";
     $("failures").innerHTML = failures.length ? failureList(failures) +
       (seeds.length > 1 ? `<ul class="per-seed">${seeds.map((x) => `<li>seed ${x.seed}: ` +
         (Object.keys(x.failure_reasons).length
