@@ -1,7 +1,9 @@
 """Track 2 over seeds, through the service as the worker's tasks drive it (on SQLite and
 PostgreSQL): a phase of N training seeds trains each offline submission N times, each model
-evaluated by its own run; the submission is scored over the seeds once the last one is, any
-seed's failure fails it naming the seed, and the organisers' operations act on the whole set."""
+evaluated by its own run; the submission is scored over the seeds once the last one is, a seed's
+failure through the team's fault fails it naming the seed, a seed lost on our side waits for a
+requeue while the others go on, failure counts and the manifest cover every seed, compare puts
+seed sets side by side, and the organisers' operations act on the whole set."""
 
 from __future__ import annotations
 

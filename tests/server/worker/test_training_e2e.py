@@ -2,7 +2,9 @@
 the bubblewrap sandbox on a dataset of real replays, is evaluated with its trained output and
 ranked on the offline leaderboard; a training past its budget fails with its name; a worker
 killed while training loses nothing: the training resumes from its last checkpoint; a phase of
-two seeds trains and evaluates each and scores the submission over them."""
+two seeds trains and evaluates each and scores the submission over them; a worker lost on one
+seed costs that seed a second claim and nothing else; a team's train.py failing on one seed
+fails the submission and leaves nothing of the other seed running or stored."""
 
 from __future__ import annotations
 
