@@ -145,13 +145,15 @@ def seed_runs(
     session: Session, submission: Submission, score: Score | SeedSetScore | None
 ) -> list[tuple[int | None, EvaluationRun]]:
     """The runs a score comes from, each with its training seed (None for a score of one run),
-    in seed order: each seed's behind a score over seeds, else the current run's set (each
-    seed's latest scored run, else its latest run) while a set of several is under way, else
-    the current run alone."""
+    in seed order: each seed's behind a score over seeds, the one run behind a run's score;
+    with no score, the current run's set (each seed's latest scored run, else its latest run)
+    while a set of several is under way, else the current run alone."""
     if isinstance(score, SeedSetScore):
         return [
             (seed["seed"], session.get(EvaluationRun, seed["run_id"])) for seed in score.per_seed
         ]
+    if score is not None:
+        return [(None, session.get(EvaluationRun, score.run_id))]
     run = current_run(submission)
     if run is None:
         return []

@@ -20,7 +20,15 @@ from evaluator.runner import ScenarioOutcome
 from server.core.artifacts import DatabaseStore
 from server.core.queue import TaskQueue
 from server.models import EvaluationRun, Phase, SeedSetScore, Submission, TrainingJob
-from server.services import admin, evaluation, leaderboard, phases, submissions, training
+from server.services import (
+    admin,
+    evaluation,
+    leaderboard,
+    phases,
+    seed_sets,
+    submissions,
+    training,
+)
 from server.services.errors import InvalidInput
 from server.status import RunStatus, SubmissionStatus, TrainingStatus
 from server.tracks import Track
@@ -479,3 +487,30 @@ def test_compare_sets_seed_set_scores_side_by_side_and_each_seed(db, settings, a
     ]
     assert [len(p["differing_outcomes"]) for p in document["seeds"]["pairs"]] == [0, 1]
     assert "its run" in arena("compare", str(single), str(a))
+
+
+def test_while_a_new_seed_set_is_under_way_the_standing_score_is_compared_and_counted(
+    db, settings, client
+):
+    """Scored with one seed, retrained with two (seed 0 scored, seed 1 to come): the score that
+    stands is still the first run's, and compare, the failure counts and the manifest are its."""
+    team_id, token = make_team(db, "alpha")
+    sid = queued_submission(db, team_id, track=Track.offline)
+    (first,) = start(db, settings, sid)
+    evaluate(db, settings, trained(db, settings, claim(db, settings, first)), fails=1)
+    set_seeds(db, settings, 2)
+    queue = TaskQueue(settings)
+    try:
+        admin.retrain(db, settings, queue, sid)
+    finally:
+        queue.close()
+    with db.read_session() as session:
+        jobs = seed_sets.latest_set(session.get(Submission, sid))
+        new_ids = [job.id for job in jobs]
+    evaluate(db, settings, trained(db, settings, claim(db, settings, new_ids[0])), fails=2)
+    side = admin.comparison_side(db, sid)
+    assert side.seeds == () and side.label.endswith("attempt 1, m)")
+    shown = client.get(f"/api/v1/submissions/{sid}", headers=bearer(token)).json()
+    assert shown["seeds"] is None and shown["seed_failure_reasons"] == []
+    assert sum(r.get("collision", 0) for r in shown["failure_reasons"].values()) == 1
+    assert shown["manifest"]["model"] == f"{first:064x}"
