@@ -2,7 +2,10 @@
 with the completion interval, per family, and the episodes whose outcome differs.
 
 Each side is a :class:`Side`, built from a results folder's ``summary.json`` here or from a
-stored run by the service, so both commands print the same thing.
+stored run by the service, so both commands print the same thing. A side scored over several
+training seeds (Track 2) carries each seed's run: its metrics and interval are the seed set's,
+the seeds' spread is shown, and the episodes are compared seed by seed (seed k of A with seed k
+of B; a side of one run with each seed of the other).
 """
 
 from __future__ import annotations
@@ -17,10 +20,20 @@ from rich.console import Console
 from arena.terminal import print_rows
 from evaluator.runner.results import stored_episodes
 from evaluator.scoring import Interval, Metrics
+from evaluator.scoring.seeds import Spread
 from evaluator.summary import Summary
 
 METRIC_NAMES = ("completion", "time", "humanness", "rules")
 REACHED = "reached_goal"
+
+
+@dataclass(frozen=True)
+class SeedRun:
+    """One training seed's run behind a score over several seeds."""
+
+    seed: int
+    metrics: Metrics
+    outcomes: Mapping[str, str]  # as Side.outcomes
 
 
 @dataclass(frozen=True)
@@ -32,9 +45,12 @@ class Side:
     interval: Interval | None
     families: Mapping[str, Metrics]
     # Episode name (the scenario id when it ran once) -> how it ended: "reached_goal", the
-    # agents' reasons joined, or the scenario's status when it was not charged.
+    # agents' reasons joined, or the scenario's status when it was not charged. Empty over
+    # several seeds: each seed's run has its own.
     outcomes: Mapping[str, str] = field(default_factory=dict)
     suite: str = ""
+    seeds: tuple[SeedRun, ...] = ()  # scored over several training seeds, in seed order
+    spread: Spread | None = None  # the seeds' completion errors
 
 
 def outcome_text(reasons: list[str], status: str) -> str:
@@ -132,44 +148,147 @@ def family_rows(a: Side, b: Side) -> list[tuple[str, str, str, str, str, str]]:
 
 def differing_outcomes(a: Side, b: Side) -> list[tuple[str, str, str]]:
     """(episode, outcome in A, outcome in B) where they differ; "-" where one did not run it."""
-    names = sorted(set(a.outcomes) | set(b.outcomes))
-    rows = [(name, a.outcomes.get(name, "-"), b.outcomes.get(name, "-")) for name in names]
+    return _differing(a.outcomes, b.outcomes)
+
+
+def _differing(a: Mapping[str, str], b: Mapping[str, str]) -> list[tuple[str, str, str]]:
+    names = sorted(set(a) | set(b))
+    rows = [(name, a.get(name, "-"), b.get(name, "-")) for name in names]
     return [row for row in rows if row[1] != row[2]]
+
+
+def seeded(a: Side, b: Side) -> bool:
+    """Whether either side was scored over several training seeds."""
+    return bool(a.seeds or b.seeds)
+
+
+def spread_rows(a: Side, b: Side) -> list[tuple[str, str, str]]:
+    """(what, A, B): the number of seeds and their completion spread."""
+
+    def count(side: Side) -> str:
+        return str(len(side.seeds)) if side.seeds else "1 (one run)"
+
+    def spread(side: Side) -> str:
+        if side.spread is None:
+            return "-"
+        s = side.spread
+        return f"{s.low:.4f} to {s.high:.4f} (std {s.std:.4f})"
+
+    return [("training seeds", count(a), count(b)), ("seeds' completion", spread(a), spread(b))]
+
+
+@dataclass(frozen=True)
+class SeedPair:
+    """A run of A beside a run of B: the same training seed, or a side of one run (seed None)
+    beside each seed of the other."""
+
+    seed_a: int | None
+    seed_b: int | None
+    completion_a: str
+    completion_b: str
+    completion_b_minus_a: str
+    differing: list[tuple[str, str, str]]  # (episode, A, B)
+
+
+def seed_pairs(a: Side, b: Side) -> list[SeedPair]:
+    """Each seed's run of A beside the same seed's of B (a seed only one side trained is beside
+    nothing: "-"); a side of one run beside each seed of the other."""
+    if a.seeds and b.seeds:
+        seeds = sorted({run.seed for run in a.seeds} | {run.seed for run in b.seeds})
+        keys = [(seed, seed) for seed in seeds]
+    else:
+        keys = [
+            (run.seed if a.seeds else None, run.seed if b.seeds else None)
+            for run in a.seeds or b.seeds
+        ]
+    pairs = []
+    for key_a, key_b in keys:
+        run_a, run_b = _run_of(a, key_a), _run_of(b, key_b)
+        metrics_a = run_a.metrics if run_a else None
+        metrics_b = run_b.metrics if run_b else None
+        pairs.append(
+            SeedPair(
+                seed_a=key_a if run_a else None,
+                seed_b=key_b if run_b else None,
+                completion_a=metric_text("completion", metrics_a),
+                completion_b=metric_text("completion", metrics_b),
+                completion_b_minus_a=difference("completion", metrics_a, metrics_b),
+                differing=_differing(run_a.outcomes, run_b.outcomes) if run_a and run_b else [],
+            )
+        )
+    return pairs
+
+
+def _run_of(side: Side, seed: int | None) -> SeedRun | None:
+    """The side's run for ``seed``: its one run when it has no seeds (as seed -1), None for a
+    seed it did not train."""
+    if not side.seeds:
+        return SeedRun(-1, side.metrics, side.outcomes) if side.metrics is not None else None
+    return next((run for run in side.seeds if run.seed == seed), None)
+
+
+def _seed_text(seed: int | None, side: Side) -> str:
+    if seed is None:
+        return "-" if side.seeds else "its run"
+    return str(seed)
+
+
+def comparison_document(a: Side, b: Side) -> dict:
+    """The comparison as JSON (``--json``, the organisers' REST route): the rows of the tables,
+    and over training seeds each side's seeds and the pairs of runs."""
+    document = {
+        "a": a.label,
+        "b": b.label,
+        "metrics": [
+            dict(zip(("metric", "a", "b", "b_minus_a"), r, strict=True)) for r in metric_rows(a, b)
+        ],
+        "families": [
+            dict(
+                zip(
+                    (
+                        "family",
+                        "completion_a",
+                        "completion_b",
+                        "time_a",
+                        "time_b",
+                        "completion_b_minus_a",
+                    ),
+                    r,
+                    strict=True,
+                )
+            )
+            for r in family_rows(a, b)
+        ],
+        "differing_outcomes": [
+            dict(zip(("episode", "a", "b"), r, strict=True)) for r in differing_outcomes(a, b)
+        ],
+    }
+    if seeded(a, b):
+        document["seeds"] = {
+            "a": _spread_json(a),
+            "b": _spread_json(b),
+            "pairs": [
+                {
+                    "seed_a": pair.seed_a,
+                    "seed_b": pair.seed_b,
+                    "completion_a": pair.completion_a,
+                    "completion_b": pair.completion_b,
+                    "completion_b_minus_a": pair.completion_b_minus_a,
+                    "differing_outcomes": [
+                        dict(zip(("episode", "a", "b"), r, strict=True)) for r in pair.differing
+                    ],
+                }
+                for pair in seed_pairs(a, b)
+            ],
+        }
+    return document
 
 
 def print_comparison(console: Console, a: Side, b: Side, *, as_json: bool = False) -> None:
     """The three tables: metrics (with B - A and whether the intervals overlap), per family,
     and the episodes whose outcome differs."""
     if as_json:
-        document = {
-            "a": a.label,
-            "b": b.label,
-            "metrics": [
-                dict(zip(("metric", "a", "b", "b_minus_a"), r, strict=True))
-                for r in metric_rows(a, b)
-            ],
-            "families": [
-                dict(
-                    zip(
-                        (
-                            "family",
-                            "completion_a",
-                            "completion_b",
-                            "time_a",
-                            "time_b",
-                            "completion_b_minus_a",
-                        ),
-                        r,
-                        strict=True,
-                    )
-                )
-                for r in family_rows(a, b)
-            ],
-            "differing_outcomes": [
-                dict(zip(("episode", "a", "b"), r, strict=True)) for r in differing_outcomes(a, b)
-            ],
-        }
-        sys.stdout.write(json.dumps(document, indent=2) + "\n")
+        sys.stdout.write(json.dumps(comparison_document(a, b), indent=2) + "\n")
         return
     console.print(f"A: {a.label}", markup=False, highlight=False)
     console.print(f"B: {b.label}", markup=False, highlight=False)
@@ -192,6 +311,9 @@ def print_comparison(console: Console, a: Side, b: Side, *, as_json: bool = Fals
         title="per family",
         numeric=("completion A", "completion B", "time A", "time B", "completion B - A"),
     )
+    if seeded(a, b):
+        _print_seeds(console, a, b)
+        return
     differing = differing_outcomes(a, b)
     if differing:
         print_rows(
@@ -202,3 +324,59 @@ def print_comparison(console: Console, a: Side, b: Side, *, as_json: bool = Fals
         )
     else:
         console.print("every episode ended the same way in both")
+
+
+def _spread_json(side: Side) -> dict | None:
+    """A side's seeds as JSON: None for a side of one run."""
+    if not side.seeds or side.spread is None:
+        return None
+    return {
+        "count": len(side.seeds),
+        "completion_min": side.spread.low,
+        "completion_max": side.spread.high,
+        "completion_std": side.spread.std,
+        "per_seed": [
+            {"seed": run.seed, **{name: getattr(run.metrics, name) for name in METRIC_NAMES}}
+            for run in side.seeds
+        ],
+    }
+
+
+def _print_seeds(console: Console, a: Side, b: Side) -> None:
+    """Over training seeds: the seeds' spread, each pair of runs' completion, and per pair the
+    episodes that ended differently."""
+    print_rows(console, ("", "A", "B"), spread_rows(a, b), title="training seeds")
+    pairs = seed_pairs(a, b)
+    print_rows(
+        console,
+        ("seed A", "seed B", "completion A", "completion B", "B - A", "episodes ended differently"),
+        [
+            (
+                _seed_text(p.seed_a, a),
+                _seed_text(p.seed_b, b),
+                p.completion_a,
+                p.completion_b,
+                p.completion_b_minus_a,
+                str(len(p.differing)),
+            )
+            for p in pairs
+        ],
+        title="per seed (seed k of A beside seed k of B)"
+        if a.seeds and b.seeds
+        else "per seed (the run of one side beside each seed of the other)",
+        numeric=("completion A", "completion B", "B - A", "episodes ended differently"),
+    )
+    rows = [
+        (_seed_text(p.seed_a, a), _seed_text(p.seed_b, b), *row)
+        for p in pairs
+        for row in p.differing
+    ]
+    if rows:
+        print_rows(
+            console,
+            ("seed A", "seed B", "episode", "A", "B"),
+            rows,
+            title=f"{len(rows)} episode(s) ended differently",
+        )
+    else:
+        console.print("every episode ended the same way in each pair of runs")

@@ -48,11 +48,20 @@ class ScenarioPin(Frozen):
     seeds: tuple[int, ...]  # the SUMO traffic seed of each episode (arena.episodes)
 
 
+class SeedModel(Frozen):
+    """One training seed's model behind a score over several seeds."""
+
+    seed: int  # ARENA_TRAIN_SEED
+    model: str  # sha256 of the model trained with it
+
+
 class Manifest(Frozen):
     """Everything a score depends on, by version or sha256."""
 
     submission: str  # sha256 of the uploaded zip
     model: str | None = None  # Track 2: sha256 of the trained model the agent ran with
+    # Track 2 over several training seeds (model is then None): each seed's model, seed order.
+    seed_models: tuple[SeedModel, ...] = ()
     suite: str
     suite_hash: str  # sha256 of the suite's manifest.json
     scenarios: dict[str, ScenarioPin]  # charged and uncharged alike, in manifest order
@@ -78,6 +87,7 @@ class PublicManifest(Frozen):
 
     submission: str
     model: str | None
+    seed_models: tuple[SeedModel, ...] = ()
     suite: str
     suite_hash: str
     scenario_hashes: tuple[str, ...]  # sorted
@@ -86,6 +96,27 @@ class PublicManifest(Frozen):
     profile: str
     profile_version: str
     environments: tuple[Environment, ...]
+
+
+def over_seeds(manifests: Mapping[int, Manifest]) -> Manifest:
+    """The manifest of a score over training seeds, from each seed's run's (keyed by seed): the
+    submission, suite, scenarios, seeds and profile they share (a set's runs are on one suite,
+    checked when it is scored), each seed's model, and every environment any of them ran under."""
+    if not manifests:
+        raise ValueError("a score over seeds needs at least one seed's manifest")
+    first = manifests[min(manifests)]
+    return first.model_copy(
+        update={
+            "model": None,
+            "seed_models": tuple(
+                SeedModel(seed=seed, model=manifests[seed].model or "")
+                for seed in sorted(manifests)
+            ),
+            "environments": distinct(
+                env for seed in sorted(manifests) for env in manifests[seed].environments
+            ),
+        }
+    )
 
 
 def _by_hash(pin: ScenarioPin) -> str:

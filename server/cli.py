@@ -329,10 +329,17 @@ def _manifest_rows(manifest) -> list[tuple[str, str]]:
             f"suite {manifest.suite} {manifest.suite_hash[:12]}, "
             f"{len(manifest.scenario_hashes)} scenarios, seeds {manifest.seeds_sha256[:12]}, "
             f"profile {manifest.profile} v{manifest.profile_version}, "
-            f"model {manifest.model or '-'}",
+            f"model {_models_text(manifest)}",
         ),
         ("software", software or "-"),
     ]
+
+
+def _models_text(manifest) -> str:
+    """The trained model's sha256, or each training seed's."""
+    if manifest.seed_models:
+        return "; ".join(f"seed {m.seed} {m.model}" for m in manifest.seed_models)
+    return manifest.model or "-"
 
 
 def _interval_text(interval) -> str:
@@ -390,14 +397,13 @@ def submissions_disqualify(
 @submissions_app.command("requeue")
 def submissions_requeue(submission_id: SubmissionId) -> None:
     """Send an unfinished submission's lost work again (lost messages, dead worker); an
-    evaluation a worker is still renewing is healthy and is left alone."""
+    evaluation a worker is still renewing is healthy and is left alone. A training seed lost on
+    our side trains again (the other seeds keep what they did)."""
     # deferred: CLI start-up time
     from server.services import admin
 
     ctx = _Context()
-    console.print(
-        _run(lambda: admin.requeue(ctx.db, ctx.settings.service, ctx.queue, submission_id))
-    )
+    console.print(_run(lambda: admin.requeue(ctx.db, ctx.settings, ctx.queue, submission_id)))
 
 
 # --- rescore / rerun / status ------------------------------------------------------------------
@@ -599,7 +605,8 @@ def model(
 @admin_app.command("status")
 def status() -> None:
     """Queue depth, workers, submissions by status, runs whose lease expired, submissions
-    waiting longer than ARENA_OVERDUE_AFTER_S, and phases nothing can be evaluated in."""
+    waiting longer than ARENA_OVERDUE_AFTER_S, phases nothing can be evaluated in, and training
+    seeds lost on our side (waiting for a requeue)."""
     # deferred: CLI start-up time
     from server.services import admin
 
@@ -652,6 +659,14 @@ def status() -> None:
         )
     else:
         console.print(f"overdue (same state for more than {limit:.0f} s): none")
+    if state.lost_seeds:
+        print_rows(
+            console,
+            ("submission", "seed", "lost on our side"),
+            [(lost.submission_id, lost.seed, lost.lost) for lost in state.lost_seeds],
+            title="training seeds waiting: `arena admin submissions requeue ID` sends them again",
+            numeric=("submission", "seed"),
+        )
 
 
 def _at(moment) -> str:

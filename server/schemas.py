@@ -54,6 +54,13 @@ class SeedResults(Schema):
     per_seed: list[SeedMetrics]
 
 
+class SeedFailureReasons(Schema):
+    """One training seed's run: family -> failure reason -> number of episodes."""
+
+    seed: int
+    failure_reasons: dict[str, dict[str, int]]
+
+
 class Progress(Schema):
     done: int
     total: int  # episodes: one per scenario, episodes_per_scenario per reactive scenario
@@ -164,7 +171,10 @@ class SubmissionDetail(SubmissionSummary):
     families: dict[str, FamilyMetrics]
     # family -> failure reason -> number of episodes (of scenarios, when each ran once). Scenario
     # ids of the hidden suite are never shown to participants; these counts are.
+    # Over several training seeds: summed over every seed's run (each seed's in
+    # seed_failure_reasons).
     failure_reasons: dict[str, dict[str, int]]
+    seed_failure_reasons: list[SeedFailureReasons] = []  # one per seed; empty for one run
     training: TrainingProgress | None = None  # offline (Track 2) submissions
     # Of the run whose progress is shown; None before it starts.
     agent_cpu: AgentCpu | None = None

@@ -11,13 +11,14 @@ from sqlalchemy import func, select
 from arena.config import EvaluationSettings, ServiceSettings, Settings
 from arena.episodes import Episode
 from arena.outcome import FINISHED, ScenarioStatus
-from evaluator.compare import Side, outcome_text
+from evaluator.compare import METRIC_NAMES, SeedRun, Side, outcome_text
 from evaluator.scoring import Interval, ProfileError, ScoringProfile, load_profile
 from evaluator.scoring import Metrics as ScoringMetrics
+from evaluator.scoring.seeds import Spread
 from server.core.artifacts import ArtifactStore
 from server.core.db import Database
 from server.core.queue import BROKER_ERRORS, TaskQueue
-from server.models import EvaluationRun, Submission, utcnow
+from server.models import EvaluationRun, SeedSetScore, Submission, utcnow
 from server.services import (
     evaluation,
     leases,
@@ -40,7 +41,7 @@ from server.status import (
 )
 
 
-def requeue(db: Database, service: ServiceSettings, queue: TaskQueue, submission_id: int) -> str:
+def requeue(db: Database, settings: Settings, queue: TaskQueue, submission_id: int) -> str:
     """Send an unfinished submission's lost work again (after lost messages or a dead worker).
 
     Only work nobody is doing: an evaluation whose lease a worker keeps renewing is healthy and
@@ -62,14 +63,25 @@ def requeue(db: Database, service: ServiceSettings, queue: TaskQueue, submission
                 submission.status, SubmissionStatus.queued, SUBMISSION_MOVES
             )
         # A training still held by a live worker ignores the re-sent task; a dead worker's is
-        # handed out by the reaper once its lease expires. Every seed's work goes again.
+        # handed out by the reaper once its lease expires. Every seed's work goes again, and a
+        # seed lost on our side trains again (a new job of the same set).
         training_ids = [job.id for job in submission.trainings if job.status in ACTIVE_TRAINING]
+        replaced = training.replace_lost_seeds(session, settings.service, submission)
+        training_ids += [job.id for job in replaced]
+        replaced_seeds = [job.seed for job in replaced]
         plans: list[RunPlan] = []
+        # A seed whose evaluation was lost on our side is evaluated again (a new run).
+        lost_runs = evaluation.rerun_lost_seeds(session, settings, submission)
+        rerun_seeds = [session.get(EvaluationRun, p.run_id).training.seed for p in lost_runs]
         if submission.status == SubmissionStatus.queued:
             submission.queued_at = utcnow()
         else:
-            runs = [run for run in submission.runs if run.status in ACTIVE_RUN]
-            if not runs and not training_ids:
+            runs = [
+                run
+                for run in submission.runs
+                if run.status in ACTIVE_RUN and run.id not in {p.run_id for p in lost_runs}
+            ]
+            if not runs and not training_ids and not lost_runs:
                 raise Conflict(
                     f"submission {submission_id} is {submission.status} with no evaluation in "
                     "progress; use rerun for a new attempt"
@@ -77,19 +89,25 @@ def requeue(db: Database, service: ServiceSettings, queue: TaskQueue, submission
             alive: list[Conflict] = []
             for run in runs:
                 try:
-                    plans.append(_lost_work(service, run, submission_id))
+                    plans.append(_lost_work(settings.service, run, submission_id))
                 except Conflict as exc:
                     alive.append(exc)
-            if alive and not plans and not training_ids:
+            if alive and not plans and not training_ids and not lost_runs:
                 raise alive[0]
     for training_id in training_ids:
         queue.train(training_id)
-    for plan in plans:
+    for plan in (*plans, *lost_runs):
         queue.send(plan)
     said = []
     if training_ids:
         count = len(training_ids)
         said.append("training re-sent" if count == 1 else f"{count} trainings re-sent")
+    if replaced_seeds:
+        seeds = ", ".join(map(str, replaced_seeds))
+        said.append(f"seed(s) {seeds} lost on our side: trained again")
+    if rerun_seeds:
+        seeds = ", ".join(map(str, rerun_seeds))
+        said.append(f"seed(s) {seeds} lost on our side: evaluated again")
     if plans:
         episodes = sum(len(plan.episodes) for plan in plans)
         said.append(
@@ -278,40 +296,62 @@ def rescore_run(
 
 
 def comparison_side(db: Database, submission_id: int) -> Side:
-    """A submission's standing evaluation as one side of ``arena admin compare``: its metrics,
-    interval, families and every episode's outcome (hidden phases included: organisers only)."""
+    """A submission's standing score as one side of ``arena admin compare``: its metrics,
+    interval, families and every episode's outcome (hidden phases included: organisers only).
+    Over several training seeds: the seed set's metrics, interval and families, the seeds'
+    spread, and each seed's run with its own metrics and outcomes."""
     with db.read_session() as session:
         submission = session.get(Submission, submission_id)
         if submission is None:
             raise NotFound(f"no submission {submission_id}")
-        run = submissions.current_run(submission)
-        if run is None or run.score is None:
+        score = seed_sets.standing_score(submission)
+        if score is None:
             raise Conflict(f"submission {submission_id} is {submission.status}: no score yet")
-        score = run.score
-        outcomes = {
-            Episode(result.scenario_id, result.episode).name: outcome_text(
-                [result.reason] if result.reason else [], str(result.status)
-            )
-            for result in run.results
-        }
-        metrics = ScoringMetrics(
-            **{name: getattr(score, name) for name in ("completion", "time", "humanness", "rules")}
-        )
+        runs = seed_sets.seed_runs(session, submission, score)
         interval = submissions.completion_interval(score)
-        return Side(
-            label=f"submission {submission.id} of {submission.team.name} ({submission.phase}, "
-            f"attempt {run.attempt}, {submission.method_name})",
-            metrics=metrics,
-            interval=Interval(interval.low, interval.high) if interval else None,
-            families={
-                family: ScoringMetrics(
-                    **{k: values.get(k) for k in ("completion", "time", "humanness", "rules")}
-                )
-                for family, values in score.families.items()
+        common = {
+            "metrics": _compared_metrics(score),
+            "interval": Interval(interval.low, interval.high) if interval else None,
+            "families": {
+                family: _compared_metrics(values) for family, values in score.families.items()
             },
-            outcomes=outcomes,
-            suite=run.manifest_sha256,
+            "suite": runs[0][1].manifest_sha256,
+        }
+        who = f"submission {submission.id} of {submission.team.name} ({submission.phase}"
+        if not isinstance(score, SeedSetScore):
+            ((_, run),) = runs
+            return Side(
+                label=f"{who}, attempt {run.attempt}, {submission.method_name})",
+                outcomes=_outcomes(run),
+                **common,
+            )
+        return Side(
+            label=f"{who}, {len(runs)} training seeds, {submission.method_name})",
+            seeds=tuple(
+                SeedRun(seed, _compared_metrics(run.score), _outcomes(run)) for seed, run in runs
+            ),
+            spread=Spread(
+                low=score.seed_completion_min,
+                high=score.seed_completion_max,
+                std=score.seed_completion_std,
+            ),
+            **common,
         )
+
+
+def _compared_metrics(values) -> ScoringMetrics:
+    """The four metrics of a score, a seed set's score or a family's (a mapping)."""
+    get = values.get if isinstance(values, dict) else lambda name: getattr(values, name)
+    return ScoringMetrics(**{name: get(name) for name in METRIC_NAMES})
+
+
+def _outcomes(run: EvaluationRun) -> dict[str, str]:
+    return {
+        Episode(result.scenario_id, result.episode).name: outcome_text(
+            [result.reason] if result.reason else [], str(result.status)
+        )
+        for result in run.results
+    }
 
 
 @dataclass(frozen=True)
@@ -334,6 +374,15 @@ class Overdue:
 
 
 @dataclass(frozen=True)
+class LostSeed:
+    """A training seed lost on our side: it waits for ``arena admin submissions requeue``."""
+
+    submission_id: int
+    seed: int
+    lost: str  # "training" or "evaluation"
+
+
+@dataclass(frozen=True)
 class ServiceStatus:
     queue_depth: int | None
     workers: list[str] | None
@@ -343,6 +392,7 @@ class ServiceStatus:
     overdue: list[Overdue]
     # Phases nothing can be evaluated in, with why.
     broken_phases: dict[str, str]
+    lost_seeds: list[LostSeed]
 
 
 def service_status(db: Database, settings: Settings, queue: TaskQueue) -> ServiceStatus:
@@ -364,6 +414,7 @@ def service_status(db: Database, settings: Settings, queue: TaskQueue) -> Servic
         running = sum(run.status == RunStatus.running for run in active)
         overdue = _overdue(session, moment - timedelta(seconds=settings.service.overdue_after_s))
         broken = phases.misconfigured(session, settings)
+        lost = _lost_seeds(session)
     try:
         depth = queue.depth()
         workers = queue.workers()
@@ -377,7 +428,27 @@ def service_status(db: Database, settings: Settings, queue: TaskQueue) -> Servic
         stuck_runs=stuck,
         overdue=overdue,
         broken_phases=broken,
+        lost_seeds=lost,
     )
+
+
+def _lost_seeds(session) -> list[LostSeed]:
+    """Seeds of submissions under way that were lost on our side, training or evaluation."""
+    going = session.scalars(
+        select(Submission)
+        .where(Submission.status.in_([SubmissionStatus.training, SubmissionStatus.running]))
+        .order_by(Submission.id)
+    )
+    lost = []
+    for submission in going:
+        lost += [
+            LostSeed(submission.id, j.seed, "training") for j in seed_sets.lost_seeds(submission)
+        ]
+        lost += [
+            LostSeed(submission.id, j.seed, "evaluation")
+            for j in seed_sets.lost_evaluations(submission)
+        ]
+    return lost
 
 
 def _overdue(session, before: datetime) -> list[Overdue]:

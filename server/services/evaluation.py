@@ -200,6 +200,20 @@ def rerun(session: Session, settings: Settings, submission_id: int) -> tuple[Run
     return (create_run(session, settings, submission),)
 
 
+def rerun_lost_seeds(
+    session: Session, settings: Settings, submission: Submission
+) -> tuple[RunPlan, ...]:
+    """A new run of each seed whose evaluation was lost on our side while the submission went
+    on (:func:`server.services.seed_sets.lost_evaluations`): its trained model evaluated again."""
+    plans = tuple(
+        create_run(session, settings, submission, training=job)
+        for job in seed_sets.lost_evaluations(submission)
+    )
+    if plans:
+        submission.status_reason = ""  # it said the seed waits for an organiser
+    return plans
+
+
 def claim_scenario(
     session: Session,
     service: ServiceSettings,
@@ -437,6 +451,17 @@ def finish_run(session: Session, store: ArtifactStore, run_id: int) -> RunStatus
     run.finished_at = now()
     if run_score is None:
         run.status = advance(run.status, RunStatus.failed, RUN_MOVES)
+        if summary.uncharged and seed_sets.several(run.training):
+            # One seed's evaluation lost on our side: the other seeds go on, and this one
+            # waits for an organiser's requeue (rerun_lost_seeds).
+            if submission.status == SubmissionStatus.running:
+                submission.status_reason = seed_sets.seed_lost(
+                    run.training,
+                    "evaluation",
+                    f"{len(summary.uncharged)} scenario(s)",
+                    "is evaluated again",
+                )
+            return run.status
         if submission.status == SubmissionStatus.running:
             submission.status = advance(
                 submission.status, SubmissionStatus.failed, SUBMISSION_MOVES

@@ -3,10 +3,19 @@ phase's ``training_seeds``), each trained model evaluated by its own run; the su
 scored once every seed's run is, over the seeds (:mod:`evaluator.scoring.seeds`).
 
 A set of one seed is what every offline submission had before seeds: its run's score is the
-submission's, as for a freestyle submission. Any seed's failure fails the submission.
+submission's, as for a freestyle submission. A seed's failure through the submission's fault fails
+it (the set can no longer be scored: the other seeds stop). A seed lost on our side (its training
+job's retries used up or every worker that took it died, or episodes of its run failed on our
+side) leaves the others going: that seed waits for an organiser's ``arena admin submissions
+requeue``, which trains it again in the same set
+(:func:`server.services.training.replace_lost_seeds`; a set's jobs are therefore the latest job
+of each seed, :func:`latest_per_seed`) or evaluates its model again
+(:func:`server.services.evaluation.rerun_lost_seeds`).
 """
 
 from __future__ import annotations
+
+from collections.abc import Iterable
 
 from sqlalchemy import delete, select
 from sqlalchemy.orm import Session
@@ -31,6 +40,7 @@ from server.status import (
     ACTIVE_TRAINING,
     TRAINING_MOVES,
     RunStatus,
+    SubmissionStatus,
     TrainingStatus,
     advance,
 )
@@ -51,6 +61,29 @@ def reason(job: TrainingJob | None, text: str) -> str:
     return f"seed {job.seed} (of {job.seeds}): {text}" if several(job) else text
 
 
+def training_failed(job: TrainingJob, failure: str, error: str) -> str:
+    """Why a submission failed when one of its seeds' ``train.py`` did: what to read and what
+    to fix, for a set of several seeds."""
+    said = reason(job, f"{failure}: {error}")
+    if not several(job):
+        return said
+    return (
+        f"{said}. Its training log is shown with the training (seed {job.seed}); the other "
+        f"seeds were stopped. train.py must succeed with every ARENA_TRAIN_SEED from 0 to "
+        f"{job.seeds - 1}: fix it and upload again"
+    )
+
+
+def seed_lost(job: TrainingJob, what: str, detail: str, again: str) -> str:
+    """What the team reads while a seed lost on our side (its ``what`` failed, ``detail``
+    saying how) waits for an organiser, who makes it go ``again``."""
+    return reason(
+        job,
+        f"{what} failed on our side ({detail}), not the submission's fault; the other seeds go "
+        f"on, and this seed {again} once an organiser re-sends it",
+    )
+
+
 def cancel_trainings(submission: Submission) -> None:
     """Cancel the submission's active trainings (every seed of its set in progress): their
     workers see it on the next heartbeat and kill the sandbox."""
@@ -61,24 +94,84 @@ def cancel_trainings(submission: Submission) -> None:
             job.finished_at = now()
 
 
+def latest_per_seed(jobs: Iterable[TrainingJob]) -> list[TrainingJob]:
+    """Of a set's jobs, each seed's latest (a seed lost on our side and trained again has two),
+    in seed order."""
+    by_seed = {job.seed: job for job in sorted(jobs, key=lambda j: j.attempt)}
+    return [by_seed[seed] for seed in sorted(by_seed)]
+
+
 def set_jobs(session: Session, submission_id: int, seed_set: int) -> list[TrainingJob]:
-    return list(
+    return latest_per_seed(
         session.scalars(
-            select(TrainingJob)
-            .where(TrainingJob.submission_id == submission_id, TrainingJob.seed_set == seed_set)
-            .order_by(TrainingJob.seed)
+            select(TrainingJob).where(
+                TrainingJob.submission_id == submission_id, TrainingJob.seed_set == seed_set
+            )
         )
     )
 
 
 def latest_set(submission: Submission) -> list[TrainingJob]:
-    """The jobs of the submission's latest seed set, in seed order."""
+    """The jobs of the submission's latest seed set, each seed's latest, in seed order."""
     if not submission.trainings:
         return []
     newest = max(job.seed_set for job in submission.trainings)
-    return sorted(
-        (job for job in submission.trainings if job.seed_set == newest), key=lambda j: j.seed
-    )
+    return latest_per_seed(job for job in submission.trainings if job.seed_set == newest)
+
+
+def lost_seeds(submission: Submission) -> list[TrainingJob]:
+    """The latest set's seeds that failed while the submission goes on: lost on our side (a
+    failure through the submission's fault fails it), waiting for an organiser's requeue."""
+    if submission.status not in (SubmissionStatus.training, SubmissionStatus.running):
+        return []
+    return [job for job in latest_set(submission) if job.status == TrainingStatus.failed]
+
+
+def lost_evaluations(submission: Submission) -> list[TrainingJob]:
+    """The latest set's trained seeds whose latest run failed while the submission goes on:
+    lost on our side (a run failing through the submission's fault fails it), waiting for an
+    organiser's requeue."""
+    if submission.status != SubmissionStatus.running:
+        return []
+    lost = []
+    for job in latest_set(submission):
+        runs = [run for run in submission.runs if run.training_id == job.id]
+        if job.status == TrainingStatus.trained and runs and runs[-1].status == RunStatus.failed:
+            lost.append(job)
+    return lost
+
+
+def seed_runs(
+    session: Session, submission: Submission, score: Score | SeedSetScore | None
+) -> list[tuple[int | None, EvaluationRun]]:
+    """The runs a score comes from, each with its training seed (None for a score of one run),
+    in seed order: each seed's behind a score over seeds, the one run behind a run's score;
+    with no score, the current run's set (each seed's latest scored run, else its latest run)
+    while a set of several is under way, else the current run alone."""
+    if isinstance(score, SeedSetScore):
+        return [
+            (seed["seed"], session.get(EvaluationRun, seed["run_id"])) for seed in score.per_seed
+        ]
+    if score is not None:
+        return [(None, session.get(EvaluationRun, score.run_id))]
+    run = current_run(submission)
+    if run is None:
+        return []
+    if not several(run.training):
+        return [(None, run)]
+    chosen = []
+    for job in set_jobs(session, submission.id, run.training.seed_set):
+        runs = [r for r in submission.runs if r.training_id == job.id]
+        scored = [r for r in runs if r.status == RunStatus.scored]
+        if scored or runs:
+            chosen.append((job.seed, (scored or runs)[-1]))
+    return chosen
+
+
+def current_run(submission: Submission) -> EvaluationRun | None:
+    """The run whose score stands: the latest scored attempt, else the latest attempt."""
+    scored = [run for run in submission.runs if run.status == RunStatus.scored]
+    return (scored or submission.runs or [None])[-1]
 
 
 def score_set(session: Session, submission_id: int, seed_set: int) -> bool:

@@ -14,7 +14,7 @@ from arena.config import Settings
 from arena.errors import IntakeError
 from arena.neutralise.names import UnsafeName, check_name
 from arena.outcome import FINISHED, UNCHARGED, ScenarioStatus
-from evaluator.provenance import Manifest
+from evaluator.provenance import Manifest, PublicManifest, over_seeds
 from server.core.artifacts import artifact_store
 from server.core.db import Database
 from server.core.queue import BROKER_ERRORS, TaskQueue, scenario_task_id
@@ -34,6 +34,7 @@ from server.schemas import (
     Metrics,
     Progress,
     ScenarioLog,
+    SeedFailureReasons,
     SubmissionDetail,
     SubmissionLogs,
     SubmissionSummary,
@@ -60,13 +61,18 @@ from server.services.phases import (
     phase_setup,
     team_sees_everything,
 )
-from server.services.seed_sets import cancel_trainings, seed_results, standing_score
+from server.services.seed_sets import (
+    cancel_trainings,
+    current_run,
+    seed_results,
+    seed_runs,
+    standing_score,
+)
 from server.services.training import shown_training
 from server.status import (
     ACTIVE_RUN,
     ACTIVE_SUBMISSION,
     SUBMISSION_MOVES,
-    RunStatus,
     SubmissionStatus,
     advance,
 )
@@ -295,12 +301,6 @@ def finished_counts(session: Session, run_ids: list[int]) -> dict[int, int]:
     return dict(rows)
 
 
-def current_run(submission: Submission) -> EvaluationRun | None:
-    """The run whose score stands: the latest scored attempt, else the latest attempt."""
-    scored = [run for run in submission.runs if run.status == RunStatus.scored]
-    return (scored or submission.runs or [None])[-1]
-
-
 def active_run(submission: Submission) -> EvaluationRun | None:
     active = [run for run in submission.runs if run.status in ACTIVE_RUN]
     return active[-1] if active else None
@@ -364,24 +364,20 @@ def completion_interval(score: Score | SeedSetScore | None) -> CompletionInterva
 def detail(session: Session, submission: Submission) -> SubmissionDetail:
     """Everything its own team may see. Never hands out hidden scenario ids; in a hidden phase,
     no failure reason before the run is over (read live, episode by episode, the reasons an agent
-    chose to fail with would carry what it saw of the hidden scenarios)."""
+    chose to fail with would carry what it saw of the hidden scenarios). Over several training
+    seeds, the failure counts and the manifest cover every seed's run."""
     run = current_run(submission)
-    score = run.score if run is not None else None
-    # Over several seeds, the seed set's means; the run (the latest seed's) gives the rest.
     standing = standing_score(submission)
-    results = run.results if run is not None else []
+    runs = seed_runs(session, submission, standing)
+    results = [result for _, seed_run in runs for result in seed_run.results]
     if failed_on_our_side_while_hidden(session, submission, results):
         # The other episodes' per-family outcomes would tell the team about the hidden suite
         # at no cost (the run is not charged): nothing per family until it is rerun and scored.
-        results, score, standing = [], None, None
-    reasons: dict[str, dict[str, int]] = {}
+        runs, standing = [], None
     hidden = submission.phase in hidden_phases(session)
-    live_hidden = live_in_hidden_phase(run, hidden)
-    for result in [] if live_hidden else results:
-        if result.status != ScenarioStatus.running and result.reason != "reached_goal":
-            by_reason = reasons.setdefault(result.family, {})
-            reason = result.reason or result.status
-            by_reason[reason] = by_reason.get(reason, 0) + 1
+    if any(live_in_hidden_phase(seed_run, hidden) for _, seed_run in runs):
+        runs = []
+    per_seed = [(seed, failure_counts(seed_run.results)) for seed, seed_run in runs]
     return SubmissionDetail(
         **_fields(session, submission),
         description=submission.description,
@@ -394,13 +390,55 @@ def detail(session: Session, submission: Submission) -> SubmissionDetail:
             family: FamilyMetrics.model_validate(values)
             for family, values in (standing.families if standing is not None else {}).items()
         },
-        failure_reasons={family: reasons[family] for family in sorted(reasons)},
+        failure_reasons=summed_counts([counts for _, counts in per_seed]),
+        seed_failure_reasons=[
+            SeedFailureReasons(seed=seed, failure_reasons=counts)
+            for seed, counts in per_seed
+            if seed is not None
+        ],
         training=_training(submission),
         agent_cpu=_agent_cpu(session, shown_run(submission), hidden),
-        manifest=Manifest.model_validate(score.manifest).public()
-        if score is not None and score.manifest
-        else None,
+        manifest=_manifest(runs if standing is not None else []),
     )
+
+
+FailureCounts = dict[str, dict[str, int]]  # family -> failure reason -> episodes
+
+
+def failure_counts(results: list[ScenarioResult]) -> FailureCounts:
+    """The finished episodes that did not reach the goal, by family and reason."""
+    counts: FailureCounts = {}
+    for result in results:
+        if result.status != ScenarioStatus.running and result.reason != "reached_goal":
+            by_reason = counts.setdefault(result.family, {})
+            reason = result.reason or result.status
+            by_reason[reason] = by_reason.get(reason, 0) + 1
+    return {family: counts[family] for family in sorted(counts)}
+
+
+def summed_counts(each: list[FailureCounts]) -> FailureCounts:
+    total: FailureCounts = {}
+    for counts in each:
+        for family, reasons in counts.items():
+            by_reason = total.setdefault(family, {})
+            for reason, count in reasons.items():
+                by_reason[reason] = by_reason.get(reason, 0) + count
+    return {family: total[family] for family in sorted(total)}
+
+
+def _manifest(runs: list[tuple[int | None, EvaluationRun]]) -> PublicManifest | None:
+    """The standing score's manifest as its team sees it: its run's, or over several seeds one
+    listing each seed's model; None when a run's score was written before manifests."""
+    manifests = {
+        seed: Manifest.model_validate(seed_run.score.manifest)
+        for seed, seed_run in runs
+        if seed_run.score is not None and seed_run.score.manifest
+    }
+    if not manifests or len(manifests) < len(runs):
+        return None
+    if None in manifests:
+        return manifests[None].public()
+    return over_seeds(manifests).public()
 
 
 def _agent_cpu(session: Session, run: EvaluationRun | None, hidden: bool) -> AgentCpu | None:

@@ -11,6 +11,7 @@ renewing its lease and :func:`reap` hands the job to another, which trains again
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 from sqlalchemy import func, select
@@ -36,8 +37,7 @@ from server.status import (
 )
 from server.tracks import Track
 
-# The failure a job gets when every worker that took it died.
-WORKER_LOST = "worker_lost"
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -58,39 +58,90 @@ class TrainingClaim:
         return f"{self.training_id} (claim {self.claim})"
 
 
+def _latest(session: Session, submission_id: int, column) -> int:
+    query = select(func.max(column)).where(TrainingJob.submission_id == submission_id)
+    return session.scalar(query) or 0
+
+
+def _job(
+    service: ServiceSettings,
+    submission_id: int,
+    *,
+    attempt: int,
+    seed_set: int,
+    seed: int,
+    seeds: int,
+) -> TrainingJob:
+    return TrainingJob(
+        submission_id=submission_id,
+        attempt=attempt,
+        seed_set=seed_set,
+        seed=seed,
+        seeds=seeds,
+        status=TrainingStatus.queued,
+        claims=0,
+        elapsed_s=0.0,
+        log_tail="",
+        failure="",
+        error="",
+        model_sha256="",
+        model_size=0,
+        lease_expires_at=lease_until(service),
+    )
+
+
 def _new_set(
     session: Session, service: ServiceSettings, submission: Submission
 ) -> list[TrainingJob]:
     """A new seed set: one queued job per seed of the submission's phase."""
     seeds = phases.get_phase(session, submission.phase).training_seeds
-
-    def latest(column) -> int:
-        query = select(func.max(column)).where(TrainingJob.submission_id == submission.id)
-        return session.scalar(query) or 0
-
-    attempt, seed_set = latest(TrainingJob.attempt), 1 + latest(TrainingJob.seed_set)
+    attempt = _latest(session, submission.id, TrainingJob.attempt)
+    seed_set = 1 + _latest(session, submission.id, TrainingJob.seed_set)
     jobs = [
-        TrainingJob(
-            submission_id=submission.id,
+        _job(
+            service,
+            submission.id,
             attempt=attempt + 1 + seed,
             seed_set=seed_set,
             seed=seed,
             seeds=seeds,
-            status=TrainingStatus.queued,
-            claims=0,
-            elapsed_s=0.0,
-            log_tail="",
-            failure="",
-            error="",
-            model_sha256="",
-            model_size=0,
-            lease_expires_at=lease_until(service),
         )
         for seed in range(seeds)
     ]
     session.add_all(jobs)
     session.flush()
     return jobs
+
+
+def replace_lost_seeds(
+    session: Session, service: ServiceSettings, submission: Submission
+) -> list[TrainingJob]:
+    """A new job, in the same set, for each seed of the latest set lost on our side while the
+    submission went on (:func:`server.services.seed_sets.lost_seeds`): that seed trains again
+    from scratch, the others keep what they did."""
+    attempt = _latest(session, submission.id, TrainingJob.attempt)
+    jobs = [
+        _job(
+            service,
+            submission.id,
+            attempt=attempt + 1 + number,
+            seed_set=lost.seed_set,
+            seed=lost.seed,
+            seeds=lost.seeds,
+        )
+        for number, lost in enumerate(seed_sets.lost_seeds(submission))
+    ]
+    session.add_all(jobs)
+    session.flush()
+    if jobs:
+        submission.status_reason = ""  # it said the seed waits for an organiser
+    return jobs
+
+
+def ended(session: Session, training_id: int) -> bool:
+    """Whether the job is over (trained, failed or cancelled): nothing will resume it."""
+    job = session.get(TrainingJob, training_id)
+    return job is None or job.status not in ACTIVE_TRAINING
 
 
 def start_training(
@@ -253,8 +304,10 @@ def record_failed(
     ours: bool = False,
 ) -> bool:
     """A training that ended without a model: the named ``failure`` (the team's, charged) or,
-    with ``ours``, a failure on our side (not charged). The seed set can no longer be scored:
-    its other seeds stop. False if the claim was superseded."""
+    with ``ours``, a failure on our side (not charged). The team's failure fails the submission:
+    its seed set can no longer be scored, so the other seeds stop. Ours, on one seed of several,
+    fails that seed alone: the others go on and it waits for an organiser's requeue
+    (:func:`replace_lost_seeds`). False if the claim was superseded."""
     job = _finish(session, claim, worker)
     if job is None:
         return False
@@ -263,9 +316,27 @@ def record_failed(
     job.failure, job.error = failure, error
     job.elapsed_s, job.log_tail = elapsed_s, storable_text(log_tail)
     submission = lock(session, Submission, claim.submission_id)
-    if submission.status in (SubmissionStatus.training, SubmissionStatus.running):
+    going = submission.status in (SubmissionStatus.training, SubmissionStatus.running)
+    if ours and seed_sets.several(job):
+        log.error(
+            "submission %d: seed %d (training %d) failed on our side (%s): waiting for "
+            "arena admin submissions requeue %d",
+            submission.id,
+            job.seed,
+            job.id,
+            failure,
+            submission.id,
+        )
+        if going:
+            submission.status_reason = seed_sets.seed_lost(job, "training", failure, "trains again")
+        return True
+    if going:
         submission.status = advance(submission.status, SubmissionStatus.failed, SUBMISSION_MOVES)
-        submission.status_reason = seed_sets.reason(job, f"{failure}: {error}")
+        submission.status_reason = (
+            seed_sets.reason(job, f"{failure}: {error}")
+            if ours
+            else seed_sets.training_failed(job, failure, error)
+        )
         submission.failed_on_our_side = ours
         submission.finished_at = now()
     stop_seed_set(session, submission)

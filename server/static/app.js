@@ -217,7 +217,9 @@ const Arena = (() => {
       (e.agent_image ? `, image ${e.agent_image}` : "")).join("; ");
     const rows = [
       ["submission sha256", manifest.submission],
-      ["trained model sha256", manifest.model || "—"],
+      ...(manifest.seed_models && manifest.seed_models.length
+        ? manifest.seed_models.map((x) => [`trained model sha256, seed ${x.seed}`, x.model])
+        : [["trained model sha256", manifest.model || "—"]]),
       ["suite", `${manifest.suite} (manifest sha256 ${manifest.suite_hash})`],
       ["scenarios", `${manifest.scenario_hashes.length}, seeds sha256 ${manifest.seeds_sha256}`],
       ["episodes per reactive scenario", String(manifest.episodes_per_scenario)],
@@ -272,10 +274,23 @@ const Arena = (() => {
     const failures = Object.entries(s.failure_reasons);
     // No heading over nothing: failures show once counted, "None." only when it has finished.
     $("failures-box").hidden = failures.length === 0 && !FINISHED.includes(s.status);
-    $("failures").innerHTML = failures.length ? `<ul>${failures.map(([family, reasons]) =>
-      `<li><strong>${escape(family)}</strong>: ${Object.entries(reasons)
-        .map(([r, n]) => `${escape(r)} × ${n}`).join(", ")}</li>`).join("")}</ul>`
+    // Over several training seeds the counts are summed over every seed's run, then each seed's.
+    const seeds = s.seed_failure_reasons || [];
+    $("failures-scope").textContent = seeds.length > 1
+      ? `(episodes summed over the ${seeds.length} training seeds; each seed's below)` : "";
+    $("failures").innerHTML = failures.length ? failureList(failures) +
+      (seeds.length > 1 ? `<ul class="per-seed">${seeds.map((x) => `<li>seed ${x.seed}: ` +
+        (Object.keys(x.failure_reasons).length
+          ? failureList(Object.entries(x.failure_reasons)) : "none") + `</li>`).join("")}</ul>`
+        : "")
       : `<p class="empty">None.</p>`;
+  }
+
+  function failureList(failures) {
+    // family -> reason -> episodes, as a list.
+    return `<ul>${failures.map(([family, reasons]) =>
+      `<li><strong>${escape(family)}</strong>: ${Object.entries(reasons)
+        .map(([r, n]) => `${escape(r)} × ${n}`).join(", ")}</li>`).join("")}</ul>`;
   }
 
   function renderSeeds(seeds) {

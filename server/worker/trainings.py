@@ -99,6 +99,10 @@ class Trainings:
                 seed=claim.seed,
             )
         except TrainingStopped:
+            with local.database().session() as session:
+                over = training.ended(session, claim.training_id)
+            if over:  # cancelled (e.g. another seed failed): nothing will resume from them
+                checkpoints.discard(local.store(), claim.training_id, claim.claim)
             return None
         except DatasetError as exc:
             return OurFailure("no_dataset", str(exc))

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Body, Query, Response
 from starlette.concurrency import run_in_threadpool
 
+from evaluator.compare import comparison_document
 from server.api.contract import errors
 from server.api.deps import (
+    MAX_ROW_ID,
     AdminDep,
     DatabaseDep,
     EvaluationDep,
@@ -64,11 +66,21 @@ def disqualify(
         return submissions.summary(session, submissions.get_submission(session, submission_id))
 
 
+@router.get("/compare")
+def compare(
+    a: Annotated[int, Query(ge=1, le=MAX_ROW_ID)],
+    b: Annotated[int, Query(ge=1, le=MAX_ROW_ID)],
+    db: DatabaseDep,
+) -> dict[str, Any]:
+    """Two submissions side by side, as ``arena admin compare A B --json`` prints them."""
+    return comparison_document(*(admin.comparison_side(db, sid) for sid in (a, b)))
+
+
 @router.post("/submissions/{submission_id}/requeue")
 def requeue(
-    submission_id: SubmissionId, db: DatabaseDep, service: ServiceDep, queue: QueueDep
+    submission_id: SubmissionId, db: DatabaseDep, settings: SettingsDep, queue: QueueDep
 ) -> dict[str, str]:
-    return {"result": admin.requeue(db, service, queue, submission_id)}
+    return {"result": admin.requeue(db, settings, queue, submission_id)}
 
 
 @router.post("/submissions/{submission_id}/rerun")

@@ -304,3 +304,37 @@ def test_leaderboard_fits_a_phone_and_formats_numbers_alike(served, browser):
         assert page.evaluate("document.documentElement.scrollWidth") <= viewport["width"]
         shoot(page, name)
         page.close()
+
+
+def test_submission_page_over_training_seeds_counts_every_seeds_failures(
+    settings, db, browser, tmp_path
+):
+    """Failure counts summed over the seeds (labelled so) and each seed's, and the manifest's
+    model digest per seed."""
+    from playwright.sync_api import expect
+
+    from tests.server.services.test_training_seeds import claim, evaluate, set_seeds, start, trained
+
+    set_seeds(db, settings, 2)
+    team_id, token = make_team(db, "seeds-team")
+    sid = queued_submission(db, team_id, track=Track.offline)
+    for training_id, fails in zip(start(db, settings, sid), (1, 2), strict=True):
+        evaluate(db, settings, trained(db, settings, claim(db, settings, training_id)), fails)
+    with api_server(settings, tmp_path / "api.log") as (url, _):
+        page = offline_page(browser, url, DESKTOP)
+        page.goto(f"{url}/my-submissions")
+        page.evaluate(f"sessionStorage.setItem('arena-token', {json.dumps(token)})")
+        page.goto(f"{url}/submissions/{sid}")
+        expect(page.locator("#status")).to_have_text("scored")
+        expect(page.locator("#failures-scope")).to_have_text(
+            "(episodes summed over the 2 training seeds; each seed's below)"
+        )
+        expect(page.locator("#failures .per-seed > li")).to_have_count(2)
+        expect(page.locator("#failures .per-seed > li").nth(1)).to_contain_text("seed 1:")
+        expect(page.locator("#failures .per-seed > li").nth(1)).to_contain_text("collision × 2")
+        page.click("#manifest-box summary")
+        expect(page.locator("#manifest")).to_contain_text("trained model sha256, seed 0")
+        expect(page.locator("#manifest")).to_contain_text("trained model sha256, seed 1")
+        shoot(page, "submission-seeds")
+        assert page.refused == []
+        page.close()

@@ -32,9 +32,7 @@ def test_old_scenario_statuses_move_to_the_core_vocabulary(tmp_path):
     engine = make_engine(url)
     with engine.begin() as connection:
         connection.execute(
-            text(
-                "INSERT INTO teams (id, name, created_at) VALUES (1, 't', '2026-01-01');"
-            )
+            text("INSERT INTO teams (id, name, created_at) VALUES (1, 't', '2026-01-01');")
         )
         connection.execute(
             text(

@@ -169,6 +169,6 @@ def test_requeue_resends_a_training(db, settings):
     started(db, settings, sid)
     queue = TaskQueue(settings)
     try:
-        assert admin.requeue(db, settings.service, queue, sid) == "training re-sent"
+        assert admin.requeue(db, settings, queue, sid) == "training re-sent"
     finally:
         queue.close()

@@ -1,11 +1,16 @@
 """Track 2 over seeds, through the service as the worker's tasks drive it (on SQLite and
 PostgreSQL): a phase of N training seeds trains each offline submission N times, each model
-evaluated by its own run; the submission is scored over the seeds once the last one is, any
-seed's failure fails it naming the seed, and the organisers' operations act on the whole set."""
+evaluated by its own run; the submission is scored over the seeds once the last one is, a seed's
+failure through the team's fault fails it naming the seed, a seed lost on our side waits for a
+requeue while the others go on, failure counts and the manifest cover every seed, compare puts
+seed sets side by side, and the organisers' operations act on the whole set."""
 
 from __future__ import annotations
 
 import dataclasses
+import io
+import json
+import zipfile
 
 import pytest
 from sqlalchemy import select
@@ -15,7 +20,15 @@ from evaluator.runner import ScenarioOutcome
 from server.core.artifacts import DatabaseStore
 from server.core.queue import TaskQueue
 from server.models import EvaluationRun, Phase, SeedSetScore, Submission, TrainingJob
-from server.services import admin, evaluation, leaderboard, phases, submissions, training
+from server.services import (
+    admin,
+    evaluation,
+    leaderboard,
+    phases,
+    seed_sets,
+    submissions,
+    training,
+)
 from server.services.errors import InvalidInput
 from server.status import RunStatus, SubmissionStatus, TrainingStatus
 from server.tracks import Track
@@ -52,7 +65,7 @@ def trained(db, settings, job):
             elapsed_s=1.0,
             log_tail="saved",
             model_key=f"training/{job.training_id}/model.tar.gz",
-            model_sha256="a" * 64,
+            model_sha256=f"{job.training_id:064x}",  # each seed's model its own digest
             model_size=10,
         )
 
@@ -177,7 +190,17 @@ def test_a_seeds_failure_fails_the_submission_naming_it_and_stops_the_others(db,
     with db.read_session() as session:
         submission = session.get(Submission, sid)
         assert submission.status == SubmissionStatus.failed
-        assert submission.status_reason == "seed 1 (of 3): train_crashed: exit 1"
+        # What failed, where to read why, and what to do about it.
+        assert submission.status_reason.startswith("seed 1 (of 3): train_crashed: exit 1. ")
+        assert "training log is shown with the training (seed 1)" in submission.status_reason
+        assert "every ARENA_TRAIN_SEED from 0 to 2: fix it" in submission.status_reason
+        assert not submission.failed_on_our_side  # charged: the team's train.py
+        # Nothing of the set is left to run: every job and run is over.
+        assert {job.status for job in submission.trainings} == {
+            TrainingStatus.trained,
+            TrainingStatus.failed,
+            TrainingStatus.cancelled,
+        }
         shown = submissions.detail(session, submission).training  # why it failed
         assert (shown.seed, shown.seeds, shown.failure) == (1, 3, "train_crashed")
         third_job = session.get(TrainingJob, third.training_id)
@@ -201,7 +224,7 @@ def test_a_seeds_failure_fails_the_submission_naming_it_and_stops_the_others(db,
         )
 
 
-def test_a_seeds_failed_evaluation_fails_the_submission_naming_it(db, settings):
+def test_a_seeds_evaluation_lost_on_our_side_waits_while_the_others_go_on(db, settings):
     set_seeds(db, settings, 2)
     sid = offline(db)
     plans = [trained(db, settings, claim(db, settings, i)) for i in start(db, settings, sid)]
@@ -231,9 +254,29 @@ def test_a_seeds_failed_evaluation_fails_the_submission_naming_it(db, settings):
     assert evaluate(db, settings, rest, fails=0) == RunStatus.failed
     with db.read_session() as session:
         submission = session.get(Submission, sid)
-        assert submission.status == SubmissionStatus.failed
-        assert submission.status_reason.startswith("seed 1 (of 2): 1 scenario(s) failed on our")
-        assert submission.runs[0].status == RunStatus.cancelled  # seed 0's stops
+        assert submission.status == SubmissionStatus.running  # not failed: not the team's
+        assert submission.status_reason.startswith(
+            "seed 1 (of 2): evaluation failed on our side (1 scenario(s)), not the submission's"
+        )
+        assert submission.runs[0].status == RunStatus.queued  # seed 0's goes on
+    assert evaluate(db, settings, plans[0], fails=0) == RunStatus.scored
+    assert status_of(db, sid) == SubmissionStatus.running  # seed 1 still to come
+    queue = TaskQueue(settings)
+    try:
+        said = admin.requeue(db, settings, queue, sid)
+    finally:
+        queue.close()
+    assert said == "seed(s) 1 lost on our side: evaluated again"
+    with db.read_session() as session:
+        submission = session.get(Submission, sid)
+        again = submission.runs[-1]
+        assert (again.training.seed, again.status, again.attempt) == (1, RunStatus.queued, 3)
+        plan = dataclasses.replace(plans[1], run_id=again.id)
+    assert evaluate(db, settings, plan, fails=0) == RunStatus.scored
+    assert status_of(db, sid) == SubmissionStatus.scored
+    with db.read_session() as session:
+        score = session.scalar(select(SeedSetScore))
+        assert [s["run_id"] for s in score.per_seed] == [plans[0].run_id, plan.run_id]
 
 
 def test_seeds_evaluated_on_different_suites_are_not_scored_together(db, settings):
@@ -278,7 +321,7 @@ def test_rerun_retrain_and_requeue_act_on_the_whole_set(db, settings):
                 (2, 0, "queued"),
                 (2, 1, "queued"),
             ]
-        assert admin.requeue(db, settings.service, queue, sid) == "2 trainings re-sent"
+        assert admin.requeue(db, settings, queue, sid) == "2 trainings re-sent"
     finally:
         queue.close()
     assert status_of(db, sid) == SubmissionStatus.scored  # the first set's score stands
@@ -317,3 +360,175 @@ def test_each_seeds_model_is_downloaded_by_its_seed(db, settings, client):
     url = f"/api/v1/admin/submissions/{sid}/model"
     assert client.get(url, headers=bearer(ADMIN_TOKEN)).status_code == 422
     assert client.get(url, params={"seed": 5}, headers=bearer(ADMIN_TOKEN)).status_code == 404
+
+
+def test_an_infrastructure_failure_on_one_seed_retries_that_seed_alone(db, settings, arena):
+    """Seed 1 lost on our side (its retries used up, or its workers kept dying): the submission
+    does not fail and the other seeds go on; requeue trains seed 1 again in the same set, and the
+    submission is scored over all three."""
+    set_seeds(db, settings, 3)
+    sid = offline(db)
+    ids = start(db, settings, sid)
+    first, second, third = (claim(db, settings, i) for i in ids)
+    plan0 = trained(db, settings, first)
+    with db.session() as session:
+        assert training.record_failed(
+            session, second, "w1", failure="worker_lost", error="3 workers died", ours=True
+        )
+    with db.read_session() as session:
+        submission = session.get(Submission, sid)
+        assert submission.status == SubmissionStatus.running  # not failed
+        assert not submission.failed_on_our_side
+        assert submission.status_reason.startswith("seed 1 (of 3): training failed on our side")
+        assert [r.status for r in submission.runs] == [RunStatus.queued]  # seed 0's goes on
+        assert session.get(TrainingJob, third.training_id).status == TrainingStatus.training
+    with db.session() as session:  # seed 2's worker keeps its claim
+        assert training.heartbeat(session, settings.service, third, "w1", 1.0, "")
+    assert evaluate(db, settings, plan0, fails=0) == RunStatus.scored
+    assert evaluate(db, settings, trained(db, settings, third), fails=0) == RunStatus.scored
+    assert status_of(db, sid) == SubmissionStatus.running  # seed 1 is still to come
+    status = arena("status")  # the organisers are told what waits for them
+    assert "training seeds waiting" in status
+    assert f"{sid}\t1\ttraining" in status.splitlines()
+    said = arena("submissions", "requeue", str(sid))
+    assert said.strip() == "training re-sent; seed(s) 1 lost on our side: trained again"
+    assert "training seeds waiting" not in arena("status")
+    with db.read_session() as session:
+        jobs = session.get(Submission, sid).trainings
+        assert [(j.seed_set, j.seed, j.status) for j in jobs] == [
+            (1, 0, "trained"),
+            (1, 1, "failed"),  # kept: what happened to it
+            (1, 2, "trained"),
+            (1, 1, "queued"),
+        ]
+        assert session.get(Submission, sid).status_reason == ""
+        again = jobs[-1].id
+    assert evaluate(db, settings, trained(db, settings, claim(db, settings, again)), fails=0) == (
+        RunStatus.scored
+    )
+    assert status_of(db, sid) == SubmissionStatus.scored
+    with db.read_session() as session:
+        score = session.scalar(select(SeedSetScore))
+        assert [(s["seed"], s["training_id"]) for s in score.per_seed] == [
+            (0, ids[0]),
+            (1, again),
+            (2, ids[2]),
+        ]
+
+
+def test_one_seed_of_one_lost_on_our_side_fails_uncharged(db, settings):
+    """A set of one seed has nothing to go on with: an organiser retrains it."""
+    sid = offline(db)
+    (only,) = (claim(db, settings, i) for i in start(db, settings, sid))
+    with db.session() as session:
+        training.record_failed(
+            session, only, "w1", failure="SandboxUnavailable", error="no bwrap", ours=True
+        )
+    with db.read_session() as session:
+        submission = session.get(Submission, sid)
+        assert submission.status == SubmissionStatus.failed
+        assert submission.failed_on_our_side
+        assert submission.status_reason == "SandboxUnavailable: no bwrap"
+
+
+def test_failure_counts_and_the_manifest_cover_every_seed(db, settings, client):
+    set_seeds(db, settings, 2)
+    team_id, token = make_team(db, "api")
+    sid = queued_submission(db, team_id, track=Track.offline)
+    ids = start(db, settings, sid)
+    for training_id, fails in zip(ids, (1, 2), strict=True):
+        evaluate(db, settings, trained(db, settings, claim(db, settings, training_id)), fails)
+    shown = client.get(f"/api/v1/submissions/{sid}", headers=bearer(token)).json()
+
+    def collisions(counts: dict) -> int:
+        return sum(reasons.get("collision", 0) for reasons in counts.values())
+
+    assert collisions(shown["failure_reasons"]) == 3  # summed over the seeds
+    per_seed = shown["seed_failure_reasons"]
+    assert [(s["seed"], collisions(s["failure_reasons"])) for s in per_seed] == [(0, 1), (1, 2)]
+    manifest = shown["manifest"]
+    assert manifest["model"] is None
+    assert manifest["seed_models"] == [
+        {"seed": seed, "model": f"{training_id:064x}"} for seed, training_id in enumerate(ids)
+    ]
+    download = client.get(f"/api/v1/submissions/{sid}/download", headers=bearer(token))
+    with zipfile.ZipFile(io.BytesIO(download.content)) as archive:
+        stored = json.loads(archive.read("submission.json"))
+    assert stored["seed_failure_reasons"] == per_seed
+    assert stored["manifest"]["seed_models"] == manifest["seed_models"]
+
+
+def seed_set(db, settings, team: str, fails: tuple[int, ...]) -> int:
+    """An offline submission trained with len(fails) seeds, seed k failing fails[k] scenarios."""
+    set_seeds(db, settings, len(fails))
+    sid = offline(db, team)
+    for training_id, failing in zip(start(db, settings, sid), fails, strict=True):
+        evaluate(db, settings, trained(db, settings, claim(db, settings, training_id)), failing)
+    assert status_of(db, sid) == SubmissionStatus.scored
+    return sid
+
+
+def test_compare_sets_seed_set_scores_side_by_side_and_each_seed(db, settings, arena, client):
+    a = seed_set(db, settings, "alpha", (1, 2))
+    b = seed_set(db, settings, "beta", (0, 0))
+    with db.read_session() as session:
+        means = {s.submission_id: s.completion for s in session.scalars(select(SeedSetScore)).all()}
+    output = arena("compare", str(a), str(b))
+    assert f"A: submission {a} of alpha (final, 2 training seeds" in output
+    rows = {line.split("\t")[0]: line.split("\t")[1:] for line in output.splitlines()}
+    assert rows["completion"][:2] == [f"{means[a]:.4f}", f"{means[b]:.4f}"]  # the sets' means
+    assert rows["training seeds"] == ["2", "2"]
+    assert rows["seeds' completion"][1] == "0.0000 to 0.0000 (std 0.0000)"
+    assert "per seed (seed k of A beside seed k of B)" in output
+    assert "3 episode(s) ended differently" in output  # seed 0: one, seed 1: two
+    document = json.loads(arena("compare", str(a), str(b), "--json"))
+    seeds = document["seeds"]
+    assert (seeds["a"]["count"], seeds["b"]["completion_max"]) == (2, 0.0)
+    assert [(p["seed_a"], p["seed_b"], len(p["differing_outcomes"])) for p in seeds["pairs"]] == [
+        (0, 0, 1),
+        (1, 1, 2),
+    ]
+    assert {o["b"] for p in seeds["pairs"] for o in p["differing_outcomes"]} == {"reached_goal"}
+    # The organisers' REST route answers the same document.
+    compared = client.get(
+        "/api/v1/admin/compare", params={"a": a, "b": b}, headers=bearer(ADMIN_TOKEN)
+    )
+    assert compared.status_code == 200, compared.text
+    assert compared.json() == document
+    # A submission of one run beside a seed set: its run beside each seed.
+    single = seed_set(db, settings, "gamma", (1,))
+    document = json.loads(arena("compare", str(single), str(a), "--json"))
+    assert document["seeds"]["a"] is None
+    assert [(p["seed_a"], p["seed_b"]) for p in document["seeds"]["pairs"]] == [
+        (None, 0),
+        (None, 1),
+    ]
+    assert [len(p["differing_outcomes"]) for p in document["seeds"]["pairs"]] == [0, 1]
+    assert "its run" in arena("compare", str(single), str(a))
+
+
+def test_while_a_new_seed_set_is_under_way_the_standing_score_is_compared_and_counted(
+    db, settings, client
+):
+    """Scored with one seed, retrained with two (seed 0 scored, seed 1 to come): the score that
+    stands is still the first run's, and compare, the failure counts and the manifest are its."""
+    team_id, token = make_team(db, "alpha")
+    sid = queued_submission(db, team_id, track=Track.offline)
+    (first,) = start(db, settings, sid)
+    evaluate(db, settings, trained(db, settings, claim(db, settings, first)), fails=1)
+    set_seeds(db, settings, 2)
+    queue = TaskQueue(settings)
+    try:
+        admin.retrain(db, settings.service, queue, sid)
+    finally:
+        queue.close()
+    with db.read_session() as session:
+        jobs = seed_sets.latest_set(session.get(Submission, sid))
+        new_ids = [job.id for job in jobs]
+    evaluate(db, settings, trained(db, settings, claim(db, settings, new_ids[0])), fails=2)
+    side = admin.comparison_side(db, sid)
+    assert side.seeds == () and side.label.endswith("attempt 1, m)")
+    shown = client.get(f"/api/v1/submissions/{sid}", headers=bearer(token)).json()
+    assert shown["seeds"] is None and shown["seed_failure_reasons"] == []
+    assert sum(r.get("collision", 0) for r in shown["failure_reasons"].values()) == 1
+    assert shown["manifest"]["model"] == f"{first:064x}"

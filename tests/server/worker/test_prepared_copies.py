@@ -84,9 +84,7 @@ def test_a_submission_prepared_again_gets_a_working_warm_agent(worker_env, tmp_p
         pool.close()
 
 
-def test_two_uploads_of_one_zip_share_a_folder_that_stays_while_either_runs(
-    worker_env, tmp_path
-):
+def test_two_uploads_of_one_zip_share_a_folder_that_stays_while_either_runs(worker_env, tmp_path):
     one = upload(tmp_path, 7)
     other = "uploads/8/upload.zip"
     local.store().put(other, tmp_path / "agent7.zip")  # the same bytes, another team's upload

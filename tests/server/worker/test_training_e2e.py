@@ -2,7 +2,9 @@
 the bubblewrap sandbox on a dataset of real replays, is evaluated with its trained output and
 ranked on the offline leaderboard; a training past its budget fails with its name; a worker
 killed while training loses nothing: the training resumes from its last checkpoint; a phase of
-two seeds trains and evaluates each and scores the submission over them."""
+two seeds trains and evaluates each and scores the submission over them; a worker lost on one
+seed costs that seed a second claim and nothing else; a team's train.py failing on one seed
+fails the submission and leaves nothing of the other seed running or stored."""
 
 from __future__ import annotations
 
@@ -331,4 +333,112 @@ def test_a_phase_of_two_seeds_trains_and_evaluates_each_and_scores_over_them(
     report = audit(db, store, sid, **evaluate_args(stack_settings))
     assert report.difference is not None and report.difference.startswith("seed 1: "), report
     assert tampered in report.difference
+    db.dispose()
+
+
+def test_a_worker_killed_while_training_one_seed_retrains_that_seed_alone(stack_settings, tmp_path):
+    """Two workers, one seed each; the one training seed 1 is killed: the reaper hands seed 1
+    to the surviving worker (a second claim), seed 0 is never stopped, and the submission never
+    fails: it is scored over both seeds."""
+    import socket
+
+    from server.services import phases
+
+    db = Database(stack_settings.storage.database_url)
+    phases.set_phase(db, stack_settings, "final", phases.PhaseChanges(training_seeds=2))
+    _, token = make_team(db, "bc-team")
+    workers = [
+        start_worker(stack_settings, tmp_path / f"worker{k}.log", concurrency=1) for k in (1, 2)
+    ]
+    try:
+        with api_server(stack_settings, tmp_path / "api.log") as (url, _):
+            sid = upload(url, token, offline_zip(tmp_path, SLOW_EPOCHS), "slow bc, two seeds")
+
+            def holders() -> dict[int, str]:
+                with db.session() as session:
+                    jobs = session.scalars(
+                        select(TrainingJob).where(TrainingJob.submission_id == sid)
+                    ).all()
+                return {job.seed: job.worker for job in jobs if job.status == "training"}
+
+            wait_until(lambda: all(holders().get(seed) for seed in (0, 1)), "seeds not taken")
+            names = {f"{socket.gethostname()}:{w.pid}": w for w in workers}
+            killed = names[holders()[1]]
+            stop(killed, signal.SIGKILL)
+            seen = watch(url, token, sid)
+            assert [body["status"] for body in seen][-1] == "scored", seen[-1]
+            assert "failed" not in [body["status"] for body in seen]
+            assert seen[-1]["seeds"]["count"] == 2
+    finally:
+        for worker in workers:
+            stop(worker)
+    with db.session() as session:
+        jobs = session.scalars(
+            select(TrainingJob).where(TrainingJob.submission_id == sid).order_by(TrainingJob.seed)
+        ).all()
+        # Seed 0 trained once, on its first claim; seed 1 again on a second claim.
+        assert [(j.seed, j.claims, j.status) for j in jobs] == [
+            (0, 1, "trained"),
+            (1, 2, "trained"),
+        ]
+    db.dispose()
+
+
+# Seed 1's train.py fails a few seconds in; seed 0 trains slowly meanwhile (as SLOW_EPOCHS).
+SEED_ONE_FAILS = (
+    """\
+import os, sys, time
+if os.environ["ARENA_TRAIN_SEED"] == "1":
+    time.sleep(4)
+    sys.exit("seed 1 diverged")
+"""
+    + SLOW_EPOCHS
+)
+
+
+def test_a_seeds_train_py_failing_fails_the_submission_and_stops_the_other_seed(
+    stack_settings, tmp_path
+):
+    """The team's train.py failing on seed 1 fails the submission saying which seed, where its
+    log is and what to fix; seed 0, still training, is cancelled, its worker stops it and its
+    checkpoints leave the store: nothing of the set is left behind."""
+    from server.services import phases
+
+    db = Database(stack_settings.storage.database_url)
+    store = artifact_store(stack_settings, db)
+    phases.set_phase(db, stack_settings, "final", phases.PhaseChanges(training_seeds=2))
+    _, token = make_team(db, "bc-team")
+    worker = start_worker(stack_settings, tmp_path / "worker.log", concurrency=2)
+    try:
+        with api_server(stack_settings, tmp_path / "api.log") as (url, _):
+            sid = upload(url, token, offline_zip(tmp_path, SEED_ONE_FAILS), "seed 1 fails")
+            final = watch(url, token, sid)[-1]
+            assert final["status"] == "failed", final
+            reason = final["status_reason"]
+            assert reason.startswith("seed 1 (of 2): train_error: "), reason
+            assert "training log is shown with the training (seed 1)" in reason
+            assert "ARENA_TRAIN_SEED from 0 to 1: fix it and upload again" in reason
+            assert final["training"]["seed"] == 1 and "diverged" in final["training"]["log_tail"]
+
+            def seed_zero():
+                with db.session() as session:
+                    return session.scalar(
+                        select(TrainingJob).where(
+                            TrainingJob.submission_id == sid, TrainingJob.seed == 0
+                        )
+                    )
+
+            stopped = seed_zero()
+            assert stopped.status == "cancelled"
+            saved = checkpoint_key(stopped.id, claim=1)
+            wait_until(lambda: not store.exists(saved), "the stopped seed's checkpoint stayed")
+    finally:
+        stop(worker)
+    with db.session() as session:
+        jobs = session.scalars(select(TrainingJob).where(TrainingJob.submission_id == sid)).all()
+        assert sorted((j.seed, j.status) for j in jobs) == [(0, "cancelled"), (1, "failed")]
+        assert (
+            session.scalars(select(EvaluationRun).where(EvaluationRun.submission_id == sid)).all()
+            == []
+        )
     db.dispose()
