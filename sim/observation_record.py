@@ -27,7 +27,7 @@ from sim.observation_arrays import (
     head_values,
 )
 from sim.road import LanePosition, RoadNetwork
-from sim.road.lane import WaypointArrays
+from sim.road.centrelines import WaypointArrays
 from sim.vehicle.states import VehicleStates
 
 
@@ -60,7 +60,12 @@ class ObservationRecord:
         self._path_mask = paths["mask"].reshape(-1)
         self._path_pos = paths["pos"].reshape(-1, 2)
         self._path_lane = paths["lane_index"].reshape(-1)
-        self._path_floats = [paths[name].reshape(-1) for name in WAYPOINT_FIELDS]
+        # The per-waypoint floats lie back to back (as ObservationEncoder writes them): one
+        # (fields, slots) block, written in one assignment.
+        first = layout.leaf(PATHS, WAYPOINT_FIELDS[0])
+        self._path_floats = np.ndarray(
+            (len(WAYPOINT_FIELDS), self._path_mask.size), first.dtype, self.record, first.offset
+        )
         self._path_bytes = _span(layout, PATHS)
         self._rasters = [name for name in RASTER_NAMES if name in self.arrays]
 
@@ -136,28 +141,17 @@ class ObservationRecord:
     def _write_waypoints(self, waypoints: WaypointArrays) -> None:
         first, end = self._path_bytes
         self.record[first:end] = bytes(end - first)
-        w, total = self._per_path, len(waypoints.x)
-        if total == w * len(waypoints.counts):  # every path full: the slots in a row
-            at: slice | np.ndarray = slice(0, total)
+        w, values = self._per_path, waypoints.values
+        if values.shape[1] == w * len(waypoints.counts):  # every path full: the slots in a row
+            at: slice | np.ndarray = slice(0, values.shape[1])
         else:
             at = np.concatenate(
                 [np.arange(i * w, i * w + c) for i, c in enumerate(waypoints.counts)]
             )
         self._path_mask[at] = 1
-        self._path_pos[at, 0] = waypoints.x
-        self._path_pos[at, 1] = waypoints.y
-        heading, lane_width, speed_limit, lane_offset = self._path_floats
-        heading[at] = waypoints.heading
-        lane_offset[at] = waypoints.lane_offset
-        # Each lane's values over its points' slots (a piece: a run of one path's points).
-        start = 0
-        for lane, count in waypoints.pieces:
-            points = slice(start, start + count)
-            slots = points if isinstance(at, slice) else at[points]
-            self._path_lane[slots] = lane.index
-            lane_width[slots] = lane.width
-            speed_limit[slots] = lane.speed_limit
-            start += count
+        self._path_pos[at] = values[:2].T  # x, y
+        self._path_floats[:, at] = values[2:6]  # heading .. lane_offset (WAYPOINT_FIELDS)
+        self._path_lane[at] = values[6]
 
 
 def _span(layout: ObservationLayout, group: str) -> tuple[int, int]:
