@@ -88,13 +88,16 @@ class VehicleStates:
     def nearest_first(self, x: float, y: float, radius: float) -> tuple[VehicleStates, np.ndarray]:
         """The vehicles whose centre is within ``radius`` [m] of (x, y) [m], nearest first (ties
         in their present order), and those distances [m]."""
-        distance = np.hypot(self.x - x, self.y - y)
+        values = self.values
+        distance = np.hypot(values[:, 0] - x, values[:, 1] - y)
         # A stable sort of all, cut after those within the radius: the same order as sorting
         # only those, with fewer numpy calls (each costs more than the arithmetic here).
         order = distance.argsort(kind="stable")  # the method: np.argsort adds a wrapper
-        distance = distance[order]
+        distance = distance.take(order)
         within = int(distance.searchsorted(radius, side="right"))
-        return self.select(order[:within]), distance[:within]
+        if within < len(order):
+            order, distance = order[:within], distance[:within]
+        return self.select(order), distance
 
     def without(self, ids: set[str]) -> VehicleStates:
         """These states minus the vehicles whose id is in ``ids``."""
