@@ -58,7 +58,7 @@ class VehicleStates:
 
     @classmethod
     def empty(cls) -> VehicleStates:
-        return cls.of([], np.zeros((0, len(FIELDS))), [])
+        return _NONE  # immutable, so one serves every caller (several per step)
 
     @classmethod
     def concat(cls, parts: list[VehicleStates]) -> VehicleStates:
@@ -104,6 +104,10 @@ class VehicleStates:
         if not any(vid in ids for vid in self.ids):
             return self
         return self.select(np.array([i for i, v in enumerate(self.ids) if v not in ids], dtype=int))
+
+
+_NONE = VehicleStates.of([], np.zeros((0, len(FIELDS))), [])
+_NONE.values.flags.writeable = False
 
 
 @dataclass(frozen=True)
