@@ -55,25 +55,22 @@ def collisions(
     if distance is None:
         distance = np.hypot(others.x - x, others.y - y)
     # Boxes further apart than their half-diagonals cannot touch: skip the exact test for them.
-    reach = 0.5 * (math.hypot(length, width) + np.hypot(others.length, others.width))
+    # (In place, the same operations as 0.5 * (hypot + np.hypot(...)), with fewer arrays.)
+    values = others.values
+    reach = np.hypot(values[:, 4], values[:, 5])  # length, width
+    reach += math.hypot(length, width)
+    reach *= 0.5
     near = (distance <= reach).nonzero()[0]
-    if len(near) == 0:
+    if not len(near):
         return ()
     ego = (x, y, heading, length, width)
-    hit = [
-        others.ids[i]
-        for i in near.tolist()
-        if box_overlaps_box(
-            ego,
-            (
-                float(others.x[i]),
-                float(others.y[i]),
-                float(others.heading[i]),
-                float(others.length[i]),
-                float(others.width[i]),
-            ),
-        )
-    ]
+    hit = []
+    # Each candidate's row as plain floats in one call (x, y, heading, speed, length, width).
+    for i, (bx, by, bh, _, bl, bw) in zip(
+        near.tolist(), values.take(near, 0).tolist(), strict=True
+    ):
+        if box_overlaps_box(ego, (bx, by, bh, bl, bw)):
+            hit.append(others.ids[i])
     return tuple(sorted(hit))
 
 

@@ -18,6 +18,7 @@ from sim.events import Events
 from sim.mission_vehicle import MissionVehicle
 from sim.observation import DEFAULT_HEIGHT, neighbour_lanes
 from sim.observation_arrays import (
+    F32,
     NEIGHBOURS,
     PATHS,
     RASTER_NAMES,
@@ -27,7 +28,7 @@ from sim.observation_arrays import (
     head_values,
 )
 from sim.road import LanePosition, RoadNetwork
-from sim.road.lane import WaypointArrays
+from sim.road.centrelines import WaypointArrays
 from sim.vehicle.states import VehicleStates
 
 
@@ -51,16 +52,21 @@ class ObservationRecord:
         self.record = bytearray(layout.size)
         self.arrays = layout.arrays(self.record)
         self._head = head_struct(layout)
-        nbr = self.arrays[NEIGHBOURS]
-        self._nbr = (nbr["mask"], nbr["position"], nbr["heading"], nbr["speed"])
-        self._nbr_box, self._nbr_lane = nbr["bounding_box"], nbr["lane_index"]
+        self._nbr_lane = self.arrays[NEIGHBOURS]["lane_index"]
         self._nbr_bytes = _span(layout, NEIGHBOURS)
+        floats_at, self._nbr_slots, self._nbr_blank = _neighbour_slots(layout)
+        self._nbr_floats = np.ndarray((8 * self.max_neighbours,), F32, self.record, floats_at)
         paths = self.arrays[PATHS]
         self._per_path = layout.interface.waypoints_per_path
         self._path_mask = paths["mask"].reshape(-1)
         self._path_pos = paths["pos"].reshape(-1, 2)
         self._path_lane = paths["lane_index"].reshape(-1)
-        self._path_floats = [paths[name].reshape(-1) for name in WAYPOINT_FIELDS]
+        # The per-waypoint floats lie back to back (as ObservationEncoder writes them): one
+        # (fields, slots) block, written in one assignment.
+        first = layout.leaf(PATHS, WAYPOINT_FIELDS[0])
+        self._path_floats = np.ndarray(
+            (len(WAYPOINT_FIELDS), self._path_mask.size), first.dtype, self.record, first.offset
+        )
         self._path_bytes = _span(layout, PATHS)
         self._rasters = [name for name in RASTER_NAMES if name in self.arrays]
 
@@ -115,49 +121,54 @@ class ObservationRecord:
         )
 
     def _write_neighbours(self, neighbours: VehicleStates, road: RoadNetwork) -> None:
-        start, end = self._nbr_bytes
-        self.record[start:end] = bytes(end - start)
         n = min(len(neighbours), self.max_neighbours)
+        start, end = self._nbr_bytes
+        self.record[start:end] = self._nbr_blank[n]
         if not n:
             return
         if len(neighbours) > n:  # the nearest are kept (the states are nearest first)
             neighbours = neighbours.first(n)
-        values = neighbours.values  # x, y, heading, speed, length, width
-        mask, position, heading, speed = self._nbr
-        mask[:n] = 1
-        position[:n, :2] = values[:, :2]
-        heading[:n] = values[:, 2]
-        speed[:n] = values[:, 3]
-        box = self._nbr_box
-        box[:n, :2] = values[:, 4:]
-        box[:n, 2] = DEFAULT_HEIGHT
+        self._nbr_floats[self._nbr_slots[:n].ravel()] = neighbours.values.ravel()
         self._nbr_lane[:n] = [lane.index for lane in neighbour_lanes(neighbours, road)]
 
     def _write_waypoints(self, waypoints: WaypointArrays) -> None:
         first, end = self._path_bytes
         self.record[first:end] = bytes(end - first)
-        w, total = self._per_path, len(waypoints.x)
-        if total == w * len(waypoints.counts):  # every path full: the slots in a row
-            at: slice | np.ndarray = slice(0, total)
+        w, values = self._per_path, waypoints.values
+        if values.shape[1] == w * len(waypoints.counts):  # every path full: the slots in a row
+            at: slice | np.ndarray = slice(0, values.shape[1])
         else:
             at = np.concatenate(
                 [np.arange(i * w, i * w + c) for i, c in enumerate(waypoints.counts)]
             )
         self._path_mask[at] = 1
-        self._path_pos[at, 0] = waypoints.x
-        self._path_pos[at, 1] = waypoints.y
-        heading, lane_width, speed_limit, lane_offset = self._path_floats
-        heading[at] = waypoints.heading
-        lane_offset[at] = waypoints.lane_offset
-        # Each lane's values over its points' slots (a piece: a run of one path's points).
-        start = 0
-        for lane, count in waypoints.pieces:
-            points = slice(start, start + count)
-            slots = points if isinstance(at, slice) else at[points]
-            self._path_lane[slots] = lane.index
-            lane_width[slots] = lane.width
-            speed_limit[slots] = lane.speed_limit
-            start += count
+        self._path_pos[at] = values[:2].T  # x, y
+        self._path_floats[:, at] = values[2:6]  # heading .. lane_offset (WAYPOINT_FIELDS)
+        self._path_lane[at] = values[6]
+
+
+def _neighbour_slots(layout: ObservationLayout) -> tuple[int, np.ndarray, list[bytes]]:
+    """The neighbours' float leaves, position to bounding_box, lie back to back: where they
+    start [bytes], and where each value of a neighbour's :class:`VehicleStates` row (x, y,
+    heading, speed, length, width) goes among them, for each slot (float32 units); and the
+    neighbours' bytes with the first n slots taken (mask 1, default height) and nothing else
+    written yet, for each n."""
+    m = layout.max_neighbours
+    first, last = layout.leaf(NEIGHBOURS, "position"), layout.leaf(NEIGHBOURS, "bounding_box")
+    assert last.offset + last.nbytes - first.offset == 8 * m * 4, "float32 leaves back to back"
+    i = np.arange(m)
+    # position (m, 3), heading (m), speed (m), bounding_box (m, 3)
+    slots = np.stack([3 * i, 3 * i + 1, 3 * m + i, 4 * m + i, 5 * m + 3 * i, 5 * m + 3 * i + 1], 1)
+    start, end = _span(layout, NEIGHBOURS)
+    mask_at = layout.leaf(NEIGHBOURS, "mask").offset - start
+    blank = []
+    for n in range(m + 1):
+        block = bytearray(end - start)
+        block[mask_at : mask_at + n] = b"\x01" * n
+        floats = np.ndarray((8 * m,), first.dtype, block, first.offset - start)
+        floats[5 * m + 3 * i[:n] + 2] = DEFAULT_HEIGHT
+        blank.append(bytes(block))
+    return first.offset, slots, blank
 
 
 def _span(layout: ObservationLayout, group: str) -> tuple[int, int]:

@@ -198,7 +198,7 @@ class EpisodeRecorder:
         out["nbr_valid"] = np.zeros(nbr_shape, dtype=bool)
         for name in NEIGHBOUR_FLOATS:
             out[f"nbr_{name}"] = np.full(nbr_shape, np.nan)
-        nbr_ids = []  # (agent, rows, slots, ids) of each agent with neighbours
+        nbr_ids = []  # (agent, flat slots, ids) of each agent with neighbours
         for a, track in enumerate(tracks):
             n = len(track)
             if not n:
@@ -219,18 +219,21 @@ class EpisodeRecorder:
                 continue
             row_of = np.repeat(np.arange(n), count)
             slot_of = np.arange(len(row_of)) - np.repeat(np.cumsum(count) - count, count)
-            out["nbr_valid"][a, row_of, slot_of] = True
+            # Each neighbour's place in its agent's (rows, slots) plane, flat: one index array
+            # per assignment instead of three.
+            at = row_of * n_slots + slot_of
+            out["nbr_valid"][a].reshape(-1)[at] = True
             values = np.concatenate([nbr.values for nbr in rows])
             for j, name in enumerate(NEIGHBOUR_FLOATS):
-                out[f"nbr_{name}"][a, row_of, slot_of] = values[:, j]
+                out[f"nbr_{name}"][a].reshape(-1)[at] = values[:, j]
             ids = np.array(list(chain.from_iterable(nbr.ids for nbr in rows)), dtype=str)
-            nbr_ids.append((a, row_of, slot_of, ids))
+            nbr_ids.append((a, at, ids))
         out["lane_id"] = _str_array(lane_ids)
         # As _str_array would make it from nested lists: fixed width of the longest id.
         width = max([1] + [ids.dtype.itemsize // 4 for *_, ids in nbr_ids])
         out["nbr_id"] = np.full(nbr_shape, "", dtype=f"<U{width}")
-        for a, row_of, slot_of, ids in nbr_ids:
-            out["nbr_id"][a, row_of, slot_of] = ids
+        for a, at, ids in nbr_ids:
+            out["nbr_id"][a].reshape(-1)[at] = ids
         return out
 
 

@@ -355,11 +355,10 @@ class Simulation:
         """Other vehicles within the observation radius of ``v``'s centre, nearest first:
         SUMO's, ``replay``'s and the other live egos of ``egos``."""
         assert self._traffic is not None
-        parts = [self._traffic.vehicles_around(v.id, self._mission_ids), replay]
-        parts.append(egos.without({v.id}))
-        near, distance = VehicleStates.concat(parts).nearest_first(
-            v.pose.x, v.pose.y, self.interface.observation_radius
-        )
+        others = self._traffic.vehicles_around(v.id, self._mission_ids)
+        if len(replay) or len(egos):
+            others = VehicleStates.concat([others, replay, egos.without({v.id})])
+        near, distance = others.nearest_first(v.pose.x, v.pose.y, self.interface.observation_radius)
         return Surroundings(near, distance)
 
     def _lane_of(self, v: MissionVehicle) -> LanePosition:

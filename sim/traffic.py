@@ -65,7 +65,8 @@ class SumoTraffic:
         except libsumo.TraCIException as exc:
             raise SumoError(f"SUMO failed to start: {exc}") from exc
         _open_instance = self
-        self._dims: dict[str, tuple[float, float]] = {}  # vehicle id -> (length, width) [m]
+        # vehicle id -> (half length, length, width) [m]
+        self._dims: dict[str, tuple[float, float, float]] = {}
         self._routes = 0
         self._around: dict[str, dict] = {}  # vehicle id -> SUMO's report of its surroundings
         self._vars = [
@@ -121,13 +122,13 @@ class SumoTraffic:
             ls.vehicle.setLaneChangeMode(vid, 0)
         except ls.TraCIException as exc:
             raise SumoError(f"cannot add vehicle {vid} on route {edges}: {exc}") from exc
-        self._dims[vid] = (length, width)
+        self._dims[vid] = (length / 2, length, width)
 
     def move(self, vid: str, x: float, y: float, heading: float, speed: float) -> None:
         """Put vehicle ``vid`` with its centre at (x, y) [m], ``heading`` [rad], ``speed`` [m/s]
         at the next step. SUMO maps it to the nearest lane of any edge (keepRoute=2) so that its
         drivers see it; where no lane is near (off road) the vehicle stays where it was."""
-        half = self._dims[vid][0] / 2
+        half = self._dims[vid][0]
         fx, fy = x + half * math.cos(heading), y + half * math.sin(heading)
         angle = 90.0 - math.degrees(heading)
         try:
@@ -174,7 +175,7 @@ class SumoTraffic:
         """Vehicles SUMO found near watched vehicle ``vid`` at the last step, but for ``vid`` and
         the vehicles in ``skip``."""
         results = self._context(vid)
-        return self._states(results, [v for v in results if v != vid and v not in skip])
+        return self._states(results, [v for v in results if v not in skip and v != vid])
 
     def is_in_network(self, vid: str) -> bool:
         """Whether vehicle ``vid`` is driving, or waiting to enter at the next step."""
@@ -204,32 +205,35 @@ class SumoTraffic:
             return VehicleStates.empty()
         ids.sort()  # the order must not depend on SUMO's internal containers
         dims = self._dims
-        for v in ids:
-            if v not in dims:
-                dims[v] = (self._ls.vehicle.getLength(v), self._ls.vehicle.getWidth(v))
         position, angle, speed, lane = self._vars
         # Plain Python per vehicle and one array at the end: for the ~20 vehicles around an ego
         # this beats a dozen numpy calls. The same operations as numpy's radians, mod, cos and
         # sin, so the same values.
         pi, tau = math.pi, 2 * math.pi
+        cos, sin, radians = math.cos, math.sin, math.radians
         flat: list[float] = []
         lanes = []
         for v in ids:
             r = results[v]
+            half, length, width = dims.get(v) or self._measure(v)
             fx, fy = r[position]
-            heading = pi - (pi - math.radians(90.0 - r[angle])) % tau
-            length, width = dims[v]
-            half = length / 2
+            heading = pi - (pi - radians(90.0 - r[angle])) % tau
             flat += (
-                fx - half * math.cos(heading),
-                fy - half * math.sin(heading),
+                fx - half * cos(heading),
+                fy - half * sin(heading),
                 heading,
                 r[speed],
                 length,
                 width,
             )
             lanes.append(r[lane])
-        return VehicleStates.of(ids, np.array(flat).reshape(len(ids), 6), lanes)
+        return VehicleStates.of(ids, np.fromiter(flat, float, len(flat)).reshape(-1, 6), lanes)
+
+    def _measure(self, vid: str) -> tuple[float, float, float]:
+        """(half length, length, width) [m] of a vehicle SUMO made, asked once."""
+        length = self._ls.vehicle.getLength(vid)
+        size = self._dims[vid] = (length / 2, length, self._ls.vehicle.getWidth(vid))
+        return size
 
     def lane_index(self, vid: str) -> int:
         return self._ls.vehicle.getLaneIndex(vid)

@@ -4,12 +4,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import NamedTuple
 
 import numpy as np
 
-WAYPOINT_SPACING = 1.0  # [m] distance between consecutive waypoints along a lane
-_STEPS = WAYPOINT_SPACING * np.arange(256)  # [m] offsets of a path's first points from its start
+from sim.road.centrelines import WAYPOINT_SPACING, CentrelineTable, as_dicts
+
 # Lanes of more centreline points than this are projected onto with numpy (one pass over all
 # segments), fewer with a scalar loop; both give the same result.
 _VECTOR_PROJECTION_POINTS = 16
@@ -50,9 +49,6 @@ class Lane:
         self._seg_len2 = np.maximum(seg[:, 0] * seg[:, 0] + seg[:, 1] * seg[:, 1], 1e-12)
         # Contiguous copies for np.interp, which would otherwise copy each column per call.
         self._xs, self._ys = pts[:, 0].copy(), pts[:, 1].copy()
-        # Segment i starts at cumulative_s[i]: searching the inner offsets gives the segment of
-        # an offset directly, already within [0, n - 2] (see heading_at).
-        self._inner_s = self.cumulative_s[1:-1].copy()
 
     def project(self, x: float, y: float) -> tuple[float, float, float]:
         """Lane coordinates of a point: (s [m] along the lane, t [m] signed lateral offset, left
@@ -120,38 +116,24 @@ class Lane:
     @property
     def waypoints(self) -> list[dict]:
         """Waypoint dicts every :data:`WAYPOINT_SPACING` along the lane, from s = 0."""
-        return waypoint_dicts([(self, np.arange(0.0, self.length, WAYPOINT_SPACING))])
+        return waypoint_dicts(self, 0.0, self.waypoint_count(0.0))
 
-    def waypoint_offsets(self, first_s: float, limit: int) -> tuple[np.ndarray, int]:
-        """Up to ``limit`` offsets s = ``first_s`` + k * :data:`WAYPOINT_SPACING` [m], k >= 0,
-        short of the lane's end; and how many such points the lane has in all.
+    def waypoint_count(self, first_s: float) -> int:
+        """How many offsets s = ``first_s`` + k * :data:`WAYPOINT_SPACING` [m], k >= 0, the lane
+        has short of its end (``first_s`` at least 0).
 
         A path starts level with the vehicle (``first_s`` is its own s) and one crossing into
         this lane starts at the offset left over from the previous one, so the spacing stays
         even along the whole path.
         """
-        first_s = max(first_s, 0.0)
-        total = max(math.ceil((self.length - first_s) / WAYPOINT_SPACING - 1e-9), 0)
-        count = min(limit, total)
-        steps = _STEPS[:count] if count <= len(_STEPS) else WAYPOINT_SPACING * np.arange(count)
-        return first_s + steps, total
+        return max(math.ceil((self.length - first_s) / WAYPOINT_SPACING - 1e-9), 0)
 
     def waypoints_from(self, first_s: float, limit: int) -> tuple[list[dict], int]:
-        """The waypoint dicts at :meth:`waypoint_offsets`, and how many the lane has in all."""
-        s, total = self.waypoint_offsets(first_s, limit)
-        return waypoint_dicts([(self, s)]), total
-
-    def _sample(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Centreline x, y [m] and heading [rad] at offsets ``s``: :meth:`position_at` and
-        :meth:`heading_at` without their np.clip and np.stack wrappers. np.interp already holds
-        the end values beyond the lane; the heading is the last segment's at the very end."""
-        cum = self.cumulative_s
-        if len(self._inner_s):
-            at = np.minimum(s, self.length - 1e-9)
-            heading = self.segment_headings[self._inner_s.searchsorted(at, side="right")]
-        else:  # one segment (a straight lane): one heading
-            heading = np.full(len(s), self.segment_headings[0])
-        return np.interp(s, cum, self._xs), np.interp(s, cum, self._ys), heading
+        """Up to ``limit`` waypoint dicts from ``first_s`` on (:meth:`waypoint_count`), and how
+        many the lane has in all."""
+        first_s = max(first_s, 0.0)
+        total = self.waypoint_count(first_s)
+        return waypoint_dicts(self, first_s, min(limit, total)), total
 
     @property
     def heading_start(self) -> float:
@@ -170,66 +152,7 @@ def angle_between(a: float, b: float) -> float:
     return abs(math.remainder(a - b, 2 * math.pi))
 
 
-class WaypointArrays(NamedTuple):
-    """Waypoints as flat arrays over all their points, in order: the values of the waypoint
-    dicts (before any float32 conversion), sampled per lane in one pass."""
-
-    counts: list[int]  # points of each path, in order (one path: all of them)
-    x: np.ndarray  # [m], rounded to 0.1 mm as the dicts' "pos"
-    y: np.ndarray
-    heading: np.ndarray  # [rad]
-    lane_offset: np.ndarray  # [m] along each point's lane
-    pieces: list[tuple[Lane, int]]  # the points' lanes in order: (lane, how many points)
-
-
-def sample_waypoints(pieces: list[tuple[Lane, np.ndarray]], counts: list[int]) -> WaypointArrays:
-    """The waypoints at offsets ``s`` along each (lane, s) piece, in order, making up paths of
-    ``counts`` points (their sum: every piece's points)."""
-    pieces = [(lane, s) for lane, s in pieces if len(s)]
-    if not pieces:
-        z = np.zeros(0)
-        return WaypointArrays(counts, z, z, z, z, [])
-    sampled = [lane._sample(s) for lane, s in pieces]
-    return WaypointArrays(
-        counts,
-        np.concatenate([x for x, _, _ in sampled]).round(4),
-        np.concatenate([y for _, y, _ in sampled]).round(4),
-        np.concatenate([h for _, _, h in sampled]),
-        np.concatenate([s for _, s in pieces]),
-        [(lane, len(s)) for lane, s in pieces],
-    )
-
-
-def waypoint_dicts(pieces: list[tuple[Lane, np.ndarray]]) -> list[dict]:
-    """Waypoint dicts at offsets ``s`` along each (lane, s) piece, in order."""
-    return as_dicts(sample_waypoints(pieces, [sum(len(s) for _, s in pieces)]))
-
-
-def as_dicts(waypoints: WaypointArrays) -> list[dict]:
-    """The waypoint dicts of ``waypoints``, all paths' in one list.
-
-    Built afresh for every observation (paths start level with the vehicle), so this is the hot
-    path of one: the values are boxed to floats in one pass over all points, as numpy's per-call
-    cost outweighs the arithmetic on ~50 points.
-    """
-    xs, ys = waypoints.x.tolist(), waypoints.y.tolist()
-    headings, offsets = waypoints.heading.tolist(), waypoints.lane_offset.tolist()
-    # Copies of one template per lane (the key order of the documented waypoint), then the
-    # three values per point: faster than a dict display of seven keys.
-    out: list[dict] = []
-    for lane, count in waypoints.pieces:
-        template = {
-            "pos": None,
-            "heading": None,
-            "lane_id": lane.id,
-            "lane_index": lane.index,
-            "lane_width": lane.width,
-            "speed_limit": lane.speed_limit,
-            "lane_offset": None,
-        }
-        out += [template.copy() for _ in range(count)]
-    for point, x, y, h, si in zip(out, xs, ys, headings, offsets, strict=True):
-        point["pos"] = [x, y]
-        point["heading"] = h
-        point["lane_offset"] = si
-    return out
+def waypoint_dicts(lane: Lane, first_s: float, count: int) -> list[dict]:
+    """``count`` waypoint dicts from ``first_s`` [m] along ``lane`` on, :data:`WAYPOINT_SPACING`
+    apart."""
+    return as_dicts(CentrelineTable((lane,)).sample([(lane, first_s, count)], [count]))

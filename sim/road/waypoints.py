@@ -15,15 +15,8 @@ from __future__ import annotations
 import math
 from weakref import WeakKeyDictionary
 
-import numpy as np
-
-from sim.road.lane import (
-    WAYPOINT_SPACING,
-    Lane,
-    WaypointArrays,
-    as_dicts,
-    sample_waypoints,
-)
+from sim.road.centrelines import WAYPOINT_SPACING, CentrelineTable, WaypointArrays, as_dicts
+from sim.road.lane import Lane
 from sim.road.network import LanePosition, RoadNetwork
 
 _MAX_LANE_HOPS = 256  # a path crosses at most this many lanes (zero-length junction lanes)
@@ -35,6 +28,7 @@ _predecessor_cache: WeakKeyDictionary[RoadNetwork, dict[str, list[Lane]]] = Weak
 _successor_cache: WeakKeyDictionary[RoadNetwork, dict[tuple[str, tuple[str, ...]], Lane]] = (
     WeakKeyDictionary()
 )
+_centrelines: WeakKeyDictionary[RoadNetwork, CentrelineTable] = WeakKeyDictionary()
 
 
 ROAD_WAYPOINTS_HORIZON = 20  # [m] SMARTS's default RoadWaypoints(horizon=20)
@@ -120,15 +114,18 @@ def waypoint_arrays(
     (:func:`path_starts`), sampled into arrays in one pass over all paths: what the arrays
     observation holds, and what the waypoint dicts are made from. A path with no point ahead
     holds its last lane's end point."""
-    pieces: list[tuple[Lane, np.ndarray]] = []
+    pieces: list[tuple[Lane, float, int]] = []
     counts = []
     for lane, s in starts:
         walk, last_lane, count = _path_pieces(road, lane, s, route, n)
         if not count:
-            walk, count = [(last_lane, np.array([last_lane.length]))], 1
+            walk, count = [(last_lane, last_lane.length, 1)], 1
         pieces += walk
         counts.append(count)
-    return sample_waypoints(pieces, counts)
+    table = _centrelines.get(road)
+    if table is None:
+        table = _centrelines[road] = CentrelineTable(road.lanes.values())
+    return table.sample(pieces, counts)
 
 
 def split_paths(waypoints: WaypointArrays) -> list[list[dict]]:
@@ -226,16 +223,17 @@ def _junction_id(lane: Lane) -> str:
 
 def _path_pieces(
     road: RoadNetwork, lane: Lane, s: float, route: tuple[str, ...], n: int
-) -> tuple[list[tuple[Lane, np.ndarray]], Lane, int]:
-    """The offsets of a path's waypoints on each lane it crosses, the first level with s; the
-    lane the path ends on (whose end point is the one waypoint of an empty path); and how many
-    points it has."""
-    pieces: list[tuple[Lane, np.ndarray]] = []
+) -> tuple[list[tuple[Lane, float, int]], Lane, int]:
+    """The (lane, first offset, how many) of a path's waypoints on each lane it crosses, the
+    first level with s; the lane the path ends on (whose end point is the one waypoint of an
+    empty path); and how many points it has."""
+    pieces: list[tuple[Lane, float, int]] = []
     count, first_s = 0, s
     for _ in range(_MAX_LANE_HOPS):
-        offsets, on_lane = lane.waypoint_offsets(first_s, n - count)
-        pieces.append((lane, offsets))
-        count += len(offsets)
+        on_lane = lane.waypoint_count(max(first_s, 0.0))
+        taken = min(n - count, on_lane)
+        pieces.append((lane, max(first_s, 0.0), taken))
+        count += taken
         if count >= n:
             break
         # The next point lies past this lane's end by what is left of one spacing.

@@ -58,7 +58,7 @@ class VehicleStates:
 
     @classmethod
     def empty(cls) -> VehicleStates:
-        return cls.of([], np.zeros((0, len(FIELDS))), [])
+        return _NONE  # immutable, so one serves every caller (several per step)
 
     @classmethod
     def concat(cls, parts: list[VehicleStates]) -> VehicleStates:
@@ -88,19 +88,26 @@ class VehicleStates:
     def nearest_first(self, x: float, y: float, radius: float) -> tuple[VehicleStates, np.ndarray]:
         """The vehicles whose centre is within ``radius`` [m] of (x, y) [m], nearest first (ties
         in their present order), and those distances [m]."""
-        distance = np.hypot(self.x - x, self.y - y)
+        values = self.values
+        distance = np.hypot(values[:, 0] - x, values[:, 1] - y)
         # A stable sort of all, cut after those within the radius: the same order as sorting
         # only those, with fewer numpy calls (each costs more than the arithmetic here).
         order = distance.argsort(kind="stable")  # the method: np.argsort adds a wrapper
-        distance = distance[order]
+        distance = distance.take(order)
         within = int(distance.searchsorted(radius, side="right"))
-        return self.select(order[:within]), distance[:within]
+        if within < len(order):
+            order, distance = order[:within], distance[:within]
+        return self.select(order), distance
 
     def without(self, ids: set[str]) -> VehicleStates:
         """These states minus the vehicles whose id is in ``ids``."""
         if not any(vid in ids for vid in self.ids):
             return self
         return self.select(np.array([i for i, v in enumerate(self.ids) if v not in ids], dtype=int))
+
+
+_NONE = VehicleStates.of([], np.zeros((0, len(FIELDS))), [])
+_NONE.values.flags.writeable = False
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,140 @@
+"""Lane centrelines in one set of arrays, so that every waypoint of an observation (all paths, all
+the lanes they cross) is sampled by one search and one gather instead of numpy calls per lane.
+
+The values are those of ``np.interp`` over each lane's own polyline, bit for bit: the search
+finds the same vertex (the last one at or before the offset: complex keys order by lane, then
+offset, so no lane's offsets are shifted), and the interpolation is ``np.interp``'s own
+arithmetic, slope times the distance from that vertex plus its value, with its slopes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from itertools import repeat
+from typing import TYPE_CHECKING, NamedTuple
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from sim.road.lane import Lane
+
+WAYPOINT_SPACING = 1.0  # [m] distance between consecutive waypoints along a lane
+# [m] offsets of a piece's points from its first (longer pieces: Lane.waypoints)
+_STEPS = WAYPOINT_SPACING * np.arange(256)
+# Rows of CentrelineTable.values (a column per centreline vertex of every lane); after the
+# gather, rows X .. INDEX hold each waypoint's values (see WaypointArrays.values).
+_CUM, _SLOPE_X, _SLOPE_Y, X, Y, HEADING, WIDTH, SPEED_LIMIT, OFFSET, INDEX = range(10)
+# A lane's heading at offsets this close to its end is its last segment's (the rule of the
+# lanes' own sampling: the next segment would be past the lane).
+_END_MARGIN = 1e-9  # [m]
+
+
+class WaypointArrays(NamedTuple):
+    """Waypoints as flat arrays over all their points, in order: the values of the waypoint
+    dicts (before any float32 conversion)."""
+
+    counts: list[int]  # points of each path, in order (one path: all of them)
+    # (7, points): x, y [m] (rounded to 0.1 mm as the dicts' "pos"), heading [rad], lane width
+    # [m], speed limit [m/s], offset along the point's lane [m] and lane index; heading to
+    # offset in the arrays observation's WAYPOINT_FIELDS order
+    values: np.ndarray
+    pieces: list[tuple[Lane, int]]  # the points' lanes in order: (lane, how many points)
+
+
+class CentrelineTable:
+    """The centreline vertices of ``lanes``, lane after lane, with what sampling needs at each:
+    its offset along its lane, the slopes of x and y on to the next vertex (0 at a lane's last
+    one), its position, the lane's heading there and the lane's constants."""
+
+    def __init__(self, lanes: Iterable[Lane]) -> None:
+        lanes = list(lanes)
+        self.ordinal = {lane: k for k, lane in enumerate(lanes)}  # Lanes hash by identity
+        # A column of zeros first: the search counts the vertices at or before an offset, so
+        # the count is the column of the vertex found.
+        columns, keys = [np.zeros((INDEX + 1, 1))], []
+        for k, lane in enumerate(lanes):
+            cum, pts = lane.cumulative_s, lane.centreline
+            n = len(cum)
+            values = np.zeros((INDEX + 1, n))
+            values[_CUM], values[X], values[Y] = cum, pts[:, 0], pts[:, 1]
+            # np.interp's slopes, (y[j+1] - y[j]) / (s[j+1] - s[j]). A zero-length segment's
+            # (0 / 0) is never used: the search passes over its first vertex.
+            with np.errstate(divide="ignore", invalid="ignore"):
+                values[_SLOPE_X : _SLOPE_Y + 1, :-1] = np.diff(pts.T) / np.diff(cum)
+            # The segment under a vertex, up to the one the lane's end (less _END_MARGIN) is on.
+            last = int(cum[1:-1].searchsorted(lane.length - _END_MARGIN, side="right"))
+            values[HEADING] = lane.segment_headings[np.minimum(np.arange(n), last)]
+            values[WIDTH], values[SPEED_LIMIT], values[INDEX] = (
+                lane.width,
+                lane.speed_limit,
+                lane.index,
+            )
+            columns.append(values)
+            keys.append(k + 1j * cum)
+        self.values = np.concatenate(columns, axis=1)
+        self.keys = np.concatenate(keys)  # (lane ordinal, offset), in lexicographic order
+        # Where an offset falls on a vertex, np.interp gives the vertex's own value, where the
+        # slope's term (+0 or -0) would turn a vertex's -0 into +0: only -0 needs telling.
+        xy = self.values[X : Y + 1]
+        self._negative_zeros = bool(np.any(np.signbit(xy) & (xy == 0.0)))
+
+    def sample(self, pieces: list[tuple[Lane, float, int]], counts: list[int]) -> WaypointArrays:
+        """The waypoints at offsets ``first_s`` + k * :data:`WAYPOINT_SPACING` [m], k = 0 ..
+        count - 1, along each (lane, first_s, count) of ``pieces``, in order, making up paths
+        of ``counts`` points (their sum: every piece's points). ``first_s`` is at least 0 and
+        no offset past the lane's end."""
+        pieces = [piece for piece in pieces if piece[2]]
+        if not pieces:
+            return WaypointArrays(counts, np.zeros((INDEX - X + 1, 0)), [])
+        ordinal = self.ordinal
+        piece_counts = [count for _, _, count in pieces]
+        # Each point's search key: its lane's ordinal, and its offset (the imaginary part).
+        key = np.array([complex(ordinal[lane], s) for lane, s, _ in pieces]).repeat(piece_counts)
+        key.imag += np.concatenate([_steps(n) for n in piece_counts])
+        s = key.imag
+        values = self.values.take(self.keys.searchsorted(key, side="right"), axis=1)
+        ds = s - values[_CUM]
+        xy = values[X : Y + 1]
+        if self._negative_zeros:
+            np.copyto(xy, values[_SLOPE_X : _SLOPE_Y + 1] * ds + xy, where=ds != 0.0)
+        else:
+            xy += values[_SLOPE_X : _SLOPE_Y + 1] * ds
+        xy.round(4, out=xy)
+        values[OFFSET] = s
+        return WaypointArrays(counts, values[X:], [(lane, count) for lane, _, count in pieces])
+
+
+def _steps(n: int) -> np.ndarray:
+    """[m] offsets of a piece's ``n`` points from its first."""
+    return _STEPS[:n] if n <= len(_STEPS) else WAYPOINT_SPACING * np.arange(n)
+
+
+def as_dicts(waypoints: WaypointArrays) -> list[dict]:
+    """The waypoint dicts of ``waypoints``, all paths' in one list.
+
+    Built afresh for every observation (paths start level with the vehicle), so this is the hot
+    path of one: the values are boxed to floats in one pass over all points, as numpy's per-call
+    cost outweighs the arithmetic on ~50 points.
+    """
+    values = waypoints.values
+    positions = values[:2].T.tolist()  # a fresh [x, y] list per point
+    headings, offsets = values[2].tolist(), values[5].tolist()
+    # Copies of one template per lane (the key order of the documented waypoint), made by
+    # map in C, then the three values per point: faster than a dict display of seven keys.
+    out: list[dict] = []
+    for lane, count in waypoints.pieces:
+        template = {
+            "pos": None,
+            "heading": None,
+            "lane_id": lane.id,
+            "lane_index": lane.index,
+            "lane_width": lane.width,
+            "speed_limit": lane.speed_limit,
+            "lane_offset": None,
+        }
+        out += map(dict.copy, repeat(template, count))
+    for point, position, heading, offset in zip(out, positions, headings, offsets, strict=True):
+        point["pos"] = position
+        point["heading"] = heading
+        point["lane_offset"] = offset
+    return out
