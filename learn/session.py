@@ -17,6 +17,7 @@ from typing import Any
 from arena.scenario import load_scenario
 from evaluator.scoring import load_profile
 from learn.protocol import Config, Reply
+from learn.record_views import RecordViews
 from learn.render import TopView
 from learn.terms import EpisodeTerms
 from sim.observation_arrays import ObservationLayout
@@ -33,7 +34,7 @@ class SimulatorSession:
     def __init__(self, config: Config, *, packed: bool = False) -> None:
         self.config = config
         self.profile = load_profile(config.profile)
-        self._layout = ObservationLayout(config.interface)
+        self._views = RecordViews(ObservationLayout(config.interface))
         self._packed = packed
         self.sim = None
         self._view = None  # learn.render.TopView of the episode, when rendering
@@ -95,7 +96,7 @@ class SimulatorSession:
         # A copy: the simulator rewrites its record at the agent's next step, and a training
         # loop may keep this observation longer.
         record = bytearray(obs.record)
-        return record if self._packed else self._layout.arrays(record)
+        return record if self._packed else self._views.arrays(record)
 
     def _end_episode(self) -> None:
         self._view = None

@@ -21,6 +21,7 @@ from typing import Any, BinaryIO
 
 from arena.errors import InfrastructureError
 from learn.protocol import Config, Reply
+from learn.record_views import RecordViews
 from learn.session import SimulatorSession
 from sim.observation_arrays import ObservationLayout
 
@@ -39,7 +40,7 @@ class SimulatorProcess:
     """A child process holding one simulator; :meth:`call` sends a command and waits."""
 
     def __init__(self, config: Config) -> None:
-        self._layout = ObservationLayout(config.interface)
+        self._views = RecordViews(ObservationLayout(config.interface))
         env = dict(os.environ)
         # The child must import the same code as this process (a worktree before an install).
         env["PYTHONPATH"] = os.pathsep.join(
@@ -70,7 +71,7 @@ class SimulatorProcess:
         if status == "error":
             raise SimulatorError(value)
         if isinstance(value, Reply):
-            arrays = self._layout.arrays  # views of the freshly unpickled records
+            arrays = self._views.arrays  # views of the freshly unpickled records
             value.observations = {k: arrays(v) for k, v in value.observations.items()}
             value.terminal = {k: arrays(v) for k, v in value.terminal.items()}
         return value

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 
+from learn.record_views import RecordViews
 from learn.spaces import observation_space
 from sim.interface import AgentInterface
 from sim.observation_arrays import ObservationEncoder, ObservationLayout
@@ -49,6 +50,6 @@ def test_records_read_back_as_writable_members_of_the_space() -> None:
     record = bytearray(layout.size)
     obs = sample_observation(rasters=True, img_pixels=32)["Agent_0"]
     ObservationEncoder(layout).write(obs, record)
-    back = layout.arrays(record)
+    back = RecordViews(layout).arrays(record)
     assert observation_space(interface).contains(back)
     back["ego_vehicle_state"]["speed"][...] = 1.0  # writable, like any array in use
