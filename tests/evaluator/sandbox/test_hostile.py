@@ -99,6 +99,9 @@ CASES = [
         init="self.ballast = np.ones(8 * 1024**3, dtype=np.uint8)",
         fails_at="start",
         reason=DoneReason.memory_limit,
+        # Filling the memory limit takes seconds on a loaded machine: it must fail by the limit,
+        # never by the start-up deadline.
+        overrides={"sandbox": {"init_timeout_s": 120.0}},
     ),
     Hostile("spinning the CPU in act", act="while True: pass", reason=DoneReason.step_timeout),
     Hostile("sleeping past the deadline", act="time.sleep(30)", reason=DoneReason.step_timeout),
