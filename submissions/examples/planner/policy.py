@@ -20,7 +20,6 @@ Only numpy and the standard library.
 
 from __future__ import annotations
 
-import functools
 import itertools
 import math
 from operator import itemgetter
@@ -52,9 +51,10 @@ def menger_curvature(points: np.ndarray) -> float:
     of ``points`` (n, 2): positions are exact lane points, waypoint headings step at corners."""
     if len(points) < 3:
         return 0.0
-    a, b, c = points[0], points[len(points) // 2], points[-1]
-    cross = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
-    sides = np.hypot(*(b - a)) * np.hypot(*(c - b)) * np.hypot(*(c - a))
+    (ax, ay), (bx, by), (cx, cy) = points[[0, len(points) // 2, -1]].tolist()
+    cross = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+    ba, cb, ca = np.hypot([bx - ax, cx - bx, cx - ax], [by - ay, cy - by, cy - ay]).tolist()
+    sides = ba * cb * ca
     return float(2.0 * cross / sides) if sides > 1e-6 else 0.0
 
 
@@ -103,14 +103,28 @@ class Path:
         self.ends = len(waypoints) < FULL_PATH_WAYPOINTS
         self._projected: tuple[list, list[tuple[float, float]]] | None = None
         self._memo: dict[tuple[float, float], tuple[float, float]] = {}
+        # Computed when first needed (plain attributes: functools.cached_property takes a lock
+        # on every read before Python 3.12).
+        self._limits: np.ndarray | None = None
+        self._end_curvature: float | None = None
+        self._end_arc: tuple[float, float, float] | None = None
 
-    @functools.cached_property
+    @property
     def limits(self) -> np.ndarray:
         """Speed limit [m/s] at each waypoint (only the current and target paths' are read)."""
-        return np.array([w.get("speed_limit") or 13.9 for w in self._waypoints], dtype=float)
+        if self._limits is None:
+            limits = [w.get("speed_limit") or 13.9 for w in self._waypoints]
+            self._limits = np.array(limits, dtype=float)
+        return self._limits
 
-    @functools.cached_property
+    @property
     def end_curvature(self) -> float:
+        """Curvature [1/m] at the path's end (read when a point lies beyond it)."""
+        if self._end_curvature is None:
+            self._end_curvature = self._longest_lane_curvature()
+        return self._end_curvature
+
+    def _longest_lane_curvature(self) -> float:
         """Edge shapes are arcs and straights; junction connections are not: the curvature of the
         longest stretch of one lane (normal, not internal) on the path."""
         runs, start = [], 0
@@ -151,14 +165,14 @@ class Path:
             self._memo[key] = self.project_many(np.array([[x, y]], dtype=float))[0]
         return self._memo[key]
 
-    def project_step(self, x: float, y: float, gx: float, gy: float, others, positions) -> None:
-        """Projects the ego ``(x, y)``, the goal and the vehicles ``others`` (their
-        ``positions``, (n, 2)) in one pass: each is asked for several times per step (lane
-        choice, lead vehicle, gaps), and one segment search is cheaper than several."""
-        points = np.concatenate([np.array([[x, y], [gx, gy]], dtype=float), positions])
+    def project_step(self, points: np.ndarray, others: list[dict]) -> None:
+        """Projects ``points``, (2 + n, 2): the ego, the goal and the vehicles ``others``, in one
+        pass: each is asked for several times per step (lane choice, lead vehicle, gaps), and one
+        segment search is cheaper than several."""
         projected = self.project_many(points)
-        self._memo.setdefault((x, y), projected[0])
-        self._memo.setdefault((gx, gy), projected[1])
+        ego, goal = points.tolist()[:2]
+        self._memo.setdefault((ego[0], ego[1]), projected[0])
+        self._memo.setdefault((goal[0], goal[1]), projected[1])
         self._projected = (others, projected[2:])
 
     def project_many(self, points: np.ndarray) -> list[tuple[float, float]]:
@@ -215,16 +229,17 @@ class Path:
         k = self.end_curvature
         if abs(k) < 1e-4:
             return self._extend(p, len(self.xy) - 1)
+        if self._end_arc is None:
+            self._end_arc = self._arc_beyond_end(k)
         cx, cy, end_angle = self._end_arc
         sweep = wrap(math.atan2(p[1] - cy, p[0] - cx) - end_angle)
         radius = 1.0 / abs(k)
         lateral = math.copysign(radius - math.hypot(p[0] - cx, p[1] - cy), k)
         return self.length + sweep / k, lateral
 
-    @functools.cached_property
-    def _end_arc(self) -> tuple[float, float, float]:
-        """Centre (x, y) [m] of the arc continuing the path, and the angle [rad] of its end."""
-        k = self.end_curvature
+    def _arc_beyond_end(self, k: float) -> tuple[float, float, float]:
+        """Centre (x, y) [m] of the arc of curvature ``k`` continuing the path, and the angle
+        [rad] of the path's end seen from it."""
         x, y = self.xy[-1]
         h = self._end_heading(k)
         cx, cy = x - math.sin(h) / k, y + math.cos(h) / k
@@ -292,9 +307,9 @@ class AgentPlanner:
         goal = ego["mission"]["goal"]["position"]
         gx, gy = float(goal[0]), float(goal[1])
         others = obs.get("neighborhood_vehicle_states") or []
-        positions = np.array([o["position"][:2] for o in others], dtype=float).reshape(-1, 2)
+        points = np.array([[x, y], [gx, gy], *(o["position"][:2] for o in others)], dtype=float)
         for path in paths:
-            path.project_step(x, y, gx, gy, others, positions)
+            path.project_step(points, others)
         road = ego.get("road_id")
         if road != self.last_road:
             self.last_road = road
