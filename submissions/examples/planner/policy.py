@@ -152,11 +152,14 @@ class Path:
             h = self.heading[-1]
             d = s - self.length
             return self.xy[-1, 0] + d * math.cos(h), self.xy[-1, 1] + d * math.sin(h), h
-        i = int(np.searchsorted(self.s, s) - 1)
-        f = (s - self.s[i]) / max(self.s[i + 1] - self.s[i], 1e-9)
-        x, y = self.xy[i] + f * (self.xy[i + 1] - self.xy[i])
-        h = self.heading[i] + f * wrap(self.heading[i + 1] - self.heading[i])
-        return float(x), float(y), float(h)
+        i = int(self.s.searchsorted(s)) - 1
+        s_i = self.s.item(i)
+        f = (s - s_i) / max(self.s.item(i + 1) - s_i, 1e-9)
+        x, y, h = self.xy.item(i, 0), self.xy.item(i, 1), self.heading.item(i)
+        x += f * (self.xy.item(i + 1, 0) - x)
+        y += f * (self.xy.item(i + 1, 1) - y)
+        h += f * wrap(self.heading.item(i + 1) - h)
+        return x, y, h
 
     def project(self, x: float, y: float) -> tuple[float, float]:
         """(s [m], lateral offset [m], left positive) of a point; extends beyond both ends."""
@@ -437,7 +440,10 @@ class AgentPlanner:
         xy, n = target.xy, len(target.xy)
         if n > 12:
             chord = xy[5:] - xy[:-5]
-            direction = np.unwrap(np.arctan2(chord[:, 1], chord[:, 0]))
+            direction = np.arctan2(chord[:, 1], chord[:, 0])
+            # np.unwrap changes nothing unless the direction jumps across +-pi, and it is slow.
+            if (np.abs(np.diff(direction)) >= math.pi).any():
+                direction = np.unwrap(direction)
             ds = np.maximum(target.s[10:] - target.s[:-10], 1e-6)
             kappa = np.abs(direction[5:] - direction[:-5]) / ds
             s_mid = target.s[5:-5]
@@ -558,7 +564,7 @@ class AgentPlanner:
         # Towards the target lane's centre, slowing down to arrive with no lateral speed; lanes
         # are parallel, so the rate carries over when the target lane changes.
         wanted = -math.copysign(min(lateral_speed, math.sqrt(2.0 * LAT_ACCEL * abs(lat))), lat)
-        self.lat_rate += float(np.clip(wanted - self.lat_rate, -LAT_ACCEL * DT, LAT_ACCEL * DT))
+        self.lat_rate += clip(wanted - self.lat_rate, -LAT_ACCEL * DT, LAT_ACCEL * DT)
         new_lat = lat + self.lat_rate * DT
         if new_lat * lat <= 0.0:  # reached the centre
             new_lat, self.lat_rate = 0.0, 0.0
@@ -573,6 +579,11 @@ class AgentPlanner:
         return [x + ds * math.cos(heading), y + ds * math.sin(heading), heading, DT]
 
 
+def clip(value: float, low: float, high: float) -> float:
+    """np.clip of one number, without its per-call cost."""
+    return float(min(max(value, low), high))
+
+
 def rear_gap_needed(v_rear: float, v: float) -> float:
     """Gap [m] a lane change must leave to a vehicle at ``v_rear`` [m/s] behind us at ``v``."""
     return max(4.0, 0.4 * v_rear + (v_rear - v) * 2.5)
@@ -583,10 +594,10 @@ def idm(v: float, v0: float, gap: float, v_lead: float) -> float:
     v0 = max(v0, 0.1)
     free = 1.0 - (v / v0) ** 4
     if gap >= 1e8:
-        return float(np.clip(A_MAX * free, -B_MAX, A_MAX))
+        return clip(A_MAX * free, -B_MAX, A_MAX)
     s_star = S0 + max(0.0, v * HEADWAY + v * (v - v_lead) / (2 * math.sqrt(A_MAX * B_COMF)))
     a = A_MAX * (free - (s_star / max(gap, 0.1)) ** 2)
-    return float(np.clip(a, -B_MAX, A_MAX))
+    return clip(a, -B_MAX, A_MAX)
 
 
 class Policy:
