@@ -16,7 +16,7 @@ from arena.outcome import DoneReason
 from evaluator.sandbox.array_frames import ArrayFrames
 from evaluator.sandbox.backend import ExitStatus, Sandbox
 from evaluator.sandbox.channel import Channel, ChannelClosed, ChannelTimeout, ChannelViolation
-from evaluator.sandbox.cpu import CpuMeter
+from evaluator.sandbox.cpu import CpuReader
 from sim.agent import Observation, SomeAgentsFailed
 from sim.interface import AgentInterface, ObservationFormat
 
@@ -54,7 +54,7 @@ class AgentHandle:
         self._step_timeout_s = config.step_timeout_s
         self._episode_cpu_s = limits.episode_s
         self._init_timeout_s = config.init_timeout_s
-        self._meter: CpuMeter | None = None
+        self._meter: CpuReader | None = None
         self._cpu_mark: float | None = None  # the meter after the last answer [s]
         self.episode_cpu_s = 0.0  # agent CPU time of this episode's acts so far [s]
         self._channel: Channel | None = None
@@ -79,7 +79,8 @@ class AgentHandle:
         )
         if self._arrays is not None:  # no answer: the runner keeps it for the act frames
             self._send("layout", self._arrays.layout.describe(), deadline, DoneReason.init_timeout)
-        self._meter = self._sandbox.cpu_meter()
+        meter = self._sandbox.cpu_meter()
+        self._meter = meter.open() if meter is not None else None
 
     def reset(self) -> None:
         self._send("reset", None, time.monotonic() + self._init_timeout_s, DoneReason.init_timeout)
@@ -121,6 +122,8 @@ class AgentHandle:
                 self._channel.receive(deadline)
             except (ChannelClosed, ChannelTimeout, ChannelViolation):
                 pass
+        if self._meter is not None:
+            self._meter.close()
         self._sandbox.kill()
 
     def logs(self) -> str:

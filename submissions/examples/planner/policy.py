@@ -20,7 +20,9 @@ Only numpy and the standard library.
 
 from __future__ import annotations
 
+import itertools
 import math
+from operator import itemgetter
 
 import numpy as np
 
@@ -49,9 +51,10 @@ def menger_curvature(points: np.ndarray) -> float:
     of ``points`` (n, 2): positions are exact lane points, waypoint headings step at corners."""
     if len(points) < 3:
         return 0.0
-    a, b, c = points[0], points[len(points) // 2], points[-1]
-    cross = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
-    sides = np.hypot(*(b - a)) * np.hypot(*(c - b)) * np.hypot(*(c - a))
+    (ax, ay), (bx, by), (cx, cy) = points[[0, len(points) // 2, -1]].tolist()
+    cross = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+    ba, cb, ca = np.hypot([bx - ax, cx - bx, cx - ax], [by - ay, cy - by, cy - ay]).tolist()
+    sides = ba * cb * ca
     return float(2.0 * cross / sides) if sides > 1e-6 else 0.0
 
 
@@ -59,35 +62,79 @@ def wrap(a: float) -> float:
     return (a + math.pi) % (2 * math.pi) - math.pi
 
 
+def on_route(lane_ids: list[str], route: tuple[str, ...]) -> bool:
+    """Whether a path of ``lane_ids`` follows ``route``: every road on it is a route road up to
+    the route's last one. Past that it may go anywhere: a route cut from a recording ends where
+    the recording did, mid-map, and the road beyond leads to the goal as well as any."""
+    roads = route[-1:]
+    for lane in dict.fromkeys(lane_ids):  # each lane once, in order: the first visit decides
+        if lane.startswith(":"):
+            continue
+        edge = lane.rsplit("_", 1)[0]
+        if edge in roads:
+            return True
+        if edge not in route:
+            return False
+    return True
+
+
 class Path:
     """A waypoint path as a polyline: points (n, 2) [m], headings (n,), arc length (n,) [m]."""
 
-    def __init__(self, waypoints: list[dict]) -> None:
-        self.xy = np.array([w["pos"][:2] for w in waypoints], dtype=float)
-        self.heading = np.array([w["heading"] for w in waypoints], dtype=float)
-        seg = np.hypot(*np.diff(self.xy, axis=0).T) if len(self.xy) > 1 else np.zeros(0)
-        self.s = np.concatenate([[0.0], np.cumsum(seg)])
+    def __init__(self, waypoints: list[dict], lane_ids: list[str] | None = None) -> None:
+        self.lane_ids = lane_ids or [w["lane_id"] for w in waypoints]
+        n = len(waypoints)
+        positions = itertools.chain.from_iterable(map(itemgetter("pos"), waypoints))
+        self.xy = np.fromiter(positions, float).reshape(n, -1)[:, :2]
+        self.heading = np.fromiter(map(itemgetter("heading"), waypoints), float, n)
+        # Segments as separate x and y arrays: the projection's arithmetic on (points, segments)
+        # grids is then a few whole-array operations.
+        self._ax, self._ay = self.xy[:-1, 0].copy(), self.xy[:-1, 1].copy()
+        self._abx = self.xy[1:, 0] - self._ax  # [m]
+        self._aby = self.xy[1:, 1] - self._ay
+        self._ab_len = np.hypot(self._abx, self._aby)  # [m]
+        self._ab_len2 = np.maximum(self._abx * self._abx + self._aby * self._aby, 1e-9)
+        self.s = np.concatenate([[0.0], np.cumsum(self._ab_len)])
         self.lane_index = int(waypoints[0]["lane_index"])
-        self.lane_ids = [w["lane_id"] for w in waypoints]
         self.width = float(waypoints[0].get("lane_width") or 3.2)
-        self.limits = np.array([w.get("speed_limit") or 13.9 for w in waypoints], dtype=float)
+        self._waypoints = waypoints
         self.length = float(self.s[-1])
         # Paths are cut at the observation's waypoint count: a shorter one is a lane that ends.
         self.ends = len(waypoints) < FULL_PATH_WAYPOINTS
-        # Edge shapes are arcs and straights; junction connections are not: take the curvature
-        # of the longest stretch of one lane (normal, not internal) on the path.
-        runs, start = [], 0
-        for i in range(1, len(self.lane_ids) + 1):
-            if i == len(self.lane_ids) or self.lane_ids[i] != self.lane_ids[start]:
-                if not self.lane_ids[start].startswith(":"):
-                    runs.append((i - start, start, i))
-                start = i
-        _, a, b = max(runs) if runs else (0, 0, len(self.xy))
-        self.end_curvature = menger_curvature(self.xy[a:b])
-        self._ab = self.xy[1:] - self.xy[:-1]  # (n - 1, 2) segment vectors [m]
-        self._ab_len2 = np.maximum((self._ab * self._ab).sum(1), 1e-9)
         self._projected: tuple[list, list[tuple[float, float]]] | None = None
         self._memo: dict[tuple[float, float], tuple[float, float]] = {}
+        # Computed when first needed (plain attributes: functools.cached_property takes a lock
+        # on every read before Python 3.12).
+        self._limits: np.ndarray | None = None
+        self._end_curvature: float | None = None
+        self._end_arc: tuple[float, float, float] | None = None
+
+    @property
+    def limits(self) -> np.ndarray:
+        """Speed limit [m/s] at each waypoint (only the current and target paths' are read)."""
+        if self._limits is None:
+            limits = [w.get("speed_limit") or 13.9 for w in self._waypoints]
+            self._limits = np.array(limits, dtype=float)
+        return self._limits
+
+    @property
+    def end_curvature(self) -> float:
+        """Curvature [1/m] at the path's end (read when a point lies beyond it)."""
+        if self._end_curvature is None:
+            self._end_curvature = self._longest_lane_curvature()
+        return self._end_curvature
+
+    def _longest_lane_curvature(self) -> float:
+        """Edge shapes are arcs and straights; junction connections are not: the curvature of the
+        longest stretch of one lane (normal, not internal) on the path."""
+        runs, start = [], 0
+        for lane, run in itertools.groupby(self.lane_ids):
+            n = len(list(run))
+            if not lane.startswith(":"):
+                runs.append((n, start, start + n))
+            start += n
+        _, a, b = max(runs) if runs else (0, 0, len(self.xy))
+        return menger_curvature(self.xy[a:b])
 
     def direction(self, i: int) -> float:
         """Heading [rad] of the chord from waypoint ``i`` to ``i + 2`` (clamped to the path)."""
@@ -95,21 +142,6 @@ class Path:
         j = min(i + 2, len(self.xy) - 1)
         dx, dy = self.xy[j] - self.xy[i]
         return math.atan2(dy, dx) if (dx or dy) else float(self.heading[i])
-
-    def on_route(self, route: tuple[str, ...]) -> bool:
-        """Whether the path follows ``route``: every road on it is a route road up to the
-        route's last one. Past that it may go anywhere: a route cut from a recording ends where
-        the recording did, mid-map, and the road beyond leads to the goal as well as any."""
-        roads = route[-1:]
-        for lane in self.lane_ids:
-            if lane.startswith(":"):
-                continue
-            edge = lane.rsplit("_", 1)[0]
-            if edge in roads:
-                return True
-            if edge not in route:
-                return False
-        return True
 
     def point(self, s: float) -> tuple[float, float, float]:
         """(x, y, heading) at arc length ``s``; straight extension beyond both ends."""
@@ -120,72 +152,101 @@ class Path:
             h = self.heading[-1]
             d = s - self.length
             return self.xy[-1, 0] + d * math.cos(h), self.xy[-1, 1] + d * math.sin(h), h
-        i = int(np.searchsorted(self.s, s) - 1)
-        f = (s - self.s[i]) / max(self.s[i + 1] - self.s[i], 1e-9)
-        x, y = self.xy[i] + f * (self.xy[i + 1] - self.xy[i])
-        h = self.heading[i] + f * wrap(self.heading[i + 1] - self.heading[i])
-        return float(x), float(y), float(h)
+        i = int(self.s.searchsorted(s)) - 1
+        s_i = self.s.item(i)
+        f = (s - s_i) / max(self.s.item(i + 1) - s_i, 1e-9)
+        x, y, h = self.xy.item(i, 0), self.xy.item(i, 1), self.heading.item(i)
+        x += f * (self.xy.item(i + 1, 0) - x)
+        y += f * (self.xy.item(i + 1, 1) - y)
+        h += f * wrap(self.heading.item(i + 1) - h)
+        return x, y, h
 
     def project(self, x: float, y: float) -> tuple[float, float]:
         """(s [m], lateral offset [m], left positive) of a point; extends beyond both ends."""
-        # The ego and the goal are projected onto the same path several times per step.
         key = (x, y)
         if key not in self._memo:
             self._memo[key] = self.project_many(np.array([[x, y]], dtype=float))[0]
         return self._memo[key]
 
+    def project_step(self, points: np.ndarray, others: list[dict]) -> None:
+        """Projects ``points``, (2 + n, 2): the ego, the goal and the vehicles ``others``, in one
+        pass: each is asked for several times per step (lane choice, lead vehicle, gaps), and one
+        segment search is cheaper than several."""
+        projected = self.project_many(points)
+        ego, goal = points.tolist()[:2]
+        self._memo.setdefault((ego[0], ego[1]), projected[0])
+        self._memo.setdefault((goal[0], goal[1]), projected[1])
+        self._projected = (others, projected[2:])
+
     def project_many(self, points: np.ndarray) -> list[tuple[float, float]]:
         """:meth:`project` of each of ``points`` (n, 2), the segment search in one pass."""
         if len(self.xy) == 1:
-            return [self._extend(p, 0) for p in points]
-        a, ab = self.xy[:-1], self._ab
-        rel = points[:, None, :] - a  # (n, segments, 2)
-        t = np.minimum(np.maximum((rel * ab).sum(2) / self._ab_len2, 0.0), 1.0)
-        d = np.hypot(*(a + t[:, :, None] * ab - points[:, None, :]).transpose(2, 0, 1))
+            return [self._extend(p, 0) for p in points.tolist()]
+        px, py = points[:, :1], points[:, 1:]  # (n, 1) against (segments,)
+        ax, ay, abx, aby = self._ax, self._ay, self._abx, self._aby
+        t = (px - ax) * abx
+        t += (py - ay) * aby
+        t /= self._ab_len2
+        np.minimum(np.maximum(t, 0.0, out=t), 1.0, out=t)
+        dx = t * abx
+        dx += ax
+        dx -= px
+        dy = t * aby
+        dy += ay
+        dy -= py
+        d = np.hypot(dx, dy)
         out = []
-        for p, t_p, i in zip(points, t, np.argmin(d, axis=1).tolist(), strict=True):
-            if i == 0 and t_p[0] <= 0.0:
+        last = len(abx) - 1
+        # Scalars from here on: a handful of points, where numpy's per-call cost dominates.
+        for k, (i, p) in enumerate(zip(d.argmin(axis=1).tolist(), points.tolist(), strict=True)):
+            t_p = t.item(k, i)
+            if i == 0 and t_p <= 0.0:
                 out.append(self._extend(p, 0))
-            elif i == len(ab) - 1 and t_p[-1] >= 1.0:
+            elif i == last and t_p >= 1.0:
                 out.append(self._extend_arc(p))
             else:
-                seg = ab[i] / max(np.hypot(*ab[i]), 1e-9)
-                r = p - a[i]
-                out.append(
-                    (
-                        float(self.s[i] + t_p[i] * np.hypot(*ab[i])),
-                        float(seg[0] * r[1] - seg[1] * r[0]),
-                    )
-                )
+                seg_len = self._ab_len.item(i)
+                den = max(seg_len, 1e-9)
+                seg_x, seg_y = abx.item(i) / den, aby.item(i) / den
+                r_x, r_y = p[0] - ax.item(i), p[1] - ay.item(i)
+                out.append((self.s.item(i) + t_p * seg_len, seg_x * r_y - seg_y * r_x))
         return out
 
     def project_vehicles(self, others: list[dict]) -> list[tuple[float, float]]:
-        """:meth:`project` of each vehicle's position; asked for several times per step (lane
-        choice, lead vehicle, gaps), so kept for the last ``others`` list seen."""
+        """:meth:`project` of each vehicle's position, kept for the last ``others`` list seen."""
         if self._projected is None or self._projected[0] is not others:
             points = np.array([o["position"][:2] for o in others], dtype=float).reshape(-1, 2)
             self._projected = (others, self.project_many(points))
         return self._projected[1]
 
-    def _extend(self, p: np.ndarray, k: int) -> tuple[float, float]:
-        h = self.heading[k]
-        rel = p - self.xy[k]
+    def _extend(self, p: list[float], k: int) -> tuple[float, float]:
+        """Straight on from waypoint ``k`` along its heading."""
+        h = self.heading.item(k)
         c, s = math.cos(h), math.sin(h)
-        return float(self.s[k] + c * rel[0] + s * rel[1]), float(c * rel[1] - s * rel[0])
+        rel_x, rel_y = p[0] - self.xy.item(k, 0), p[1] - self.xy.item(k, 1)
+        return self.s.item(k) + c * rel_x + s * rel_y, c * rel_y - s * rel_x
 
-    def _extend_arc(self, p: np.ndarray) -> tuple[float, float]:
+    def _extend_arc(self, p: list[float]) -> tuple[float, float]:
         """Beyond the end the lane is assumed to keep its end curvature (roads are arcs and
         straights): a straight extension would put cars of the next lane into ours on curves."""
         k = self.end_curvature
         if abs(k) < 1e-4:
             return self._extend(p, len(self.xy) - 1)
-        x, y = self.xy[-1]
-        h = self._end_heading(k)
-        cx, cy = x - math.sin(h) / k, y + math.cos(h) / k
-        sweep = wrap(math.atan2(p[1] - cy, p[0] - cx) - math.atan2(y - cy, x - cx))
+        if self._end_arc is None:
+            self._end_arc = self._arc_beyond_end(k)
+        cx, cy, end_angle = self._end_arc
+        sweep = wrap(math.atan2(p[1] - cy, p[0] - cx) - end_angle)
         radius = 1.0 / abs(k)
         lateral = math.copysign(radius - math.hypot(p[0] - cx, p[1] - cy), k)
         return self.length + sweep / k, lateral
+
+    def _arc_beyond_end(self, k: float) -> tuple[float, float, float]:
+        """Centre (x, y) [m] of the arc of curvature ``k`` continuing the path, and the angle
+        [rad] of the path's end seen from it."""
+        x, y = self.xy[-1]
+        h = self._end_heading(k)
+        cx, cy = x - math.sin(h) / k, y + math.cos(h) / k
+        return cx, cy, math.atan2(y - cy, x - cx)
 
     def _end_heading(self, k: float) -> float:
         """Tangent [rad] at the path's end on an arc of curvature ``k``: the direction of the last
@@ -237,8 +298,11 @@ class AgentPlanner:
         heading, speed = float(ego["heading"]), float(ego["speed"])
         length, width = float(ego["bounding_box"][0]), float(ego["bounding_box"][1])
         route = tuple(ego["mission"]["route"])
-        paths = [Path(p) for p in obs.get("waypoint_paths") or [] if len(p) >= 2]
-        paths = [p for p in paths if p.on_route(route)]
+        paths = []
+        for waypoints in obs.get("waypoint_paths") or []:
+            lane_ids = [w["lane_id"] for w in waypoints]
+            if len(waypoints) >= 2 and on_route(lane_ids, route):
+                paths.append(Path(waypoints, lane_ids))
         if not paths:
             if self.memory is None or self.memory.project(x, y)[0] > self.memory.length - 1.0:
                 return self._brake(x, y, heading, speed)
@@ -246,6 +310,9 @@ class AgentPlanner:
         goal = ego["mission"]["goal"]["position"]
         gx, gy = float(goal[0]), float(goal[1])
         others = obs.get("neighborhood_vehicle_states") or []
+        points = np.array([[x, y], [gx, gy], *(o["position"][:2] for o in others)], dtype=float)
+        for path in paths:
+            path.project_step(points, others)
         road = ego.get("road_id")
         if road != self.last_road:
             self.last_road = road
@@ -373,15 +440,23 @@ class AgentPlanner:
         xy, n = target.xy, len(target.xy)
         if n > 12:
             chord = xy[5:] - xy[:-5]
-            direction = np.unwrap(np.arctan2(chord[:, 1], chord[:, 0]))
+            direction = np.arctan2(chord[:, 1], chord[:, 0])
+            # np.unwrap changes nothing unless the direction jumps across +-pi, and it is slow.
+            if (np.abs(np.diff(direction)) >= math.pi).any():
+                direction = np.unwrap(direction)
             ds = np.maximum(target.s[10:] - target.s[:-10], 1e-6)
             kappa = np.abs(direction[5:] - direction[:-5]) / ds
-            for k, s in zip(kappa, target.s[5:-5], strict=True):
-                if s < s0 or k < 1e-3:
-                    continue
-                # Slow enough now to reach the curve's speed with comfortable braking.
-                v_curve = math.sqrt(A_LAT / k)
-                v = min(v, math.sqrt(v_curve**2 + 2 * B_COMF * max(s - s0, 0.0)))
+            s_mid = target.s[5:-5]
+            curve = (s_mid >= s0) & (kappa >= 1e-3)
+            if curve.any():
+                # Slow enough now to reach each curve's speed with comfortable braking. Only the
+                # lowest bound counts: those within rounding of the lowest are computed exactly.
+                k, s = kappa[curve], s_mid[curve]
+                bound = np.sqrt(A_LAT / k + 2 * B_COMF * np.maximum(s - s0, 0.0))
+                lowest = bound <= bound.min() * (1.0 + 1e-9)
+                for k_i, s_i in zip(k[lowest], s[lowest], strict=True):
+                    v_curve = math.sqrt(A_LAT / k_i)
+                    v = min(v, math.sqrt(v_curve**2 + 2 * B_COMF * max(s_i - s0, 0.0)))
         return max(v, 0.0)
 
     def _lead(self, path: Path, x, y, length, width, others) -> tuple[float, float]:
@@ -489,7 +564,7 @@ class AgentPlanner:
         # Towards the target lane's centre, slowing down to arrive with no lateral speed; lanes
         # are parallel, so the rate carries over when the target lane changes.
         wanted = -math.copysign(min(lateral_speed, math.sqrt(2.0 * LAT_ACCEL * abs(lat))), lat)
-        self.lat_rate += float(np.clip(wanted - self.lat_rate, -LAT_ACCEL * DT, LAT_ACCEL * DT))
+        self.lat_rate += clip(wanted - self.lat_rate, -LAT_ACCEL * DT, LAT_ACCEL * DT)
         new_lat = lat + self.lat_rate * DT
         if new_lat * lat <= 0.0:  # reached the centre
             new_lat, self.lat_rate = 0.0, 0.0
@@ -504,6 +579,11 @@ class AgentPlanner:
         return [x + ds * math.cos(heading), y + ds * math.sin(heading), heading, DT]
 
 
+def clip(value: float, low: float, high: float) -> float:
+    """np.clip of one number, without its per-call cost."""
+    return float(min(max(value, low), high))
+
+
 def rear_gap_needed(v_rear: float, v: float) -> float:
     """Gap [m] a lane change must leave to a vehicle at ``v_rear`` [m/s] behind us at ``v``."""
     return max(4.0, 0.4 * v_rear + (v_rear - v) * 2.5)
@@ -514,10 +594,10 @@ def idm(v: float, v0: float, gap: float, v_lead: float) -> float:
     v0 = max(v0, 0.1)
     free = 1.0 - (v / v0) ** 4
     if gap >= 1e8:
-        return float(np.clip(A_MAX * free, -B_MAX, A_MAX))
+        return clip(A_MAX * free, -B_MAX, A_MAX)
     s_star = S0 + max(0.0, v * HEADWAY + v * (v - v_lead) / (2 * math.sqrt(A_MAX * B_COMF)))
     a = A_MAX * (free - (s_star / max(gap, 0.1)) ** 2)
-    return float(np.clip(a, -B_MAX, A_MAX))
+    return clip(a, -B_MAX, A_MAX)
 
 
 class Policy:

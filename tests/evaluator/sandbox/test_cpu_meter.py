@@ -1,0 +1,32 @@
+from __future__ import annotations
+
+import os
+
+from evaluator.sandbox.cpu import CpuMeter
+
+
+def test_a_reader_keeps_the_cgroup_file_open_and_reads_its_current_value(tmp_path):
+    v1 = tmp_path / "cpuacct.usage"
+    v1.write_text("1500000000\n")
+    v2 = tmp_path / "cpu.stat"
+    v2.write_text("usage_usec 2500000\nuser_usec 2000000\nsystem_usec 500000\n")
+    readers = [CpuMeter(cgroup_file=str(v1)).open(), CpuMeter(cgroup_file=str(v2)).open()]
+    assert [r.seconds() for r in readers] == [1.5, 2.5]
+    # Rewritten in place, as the kernel's counters are: the open file shows the new value.
+    with open(v1, "r+") as f:
+        f.write("3000000000\n")
+    with open(v2, "r+") as f:
+        f.write("usage_usec 4000000\n")
+    assert [r.seconds() for r in readers] == [3.0, 4.0]
+    for reader in readers:
+        reader.close()
+        reader.close()  # closing twice is harmless
+
+
+def test_a_reader_of_a_missing_file_or_a_process_tree_answers_as_the_meter(tmp_path):
+    missing = CpuMeter(cgroup_file=str(tmp_path / "gone" / "cpu.stat"))
+    assert missing.open().seconds() is None
+    tree = CpuMeter(root_pid=os.getpid())
+    reader = tree.open()
+    assert reader.seconds() is not None and abs(reader.seconds() - tree.seconds()) < 1.0
+    reader.close()

@@ -1,0 +1,78 @@
+"""The reference planner's actions must not change with its speed work.
+
+Every pose of every step (as exact float reprs) and the episode record are hashed on public
+scenarios that exercise its branches: a junction with stop line and yielding, an on-ramp merge of
+two agents, overtaking on a curve, three agents sharing a road, and a replay in a reactive bubble.
+The digests were taken with the planner as it was before it was made faster; a deliberate change
+of its driving updates them in the same commit, saying why:
+``python -m tests.submissions.examples.test_planner_actions`` prints the current digests.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import tempfile
+from pathlib import Path
+
+import pytest
+
+from arena.suite import SHIPPED_PUBLIC_DIR
+from scenarios.experts import PlannerAgent, planner_interface
+from sim.episode import run_episode
+
+# scenario id -> (sha256 of every step's actions as JSON, sha256 of the .npz record)
+EXPECTED = {
+    "p000_left_turn_t_low": (
+        "29768ce43d89502f4a5f1bdde46222cd762b24dfed00743b71f8091e09ea6c55",
+        "be997abcded3f7447b5550616348830e01b35660aa318dd18f158c6550cf9374",
+    ),
+    "p012_merge_3lane_curve_mid_2agents": (
+        "73219b81973b8f09c7a8dc7cd596a9dae401fec7a3eab98644ba3b9d88ec5b97",
+        "a451435e1da56c4b65bf8559456091ed6c6c303ac65f86cbac8dca0f4b709bab",
+    ),
+    "p020_cruise_3lane_curve_low_3agents": (
+        "aa20b2917014fd12e286c6aebd5251b1c7338952e87e0a59bf9a3ddeb750f554",
+        "6fdef3df4064ce8cb409d6d3ce16e04b31bc2bcdd5e6b707dbb6bff6eeb46c93",
+    ),
+    "p026_overtake_3lane_curve_slow_mid": (
+        "5a39ca246871cb21d5d547315e46e4dd67cc90151eeae1fa09a90b6388a93104",
+        "7b0fccf9bc3e5dc269bf2fc84224dc1520ee4265e05eda786c65288f27835cff",
+    ),
+    "p029_replay_i80_bubble": (
+        "d1f6a71074ad44d3e414dac7510b3543480e9916e701dd5510d89d9699727e1d",
+        "0fef460325a0bf42fd38f3240ae4b82f7e9eb5777424924886e85f1a817ecb04",
+    ),
+}
+
+
+class _ActionsHashed(PlannerAgent):
+    """The reference planner, hashing every action it answers."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.digest = hashlib.sha256()
+
+    def act(self, obs):
+        actions = super().act(obs)
+        as_floats = {k: [float(v) for v in action] for k, action in actions.items()}
+        self.digest.update(json.dumps(as_floats, sort_keys=True).encode())
+        return actions
+
+
+def digests(scenario_id: str, folder: Path) -> tuple[str, str]:
+    agent = _ActionsHashed()
+    record = folder / "record.npz"
+    run_episode(SHIPPED_PUBLIC_DIR / scenario_id, agent, planner_interface(), record_path=record)
+    return agent.digest.hexdigest(), hashlib.sha256(record.read_bytes()).hexdigest()
+
+
+@pytest.mark.parametrize("scenario_id", sorted(EXPECTED))
+def test_planner_actions_and_record_unchanged(scenario_id, tmp_path):
+    assert digests(scenario_id, tmp_path) == EXPECTED[scenario_id]
+
+
+if __name__ == "__main__":
+    with tempfile.TemporaryDirectory() as tmp:
+        for sid in sorted(EXPECTED):
+            print(f"    {sid!r}: {digests(sid, Path(tmp))!r},")
