@@ -405,7 +405,7 @@ def test_a_seeds_train_py_failing_fails_the_submission_and_stops_the_other_seed(
     from server.services import phases
 
     db = Database(stack_settings.storage.database_url)
-    store = artifact_store(stack_settings, db)
+    store = artifact_store(stack_settings.storage, db)
     phases.set_phase(db, stack_settings, "final", phases.PhaseChanges(training_seeds=2))
     _, token = make_team(db, "bc-team")
     worker = start_worker(stack_settings, tmp_path / "worker.log", concurrency=2)
