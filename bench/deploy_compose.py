@@ -45,6 +45,9 @@ from pathlib import Path
 import docker
 import httpx
 
+# The benchmark borrows the tests' settings helper: run from a checkout, the repository root.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
 from arena.suite import SHIPPED_PUBLIC_DIR
 from evaluator.sandbox.backend import OWNER_LABEL, owner_labels
 from submissions.intake import pack_folder

@@ -34,12 +34,16 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import sys
 import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+
+# The benchmark borrows the tests' settings helper: run from a checkout, the repository root.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from arena.config import SandboxKind, Settings
 from evaluator.sandbox import backend, start
