@@ -148,6 +148,40 @@ def agent(reached_goal: bool, done_step: int = 100, reason: str | None = None) -
     }
 
 
+def report_episode(
+    db: Database, settings: Settings, plan, episode, *, reached_goal: bool, agent_cpu_s: float = 0.0
+) -> bool | None:
+    """One episode of ``plan`` claimed and reported done as a worker does (no record), its agent
+    reaching the goal or colliding; None if it could not be claimed, else whether it finished
+    the run (the worker then sends the aggregation)."""
+    from arena.outcome import AgentOutcome, ScenarioStatus
+    from evaluator.runner import ScenarioOutcome
+
+    with db.session() as session:
+        job = evaluation.claim_scenario(
+            session,
+            settings.service,
+            settings.sandbox,
+            plan.run_id,
+            episode.scenario_id,
+            "w1",
+            episode.index,
+        )
+    if job is None:
+        return None
+    outcome = ScenarioOutcome(
+        scenario_id=episode.scenario_id,
+        status=ScenarioStatus.done,
+        steps=0,
+        agents=(AgentOutcome(**agent(reached_goal)),),
+        record_path=None,
+        episode=episode.index,
+        agent_cpu_s=agent_cpu_s,
+    )
+    with db.session() as session:
+        return evaluation.record_scenario(session, job, "w1", outcome, "", record_key=None)
+
+
 def default_phases() -> list[Phase]:
     """The phases migration 0003 creates: validation on the public suite, the hidden final."""
     return [

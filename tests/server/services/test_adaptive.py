@@ -7,13 +7,11 @@ from __future__ import annotations
 import pytest
 from sqlalchemy import select
 
-from arena.outcome import AgentOutcome, ScenarioStatus
-from evaluator.runner import ScenarioOutcome
 from server.core.artifacts import DatabaseStore
 from server.models import EvaluationRun, Score
 from server.services import adaptive, evaluation, phases
 from server.services.errors import InvalidInput
-from tests.server.builders import agent, make_team, queued_submission
+from tests.server.builders import make_team, queued_submission, report_episode
 
 
 def evaluate(db, settings, submission_id, succeeds) -> list[int]:
@@ -24,26 +22,8 @@ def evaluate(db, settings, submission_id, succeeds) -> list[int]:
     rounds = []
     while plan is not None:
         for episode in plan.episodes:
-            with db.session() as session:
-                job = evaluation.claim_scenario(
-                    session,
-                    settings.service,
-                    settings.sandbox,
-                    plan.run_id,
-                    episode.scenario_id,
-                    "w1",
-                    episode.index,
-                )
-            outcome = ScenarioOutcome(
-                scenario_id=episode.scenario_id,
-                status=ScenarioStatus.done,
-                steps=0,
-                agents=(AgentOutcome(**agent(succeeds(episode.scenario_id, episode.index))),),
-                record_path=None,
-                episode=episode.index,
-            )
-            with db.session() as session:
-                evaluation.record_scenario(session, job, "w1", outcome, "", record_key=None)
+            succeeded = succeeds(episode.scenario_id, episode.index)
+            report_episode(db, settings, plan, episode, reached_goal=succeeded)
         with db.session() as session:  # the aggregation task
             run_id = plan.run_id
             plan = adaptive.next_round(session, DatabaseStore(db), run_id)

@@ -7,13 +7,11 @@ from __future__ import annotations
 import pytest
 from sqlalchemy import select
 
-from arena.outcome import AgentOutcome, ScenarioStatus
-from evaluator.runner import ScenarioOutcome
 from server.core.artifacts import DatabaseStore
 from server.models import EvaluationRun, Submission
 from server.services import evaluation, phases
 from server.services.errors import InvalidInput
-from tests.server.builders import agent, bearer, make_team, queued_submission
+from tests.server.builders import bearer, make_team, queued_submission, report_episode
 from tests.settings import with_fields
 
 # The suite fixture has three scenarios, one episode each.
@@ -28,30 +26,9 @@ def run_episodes(db, settings, submission_id, cpu_s: float, only: int | None = N
         plan = evaluation.start_evaluation(session, settings, submission_id)
     claimed, last = [], False
     for episode in plan.episodes[:only]:
-        with db.session() as session:
-            job = evaluation.claim_scenario(
-                session,
-                settings.service,
-                settings.sandbox,
-                plan.run_id,
-                episode.scenario_id,
-                "w1",
-                episode.index,
-            )
-        claimed.append(job is not None)
-        if job is None:
-            continue
-        outcome = ScenarioOutcome(
-            scenario_id=episode.scenario_id,
-            status=ScenarioStatus.done,
-            steps=0,
-            agents=(AgentOutcome(**agent(True)),),
-            record_path=None,
-            episode=episode.index,
-            agent_cpu_s=cpu_s,
-        )
-        with db.session() as session:
-            last = evaluation.record_scenario(session, job, "w1", outcome, "", record_key=None)
+        reported = report_episode(db, settings, plan, episode, reached_goal=True, agent_cpu_s=cpu_s)
+        claimed.append(reported is not None)
+        last = last or bool(reported)
     if last:  # the aggregation task
         with db.session() as session:
             evaluation.finish_run(session, DatabaseStore(db), plan.run_id)

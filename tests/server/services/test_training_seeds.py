@@ -15,7 +15,7 @@ import zipfile
 import pytest
 from sqlalchemy import select
 
-from arena.outcome import AgentOutcome, ScenarioStatus
+from arena.outcome import ScenarioStatus
 from evaluator.runner import ScenarioOutcome
 from server.core.artifacts import DatabaseStore
 from server.core.queue import TaskQueue
@@ -32,7 +32,7 @@ from server.services import (
 from server.services.errors import InvalidInput
 from server.status import RunStatus, SubmissionStatus, TrainingStatus
 from server.tracks import Track
-from tests.server.builders import agent, bearer, make_team, queued_submission
+from tests.server.builders import bearer, make_team, queued_submission, report_episode
 from tests.server.conftest import ADMIN_TOKEN
 
 
@@ -74,26 +74,7 @@ def evaluate(db, settings, plan, fails: int) -> RunStatus | None:
     """Every episode of the run reported as a worker does, the first ``fails`` scenarios with
     the agent colliding; then the aggregation."""
     for number, episode in enumerate(plan.episodes):
-        with db.session() as session:
-            job = evaluation.claim_scenario(
-                session,
-                settings.service,
-                settings.sandbox,
-                plan.run_id,
-                episode.scenario_id,
-                "w1",
-                episode.index,
-            )
-        outcome = ScenarioOutcome(
-            scenario_id=episode.scenario_id,
-            status=ScenarioStatus.done,
-            steps=0,
-            agents=(AgentOutcome(**agent(number >= fails)),),
-            record_path=None,
-            episode=episode.index,
-        )
-        with db.session() as session:
-            evaluation.record_scenario(session, job, "w1", outcome, "", record_key=None)
+        report_episode(db, settings, plan, episode, reached_goal=number >= fails)
     with db.session() as session:
         return evaluation.finish_run(session, DatabaseStore(db), plan.run_id)
 
