@@ -148,6 +148,19 @@ def agent(reached_goal: bool, done_step: int = 100, reason: str | None = None) -
     }
 
 
+def claim_episode(session, settings: Settings, plan, episode):
+    """Worker "w1"'s claim of one episode of ``plan`` (None: not claimable)."""
+    return evaluation.claim_scenario(
+        session,
+        settings.service,
+        settings.sandbox,
+        plan.run_id,
+        episode.scenario_id,
+        "w1",
+        episode.index,
+    )
+
+
 def report_episode(
     db: Database, settings: Settings, plan, episode, *, reached_goal: bool, agent_cpu_s: float = 0.0
 ) -> bool | None:
@@ -158,15 +171,7 @@ def report_episode(
     from evaluator.runner import ScenarioOutcome
 
     with db.session() as session:
-        job = evaluation.claim_scenario(
-            session,
-            settings.service,
-            settings.sandbox,
-            plan.run_id,
-            episode.scenario_id,
-            "w1",
-            episode.index,
-        )
+        job = claim_episode(session, settings, plan, episode)
     if job is None:
         return None
     outcome = ScenarioOutcome(

@@ -32,7 +32,13 @@ from server.services import (
 from server.services.errors import InvalidInput
 from server.status import RunStatus, SubmissionStatus, TrainingStatus
 from server.tracks import Track
-from tests.server.builders import bearer, make_team, queued_submission, report_episode
+from tests.server.builders import (
+    bearer,
+    claim_episode,
+    make_team,
+    queued_submission,
+    report_episode,
+)
 from tests.server.conftest import ADMIN_TOKEN
 
 
@@ -191,18 +197,7 @@ def test_a_seeds_failure_fails_the_submission_naming_it_and_stops_the_others(db,
         assert not training.heartbeat(session, settings.service, third, "w1", 1.0, "")
     with db.session() as session:  # the cancelled run's episode tasks do nothing
         episode = plan.episodes[0]
-        assert (
-            evaluation.claim_scenario(
-                session,
-                settings.service,
-                settings.sandbox,
-                plan.run_id,
-                episode.scenario_id,
-                "w1",
-                episode.index,
-            )
-            is None
-        )
+        assert claim_episode(session, settings, plan, episode) is None
 
 
 def test_a_seeds_evaluation_lost_on_our_side_waits_while_the_others_go_on(db, settings):

@@ -16,7 +16,7 @@ from server.models import EvaluationRun, ScenarioResult, Submission, utcnow
 from server.services import admin, evaluation
 from server.services.errors import Conflict
 from server.status import RunStatus, SubmissionStatus
-from tests.server.builders import agent, make_team, queued_submission, scenario_ids
+from tests.server.builders import agent, claim_episode, make_team, queued_submission, scenario_ids
 
 
 def start(db, settings, submission_id):
@@ -310,15 +310,7 @@ def test_each_episode_of_a_reactive_scenario_is_a_claim_of_its_own(db, settings,
     last = []
     for episode in plan.episodes:
         with db.session() as session:
-            job = evaluation.claim_scenario(
-                session,
-                settings.service,
-                settings.sandbox,
-                plan.run_id,
-                episode.scenario_id,
-                "w1",
-                episode.index,
-            )
+            job = claim_episode(session, settings, plan, episode)
         assert job.key == episode
         # The first scenario fails in its second episode only.
         success = episode != Episode(ids[0], 1)
