@@ -7,12 +7,12 @@ gives byte-identical files.
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict
 
+from arena.files import write_atomically
 from arena.outcome import AgentOutcome, ScenarioStatus
 from evaluator.provenance import Manifest
 from evaluator.scoring import Interval, Metrics, bootstrap_interval
@@ -130,11 +130,9 @@ class Summary(Frozen):
 
 def write_summary(summary: Summary, results_dir: Path) -> Path:
     """Atomic: a reader (or a crash) never sees a half-written file."""
-    path = Path(results_dir) / SUMMARY_FILE
-    tmp = path.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(summary.to_dict(), indent=2) + "\n")
-    os.replace(tmp, path)
-    return path
+    return write_atomically(
+        Path(results_dir) / SUMMARY_FILE, json.dumps(summary.to_dict(), indent=2) + "\n"
+    )
 
 
 def read_summary(results_dir: Path) -> Summary:

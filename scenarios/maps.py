@@ -15,7 +15,6 @@ from __future__ import annotations
 import hashlib
 import math
 import re
-import shutil
 import subprocess
 import tempfile
 from collections.abc import Callable, Sequence
@@ -24,6 +23,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from arena.errors import ArenaError
+from arena.files import write_atomically
 
 LANE_WIDTH = 3.2  # [m]
 SHOULDER_WIDTH = 2.5  # [m]
@@ -350,7 +350,5 @@ def convert_plain_xml(
         if proc.returncode != 0:
             raise MapBuildError(f"netconvert failed for {name}: {proc.stderr.strip()}")
         data = _HEADER.sub(b"", (tmpdir / "map.net.xml").read_bytes(), count=1)
-        partial = target.with_suffix(".tmp")
-        partial.write_bytes(data)
-        shutil.move(partial, target)
+        write_atomically(target, data)
     return target

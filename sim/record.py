@@ -16,6 +16,7 @@ from typing import NamedTuple, overload
 
 import numpy as np
 
+from arena.files import replaced_atomically
 from arena.outcome import AgentOutcome
 from arena.record_format import EVENT_FLAGS, FORMAT_VERSION, NEIGHBOUR_FLOATS, STEP_FLOATS
 from arena.scenario import Mission
@@ -245,10 +246,10 @@ def _str_array(value) -> np.ndarray:
 
 def write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
     """``np.savez_compressed``-compatible archive with fixed member order and timestamps."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".partial")
-    with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+    with (
+        replaced_atomically(Path(path)) as partial,
+        zipfile.ZipFile(partial, "w", compression=zipfile.ZIP_DEFLATED) as zf,
+    ):
         for name in sorted(arrays):
             buffer = io.BytesIO()
             np.lib.format.write_array(buffer, np.asarray(arrays[name]), allow_pickle=False)
@@ -256,4 +257,3 @@ def write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
             info.compress_type = zipfile.ZIP_DEFLATED
             info.external_attr = 0o600 << 16
             zf.writestr(info, buffer.getvalue())
-    tmp.replace(path)

@@ -6,8 +6,11 @@ busy the worker was (``docs/protocol.md``, "Time limits"). Two ways to read it:
 - a **cgroup** of the sandbox's own (Docker): ``cpu.stat``'s ``usage_usec`` (cgroup v2) or
   ``cpuacct.usage`` (v1), every process of the container together;
 - a **process tree** (bubblewrap and the plain process runner, which have no cgroup of their own):
-  user + system time of the sandbox's root process and every live descendant, plus what its
-  ended children left in their parents' ``cutime``/``cstime``.
+  the CPU time of the sandbox's root process and every live descendant, plus what its ended
+  children left in their parents' ``cutime``/``cstime``. A live process counts its threads'
+  ``schedstat`` run time (nanoseconds): ``stat``'s ``utime``/``stime`` come in clock ticks
+  (10 ms), which would read a cheap agent's whole episode as zero. ``stat`` still counts where it
+  says more, since it keeps the time of threads that have ended.
 
 A :class:`CpuMeter` is a plain description (a file or a pid), so it travels with a forked agent
 into the episode process. A warm sandbox's meter counts its idle zygote too, which uses nothing
@@ -49,10 +52,12 @@ class CpuMeter:
 class CpuReader:
     """:meth:`CpuMeter.seconds` for many reads, closed after the last. A cgroup file is opened
     once and read again in place: about 1.5 µs a read instead of 23 µs opening it each time (an
-    act reads the meter once)."""
+    act reads the meter once). Its readings never go down: a process tree's can, by up to a clock
+    tick, when a thread ends and its nanoseconds give way to ``stat``'s ticks."""
 
     def __init__(self, meter: CpuMeter) -> None:
         self._meter = meter
+        self._highest = 0.0
         self._fd: int | None = None
         if meter.cgroup_file is not None:
             # Unopenable: read as the meter would, which answers None.
@@ -60,6 +65,13 @@ class CpuReader:
                 self._fd = os.open(meter.cgroup_file, os.O_RDONLY | os.O_CLOEXEC)
 
     def seconds(self) -> float | None:
+        reading = self._read()
+        if reading is None:
+            return None
+        self._highest = max(self._highest, reading)
+        return self._highest
+
+    def _read(self) -> float | None:
         if self._fd is None:
             return self._meter.seconds()
         try:
@@ -114,7 +126,7 @@ def _cgroup_usage(path: str, text: str) -> float:
 
 
 def _tree_seconds(root: int) -> float:
-    ticks = 0
+    seconds = 0.0
     pending = [root]
     seen = set()
     while pending:
@@ -130,14 +142,19 @@ def _tree_seconds(root: int) -> float:
             continue  # ended between the listing and now: its time is in its parent's cutime
         fields = stat.rsplit(")", 1)[1].split()
         # utime, stime, cutime, cstime are fields 14-17 of stat; 2 (comm) is cut off above.
-        ticks += sum(int(v) for v in fields[11:15])
+        own_ticks, ended_children_ticks = (
+            int(fields[11]) + int(fields[12]),
+            int(fields[13]) + int(fields[14]),
+        )
+        run_ns = 0
         for task in _tasks(pid):
-            try:
-                children = Path(f"/proc/{pid}/task/{task}/children").read_text().split()
-            except OSError:
-                continue
-            pending.extend(int(child) for child in children)
-    return ticks / _TICKS
+            task_dir = f"/proc/{pid}/task/{task}"
+            with contextlib.suppress(OSError):  # the thread ended: its time is in stat's
+                run_ns += int(Path(f"{task_dir}/schedstat").read_text().split()[0])
+            with contextlib.suppress(OSError):
+                pending.extend(int(c) for c in Path(f"{task_dir}/children").read_text().split())
+        seconds += max(run_ns / 1e9, own_ticks / _TICKS) + ended_children_ticks / _TICKS
+    return seconds
 
 
 def _tasks(pid: int) -> list[str]:

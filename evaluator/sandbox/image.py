@@ -17,6 +17,7 @@ from pathlib import Path
 
 from arena.config import SandboxSettings
 from arena.errors import SandboxUnavailable
+from arena.files import replaced_atomically
 
 DEBIAN_SUITE = "bookworm"
 APT_SOURCES = (Path("/etc/apt/sources.list"), Path("/etc/apt/sources.list.d"))
@@ -110,11 +111,11 @@ def build_rootfs_tarball(
         for relative in TRIMMED:
             shutil.rmtree(root / relative, ignore_errors=True)
             (root / relative).mkdir(parents=True, exist_ok=True)
-        partial = target.with_suffix(".partial")
-        subprocess.run(
-            ["tar", "--one-file-system", "-C", str(root), "-cf", str(partial), "."], check=True
-        )
-        partial.replace(target)
+        with replaced_atomically(target) as partial:
+            subprocess.run(
+                ["tar", "--one-file-system", "-C", str(root), "-cf", str(partial), "."],
+                check=True,
+            )
     log(f"cached runtime root at {target}")
 
 

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from arena.files import write_atomically
 from scenarios.generators import MapLibrary
 from scenarios.recorded.builder import FLOWS_STOP_BEFORE_END_S
 from scenarios.recorded.recorder import Recording, record_scene
@@ -82,8 +83,5 @@ def recorded(scene: Scene, seed: int, maps: MapLibrary) -> Recording:
     if cache.exists():
         return pickle.loads(cache.read_bytes())
     recording = record_scene(net, routes, seed % 2**31, scene.duration_s)
-    cache.parent.mkdir(parents=True, exist_ok=True)
-    tmp = cache.with_suffix(".tmp")
-    tmp.write_bytes(pickle.dumps(recording))
-    tmp.replace(cache)
+    write_atomically(cache, pickle.dumps(recording))
     return recording

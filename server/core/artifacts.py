@@ -9,7 +9,6 @@ Keys are relative POSIX paths such as ``submissions/<id>/upload.zip``.
 from __future__ import annotations
 
 import hashlib
-import os
 import shutil
 from pathlib import Path, PurePosixPath
 from typing import Protocol
@@ -18,6 +17,7 @@ from sqlalchemy import delete, or_, select
 
 from arena.config import ArtifactBackend, StorageSettings
 from arena.errors import ArenaError
+from arena.files import replaced_atomically, write_atomically
 from server.core.db import Database
 from server.models import Artifact, utcnow
 
@@ -57,14 +57,6 @@ def _sha256(path: Path) -> str:
     return digest.hexdigest()
 
 
-def _write_atomically(dest: Path, data: bytes) -> Path:
-    dest.parent.mkdir(parents=True, exist_ok=True)
-    partial = dest.with_name(dest.name + ".partial")
-    partial.write_bytes(data)
-    os.replace(partial, dest)
-    return dest
-
-
 class FolderStore:
     def __init__(self, root: Path) -> None:
         self.root = Path(root)
@@ -75,14 +67,12 @@ class FolderStore:
     def put(self, key: str, source: Path) -> str:
         dest = self._path(key)
         if Path(source).resolve() != dest.resolve():
-            dest.parent.mkdir(parents=True, exist_ok=True)
-            partial = dest.with_name(dest.name + ".partial")
-            shutil.copyfile(source, partial)
-            os.replace(partial, dest)
+            with replaced_atomically(dest) as partial:
+                shutil.copyfile(source, partial)
         return _sha256(dest)
 
     def fetch(self, key: str, dest: Path) -> Path:
-        return _write_atomically(Path(dest), self.read(key))
+        return write_atomically(Path(dest), self.read(key))
 
     def read(self, key: str) -> bytes:
         try:
@@ -123,7 +113,7 @@ class DatabaseStore:
         return digest
 
     def fetch(self, key: str, dest: Path) -> Path:
-        return _write_atomically(Path(dest), self.read(key))
+        return write_atomically(Path(dest), self.read(key))
 
     def read(self, key: str) -> bytes:
         with self.db.read_session() as session:

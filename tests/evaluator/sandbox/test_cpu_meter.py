@@ -1,6 +1,8 @@
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
 
 from evaluator.sandbox.cpu import CpuMeter
 
@@ -30,3 +32,35 @@ def test_a_reader_of_a_missing_file_or_a_process_tree_answers_as_the_meter(tmp_p
     reader = tree.open()
     assert reader.seconds() is not None and abs(reader.seconds() - tree.seconds()) < 1.0
     reader.close()
+
+
+BURN = """
+import sys, time
+for line in sys.stdin:
+    start = time.process_time()
+    while time.process_time() - start < 0.002:
+        pass
+    print("burnt", flush=True)
+"""
+
+
+def test_a_process_tree_is_read_finer_than_clock_ticks():
+    # Clock ticks (10 ms) would read each 2 ms burst as 0 or 10 ms: a cheap agent's episode
+    # would show no CPU at all.
+    child = subprocess.Popen(
+        [sys.executable, "-c", BURN], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True
+    )
+    try:
+        reader = CpuMeter(root_pid=child.pid).open()
+        used = []
+        for _ in range(6):
+            before = reader.seconds()
+            child.stdin.write("go\n")
+            child.stdin.flush()
+            assert child.stdout.readline() == "burnt\n"
+            used.append(reader.seconds() - before)
+        # The first burst also counts the interpreter's start.
+        assert all(0.002 <= seconds < 0.009 for seconds in used[1:]), used
+    finally:
+        child.kill()
+        child.wait()
