@@ -64,6 +64,9 @@ class SeedFailureReasons(Schema):
 class Progress(Schema):
     done: int
     total: int  # episodes: one per scenario, episodes_per_scenario per reactive scenario
+    # Over several training seeds, every seed's run together (a seed still training counts
+    # the episodes its run will have).
+    seeds: int = 1
 
 
 class SubmissionSummary(Schema):
@@ -114,10 +117,14 @@ class CpuLimitsView(Schema):
 
 
 class AgentCpu(Schema):
-    """The CPU time the agent used in the shown evaluation, against its budget [s]."""
+    """The CPU time the agent used in the shown evaluation, against its budget [s]. Over several
+    training seeds, each seed's model is its own evaluation with its own budget: ``used_s`` sums
+    them, ``most_used_s`` is the most one of them used, which is what a budget stops."""
 
     used_s: float
     budget_s: float
+    evaluations: int = 1
+    most_used_s: float
 
 
 class PhaseWindow(Schema):

@@ -168,6 +168,21 @@ def seed_runs(
     return chosen
 
 
+def set_runs(submission: Submission, run: EvaluationRun) -> list[EvaluationRun]:
+    """The runs of ``run``'s seed set (just ``run`` for one seed or freestyle): each seed's run
+    under way, else its latest, in seed order; a seed training again has none yet."""
+    if not several(run.training):
+        return [run]
+    jobs = latest_per_seed(j for j in submission.trainings if j.seed_set == run.training.seed_set)
+    chosen = []
+    for job in jobs:
+        runs = [r for r in submission.runs if r.training_id == job.id]
+        active = [r for r in runs if r.status in ACTIVE_RUN]
+        if runs:
+            chosen.append((active or runs)[-1])
+    return chosen
+
+
 def current_run(submission: Submission) -> EvaluationRun | None:
     """The run whose score stands: the latest scored attempt, else the latest attempt."""
     scored = [run for run in submission.runs if run.status == RunStatus.scored]

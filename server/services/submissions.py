@@ -66,6 +66,8 @@ from server.services.seed_sets import (
     current_run,
     seed_results,
     seed_runs,
+    set_runs,
+    several,
     standing_score,
 )
 from server.services.training import shown_training
@@ -257,16 +259,14 @@ def list_submissions(
     if team_id is not None:
         query = query.where(Submission.team_id == team_id)
     rows = list(session.scalars(query))
-    runs = [shown_run(submission) for submission in rows]
-    done = finished_counts(session, [run.id for run in runs if run is not None])
+    shown = [_shown_runs(submission) for submission in rows]
+    done = finished_counts(session, [r.id for _, runs in shown for r in runs])
     hidden = hidden_phases(session)
     return [
         SubmissionSummary(
-            **_summary_fields(
-                submission, run, done.get(run.id, 0) if run else 0, submission.phase in hidden
-            )
+            **_summary_fields(submission, run, runs, done, submission.phase in hidden)
         )
-        for submission, run in zip(rows, runs, strict=True)
+        for submission, (run, runs) in zip(rows, shown, strict=True)
     ]
 
 
@@ -280,13 +280,20 @@ def live_in_hidden_phase(run: EvaluationRun | None, hidden: bool) -> bool:
     return hidden and run is not None and run.status in ACTIVE_RUN
 
 
-def shown_progress(run: EvaluationRun | None, done: int, hidden: bool) -> Progress:
-    """Episodes done of ``total``; while a hidden phase's run is under way only in steps of a
-    quarter of it: per-episode progress would time each hidden episode for its team."""
-    total = run.episode_count if run is not None else 0
-    if live_in_hidden_phase(run, hidden) and total:
-        done = (done * HIDDEN_PROGRESS_STEPS // total) * total // HIDDEN_PROGRESS_STEPS
-    return Progress(done=done, total=total)
+def shown_progress(
+    run: EvaluationRun | None, runs: list[EvaluationRun], done: dict[int, int], hidden: bool
+) -> Progress:
+    """Episodes done of ``total`` over ``runs``, the shown ``run``'s seed set (a seed without a
+    run yet counts the episodes it will have); while a hidden phase's run is under way only in
+    steps of a quarter: per-episode progress would time each hidden episode for its team."""
+    if run is None:
+        return Progress(done=0, total=0)
+    seeds = run.training.seeds if several(run.training) else 1
+    total = sum(r.episode_count for r in runs) + (seeds - len(runs)) * run.episode_count
+    finished = sum(done.get(r.id, 0) for r in runs)
+    if any(live_in_hidden_phase(r, hidden) for r in runs) and total:
+        finished = (finished * HIDDEN_PROGRESS_STEPS // total) * total // HIDDEN_PROGRESS_STEPS
+    return Progress(done=finished, total=total, seeds=seeds)
 
 
 def finished_counts(session: Session, run_ids: list[int]) -> dict[int, int]:
@@ -311,18 +318,29 @@ def shown_run(submission: Submission) -> EvaluationRun | None:
     return active_run(submission) or current_run(submission)
 
 
+def _shown_runs(submission: Submission) -> tuple[EvaluationRun | None, list[EvaluationRun]]:
+    """The shown run and its seed set's runs (itself alone but for several seeds)."""
+    run = shown_run(submission)
+    return run, (set_runs(submission, run) if run is not None else [])
+
+
 def summary(session: Session, submission: Submission) -> SubmissionSummary:
     return SubmissionSummary(**_fields(session, submission))
 
 
 def _fields(session: Session, submission: Submission) -> dict:
-    run = shown_run(submission)
-    done = finished_counts(session, [run.id]).get(run.id, 0) if run is not None else 0
-    return _summary_fields(submission, run, done, submission.phase in hidden_phases(session))
+    run, runs = _shown_runs(submission)
+    done = finished_counts(session, [r.id for r in runs])
+    hidden = submission.phase in hidden_phases(session)
+    return _summary_fields(submission, run, runs, done, hidden)
 
 
 def _summary_fields(
-    submission: Submission, run: EvaluationRun | None, done: int, hidden: bool
+    submission: Submission,
+    run: EvaluationRun | None,
+    runs: list[EvaluationRun],
+    done: dict[int, int],
+    hidden: bool,
 ) -> dict:
     score = standing_score(submission)
     return {
@@ -337,7 +355,7 @@ def _summary_fields(
         "started_at": submission.started_at,
         "finished_at": submission.finished_at,
         "duration_s": _duration_s(submission),
-        "progress": shown_progress(run, done, hidden),
+        "progress": shown_progress(run, runs, done, hidden),
         "metrics": Metrics.model_validate(score) if score is not None else None,
         "completion_interval": completion_interval(score),
         # Of the run whose progress is shown: what the progress counts.
@@ -397,7 +415,7 @@ def detail(session: Session, submission: Submission) -> SubmissionDetail:
             if seed is not None
         ],
         training=_training(submission),
-        agent_cpu=_agent_cpu(session, shown_run(submission), hidden),
+        agent_cpu=_agent_cpu(session, _shown_runs(submission)[1], hidden),
         manifest=_manifest(runs if standing is not None else []),
     )
 
@@ -441,13 +459,24 @@ def _manifest(runs: list[tuple[int | None, EvaluationRun]]) -> PublicManifest | 
     return over_seeds(manifests).public()
 
 
-def _agent_cpu(session: Session, run: EvaluationRun | None, hidden: bool) -> AgentCpu | None:
-    """The CPU the run's agent used so far against the budget it runs under; None before a
-    run, for a run made before budgets were recorded, and while a hidden phase's run is under
-    way (read after each episode, an agent's CPU would carry what it saw of hidden scenarios)."""
-    if run is None or run.evaluation_cpu_s is None or live_in_hidden_phase(run, hidden):
+def _agent_cpu(session: Session, runs: list[EvaluationRun], hidden: bool) -> AgentCpu | None:
+    """The CPU the agent used so far in ``runs`` (the shown run, or its seed set's) against the
+    budget each runs under; None before a run, for a run made before budgets were recorded, and
+    while a hidden phase's run is under way (read after each episode, an agent's CPU would carry
+    what it saw of hidden scenarios)."""
+    if (
+        not runs
+        or any(run.evaluation_cpu_s is None for run in runs)
+        or any(live_in_hidden_phase(run, hidden) for run in runs)
+    ):
         return None
-    return AgentCpu(used_s=agent_cpu_used(session, run.id), budget_s=run.evaluation_cpu_s)
+    used = [agent_cpu_used(session, run.id) for run in runs]
+    return AgentCpu(
+        used_s=sum(used),
+        budget_s=max(run.evaluation_cpu_s for run in runs),
+        evaluations=len(runs),
+        most_used_s=max(used),
+    )
 
 
 def failed_on_our_side_while_hidden(

@@ -173,10 +173,15 @@ const Arena = (() => {
     const cpu = s.agent_cpu;
     $("agent-cpu").hidden = !cpu;
     if (!cpu) return;
-    const share = cpu.budget_s > 0 ? ` (${Math.round((100 * cpu.used_s) / cpu.budget_s)}%)` : "";
-    $("agent-cpu").textContent =
-      `Agent CPU: ${duration(cpu.used_s)} used of this evaluation's budget of ` +
-      `${duration(cpu.budget_s)}${share}.`;
+    const share = (used) =>
+      cpu.budget_s > 0 ? ` (${Math.round((100 * used) / cpu.budget_s)}%)` : "";
+    // Several training seeds: each seed's model is its own evaluation with its own budget.
+    $("agent-cpu").textContent = cpu.evaluations > 1
+      ? `Agent CPU: ${duration(cpu.used_s)} used over the ${cpu.evaluations} seeds' ` +
+        `evaluations, each with a budget of ${duration(cpu.budget_s)}; the most one used is ` +
+        `${duration(cpu.most_used_s)}${share(cpu.most_used_s)}.`
+      : `Agent CPU: ${duration(cpu.used_s)} used of this evaluation's budget of ` +
+        `${duration(cpu.budget_s)}${share(cpu.used_s)}.`;
   }
 
   function renderStanding(s) {
@@ -205,7 +210,9 @@ const Arena = (() => {
     // Several episodes per reactive scenario: the progress counts episodes, and says the cost.
     const unit = s.episodes_per_scenario > 1
       ? `episodes (${s.episodes_per_scenario} of each reactive scenario)` : "scenarios";
-    return `${s.progress.done} / ${s.progress.total} ${unit}${left ? ` · ${left}` : ""}`;
+    // Several training seeds: every seed's model runs the suite, and the progress counts all.
+    const seeds = s.progress.seeds > 1 ? ` over ${s.progress.seeds} training seeds` : "";
+    return `${s.progress.done} / ${s.progress.total} ${unit}${seeds}${left ? ` · ${left}` : ""}`;
   }
 
   function renderManifest(manifest) {

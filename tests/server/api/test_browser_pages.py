@@ -331,6 +331,13 @@ def test_submission_page_over_training_seeds_counts_every_seeds_failures(
         )
         expect(page.locator("#failures .per-seed > li")).to_have_count(2)
         expect(page.locator("#failures .per-seed > li").nth(1)).to_contain_text("seed 1:")
+        # The progress and the agent's CPU are the whole set's, not one seed's run.
+        episodes = int(page.locator("#progress-text").inner_text().split(" / ")[0])
+        expect(page.locator("#progress-text")).to_have_text(
+            f"{episodes} / {episodes} scenarios over 2 training seeds"
+        )
+        assert episodes % 2 == 0
+        expect(page.locator("#agent-cpu")).to_contain_text("used over the 2 seeds' evaluations")
         expect(page.locator("#failures .per-seed > li").nth(1)).to_contain_text("collision × 2")
         page.click("#manifest-box summary")
         expect(page.locator("#manifest")).to_contain_text("trained model sha256, seed 0")

@@ -19,7 +19,7 @@ from arena.outcome import ScenarioStatus
 from evaluator.runner import ScenarioOutcome
 from server.core.artifacts import DatabaseStore
 from server.core.queue import TaskQueue
-from server.models import EvaluationRun, Phase, SeedSetScore, Submission, TrainingJob
+from server.models import EvaluationRun, Phase, SeedSetScore, Submission, TrainingJob, Visibility
 from server.services import (
     admin,
     evaluation,
@@ -162,6 +162,31 @@ def test_the_rest_api_shows_the_seeds(db, settings, client):
     assert "2 seeds" in page.text
     submit = client.get("/submit")  # said before the upload
     assert "offline submissions train 2 times" in submit.text
+
+
+def test_progress_and_agent_cpu_count_every_seeds_run(db, settings, client):
+    set_seeds(db, settings, 3)
+    phases.set_phase(db, settings, "final", phases.PhaseChanges(visibility=Visibility.full))
+    team_id, token = make_team(db, "progress")
+    sid = queued_submission(db, team_id, track=Track.offline)
+    jobs = [claim(db, settings, training_id) for training_id in start(db, settings, sid)]
+    plans = [trained(db, settings, job) for job in jobs[:2]]  # seed 2 still trains
+    episodes = len(plans[0].episodes)
+    report_episode(db, settings, plans[0], plans[0].episodes[0], reached_goal=True, agent_cpu_s=1.5)
+    for episode in plans[1].episodes:
+        report_episode(db, settings, plans[1], episode, reached_goal=True, agent_cpu_s=2.0)
+    shown = client.get(f"/api/v1/submissions/{sid}", headers={"Authorization": f"Bearer {token}"})
+    assert shown.status_code == 200, shown.text
+    body = shown.json()
+    # Seed 2's run is yet to come: its episodes are counted in the total.
+    assert body["progress"] == {"done": 1 + episodes, "total": 3 * episodes, "seeds": 3}
+    assert body["agent_cpu"]["used_s"] == pytest.approx(1.5 + 2.0 * episodes)
+    assert body["agent_cpu"]["most_used_s"] == pytest.approx(2.0 * episodes)
+    assert body["agent_cpu"]["evaluations"] == 2
+    (listed,) = client.get(
+        "/api/v1/submissions", headers={"Authorization": f"Bearer {token}"}
+    ).json()
+    assert listed["progress"] == body["progress"]
 
 
 def test_a_seeds_failure_fails_the_submission_naming_it_and_stops_the_others(db, settings):
