@@ -109,16 +109,22 @@ def metric_rows(a: Side, b: Side) -> list[tuple[str, str, str, str]]:
     rows.append(
         (
             "completion 95% interval",
-            _interval(a.interval),
-            _interval(b.interval),
+            _interval(a),
+            _interval(b),
             _overlap(a.interval, b.interval),
         )
     )
     return rows
 
 
-def _interval(interval: Interval | None) -> str:
-    return "-" if interval is None else f"[{interval.low:.4f}, {interval.high:.4f}]"
+def _interval(side: Side) -> str:
+    """A side's completion interval; a seed set's resamples seeds and scenarios both, so it
+    is wider than one run's of the same agent: said, lest it be read as one run's."""
+    interval = side.interval
+    if interval is None:
+        return "-"
+    over = f" over {len(side.seeds)} seeds x scenarios" if side.seeds else ""
+    return f"[{interval.low:.4f}, {interval.high:.4f}]{over}"
 
 
 def _overlap(a: Interval | None, b: Interval | None) -> str:

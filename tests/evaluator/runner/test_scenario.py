@@ -151,10 +151,7 @@ def test_sandboxed_factory_preloads_only_modules_that_exist(submission, kind):
         assert "docker" in modules
 
 
-
-def test_a_sandbox_lost_before_the_runner_started_is_retried_then_not_charged(
-    submission, tmp_path
-):
+def test_a_sandbox_lost_before_the_runner_started_is_retried_then_not_charged(submission, tmp_path):
     """Too little memory for the interpreter to start: the sandbox ends before our runner says
     hello, which no agent can cause (it runs none of the participant's code until then). In a
     fresh interpreter, so that the episode's simulator process reads the setting too."""

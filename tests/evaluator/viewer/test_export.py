@@ -19,9 +19,7 @@ def replay(record, suite, *args):
 
 
 @pytest.mark.slow
-def test_gif_has_one_frame_per_drawn_step_ends_on_the_last_and_the_vehicles_move(
-    episode, tmp_path
-):
+def test_gif_has_one_frame_per_drawn_step_ends_on_the_last_and_the_vehicles_move(episode, tmp_path):
     from PIL import Image
 
     from evaluator.viewer.frames import HOLD_LAST_MS, frames

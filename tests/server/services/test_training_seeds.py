@@ -479,6 +479,10 @@ def test_compare_sets_seed_set_scores_side_by_side_and_each_seed(db, settings, a
     rows = {line.split("\t")[0]: line.split("\t")[1:] for line in output.splitlines()}
     assert rows["completion"][:2] == [f"{means[a]:.4f}", f"{means[b]:.4f}"]  # the sets' means
     assert rows["training seeds"] == ["2", "2"]
+    # A set's interval resamples seeds and scenarios: labelled, lest it be read as one run's.
+    assert all(
+        c.endswith("] over 2 seeds x scenarios") for c in rows["completion 95% interval"][:2]
+    )
     assert rows["seeds' completion"][1] == "0.0000 to 0.0000 (std 0.0000)"
     assert "per seed (seed k of A beside seed k of B)" in output
     assert "3 episode(s) ended differently" in output  # seed 0: one, seed 1: two
