@@ -8,11 +8,11 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from arena.config import Settings, get_settings
+from arena.config import Settings
 from evaluator.scoring import DEFAULT_PROFILE
 from learn.protocol import Config, Reply, Simulator, SimulatorMode, check_simulator_mode
 from learn.reward import RewardFn, RewardInput, default_reward
-from learn.scenarios import scenario_dirs
+from learn.scenarios import env_scenario_dirs
 from learn.simulators import open_simulator
 from learn.spaces import ENV_DEFAULT_ACTION_SPACE, action_space, observation_space
 from sim.interface import AgentInterface
@@ -94,14 +94,7 @@ class DrivingArenaEnv(gym.Env):
             raise ValueError(f"render_mode is 'rgb_array' or None, not {render_mode!r}")
         self.render_mode = render_mode
         self.interface = AgentInterface(action_space=action_space, **interface_options)
-        settings = settings or get_settings()
-        self.scenarios = scenario_dirs(
-            suite,
-            scenario,
-            suites=settings.suites,
-            data_dir=settings.storage.resolved_data_dir,
-            agents=(1, 1),
-        )
+        self.scenarios = env_scenario_dirs(suite, scenario, settings, agents=(1, 1))
         self.observation_space = observation_space(self.interface)
         self.action_space = _action_space(self.interface)
         self.reward_fn = reward_fn or default_reward

@@ -11,12 +11,12 @@ import numpy as np
 from gymnasium.utils import seeding
 from pettingzoo import ParallelEnv
 
-from arena.config import Settings, get_settings
+from arena.config import Settings
 from arena.scenario import load_scenario
 from learn.gym_env import EpisodeState, _profile_name, start_episode, step_outcome
 from learn.protocol import Config, Simulator, SimulatorMode, check_simulator_mode
 from learn.reward import RewardFn, default_reward
-from learn.scenarios import scenario_dirs
+from learn.scenarios import env_scenario_dirs
 from learn.spaces import ENV_DEFAULT_ACTION_SPACE, action_space, observation_space
 from sim.interface import AgentInterface
 
@@ -45,14 +45,7 @@ class DrivingArenaParallelEnv(ParallelEnv):
         **interface_options: Any,
     ) -> None:
         self.interface = AgentInterface(action_space=action_space, **interface_options)
-        settings = settings or get_settings()
-        self.scenarios = scenario_dirs(
-            suite,
-            scenario,
-            suites=settings.suites,
-            data_dir=settings.storage.resolved_data_dir,
-            agents=agents,
-        )
+        self.scenarios = env_scenario_dirs(suite, scenario, settings, agents=agents)
         ids = {m.agent_id for folder in self.scenarios for m in load_scenario(folder).missions}
         self.possible_agents = sorted(ids)
         self.agents: list[str] = []

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from arena.config import SuiteSettings
+from arena.config import Settings, SuiteSettings, get_settings
 from arena.scenario import SCENARIO_FILE, load_scenario
 from arena.suite import resolve_suite
 
@@ -39,3 +39,21 @@ def scenario_dirs(
     if not chosen:
         raise ValueError(f"no scenario with {low} to {high} mission agents in {suite!r}")
     return chosen
+
+
+def env_scenario_dirs(
+    suite: str | Path,
+    scenario: str | Path | None,
+    settings: Settings | None,
+    agents: tuple[int, int],
+) -> tuple[Path, ...]:
+    """:func:`scenario_dirs` for an environment built with ``settings``, or without them with
+    the process's (``gymnasium.make`` has no other way to hand them over)."""
+    settings = settings or get_settings()
+    return scenario_dirs(
+        suite,
+        scenario,
+        suites=settings.suites,
+        data_dir=settings.storage.resolved_data_dir,
+        agents=agents,
+    )

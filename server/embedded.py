@@ -8,6 +8,7 @@ demo team's token stays the same across restarts.
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import errno
 import fcntl
@@ -37,6 +38,9 @@ from server.services import teams
 from server.services.errors import NotFound
 
 ARENA = [sys.executable, "-c", "from arena.cli import app; app()"]
+# How long the worker and the API get to stop after SIGTERM before they are killed [s]. The
+# worker hands its running jobs back at once (a job it could not is reaped when its lease ends).
+STOP_GRACE_S = 15.0
 
 
 class AlreadyServed(ArenaError, RuntimeError):
@@ -93,7 +97,7 @@ def run_embedded(console: Console, *, host: str, port: int, demo_team: str) -> N
     except KeyboardInterrupt:
         console.print("stopping…")
     finally:
-        _stop(children)
+        _stop(console, children)
         _remove_leftover_sandboxes(console, settings.sandbox, data)
         lock.close()
 
@@ -259,13 +263,21 @@ def _wait_healthy(url: str, children: list[subprocess.Popen], timeout_s: float =
     raise RuntimeError(f"the API did not become healthy within {timeout_s:.0f} s")
 
 
-def _stop(children: list[subprocess.Popen]) -> None:
+def _stop(console: Console, children: list[subprocess.Popen]) -> None:
+    """SIGTERM to every child at once, then one shared grace: Ctrl-C answers within
+    :data:`STOP_GRACE_S` however many children are slow (each waited in turn would add up)."""
     for child in children:
         if child.poll() is None:
-            os.killpg(child.pid, signal.SIGTERM)
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(child.pid, signal.SIGTERM)
+    deadline = time.monotonic() + STOP_GRACE_S
     for child in children:
         try:
-            child.wait(timeout=20)
+            child.wait(timeout=max(0.0, deadline - time.monotonic()))
         except subprocess.TimeoutExpired:
-            os.killpg(child.pid, signal.SIGKILL)
+            console.print(
+                f"`{' '.join(child.args[3:])}` did not stop within {STOP_GRACE_S:g} s: killed"
+            )
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(child.pid, signal.SIGKILL)
             child.wait()

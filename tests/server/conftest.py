@@ -23,6 +23,7 @@ from server.core.db import Database
 from server.core.migrate import upgrade_database
 from server.models import Base
 from tests.server.builders import default_phases, write_suite
+from tests.server.live import export_settings
 from tests.settings import env_only
 
 POSTGRES_ADMIN = "postgresql://postgres@127.0.0.1:5432/test"
@@ -128,14 +129,7 @@ def arena(settings, db, monkeypatch):
     """`arena admin ...` configured like a deployment, through ARENA_* variables naming this
     test's database, broker and folders: ``arena("phases", "list")`` gives the output and
     checks the exit status (``ok=False``: it must fail)."""
-    for name, value in {
-        "DATA_DIR": settings.storage.data_dir,
-        "DATABASE_URL": settings.storage.database_url,
-        "BROKER_URL": settings.storage.broker_url,
-        "BROKER_KEY_PREFIX": settings.service.broker_key_prefix,
-        "HIDDEN_SUITE_DIR": settings.suites.hidden_suite_dir,
-    }.items():
-        monkeypatch.setenv(f"ARENA_{name}", str(value))
+    export_settings(monkeypatch, settings)
     get_settings.cache_clear()
 
     def invoke(*args: str, ok: bool = True) -> str:

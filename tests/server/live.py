@@ -38,6 +38,16 @@ def environment(settings: Settings, **extra: str) -> dict[str, str]:
     return env
 
 
+def export_settings(monkeypatch, settings: Settings) -> None:
+    """The settings as this process's ARENA_* variables, as :func:`environment` gives a child:
+    the process then reads them as ``arena`` commands and workers do (clear ``get_settings``)."""
+    for name in [name for name in os.environ if name.startswith("ARENA_")]:
+        monkeypatch.delenv(name)
+    for name, value in environment(settings).items():
+        if name.startswith("ARENA_"):
+            monkeypatch.setenv(name, value)
+
+
 def start(command: list[str], env: dict[str, str], log_path) -> subprocess.Popen:
     log = open(log_path, "ab")  # noqa: SIM115  (kept open for the child's lifetime)
     return subprocess.Popen(command, env=env, stdout=log, stderr=log, start_new_session=True)

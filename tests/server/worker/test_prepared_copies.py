@@ -17,6 +17,7 @@ from evaluator.sandbox.warm_pool import WarmAgents, warm_agents
 from server.worker import local
 from submissions.intake.pack import pack_folder
 from submissions.sample import sample_observation
+from tests.server.live import export_settings
 
 POLICY = """
 class Policy:
@@ -28,13 +29,7 @@ class Policy:
 @pytest.fixture
 def worker_env(settings, db, monkeypatch):
     """This process configured as a worker of the test's service (as ``arena worker`` is)."""
-    for name, value in {
-        "DATA_DIR": settings.storage.data_dir,
-        "DATABASE_URL": settings.storage.database_url,
-        "BROKER_URL": settings.storage.broker_url,
-        "BROKER_KEY_PREFIX": settings.service.broker_key_prefix,
-    }.items():
-        monkeypatch.setenv(f"ARENA_{name}", str(value))
+    export_settings(monkeypatch, settings)
     caches = (get_settings, local.database, local.store, local.sandbox_kind)
     for cache in caches:
         cache.cache_clear()

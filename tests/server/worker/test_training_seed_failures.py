@@ -17,6 +17,7 @@ from server.services import admin
 from server.status import RunStatus, SubmissionStatus, TrainingStatus
 from server.worker import engine, heartbeat, local
 from server.worker.trainings import Trainings
+from tests.server.live import export_settings
 from tests.server.services.test_training_seeds import (
     claim,
     evaluate,
@@ -43,16 +44,7 @@ class SandboxDown(Trainings):
 def train(settings, db, monkeypatch):
     """Runs one training job through a real bound Celery task (eager, so its retries run at
     once) with the worker's settings naming this test's database, broker and folders."""
-    for name, value in {
-        "DATA_DIR": settings.storage.data_dir,
-        "DATABASE_URL": settings.storage.database_url,
-        "BROKER_URL": settings.storage.broker_url,
-        "BROKER_KEY_PREFIX": settings.service.broker_key_prefix,
-        "HIDDEN_SUITE_DIR": settings.suites.hidden_suite_dir,
-        "PUBLIC_SUITE_DIR": settings.suites.public_suite_dir,
-        "TRAIN_DATASET_DIR": settings.training.train_dataset_dir,
-    }.items():
-        monkeypatch.setenv(f"ARENA_{name}", str(value))
+    export_settings(monkeypatch, settings)
     caches = (get_settings, local.database, local.queue, local.store, heartbeat.heartbeat)
     for cache in caches:
         cache.cache_clear()
