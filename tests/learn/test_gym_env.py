@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import gymnasium
@@ -138,9 +139,13 @@ def test_reward_function_is_replaceable(closing, short_road) -> None:
 
 def test_async_vector_env_runs_two_simulators() -> None:
     def make(scenario: Path):
-        return lambda: DrivingArenaEnv(scenario, action_space="LaneWithContinuousSpeed")
+        return functools.partial(DrivingArenaEnv, scenario, action_space="LaneWithContinuousSpeed")
 
-    envs = gymnasium.vector.AsyncVectorEnv([make(CRUISE), make(PUBLIC / "p000_left_turn_t_low")])
+    # Not forked from this test process: it may hold other tests' Redis connections, whose
+    # after-fork cleanup (kombu's) blocks the child on a socket it shares with the parent.
+    envs = gymnasium.vector.AsyncVectorEnv(
+        [make(CRUISE), make(PUBLIC / "p000_left_turn_t_low")], context="forkserver"
+    )
     try:
         obs, infos = envs.reset(seed=3)
         assert obs["ego_vehicle_state"]["position"].shape == (2, 3)
