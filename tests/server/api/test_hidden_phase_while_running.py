@@ -28,9 +28,9 @@ def test_a_hidden_run_under_way_shows_no_failure_reason_and_coarse_progress(clie
     assert live["failure_reasons"] == {}
     # Counted in quarters of the run, rounded down: 2 of 3 episodes reads as 1 of 3 (half of
     # the run); the next change comes only when the run is over.
-    assert live["progress"] == {"done": 1, "total": 3}
+    assert live["progress"] == {"done": 1, "total": 3, "seeds": 1}
     listed = client.get("/api/v1/submissions", headers=bearer(token)).json()
-    assert listed[0]["progress"] == {"done": 1, "total": 3}
+    assert listed[0]["progress"] == {"done": 1, "total": 3, "seeds": 1}
     page = client.get(f"/api/v1/submissions/{sid}/download", headers=bearer(token))
     assert b"collision" not in page.content
 
@@ -40,7 +40,7 @@ def test_the_same_run_in_a_validation_phase_shows_everything_live(client, db, se
     sid = queued_submission(db, team, phase="validation")
     evaluate_failing_everywhere(db, settings, sid, log="", episodes=2)
     live = detail(client, token, sid)
-    assert live["progress"] == {"done": 2, "total": 3}
+    assert live["progress"] == {"done": 2, "total": 3, "seeds": 1}
     assert sum(n for family in live["failure_reasons"].values() for n in family.values()) == 2
 
 
@@ -49,7 +49,7 @@ def test_after_scoring_a_hidden_phase_shows_the_failure_counts(client, db, setti
     sid = queued_submission(db, team, phase="final")
     evaluate_failing_everywhere(db, settings, sid, log="")
     done = detail(client, token, sid)
-    assert done["progress"] == {"done": 3, "total": 3}
+    assert done["progress"] == {"done": 3, "total": 3, "seeds": 1}
     assert done["failure_reasons"] == {"cruise": {"collision": 2}, "merge": {"collision": 1}}
 
 

@@ -54,7 +54,12 @@ def test_a_run_past_its_budget_fails_charged_to_the_team(client, db, settings):
     assert "act() cheaper" in reason
     detail = client.get(f"/api/v1/submissions/{sid}", headers=bearer(token)).json()
     assert detail["status_reason"] == reason
-    assert detail["agent_cpu"] == {"used_s": pytest.approx(1.2), "budget_s": 1.0}
+    assert detail["agent_cpu"] == {
+        "used_s": pytest.approx(1.2),
+        "budget_s": 1.0,
+        "evaluations": 1,
+        "most_used_s": pytest.approx(1.2),
+    }
 
 
 def test_a_run_under_its_budget_is_scored(client, db, settings):
@@ -66,7 +71,12 @@ def test_a_run_under_its_budget_is_scored(client, db, settings):
 
     detail = client.get(f"/api/v1/submissions/{sid}", headers=bearer(token)).json()
     assert detail["status"] == "scored"
-    assert detail["agent_cpu"] == {"used_s": pytest.approx(0.9), "budget_s": 1.0}
+    assert detail["agent_cpu"] == {
+        "used_s": pytest.approx(0.9),
+        "budget_s": 1.0,
+        "evaluations": 1,
+        "most_used_s": pytest.approx(0.9),
+    }
     limits = detail["phase_window"]["cpu_limits"]
     assert limits == {"step_s": 0.1, "episode_s": 0.5, "evaluation_s": 1.0}
 
@@ -135,6 +145,8 @@ def test_a_hidden_phase_shows_the_cpu_only_once_the_run_is_over(client, db, sett
         assert detail["agent_cpu"] == {
             "used_s": 0.25,
             "budget_s": settings.sandbox.evaluation_cpu_s,
+            "evaluations": 1,
+            "most_used_s": 0.25,
         }
     else:
         assert detail["agent_cpu"] is None
