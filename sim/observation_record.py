@@ -10,6 +10,7 @@ equal), so the sandbox sends the record as it is and learn copies it once.
 
 from __future__ import annotations
 
+import struct
 from typing import NamedTuple
 
 import numpy as np
@@ -19,6 +20,7 @@ from sim.mission_vehicle import MissionVehicle
 from sim.observation import DEFAULT_HEIGHT, neighbour_lanes
 from sim.observation_arrays import (
     F32,
+    I32,
     NEIGHBOURS,
     PATHS,
     RASTER_NAMES,
@@ -52,7 +54,12 @@ class ObservationRecord:
         self.record = bytearray(layout.size)
         self.arrays = layout.arrays(self.record)
         self._head = head_struct(layout)
-        self._nbr_lane = self.arrays[NEIGHBOURS]["lane_index"]
+        # The first n neighbours' lane indices packed by one struct per n: cheaper than numpy's
+        # conversion of a short list.
+        lane_index = layout.leaf(NEIGHBOURS, "lane_index")
+        assert lane_index.dtype == I32, "packed as '<i'"
+        self._nbr_lane_at = lane_index.offset
+        self._nbr_lane = [struct.Struct(f"<{n}i") for n in range(self.max_neighbours + 1)]
         self._nbr_bytes = _span(layout, NEIGHBOURS)
         floats_at, slots, self._nbr_blank = _neighbour_slots(layout)
         # The slots of the first n neighbours' values, flat, for each n: no index array per step.
@@ -140,7 +147,11 @@ class ObservationRecord:
         if len(neighbours) > n:  # the nearest are kept (the states are nearest first)
             neighbours = neighbours.first(n)
         self._nbr_floats[self._nbr_slots[n]] = neighbours.values.ravel()
-        self._nbr_lane[:n] = [lane.index for lane in neighbour_lanes(neighbours, road)]
+        self._nbr_lane[n].pack_into(
+            self.record,
+            self._nbr_lane_at,
+            *[lane.index for lane in neighbour_lanes(neighbours, road)],
+        )
 
     def _write_waypoints(self, waypoints: WaypointArrays) -> None:
         first, end = self._path_bytes
