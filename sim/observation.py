@@ -126,10 +126,9 @@ def neighbour_states(
 
 def neighbour_lanes(neighbours: VehicleStates, road: RoadNetwork) -> list[Lane]:
     """Each neighbour's lane: SUMO's, else (replayed and unreported vehicles) the nearest."""
-    lanes = road.lanes
-    found = [lanes.get(lane_id) for lane_id in neighbours.lane_id]
-    unknown = [i for i, lane in enumerate(found) if lane is None]
-    if unknown:
+    found = list(map(road.lanes.get, neighbours.lane_id))
+    if None in found:  # Lanes compare by identity: a cheap scan, in C
+        unknown = [i for i, lane in enumerate(found) if lane is None]
         xy = neighbours.values[unknown, :2]
         for i, lane in zip(unknown, road.nearest_lanes(xy), strict=True):
             found[i] = lane

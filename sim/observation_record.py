@@ -10,6 +10,7 @@ equal), so the sandbox sends the record as it is and learn copies it once.
 
 from __future__ import annotations
 
+import struct
 from typing import NamedTuple
 
 import numpy as np
@@ -19,6 +20,7 @@ from sim.mission_vehicle import MissionVehicle
 from sim.observation import DEFAULT_HEIGHT, neighbour_lanes
 from sim.observation_arrays import (
     F32,
+    I32,
     NEIGHBOURS,
     PATHS,
     RASTER_NAMES,
@@ -52,9 +54,16 @@ class ObservationRecord:
         self.record = bytearray(layout.size)
         self.arrays = layout.arrays(self.record)
         self._head = head_struct(layout)
-        self._nbr_lane = self.arrays[NEIGHBOURS]["lane_index"]
+        # The first n neighbours' lane indices packed by one struct per n: cheaper than numpy's
+        # conversion of a short list.
+        lane_index = layout.leaf(NEIGHBOURS, "lane_index")
+        assert lane_index.dtype == I32, "packed as '<i'"
+        self._nbr_lane_at = lane_index.offset
+        self._nbr_lane = [struct.Struct(f"<{n}i") for n in range(self.max_neighbours + 1)]
         self._nbr_bytes = _span(layout, NEIGHBOURS)
-        floats_at, self._nbr_slots, self._nbr_blank = _neighbour_slots(layout)
+        floats_at, slots, self._nbr_blank = _neighbour_slots(layout)
+        # The slots of the first n neighbours' values, flat, for each n: no index array per step.
+        self._nbr_slots = [slots[:n].ravel() for n in range(self.max_neighbours + 1)]
         self._nbr_floats = np.ndarray((8 * self.max_neighbours,), F32, self.record, floats_at)
         paths = self.arrays[PATHS]
         self._per_path = layout.interface.waypoints_per_path
@@ -68,6 +77,15 @@ class ObservationRecord:
             (len(WAYPOINT_FIELDS), self._path_mask.size), first.dtype, self.record, first.offset
         )
         self._path_bytes = _span(layout, PATHS)
+        # The paths' bytes with the first k paths' mask set and nothing else written, for each k:
+        # full paths (the usual case) are then one copy and their values.
+        start, end = self._path_bytes
+        mask_at = layout.leaf(PATHS, "mask").offset - start
+        self._path_blank = []
+        for k in range(self._path_mask.size // self._per_path + 1):
+            block = bytearray(end - start)
+            block[mask_at : mask_at + k * self._per_path] = b"\x01" * (k * self._per_path)
+            self._path_blank.append(bytes(block))
         self._rasters = [name for name in RASTER_NAMES if name in self.arrays]
 
     def write(
@@ -128,20 +146,23 @@ class ObservationRecord:
             return
         if len(neighbours) > n:  # the nearest are kept (the states are nearest first)
             neighbours = neighbours.first(n)
-        self._nbr_floats[self._nbr_slots[:n].ravel()] = neighbours.values.ravel()
-        self._nbr_lane[:n] = [lane.index for lane in neighbour_lanes(neighbours, road)]
+        self._nbr_floats[self._nbr_slots[n]] = neighbours.values.ravel()
+        self._nbr_lane[n].pack_into(
+            self.record,
+            self._nbr_lane_at,
+            *[lane.index for lane in neighbour_lanes(neighbours, road)],
+        )
 
     def _write_waypoints(self, waypoints: WaypointArrays) -> None:
         first, end = self._path_bytes
-        self.record[first:end] = bytes(end - first)
-        w, values = self._per_path, waypoints.values
-        if values.shape[1] == w * len(waypoints.counts):  # every path full: the slots in a row
+        w, values, counts = self._per_path, waypoints.values, waypoints.counts
+        if values.shape[1] == w * len(counts):  # every path full: the slots in a row
+            self.record[first:end] = self._path_blank[len(counts)]
             at: slice | np.ndarray = slice(0, values.shape[1])
         else:
-            at = np.concatenate(
-                [np.arange(i * w, i * w + c) for i, c in enumerate(waypoints.counts)]
-            )
-        self._path_mask[at] = 1
+            self.record[first:end] = self._path_blank[0]
+            at = np.concatenate([np.arange(i * w, i * w + c) for i, c in enumerate(counts)])
+            self._path_mask[at] = 1
         self._path_pos[at] = values[:2].T  # x, y
         self._path_floats[:, at] = values[2:6]  # heading .. lane_offset (WAYPOINT_FIELDS)
         self._path_lane[at] = values[6]

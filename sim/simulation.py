@@ -172,7 +172,7 @@ class Simulation:
         step = self.step_count
         space = self.interface.action_space
         driven = []
-        unknown = sorted(str(k) for k in actions if k not in self._mission_ids)
+        unknown = sorted(map(str, actions.keys() - self._mission_ids))
         for v in self.live:
             try:
                 if unknown:

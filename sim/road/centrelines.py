@@ -10,6 +10,7 @@ arithmetic, slope times the distance from that vertex plus its value, with its s
 from __future__ import annotations
 
 from collections.abc import Iterable
+from functools import lru_cache
 from itertools import repeat
 from typing import TYPE_CHECKING, NamedTuple
 
@@ -87,10 +88,10 @@ class CentrelineTable:
         if not pieces:
             return WaypointArrays(counts, np.zeros((INDEX - X + 1, 0)), [])
         ordinal = self.ordinal
-        piece_counts = [count for _, _, count in pieces]
+        piece_counts = tuple([count for _, _, count in pieces])
         # Each point's search key: its lane's ordinal, and its offset (the imaginary part).
         key = np.array([complex(ordinal[lane], s) for lane, s, _ in pieces]).repeat(piece_counts)
-        key.imag += np.concatenate([_steps(n) for n in piece_counts])
+        key.imag += _piece_steps(piece_counts)
         s = key.imag
         values = self.values.take(self.keys.searchsorted(key, side="right"), axis=1)
         ds = s - values[_CUM]
@@ -104,9 +105,16 @@ class CentrelineTable:
         return WaypointArrays(counts, values[X:], [(lane, count) for lane, _, count in pieces])
 
 
-def _steps(n: int) -> np.ndarray:
-    """[m] offsets of a piece's ``n`` points from its first."""
-    return _STEPS[:n] if n <= len(_STEPS) else WAYPOINT_SPACING * np.arange(n)
+@lru_cache(maxsize=1024)
+def _piece_steps(counts: tuple[int, ...]) -> np.ndarray:
+    """[m] offsets of each point from its piece's first, for pieces of ``counts`` points: the
+    same few counts recur at every step of an episode (e.g. (50, 50, 50) for three full paths
+    along long lanes), so the array is made once per counts (read-only: shared)."""
+    steps = np.concatenate(
+        [_STEPS[:n] if n <= len(_STEPS) else WAYPOINT_SPACING * np.arange(n) for n in counts]
+    )
+    steps.flags.writeable = False
+    return steps
 
 
 def as_dicts(waypoints: WaypointArrays) -> list[dict]:

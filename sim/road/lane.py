@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from itertools import pairwise
 
 import numpy as np
 
@@ -46,6 +47,14 @@ class Lane:
         self.cumulative_s = np.concatenate([[0.0], np.cumsum(self.segment_lengths)])  # (n,) [m]
         self.length = float(self.cumulative_s[-1])  # [m]
         self._points = pts.tolist()
+        # What _frame reads per projection, as plain floats (the same values, without numpy
+        # scalar indexing; lengths by math.hypot, as _frame measured them).
+        self._cum_list = self.cumulative_s.tolist()
+        self._heading_list = self.segment_headings.tolist()
+        self._frame_len = [
+            max(math.hypot(x1 - x0, y1 - y0), 1e-12)
+            for (x0, y0), (x1, y1) in pairwise(self._points)
+        ]
         self._seg_len2 = np.maximum(seg[:, 0] * seg[:, 0] + seg[:, 1] * seg[:, 1], 1e-12)
         # Contiguous copies for np.interp, which would otherwise copy each column per call.
         self._xs, self._ys = pts[:, 0].copy(), pts[:, 1].copy()
@@ -81,10 +90,10 @@ class Lane:
 
     def _frame(self, i: int, u: float, x: float, y: float) -> tuple[float, float, float]:
         (x0, y0), (x1, y1) = self._points[i], self._points[i + 1]
-        seg_len = max(math.hypot(x1 - x0, y1 - y0), 1e-12)
+        seg_len = self._frame_len[i]
         t = ((x1 - x0) * (y - y0) - (y1 - y0) * (x - x0)) / seg_len
-        s = float(self.cumulative_s[i]) + u * seg_len
-        return s, t, float(self.segment_headings[i])
+        s = self._cum_list[i] + u * seg_len
+        return s, t, self._heading_list[i]
 
     def position_at(self, s: float | np.ndarray) -> np.ndarray:
         """Centreline point(s) at distance ``s`` [m] along the lane, (2,) or (m, 2)."""
