@@ -57,20 +57,38 @@ class Stream:
     def __init__(self, read_fd: int, write_fd: int) -> None:
         self.read_fd = read_fd
         self.write_fd = write_fd
-        # Observations are read into one reused buffer, grown when a bigger one comes.
+        # Frames are read into one reused buffer, grown when a bigger one comes; each read takes
+        # what has arrived, so a frame and its header usually come in one system call.
         self.buffer = bytearray(1 << 16)
+        self.start = 0  # the bytes read and not yet taken are buffer[start:end]
+        self.end = 0
 
     def read_exact(self, size: int) -> memoryview:
+        """The next ``size`` bytes: a view of the buffer, valid until the next read."""
+        if self.end - self.start < size:
+            self.make_room(size)
+            view = memoryview(self.buffer)
+            while self.end - self.start < size:
+                received = os.readv(self.read_fd, [view[self.end :]])
+                if received == 0:
+                    raise Closed
+                self.end += received
+        at = self.start
+        self.start += size
+        return memoryview(self.buffer)[at : at + size]
+
+    def make_room(self, size: int) -> None:
+        """Room for ``size`` bytes from ``start``: the bytes not yet taken move to the front, of
+        a new buffer when this one is too small (views of the old one stay valid)."""
+        if self.start == self.end:
+            self.start = self.end = 0  # every frame at the front: the same memory every step
+        if self.start + size <= len(self.buffer):
+            return
+        pending = self.buffer[self.start : self.end]
         if size > len(self.buffer):
             self.buffer = bytearray(size)
-        view = memoryview(self.buffer)[:size]
-        received = 0
-        while received < size:
-            chunk = os.readv(self.read_fd, [view[received:]])
-            if chunk == 0:
-                raise Closed
-            received += chunk
-        return view
+        self.buffer[: len(pending)] = pending
+        self.start, self.end = 0, len(pending)
 
     def receive(self) -> tuple[str, object]:
         """A message's kind and body; an arrays act frame is ``("arrays", payload)``, a view of
@@ -84,7 +102,7 @@ class Stream:
         return pickle.loads(payload)
 
     def send(self, message: dict) -> None:
-        payload = json.dumps(message, default=to_json, separators=(",", ":")).encode()
+        payload = ENCODER.encode(message).encode()
         data = memoryview(HEADER.pack(len(payload)) + payload)
         while data:
             data = data[os.write(self.write_fd, data) :]
@@ -96,6 +114,10 @@ def to_json(value: object) -> object:
     if tolist is None:
         raise TypeError(f"{type(value).__name__} is not a number, list or dict")
     return tolist()
+
+
+# Made once: json.dumps with options builds an encoder per call.
+ENCODER = json.JSONEncoder(default=to_json, separators=(",", ":"))
 
 
 def error_message(error: BaseException) -> dict:
@@ -210,8 +232,10 @@ def blame(error: BaseException, obs: dict) -> str | None:
 
 class ArrayObservations:
     """Reads arrays act frames (``docs/protocol.md``, "Arrays observations") with the layout
-    the evaluator sent once: each agent's record is copied out of the frame and its arrays are
-    views of that copy, so a policy may keep them."""
+    the evaluator sent once: each agent's record is copied out of the frame into a record of its
+    own, whose arrays are views of it, so a policy may keep them. The records and their views
+    for the next frame are built ahead (:meth:`prepare`, while the evaluator steps the
+    simulation), so a frame only copies its records in."""
 
     def __init__(self, layout: dict) -> None:
         import numpy
@@ -232,6 +256,8 @@ class ArrayObservations:
                 groups[group] = []
                 self.plan.append((group, None, groups[group]))
             groups[group].append((name, *leaf))
+        self.ready: list[tuple[bytearray, dict]] = []  # unused records and their observations
+        self.agents = 0  # how many agents the last frame had: the next one likely has as many
 
     def decode(self, payload: memoryview) -> dict:
         _, count, size = ARRAYS_HEAD.unpack_from(payload)
@@ -244,13 +270,24 @@ class ArrayObservations:
             at += ID_SIZE.size
             ids.append(str(payload[at : at + length], "utf-8"))
             at += length
+        if len(payload) != at + count * size:
+            raise ValueError(f"an arrays frame of {len(payload)} bytes, not {at + count * size}")
         obs = {}
         for agent_id in ids:
-            obs[agent_id] = self.observation(bytearray(payload[at : at + size]))
+            record, obs[agent_id] = self.ready.pop() if self.ready else self.observation()
+            record[:] = payload[at : at + size]  # the same size: its views stay valid
             at += size
+        self.agents = count
         return obs
 
-    def observation(self, record: bytearray) -> dict:
+    def prepare(self) -> None:
+        """Build records and their observations for as many agents as the last frame had."""
+        while len(self.ready) < self.agents:
+            self.ready.append(self.observation())
+
+    def observation(self) -> tuple[bytearray, dict]:
+        """A new record (zeros) and the observation dict of its views."""
+        record = bytearray(self.size)
         ndarray = self.ndarray
         obs = {}
         for key, leaf, group in self.plan:
@@ -258,7 +295,7 @@ class ArrayObservations:
                 obs[key] = ndarray(leaf[0], leaf[1], record, leaf[2])
             else:
                 obs[key] = {name: ndarray(s, d, record, o) for name, s, d, o in group}
-        return obs
+        return record, obs
 
 
 def load_adapter(observation_format: str, action_space: str, options: dict):
@@ -308,6 +345,8 @@ def serve(stream: Stream, policy: object, adapter=None) -> None:
                 if adapter:
                     message["actions"] = adapter.actions(message["actions"])
                 stream.send(message)
+                if kind == "arrays":
+                    arrays.prepare()  # after the answer: off the round trip
             except BaseException as error:
                 stream.send(error_message(error))
                 return

@@ -32,6 +32,8 @@ INBOX_BYTES = 64 * 1024
 # the raw bytes before parsing, since json's recursive decoder overflows the stack on a frame of
 # a few thousand brackets.
 MAX_REPLY_DEPTH = 32
+# Replies are UTF-8 (docs/protocol.md): decoded as such, not sniffed for another encoding.
+JSON = json.JSONDecoder()
 
 
 class ChannelClosed(ArenaError):
@@ -92,9 +94,11 @@ class Channel:
     def send_frame(self, parts: list[bytes | bytearray | memoryview], deadline: float) -> None:
         """Write one frame whose payload is ``parts`` joined (written as they are, not copied)."""
         views = [memoryview(part).cast("B") for part in parts]
-        pending = [memoryview(HEADER.pack(sum(len(view) for view in views))), *views]
+        size = sum(map(len, views))
+        pending = [HEADER.pack(size), *views]
+        left = HEADER.size + size
         try:
-            while pending:
+            while True:
                 try:
                     written = os.writev(self.write_fd, pending)
                 except BlockingIOError:
@@ -102,11 +106,12 @@ class Channel:
                     continue
                 except (BrokenPipeError, ConnectionResetError) as error:
                     raise ChannelClosed from error
-                while pending and written >= len(pending[0]):
-                    written -= len(pending[0])
-                    pending.pop(0)
-                if pending:
-                    pending[0] = pending[0][written:]
+                left -= written
+                if not left:
+                    return
+                while written >= len(pending[0]):
+                    written -= len(pending.pop(0))
+                pending[0] = memoryview(pending[0])[written:]
         finally:
             del views, pending
 
@@ -121,9 +126,10 @@ class Channel:
                 if end > len(self._inbox):
                     self._inbox.extend(bytes(end - len(self._inbox)))
                 if self._filled >= end:
-                    payload = bytes(self._inbox[HEADER.size : end])
+                    payload = self._inbox[HEADER.size : end]
                     left = self._filled - end
-                    self._inbox[:left] = self._inbox[end : self._filled]
+                    if left:
+                        self._inbox[:left] = self._inbox[end : self._filled]
                     self._filled = left
                     return decode_reply(payload)
             self._wait(self._readable, deadline)
@@ -148,7 +154,7 @@ _STRUCTURAL = b'[]{}"\\'
 _NOT_STRUCTURAL = bytes(b for b in range(256) if b not in _STRUCTURAL)
 
 
-def exceeds_depth(payload: bytes, limit: int) -> bool:
+def exceeds_depth(payload: bytes | bytearray, limit: int) -> bool:
     """Whether a JSON text nests brackets deeper than ``limit`` (brackets in strings ignored)."""
     if payload.count(b"[") + payload.count(b"{") <= limit:
         return False
@@ -174,13 +180,13 @@ def exceeds_depth(payload: bytes, limit: int) -> bool:
     return False
 
 
-def decode_reply(payload: bytes) -> dict[str, Any]:
+def decode_reply(payload: bytes | bytearray) -> dict[str, Any]:
     """The agent's JSON message. Every way a payload can be bad is a :class:`ChannelViolation`
     (the agent's ``agent_error``), never an exception of ours."""
     if exceeds_depth(payload, MAX_REPLY_DEPTH):
         raise ChannelViolation(f"a reply nested more than {MAX_REPLY_DEPTH} deep")
     try:
-        message = json.loads(payload)
+        message = JSON.decode(payload.decode())
     except (UnicodeDecodeError, ValueError, RecursionError) as error:
         # ValueError covers JSONDecodeError and an integer of more than 4300 digits.
         raise ChannelViolation(f"a reply that is not JSON: {error}"[:300]) from error

@@ -120,13 +120,37 @@ def test_the_runner_reads_back_what_the_frames_hold() -> None:
         decoded = reader.decode(payload)
         assert list(decoded) == list(obs)
         for agent_id, o in obs.items():
-            expected = ObservationEncoder(frames.layout).encode(o)
-            for leaf in frames.layout.leaves:
-                got, want = decoded[agent_id], expected
-                for key in leaf.path:
-                    got, want = got[key], want[key]
-                assert got.dtype == want.dtype and got.shape == want.shape
-                np.testing.assert_array_equal(got, want)
+            assert_holds(decoded[agent_id], o, frames.layout)
+
+
+def test_records_built_ahead_leave_earlier_steps_alone() -> None:
+    """The runner builds the next frame's records after answering (``prepare``): each step
+    gets its own frame's values, and the arrays a policy kept from earlier steps stay as they
+    were; a frame whose length does not match its records is refused."""
+    frames = ArrayFrames(INTERFACE)
+    reader = agent_main.ArrayObservations(frames.layout.describe())
+    kept = []
+    for obs in steps() * 2:
+        payload = memoryview(b"".join(bytes(part) for part in frames.frame(obs)))
+        decoded = reader.decode(payload)
+        reader.prepare()
+        kept += [(decoded[agent_id], o) for agent_id, o in obs.items()]
+    assert len({id(arrays["waypoint_paths"]["pos"].base) for arrays, _ in kept}) == len(kept)
+    for arrays, o in kept:
+        assert_holds(arrays, o, frames.layout)
+    with pytest.raises(ValueError, match="bytes, not"):
+        reader.decode(payload[:-1])
+
+
+def assert_holds(arrays: dict, o: dict, layout: ObservationLayout) -> None:
+    """``arrays`` (the runner's) hold what the encoder makes of the observation dict ``o``."""
+    expected = ObservationEncoder(layout).encode(o)
+    for leaf in layout.leaves:
+        got, want = arrays, expected
+        for key in leaf.path:
+            got, want = got[key], want[key]
+        assert got.dtype == want.dtype and got.shape == want.shape
+        np.testing.assert_array_equal(got, want)
 
 
 POLICY_HEAD = "import numpy as np\n\nclass Policy:\n    def act(self, obs):\n"

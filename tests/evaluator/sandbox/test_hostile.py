@@ -165,6 +165,20 @@ CASES = [
         """,
         evidence=("protocol violation", "not JSON"),
     ),
+    Hostile(
+        # Replies are UTF-8 JSON: json.loads would have taken this one, sniffing UTF-16 bytes.
+        "a frame of UTF-16 JSON",
+        act="""
+        frame = '{"type": "actions", "actions": {}}'.encode('utf-16')
+        for fd in range(3, 16):
+            try:
+                os.write(fd, len(frame).to_bytes(4, 'big') + frame)
+            except OSError:
+                pass
+        time.sleep(5)
+        """,
+        evidence=("protocol violation", "not JSON"),
+    ),
     Hostile("raising in act", act="raise KeyError('lost')", evidence=("KeyError: 'lost'",)),
     Hostile(
         "returning a list, not a dict",
