@@ -80,6 +80,9 @@ def run_embedded(console: Console, *, host: str, port: int, demo_team: str) -> N
     ]
     url = f"http://{host}:{port}"
     signal.signal(signal.SIGTERM, _interrupt)  # `kill` stops it as cleanly as Ctrl-C
+    # Ctrl-C too, even when started from a background job of a script, which inherits SIGINT
+    # ignored (as POSIX shells start them) and would never stop on it.
+    signal.signal(signal.SIGINT, _interrupt)
     try:
         _wait_healthy(f"{url}/api/v1/healthz", children)
         console.print(

@@ -47,7 +47,13 @@ def start_up(root, port: int, log) -> subprocess.Popen:
             stdout=out,
             stderr=out,
             start_new_session=True,
+            # As a background job of a script starts it: Ctrl-C must stop it all the same.
+            preexec_fn=_ignore_sigint,
         )
+
+
+def _ignore_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def wait_up(process: subprocess.Popen, log) -> str:

@@ -150,7 +150,11 @@ def test_offline_submission_trains_then_is_evaluated_and_ranked(stack_settings, 
             statuses = watch(url, token, good)
             assert [s["status"] for s in statuses][-3:] == ["training", "running", "scored"]
             final = statuses[-1]
-            assert final["progress"] == {"done": len(SCENARIOS), "total": len(SCENARIOS)}
+            assert final["progress"] == {
+                "done": len(SCENARIOS),
+                "total": len(SCENARIOS),
+                "seeds": 1,
+            }
             training = final["training"]
             assert training["status"] == "trained" and training["failure"] == ""
             assert "saved weights.npz" in training["log_tail"]  # the team sees its log

@@ -88,7 +88,11 @@ def test_three_examples_are_scored_and_ranked(stack_settings, tmp_path):
             final = {name: wait_finished(url, tokens[name], ids[name]) for name in ids}
             for name, body in final.items():
                 assert body["status"] == "scored", (name, body)
-                assert body["progress"] == {"done": len(SCENARIOS), "total": len(SCENARIOS)}
+                assert body["progress"] == {
+                    "done": len(SCENARIOS),
+                    "total": len(SCENARIOS),
+                    "seeds": 1,
+                }
             assert final["planner"]["metrics"]["completion"] == 0.0
             time.sleep(1.1)  # the API re-checks the leaderboard generation once a second
             board = httpx.get(f"{url}/api/v1/leaderboard").json()["entries"]
@@ -420,7 +424,7 @@ def test_several_episodes_per_scenario_through_the_worker(stack_settings, suite,
     reactive = [s for s in SCENARIOS if "replay" not in s]
     assert body["status"] == "scored", body
     episodes = 2 * len(reactive) + 1
-    assert body["progress"] == {"done": episodes, "total": episodes}
+    assert body["progress"] == {"done": episodes, "total": episodes, "seeds": 1}
     assert body["episodes_per_scenario"] == 2
     assert body["metrics"] == local.metrics.model_dump()
     assert body["completion_interval"] == {"low": interval.low, "high": interval.high}
