@@ -18,9 +18,7 @@ depends_on: str | Sequence[str] | None = None
 def upgrade() -> None:
     with op.batch_alter_table("submissions", schema=None) as batch_op:
         batch_op.add_column(
-            sa.Column(
-                "failed_on_our_side", sa.Boolean(), server_default=sa.false(), nullable=False
-            )
+            sa.Column("failed_on_our_side", sa.Boolean(), server_default=sa.false(), nullable=False)
         )
 
 

@@ -26,9 +26,7 @@ def upgrade() -> None:
             sa.Column("episodes_per_scenario", sa.Integer(), server_default="1", nullable=False)
         )
     with op.batch_alter_table("scenario_results", schema=None) as batch_op:
-        batch_op.add_column(
-            sa.Column("episode", sa.Integer(), server_default="0", nullable=False)
-        )
+        batch_op.add_column(sa.Column("episode", sa.Integer(), server_default="0", nullable=False))
         batch_op.drop_constraint("uq_scenario_results_run_id", type_="unique")
         batch_op.create_unique_constraint(
             "uq_scenario_results_run_id", ["run_id", "scenario_id", "episode"]
