@@ -50,6 +50,20 @@ class Hostile:
     overrides: dict = field(default_factory=dict)
 
 
+def framed(frame: str, then: str = "") -> str:
+    """Agent code sending ``frame`` (a Python expression of bytes), length-prefixed as the
+    protocol frames messages, down every descriptor the runtime may talk on; then ``then``."""
+    return f"""
+        frame = {frame}
+        for fd in range(3, 16):
+            try:
+                os.write(fd, len(frame).to_bytes(4, 'big') + frame)
+            except OSError:
+                pass
+        {then}
+        """
+
+
 CASES = [
     Hostile(
         "docker socket",
@@ -140,43 +154,25 @@ CASES = [
     Hostile(
         # json's recursive decoder raised an uncaught RecursionError: an uncharged error of ours.
         "a deeply nested frame before ready",
-        init="""
-        frame = b'[' * 200_000
-        for fd in range(3, 16):
-            try:
-                os.write(fd, len(frame).to_bytes(4, 'big') + frame)
-            except OSError:
-                pass
-        """,
+        init=framed("b'[' * 200_000"),
         fails_at="start",
         evidence=("nested more than",),
     ),
     Hostile(
         # An integer of more than 4300 digits: json raised an uncaught ValueError.
         "a 5000-digit integer in a frame",
-        act="""
-        frame = b'{"type": "actions", "actions": {"Agent_0": [' + b'9' * 5000 + b', 0]}}'
-        for fd in range(3, 16):
-            try:
-                os.write(fd, len(frame).to_bytes(4, 'big') + frame)
-            except OSError:
-                pass
-        time.sleep(5)
-        """,
+        act=framed(
+            """b'{"type": "actions", "actions": {"Agent_0": [' + b'9' * 5000 + b', 0]}}'""",
+            then="time.sleep(5)",
+        ),
         evidence=("protocol violation", "not JSON"),
     ),
     Hostile(
         # Replies are UTF-8 JSON: json.loads would have taken this one, sniffing UTF-16 bytes.
         "a frame of UTF-16 JSON",
-        act="""
-        frame = '{"type": "actions", "actions": {}}'.encode('utf-16')
-        for fd in range(3, 16):
-            try:
-                os.write(fd, len(frame).to_bytes(4, 'big') + frame)
-            except OSError:
-                pass
-        time.sleep(5)
-        """,
+        act=framed(
+            """'{"type": "actions", "actions": {}}'.encode('utf-16')""", then="time.sleep(5)"
+        ),
         evidence=("protocol violation", "not JSON"),
     ),
     Hostile("raising in act", act="raise KeyError('lost')", evidence=("KeyError: 'lost'",)),
