@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 
+from arena import portable_math
+
 
 def wrap(angle: float) -> float:
     """Wrap radians to (-pi, pi]."""
@@ -17,7 +19,7 @@ def box_corners(
     x: np.ndarray, y: np.ndarray, heading: np.ndarray, length: np.ndarray, width: np.ndarray
 ) -> np.ndarray:
     """Corners (n, 4, 2) [m] of oriented rectangles centred at (x, y) [m], counter-clockwise."""
-    c, s = np.cos(heading), np.sin(heading)
+    c, s = portable_math.cos(heading), portable_math.sin(heading)
     hl, hw = np.asarray(length) / 2, np.asarray(width) / 2
     fx, fy = c * hl, s * hl  # half-length along the heading
     lx, ly = -s * hw, c * hw  # half-width to the left
@@ -44,8 +46,13 @@ def boxes_overlap(ego: np.ndarray, others: np.ndarray) -> np.ndarray:
     ego_axes = np.array([ego[1] - ego[0], ego[2] - ego[1]])  # (2, 2)
     other_axes = np.stack([others[:, 1] - others[:, 0], others[:, 2] - others[:, 1]], 1)
     axes = np.concatenate([np.broadcast_to(ego_axes, (len(others), 2, 2)), other_axes], 1)
-    ego_proj = np.einsum("nak,ck->nac", axes, ego)  # (n, 4 axes, 4 corners)
-    other_proj = np.einsum("nak,nck->nac", axes, others)
+    # Products and one sum each, no einsum: its kernels may fuse them (FMA) on some CPUs.
+    ego_proj = (
+        axes[:, :, None, 0] * ego[None, None, :, 0] + axes[:, :, None, 1] * ego[None, None, :, 1]
+    )
+    other_proj = (
+        axes[:, :, None, 0] * others[:, None, :, 0] + axes[:, :, None, 1] * others[:, None, :, 1]
+    )
     separated = (ego_proj.max(-1) < other_proj.min(-1)) | (other_proj.max(-1) < ego_proj.min(-1))
     return ~separated.any(-1)
 

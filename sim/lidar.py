@@ -15,6 +15,7 @@ import math
 import numpy as np
 import shapely
 
+from arena import portable_math
 from sim.geometry import box_corners
 from sim.road import RoadNetwork
 from sim.vehicle.states import VehicleStates
@@ -49,7 +50,7 @@ class Lidar:
             segments.append(sides.reshape(-1, 2, 2))
         edges = np.concatenate(segments)  # (m, 2, 2) [m]
         angles = heading + _ANGLES
-        d = np.stack([np.cos(angles), np.sin(angles)], 1)  # (RAYS, 2)
+        d = np.stack([portable_math.cos(angles), portable_math.sin(angles)], 1)  # (RAYS, 2)
         distance = np.full(RAYS, np.inf)
         if len(edges):
             p = edges[:, 0] - (x, y)  # (m, 2) segment starts from the origin

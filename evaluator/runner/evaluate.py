@@ -3,10 +3,11 @@
 Up to ``jobs`` episodes run at once, each in its own simulator process with its own sandboxed
 agent (the threads here only wait on those processes). A reactive scenario runs
 ``episodes_per_scenario`` episodes, each with other traffic (:mod:`arena.episodes`).
-``summary.json`` is rewritten whenever episodes start or finish (once for those that finish and
-start together), so a crash leaves a trace and a re-run with the same ``out_dir`` resumes where it
-stopped. ``agent_cpu.json`` keeps the CPU time the agent used: once it passes the evaluation's
-budget, no more episodes start, a resumed run included (:mod:`evaluator.runner.cpu_budget`).
+``summary.json`` is rewritten as episodes start and finish (at most once per round of those that
+finish and start together, and less often as it grows: :meth:`ResultsFolder.checkpoint`), so a
+crash leaves a trace and a re-run with the same ``out_dir`` resumes where it stopped.
+``agent_cpu.json`` keeps the CPU time the agent used: once it passes the evaluation's budget, no
+more episodes start, a resumed run included (:mod:`evaluator.runner.cpu_budget`).
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from collections.abc import Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
 from contextlib import contextmanager
 from pathlib import Path
+from time import monotonic
 from typing import Protocol
 
 from arena.config import IntakeSettings, SandboxKind, SandboxSettings
@@ -52,6 +54,12 @@ from evaluator.training import folder_digest
 from submissions.intake import prepare_submission
 
 TIMINGS_FILE = "timings.json"  # wall times: kept out of summary.json, which is deterministic
+# Rewriting summary.json costs in proportion to the episodes it holds (about 60 us each; a
+# DS-2022 run's 3,607 make a write a fifth of a second), and the evaluating thread holds the GIL
+# while it encodes. Written after every episode, a long run spent time quadratic in its length
+# there. A checkpoint therefore waits this many times the last write's cost after it: the
+# writes stay under a twentieth of the run's time, however long it is.
+CHECKPOINT_SPACING = 19
 
 
 class ResultsDirError(ArenaError):
@@ -156,13 +164,12 @@ def evaluate(
                     run.mark_running(episode)
                     pending[pool.submit(play, episode)] = episode
                 # The episodes that finished are scored (reading their records) while the next
-                # ones start, and the summary is written once per round: encoding a whole
-                # suite's takes milliseconds, twice per episode was a second per hundred.
+                # ones start.
                 for outcome in finished:
                     run.record(outcome)
                     if progress:
                         progress.finished(outcome)
-                run.summary()
+                run.checkpoint()
                 if not pending:
                     break
                 done, _ = wait(pending, return_when=FIRST_COMPLETED)
@@ -277,6 +284,7 @@ class ResultsFolder:
         self.timings: dict[str, float] = {}  # episode name -> wall time [s]
         self.cpu = CpuLedger(out_dir, cpu_limits)
         self.lock = threading.Lock()
+        self._next_checkpoint = 0.0  # [s] monotonic() of the next due checkpoint
 
     @property
     def over_budget(self) -> bool:
@@ -366,7 +374,14 @@ class ResultsFolder:
         with self.lock:
             return self._write()
 
+    def checkpoint(self) -> None:
+        """:meth:`summary`, unless the last write was too recent for its cost
+        (:data:`CHECKPOINT_SPACING`)."""
+        if monotonic() >= self._next_checkpoint:
+            self.summary()
+
     def _write(self) -> Summary:
+        started = monotonic()
         summary = score_outcomes(
             self.outcomes.values(),
             self.suite,
@@ -380,4 +395,6 @@ class ResultsFolder:
         write_summary(summary, self.out_dir)
         (self.out_dir / TIMINGS_FILE).write_text(json.dumps(self.timings, indent=2) + "\n")
         self.cpu.write()
+        ended = monotonic()
+        self._next_checkpoint = ended + CHECKPOINT_SPACING * (ended - started)
         return summary

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from arena import portable_math
 from evaluator.scoring.record import AgentTrack
 from evaluator.scoring.term import Term, TermParameters
 
@@ -23,7 +24,7 @@ def distance_obs(track: AgentTrack, profile: TermParameters) -> np.ndarray:
     dx = track.nbr_x - track.x[:, None]  # (n, K) [m]
     dy = track.nbr_y - track.y[:, None]
     distance = np.hypot(dx, dy)
-    off_heading = np.abs(wrap_angle(np.arctan2(dy, dx) - track.heading[:, None]))
+    off_heading = np.abs(wrap_angle(portable_math.arctan2(dy, dx) - track.heading[:, None]))
     moving = track.speed[:, None] > 0.0
     reach = profile.obs_headway_s * track.speed[:, None]  # [m]
     ahead = (
@@ -32,7 +33,7 @@ def distance_obs(track: AgentTrack, profile: TermParameters) -> np.ndarray:
         & (distance <= reach)
         & (off_heading <= np.deg2rad(profile.obs_half_angle_deg))
     )
-    closeness = np.exp(-profile.obs_decay_per_m * np.where(ahead, distance, 0.0))
+    closeness = portable_math.exp(-profile.obs_decay_per_m * np.where(ahead, distance, 0.0))
     return np.where(ahead, closeness, 0.0).max(axis=1, initial=0.0)
 
 

@@ -10,6 +10,7 @@ only the changed rectangle of each frame stored (OpenCV's writer: 6 MB for 20 s,
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
@@ -125,7 +126,7 @@ class FramePainter:
             x, y, heading = r.x[v, f], r.y[v, f], r.heading[v, f]
             if not np.isfinite(x):
                 continue
-            c, s = np.cos(heading), np.sin(heading)
+            c, s = math.cos(heading), math.sin(heading)
             rot = np.array([[c, -s], [s, c]])
             box = np.array([[0.5, 0.5], [0.5, -0.5], [-0.5, -0.5], [-0.5, 0.5]])
             body = (box * [r.length[v], r.width[v]]) @ rot.T + [x, y]

@@ -14,10 +14,12 @@ keeps its previous heading. NGSIM data is real recorded traffic: label it ``natu
 from __future__ import annotations
 
 import csv
+import math
 from pathlib import Path
 
 import numpy as np
 
+from arena import portable_math
 from arena.errors import ArenaError
 from sim.trajectories import Trajectory
 
@@ -49,7 +51,7 @@ def headings_from_positions(x: np.ndarray, y: np.ndarray, initial: float = 0.0) 
     current = initial
     for i in range(len(x) - 1):
         if moving[i]:
-            current = float(np.arctan2(dy[i], dx[i]))
+            current = math.atan2(dy[i], dx[i])
         h[i] = current
     if len(x):
         h[-1] = h[-2] if len(x) > 1 else current
@@ -95,8 +97,8 @@ def read_ngsim(path: Path, origin: tuple[float, float] = (0.0, 0.0)) -> list[Tra
             Trajectory(
                 vehicle_id=vid,
                 time=np.round((arr[:, 0] - first_frame) * FRAME_S, 1),
-                x=front_x - 0.5 * length * np.cos(heading),
-                y=front_y - 0.5 * length * np.sin(heading),
+                x=front_x - 0.5 * length * portable_math.cos(heading),
+                y=front_y - 0.5 * length * portable_math.sin(heading),
                 heading=heading,
                 speed=arr[:, 3],
                 length=length,

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from arena import portable_math
 from arena.errors import ArenaError
 from scenarios.traffic import Routes
 from sim.trajectories import Trajectory
@@ -107,8 +108,8 @@ def parse_fcd(path: Path, dims: dict[str, tuple[float, float]]) -> Recording:
     for vid, values in rows.items():
         arr = np.asarray(values)
         length, width = dims.get(types[vid].split("@")[0], (4.5, 1.8))
-        x = arr[:, 1] - 0.5 * length * np.cos(arr[:, 3])
-        y = arr[:, 2] - 0.5 * length * np.sin(arr[:, 3])
+        x = arr[:, 1] - 0.5 * length * portable_math.cos(arr[:, 3])
+        y = arr[:, 2] - 0.5 * length * portable_math.sin(arr[:, 3])
         trajectories[vid] = Trajectory(vid, arr[:, 0], x, y, arr[:, 3], arr[:, 4], length, width)
         seq: list[str] = []
         for lane in lanes[vid]:

@@ -8,6 +8,7 @@ from itertools import pairwise
 
 import numpy as np
 
+from arena import portable_math
 from sim.road.centrelines import WAYPOINT_SPACING, CentrelineTable, as_dicts
 
 # Lanes of more centreline points than this are projected onto with numpy (one pass over all
@@ -43,7 +44,7 @@ class Lane:
         self.centreline = pts
         seg = np.diff(pts, axis=0)
         self.segment_lengths = np.hypot(seg[:, 0], seg[:, 1])  # (n-1,) [m]
-        self.segment_headings = np.arctan2(seg[:, 1], seg[:, 0])  # (n-1,) [rad]
+        self.segment_headings = portable_math.arctan2(seg[:, 1], seg[:, 0])  # (n-1,) [rad]
         self.cumulative_s = np.concatenate([[0.0], np.cumsum(self.segment_lengths)])  # (n,) [m]
         self.length = float(self.cumulative_s[-1])  # [m]
         self._points = pts.tolist()

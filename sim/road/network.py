@@ -13,6 +13,7 @@ import shapely
 from shapely.geometry import GeometryCollection, LineString, MultiPolygon, Polygon
 from shapely.geometry.base import BaseGeometry
 
+from arena import portable_math
 from sim.road.lane import Lane, angle_between
 
 # Lanes whose centreline is within this much of the nearest one [m] compete on heading, so that
@@ -130,7 +131,9 @@ class RoadNetwork:
         self._seg_len = np.sqrt(self._seg_len2)  # (S,) [m]
         self._seg_lane = np.concatenate(lane_idx)  # (S,)
         self._seg_s0 = np.concatenate(s0)  # (S,) [m]
-        self._seg_heading = np.arctan2(self._seg_d[:, 1], self._seg_d[:, 0])  # (S,) [rad]
+        self._seg_heading = portable_math.arctan2(
+            self._seg_d[:, 1], self._seg_d[:, 0]
+        )  # (S,) [rad]
         ends = self._seg_p0 + self._seg_d
         self._tree = _segment_tree(self._seg_p0, self._seg_d)
         # Uniform grid: each cell lists the segments passing within _GRID_REACH of it, so a point

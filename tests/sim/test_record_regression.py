@@ -5,7 +5,10 @@ record byte and every observation value. The digests below were last taken when 
 began at the vehicle's own offset along its lane (level with it, as SMARTS documents; before,
 at the next whole metre): every observation changed, and the records of the agents that follow
 waypoints on the junction and curve (the planner on p000 and p020, keep-lane on p000); the
-random agents' and the replays' records are unchanged. A deliberate change of records or
+random agents' and the replays' records are unchanged. They were re-taken once more when the
+simulator's arctangents, sines and cosines moved from numpy to the C library
+(``arena/portable_math.py``): numpy's differ in the last bit on AVX-512 CPUs, so the digests of
+the junction and curve scenarios depended on the machine. A deliberate change of records or
 observations (new fields, other waypoints, other terminal steps) updates them in the same commit,
 saying why:
 ``python -m tests.sim.test_record_regression`` prints the current digests.
@@ -40,13 +43,13 @@ from sim.interface import AgentInterface
 EXPECTED = {
     # SUMO traffic through a junction, one agent
     "p000_left_turn_t_low": (
-        "be997abcded3f7447b5550616348830e01b35660aa318dd18f158c6550cf9374",
-        "8b0f4bddfad8da2f1da06270084c6708448b70e9101575525af39ed154610d9d",
+        "8078e1bbfd80d4f573b5db0ddcf438537040ba9bfb410118691105d3f225b8a3",
+        "5173419b63973581b1f5fcff5f9388b7b42c6741fd346146f36eaa1175ae044b",
     ),
     # three agents sharing a curved road (neighbours include the other egos)
     "p020_cruise_3lane_curve_low_3agents": (
-        "6fdef3df4064ce8cb409d6d3ce16e04b31bc2bcdd5e6b707dbb6bff6eeb46c93",
-        "fcba62cba2c6b5a5c73a8f4eda939fc137f3cbbb8a0838b02fdc83f184e22120",
+        "bc779e10bf0630e0c9092c39d80a83be69fb9f2dfb6e52be7da514ee43abb480",
+        "875ec534bbb9fd360716a8a1219c6b17e426be4331986b4b35a5f37f7288d15c",
     ),
     # a scripted cut-in (triggers move SUMO vehicles)
     "p021_cut_in_3lane_mid": (
@@ -70,8 +73,8 @@ EXPECTED = {
 # as their dtype, shape and sha256)
 EXPECTED_INTERFACES = {
     ("p000_left_turn_t_low", "keep_lane_rasters"): (
-        "0662bf08ab4d652516117c2d8c28f62cbf55387810ca11afbac7dc968b243468",
-        "3f347158c903fbc0dff64a05c9f8936ce25089b27207c0fb431a57d4f5bc89a8",
+        "b2d474349584d1d9979db51da91de76a50aeabe142fdc0ffe55feb24f32c0c0a",
+        "f203772388a7ca9849319dccca7315057b08137c0bfe6175fbd049b65e073294",
     ),
     ("p000_left_turn_t_low", "continuous_random"): (
         "e04754b7953ddbc0907a4ffdc1aa87595c78d38c1e32d688b61517d04a93ebb2",
@@ -79,19 +82,19 @@ EXPECTED_INTERFACES = {
     ),
     ("p000_left_turn_t_low", "relative_random"): (
         "8e7ca6d63549313283f5fa3eab839f9a96a9492390cdf9e6c0905220a692f180",
-        "c059202f8be634be486693d4a61ff55bd0d49283753ac1015fab142b81232a34",
+        "4316d9138e1e6dab058c27292eb6da3e0fb04c7c29826a03323d253061d50c3b",
     ),
     ("p020_cruise_3lane_curve_low_3agents", "keep_lane_rasters"): (
-        "ad398df72e88d8d14a07194c3b416550a3ed2385e97e2a56fa8f3366ae67b0f5",
-        "201d7aa78b21fd11c2ff7d2c18ca9ae1f04ba48a6569ea6ac71070e68940abaf",
+        "ac35c4d87a3c891cdd134381d4afa257ac41b0ea847ee065a146c52e3fc1dad6",
+        "e15160a6968739a43c944e8272a9b6c6e95801c6cf97164928d7c87050ee9665",
     ),
     ("p020_cruise_3lane_curve_low_3agents", "continuous_random"): (
         "7028497f54113f5dce5f998dbc78a1db7b4f8600a6ab2ac62762baee4dd21ef3",
-        "1f25ed7cb534aec4d0316e1eb9ada84f3ae705824affcc5a411c7a8985415649",
+        "8a5d600fdf39246bd6a5671dfb58c56dfcfcdcc834b25b082b762b893e732555",
     ),
     ("p020_cruise_3lane_curve_low_3agents", "relative_random"): (
-        "ddd1b0c97ba347fc232eb2d13ca89b4b1a94f3544e40ca614854519f91e7eaf4",
-        "a2937ad7d48872bf042c6ba14f249dc7e6ef0666f95ab22e7f123e88936ac728",
+        "f4dbe952db25dad23eeba2406c4dda0c317c1f926504fde819060fad4947d8fa",
+        "40bc7fda6106c69d12c65f4a1f517b3e6610ef7a3b5c2e28c671a77d451607b7",
     ),
     ("p029_replay_i80_bubble", "keep_lane_rasters"): (
         "dca8f0bdc5b93230da7290815869d9645de26ef1ed6fcfb49851b18fee5c1d62",
@@ -118,12 +121,12 @@ EXPECTED_INTERFACES = {
         "0efb00889da8055212225a52f217bddd1ed443537f7363cbce9df0fdd133fa90",
     ),
     ("p000_left_turn_t_low", "keep_lane_smarts2022"): (
-        "0662bf08ab4d652516117c2d8c28f62cbf55387810ca11afbac7dc968b243468",
-        "7ea2ea15a62e2e443cd9449713aed595e491666ead9b51ad692f4fbe322bea36",
+        "b2d474349584d1d9979db51da91de76a50aeabe142fdc0ffe55feb24f32c0c0a",
+        "95fdab78a92ec94ed8f71a653a4f4726a6b451b7dffb0e367e8e75534ecf77cc",
     ),
     ("p020_cruise_3lane_curve_low_3agents", "keep_lane_smarts2022"): (
-        "2f4525d0bdf1eebc1a3f93e99b9d923dd1a3e4b534123a5961a72431d6cec4e2",
-        "5cfa2bba5a5ba42dbbb9b91b0c3cdaee9c76436c7439b9ba15af065f068f55a3",
+        "4a5b3148ca05d48c884f6fc395ceb6978f84aa976e8d3071fbd7d52e38311f92",
+        "3e3213cbfd5fba8f141a59fdb7dc36707c014af113fc6c0fe7f03d551d933764",
     ),
     ("p029_replay_i80_bubble", "keep_lane_smarts2022"): (
         "918a523cda3135c555cf107847d0cba8682ae175768dba4a59c8b48d48786f70",

@@ -440,7 +440,8 @@ class AgentPlanner:
         xy, n = target.xy, len(target.xy)
         if n > 12:
             chord = xy[5:] - xy[:-5]
-            direction = np.arctan2(chord[:, 1], chord[:, 0])
+            # math.atan2, not np.arctan2: numpy's differs in the last bit on AVX-512 CPUs
+            direction = np.array(list(map(math.atan2, chord[:, 1].tolist(), chord[:, 0].tolist())))
             # np.unwrap changes nothing unless the direction jumps across +-pi, and it is slow.
             if (np.abs(np.diff(direction)) >= math.pi).any():
                 direction = np.unwrap(direction)

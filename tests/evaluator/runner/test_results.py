@@ -1,6 +1,7 @@
 """Summaries from outcomes and stored records, without the simulator."""
 
 import json
+import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -277,3 +278,36 @@ def test_one_episode_summaries_keep_their_shape_and_several_rescore_alike(
     assert twice.completion_samples() == [[0.0, 1.0], [0.0]]
     interval = twice.completion_interval()
     assert interval.low <= twice.metrics.completion <= interval.high
+
+
+def test_checkpoints_space_summary_writes_by_their_cost(tmp_path, monkeypatch):
+    """A long run's summary.json grows with every episode; rewriting it after each one made the
+    run quadratic. Checkpoints wait CHECKPOINT_SPACING times the last write's cost."""
+    evaluate = sys.modules["evaluator.runner.evaluate"]
+    now = [0.0]
+
+    def clock() -> float:  # each reading 10 ms later: every write "costs" 10 ms
+        now[0] += 0.010
+        return now[0]
+
+    monkeypatch.setattr(evaluate, "monotonic", clock)
+    folder = evaluate.ResultsFolder(
+        tmp_path, SUITE, PROFILE, "s", 40, cpu_limits=SandboxSettings().cpu_limits
+    )
+    (tmp_path / "logs").mkdir()
+    folder.resume()
+    good = done(tmp_path, "cruise_a", [AgentSpec(weaving(50), done_step=50)])
+    written, seen = 0, 0
+    for k in range(40):
+        folder.record(replace(good, episode=k))
+        folder.checkpoint()
+        shown = read_summary(tmp_path).scenarios[0].episodes
+        done_now = sum(e.status == "done" for e in shown)
+        written += done_now != seen
+        seen = done_now
+    # One clock reading per checkpoint (10 ms) and a write costing 10 ms is followed by
+    # 190 ms without one: about one write in twenty checkpoints.
+    assert 2 <= written <= 4, written
+    assert seen < 40
+    folder.summary()  # the end of a run always writes
+    assert sum(e.status == "done" for e in read_summary(tmp_path).scenarios[0].episodes) == 40
