@@ -3,9 +3,10 @@
 A step's limit counts the agent's CPU time, not the wall clock, so a score does not depend on how
 busy the worker was (``docs/protocol.md``, "Time limits"). Two ways to read it:
 
-- a **cgroup** of the sandbox's own (Docker): ``cpu.stat``'s ``usage_usec`` (cgroup v2) or
-  ``cpuacct.usage`` (v1), every process of the container together;
-- a **process tree** (bubblewrap and the plain process runner, which have no cgroup of their own):
+- a **cgroup** of the sandbox's own (Docker, and bubblewrap's :mod:`evaluator.sandbox.cgroup`):
+  ``cpu.stat``'s ``usage_usec`` (cgroup v2) or ``cpuacct.usage`` (v1), every process of the
+  sandbox together;
+- a **process tree** (the plain process runner, and bubblewrap where v1 has no ``cpuacct``):
   the CPU time of the sandbox's root process and every live descendant, plus what its ended
   children left in their parents' ``cutime``/``cstime``. A live process counts its threads'
   ``schedstat`` run time (nanoseconds): ``stat``'s ``utime``/``stime`` come in clock ticks

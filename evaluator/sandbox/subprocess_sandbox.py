@@ -154,7 +154,11 @@ class PopenSandbox:
         return self._stderr.text(wait=0.0 if self.process.poll() is None else 0.5)
 
     def cpu_meter(self) -> CpuMeter:
-        """The process tree under the sandbox's root (no cgroup of its own)."""
+        """The counter of the sandbox's cgroup (bubblewrap), read in place at every act; else
+        the process tree under its root (the process runner, which has no group)."""
+        usage = self._group.cpu_usage_file if self._group is not None else None
+        if usage is not None:
+            return CpuMeter(cgroup_file=str(usage))
         return CpuMeter(root_pid=self.process.pid)
 
 
