@@ -24,17 +24,19 @@ def distance_obs(track: AgentTrack, profile: TermParameters) -> np.ndarray:
     dx = track.nbr_x - track.x[:, None]  # (n, K) [m]
     dy = track.nbr_y - track.y[:, None]
     distance = np.hypot(dx, dy)
-    off_heading = np.abs(wrap_angle(portable_math.arctan2(dy, dx) - track.heading[:, None]))
     moving = track.speed[:, None] > 0.0
     reach = profile.obs_headway_s * track.speed[:, None]  # [m]
-    ahead = (
-        track.nbr_valid
-        & moving
-        & (distance <= reach)
-        & (off_heading <= np.deg2rad(profile.obs_half_angle_deg))
+    # The angles and exponentials of the few vehicles in reach only: portable_math's are the C
+    # library's, one element at a time.
+    near = track.nbr_valid & moving & (distance <= reach)
+    heading = np.broadcast_to(track.heading[:, None], near.shape)
+    off_heading = np.abs(wrap_angle(portable_math.arctan2(dy[near], dx[near]) - heading[near]))
+    ahead = off_heading <= np.deg2rad(profile.obs_half_angle_deg)
+    closeness = np.zeros(near.shape)
+    closeness[near] = np.where(
+        ahead, portable_math.exp(-profile.obs_decay_per_m * distance[near]), 0.0
     )
-    closeness = portable_math.exp(-profile.obs_decay_per_m * np.where(ahead, distance, 0.0))
-    return np.where(ahead, closeness, 0.0).max(axis=1, initial=0.0)
+    return closeness.max(axis=1, initial=0.0)
 
 
 def jerk(track: AgentTrack, profile: TermParameters) -> np.ndarray:
