@@ -54,8 +54,8 @@ from evaluator.training import folder_digest
 from submissions.intake import prepare_submission
 
 TIMINGS_FILE = "timings.json"  # wall times: kept out of summary.json, which is deterministic
-# Rewriting summary.json costs in proportion to the episodes it holds (about 60 us each; a
-# DS-2022 run's 3,607 make a write a fifth of a second), and the evaluating thread holds the GIL
+# Rewriting summary.json costs in proportion to the episodes it holds (60 to 100 us each; a
+# DS-2022 run's 3,607 make a write a third of a second), and the evaluating thread holds the GIL
 # while it encodes. Written after every episode, a long run spent time quadratic in its length
 # there. A checkpoint therefore waits this many times the last write's cost after it: the
 # writes stay under a twentieth of the run's time, however long it is.
