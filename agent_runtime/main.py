@@ -37,6 +37,8 @@ PROTOCOL_VERSION = 1
 COMPAT = "smarts_compat"  # observation converters, next to this file
 ZYGOTE = "zygote"  # the warm parent of --zygote, next to this file
 CONFINE = "confine"  # each warm episode's fresh namespaces and seccomp filter, next to this file
+PACKED_WAYPOINTS = "packed_waypoints"  # act messages' waypoint paths to dicts, next to this file
+SIBLING_PREFIX = "_arena_runtime_"  # sys.modules key of each module above (sibling_module)
 HEADER = struct.Struct(">I")
 MAX_INCOMING_BYTES = 1 << 30
 # Formats the policy gets as the protocol delivers them; any other is converted (COMPAT).
@@ -92,14 +94,18 @@ class Stream:
 
     def receive(self) -> tuple[str, object]:
         """A message's kind and body; an arrays act frame is ``("arrays", payload)``, a view of
-        the reused buffer, valid until the next receive."""
+        the reused buffer, valid until the next receive. An act message's observations come
+        with their waypoint paths as dicts, however they travelled."""
         (size,) = HEADER.unpack(self.read_exact(HEADER.size))
         if size > MAX_INCOMING_BYTES:
             raise Closed
         payload = self.read_exact(size)
         if size and payload[0] == ARRAYS_TAG:
             return "arrays", payload
-        return pickle.loads(payload)
+        kind, body = pickle.loads(payload)
+        if kind == "act":
+            sibling_module(PACKED_WAYPOINTS).expand_observations(body)
+        return kind, body
 
     def send(self, message: dict) -> None:
         payload = ENCODER.encode(message).encode()
@@ -312,14 +318,21 @@ def load_adapter(observation_format: str, action_space: str, options: dict):
 
 def sibling_module(name: str):
     """``<name>.py`` from beside this file (the sandbox mounts it there; -I keeps this folder off
-    sys.path), loaded once per process: a zygote's children find it loaded."""
-    module = sys.modules.get(name)
+    sys.path), loaded once per process: a zygote's children find it loaded. It is kept under a
+    name of ours (:data:`SIBLING_PREFIX`), so that a submission's own module of the same name is
+    neither taken for it nor replaced by it."""
+    key = SIBLING_PREFIX + name
+    module = sys.modules.get(key)
     if module is None:
         here = os.path.dirname(os.path.abspath(__file__))
-        spec = importlib.util.spec_from_file_location(name, os.path.join(here, f"{name}.py"))
+        spec = importlib.util.spec_from_file_location(key, os.path.join(here, f"{name}.py"))
         module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-        sys.modules[name] = module
+        sys.modules[key] = module
+        try:
+            spec.loader.exec_module(module)
+        except BaseException:
+            del sys.modules[key]
+            raise
     return module
 
 

@@ -80,6 +80,7 @@ class Zygote:
             hello["numpy"] = numpy.__version__
         self.stream.send(hello)
         os.chdir("/")  # no library reads configuration from the submission folder here
+        self.runner.sibling_module(self.runner.PACKED_WAYPOINTS)
         if not own_numpy:
             if self.args.observation_format not in self.runner.PLAIN_FORMATS:
                 self.runner.sibling_module(self.runner.COMPAT)

@@ -10,8 +10,10 @@ starts), as a simulator sends them; re-sending one observation would time a cach
 calls the policy object directly with the native observation; every other row is the full
 evaluator path from the simulator's observation dict to the actions, once per format:
 
-- ``native``: pickle the observation dicts, frame, write; the runner unpickles, calls the policy,
-  answers in JSON; we decode the JSON.
+- ``native``: the observation dicts with their waypoint paths packed, as the simulator hands them
+  to a sandboxed agent (``agent_runtime/packed_waypoints.py``; packed before the round's clock, as
+  the simulator packs them in its step); pickle, frame, write; the runner unpickles, makes the
+  waypoint dicts, calls the policy, answers in JSON; we decode the JSON.
 - ``arrays``: the simulator writes each agent's observation into its fixed-shape record in place
   (``Simulation(arrays=True)``; here the round's record is written before the clock, by the
   encoder, into one record per agent reused every round, as the simulator's is); write the binary
@@ -38,6 +40,8 @@ import sys
 import tempfile
 import time
 from collections.abc import Callable
+from itertools import chain, groupby
+from operator import itemgetter
 from pathlib import Path
 
 import numpy as np
@@ -45,6 +49,7 @@ import numpy as np
 # The benchmark borrows the tests' settings helper: run from a checkout, the repository root.
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from agent_runtime.packed_waypoints import POINT_VALUES
 from arena.config import SandboxKind, Settings
 from evaluator.sandbox import backend, start
 from evaluator.sandbox.warm import WarmAgent
@@ -63,6 +68,7 @@ class Policy:
 FORMATS = ("native", "arrays")
 WARMUP = 200
 EMPTY = {"native": {"Agent_0": {}}, "arrays": {}}
+LANE_ID = itemgetter("lane_id")
 
 
 Observations = Callable[[int], dict]  # round -> the observation sent in that round
@@ -97,6 +103,23 @@ def driving(step: int) -> dict[str, dict]:
             for waypoint in path:
                 waypoint["pos"][0] += dx
     return obs
+
+
+def packed(observations: dict[str, dict]) -> dict[str, dict]:
+    """``observations`` with their waypoint paths packed as the simulator packs them for a
+    sandboxed agent (``sim.road.centrelines.packed``): a run of points per lane of each path,
+    and x, y, heading and lane offset of every point in one float64 buffer."""
+    for obs in observations.values():
+        paths = obs["waypoint_paths"]
+        runs = [
+            (lane_id, w[0]["lane_index"], w[0]["lane_width"], w[0]["speed_limit"], len(w))
+            for path in paths
+            for lane_id, w in ((key, list(group)) for key, group in groupby(path, LANE_ID))
+        ]
+        values = [[w["pos"][0], w["pos"][1], w["heading"], w["lane_offset"]] for w in chain(*paths)]
+        buffer = np.array(values, dtype=np.float64).reshape(-1, len(POINT_VALUES)).tobytes()
+        obs["waypoint_paths"] = ([len(path) for path in paths], runs, buffer)
+    return observations
 
 
 def in_place(interface: AgentInterface) -> Observations:
@@ -259,7 +282,7 @@ def both(act, submission, steps: int) -> tuple[np.ndarray, np.ndarray]:
     """Round trips with fresh driving observations, as the simulator hands them to the
     submission's format, and with an empty observation [ms]."""
     fmt = submission.interface.observation_format
-    fresh = in_place(submission.interface) if fmt == "arrays" else driving
+    fresh = in_place(submission.interface) if fmt == "arrays" else lambda i: packed(driving(i))
     return timings_ms(act, fresh, steps), timings_ms(act, empty(fmt), steps)
 
 

@@ -4,7 +4,10 @@ The evaluator's sandboxed agent handles and in-process test policies both satisf
 A failure of the agent itself (not of one action) is raised as :class:`arena.errors.AgentFailed`.
 An agent with a true ``takes_arrays`` attribute (a sandbox handle of ``observation_format:
 arrays``) is given :class:`sim.observation_record.ArraysObservation` values, the records the
-simulator writes in place, instead of observation dicts.
+simulator writes in place, instead of observation dicts. One with a true
+``takes_packed_waypoints`` (a sandbox handle of the other formats) is given observation dicts whose
+``waypoint_paths`` are packed for the protocol (:mod:`agent_runtime.packed_waypoints`): its runtime
+makes them the dicts an in-process agent gets.
 """
 
 from __future__ import annotations

@@ -42,8 +42,15 @@ def run_episode(
     """
     started = time.monotonic()
     scenario = load_scenario(scenario_dir)
-    arrays = bool(getattr(agent, "takes_arrays", False))  # see sim.agent
-    sim = Simulation(scenario, scenario_dir, interface, seed, inputs=inputs, arrays=arrays)
+    sim = Simulation(
+        scenario,
+        scenario_dir,
+        interface,
+        seed,
+        inputs=inputs,
+        arrays=bool(getattr(agent, "takes_arrays", False)),  # see sim.agent
+        packed_waypoints=bool(getattr(agent, "takes_packed_waypoints", False)),
+    )
     detail = ""
     try:
         obs = sim.reset()

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from agent_runtime.packed_waypoints import PackedPaths
 from sim.events import Events
 from sim.interface import AgentInterface
 from sim.mission_vehicle import MissionVehicle, Status
@@ -30,7 +31,7 @@ def build_observation(
     events: Events,
     neighbours: VehicleStates,
     road: RoadNetwork,
-    waypoint_paths: list[list[dict]],
+    waypoint_paths: list[list[dict]] | PackedPaths,
     interface: AgentInterface,
     rasters: dict[str, np.ndarray] | None = None,
     lidar: dict[str, np.ndarray] | None = None,

@@ -36,12 +36,13 @@ from sim.observation_record import ArraysObservation, ObservationRecord
 from sim.playback import ReplayTable
 from sim.record import EpisodeRecorder, write_npz
 from sim.road import LanePosition, RoadNetwork
+from sim.road.centrelines import packed
 from sim.road.waypoints import (
     path_starts,
     road_waypoints,
     route_ahead,
+    split_paths,
     waypoint_arrays,
-    waypoint_paths,
 )
 from sim.traffic import SumoTraffic
 from sim.triggers import CutInTriggers
@@ -65,6 +66,8 @@ class Simulation:
     ``arrays``: observations as :class:`sim.observation_record.ArraysObservation` (each agent's
     record of the interface's arrays layout, written in place and valid until its next
     observation) instead of dicts; the record rows and the episode are the same.
+    ``packed_waypoints``: observation dicts whose waypoint paths are packed for the sandbox
+    protocol (:mod:`agent_runtime.packed_waypoints`), whose runtime makes them the same dicts.
     """
 
     def __init__(
@@ -77,6 +80,7 @@ class Simulation:
         with_missions: bool = True,
         inputs: ScenarioInputs | None = None,
         arrays: bool = False,
+        packed_waypoints: bool = False,
     ) -> None:
         self.scenario = scenario
         self.scenario_dir = Path(scenario_dir)
@@ -112,6 +116,7 @@ class Simulation:
         # arrays: observations written straight into records of this layout (ArraysObservation)
         self._layout = ObservationLayout(interface) if arrays else None
         self._records: dict[str, ObservationRecord] = {}
+        self._packed_waypoints = packed_waypoints
 
     # --- lifecycle ---------------------------------------------------------------------------
 
@@ -432,15 +437,12 @@ class Simulation:
         lane, near = self._lanes[v.id], around.vehicles
         if self._layout is not None:
             return self._observe_arrays(v, lane, near, events)
-        paths = waypoint_paths(
-            self.road,
-            lane,
-            v.pose.x,
-            v.pose.y,
-            v.mission.route,
-            self.interface.max_waypoint_paths,
-            self._points_per_path,
+        route = v.mission.route
+        starts = path_starts(
+            self.road, lane, v.pose.x, v.pose.y, route, self.interface.max_waypoint_paths
         )
+        waypoints = waypoint_arrays(self.road, starts, route, self._points_per_path)
+        paths = packed(waypoints) if self._packed_waypoints else split_paths(waypoints)
         return build_observation(
             vehicle=v,
             step=self.step_count,

@@ -48,8 +48,10 @@ class AgentHandle:
             else None
         )
         limits = limits or config.cpu_limits
-        # run_episode then has the simulator write the arrays records in place (sim.agent)
+        # run_episode then has the simulator write the arrays records in place, or pack the
+        # waypoint paths of observation dicts for the runtime to unpack (sim.agent)
         self.takes_arrays = self._arrays is not None
+        self.takes_packed_waypoints = self._arrays is None
         self._step_cpu_s = limits.step_s
         self._step_timeout_s = config.step_timeout_s
         self._episode_cpu_s = limits.episode_s

@@ -11,10 +11,11 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from functools import lru_cache
-from itertools import repeat
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
+
+from agent_runtime.packed_waypoints import POINT_VALUES, PackedPaths
 
 if TYPE_CHECKING:
     from sim.road.lane import Lane
@@ -28,6 +29,9 @@ _CUM, _SLOPE_X, _SLOPE_Y, X, Y, HEADING, WIDTH, SPEED_LIMIT, OFFSET, INDEX = ran
 # A lane's heading at offsets this close to its end is its last segment's (the rule of the
 # lanes' own sampling: the next segment would be past the lane).
 _END_MARGIN = 1e-9  # [m]
+# The rows of WaypointArrays.values a packed path holds for each point, in the protocol's order.
+_ROW_OF = {"x": X, "y": Y, "heading": HEADING, "lane_offset": OFFSET}
+_PACKED_ROWS = [_ROW_OF[name] - X for name in POINT_VALUES]
 
 
 class WaypointArrays(NamedTuple):
@@ -117,32 +121,12 @@ def _piece_steps(counts: tuple[int, ...]) -> np.ndarray:
     return steps
 
 
-def as_dicts(waypoints: WaypointArrays) -> list[dict]:
-    """The waypoint dicts of ``waypoints``, all paths' in one list.
-
-    Built afresh for every observation (paths start level with the vehicle), so this is the hot
-    path of one: the values are boxed to floats in one pass over all points, as numpy's per-call
-    cost outweighs the arithmetic on ~50 points.
-    """
-    values = waypoints.values
-    positions = values[:2].T.tolist()  # a fresh [x, y] list per point
-    headings, offsets = values[2].tolist(), values[5].tolist()
-    # Copies of one template per lane (the key order of the documented waypoint), made by
-    # map in C, then the three values per point: faster than a dict display of seven keys.
-    out: list[dict] = []
-    for lane, count in waypoints.pieces:
-        template = {
-            "pos": None,
-            "heading": None,
-            "lane_id": lane.id,
-            "lane_index": lane.index,
-            "lane_width": lane.width,
-            "speed_limit": lane.speed_limit,
-            "lane_offset": None,
-        }
-        out += map(dict.copy, repeat(template, count))
-    for point, position, heading, offset in zip(out, positions, headings, offsets, strict=True):
-        point["pos"] = position
-        point["heading"] = heading
-        point["lane_offset"] = offset
-    return out
+def packed(waypoints: WaypointArrays) -> PackedPaths:
+    """``waypoints`` as the protocol carries them (:mod:`agent_runtime.packed_waypoints`, which
+    also makes the dicts of in-process agents from this)."""
+    lanes = [
+        (lane.id, lane.index, lane.width, lane.speed_limit, count)
+        for lane, count in waypoints.pieces
+    ]
+    points = waypoints.values[_PACKED_ROWS].T  # point after point
+    return list(waypoints.counts), lanes, points.tobytes()

@@ -8,8 +8,9 @@ from itertools import pairwise
 
 import numpy as np
 
+from agent_runtime.packed_waypoints import waypoint_paths
 from arena import portable_math
-from sim.road.centrelines import WAYPOINT_SPACING, CentrelineTable, as_dicts
+from sim.road.centrelines import WAYPOINT_SPACING, CentrelineTable, packed
 
 # Lanes of more centreline points than this are projected onto with numpy (one pass over all
 # segments), fewer with a scalar loop; both give the same result.
@@ -165,4 +166,7 @@ def angle_between(a: float, b: float) -> float:
 def waypoint_dicts(lane: Lane, first_s: float, count: int) -> list[dict]:
     """``count`` waypoint dicts from ``first_s`` [m] along ``lane`` on, :data:`WAYPOINT_SPACING`
     apart."""
-    return as_dicts(CentrelineTable((lane,)).sample([(lane, first_s, count)], [count]))
+    (path,) = waypoint_paths(
+        *packed(CentrelineTable((lane,)).sample([(lane, first_s, count)], [count]))
+    )
+    return path

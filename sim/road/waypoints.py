@@ -15,7 +15,8 @@ from __future__ import annotations
 import math
 from weakref import WeakKeyDictionary
 
-from sim.road.centrelines import WAYPOINT_SPACING, CentrelineTable, WaypointArrays, as_dicts
+from agent_runtime.packed_waypoints import waypoint_paths as unpacked_paths
+from sim.road.centrelines import WAYPOINT_SPACING, CentrelineTable, WaypointArrays, packed
 from sim.road.lane import Lane
 from sim.road.network import LanePosition, RoadNetwork
 
@@ -129,12 +130,9 @@ def waypoint_arrays(
 
 
 def split_paths(waypoints: WaypointArrays) -> list[list[dict]]:
-    """The waypoint dicts of each path of ``waypoints``."""
-    points, paths, start = as_dicts(waypoints), [], 0
-    for count in waypoints.counts:
-        paths.append(points[start : start + count])
-        start += count
-    return paths
+    """The waypoint dicts of each path of ``waypoints``: those the runtime makes of them in a
+    sandbox (:mod:`agent_runtime.packed_waypoints`)."""
+    return unpacked_paths(*packed(waypoints))
 
 
 def road_waypoints(
