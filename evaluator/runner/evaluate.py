@@ -39,6 +39,7 @@ from evaluator.runner.results import (
     LOGS_DIR,
     RECORDS_DIR,
     ScoredEntry,
+    done_entry,
     is_finished,
     outcome_from_results_dir,
     score_outcome,
@@ -46,10 +47,18 @@ from evaluator.runner.results import (
     stored_episodes,
 )
 from evaluator.runner.scenario import ScenarioOutcome, run_scenario
+from evaluator.runner.score_cache import SCORES_FILE, ScoreCache
 from evaluator.sandbox import backend, resolve_kind
 from evaluator.sandbox.warm_pool import warm_agents
 from evaluator.scoring import DEFAULT_PROFILE, ScoringProfile, load_profile
-from evaluator.summary import SUMMARY_FILE, Summary, read_summary, write_summary
+from evaluator.summary import (
+    SUMMARY_FILE,
+    EpisodeEntry,
+    ScenarioEntry,
+    Summary,
+    read_summary,
+    write_summary,
+)
 from evaluator.training import folder_digest
 from submissions.intake import prepare_submission
 
@@ -205,7 +214,7 @@ def _model_digest(model_dir: Path | None) -> str | None:
 
 def discard_results(out_dir: Path) -> None:
     """Remove what an evaluation wrote in ``out_dir`` (and nothing else a user keeps there)."""
-    for name in (SUMMARY_FILE, TIMINGS_FILE, AGENT_CPU_FILE):
+    for name in (SUMMARY_FILE, TIMINGS_FILE, AGENT_CPU_FILE, SCORES_FILE):
         (out_dir / name).unlink(missing_ok=True)
     for folder in (RECORDS_DIR, LOGS_DIR):
         shutil.rmtree(out_dir / folder, ignore_errors=True)
@@ -281,6 +290,7 @@ class ResultsFolder:
         self.outcomes: dict[Episode, ScenarioOutcome] = {}
         self.running: set[Episode] = set()
         self.cache: dict[Episode, ScoredEntry] = {}
+        self.scores = ScoreCache(out_dir, profile)  # the cache's copy on disk, for a resume
         self.timings: dict[str, float] = {}  # episode name -> wall time [s]
         self.cpu = CpuLedger(out_dir, cpu_limits)
         self.lock = threading.Lock()
@@ -306,10 +316,13 @@ class ResultsFolder:
                     "use a fresh --out, or --force to replace them"
                 )
             self.previous = previous.manifest
+            kept = []
             for entry in previous.scenarios:
                 for key, episode in stored_episodes(entry):
                     if is_finished(key, episode, self.out_dir):
                         self.outcomes[key] = outcome_from_results_dir(key, episode, self.out_dir)
+                        kept.append((key, episode, entry.family))
+            self._reuse_scores(kept)
             timings = self.out_dir / TIMINGS_FILE
             if timings.exists():
                 self.timings = json.loads(timings.read_text())
@@ -317,6 +330,18 @@ class ResultsFolder:
         self.outcomes = {k: o for k, o in self.outcomes.items() if k in set(self.episodes)}
         self._write()
         return [e for e in self.episodes if e not in self.outcomes]
+
+    def _reuse_scores(self, kept: list[tuple[Episode, ScenarioEntry | EpisodeEntry, str]]) -> None:
+        """Take the scores of the ``kept`` episodes (key, stored entry, family) that the score
+        cache holds for this profile and their records as they are, instead of re-reading them."""
+        records = {key.name: self.outcomes[key].record_path for key, _, _ in kept}
+        known = self.scores.load(records)
+        for key, episode, family in kept:
+            score = known.get(key.name)
+            if score is not None and episode.status == ScenarioStatus.done:
+                self.cache[key] = done_entry(
+                    key.scenario_id, family, episode.steps, episode.agents, score
+                )
 
     def mark_running(self, episode: Episode) -> None:
         """``episode`` started (written with the next :meth:`summary`)."""
@@ -393,6 +418,13 @@ class ResultsFolder:
         )
         summary = summary.model_copy(update={"manifest": self._manifest()})
         write_summary(summary, self.out_dir)
+        self.scores.write(
+            {
+                key.name: (score, self.outcomes[key].record_path)
+                for key, (_, score) in self.cache.items()
+                if score is not None and key in self.outcomes
+            }
+        )
         (self.out_dir / TIMINGS_FILE).write_text(json.dumps(self.timings, indent=2) + "\n")
         self.cpu.write()
         ended = monotonic()

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from arena.episodes import Episode, episode_count
 from arena.errors import RecordError
-from arena.outcome import FINISHED, UNCHARGED, ScenarioStatus
+from arena.outcome import FINISHED, UNCHARGED, AgentOutcome, ScenarioStatus
 from arena.record_format import RECORD_SUFFIX
 from arena.suite import ManifestEntry, Suite, SuiteManifest
 from evaluator.runner.scenario import ScenarioOutcome
@@ -166,9 +166,20 @@ def _score_done(
     else:
         agents, steps = outcome.agents, outcome.steps
         score = score_without_record(scenario.id, agents, profile)
+    return done_entry(scenario.id, scenario.family, steps, agents, score)
+
+
+def done_entry(
+    scenario_id: str,
+    family: str,
+    steps: int,
+    agents: tuple[AgentOutcome, ...],
+    score: EpisodeScore,
+) -> ScoredEntry:
+    """The summary entry of a ``done`` episode that scored ``score``."""
     entry = ScenarioEntry(
-        id=scenario.id,
-        family=scenario.family,
+        id=scenario_id,
+        family=family,
         status=ScenarioStatus.done,
         steps=steps,
         agents=agents,

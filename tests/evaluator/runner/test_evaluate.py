@@ -18,7 +18,7 @@ from arena.outcome import ScenarioStatus
 from arena.scenario import load_scenario
 from arena.suite import load_suite
 from evaluator.runner import evaluate, score_results_dir
-from evaluator.scoring import load_profile
+from evaluator.scoring import DEFAULT_PROFILE, load_profile
 from evaluator.summary import read_summary
 from tests.evaluator.runner.conftest import TEST_SANDBOX, example, write_policy
 from tests.settings import evaluate_args
@@ -163,6 +163,55 @@ def test_killed_evaluation_resumes_only_the_missing_scenarios(public_suite, tmp_
     for scenario_id, mtime in kept.items():
         assert (out / "records" / f"{scenario_id}.npz").stat().st_mtime_ns == mtime
     assert all((out / "records" / f"{scenario_id}.npz").exists() for scenario_id in ids)
+
+
+def test_a_resumed_run_reuses_the_scores_of_unchanged_records_only(public_suite, tmp_path):
+    """A resume takes stored scores (scores.json) instead of re-reading records, and only for
+    the records as they were and the profile they were scored with: a record corrupted behind
+    the cache's back but looking unchanged keeps its score, one touched since, or any record
+    under another profile, is read again (and, corrupt, is reported as ours)."""
+    (scenario_id,) = few_scenarios(public_suite, 1)
+    source, out = steady(tmp_path), tmp_path / "out"
+
+    def resume(profile: str = DEFAULT_PROFILE):
+        return evaluate(
+            source,
+            public_suite,
+            **evaluate_args(get_settings()),
+            out_dir=out,
+            scenario_ids=[scenario_id],
+            sandbox=TEST_SANDBOX,
+            episodes_per_scenario=2,
+            profile=profile,
+        )
+
+    first = resume()
+    kept, touched = (
+        out / "records" / f"{scenario_id}.npz",
+        out / "records" / f"{scenario_id}.ep1.npz",
+    )
+    assert first.complete and kept.exists() and touched.exists()
+    assert (out / "scores.json").exists()
+    written = (out / "summary.json").read_bytes()
+
+    def corrupt(record: Path, keep_stamp: bool) -> None:
+        stat = record.stat()
+        record.write_bytes(b"\0" * stat.st_size)
+        if keep_stamp:
+            os.utime(record, ns=(stat.st_atime_ns, stat.st_mtime_ns))
+
+    corrupt(kept, keep_stamp=True)
+    assert resume() == first
+    assert (out / "summary.json").read_bytes() == written
+
+    corrupt(touched, keep_stamp=False)
+    (entry,) = resume().scenarios
+    assert [e.status for e in entry.episodes] == [ScenarioStatus.done, "evaluator_error"]
+    assert "unusable episode record" in entry.episodes[1].error
+
+    # Another profile: the kept record is read again; episode 1, reported as ours, runs again.
+    (entry,) = resume("driving-smarts-2022-reference").scenarios
+    assert [e.status for e in entry.episodes] == ["evaluator_error", ScenarioStatus.done]
 
 
 def test_planner_beats_keep_lane_beats_random_on_the_public_set(public_suite, tmp_path):
