@@ -21,7 +21,7 @@ if TYPE_CHECKING:
     from sim.road.lane import Lane
 
 WAYPOINT_SPACING = 1.0  # [m] distance between consecutive waypoints along a lane
-# [m] offsets of a piece's points from its first (longer pieces: Lane.waypoints)
+# [m] offsets of a piece's points from its first (a longer piece makes its own: _piece_steps)
 _STEPS = WAYPOINT_SPACING * np.arange(256)
 # Rows of CentrelineTable.values (a column per centreline vertex of every lane); after the
 # gather, rows X .. INDEX hold each waypoint's values (see WaypointArrays.values).

@@ -8,9 +8,8 @@ from itertools import pairwise
 
 import numpy as np
 
-from agent_runtime.packed_waypoints import waypoint_paths
 from arena import portable_math
-from sim.road.centrelines import WAYPOINT_SPACING, CentrelineTable, packed
+from sim.road.centrelines import WAYPOINT_SPACING
 
 # Lanes of more centreline points than this are projected onto with numpy (one pass over all
 # segments), fewer with a scalar loop; both give the same result.
@@ -124,11 +123,6 @@ class Lane:
         )
         return self.segment_headings[i]
 
-    @property
-    def waypoints(self) -> list[dict]:
-        """Waypoint dicts every :data:`WAYPOINT_SPACING` along the lane, from s = 0."""
-        return waypoint_dicts(self, 0.0, self.waypoint_count(0.0))
-
     def waypoint_count(self, first_s: float) -> int:
         """How many offsets s = ``first_s`` + k * :data:`WAYPOINT_SPACING` [m], k >= 0, the lane
         has short of its end (``first_s`` at least 0).
@@ -138,13 +132,6 @@ class Lane:
         even along the whole path.
         """
         return max(math.ceil((self.length - first_s) / WAYPOINT_SPACING - 1e-9), 0)
-
-    def waypoints_from(self, first_s: float, limit: int) -> tuple[list[dict], int]:
-        """Up to ``limit`` waypoint dicts from ``first_s`` on (:meth:`waypoint_count`), and how
-        many the lane has in all."""
-        first_s = max(first_s, 0.0)
-        total = self.waypoint_count(first_s)
-        return waypoint_dicts(self, first_s, min(limit, total)), total
 
     @property
     def heading_start(self) -> float:
@@ -161,12 +148,3 @@ class Lane:
 def angle_between(a: float, b: float) -> float:
     """Absolute difference of two headings [rad], in [0, pi]."""
     return abs(math.remainder(a - b, 2 * math.pi))
-
-
-def waypoint_dicts(lane: Lane, first_s: float, count: int) -> list[dict]:
-    """``count`` waypoint dicts from ``first_s`` [m] along ``lane`` on, :data:`WAYPOINT_SPACING`
-    apart."""
-    (path,) = waypoint_paths(
-        *packed(CentrelineTable((lane,)).sample([(lane, first_s, count)], [count]))
-    )
-    return path

@@ -6,9 +6,10 @@ import pytest
 from arena.scenario import load_scenario
 from arena.suite import SHIPPED_PUBLIC_DIR
 from sim.road import RoadNetwork
+from sim.road.centrelines import CentrelineTable
 from sim.road.lane import Lane
 from sim.road.network import _well_inside
-from sim.road.waypoints import waypoint_paths
+from sim.road.waypoints import split_paths, waypoint_paths
 from tests.sim.builders import LANE_WIDTH, build_net, lane_y, straight_road
 
 
@@ -99,14 +100,23 @@ def test_area_tests_given_the_nearest_lane_agree_with_the_polygons(scenario_id):
     assert shortcut > 0.3 * 40 * len(road.lanes)  # the shortcut is the common case
 
 
+def waypoints_from(lane: Lane, first_s: float, limit: int) -> tuple[list[dict], int]:
+    """Up to ``limit`` of ``lane``'s waypoint dicts from ``first_s`` on, sampled and made as an
+    observation's are, and how many the lane has from there."""
+    total = lane.waypoint_count(first_s)
+    count = min(limit, total)
+    (path,) = split_paths(CentrelineTable((lane,)).sample([(lane, first_s, count)], [count]))
+    return path, total
+
+
 def test_waypoint_dicts_of_a_curved_lane():
     # Every waypoint sits on the centreline at its own s, rounded to 0.1 mm, with the heading of
     # the segment under it; paths starting anywhere (and at another phase) are slices of it.
     t = np.linspace(0.0, 1.0, 60)
     centreline = np.stack([400.0 * t, 80.0 * np.sin(3.0 * t)], 1)
     lane = Lane("L_0", "L", 0, centreline, 3.2, 13.9, is_internal=False, is_shoulder=False)
-    points = lane.waypoints
-    assert len(points) == math.ceil(lane.length)
+    points, count = waypoints_from(lane, 0.0, 10_000)
+    assert len(points) == count == math.ceil(lane.length)
     for k in (0, 1, 17, 250, len(points) - 1):
         x, y = lane.position_at(float(k))
         assert points[k] == {
@@ -119,7 +129,7 @@ def test_waypoint_dicts_of_a_curved_lane():
             "lane_offset": float(k),
         }
         assert all(type(v) is float for v in (*points[k]["pos"], points[k]["heading"]))
-    assert lane.waypoints_from(17.0, 50) == (points[17:67], len(points) - 17)
-    shifted, count = lane.waypoints_from(17.37, 50)
+    assert waypoints_from(lane, 17.0, 50) == (points[17:67], len(points) - 17)
+    shifted, count = waypoints_from(lane, 17.37, 50)
     assert [w["lane_offset"] for w in shifted] == pytest.approx([17.37 + i for i in range(50)])
     assert count == math.ceil(lane.length - 17.37)
