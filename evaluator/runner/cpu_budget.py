@@ -13,6 +13,7 @@ from pathlib import Path
 from pydantic import BaseModel, ConfigDict
 
 from arena.cpu_limits import CpuLimits
+from arena.files import write_atomically
 
 AGENT_CPU_FILE = "agent_cpu.json"
 
@@ -64,7 +65,7 @@ class CpuLedger:
             budget_s=self.limits.evaluation_s,
             episodes=dict(sorted(self.episodes.items())),
         )
-        self.path.write_text(json.dumps(state.model_dump(), indent=2) + "\n")
+        write_atomically(self.path, json.dumps(state.model_dump(), indent=2) + "\n")
         return state
 
 

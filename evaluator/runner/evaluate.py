@@ -30,6 +30,7 @@ from arena.config import IntakeSettings, SandboxKind, SandboxSettings
 from arena.cpu_limits import CpuLimits
 from arena.episodes import Episode, episodes_of
 from arena.errors import ArenaError, SandboxUnavailable
+from arena.files import write_atomically
 from arena.outcome import ScenarioStatus
 from arena.suite import Suite, load_suite
 from evaluator.failures import FAIL_FAST_AFTER, never_started
@@ -364,7 +365,7 @@ class ResultsFolder:
             self.outcomes[key] = outcome
             self.cache[key] = scored
             self.timings[key.name] = round(outcome.wall_time_s, 3)
-            (self.out_dir / LOGS_DIR / f"{key.name}.txt").write_text(outcome.log)
+            write_atomically(self.out_dir / LOGS_DIR / f"{key.name}.txt", outcome.log)
 
     def _manifest(self) -> Manifest:
         """The manifest of the finished episodes; those a previous run finished keep the seeds
@@ -425,7 +426,7 @@ class ResultsFolder:
                 if score is not None and key in self.outcomes
             }
         )
-        (self.out_dir / TIMINGS_FILE).write_text(json.dumps(self.timings, indent=2) + "\n")
+        write_atomically(self.out_dir / TIMINGS_FILE, json.dumps(self.timings, indent=2) + "\n")
         self.cpu.write()
         ended = monotonic()
         self._next_checkpoint = ended + CHECKPOINT_SPACING * (ended - started)

@@ -1,6 +1,7 @@
 """Summaries from outcomes and stored records, without the simulator."""
 
 import json
+import os
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -311,3 +312,35 @@ def test_checkpoints_space_summary_writes_by_their_cost(tmp_path, monkeypatch):
     assert seen < 40
     folder.summary()  # the end of a run always writes
     assert sum(e.status == "done" for e in read_summary(tmp_path).scenarios[0].episodes) == 40
+
+
+def test_every_results_file_is_replaced_whole_never_rewritten_in_place(tmp_path):
+    """An evaluation killed at any instant (a worker's SIGKILL) leaves each file of its results
+    folder either as it was or as it became, never cut short: each write goes to a new file that
+    replaces the old one, which stays whole for whoever has it open. A killed run once left an
+    empty agent_cpu.json, and its resume failed on it."""
+    evaluate = sys.modules["evaluator.runner.evaluate"]
+    folder = evaluate.ResultsFolder(
+        tmp_path, SUITE, PROFILE, "s", 1, cpu_limits=SandboxSettings().cpu_limits
+    )
+    (tmp_path / "logs").mkdir()
+    folder.resume()
+    outcome = done(tmp_path, "cruise_a", [AgentSpec(weaving(50), done_step=50)])
+    names = ["summary.json", "timings.json", "agent_cpu.json", "scores.json", "logs/cruise_a.txt"]
+    folder.record(outcome)
+    folder.charge_cpu(outcome)
+    folder.summary()
+    # Held open, the old files keep their inodes: a rewrite in place would show in them.
+    before = {name: (tmp_path / name).read_bytes() for name in names}
+    held = {name: (tmp_path / name).open("rb") for name in names}
+    try:
+        folder.record(replace(outcome, log="the same episode, recorded again"))
+        folder.charge_cpu(replace(outcome, agent_cpu_s=1.5))
+        folder.summary()
+        for name, old in held.items():
+            assert old.read() == before[name], name
+            assert os.fstat(old.fileno()).st_ino != (tmp_path / name).stat().st_ino, name
+    finally:
+        for old in held.values():
+            old.close()
+    assert before["agent_cpu.json"] != (tmp_path / "agent_cpu.json").read_bytes()
