@@ -339,7 +339,7 @@ class ResultsFolder:
         known = self.scores.load(records)
         for key, episode, family in kept:
             score = known.get(key.name)
-            if score is not None and episode.status == ScenarioStatus.done:
+            if score is not None:  # kept episodes are done ones (is_finished)
                 self.cache[key] = done_entry(
                     key.scenario_id, family, episode.steps, episode.agents, score
                 )

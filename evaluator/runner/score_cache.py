@@ -25,9 +25,11 @@ class ScoreCache:
     """The cache of the results folder ``out_dir`` under ``profile``."""
 
     def __init__(self, out_dir: Path, profile: ScoringProfile) -> None:
-        self.out_dir = Path(out_dir)
-        self.path = self.out_dir / SCORES_FILE
+        self.path = Path(out_dir) / SCORES_FILE
         self.profile = hashlib.sha256(profile.model_dump_json().encode()).hexdigest()
+        # name -> (score, its record's stamp): a finished record does not change, so it is
+        # stamped once, not at every write; an episode run again brings a new score object.
+        self._stamped: dict[str, tuple[EpisodeScore, list[int] | None]] = {}
 
     def load(self, records: dict[str, Path | None]) -> dict[str, EpisodeScore]:
         """The stored scores of the episodes named in ``records`` (name -> its record, None
@@ -40,18 +42,24 @@ class ScoreCache:
             return {}
         valid = {}
         for name, item in stored.get("episodes", {}).items():
-            if name in records and item.get("record") == _stamp(records[name]):
+            stamp = item.get("record")
+            if name in records and stamp == _stamp(records[name]):
                 try:
                     valid[name] = EpisodeScore(**item["score"])
                 except (TypeError, KeyError):
                     continue
+                self._stamped[name] = (valid[name], stamp)
         return valid
 
     def write(self, scores: dict[str, tuple[EpisodeScore, Path | None]]) -> None:
         """Store ``scores`` (episode name -> its score and its record), replacing the file."""
+        for name, (score, record) in scores.items():
+            known = self._stamped.get(name)
+            if known is None or known[0] is not score:
+                self._stamped[name] = (score, _stamp(record))
         episodes = {
-            name: {"record": _stamp(record), "score": dataclasses.asdict(score)}
-            for name, (score, record) in scores.items()
+            name: {"record": self._stamped[name][1], "score": dataclasses.asdict(score)}
+            for name, (score, _) in scores.items()
         }
         text = json.dumps({"profile": self.profile, "episodes": episodes}, separators=(",", ":"))
         write_atomically(self.path, text)
