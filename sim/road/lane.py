@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
 from dataclasses import dataclass, field
 from itertools import pairwise
 
@@ -57,8 +58,6 @@ class Lane:
             for (x0, y0), (x1, y1) in pairwise(self._points)
         ]
         self._seg_len2 = np.maximum(seg[:, 0] * seg[:, 0] + seg[:, 1] * seg[:, 1], 1e-12)
-        # Contiguous copies for np.interp, which would otherwise copy each column per call.
-        self._xs, self._ys = pts[:, 0].copy(), pts[:, 1].copy()
 
     def project(self, x: float, y: float) -> tuple[float, float, float]:
         """Lane coordinates of a point: (s [m] along the lane, t [m] signed lateral offset, left
@@ -108,11 +107,19 @@ class Lane:
         )
 
     def point_at(self, s: float) -> tuple[float, float]:
-        """:meth:`position_at` of one offset, as floats, without np.clip and np.stack (a controller
-        and the junction match ask for single points every step)."""
-        s = min(max(s, 0.0), self.length)
-        cum = self.cumulative_s
-        return float(np.interp(s, cum, self._xs)), float(np.interp(s, cum, self._ys))
+        """:meth:`position_at` of one offset, as floats. A controller and the junction match ask
+        for single points every step, so this is np.interp's arithmetic on Python floats: the
+        segment under s found by bisection, a vertex's own value on a vertex, else the slope
+        times the distance from the segment's start, plus its start value."""
+        s = min(max(float(s), 0.0), self.length)
+        cum, points = self._cum_list, self._points
+        j = bisect_right(cum, s) - 1
+        if j == len(cum) - 1 or cum[j] == s:
+            x, y = points[j]
+            return x, y
+        (x0, y0), (x1, y1) = points[j], points[j + 1]
+        ds, run = s - cum[j], cum[j + 1] - cum[j]
+        return (x1 - x0) / run * ds + x0, (y1 - y0) / run * ds + y0
 
     def heading_at(self, s: float | np.ndarray) -> float | np.ndarray:
         """Lane direction [rad] at distance ``s`` [m] along the lane."""

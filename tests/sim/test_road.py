@@ -100,6 +100,35 @@ def test_area_tests_given_the_nearest_lane_agree_with_the_polygons(scenario_id):
     assert shortcut > 0.3 * 40 * len(road.lanes)  # the shortcut is the common case
 
 
+@pytest.mark.parametrize(
+    "scenario_id", ["p000_left_turn_t_low", "p012_merge_3lane_curve_mid_2agents"]
+)
+def test_a_single_lane_point_is_np_interp_bit_for_bit(scenario_id):
+    # point_at redoes np.interp's arithmetic on floats: any other rounding would move the
+    # controllers' aim point and so every record. Offsets at vertices, between them, at and past
+    # both ends, and on a lane with a zero-length segment (a repeated vertex).
+    folder = SHIPPED_PUBLIC_DIR / scenario_id
+    lanes = list(RoadNetwork.load(folder / load_scenario(folder).map).lanes.values())
+    lanes.append(Lane("dup_0", "dup", 0, np.array([[0, 0], [3, 1], [3, 1], [7.5, -2]]), 3.2, 13.9,
+                      is_internal=False, is_shoulder=False))  # fmt: skip
+    rng = np.random.default_rng(11)
+    checked = 0
+    for lane in lanes:
+        cum = lane.cumulative_s
+        offsets = [*cum.tolist(), -1.0, -0.0, lane.length + 0.5, *rng.uniform(0, lane.length, 30)]
+        for s in offsets:
+            clamped = min(max(s, 0.0), lane.length)
+            expected = (
+                np.interp(clamped, cum, lane.centreline[:, 0]),
+                np.interp(clamped, cum, lane.centreline[:, 1]),
+            )
+            x, y = lane.point_at(s)
+            assert type(x) is float and type(y) is float
+            assert np.array([x, y]).tobytes() == np.array(expected).tobytes(), (lane.id, s)
+            checked += 1
+    assert checked > 30 * len(lanes)
+
+
 def waypoints_from(lane: Lane, first_s: float, limit: int) -> tuple[list[dict], int]:
     """Up to ``limit`` of ``lane``'s waypoint dicts from ``first_s`` on, sampled and made as an
     observation's are, and how many the lane has from there."""
