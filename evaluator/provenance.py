@@ -254,11 +254,14 @@ def _sumo_version() -> str:
 
 
 def _docker_image_id(image: str) -> str | None:
-    """The id (sha256 of its configuration) of the image, or None when Docker cannot say."""
-    import docker  # only where Docker is the backend
-    import docker.errors
+    """The id (sha256 of its configuration) of the image, or None when Docker cannot say. Asked
+    per episode, since the image may be rebuilt during an evaluation, through the process's one
+    client (a new client per episode cost more than the question)."""
+    import docker.errors  # only where Docker is the backend
+
+    from evaluator.sandbox.docker_backend import docker_client
 
     try:
-        return docker.from_env().images.get(image).id
+        return docker_client().images.get(image).id
     except docker.errors.DockerException:
         return None
