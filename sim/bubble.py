@@ -39,6 +39,6 @@ class ReactiveBubble:
                 self._in_sumo.add(vid)
             traffic.move(vid, x, y, heading, speed)
             if any(math.hypot(x - ex, y - ey) <= self.radius for ex, ey in egos):
-                table.active[k] = False
+                table.hand_over(k)
                 self._in_sumo.discard(vid)
                 traffic.release(vid, speed)

@@ -2,7 +2,7 @@
 evaluating process and handed to each episode's process pickled.
 
 Parsing them is a large part of an episode's fixed cost (a network about 10 ms, a replay's
-trajectories about 30 ms), the same work for every episode of a scenario; unpickling takes a few
+trajectories about 10 ms), the same work for every episode of a scenario; unpickling takes a few
 milliseconds. The cache is keyed by the files' bytes, so an edited scenario is parsed again. The
 pickles are kept in sealed memory files (memfd) whose descriptors reach the episode's process
 with its other descriptors: nothing goes through the start-up pipe (a megabyte there held up
