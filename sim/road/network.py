@@ -73,9 +73,15 @@ class RoadNetwork:
         self._junction_area = (
             shapely.unary_union(self.junction_polygons) if self.junction_polygons else None
         )
-        self._seg_clearance: dict[int, float] = {}  # see _junction_clearance
+        # Each index segment's distance [m] from every junction area (in_junction's shortcut),
+        # measured for all at once: one at a time, when first driven on, cost an episode ~4 ms.
+        self._seg_clearance: list[float] = []
         if self._junction_area is not None:
             shapely.prepare(self._junction_area)
+            pieces = np.stack([self._seg_p0, self._seg_p0 + self._seg_d], axis=1)
+            self._seg_clearance = shapely.distance(
+                self._junction_area, shapely.linestrings(pieces)
+            ).tolist()
 
     # Pickled: an episode's process gets the network parsed by its evaluator (sim.inputs).
     def __getstate__(self) -> dict:
@@ -236,22 +242,10 @@ class RoadNetwork:
         if (
             near is not None
             and near.segment >= 0
-            and self._junction_clearance(near.segment) - near.distance > _CLEARANCE_MARGIN
+            and self._seg_clearance[near.segment] - near.distance > _CLEARANCE_MARGIN
         ):
             return False
         return bool(shapely.contains_xy(self._junction_area, x, y))
-
-    def _junction_clearance(self, segment: int) -> float:
-        """Distance [m] of nearest-lane index segment ``segment`` from every junction area;
-        measured when first asked (few segments are ever driven on)."""
-        clearance = self._seg_clearance.get(segment)
-        if clearance is None:
-            _, px, py, dx, dy, _, _ = self._seg_rows[segment]
-            piece = LineString([(px, py), (px + dx, py + dy)])
-            clearance = self._seg_clearance[segment] = float(
-                shapely.distance(self._junction_area, piece)
-            )
-        return clearance
 
     @property
     def bounds(self) -> tuple[float, float, float, float]:

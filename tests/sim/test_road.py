@@ -2,6 +2,7 @@ import math
 
 import numpy as np
 import pytest
+import shapely
 
 from arena.scenario import load_scenario
 from arena.suite import SHIPPED_PUBLIC_DIR
@@ -127,6 +128,20 @@ def test_a_single_lane_point_is_np_interp_bit_for_bit(scenario_id):
             assert np.array([x, y]).tobytes() == np.array(expected).tobytes(), (lane.id, s)
             checked += 1
     assert checked > 30 * len(lanes)
+
+
+def test_each_index_segment_knows_its_own_clearance_from_the_junctions():
+    # in_junction skips the polygon test for a point on a segment farther from every junction
+    # than the point is from the segment: each segment's clearance, measured for all at once,
+    # must be that segment's own.
+    folder = SHIPPED_PUBLIC_DIR / "p000_left_turn_t_low"
+    road = RoadNetwork.load(folder / load_scenario(folder).map)
+    clearances = road._seg_clearance
+    assert len(clearances) == len(road._seg_p0) and min(clearances) == 0.0 < max(clearances)
+    for k in range(0, len(clearances), 7):
+        (x0, y0), (dx, dy) = road._seg_p0[k].tolist(), road._seg_d[k].tolist()
+        piece = shapely.LineString([(x0, y0), (x0 + dx, y0 + dy)])
+        assert clearances[k] == shapely.distance(road._junction_area, piece), k
 
 
 def waypoints_from(lane: Lane, first_s: float, limit: int) -> tuple[list[dict], int]:
