@@ -24,7 +24,12 @@ def test_values_are_those_float_parses_bit_for_bit(tmp_path: Path) -> None:
     # Digits at the limits of a double's precision, signed zeros and exponents: the reader must
     # round each as float() does, or replayed traffic (and every record) would change.
     rng = np.random.default_rng(3)
-    texts = [repr(v) for v in rng.normal(0.0, 1e3, 400).tolist()] + ["-0.0", "0.1", "1e-310", "2.5e+2"]
+    texts = [repr(v) for v in rng.normal(0.0, 1e3, 400).tolist()] + [
+        "-0.0",
+        "0.1",
+        "1e-310",
+        "2.5e+2",
+    ]
     path = tmp_path / "trajectories.csv"
     lines = [f"v{k % 7},{k * 0.1:.1f},{t},{t},{t},{t},4.5,{t}" for k, t in enumerate(texts)]
     path.write_text(HEADER + "\n".join(lines) + "\n")
