@@ -42,10 +42,12 @@ class ScenarioInputs:
     @classmethod
     def parse(cls, scenario_dir: Path, scenario: Scenario) -> ScenarioInputs:
         folder = Path(scenario_dir)
+        road = RoadNetwork.load(folder / scenario.map)
         replay = None
         if isinstance(scenario.traffic, ReplayTraffic):
-            replay = ReplayTable(folder / scenario.traffic.trajectories, scenario.step_length)
-        return cls(RoadNetwork.load(folder / scenario.map), replay)
+            trajectories = folder / scenario.traffic.trajectories
+            replay = ReplayTable(trajectories, scenario.step_length, road)
+        return cls(road, replay)
 
 
 def read_inputs(fd: int) -> ScenarioInputs:

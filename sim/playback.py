@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sim.road import RoadNetwork
 from sim.trajectories import read_trajectories
 from sim.vehicle.states import VehicleStates
 
@@ -15,7 +16,9 @@ from sim.vehicle.states import VehicleStates
 @dataclass(frozen=True)
 class _StepRows:
     values: np.ndarray  # (rows, 6) every present vehicle's state, step-major
+    vehicle: np.ndarray  # (rows,) the vehicle of each row: its index in ids
     ids: list[str]  # (rows,)
+    lanes: list[str]  # (rows,) the nearest lane's id, "" without a road
     starts: list[int]  # (steps + 1,) the first row of each step, then the total
 
 
@@ -23,10 +26,14 @@ class ReplayTable:
     """Every recorded vehicle's state at every episode step, NaN where it does not exist.
 
     Step ``k`` is simulation time ``k * dt``; a vehicle whose recording starts later appears then
-    and disappears after its last frame.
+    and disappears after its last frame. With ``road``, the states name each vehicle's nearest
+    lane (what a neighbour observation shows), found for the whole recording in one query when
+    first asked: per step, a few points at a time, the query cost more than the rest of a step's
+    replay.
     """
 
-    def __init__(self, path: Path, dt: float) -> None:
+    def __init__(self, path: Path, dt: float, road: RoadNetwork | None = None) -> None:
+        self.road = road
         trajectories = read_trajectories(path)
         self.ids = sorted(trajectories)
         first = {v: round(float(tr.time[0]) / dt) for v, tr in trajectories.items()}
@@ -65,31 +72,34 @@ class ReplayTable:
         return (self.active & ~np.isnan(self.motion[step, :, 0])).nonzero()[0]
 
     def states(self, step: int) -> VehicleStates:
-        """The replayed vehicles' states at ``step``, in row order."""
-        if not self._handed_over:  # every step's rows are slices of one table: no numpy per step
-            by_step = self._by_step or self._step_rows()
-            start, end = by_step.starts[step : step + 2] if step < len(self.motion) else (0, 0)
-            if start == end:
-                return VehicleStates.empty()
-            return VehicleStates.of(
-                by_step.ids[start:end], by_step.values[start:end], [""] * (end - start)
-            )
-        rows = self.present(step)
-        if not len(rows):
-            # Past the end of the recording there is no column to index, not even with no rows.
+        """The replayed (not handed over) vehicles' states at ``step``, in row order."""
+        by_step = self._by_step or self._step_rows()
+        start, end = by_step.starts[step : step + 2] if step < len(self.motion) else (0, 0)
+        if start == end:
             return VehicleStates.empty()
-        values = np.concatenate([self.motion[step].take(rows, 0), self.dims.take(rows, 0)], 1)
-        return VehicleStates.of([self.ids[k] for k in rows], values, [""] * len(rows))
+        if not self._handed_over:  # each step's states are slices of one table: no numpy
+            return VehicleStates.of(
+                by_step.ids[start:end], by_step.values[start:end], by_step.lanes[start:end]
+            )
+        rows = start + np.flatnonzero(self.active[by_step.vehicle[start:end]])
+        at = rows.tolist()
+        ids, lanes = by_step.ids, by_step.lanes
+        return VehicleStates.of(
+            [ids[k] for k in at], by_step.values.take(rows, 0), [lanes[k] for k in at]
+        )
 
     def _step_rows(self) -> _StepRows:
-        """Every (step, vehicle) the recording holds, step after step, vehicles in row order: the
-        same values states() would gather step by step."""
-        steps, rows = (~np.isnan(self.motion[:, :, 0])).nonzero()
-        values = np.concatenate([self.motion[steps, rows], self.dims.take(rows, 0)], 1)
+        """Every (step, vehicle) the recording holds, step after step, vehicles in row order."""
+        steps, vehicle = (~np.isnan(self.motion[:, :, 0])).nonzero()
+        values = np.concatenate([self.motion[steps, vehicle], self.dims.take(vehicle, 0)], 1)
         values.flags.writeable = False  # shared by the states of every step
         starts = steps.searchsorted(np.arange(len(self.motion) + 1)).tolist()
-        ids = self.ids
-        self._by_step = _StepRows(values, [ids[k] for k in rows.tolist()], starts)
+        ids = [self.ids[k] for k in vehicle.tolist()]
+        if self.road is None:
+            lanes = [""] * len(ids)
+        else:
+            lanes = [lane.id for lane in self.road.nearest_lanes(values[:, :2])]
+        self._by_step = _StepRows(values, vehicle, ids, lanes, starts)
         return self._by_step
 
     length = property(lambda self: self.dims[:, 0], doc="(vehicles,) [m]")

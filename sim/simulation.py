@@ -130,7 +130,7 @@ class Simulation:
             if self._inputs is not None and self._inputs.replay is not None:
                 table = self._inputs.replay.fresh()
             else:
-                table = ReplayTable(folder / sc.traffic.trajectories, self.dt)
+                table = ReplayTable(folder / sc.traffic.trajectories, self.dt, self.road)
             if sc.traffic.bubble_radius is None:
                 self._replay = table
             else:

@@ -21,6 +21,12 @@ from sim.road.lane import Lane, angle_between
 _TIE_DISTANCE = 0.5
 _GRID_CELL = 5.0  # [m] side of a nearest-lane index cell
 _GRID_REACH = 4.0  # [m] segments this close to a cell are listed in it
+# nearest_lanes answers batches at least this large from the grid, smaller ones from the tree
+# (per call, the grid's numpy costs more than the tree's queries of a few points).
+_GRID_BATCH = 256
+# [m] a lane nearer than all others by more than this is the nearest however either of two
+# computations rounds (their distances differ by far less)
+_GRID_MARGIN = 1e-6
 _MAX_SEGMENT = 5.0  # [m] longer centreline segments are split in the index
 _SURFACE_MARGIN = 0.05  # [m] see _well_inside
 _CLEARANCE_MARGIN = 1e-6  # [m] beyond rounding of the distances in in_junction
@@ -168,6 +174,7 @@ class RoadNetwork:
         self._seg_s0_list = self._seg_s0.tolist()
         self._seg_heading_list = self._seg_heading.tolist()
         self._grid = {cell: [rows[k] for k in segs] for cell, segs in cells.items()}
+        self._grid_segments: dict[tuple[int, int], np.ndarray] = {}  # made by nearest_lanes
 
     def nearest_lane(self, x: float, y: float, heading: float | None = None) -> LanePosition:
         """The lane whose centreline is nearest to (x, y) [m]. Among lanes within 0.5 m of the
@@ -218,11 +225,67 @@ class RoadNetwork:
         return list(zip(distance.tolist(), u.tolist(), segs.tolist(), strict=True))
 
     def nearest_lanes(self, xy: np.ndarray) -> list[Lane]:
-        """Nearest lane of each point of ``xy`` (m, 2) [m], vectorised; no heading preference."""
+        """Nearest lane of each point of ``xy`` (m, 2) [m], vectorised; no heading preference
+        (between lanes equally near, the search tree's pick)."""
         if len(xy) == 0:
             return []
-        _, seg = self._tree.query_nearest(shapely.points(xy), all_matches=False)
-        return [self._lane_list[i] for i in self._seg_lane[seg]]
+        if len(xy) < _GRID_BATCH:
+            _, seg = self._tree.query_nearest(shapely.points(xy), all_matches=False)
+            lane = self._seg_lane[seg]
+        else:
+            lane = self._grid_lanes(xy)
+            undecided = np.flatnonzero(lane < 0)
+            if len(undecided):
+                points = shapely.points(xy[undecided])
+                _, seg = self._tree.query_nearest(points, all_matches=False)
+                lane[undecided] = self._seg_lane[seg]
+        lanes = self._lane_list
+        return [lanes[k] for k in lane.tolist()]
+
+    def _grid_lanes(self, xy: np.ndarray) -> np.ndarray:
+        """Each point's nearest lane (its index in the lane list) from the segments of its grid
+        cell, all points at once; -1 where the cell cannot tell: no segment within
+        _GRID_REACH, or another lane within _GRID_MARGIN of the nearest. Anywhere else that lane
+        is the search tree's answer too, whatever the last bits of either's distances."""
+        cells = np.floor(xy / _GRID_CELL).astype(np.int64)
+        order = np.lexsort((cells[:, 1], cells[:, 0]))  # points cell by cell
+        by_cell = cells[order]
+        firsts = np.flatnonzero(np.any(by_cell[1:] != by_cell[:-1], axis=1)) + 1
+        grid = self._grid_segments or self._make_grid_segments()
+        points, segments = [], []
+        for members, cell in zip(
+            np.split(order, firsts), by_cell[np.r_[0, firsts]].tolist(), strict=True
+        ):
+            found = grid.get((cell[0], cell[1]))
+            if found is not None:  # each point's candidates side by side
+                points.append(members.repeat(len(found)))
+                segments.append(np.tile(found, len(members)))
+        lane = np.full(len(xy), -1)
+        if not points:
+            return lane
+        point, seg = np.concatenate(points), np.concatenate(segments)
+        rx, ry = (xy[point] - self._seg_p0[seg]).T
+        dx, dy = self._seg_d[seg].T
+        u = np.clip((rx * dx + ry * dy) / self._seg_len2[seg], 0.0, 1.0)
+        distance = np.hypot(rx - dx * u, ry - dy * u)
+        starts = np.flatnonzero(np.r_[True, point[1:] != point[:-1]])
+        sizes = np.diff(np.r_[starts, len(point)])
+        nearest = np.minimum.reduceat(distance, starts)
+        at_nearest = np.flatnonzero(distance == nearest.repeat(sizes))
+        first = at_nearest[np.r_[True, point[at_nearest][1:] != point[at_nearest][:-1]]]
+        seg_lane = self._seg_lane[seg]
+        best = seg_lane[first]
+        others = np.where(seg_lane != best.repeat(sizes), distance, np.inf)
+        clear = np.minimum.reduceat(others, starts) > nearest + _GRID_MARGIN
+        clear &= nearest + _GRID_MARGIN <= _GRID_REACH
+        lane[point[starts][clear]] = best[clear]
+        return lane
+
+    def _make_grid_segments(self) -> dict[tuple[int, int], np.ndarray]:
+        self._grid_segments = {
+            cell: np.array([row[0] for row in rows]) for cell, rows in self._grid.items()
+        }
+        return self._grid_segments
 
     def is_on_road(self, x: float, y: float, near: LanePosition | None = None) -> bool:
         """Whether (x, y) [m] is inside the drivable area. ``near``, the point's

@@ -6,11 +6,14 @@ import shapely
 
 from arena.scenario import load_scenario
 from arena.suite import SHIPPED_PUBLIC_DIR
+from sim.observation import neighbour_lanes
+from sim.playback import ReplayTable
 from sim.road import RoadNetwork
 from sim.road.centrelines import CentrelineTable
 from sim.road.lane import Lane
-from sim.road.network import _well_inside
+from sim.road.network import _GRID_BATCH, _well_inside
 from sim.road.waypoints import split_paths, waypoint_paths
+from sim.vehicle.states import VehicleStates
 from tests.sim.builders import LANE_WIDTH, build_net, lane_y, straight_road
 
 
@@ -142,6 +145,48 @@ def test_each_index_segment_knows_its_own_clearance_from_the_junctions():
         (x0, y0), (dx, dy) = road._seg_p0[k].tolist(), road._seg_d[k].tolist()
         piece = shapely.LineString([(x0, y0), (x0 + dx, y0 + dy)])
         assert clearances[k] == shapely.distance(road._junction_area, piece), k
+
+
+@pytest.mark.parametrize(
+    "scenario_id",
+    ["p000_left_turn_t_low", "p012_merge_3lane_curve_mid_2agents", "p038_replay_urban"],
+)
+def test_many_points_get_the_lanes_the_search_tree_gives_one_by_one(scenario_id):
+    # A large batch is answered from the grid, the tree deciding only near-ties: the lanes must
+    # be the tree's own, also for points exactly between two lanes (a tie the tree breaks), on
+    # lane ends, in junctions and far off the road.
+    folder = SHIPPED_PUBLIC_DIR / scenario_id
+    road = RoadNetwork.load(folder / load_scenario(folder).map)
+    rng = np.random.default_rng(8)
+    points = []
+    for lane in road.lanes.values():
+        s = rng.uniform(-3.0, lane.length + 3.0, 30)
+        base = lane.position_at(s)
+        heading = np.asarray(lane.heading_at(np.clip(s, 0.0, lane.length)))
+        offset = rng.uniform(-4.0, 4.0, 30) * lane.width  # up to a few lanes away
+        offset[::3] = lane.width / 2  # on the line between this lane and the next
+        points.append(np.stack([base[:, 0] - offset * np.sin(heading),
+                                base[:, 1] + offset * np.cos(heading)], axis=1))  # fmt: skip
+    xmin, ymin, xmax, ymax = road.bounds
+    points.append(rng.uniform([xmin - 30, ymin - 30], [xmax + 30, ymax + 30], (300, 2)))
+    xy = np.concatenate(points)
+    assert len(xy) >= _GRID_BATCH
+    one_by_one = [road.nearest_lanes(xy[k : k + 1])[0] for k in range(len(xy))]
+    assert road.nearest_lanes(xy) == one_by_one
+
+
+def test_replayed_vehicles_name_the_lane_a_neighbour_observation_would():
+    folder = SHIPPED_PUBLIC_DIR / "p030_replay_cruise"
+    scenario = load_scenario(folder)
+    road = RoadNetwork.load(folder / scenario.map)
+    table = ReplayTable(folder / scenario.traffic.trajectories, scenario.step_length, road)
+    named = 0
+    for step in range(0, len(table.motion), 5):
+        states = table.states(step)
+        unnamed = VehicleStates.of(states.ids, states.values, [""] * len(states))
+        assert states.lane_id == [lane.id for lane in neighbour_lanes(unnamed, road)]
+        named += len(states)
+    assert named > 100
 
 
 def waypoints_from(lane: Lane, first_s: float, limit: int) -> tuple[list[dict], int]:
