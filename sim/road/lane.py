@@ -12,9 +12,12 @@ import numpy as np
 from arena import portable_math
 from sim.road.centrelines import WAYPOINT_SPACING
 
-# Lanes of more centreline points than this are projected onto with numpy (one pass over all
-# segments), fewer with a scalar loop; both give the same result.
+# Lanes of more centreline points than this are projected onto through a grid of their segments
+# (numpy over all segments when the grid cannot tell), fewer with a scalar loop over all; every
+# way gives the same result.
 _VECTOR_PROJECTION_POINTS = 16
+_CELL = 4.0  # [m] side of a long lane's grid cell
+_CELL_REACH_D2 = 3.0**2  # [m^2] a nearest segment this near is certainly listed in the cell
 
 
 def wrap_angle(angle: float | np.ndarray) -> float | np.ndarray:
@@ -58,13 +61,15 @@ class Lane:
             for (x0, y0), (x1, y1) in pairwise(self._points)
         ]
         self._seg_len2 = np.maximum(seg[:, 0] * seg[:, 0] + seg[:, 1] * seg[:, 1], 1e-12)
+        self._len2_list = self._seg_len2.tolist()
+        self._cells: dict[tuple[int, int], list[int]] | None = None  # long lanes: _make_cells
 
     def project(self, x: float, y: float) -> tuple[float, float, float]:
         """Lane coordinates of a point: (s [m] along the lane, t [m] signed lateral offset, left
-        positive, heading [rad] of the lane at s)."""
+        positive, heading [rad] of the lane at s), on the lane's first nearest segment."""
         pts = self._points
         if len(pts) > _VECTOR_PROJECTION_POINTS:
-            return self._project_vectorised(x, y)
+            return self._project_long(x, y)
         # Scalar Python: most lanes have few segments, and numpy's per-call overhead would
         # dominate.
         best = (math.inf, 0, 0.0)
@@ -78,6 +83,28 @@ class Lane:
                 best = (d2, i, u)
         return self._frame(best[1], best[2], x, y)
 
+    def _project_long(self, x: float, y: float) -> tuple[float, float, float]:
+        """:meth:`project` onto a lane of many points (curves). The point's cell of the lane's
+        grid lists every segment passing within 3 m of it, in index order: a nearest one nearer
+        than that is the first nearest of all (:meth:`_project_vectorised`'s arithmetic, on
+        floats). Else all segments at once."""
+        cells = self._cells or self._make_cells()
+        listed = cells.get((math.floor(x / _CELL), math.floor(y / _CELL)), ())
+        pts = self._points
+        best = (math.inf, 0, 0.0)
+        for i in listed:
+            (x0, y0), (x1, y1) = pts[i], pts[i + 1]
+            dx, dy = x1 - x0, y1 - y0
+            rx, ry = x - x0, y - y0
+            u = min(max((rx * dx + ry * dy) / self._len2_list[i], 0.0), 1.0)
+            ex, ey = rx - dx * u, ry - dy * u
+            d2 = ex * ex + ey * ey
+            if d2 < best[0]:
+                best = (d2, i, u)
+        if best[0] < _CELL_REACH_D2:
+            return self._frame(best[1], best[2], x, y)
+        return self._project_vectorised(x, y)
+
     def _project_vectorised(self, x: float, y: float) -> tuple[float, float, float]:
         """:meth:`project` for lanes of many points (curves): the same arithmetic per segment,
         and the first nearest segment wins as in the scalar loop."""
@@ -87,6 +114,20 @@ class Lane:
         ex, ey = rx - d[:, 0] * u, ry - d[:, 1] * u
         i = int(np.argmin(ex * ex + ey * ey))
         return self._frame(i, float(u[i]), x, y)
+
+    def _make_cells(self) -> dict[tuple[int, int], list[int]]:
+        """Grid cells of _CELL [m] -> indices of the segments passing within a little more than
+        3 m of the cell, ascending (made when a long lane is first projected onto)."""
+        cells: dict[tuple[int, int], list[int]] = {}
+        reach = math.sqrt(_CELL_REACH_D2) + 1e-3  # listed a little wider than trusted
+        for i, ((x0, y0), (x1, y1)) in enumerate(pairwise(self._points)):
+            for ix in range(math.floor((min(x0, x1) - reach) / _CELL),
+                            math.floor((max(x0, x1) + reach) / _CELL) + 1):  # fmt: skip
+                for iy in range(math.floor((min(y0, y1) - reach) / _CELL),
+                                math.floor((max(y0, y1) + reach) / _CELL) + 1):  # fmt: skip
+                    cells.setdefault((ix, iy), []).append(i)
+        self._cells = cells
+        return cells
 
     def _frame(self, i: int, u: float, x: float, y: float) -> tuple[float, float, float]:
         (x0, y0), (x1, y1) = self._points[i], self._points[i + 1]

@@ -189,6 +189,32 @@ def test_replayed_vehicles_name_the_lane_a_neighbour_observation_would():
     assert named > 100
 
 
+@pytest.mark.parametrize(
+    "scenario_id",
+    ["p012_merge_3lane_curve_mid_2agents", "p017_cruise_3lane_curve_high", "p032_replay_merge"],
+)
+def test_projecting_onto_a_long_lane_through_its_grid_is_the_full_search(scenario_id):
+    # A long lane answers from the segments of the point's grid cell when the nearest is near
+    # enough: the same segment (first of equals), s, t and heading as the search over all
+    # segments, on the centreline, at its vertices (two segments equally near), beside it and
+    # far from it.
+    folder = SHIPPED_PUBLIC_DIR / scenario_id
+    road = RoadNetwork.load(folder / load_scenario(folder).map)
+    long_lanes = [lane for lane in road.lanes.values() if len(lane.centreline) > 16]
+    assert long_lanes
+    rng = np.random.default_rng(4)
+    for lane in long_lanes:
+        s = np.concatenate([lane.cumulative_s, rng.uniform(-5.0, lane.length + 5.0, 60)])
+        base = lane.position_at(s)
+        heading = np.asarray(lane.heading_at(np.clip(s, 0.0, lane.length)))
+        offset = rng.uniform(-8.0, 8.0, len(s))
+        offset[: len(lane.cumulative_s)] = 0.0  # the vertices themselves
+        xs = base[:, 0] - offset * np.sin(heading)
+        ys = base[:, 1] + offset * np.cos(heading)
+        for x, y in zip(xs.tolist(), ys.tolist(), strict=True):
+            assert lane.project(x, y) == lane._project_vectorised(x, y), (lane.id, x, y)
+
+
 def waypoints_from(lane: Lane, first_s: float, limit: int) -> tuple[list[dict], int]:
     """Up to ``limit`` of ``lane``'s waypoint dicts from ``first_s`` on, sampled and made as an
     observation's are, and how many the lane has from there."""
