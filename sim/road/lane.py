@@ -87,7 +87,11 @@ class Lane:
         """:meth:`project` onto a lane of many points (curves). The point's cell of the lane's
         grid lists every segment passing within 3 m of it, in index order: a nearest one nearer
         than that is the first nearest of all (:meth:`_project_vectorised`'s arithmetic, on
-        floats). Else all segments at once."""
+        floats). Else all segments at once.
+
+        Not :meth:`project`'s loop: that one squares with ``**`` (libm's pow, which differs from
+        ``x * x`` in the last bit about once in a thousand) and keeps doing so, so that short
+        lanes answer as they always did; this one must multiply, as the numpy search does."""
         cells = self._cells or self._make_cells()
         listed = cells.get((math.floor(x / _CELL), math.floor(y / _CELL)), ())
         pts = self._points

@@ -78,24 +78,33 @@ def test_junction_lanes_and_areas(tmp_path):
     assert successors == {"out_0", "down_0"}
 
 
-@pytest.mark.parametrize(
-    "scenario_id",
-    ["p000_left_turn_t_low", "p012_merge_3lane_curve_mid_2agents", "p038_replay_urban"],
-)
+# A junction, curved lanes with a merge, and an urban replay's recorded-road network.
+MAPS = ["p000_left_turn_t_low", "p012_merge_3lane_curve_mid_2agents", "p038_replay_urban"]
+
+
+def shipped_road(scenario_id: str) -> RoadNetwork:
+    folder = SHIPPED_PUBLIC_DIR / scenario_id
+    return RoadNetwork.load(folder / load_scenario(folder).map)
+
+
+def beside(lane: Lane, s: np.ndarray, offset: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Points ``offset`` [m] left of ``lane``'s centreline at ``s`` [m] along it (clamped to the
+    lane), and the lane's heading there: x, y, heading."""
+    base = lane.position_at(s)
+    heading = np.asarray(lane.heading_at(np.clip(s, 0.0, lane.length)))
+    return base[:, 0] - offset * np.sin(heading), base[:, 1] + offset * np.cos(heading), heading
+
+
+@pytest.mark.parametrize("scenario_id", MAPS)
 def test_area_tests_given_the_nearest_lane_agree_with_the_polygons(scenario_id):
     # The lane shortcut of is_on_road must never contradict the drivable-area polygon, also at
     # lane edges, lane ends, curves and junctions: points scattered around every lane.
-    folder = SHIPPED_PUBLIC_DIR / scenario_id
-    road = RoadNetwork.load(folder / load_scenario(folder).map)
+    road = shipped_road(scenario_id)
     rng = np.random.default_rng(5)
     shortcut = 0
     for lane in road.lanes.values():
         s = rng.uniform(-2.0, lane.length + 2.0, 40)
-        base = lane.position_at(s)
-        heading = np.asarray(lane.heading_at(np.clip(s, 0.0, lane.length)))
-        offset = rng.uniform(-0.7, 0.7, 40) * lane.width
-        xs = base[:, 0] - offset * np.sin(heading)
-        ys = base[:, 1] + offset * np.cos(heading)
+        xs, ys, heading = beside(lane, s, rng.uniform(-0.7, 0.7, 40) * lane.width)
         for x, y, h in zip(xs.tolist(), ys.tolist(), heading.tolist(), strict=True):
             near = road.nearest_lane(x, y, h)
             assert road.is_on_road(x, y, near) == road.is_on_road(x, y), (lane.id, x, y)
@@ -111,8 +120,7 @@ def test_a_single_lane_point_is_np_interp_bit_for_bit(scenario_id):
     # point_at redoes np.interp's arithmetic on floats: any other rounding would move the
     # controllers' aim point and so every record. Offsets at vertices, between them, at and past
     # both ends, and on a lane with a zero-length segment (a repeated vertex).
-    folder = SHIPPED_PUBLIC_DIR / scenario_id
-    lanes = list(RoadNetwork.load(folder / load_scenario(folder).map).lanes.values())
+    lanes = list(shipped_road(scenario_id).lanes.values())
     lanes.append(Lane("dup_0", "dup", 0, np.array([[0, 0], [3, 1], [3, 1], [7.5, -2]]), 3.2, 13.9,
                       is_internal=False, is_shoulder=False))  # fmt: skip
     rng = np.random.default_rng(11)
@@ -137,8 +145,7 @@ def test_each_index_segment_knows_its_own_clearance_from_the_junctions():
     # in_junction skips the polygon test for a point on a segment farther from every junction
     # than the point is from the segment: each segment's clearance, measured for all at once,
     # must be that segment's own.
-    folder = SHIPPED_PUBLIC_DIR / "p000_left_turn_t_low"
-    road = RoadNetwork.load(folder / load_scenario(folder).map)
+    road = shipped_road("p000_left_turn_t_low")
     clearances = road._seg_clearance
     assert len(clearances) == len(road._seg_p0) and min(clearances) == 0.0 < max(clearances)
     for k in range(0, len(clearances), 7):
@@ -147,26 +154,20 @@ def test_each_index_segment_knows_its_own_clearance_from_the_junctions():
         assert clearances[k] == shapely.distance(road._junction_area, piece), k
 
 
-@pytest.mark.parametrize(
-    "scenario_id",
-    ["p000_left_turn_t_low", "p012_merge_3lane_curve_mid_2agents", "p038_replay_urban"],
-)
+@pytest.mark.parametrize("scenario_id", MAPS)
 def test_many_points_get_the_lanes_the_search_tree_gives_one_by_one(scenario_id):
     # A large batch is answered from the grid, the tree deciding only near-ties: the lanes must
     # be the tree's own, also for points exactly between two lanes (a tie the tree breaks), on
     # lane ends, in junctions and far off the road.
-    folder = SHIPPED_PUBLIC_DIR / scenario_id
-    road = RoadNetwork.load(folder / load_scenario(folder).map)
+    road = shipped_road(scenario_id)
     rng = np.random.default_rng(8)
     points = []
     for lane in road.lanes.values():
         s = rng.uniform(-3.0, lane.length + 3.0, 30)
-        base = lane.position_at(s)
-        heading = np.asarray(lane.heading_at(np.clip(s, 0.0, lane.length)))
         offset = rng.uniform(-4.0, 4.0, 30) * lane.width  # up to a few lanes away
         offset[::3] = lane.width / 2  # on the line between this lane and the next
-        points.append(np.stack([base[:, 0] - offset * np.sin(heading),
-                                base[:, 1] + offset * np.cos(heading)], axis=1))  # fmt: skip
+        xs, ys, _ = beside(lane, s, offset)
+        points.append(np.stack([xs, ys], axis=1))
     xmin, ymin, xmax, ymax = road.bounds
     points.append(rng.uniform([xmin - 30, ymin - 30], [xmax + 30, ymax + 30], (300, 2)))
     xy = np.concatenate(points)
@@ -198,19 +199,15 @@ def test_projecting_onto_a_long_lane_through_its_grid_is_the_full_search(scenari
     # enough: the same segment (first of equals), s, t and heading as the search over all
     # segments, on the centreline, at its vertices (two segments equally near), beside it and
     # far from it.
-    folder = SHIPPED_PUBLIC_DIR / scenario_id
-    road = RoadNetwork.load(folder / load_scenario(folder).map)
+    road = shipped_road(scenario_id)
     long_lanes = [lane for lane in road.lanes.values() if len(lane.centreline) > 16]
     assert long_lanes
     rng = np.random.default_rng(4)
     for lane in long_lanes:
         s = np.concatenate([lane.cumulative_s, rng.uniform(-5.0, lane.length + 5.0, 60)])
-        base = lane.position_at(s)
-        heading = np.asarray(lane.heading_at(np.clip(s, 0.0, lane.length)))
         offset = rng.uniform(-8.0, 8.0, len(s))
         offset[: len(lane.cumulative_s)] = 0.0  # the vertices themselves
-        xs = base[:, 0] - offset * np.sin(heading)
-        ys = base[:, 1] + offset * np.cos(heading)
+        xs, ys, _ = beside(lane, s, offset)
         for x, y in zip(xs.tolist(), ys.tolist(), strict=True):
             assert lane.project(x, y) == lane._project_vectorised(x, y), (lane.id, x, y)
 
