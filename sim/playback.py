@@ -18,8 +18,12 @@ class _StepRows:
     values: np.ndarray  # (rows, 6) every present vehicle's state, step-major
     vehicle: np.ndarray  # (rows,) the vehicle of each row: its index in ids
     ids: list[str]  # (rows,)
-    lanes: list[str]  # (rows,) the nearest lane's id, "" without a road
     starts: list[int]  # (steps + 1,) the first row of each step, then the total
+
+    def span(self, step: int) -> tuple[int, int]:
+        """The rows of ``step`` (none past the recording's end)."""
+        starts = self.starts
+        return (starts[step], starts[step + 1]) if step < len(starts) - 1 else (0, 0)
 
 
 class ReplayTable:
@@ -50,7 +54,8 @@ class ReplayTable:
             self.motion[span, k] = np.stack([tr.x, tr.y, tr.heading, tr.speed], axis=1)
         self.active = np.ones(len(self.ids), dtype=bool)  # False once handed over (hand_over)
         self._handed_over = False
-        self._by_step: _StepRows | None = None  # made at the first states() (in the episode)
+        self._by_step: _StepRows | None = None  # made when first asked (in the episode)
+        self._lanes: list[str] | None = None  # each row's lane, made at the first states()
 
     def fresh(self) -> ReplayTable:
         """This recording with every vehicle replayed again (none handed to SUMO yet), for a new
@@ -67,23 +72,25 @@ class ReplayTable:
 
     def present(self, step: int) -> np.ndarray:
         """Row indices of the replayed (not handed over) vehicles existing at ``step``."""
-        if step >= len(self.motion):
-            return np.zeros(0, dtype=int)
-        return (self.active & ~np.isnan(self.motion[step, :, 0])).nonzero()[0]
+        by_step = self._by_step or self._step_rows()
+        start, end = by_step.span(step)
+        vehicle = by_step.vehicle[start:end]
+        return vehicle[self.active[vehicle]] if self._handed_over else vehicle
 
     def states(self, step: int) -> VehicleStates:
         """The replayed (not handed over) vehicles' states at ``step``, in row order."""
         by_step = self._by_step or self._step_rows()
-        start, end = by_step.starts[step : step + 2] if step < len(self.motion) else (0, 0)
+        lanes = self._lanes or self._row_lanes(by_step)
+        start, end = by_step.span(step)
         if start == end:
             return VehicleStates.empty()
         if not self._handed_over:  # each step's states are slices of one table: no numpy
             return VehicleStates.of(
-                by_step.ids[start:end], by_step.values[start:end], by_step.lanes[start:end]
+                by_step.ids[start:end], by_step.values[start:end], lanes[start:end]
             )
         rows = start + np.flatnonzero(self.active[by_step.vehicle[start:end]])
         at = rows.tolist()
-        ids, lanes = by_step.ids, by_step.lanes
+        ids = by_step.ids
         return VehicleStates.of(
             [ids[k] for k in at], by_step.values.take(rows, 0), [lanes[k] for k in at]
         )
@@ -92,15 +99,19 @@ class ReplayTable:
         """Every (step, vehicle) the recording holds, step after step, vehicles in row order."""
         steps, vehicle = (~np.isnan(self.motion[:, :, 0])).nonzero()
         values = np.concatenate([self.motion[steps, vehicle], self.dims.take(vehicle, 0)], 1)
-        values.flags.writeable = False  # shared by the states of every step
+        values.flags.writeable = vehicle.flags.writeable = False  # shared by every step's
         starts = steps.searchsorted(np.arange(len(self.motion) + 1)).tolist()
         ids = [self.ids[k] for k in vehicle.tolist()]
-        if self.road is None:
-            lanes = [""] * len(ids)
-        else:
-            lanes = [lane.id for lane in self.road.nearest_lanes(values[:, :2])]
-        self._by_step = _StepRows(values, vehicle, ids, lanes, starts)
+        self._by_step = _StepRows(values, vehicle, ids, starts)
         return self._by_step
+
+    def _row_lanes(self, by_step: _StepRows) -> list[str]:
+        """Each row's nearest lane id ("" without a road), all rows in one query."""
+        if self.road is None:
+            self._lanes = [""] * len(by_step.ids)
+        else:
+            self._lanes = [lane.id for lane in self.road.nearest_lanes(by_step.values[:, :2])]
+        return self._lanes
 
     length = property(lambda self: self.dims[:, 0], doc="(vehicles,) [m]")
     width = property(lambda self: self.dims[:, 1], doc="(vehicles,) [m]")
