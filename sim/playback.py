@@ -99,7 +99,7 @@ class ReplayTable:
         """Every (step, vehicle) the recording holds, step after step, vehicles in row order."""
         steps, vehicle = (~np.isnan(self.motion[:, :, 0])).nonzero()
         values = np.concatenate([self.motion[steps, vehicle], self.dims.take(vehicle, 0)], 1)
-        values.flags.writeable = vehicle.flags.writeable = False  # shared by every step's
+        values.flags.writeable = vehicle.flags.writeable = False  # every step shares them
         starts = steps.searchsorted(np.arange(len(self.motion) + 1)).tolist()
         ids = [self.ids[k] for k in vehicle.tolist()]
         self._by_step = _StepRows(values, vehicle, ids, starts)
