@@ -36,7 +36,7 @@ from sim.observation_record import ArraysObservation, ObservationRecord
 from sim.playback import ReplayTable
 from sim.record import EpisodeRecorder, write_npz
 from sim.road import LanePosition, RoadNetwork
-from sim.road.centrelines import packed
+from sim.road.centrelines import WaypointArrays, packed
 from sim.road.waypoints import (
     path_starts,
     road_waypoints,
@@ -437,11 +437,7 @@ class Simulation:
         lane, near = self._lanes[v.id], around.vehicles
         if self._layout is not None:
             return self._observe_arrays(v, lane, near, events)
-        route = v.mission.route
-        starts = path_starts(
-            self.road, lane, v.pose.x, v.pose.y, route, self.interface.max_waypoint_paths
-        )
-        waypoints = waypoint_arrays(self.road, starts, route, self._points_per_path)
+        waypoints = self._waypoints(v, lane, self._points_per_path)
         paths = packed(waypoints) if self._packed_waypoints else split_paths(waypoints)
         return build_observation(
             vehicle=v,
@@ -471,10 +467,6 @@ class Simulation:
         record = self._records.get(v.id)
         if record is None:
             record = self._records[v.id] = ObservationRecord(self._layout)
-        route, interface = v.mission.route, self.interface
-        starts = path_starts(
-            self.road, lane, v.pose.x, v.pose.y, route, interface.max_waypoint_paths
-        )
         return record.write(
             vehicle=v,
             step=self.step_count,
@@ -483,10 +475,18 @@ class Simulation:
             events=events,
             neighbours=near,
             road=self.road,
-            waypoints=waypoint_arrays(self.road, starts, route, interface.waypoints_per_path),
+            waypoints=self._waypoints(v, lane, self.interface.waypoints_per_path),
             rasters=self._rasters(v, near),
             done=v.status is Status.done,
         )
+
+    def _waypoints(self, v: MissionVehicle, lane: LanePosition, n: int) -> WaypointArrays:
+        """``v``'s waypoint paths of up to ``n`` points, from where it is on ``lane``."""
+        route = v.mission.route
+        starts = path_starts(
+            self.road, lane, v.pose.x, v.pose.y, route, self.interface.max_waypoint_paths
+        )
+        return waypoint_arrays(self.road, starts, route, n)
 
     def _rasters(self, v: MissionVehicle, near: VehicleStates) -> dict[str, np.ndarray] | None:
         if not self._bev.names:  # the agent asked for none
