@@ -14,8 +14,9 @@ Prints, in order:
   evaluator, not the planner's thinking or two episodes sharing the cores);
 - ``raw_step_ms``: libsumo alone, in one process, stepping each scenario's SUMO traffic (same
   network, routes, seed and step length) for as many steps as the trivial agent's episode had.
-  Replayed traffic is not SUMO's (the simulator reads it from the recording), so for the
-  suite's replay scenarios this is SUMO stepping an empty network (about 0.01 ms);
+  Replayed traffic is not SUMO's (the simulator reads it from the recording, and runs no SUMO
+  for a replay without a reactive bubble), so for the suite's replay scenarios this is SUMO
+  stepping an empty network (about 0.01 ms);
 - ``round_trip_floor_ms``: the median ``act`` round trip of an empty observation to a trivial
   agent forked in a warm sandbox of the same kind, in the keep-lane agent's observation format
   (``bench/sandbox_roundtrip.py``): the transport alone, which no sandboxed agent avoids;

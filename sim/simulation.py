@@ -44,7 +44,7 @@ from sim.road.waypoints import (
     split_paths,
     waypoint_arrays,
 )
-from sim.traffic import SumoTraffic
+from sim.traffic import MissionsOnlyTraffic, SumoTraffic, Traffic
 from sim.triggers import CutInTriggers
 from sim.vehicle import DECODERS, ControlContext, InvalidAction, check_action
 from sim.vehicle.actions import quote
@@ -99,7 +99,7 @@ class Simulation:
             else RoadNetwork.load(self.scenario_dir / scenario.map)
         )
         self._missions = scenario.missions if with_missions else ()
-        self._traffic: SumoTraffic | None = None
+        self._traffic: Traffic | None = None
         self._replay: ReplayTable | None = None  # replayed traffic outside SUMO
         self._bubble: ReactiveBubble | None = None  # replayed traffic inside SUMO
         self._triggers: CutInTriggers | None = None
@@ -121,11 +121,15 @@ class Simulation:
     # --- lifecycle ---------------------------------------------------------------------------
 
     def reset(self) -> dict[str, dict | ArraysObservation]:
-        """Start SUMO and place the vehicles; the observations of agents starting at step 0."""
+        """Start the traffic (SUMO unless every other vehicle is replayed outside it) and place the
+        vehicles; the observations of agents starting at step 0."""
         self.close()
         sc, folder = self.scenario, self.scenario_dir
-        routes = folder / sc.traffic.routes if sc.traffic.kind == "sumo" else None
-        self._traffic = SumoTraffic(folder / sc.map, routes, self.seed, self.dt)
+        if isinstance(sc.traffic, ReplayTraffic) and sc.traffic.bubble_radius is None:
+            self._traffic = MissionsOnlyTraffic()
+        else:
+            routes = folder / sc.traffic.routes if sc.traffic.kind == "sumo" else None
+            self._traffic = SumoTraffic(folder / sc.map, routes, self.seed, self.dt)
         if isinstance(sc.traffic, ReplayTraffic):
             if self._inputs is not None and self._inputs.replay is not None:
                 table = self._inputs.replay.fresh()

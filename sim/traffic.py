@@ -12,6 +12,7 @@ import contextlib
 import math
 from collections.abc import Collection
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 
@@ -47,6 +48,23 @@ def sumo_command(net: Path, routes: Path | None, seed: int, step_length: float) 
 def sumo_running() -> bool:
     """Whether this process already runs its one SUMO simulation."""
     return _open_instance is not None
+
+
+class Traffic(Protocol):
+    """What an episode asks of its traffic: a place for the mission vehicles, stepped with them,
+    and the other vehicles around them."""
+
+    def add_vehicle(
+        self, vid: str, edges: list[str], length: float, width: float, height: float = 1.5
+    ) -> None: ...
+    def move(self, vid: str, x: float, y: float, heading: float, speed: float) -> None: ...
+    def remove(self, vid: str) -> None: ...
+    def watch_around(self, vid: str, radius: float) -> None: ...
+    def step(self) -> None: ...
+    def vehicles_around(self, vid: str, skip: Collection[str] = ()) -> VehicleStates: ...
+    def is_in_network(self, vid: str) -> bool: ...
+    def all_vehicles(self) -> VehicleStates: ...
+    def close(self) -> None: ...
 
 
 class SumoTraffic:
@@ -240,3 +258,43 @@ class SumoTraffic:
 
     def lane_position(self, vid: str) -> tuple[str, float]:
         return self._ls.vehicle.getLaneID(vid), self._ls.vehicle.getLanePosition(vid)
+
+
+class MissionsOnlyTraffic:
+    """The mission vehicles alone, for a scenario whose other vehicles are all replayed outside
+    SUMO (:class:`sim.playback.ReplayTable`). SUMO would simulate nothing there that anyone
+    reads: no SUMO driver reacts to a mission vehicle and none is ever around one. So no SUMO
+    runs, which saves its start and, at every step, moving each mission vehicle into it and
+    stepping it."""
+
+    def __init__(self) -> None:
+        self._present: set[str] = set()
+
+    def add_vehicle(
+        self, vid: str, edges: list[str], length: float, width: float, height: float = 1.5
+    ) -> None:
+        self._present.add(vid)
+
+    def move(self, vid: str, x: float, y: float, heading: float, speed: float) -> None:
+        pass  # where a mission vehicle is, only the simulation's own state says
+
+    def remove(self, vid: str) -> None:
+        self._present.discard(vid)
+
+    def watch_around(self, vid: str, radius: float) -> None:
+        pass
+
+    def step(self) -> None:
+        pass
+
+    def vehicles_around(self, vid: str, skip: Collection[str] = ()) -> VehicleStates:
+        return VehicleStates.empty()
+
+    def is_in_network(self, vid: str) -> bool:
+        return vid in self._present
+
+    def all_vehicles(self) -> VehicleStates:
+        return VehicleStates.empty()
+
+    def close(self) -> None:
+        self._present.clear()
