@@ -20,6 +20,11 @@ Prints, in order:
 - ``round_trip_floor_ms``: the median ``act`` round trip of an empty observation to a trivial
   agent forked in a warm sandbox of the same kind, in the keep-lane agent's observation format
   (``bench/sandbox_roundtrip.py``): the transport alone, which no sandboxed agent avoids;
+- ``sumo_ego_ratio``: SUMO alone again on the suite's SUMO-traffic scenarios, with the trivial
+  agent's egos moved in along their recorded paths and watched by the context subscription the
+  simulator reads, against the same scenarios stepped raw: what SUMO itself costs an episode on
+  top of its traffic (moving an ego maps it onto the nearest lane of any edge, which SUMO does
+  by scoring every lane within 100 m), which ``raw_step_ms`` leaves out;
 - ``floor_ms = raw_step_ms + round_trip_floor_ms``, both measured in this run, and
   ``floor_ratio = step_ms / floor_ms``: what the evaluator adds per step over SUMO and the
   transport (observation building, encoding, scoring, records).
@@ -56,6 +61,7 @@ proportion to the episodes it holds, a cost only a long run pays (now spaced by 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import multiprocessing as mp
 import os
@@ -75,6 +81,7 @@ from arena.episodes import episodes_of
 from arena.suite import load_suite
 from evaluator.runner import evaluate
 from evaluator.runner.evaluate import TIMINGS_FILE
+from evaluator.runner.results import RECORDS_DIR
 from sim.interface import AgentInterface
 
 REPO = Path(__file__).resolve().parents[1]
@@ -189,17 +196,26 @@ def ds2022_protocol(
     )
 
 
-def raw_stepping(suite: str, steps: dict[str, int], queue) -> None:
+def raw_stepping(suite: str, steps: dict[str, int], records: str, queue) -> None:
     """In a child of its own (libsumo: one simulation at a time per process): start each
-    scenario's SUMO as :class:`sim.traffic.SumoTraffic` would and time only the stepping."""
+    scenario's SUMO as :class:`sim.traffic.SumoTraffic` would and time only the stepping. Then,
+    for the scenarios whose traffic is SUMO's, the same again with the trivial agent's egos in it,
+    moved along their recorded paths as the simulator moves them and watched by a context
+    subscription that is read every step: what SUMO itself costs an episode (no code of ours
+    between the calls)."""
     # deferred: libsumo loads only in the process that simulates (one simulation per process)
     import libsumo
 
     # deferred: libsumo loads only in the process that simulates (one simulation per process)
     from arena.scenario import load_scenario
-    from sim.traffic import sumo_command
+    from sim.simulation import CONTEXT_MARGIN
+    from sim.traffic import SumoTraffic, sumo_command
 
+    interface = AgentInterface(**yaml.safe_load((TRIVIAL / "agent.yaml").read_text()))
+    watch_radius = interface.observation_radius + CONTEXT_MARGIN
     elapsed = 0.0
+    sumo_raw = sumo_egos = sumo_moves = 0.0
+    sumo_steps = 0
     for scenario_id, n in sorted(steps.items()):
         folder = Path(suite) / scenario_id
         sc = load_scenario(folder)
@@ -208,19 +224,61 @@ def raw_stepping(suite: str, steps: dict[str, int], queue) -> None:
         started = time.perf_counter()
         for _ in range(n):
             libsumo.simulationStep()
-        elapsed += time.perf_counter() - started
+        stepping = time.perf_counter() - started
+        elapsed += stepping
         libsumo.close()
-    queue.put(elapsed)
+        if routes is None:
+            continue
+        sumo_raw += stepping
+        sumo_steps += n
+        record = np.load(Path(records) / f"{scenario_id}.npz")
+        path = np.stack([record["x"], record["y"], record["heading"], record["speed"]], axis=-1)
+        traffic = SumoTraffic(folder / sc.map, routes, sc.seed, sc.step_length)
+        try:
+            for m in sc.missions:
+                traffic.add_vehicle(m.agent_id, list(m.route), m.vehicle.length, m.vehicle.width)
+            started = time.perf_counter()
+            for k in range(min(n, path.shape[1])):
+                moving = time.perf_counter()
+                for agent, (x, y, heading, speed) in enumerate(path[:, k].tolist()):
+                    if np.isfinite(x):
+                        traffic.move(sc.missions[agent].agent_id, x, y, heading, speed)
+                sumo_moves += time.perf_counter() - moving
+                libsumo.simulationStep()
+                for m in sc.missions if k else ():
+                    with contextlib.suppress(libsumo.TraCIException):  # left the road
+                        libsumo.vehicle.getContextSubscriptionResults(m.agent_id)
+                if k == 0:
+                    for m in sc.missions:
+                        traffic.watch_around(m.agent_id, watch_radius)
+            sumo_egos += time.perf_counter() - started
+        finally:
+            traffic.close()
+    queue.put((elapsed, sumo_raw, sumo_egos, sumo_moves, sumo_steps))
 
 
-def raw_step_ms(suite: Path, steps: dict[str, int]) -> float:
+@dataclass(frozen=True)
+class SumoCosts:
+    raw_step_ms: float  # every scenario, per trivial-agent step
+    sumo_raw_ms: float  # SUMO-traffic scenarios only, per step
+    sumo_egos_ms: float  # the same with the egos moved in and watched
+    sumo_moves_ms: float  # of which moving the egos
+
+
+def sumo_costs(suite: Path, steps: dict[str, int], records: Path) -> SumoCosts:
     ctx = mp.get_context("spawn")
     queue = ctx.Queue()
-    child = ctx.Process(target=raw_stepping, args=(str(suite), steps, queue))
+    child = ctx.Process(target=raw_stepping, args=(str(suite), steps, str(records), queue))
     child.start()
-    elapsed = queue.get(timeout=1800)
+    elapsed, sumo_raw, sumo_egos, sumo_moves, sumo_steps = queue.get(timeout=1800)
     child.join()
-    return elapsed * 1e3 / max(1, sum(steps.values()))
+    per = 1e3 / max(1, sumo_steps)
+    return SumoCosts(
+        elapsed * 1e3 / max(1, sum(steps.values())),
+        sumo_raw * per,
+        sumo_egos * per,
+        sumo_moves * per,
+    )
 
 
 def main() -> None:
@@ -276,7 +334,8 @@ def main() -> None:
             jobs_2 = timed_evaluation(PLANNER, suite, work / "planner-jobs2", 2, args.sandbox, ids)
         trivial = timed_evaluation(TRIVIAL, suite, work / "trivial-jobs1", 1, args.sandbox, ids)
         fixed_ms, step_ms = fit_fixed_and_step(trivial)
-        raw_ms = raw_step_ms(suite, trivial.steps)
+        costs = sumo_costs(suite, trivial.steps, work / "trivial-jobs1" / RECORDS_DIR)
+        raw_ms = costs.raw_step_ms
         fmt = AgentInterface(
             **yaml.safe_load((TRIVIAL / "agent.yaml").read_text())
         ).observation_format
@@ -286,6 +345,12 @@ def main() -> None:
     print(
         f"raw libsumo, same traffic and steps: raw_step_ms={raw_ms:.3f}; empty observation "
         f"round trip ({args.sandbox.value}, forked, {fmt}): round_trip_floor_ms={trip_ms:.3f}"
+    )
+    print(
+        f"SUMO alone on the SUMO-traffic scenarios: {costs.sumo_raw_ms:.3f} ms a step raw, "
+        f"{costs.sumo_egos_ms:.3f} with the trivial agent's egos on their recorded paths "
+        f"({costs.sumo_egos_ms / costs.sumo_raw_ms:.2f} x raw; moving them "
+        f"{costs.sumo_moves_ms:.3f}): sumo_ego_ratio={costs.sumo_egos_ms / costs.sumo_raw_ms:.2f}"
     )
     floors = f"step_ms={step_ms:.3f} floor_ms={floor_ms:.3f} floor_ratio={step_ms / floor_ms:.2f}"
     if args.only:

@@ -55,7 +55,7 @@ if TYPE_CHECKING:
 
 # SUMO reports the vehicles around an ego by front-bumper distance: ask a little wider, then
 # filter by centre distance ourselves.
-_CONTEXT_MARGIN = 10.0  # [m]
+CONTEXT_MARGIN = 10.0  # [m]
 _AT_REST = Events((), False, False, False, False, False, False, False)
 
 
@@ -309,7 +309,7 @@ class Simulation:
             v.id, list(m.route), m.vehicle.length, m.vehicle.width, m.vehicle.height
         )
         self._traffic.move(v.id, v.pose.x, v.pose.y, v.pose.heading, v.pose.speed)
-        self._traffic.watch_around(v.id, self.interface.observation_radius + _CONTEXT_MARGIN)
+        self._traffic.watch_around(v.id, self.interface.observation_radius + CONTEXT_MARGIN)
         v.status = Status.live
 
     def _keep_egos_in_sumo(self) -> None:
@@ -323,7 +323,7 @@ class Simulation:
                 route = route_ahead(self.road, v.pose.x, v.pose.y, v.pose.heading)
                 traffic.add_vehicle(v.id, route, m.vehicle.length, m.vehicle.width)
                 traffic.move(v.id, v.pose.x, v.pose.y, v.pose.heading, v.pose.speed)
-                traffic.watch_around(v.id, self.interface.observation_radius + _CONTEXT_MARGIN)
+                traffic.watch_around(v.id, self.interface.observation_radius + CONTEXT_MARGIN)
 
     def _finish(self, v: MissionVehicle, reason: DoneReason) -> None:
         v.finish(reason, self.step_count)
