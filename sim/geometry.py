@@ -35,25 +35,26 @@ def box_corners(
     )
 
 
-def boxes_overlap(ego: np.ndarray, others: np.ndarray) -> np.ndarray:
-    """Which rectangles of ``others`` (n, 4, 2) overlap the rectangle ``ego`` (4, 2) [m].
+def boxes_overlap(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Which rectangles overlap, as (n,) booleans: ``a`` and ``b`` are corners (:func:`box_corners`)
+    [m] that broadcast against each other, (4, 2) or (n, 4, 2) each: one rectangle against many, or
+    rectangle ``a[i]`` against ``b[i]`` (a vehicle's boxes against another's, frame by frame).
 
     Separating axis theorem: two convex polygons are disjoint iff their projections are disjoint
     on one of the edge normals; rectangles have two normals each. Touching counts as overlap.
     """
-    if len(others) == 0:
+    a, b = np.broadcast_arrays(np.asarray(a, dtype=float), np.asarray(b, dtype=float))
+    if a.ndim == 2:
+        a, b = a[None], b[None]
+    if len(a) == 0:
         return np.zeros(0, dtype=bool)
-    ego_axes = np.array([ego[1] - ego[0], ego[2] - ego[1]])  # (2, 2)
-    other_axes = np.stack([others[:, 1] - others[:, 0], others[:, 2] - others[:, 1]], 1)
-    axes = np.concatenate([np.broadcast_to(ego_axes, (len(others), 2, 2)), other_axes], 1)
+    axes = np.stack(
+        [a[:, 1] - a[:, 0], a[:, 2] - a[:, 1], b[:, 1] - b[:, 0], b[:, 2] - b[:, 1]], 1
+    )  # (n, 4, 2)
     # Products and one sum each, no einsum: its kernels may fuse them (FMA) on some CPUs.
-    ego_proj = (
-        axes[:, :, None, 0] * ego[None, None, :, 0] + axes[:, :, None, 1] * ego[None, None, :, 1]
-    )
-    other_proj = (
-        axes[:, :, None, 0] * others[:, None, :, 0] + axes[:, :, None, 1] * others[:, None, :, 1]
-    )
-    separated = (ego_proj.max(-1) < other_proj.min(-1)) | (other_proj.max(-1) < ego_proj.min(-1))
+    a_proj = axes[:, :, None, 0] * a[:, None, :, 0] + axes[:, :, None, 1] * a[:, None, :, 1]
+    b_proj = axes[:, :, None, 0] * b[:, None, :, 0] + axes[:, :, None, 1] * b[:, None, :, 1]
+    separated = (a_proj.max(-1) < b_proj.min(-1)) | (b_proj.max(-1) < a_proj.min(-1))
     return ~separated.any(-1)
 
 

@@ -19,6 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
+from sim.geometry import box_corners
+
 COLUMNS = ("vehicle_id", "time", "x", "y", "heading", "speed", "length", "width")
 
 
@@ -32,6 +34,17 @@ class Trajectory:
     speed: np.ndarray  # (n,) [m/s]
     length: float  # [m]
     width: float  # [m]
+
+    def corners(self, frames: np.ndarray) -> np.ndarray:
+        """Corners (n, 4, 2) [m] of the vehicle's box at ``frames`` (indices into its arrays)."""
+        n = len(frames)
+        return box_corners(
+            self.x[frames],
+            self.y[frames],
+            self.heading[frames],
+            np.full(n, self.length),
+            np.full(n, self.width),
+        )
 
 
 def read_trajectories(path: Path) -> dict[str, Trajectory]:

@@ -16,9 +16,9 @@ import numpy as np
 
 from arena.scenario import DataLabel, Family, Goal, Mission, Scenario, VehicleDims
 from scenarios.netinfo import NetInfo
-from scenarios.recorded.geometry import boxes_overlap
 from scenarios.recorded.recorder import Recording
 from scenarios.writer import TRAJECTORIES_FILE, replay_traffic, write_scenario
+from sim.geometry import box_corners, boxes_overlap
 from sim.trajectories import Trajectory, write_trajectories
 
 EXPERT_FILE = "expert.csv"
@@ -109,10 +109,11 @@ class _Frames:
             if len(js) == 0:
                 continue
             fk = f[ks]
-            a = np.column_stack([self.x[i, fk], self.y[i, fk], self.h[i, fk]])
-            b = np.column_stack([self.x[js, fk], self.y[js, fk], self.h[js, fk]])
-            a = np.column_stack([a, np.repeat(self.dims[i][None], len(fk), axis=0)])
-            b = np.column_stack([b, self.dims[js]])
+            length_i, width_i = self.dims[i]
+            a = box_corners(self.x[i, fk], self.y[i, fk], self.h[i, fk], length_i, width_i)
+            b = box_corners(
+                self.x[js, fk], self.y[js, fk], self.h[js, fk], self.dims[js, 0], self.dims[js, 1]
+            )
             if boxes_overlap(a, b).any():
                 return False
         return True

@@ -40,12 +40,12 @@ from scenarios.recorded.commonroad import (
     Lanelet,
     read_scene,
 )
-from scenarios.recorded.geometry import boxes_overlap
 from scenarios.recorded.lanelet_net import build_lanelet_net
 from scenarios.recorded.map_match import driven_route, fit_trajectory
 from scenarios.recorded.ngsim import NgsimFormatError, read_ngsim
 from scenarios.recorded.provenance import Provenance, attribution, provenance
 from scenarios.writer import TRAJECTORIES_FILE, write_scenario
+from sim.geometry import boxes_overlap
 from sim.road.network import RoadNetwork
 from sim.trajectories import Trajectory, write_trajectories
 
@@ -223,23 +223,9 @@ def collides(ego: Trajectory, others: Sequence[Trajectory]) -> str | None:
         if not near.any():
             continue
         ia, ib = ia[near], ib[near]
-        if boxes_overlap(_boxes(ego, ia), _boxes(other, ib)).any():
+        if boxes_overlap(ego.corners(ia), other.corners(ib)).any():
             return other.vehicle_id
     return None
-
-
-def _boxes(tr: Trajectory, frames: np.ndarray) -> np.ndarray:
-    """(n, 5) boxes [x, y, heading, length, width] of ``tr`` at ``frames``."""
-    n = len(frames)
-    return np.column_stack(
-        [
-            tr.x[frames],
-            tr.y[frames],
-            tr.heading[frames],
-            np.full(n, tr.length),
-            np.full(n, tr.width),
-        ]
-    )
 
 
 # Why a recorded vehicle makes no mission (counted per reason by a corpus build).

@@ -6,10 +6,10 @@ import pytest
 from arena.scenario import DataLabel, load_scenario
 from scenarios.maps import build_map
 from scenarios.recorded.builder import EXPERT_FILE
-from scenarios.recorded.geometry import boxes_overlap
 from scenarios.recorded.recorder import record_scene
 from scenarios.traffic import Flow, Routes, driver_types
 from scenarios.verify import verify_suite
+from sim.geometry import boxes_overlap
 from sim.trajectories import read_trajectories
 from tests.scenarios.conftest import manifest
 
@@ -28,19 +28,6 @@ def test_recorder_saves_every_vehicle_in_our_conventions(cache_dir):
         # SUMO inserts a vehicle with its back at the lane start: its centre is half a length in
         # (FCD reports the front bumper, a full length in).
         assert tr.x[0] == pytest.approx(tr.length / 2, abs=0.3)
-
-
-def _boxes(tr, frames):
-    n = len(frames)
-    return np.column_stack(
-        [
-            tr.x[frames],
-            tr.y[frames],
-            tr.heading[frames],
-            np.full(n, tr.length),
-            np.full(n, tr.width),
-        ]
-    )
 
 
 @pytest.mark.slow
@@ -65,7 +52,7 @@ def test_replays_are_recorded_and_the_removed_paths_collide_with_nothing(hidden_
                     continue
                 a = np.round((t - path.time[0]) / 0.1).astype(int)
                 b = np.round((t - other.time[0]) / 0.1).astype(int)
-                assert not boxes_overlap(_boxes(path, a), _boxes(other, b)).any(), entry["id"]
+                assert not boxes_overlap(path.corners(a), other.corners(b)).any(), entry["id"]
 
 
 @pytest.mark.slow

@@ -44,3 +44,17 @@ def test_scalar_pair_test_agrees_with_the_array_test():
         other = (*rng.uniform(-6, 6, 2), rng.uniform(-math.pi, math.pi), 4.5, 1.8)
         theirs = box_corners(*[np.array([v]) for v in other])
         assert box_overlaps_box(ego, other) == bool(boxes_overlap(corners, theirs)[0])
+
+
+def test_pairs_of_boxes_are_tested_pair_by_pair():
+    # A replay's builder checks one vehicle's boxes against another's frame by frame: a[i] with
+    # b[i] only, whatever the other pairs do.
+    rng = np.random.default_rng(5)
+    n = 400
+    a = box_corners(*rng.uniform(-3, 3, (2, n)), rng.uniform(-math.pi, math.pi, n), 4.5, 1.8)
+    b = box_corners(*rng.uniform(-6, 6, (2, n)), rng.uniform(-math.pi, math.pi, n),
+                    rng.uniform(3.0, 12.0, n), rng.uniform(1.5, 2.6, n))  # fmt: skip
+    expected = [Polygon(p).intersects(Polygon(q)) for p, q in zip(a, b, strict=True)]
+    assert boxes_overlap(a, b).tolist() == expected
+    assert 50 < sum(expected) < n - 50  # both outcomes are exercised
+    assert boxes_overlap(a[:0], b[:0]).tolist() == []
