@@ -83,6 +83,7 @@ from evaluator.runner import evaluate
 from evaluator.runner.evaluate import TIMINGS_FILE
 from evaluator.runner.results import RECORDS_DIR
 from sim.interface import AgentInterface
+from sim.simulation import CONTEXT_MARGIN
 
 REPO = Path(__file__).resolve().parents[1]
 PLANNER = REPO / "submissions" / "examples" / "planner"
@@ -196,23 +197,22 @@ def ds2022_protocol(
     )
 
 
-def raw_stepping(suite: str, steps: dict[str, int], records: str, queue) -> None:
+def raw_stepping(
+    suite: str, steps: dict[str, int], records: str, watch_radius: float, queue
+) -> None:
     """In a child of its own (libsumo: one simulation at a time per process): start each
     scenario's SUMO as :class:`sim.traffic.SumoTraffic` would and time only the stepping. Then,
     for the scenarios whose traffic is SUMO's, the same again with the trivial agent's egos in it,
     moved along their recorded paths as the simulator moves them and watched by a context
-    subscription that is read every step: what SUMO itself costs an episode (no code of ours
-    between the calls)."""
+    subscription of ``watch_radius`` [m] that is read every step: what SUMO itself costs an
+    episode (no code of ours between the calls)."""
     # deferred: libsumo loads only in the process that simulates (one simulation per process)
     import libsumo
 
     # deferred: libsumo loads only in the process that simulates (one simulation per process)
     from arena.scenario import load_scenario
-    from sim.simulation import CONTEXT_MARGIN
     from sim.traffic import SumoTraffic, sumo_command
 
-    interface = AgentInterface(**yaml.safe_load((TRIVIAL / "agent.yaml").read_text()))
-    watch_radius = interface.observation_radius + CONTEXT_MARGIN
     elapsed = 0.0
     sumo_raw = sumo_egos = sumo_moves = 0.0
     sumo_steps = 0
@@ -235,8 +235,9 @@ def raw_stepping(suite: str, steps: dict[str, int], records: str, queue) -> None
         path = np.stack([record["x"], record["y"], record["heading"], record["speed"]], axis=-1)
         traffic = SumoTraffic(folder / sc.map, routes, sc.seed, sc.step_length)
         try:
-            for m in sc.missions:
+            for m in sc.missions:  # as the simulator enters them
                 traffic.add_vehicle(m.agent_id, list(m.route), m.vehicle.length, m.vehicle.width)
+                traffic.watch_around(m.agent_id, watch_radius)
             started = time.perf_counter()
             for k in range(min(n, path.shape[1])):
                 moving = time.perf_counter()
@@ -245,12 +246,9 @@ def raw_stepping(suite: str, steps: dict[str, int], records: str, queue) -> None
                         traffic.move(sc.missions[agent].agent_id, x, y, heading, speed)
                 sumo_moves += time.perf_counter() - moving
                 libsumo.simulationStep()
-                for m in sc.missions if k else ():
+                for m in sc.missions:
                     with contextlib.suppress(libsumo.TraCIException):  # left the road
                         libsumo.vehicle.getContextSubscriptionResults(m.agent_id)
-                if k == 0:
-                    for m in sc.missions:
-                        traffic.watch_around(m.agent_id, watch_radius)
             sumo_egos += time.perf_counter() - started
         finally:
             traffic.close()
@@ -263,12 +261,16 @@ class SumoCosts:
     sumo_raw_ms: float  # SUMO-traffic scenarios only, per step
     sumo_egos_ms: float  # the same with the egos moved in and watched
     sumo_moves_ms: float  # of which moving the egos
+    sumo_steps: int  # steps of the SUMO-traffic scenarios (none: a suite of replays only)
 
 
-def sumo_costs(suite: Path, steps: dict[str, int], records: Path) -> SumoCosts:
+def sumo_costs(
+    suite: Path, steps: dict[str, int], records: Path, watch_radius: float
+) -> SumoCosts:
     ctx = mp.get_context("spawn")
     queue = ctx.Queue()
-    child = ctx.Process(target=raw_stepping, args=(str(suite), steps, str(records), queue))
+    args = (str(suite), steps, str(records), watch_radius, queue)
+    child = ctx.Process(target=raw_stepping, args=args)
     child.start()
     elapsed, sumo_raw, sumo_egos, sumo_moves, sumo_steps = queue.get(timeout=1800)
     child.join()
@@ -278,6 +280,7 @@ def sumo_costs(suite: Path, steps: dict[str, int], records: Path) -> SumoCosts:
         sumo_raw * per,
         sumo_egos * per,
         sumo_moves * per,
+        sumo_steps,
     )
 
 
@@ -334,11 +337,12 @@ def main() -> None:
             jobs_2 = timed_evaluation(PLANNER, suite, work / "planner-jobs2", 2, args.sandbox, ids)
         trivial = timed_evaluation(TRIVIAL, suite, work / "trivial-jobs1", 1, args.sandbox, ids)
         fixed_ms, step_ms = fit_fixed_and_step(trivial)
-        costs = sumo_costs(suite, trivial.steps, work / "trivial-jobs1" / RECORDS_DIR)
+        interface = AgentInterface(**yaml.safe_load((TRIVIAL / "agent.yaml").read_text()))
+        watch_radius = interface.observation_radius + CONTEXT_MARGIN
+        records = work / "trivial-jobs1" / RECORDS_DIR
+        costs = sumo_costs(suite, trivial.steps, records, watch_radius)
         raw_ms = costs.raw_step_ms
-        fmt = AgentInterface(
-            **yaml.safe_load((TRIVIAL / "agent.yaml").read_text())
-        ).observation_format
+        fmt = interface.observation_format
         trip_ms = floor_round_trip_ms(args.sandbox, get_settings(), fmt)
     floor_ms = raw_ms + trip_ms
     print(f"trivial agent: fixed_ms={fixed_ms:.0f} per scenario, step_ms={step_ms:.3f} per step")
@@ -346,12 +350,13 @@ def main() -> None:
         f"raw libsumo, same traffic and steps: raw_step_ms={raw_ms:.3f}; empty observation "
         f"round trip ({args.sandbox.value}, forked, {fmt}): round_trip_floor_ms={trip_ms:.3f}"
     )
-    print(
-        f"SUMO alone on the SUMO-traffic scenarios: {costs.sumo_raw_ms:.3f} ms a step raw, "
-        f"{costs.sumo_egos_ms:.3f} with the trivial agent's egos on their recorded paths "
-        f"({costs.sumo_egos_ms / costs.sumo_raw_ms:.2f} x raw; moving them "
-        f"{costs.sumo_moves_ms:.3f}): sumo_ego_ratio={costs.sumo_egos_ms / costs.sumo_raw_ms:.2f}"
-    )
+    if costs.sumo_steps:
+        print(
+            f"SUMO alone on the SUMO-traffic scenarios: {costs.sumo_raw_ms:.3f} ms a step raw, "
+            f"{costs.sumo_egos_ms:.3f} with the trivial agent's egos on their recorded paths "
+            f"(moving them {costs.sumo_moves_ms:.3f}): "
+            f"sumo_ego_ratio={costs.sumo_egos_ms / costs.sumo_raw_ms:.2f}"
+        )
     floors = f"step_ms={step_ms:.3f} floor_ms={floor_ms:.3f} floor_ratio={step_ms / floor_ms:.2f}"
     if args.only:
         print(f"fixed_ms={fixed_ms:.0f} {floors}")

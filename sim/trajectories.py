@@ -37,13 +37,8 @@ class Trajectory:
 
     def corners(self, frames: np.ndarray) -> np.ndarray:
         """Corners (n, 4, 2) [m] of the vehicle's box at ``frames`` (indices into its arrays)."""
-        n = len(frames)
         return box_corners(
-            self.x[frames],
-            self.y[frames],
-            self.heading[frames],
-            np.full(n, self.length),
-            np.full(n, self.width),
+            self.x[frames], self.y[frames], self.heading[frames], self.length, self.width
         )
 
 
