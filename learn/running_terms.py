@@ -74,7 +74,8 @@ class Closeness:
 
 class ClosenessRunningMean:
     """:func:`evaluator.scoring.reference_terms.distance_obs_running_mean`: the mean of
-    :class:`Closeness` over the steps with a vehicle ahead so far (0 before the first)."""
+    :class:`Closeness` over the steps with a vehicle ahead so far, at such a step; 0 at a step
+    with nothing ahead."""
 
     def __init__(self, profile: TermParameters) -> None:
         self._closeness = Closeness(profile)
@@ -84,8 +85,10 @@ class ClosenessRunningMean:
     def update(self, row: RecordRow) -> float:
         value = self._closeness.update(row)
         self._sum += value
-        self._count += value > 0.0
-        return self._sum / self._count if self._count else 0.0
+        if value == 0.0:
+            return 0.0  # the mean lives on for the next step with a vehicle ahead
+        self._count += 1
+        return self._sum / self._count
 
 
 class _Acceleration:

@@ -36,13 +36,14 @@ def lc_off_half_width(track: AgentTrack, profile: TermParameters) -> np.ndarray:
 
 
 def distance_obs_running_mean(track: AgentTrack, profile: TermParameters) -> np.ndarray:
-    """The running mean of :func:`distance_obs` over the steps with a vehicle ahead, as of
-    each step (0 until the first such step; a step with nothing ahead leaves it unchanged). The
-    reference code reports this running mean, so an agent-episode keeps its last value."""
+    """At a step with a vehicle ahead, the running mean of :func:`distance_obs` over the steps
+    with a vehicle ahead so far; 0 at a step with nothing ahead. The competition code returns 0
+    on such a step (its running mean lives on for the next obstacle) and the agent-episode keeps
+    the last step's value, so an episode whose last step has nothing ahead scores 0."""
     value = distance_obs(track, profile)
     ahead = value > 0.0
     count = np.cumsum(ahead)
-    return np.where(count > 0, np.cumsum(value) / np.maximum(count, 1), 0.0)
+    return np.where(ahead, np.cumsum(value) / np.maximum(count, 1), 0.0)
 
 
 # The terms of this module by the name profiles give them (evaluator.scoring.registry).

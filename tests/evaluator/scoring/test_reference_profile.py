@@ -56,18 +56,40 @@ def test_lane_offset_is_divided_by_half_the_lane_width():
     assert get_term("lc_off")(track(rows), PAPER) == pytest.approx(0.0625)
 
 
-def test_obstacle_term_keeps_the_running_mean_of_steps_with_a_vehicle_ahead():
-    n = 6
-    nbr = np.full((n, 1, 2), np.nan)
-    nbr[1] = [[10.0 + 1.0 * DT * 2 + 10.0, 0.0]]  # 10 m ahead of row 1
-    nbr[3] = [[10.0 * DT * 4 + 20.0, 0.0]]  # 20 m ahead of row 3
-    t = track(drive(n, speed=10.0), nbr)
+def ahead_of(rows: dict[str, np.ndarray], gaps: dict[int, float]) -> np.ndarray:
+    """Neighbour centres ``(n, 1, 2)``: one vehicle ``gaps[row]`` metres straight ahead of the
+    ego at each listed row, none elsewhere."""
+    nbr = np.full((len(rows["x"]), 1, 2), np.nan)
+    for row, gap in gaps.items():
+        nbr[row] = [[rows["x"][row] + gap, rows["y"][row]]]
+    return nbr
+
+
+def test_obstacle_term_is_the_running_mean_at_steps_with_a_vehicle_ahead_else_0():
+    rows = drive(6, speed=10.0)
+    t = track(rows, ahead_of(rows, {1: 10.0, 3: 20.0}))
     running = get_term("distance_obs_running_mean")(t, REFERENCE)
     per_step = get_term("distance_obs")(t, PAPER)
-    assert per_step[[0, 2, 4, 5]] == pytest.approx(0.0)
-    ahead = per_step[[1, 3]]
-    assert running[-1] == pytest.approx(ahead.mean())
-    assert running[0] == 0.0 and running[2] == pytest.approx(ahead[0])
+    assert per_step[[1, 3]] == pytest.approx([np.exp(-0.5), np.exp(-1.0)])
+    assert running[1] == pytest.approx(per_step[1])
+    assert running[3] == pytest.approx(per_step[[1, 3]].mean())  # mean over rows 1 and 3 only
+    assert running[[0, 2, 4, 5]] == pytest.approx(0.0)
+
+
+def test_an_agent_whose_last_step_has_nothing_ahead_scores_0_on_the_obstacle_term(tmp_path):
+    """The spec's second profile: "that running mean if its last row had an obstacle, else 0".
+    Two hand-made agents see the same vehicles ahead at rows 1 and 3; one also at its last row."""
+    rows = drive(6, speed=10.0)
+    clear_at_end = AgentSpec(rows, nbr_xy=ahead_of(rows, {1: 10.0, 3: 20.0}))
+    blocked_at_end = AgentSpec(rows, nbr_xy=ahead_of(rows, {1: 10.0, 3: 20.0, 5: 10.0}))
+    clear = scored(tmp_path, "clear", [clear_at_end], REFERENCE)
+    blocked = scored(tmp_path, "blocked", [blocked_at_end], REFERENCE)
+    # A straight, centred, steady drive within the limit: the obstacle term is all of humanness.
+    assert clear.term_sums["distance_obs_running_mean"] == 0.0
+    assert clear.humanness == 0.0
+    closeness = [np.exp(-0.5), np.exp(-1.0), np.exp(-0.5)]
+    assert blocked.term_sums["distance_obs_running_mean"] == pytest.approx(np.mean(closeness))
+    assert blocked.humanness == pytest.approx(np.mean(closeness))
 
 
 def test_humanness_is_averaged_per_agent_episode(tmp_path):
