@@ -13,7 +13,12 @@ from sim.traffic import SumoTraffic
 class ReactiveBubble:
     """Recorded vehicles live in SUMO (so that the vehicles already handed over react to them),
     moved to their recorded states every step until a mission vehicle comes within ``radius``
-    [m]; from then on SUMO drives them for the rest of the episode."""
+    [m]; from then on SUMO drives them for the rest of the episode.
+
+    An episode may outlive its recording (an ego slower than the recorded one): a vehicle still
+    replayed leaves SUMO after its last recorded frame, one handed over drives on; past the last
+    frame of the whole recording only the handed-over vehicles are left.
+    """
 
     def __init__(self, table: ReplayTable, radius: float, road: RoadNetwork) -> None:
         self.table = table
@@ -30,7 +35,7 @@ class ReactiveBubble:
         for vid in sorted(self._in_sumo - present_ids):  # recording ended: it leaves
             traffic.remove(vid)
             self._in_sumo.discard(vid)
-        motion = table.motion[step].take(present, 0).tolist()  # x, y, heading, speed of each
+        motion = table.motion_at(step, present).tolist()  # x, y, heading, speed of each
         for k, (x, y, heading, speed) in zip(present.tolist(), motion, strict=True):
             vid = table.ids[k]
             if vid not in self._in_sumo:

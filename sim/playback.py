@@ -77,6 +77,13 @@ class ReplayTable:
         vehicle = by_step.vehicle[start:end]
         return vehicle[self.active[vehicle]] if self._handed_over else vehicle
 
+    def motion_at(self, step: int, rows: np.ndarray) -> np.ndarray:
+        """x, y, heading, speed (len(rows), 4) of vehicle ``rows`` at ``step``; past the
+        recording's end no vehicle exists (:meth:`present` is empty), so neither does a row."""
+        if step >= len(self.motion):
+            return np.empty((0, 4))
+        return self.motion[step].take(rows, 0)
+
     def states(self, step: int) -> VehicleStates:
         """The replayed (not handed over) vehicles' states at ``step``, in row order."""
         by_step = self._by_step or self._step_rows()

@@ -1,4 +1,5 @@
-"""Suites built once per test session (maps and recordings cached in a session folder)."""
+"""Suites built once per test session (maps and recordings cached in a session folder; the
+hidden development build and the cache are shared by every package: tests/conftest.py)."""
 
 from __future__ import annotations
 
@@ -7,13 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from arena.config import get_settings
 from scenarios.suites import PUBLIC_SEED, build_suite
-
-
-@pytest.fixture(scope="session")
-def cache_dir(tmp_path_factory) -> Path:
-    return tmp_path_factory.mktemp("scenario-cache")
 
 
 @pytest.fixture(scope="session")
@@ -28,13 +23,6 @@ def scenes_dir() -> Path:
     if not (folder / "PROVENANCE.md").exists():
         pytest.fail(f"naturalistic scenes not found at {folder} (check ARENA_NATURALISTIC_DIR)")
     return folder
-
-
-@pytest.fixture(scope="session")
-def hidden_dev(tmp_path_factory, cache_dir) -> Path:
-    out = tmp_path_factory.mktemp("hidden") / "suite"
-    build_suite("hidden", get_settings().suites.development_seed, out, cache_dir)
-    return out
 
 
 @pytest.fixture(scope="session")
