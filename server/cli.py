@@ -803,6 +803,7 @@ def phases_list() -> None:
     ctx = _Context()
     with ctx.db.read_session() as session:
         rows = phases.list_phases(session)
+        broken = phases.misconfigured(session, ctx.settings)
     moment = utcnow()
     print_rows(
         console,
@@ -830,7 +831,7 @@ def phases_list() -> None:
                 + ("+" if phase.adaptive_target is not None else ""),
                 _cpu_cell(phases.cpu_limits(phase, ctx.settings.sandbox)),
                 phase.training_seeds,
-                "yes" if phases.is_open(phase, moment) else "no",
+                _open_cell(phase, moment, broken),
             )
             for phase in rows
         ],
@@ -844,10 +845,25 @@ def phases_list() -> None:
     )
     if released:
         console.print(f"released (suite downloadable, episodes visible): {', '.join(released)}")
+    for name, why in broken.items():
+        console.print(
+            f"BROKEN {why}: uploads refused until `arena admin phases set {name} ...` fixes it",
+            markup=False,
+            highlight=False,
+        )
     for phase in rows:
         adaptive = phases.adaptive_cost(phase, ctx.settings.evaluation)
         if adaptive is not None:
             console.print(f"{phase.name} (+): {adaptive}", markup=False)
+
+
+def _open_cell(phase, moment, broken: dict[str, str]) -> str:
+    # deferred: CLI start-up time
+    from server.services import phases
+
+    if phase.name in broken:  # uploads refused whatever its dates say
+        return "no: broken"
+    return "yes" if phases.is_open(phase, moment) else "no"
 
 
 def _cpu_cell(limits) -> str:
@@ -869,83 +885,192 @@ def phases_release(name: Annotated[str, typer.Argument(help="A phase that has cl
     )
 
 
+SuiteOption = Annotated[str | None, typer.Option(help="`public`, `hidden` or a suite folder.")]
+VisibilityOption = Annotated[
+    str | None, typer.Option(help="`full` (validation) or `hidden` (final).")
+]
+StartsOption = Annotated[str | None, typer.Option(help="Opens at (ISO 8601, UTC).")]
+EndsOption = Annotated[str | None, typer.Option(help="Closes at (ISO 8601, UTC).")]
+QuotaOption = Annotated[int | None, typer.Option(help="Submissions per team, track and day.")]
+ProfileOption = Annotated[str | None, typer.Option(help="Scoring profile of the phase.")]
+EpisodesOption = Annotated[
+    int | None,
+    typer.Option(
+        help="Episodes of each reactive scenario, each with other traffic; evaluation takes "
+        "about this many times as long (default: ARENA_EPISODES_PER_SCENARIO)."
+    ),
+]
+OpenEndedOption = Annotated[bool, typer.Option("--open-ended", help="No start and no end date.")]
+AdaptiveTargetOption = Annotated[
+    float | None,
+    typer.Option(
+        help="Adaptive evaluation: add rounds of --episodes episodes per reactive scenario "
+        "while completion's 95% interval half-width is above this (with --max-episodes)."
+    ),
+]
+MaxEpisodesOption = Annotated[
+    int | None, typer.Option(help="Adaptive evaluation: the most episodes per scenario.")
+]
+StepCpuOption = Annotated[
+    float | None,
+    typer.Option(help="Agent CPU seconds one act may use (default: ARENA_STEP_CPU_S)."),
+]
+EpisodeCpuOption = Annotated[
+    float | None,
+    typer.Option(
+        help="Agent CPU seconds of one episode's acts together (default: ARENA_EPISODE_CPU_S)."
+    ),
+]
+EvaluationCpuOption = Annotated[
+    float | None,
+    typer.Option(
+        help="Agent CPU seconds of one evaluation's episodes together; past it the rest are "
+        "not run and the submission fails (default: ARENA_EVALUATION_CPU_S)."
+    ),
+]
+TrainingSeedsOption = Annotated[
+    int | None,
+    typer.Option(
+        help="Track 2: train each offline submission this many times (1 to 16), each with "
+        "its own ARENA_TRAIN_SEED, and score it over them; training and evaluation take "
+        "about this many times as long."
+    ),
+]
+DryRunOption = Annotated[
+    bool, typer.Option("--dry-run", help="Say what the phase would cost; save nothing.")
+]
+
+
+@phases_app.command("create")
+def phases_create(
+    name: Annotated[str, typer.Argument(help="The new phase's name.")],
+    suite: Annotated[str, typer.Option(help="`public`, `hidden` or a suite folder.")],
+    visibility: VisibilityOption = None,
+    starts: StartsOption = None,
+    ends: EndsOption = None,
+    open_ended: Annotated[
+        bool, typer.Option("--open-ended", help="Never closes (instead of --ends).")
+    ] = False,
+    quota: QuotaOption = None,
+    profile: ProfileOption = None,
+    episodes: EpisodesOption = None,
+    adaptive_target: AdaptiveTargetOption = None,
+    max_episodes: MaxEpisodesOption = None,
+    step_cpu: StepCpuOption = None,
+    episode_cpu: EpisodeCpuOption = None,
+    evaluation_cpu: EvaluationCpuOption = None,
+    training_seeds: TrainingSeedsOption = None,
+    dry_run: DryRunOption = False,
+) -> None:
+    """Create a phase (refused if it exists: `phases set` changes one). It needs a suite and
+    when it closes (--ends, or --open-ended); it opens at --starts, or now, on every team's
+    submit form (hidden visibility unless --visibility full)."""
+    # deferred: CLI start-up time
+    from server.services import phases
+
+    changes = _phase_changes(
+        suite=suite,
+        visibility=visibility,
+        starts=starts,
+        ends=ends,
+        open_ended=open_ended,
+        quota=quota,
+        profile=profile,
+        episodes=episodes,
+        adaptive_target=adaptive_target,
+        max_episodes=max_episodes,
+        step_cpu=step_cpu,
+        episode_cpu=episode_cpu,
+        evaluation_cpu=evaluation_cpu,
+        training_seeds=training_seeds,
+    )
+    ctx = _Context()
+    phase = _run(lambda: phases.create_phase(ctx.db, ctx.settings, name, changes, dry_run=dry_run))
+    _say_phase(ctx, phase, "not created (dry run)" if dry_run else "created")
+
+
 @phases_app.command("set")
 def phases_set(
-    name: Annotated[str, typer.Argument(help="The phase (created if new).")],
-    suite: Annotated[str | None, typer.Option(help="`public`, `hidden` or a suite folder.")] = None,
-    visibility: Annotated[
-        str | None, typer.Option(help="`full` (validation) or `hidden` (final).")
-    ] = None,
-    starts: Annotated[str | None, typer.Option(help="Opens at (ISO 8601, UTC).")] = None,
-    ends: Annotated[str | None, typer.Option(help="Closes at (ISO 8601, UTC).")] = None,
-    quota: Annotated[int | None, typer.Option(help="Submissions per team, track and day.")] = None,
-    profile: Annotated[str | None, typer.Option(help="Scoring profile of the phase.")] = None,
-    episodes: Annotated[
-        int | None,
-        typer.Option(
-            help="Episodes of each reactive scenario, each with other traffic; evaluation takes "
-            "about this many times as long (default: ARENA_EPISODES_PER_SCENARIO)."
-        ),
-    ] = None,
-    open_ended: Annotated[
-        bool, typer.Option("--open-ended", help="No start and no end date.")
-    ] = False,
-    adaptive_target: Annotated[
-        float | None,
-        typer.Option(
-            help="Adaptive evaluation: add rounds of --episodes episodes per reactive scenario "
-            "while completion's 95% interval half-width is above this (with --max-episodes)."
-        ),
-    ] = None,
-    max_episodes: Annotated[
-        int | None, typer.Option(help="Adaptive evaluation: the most episodes per scenario.")
-    ] = None,
+    name: Annotated[str, typer.Argument(help="An existing phase (`phases create` makes one).")],
+    suite: SuiteOption = None,
+    visibility: VisibilityOption = None,
+    starts: StartsOption = None,
+    ends: EndsOption = None,
+    quota: QuotaOption = None,
+    profile: ProfileOption = None,
+    episodes: EpisodesOption = None,
+    open_ended: OpenEndedOption = False,
+    adaptive_target: AdaptiveTargetOption = None,
+    max_episodes: MaxEpisodesOption = None,
     fixed_episodes: Annotated[
         bool, typer.Option("--fixed-episodes", help="Turn adaptive evaluation off.")
     ] = False,
-    step_cpu: Annotated[
-        float | None,
-        typer.Option(help="Agent CPU seconds one act may use (default: ARENA_STEP_CPU_S)."),
-    ] = None,
-    episode_cpu: Annotated[
-        float | None,
-        typer.Option(
-            help="Agent CPU seconds of one episode's acts together (default: ARENA_EPISODE_CPU_S)."
-        ),
-    ] = None,
-    evaluation_cpu: Annotated[
-        float | None,
-        typer.Option(
-            help="Agent CPU seconds of one evaluation's episodes together; past it the rest are "
-            "not run and the submission fails (default: ARENA_EVALUATION_CPU_S)."
-        ),
-    ] = None,
+    step_cpu: StepCpuOption = None,
+    episode_cpu: EpisodeCpuOption = None,
+    evaluation_cpu: EvaluationCpuOption = None,
     default_cpu_limits: Annotated[
         bool,
         typer.Option(
             "--default-cpu-limits", help="Clear the phase's CPU limits: the settings' apply."
         ),
     ] = False,
-    training_seeds: Annotated[
-        int | None,
-        typer.Option(
-            help="Track 2: train each offline submission this many times (1 to 16), each with "
-            "its own ARENA_TRAIN_SEED, and score it over them; training and evaluation take "
-            "about this many times as long."
-        ),
-    ] = None,
-    dry_run: Annotated[
-        bool, typer.Option("--dry-run", help="Say what the phase would cost; save nothing.")
-    ] = False,
+    training_seeds: TrainingSeedsOption = None,
+    dry_run: DryRunOption = False,
 ) -> None:
-    """Create a phase or change some of its settings."""
+    """Change some settings of an existing phase; an unknown name is refused with the nearest
+    known one (`phases create` makes a new phase)."""
+    # deferred: CLI start-up time
+    from server.services import phases
+
+    changes = _phase_changes(
+        suite=suite,
+        visibility=visibility,
+        starts=starts,
+        ends=ends,
+        open_ended=open_ended,
+        quota=quota,
+        profile=profile,
+        episodes=episodes,
+        adaptive_target=adaptive_target,
+        max_episodes=max_episodes,
+        step_cpu=step_cpu,
+        episode_cpu=episode_cpu,
+        evaluation_cpu=evaluation_cpu,
+        training_seeds=training_seeds,
+        fixed_episodes=fixed_episodes,
+        default_cpu_limits=default_cpu_limits,
+    )
+    ctx = _Context()
+    phase = _run(lambda: phases.set_phase(ctx.db, ctx.settings, name, changes, dry_run=dry_run))
+    _say_phase(ctx, phase, "unchanged (dry run)" if dry_run else "saved")
+
+
+def _phase_changes(
+    *,
+    suite: str | None,
+    visibility: str | None,
+    starts: str | None,
+    ends: str | None,
+    open_ended: bool,
+    quota: int | None,
+    profile: str | None,
+    episodes: int | None,
+    adaptive_target: float | None,
+    max_episodes: int | None,
+    step_cpu: float | None,
+    episode_cpu: float | None,
+    evaluation_cpu: float | None,
+    training_seeds: int | None,
+    fixed_episodes: bool = False,
+    default_cpu_limits: bool = False,
+):
     # deferred: CLI start-up time
     from server.models import Visibility
     from server.services import phases
 
     if visibility is not None and visibility not in set(Visibility):
         raise typer.BadParameter("use `full` or `hidden`", param_hint="--visibility")
-    changes = phases.PhaseChanges(
+    return phases.PhaseChanges(
         suite=suite,
         visibility=Visibility(visibility) if visibility else None,
         starts_at=_moment(starts, "--starts"),
@@ -963,9 +1088,12 @@ def phases_set(
         default_cpu_limits=default_cpu_limits,
         training_seeds=training_seeds,
     )
-    ctx = _Context()
-    phase = _run(lambda: phases.set_phase(ctx.db, ctx.settings, name, changes, dry_run=dry_run))
-    outcome = "unchanged (dry run)" if dry_run else "saved"
+
+
+def _say_phase(ctx: _Context, phase, outcome: str) -> None:
+    """The phase just created or changed, with what an evaluation in it costs."""
+    from server.services import phases
+
     console.print(f"phase [bold]{phase.name}[/bold] {outcome}")
     per_scenario = phases.episodes_per_scenario(phase, ctx.settings.evaluation)
     adaptive = phases.adaptive_cost(phase, ctx.settings.evaluation)

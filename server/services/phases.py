@@ -19,6 +19,7 @@ from arena.config import (
 )
 from arena.cpu_limits import CpuLimits
 from arena.errors import ArenaError, SuiteError
+from arena.names import did_you_mean
 from arena.suite import Suite, load_suite, resolve_suite
 from evaluator.scoring import ProfileError, ScoringProfile, load_profile
 from server.core.db import Database
@@ -36,9 +37,14 @@ MAX_TRAINING_SEEDS = 16
 def get_phase(session: Session, name: str) -> Phase:
     phase = session.scalar(select(Phase).where(Phase.name == name))
     if phase is None:
-        known = ", ".join(p.name for p in list_phases(session)) or "none"
-        raise NotFound(f"no phase {name!r} (phases: {known})")
+        raise NotFound(_unknown_phase(session, name))
     return phase
+
+
+def _unknown_phase(session: Session, name: str) -> str:
+    """Why ``name`` is no phase: the nearest known name first (a typo), then all of them."""
+    known = [phase.name for phase in list_phases(session)]
+    return f"no phase {name!r}{did_you_mean(name, known)} (phases: {', '.join(known) or 'none'})"
 
 
 def list_phases(session: Session) -> list[Phase]:
@@ -237,22 +243,71 @@ class _DryRun(ArenaError):
         self.phase = phase
 
 
+def create_phase(
+    db: Database, settings: Settings, name: str, changes: PhaseChanges, *, dry_run: bool = False
+) -> Phase:
+    """Create the phase ``name``: refused if it exists (:func:`set_phase` changes one), without a
+    suite, or without saying when it closes (an end date, or ``clear_dates`` for a phase that
+    never does), so that no phase opens on every team's submit form by accident. Checked whole
+    like :func:`set_phase`; ``dry_run``: nothing saved."""
+    if changes.suite is None:
+        raise InvalidInput(f"a new phase {name!r} needs --suite (public, hidden or DIR)")
+    if changes.ends_at is None and not changes.clear_dates:
+        raise InvalidInput(
+            f"say when phase {name!r} closes: --ends T, or --open-ended for a phase that never does"
+        )
+    return _saved(db, settings, name, changes, dry_run, create=True)
+
+
 def set_phase(
     db: Database, settings: Settings, name: str, changes: PhaseChanges, *, dry_run: bool = False
 ) -> Phase:
-    """Create the phase ``name`` or change the given fields of it. The phase as it would be after
-    the change is checked whole (suite loads, profile exists, dates ordered, counts in range)
-    before anything is saved: a phase nothing can be evaluated in is never stored. ``dry_run``:
-    the phase as it would be (to say what it would cost), nothing saved."""
+    """Change the given fields of the existing phase ``name`` (an unknown name is refused with
+    the nearest known one: a typo never creates a phase; :func:`create_phase` does). The phase
+    as it would be after the change is checked whole (suite loads, profile exists, dates
+    ordered, counts in range) before anything is saved: a phase nothing can be evaluated in is
+    never stored. ``dry_run``: the phase as it would be (to say what it would cost), nothing
+    saved."""
+    return _saved(db, settings, name, changes, dry_run, create=False)
+
+
+def _saved(
+    db: Database,
+    settings: Settings,
+    name: str,
+    changes: PhaseChanges,
+    dry_run: bool,
+    *,
+    create: bool,
+) -> Phase:
+    _check_changes(changes)
     try:
-        return _set_phase(db, settings, name, changes, dry_run)
+        with db.session() as session:
+            phase = session.scalar(select(Phase).where(Phase.name == name).with_for_update())
+            if create and phase is not None:
+                raise Conflict(
+                    f"phase {name!r} exists: change it with `arena admin phases set {name} ...`"
+                )
+            if not create and phase is None:
+                raise NotFound(
+                    f"{_unknown_phase(session, name)}; a new phase is made with "
+                    f"`arena admin phases create {name} --suite S --ends T`"
+                )
+            if phase is None:
+                phase = Phase(name=name, suite=changes.suite, visibility=Visibility.hidden)
+                session.add(phase)
+            _apply(phase, changes, settings)
+            session.flush()
+            session.expunge(phase)
+            if dry_run:
+                raise _DryRun(phase)  # rolls the transaction back
+            return phase
     except _DryRun as done:
         return done.phase
 
 
-def _set_phase(
-    db: Database, settings: Settings, name: str, changes: PhaseChanges, dry_run: bool
-) -> Phase:
+def _check_changes(changes: PhaseChanges) -> None:
+    """The changes that are wrong whatever the phase they are made to."""
     if changes.daily_quota is not None and changes.daily_quota < 0:
         raise InvalidInput("daily quota: a number of submissions, 0 or more")
     if changes.episodes_per_scenario is not None and not (
@@ -283,60 +338,52 @@ def _set_phase(
             load_profile(changes.scoring_profile)
         except ProfileError as exc:
             raise InvalidInput(str(exc)) from exc
-    with db.session() as session:
-        phase = session.scalar(select(Phase).where(Phase.name == name).with_for_update())
-        if phase is None:
-            if changes.suite is None:
-                raise InvalidInput(f"a new phase {name!r} needs --suite (public, hidden or DIR)")
-            phase = Phase(name=name, suite=changes.suite, visibility=Visibility.hidden)
-            session.add(phase)
-        if changes.clear_dates:
-            phase.starts_at = phase.ends_at = None
-        for field in (
-            "suite",
-            "visibility",
-            "starts_at",
-            "ends_at",
-            "daily_quota",
-            "episodes_per_scenario",
-            "training_seeds",
-        ):
-            value = getattr(changes, field)
-            if value is not None:
-                setattr(phase, field, value)
-        if changes.scoring_profile is not None:
-            phase.scoring_profile = changes.scoring_profile
-        if changes.fixed_episodes:
-            phase.adaptive_target = phase.max_episodes = None
-        if changes.adaptive_target is not None:
-            phase.adaptive_target = changes.adaptive_target
-            phase.max_episodes = changes.max_episodes
-        if changes.default_cpu_limits:
-            phase.step_cpu_s = phase.episode_cpu_s = phase.evaluation_cpu_s = None
-        for field, value in _cpu_changes(changes).items():
-            if value is not None:
-                setattr(phase, field, value)
-        limits = cpu_limits(phase, settings.sandbox)
-        if not limits.step_s <= limits.episode_s <= limits.evaluation_s:
-            raise InvalidInput(
-                f"the CPU limits must grow: an act's ({limits.step_s:g} s) at most an "
-                f"episode's ({limits.episode_s:g} s), at most an evaluation's "
-                f"({limits.evaluation_s:g} s)"
-            )
-        first = phase.episodes_per_scenario
-        if phase.max_episodes is not None and first is not None and phase.max_episodes < first:
-            raise InvalidInput("max episodes must be at least the episodes of the first round")
-        if phase.starts_at and phase.ends_at and phase.ends_at <= phase.starts_at:
-            raise InvalidInput("the phase must end after it starts")
-        try:
-            phase_setup(phase, settings)
-        except PhaseMisconfigured as exc:
-            raise InvalidInput(f"{exc.message}; nothing saved") from None
-        session.flush()
-        session.expunge(phase)
-        if dry_run:
-            raise _DryRun(phase)  # rolls the transaction back
-        return phase
+
+
+def _apply(phase: Phase, changes: PhaseChanges, settings: Settings) -> None:
+    """Make the changes to ``phase`` and check the result whole (refused: nothing saved)."""
+    if changes.clear_dates:
+        phase.starts_at = phase.ends_at = None
+    for field in (
+        "suite",
+        "visibility",
+        "starts_at",
+        "ends_at",
+        "daily_quota",
+        "episodes_per_scenario",
+        "training_seeds",
+    ):
+        value = getattr(changes, field)
+        if value is not None:
+            setattr(phase, field, value)
+    if changes.scoring_profile is not None:
+        phase.scoring_profile = changes.scoring_profile
+    if changes.fixed_episodes:
+        phase.adaptive_target = phase.max_episodes = None
+    if changes.adaptive_target is not None:
+        phase.adaptive_target = changes.adaptive_target
+        phase.max_episodes = changes.max_episodes
+    if changes.default_cpu_limits:
+        phase.step_cpu_s = phase.episode_cpu_s = phase.evaluation_cpu_s = None
+    for field, value in _cpu_changes(changes).items():
+        if value is not None:
+            setattr(phase, field, value)
+    limits = cpu_limits(phase, settings.sandbox)
+    if not limits.step_s <= limits.episode_s <= limits.evaluation_s:
+        raise InvalidInput(
+            f"the CPU limits must grow: an act's ({limits.step_s:g} s) at most an "
+            f"episode's ({limits.episode_s:g} s), at most an evaluation's "
+            f"({limits.evaluation_s:g} s)"
+        )
+    first = phase.episodes_per_scenario
+    if phase.max_episodes is not None and first is not None and phase.max_episodes < first:
+        raise InvalidInput("max episodes must be at least the episodes of the first round")
+    if phase.starts_at and phase.ends_at and phase.ends_at <= phase.starts_at:
+        raise InvalidInput("the phase must end after it starts")
+    try:
+        phase_setup(phase, settings)
+    except PhaseMisconfigured as exc:
+        raise InvalidInput(f"{exc.message}; nothing saved") from None
 
 
 def _cpu_changes(changes: PhaseChanges) -> dict[str, float | None]:

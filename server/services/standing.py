@@ -4,10 +4,12 @@ detail and in the download, so a team never has to guess."""
 
 from __future__ import annotations
 
+from datetime import datetime
+
 from sqlalchemy.orm import Session
 
 from arena.config import SandboxSettings, ServiceSettings
-from server.models import Submission, Team, utcnow
+from server.models import Phase, Submission, Team, utcnow
 from server.schemas import (
     Allowance,
     CpuLimitsView,
@@ -44,17 +46,32 @@ def standing(session: Session, service: ServiceSettings, submission: Submission)
     board = leaderboard.compute(session, submission.track, submission.phase)
     ours = next((e for e in board.entries if e.team == submission.team.name), None)
     quota = phases.daily_quota(phase, service)
-    used = submissions.quota_used(
-        session, submission.team_id, submission.phase, submission.track, utcnow()
-    )
     return Standing(
         rank=ours.rank if ours else None,
         teams_ranked=len(board.entries),
         ranked_submission_id=ours.submission_id if ours else None,
         tied_with=ours.tied_with if ours else [],
-        tries_left_today=max(0, quota - used),
+        tries_left_today=tries_left_today(
+            session, service, submission.team_id, phase, submission.track, utcnow()
+        ),
         daily_quota=quota,
     )
+
+
+def tries_left_today(
+    session: Session,
+    service: ServiceSettings,
+    team_id: int,
+    phase: Phase,
+    track: Track,
+    moment: datetime,
+) -> int:
+    """Uploads the team may still make in the phase and track today: none while the phase is
+    not open (the one count the submission page, its standing and ``GET /team`` show)."""
+    if not phases.is_open(phase, moment):
+        return 0
+    used = submissions.quota_used(session, team_id, phase.name, track, moment)
+    return max(0, phases.daily_quota(phase, service) - used)
 
 
 def team_view(
@@ -78,13 +95,13 @@ def team_status(
     for phase in phases.list_phases(session):
         quota = phases.daily_quota(phase, service)
         for track in Track:
-            used = submissions.quota_used(session, team.id, phase.name, track, moment)
-            left = max(0, quota - used) if phases.is_open(phase, moment) else 0
             allowances.append(
                 Allowance(
                     phase=_window(phase, sandbox),
                     track=track,
-                    tries_left_today=left,
+                    tries_left_today=tries_left_today(
+                        session, service, team.id, phase, track, moment
+                    ),
                     daily_quota=quota,
                 )
             )

@@ -185,7 +185,9 @@ def test_without_a_database_admin_says_what_to_do_and_creates_nothing(tmp_path, 
 
 
 def test_a_phase_on_a_missing_suite_is_refused_and_nothing_saved(arena):
-    refused = arena("phases", "set", "warmup", "--suite", "nonexistent", ok=False)
+    refused = arena(
+        "phases", "create", "warmup", "--suite", "nonexistent", "--open-ended", ok=False
+    )  # fmt: skip
     assert "suite 'nonexistent'" in refused and "nothing saved" in refused
     assert "warmup" not in arena("phases", "list")
     assert "1 to 64" in arena("phases", "set", "final", "--episodes", "1000", ok=False)
@@ -193,6 +195,37 @@ def test_a_phase_on_a_missing_suite_is_refused_and_nothing_saved(arena):
         "phases", "set", "final", "--starts", "2030-01-02", "--ends", "2030-01-01", ok=False
     )
     assert "unknown scoring profile" in arena("phases", "set", "final", "--profile", "x", ok=False)
+
+
+def test_a_typo_in_phases_set_creates_nothing_and_names_the_nearest_phase(arena, client):
+    """`phases set fianl --suite hidden` once opened a new live phase with no end date."""
+    refused = arena("phases", "set", "fianl", "--suite", "hidden", ok=False)
+    assert "no phase 'fianl'; did you mean 'final'?" in refused
+    assert "arena admin phases create fianl" in refused
+    assert "fianl" not in arena("phases", "list") and "fianl" not in client.get("/submit").text
+    # Creating is its own command: it says when the phase closes, and never overwrites one.
+    assert "--ends T, or --open-ended" in arena(
+        "phases", "create", "warmup", "--suite", "public", ok=False
+    )
+    assert "--suite" in arena("phases", "create", "warmup", "--ends", "2030-01-01", ok=False)
+    output = arena("phases", "create", "warmup", "--suite", "public", "--ends", "2099-01-01")
+    assert "phase warmup created" in output
+    warmup = next(
+        line for line in arena("phases", "list").splitlines() if line.startswith("warmup")
+    )
+    assert warmup.split("\t")[4] == "2099-01-01 00:00" and warmup.split("\t")[-1] == "yes"
+    again = arena("phases", "create", "final", "--suite", "public", "--open-ended", ok=False)
+    assert "phase 'final' exists" in again and "phases set final" in again
+
+
+def test_phases_list_shows_a_broken_phase_as_not_open(arena, settings):
+    import shutil
+
+    shutil.rmtree(settings.suites.hidden_suite_dir)
+    listing = arena("phases", "list")
+    final = next(line for line in listing.splitlines() if line.startswith("final"))
+    assert final.split("\t")[-1] == "no: broken"
+    assert "BROKEN phase 'final': suite 'hidden'" in listing
 
 
 def test_status_lists_overdue_work_and_broken_phases(arena, db, settings, monkeypatch):

@@ -9,6 +9,7 @@ import pytest
 
 from server.models import utcnow
 from server.services import phases
+from server.services.errors import InvalidInput
 from server.services.leaderboard import LeaderboardCache
 from server.tracks import Track
 from tests.server.builders import (
@@ -44,6 +45,32 @@ def set_phase(db, settings):
         return phases.set_phase(db, settings, name, phases.PhaseChanges(**changes))
 
     return change
+
+
+@pytest.fixture
+def create_phase(db, settings):
+    def create(name, **changes):
+        return phases.create_phase(db, settings, name, phases.PhaseChanges(**changes))
+
+    return create
+
+
+def test_changing_a_phase_never_creates_one(db, set_phase, create_phase):
+    from server.services.errors import Conflict, NotFound
+
+    with pytest.raises(NotFound, match=r"no phase 'fianl'; did you mean 'final'\?"):
+        set_phase("fianl", suite="hidden")
+    with pytest.raises(NotFound, match=r"no phase 'warmup' \(phases: validation, final\)"):
+        set_phase("warmup", suite="public")
+    with pytest.raises(InvalidInput, match="--ends T, or --open-ended"):
+        create_phase("warmup", suite="public")
+    with pytest.raises(Conflict, match="phase 'final' exists"):
+        create_phase("final", suite="public", clear_dates=True)
+    with db.session() as session:
+        assert [p.name for p in phases.list_phases(session)] == ["validation", "final"]
+        # The lookup every command and upload goes through suggests the nearest name too.
+        with pytest.raises(NotFound, match="did you mean 'validation'"):
+            phases.get_phase(session, "validaton")
 
 
 @pytest.mark.slow  # the intake in the service's sandbox
@@ -87,6 +114,25 @@ def test_the_daily_quota_is_per_phase(client, db, settings, keep_lane_zip, set_p
     assert refused.status_code == 429
     assert "'final' phase" in refused.json()["detail"]
     assert upload(client, token, keep_lane_zip, phase="validation").status_code == 202
+
+
+def test_after_a_phase_closes_every_view_says_no_uploads_are_left(client, db, set_phase):
+    """The submission's standing once said "2 of 3 uploads left today" while GET /team said 0."""
+    team, token = make_team(db, "alpha")
+    scored = seed_scored(db, team, (0.5, 400.0, 0.1, 0.0))
+    set_phase("final", daily_quota=3)
+
+    def left() -> tuple[int, int]:
+        detail = client.get(f"/api/v1/submissions/{scored}", headers=bearer(token)).json()
+        allowances = client.get("/api/v1/team", headers=bearer(token)).json()["allowances"]
+        final = next(
+            a for a in allowances if a["phase"]["name"] == "final" and a["track"] == "freestyle"
+        )
+        return detail["standing"]["tries_left_today"], final["tries_left_today"]
+
+    assert left() == (2, 2)  # the scored submission counts
+    set_phase("final", ends_at=utcnow() - timedelta(minutes=1))
+    assert left() == (0, 0)
 
 
 def test_submit_page_offers_the_open_phases_and_says_when_the_others_open(client, db, set_phase):
@@ -186,22 +232,20 @@ def test_leaderboards_are_per_phase(client, db):
     assert (body["phase"], [e["team"] for e in body["entries"]]) == ("validation", ["beta"])
 
 
-def test_admin_phase_changes_are_checked(db, set_phase):
-    from server.services.errors import InvalidInput
-
+def test_admin_phase_changes_are_checked(db, set_phase, create_phase):
     with pytest.raises(InvalidInput, match="end after it starts"):
         set_phase("final", starts_at=utcnow(), ends_at=utcnow() - timedelta(days=1))
     with pytest.raises(InvalidInput, match="unknown scoring profile"):
         set_phase("final", scoring_profile="no-such-profile")
     with pytest.raises(InvalidInput, match="needs --suite"):
-        set_phase("warmup")
+        create_phase("warmup", clear_dates=True)
     with pytest.raises(InvalidInput, match=r"suite 'nonexistent'.*nothing saved"):
-        set_phase("warmup", suite="nonexistent")
+        create_phase("warmup", suite="nonexistent", clear_dates=True)
     with pytest.raises(InvalidInput, match="1 to 64"):
         set_phase("final", episodes_per_scenario=65)
     with pytest.raises(InvalidInput, match="suite '/no/such/folder'"):
         set_phase("final", suite="/no/such/folder")
-    set_phase("warmup", suite="public", daily_quota=2)
+    create_phase("warmup", suite="public", daily_quota=2, clear_dates=True)
     with db.session() as session:
         assert [p.name for p in phases.list_phases(session)] == ["validation", "final", "warmup"]
         assert phases.get_phase(session, "final").suite == "hidden"  # the refused change
