@@ -43,6 +43,12 @@ HEADER = struct.Struct(">I")
 MAX_INCOMING_BYTES = 1 << 30
 # Formats the policy gets as the protocol delivers them; any other is converted (COMPAT).
 PLAIN_FORMATS = ("native", "arrays")
+# The libraries whose versions decide what an agent computes, by module name: each one the agent
+# has imported is named with its version in the ready message (the results manifest's agent_stack).
+NUMERICAL_STACK = (
+    "numpy", "scipy", "torch", "tensorflow", "jax", "sklearn", "pandas", "numba", "cv2",
+    "gym", "gymnasium", "stable_baselines3",
+)  # fmt: skip
 # An arrays act frame: b"a", then agent count and record size (a pickle starts with 0x80).
 ARRAYS_TAG = ord("a")
 ARRAYS_HEAD = struct.Struct(">BII")
@@ -455,6 +461,17 @@ class WrappedServer:
         raise self.compat.EpisodeOver
 
 
+def imported_stack() -> dict[str, str]:
+    """Python's version and that of each :data:`NUMERICAL_STACK` module imported so far, as
+    loaded (a submission's own numpy, not the runtime's)."""
+    stack = {"python": sys.version.split()[0]}
+    for name in NUMERICAL_STACK:
+        module = sys.modules.get(name)
+        if module is not None:
+            stack[name] = str(getattr(module, "__version__", "unknown"))
+    return stack
+
+
 def run_agent(stream: Stream, args: argparse.Namespace, started: float) -> int:
     """One agent's life on ``stream``: hello, build the policy, ready, serve until close."""
     put_submission_first(args.submission, args.deps)
@@ -477,7 +494,8 @@ def run_agent(stream: Stream, args: argparse.Namespace, started: float) -> int:
     except BaseException as error:
         stream.send(error_message(error))
         return 1
-    stream.send({"type": "ready", "init_s": round(time.perf_counter() - started, 6)})
+    init_s = round(time.perf_counter() - started, 6)
+    stream.send({"type": "ready", "init_s": init_s, "stack": imported_stack()})
     if wrappers is not None:
         WrappedServer(stream, policy, adapter, wrappers, options, args.action_space).serve()
     else:

@@ -3,7 +3,8 @@
 A score is reproducible when everything that went into it is pinned: the submission's bytes (and,
 on Track 2, the trained model's), the suite and each scenario's content, the traffic seed of every
 episode, the scoring profile, and the software that ran it (this project's version, Python,
-numpy, SUMO, the sandbox and the agent image). The manifest names each by version or sha256, so
+numpy, SUMO, the sandbox and the agent image, and the numerical stack the agent imported inside
+its sandbox). The manifest names each by version or sha256, so
 a re-run can first check it runs under the same conditions (:func:`differences`) and then compare
 records bit for bit.
 """
@@ -41,6 +42,14 @@ class Environment(Frozen):
     # Docker: the agent image's id (sha256); other backends run the agent on the worker's own
     # runtime, which the versions above pin.
     agent_image: str | None = None
+    # What the agent computed with, as imported inside its sandbox: Python and each numerical
+    # library it loaded (numpy, torch, ...) by module name, as the runtime there reported them
+    # (a submission's requirements choose its own numpy; ``numpy`` above is the evaluator's).
+    # A result of the run, not a condition of it: a re-run is not refused over it.
+    agent_stack: dict[str, str] = {}
+
+    def __hash__(self) -> int:  # frozen, but the dict field has no hash of its own
+        return hash(self.model_dump_json())
 
 
 class ScenarioPin(Frozen):
@@ -219,11 +228,16 @@ def manifest_of(
     )
 
 
-def environment(sandbox: str, agent_image: str) -> Environment:
+def environment(
+    sandbox: str, agent_image: str, agent_stack: Mapping[str, str] | None = None
+) -> Environment:
     """The environment an episode run now, here, with backend ``sandbox`` (and, with Docker,
-    the image ``agent_image``) would have."""
+    the image ``agent_image``) would have; ``agent_stack``: what its agent reported importing."""
     image = _docker_image_id(agent_image) if sandbox == "docker" else None
-    return _versions(sandbox, image)
+    versions = _versions(sandbox, image)
+    if not agent_stack:
+        return versions
+    return versions.model_copy(update={"agent_stack": dict(agent_stack)})
 
 
 @lru_cache(maxsize=8)

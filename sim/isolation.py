@@ -62,7 +62,8 @@ def run_episode_isolated(
     ``agent_factory`` must be picklable (a module-level function or ``functools.partial``); it is
     called in the child. If it raises :class:`AgentFailed`, every agent fails with that reason
     after 0 steps (the record is still written). The child closes the agent and, when the agent
-    has a ``logs()`` method, returns its text in ``extra["agent_log"]``, and the CPU its acts
+    has a ``logs()`` method, returns its text in ``extra["agent_log"]`` (and a ``stack`` dict,
+    the libraries it reported, in ``extra["agent_stack"]``), and the CPU its acts
     used when it has an ``episode_cpu_s`` attribute. The episode itself
     stops at ``episode_timeout_s``, the organisers' limit (reason ``episode_timeout``, record kept);
     ``timeout_s`` is the hard limit after which the child is killed (``simulator_error``).
@@ -215,6 +216,9 @@ def _child_main(
             log = _close_agent(agent)
             if log is not None:
                 result.extra["agent_log"] = log
+            stack = getattr(agent, "stack", None)  # a sandboxed handle's reported libraries
+            if isinstance(stack, dict):
+                result.extra["agent_stack"] = stack
             result = dataclasses.replace(result, agent_cpu_s=_agent_cpu_s(agent))
         conn.send(result)
     except BaseException as exc:

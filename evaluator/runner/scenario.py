@@ -207,7 +207,9 @@ def run_scenario(
             return dataclasses.replace(
                 _outcome(result, record_path, "\n".join(logs), attempt, started, episode),
                 seed=seed,
-                environment=environment(kind.value, config.agent_image),
+                environment=environment(
+                    kind.value, config.agent_image, result.extra.get("agent_stack", {})
+                ),
             )
         # The episode's process died, SUMO failed, or a sandbox ended before our runner started
         # in it (killed from outside, the daemon failed): none of it is the agent's doing, so

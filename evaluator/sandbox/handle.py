@@ -63,6 +63,9 @@ class AgentHandle:
         self._closed = False
         self.hello: dict[str, Any] = {}
         self.init_s: float | None = None
+        # The libraries the agent imported, by module name, as the runtime in its sandbox
+        # reported them at ready (the results manifest's agent_stack); bounded, strings only.
+        self.stack: dict[str, str] = {}
 
     def handshake(self) -> None:
         deadline = time.monotonic() + self._init_timeout_s
@@ -79,6 +82,7 @@ class AgentHandle:
         self.init_s = (
             float(init_s) if isinstance(init_s, int | float) and 0 <= init_s < 1e9 else None
         )
+        self.stack = reported_stack(ready.get("stack"))
         if self._arrays is not None:  # no answer: the runner keeps it for the act frames
             self._send("layout", self._arrays.layout.describe(), deadline, DoneReason.init_timeout)
         meter = self._sandbox.cpu_meter()
@@ -262,3 +266,24 @@ class AgentHandle:
         self._sandbox.kill()
         tail = self._sandbox.logs()
         raise AgentFailed(reason, detail, tail)
+
+
+# What of a reported stack is kept: a report is the sandbox's word, so only a few short strings.
+MAX_STACK_ENTRIES = 32
+MAX_STACK_TEXT = 64
+
+
+def reported_stack(reported: object) -> dict[str, str]:
+    """The ``name -> version`` pairs of a ready message's ``stack`` that are short strings, at
+    most :data:`MAX_STACK_ENTRIES` of them (nothing when it is not a dict)."""
+    if not isinstance(reported, dict):
+        return {}
+    pairs = [
+        (name, version)
+        for name, version in reported.items()
+        if isinstance(name, str)
+        and isinstance(version, str)
+        and len(name) <= MAX_STACK_TEXT
+        and len(version) <= MAX_STACK_TEXT
+    ]
+    return dict(sorted(pairs)[:MAX_STACK_ENTRIES])

@@ -57,5 +57,9 @@ def test_a_ds2022_agent_runs_unmodified_on_the_numpy_it_pinned(kind, public_suit
     assert summary.complete and summary.uncharged == (), logs[-3000:]
     assert not {k: r for k, r in reasons.items() if r in AGENT_FAILURES}, (reasons, logs[-3000:])
     assert "ds2022 agent on numpy 1.23.5" in logs
+    # The manifest names the numpy the agent ran with, not the evaluator's.
+    (environment,) = summary.manifest.environments
+    assert environment.agent_stack["numpy"] == "1.23.5" != environment.numpy
+    assert environment.agent_stack["gym"] == "0.21.0+arena"  # the compat package's
     reached = [k for k, r in reasons.items() if r == "reached_goal"]
     assert len(reached) >= len(reasons) - 1, reasons

@@ -4,7 +4,7 @@ component, and shown to a team without scenario ids or seeds."""
 from pathlib import Path
 
 from arena.suite import ManifestEntry, Suite, SuiteManifest
-from evaluator.provenance import Environment, EpisodeRun, differences, manifest_of
+from evaluator.provenance import Environment, EpisodeRun, Manifest, differences, manifest_of
 
 ENV = Environment(arena="0.1.0", python="3.11.7", numpy="2.4.6", sumo="1.28.0", sandbox="docker")
 SUITE = Suite(
@@ -64,3 +64,12 @@ def test_the_public_view_names_no_scenario_and_no_seed():
     assert public.scenario_hashes == ("c" * 64, "d" * 64)
     # The seeds are pinned by digest: other seeds, another digest.
     assert public.seeds_sha256 != manifest(seeds=(11, 13)).public().seeds_sha256
+
+
+def test_the_agents_stack_is_recorded_but_a_rerun_is_not_refused_over_it():
+    ran = ENV.model_copy(update={"agent_stack": {"python": "3.11.2", "numpy": "1.23.5"}})
+    m = manifest(env=ran)
+    assert m.environments[0].agent_stack["numpy"] == "1.23.5"
+    assert Manifest.model_validate_json(m.model_dump_json()) == m
+    # An audit knows the agent's stack only once it has run the agent again.
+    assert differences(m, manifest()) == []

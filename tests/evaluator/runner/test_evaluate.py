@@ -92,6 +92,7 @@ def test_same_submission_twice_gives_identical_summary_and_records(public_suite,
     (environment,) = manifest.environments
     assert environment.sandbox == TEST_SANDBOX.value
     assert environment.python and environment.sumo != "unknown"
+    assert environment.agent_stack["numpy"]  # as the agent's runtime imported it
 
 
 def test_crash_in_one_scenario_still_scores_every_other(public_suite, tmp_path):
