@@ -12,7 +12,10 @@ Every rule has a short name carried by :class:`Rejected` with the entry at fault
   kinds, declared sizes and compression ratios). Cheap: the API runs it on the upload.
 - :func:`check_submission`: everything else: extraction (counting bytes again in case an entry
   lies about its size), nested archives (streamed from disk, never read whole into memory, and
-  counted against the same budget), ``policy.py`` and ``train.py`` compiled.
+  counted against the same budget), ``policy.py`` and ``train.py`` compiled, and the files that
+  configure the submission read and parsed (``agent.yaml``, ``requirements.txt``,
+  ``explanation.md``): the host receives their bounded, flat result in the verdict and opens none
+  of them.
 
 Run as a program (``python3 intake.py MODE INPUT OUTPUT``) it writes its verdict to
 ``OUTPUT/report.json``: ``{"ok": true, ...}`` or ``{"ok": false, "entry", "rule", "message"}``.
@@ -25,6 +28,7 @@ import bz2
 import json
 import lzma
 import os
+import re
 import shutil
 import stat
 import sys
@@ -36,6 +40,18 @@ from pathlib import Path, PurePosixPath
 ARCHIVE = "<zip>"
 POLICY = "policy.py"
 TRAIN_SCRIPT = "train.py"
+AGENT_YAML = "agent.yaml"
+REQUIREMENTS = "requirements.txt"
+EXPLANATION = "explanation.md"
+SMARTS_CONFIG = "config.yaml"
+# A configuration file is small: a bigger one is refused before it is parsed.
+MAX_CONFIG_BYTES = 64 * 1024
+# The explanation is shown on a web page; the rest of a long file is cut.
+MAX_EXPLANATION_CHARS = 20_000
+# agent.yaml is a flat mapping of a few options: what the host accepts of it is bounded too.
+MAX_OPTIONS = 64
+MAX_OPTION_NAME = 64
+MAX_OPTION_VALUE = 256
 REPORT = "report.json"
 LIMITS = "limits.json"
 SUBMISSION_DIR = "submission"
@@ -176,8 +192,12 @@ def open_zip(path: Path, limits: Limits, shown: str = ARCHIVE) -> zipfile.ZipFil
 def entry_path(info: zipfile.ZipInfo) -> PurePosixPath:
     """The entry's relative path, or Rejected for names that could escape the folder."""
     name = info.filename
-    if not name or "\0" in name:
-        raise Rejected(repr(name), "bad-name", "an entry has an empty or NUL-containing name")
+    # zipfile cuts a name at its first NUL (``filename``); the name as stored is ``orig_filename``.
+    stored = info.orig_filename
+    if not name or "\0" in stored or any(ord(c) < 32 or ord(c) == 127 for c in stored):
+        raise Rejected(
+            repr(stored), "bad-name", "an entry's name is empty or holds a NUL or control character"
+        )
     if name.startswith(("/", "\\")) or (len(name) > 1 and name[1] == ":"):
         raise Rejected(name, "absolute-path", "absolute paths are not allowed in the zip")
     parts = PurePosixPath(name.replace("\\", "/")).parts
@@ -473,6 +493,177 @@ def check_scripts(root: Path, names: list[str]) -> dict:
     return {"trains": train is not None, "policy_defines": sorted(set(defined))[:1000]}
 
 
+def read_config(root: Path, name: str, max_bytes: int = MAX_CONFIG_BYTES, cut: bool = False):
+    """A root-level text file of the submission, or None when it is absent. Longer than
+    ``max_bytes``: cut there with ``cut``, else refused."""
+    path = root / name
+    if path.is_symlink() or not path.is_file():
+        return None
+    with path.open("rb") as handle:
+        data = handle.read(max_bytes + 1)
+    if len(data) > max_bytes:
+        if not cut:
+            raise Rejected(name, "file-too-large", f"is larger than {max_bytes // 1024} KiB")
+        data = data[:max_bytes]
+    try:
+        return data.decode("utf-8-sig", errors="replace" if cut else "strict")
+    except UnicodeDecodeError as error:
+        raise Rejected(name, "not-utf8", f"is not UTF-8 text ({error})") from error
+
+
+# YAML 1.1's plain scalars as PyYAML's safe loader resolves them (the rest stay strings).
+_YAML_NULL = re.compile(r"~|null|Null|NULL")
+_YAML_BOOL = {
+    **dict.fromkeys(["yes", "Yes", "YES", "true", "True", "TRUE", "on", "On", "ON"], True),
+    **dict.fromkeys(["no", "No", "NO", "false", "False", "FALSE", "off", "Off", "OFF"], False),
+}
+_YAML_INT = re.compile(r"[-+]?(0|[1-9][0-9_]*)")
+_YAML_BASED_INT = re.compile(r"([-+]?)0(b[01_]+|x[0-9a-fA-F_]+|[0-7_]+)")
+_YAML_FLOAT = re.compile(r"[-+]?([0-9][0-9_]*)?\.[0-9_]*([eE][-+][0-9]+)?")
+_YAML_SPECIAL_FLOAT = {
+    **dict.fromkeys((f"{s}.{w}" for s in ("", "+") for w in ("inf", "Inf", "INF")), "inf"),
+    **dict.fromkeys((f"-.{w}" for w in ("inf", "Inf", "INF")), "-inf"),
+    **dict.fromkeys((".nan", ".NaN", ".NAN"), "nan"),
+}
+_OPTION_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+# A plain value starting with one of these is YAML structure (a list, a mapping, an anchor, an
+# alias, a tag, block text, a directive), which no option of agent.yaml takes.
+_STRUCTURE = tuple("[]{}&*!|>%@`")
+_DOUBLE_QUOTED_ESCAPES = {"\\": "\\", '"': '"', "/": "/", "n": "\n", "t": "\t", "0": "\0"}
+
+
+def _yaml_error(number: int, message: str) -> Rejected:
+    where = f"line {number}: " if number else ""
+    return Rejected(AGENT_YAML, "agent-yaml", f"{where}{message}")
+
+
+def _plain_scalar(text: str):
+    if not text or _YAML_NULL.fullmatch(text):
+        return None
+    if text in _YAML_BOOL:
+        return _YAML_BOOL[text]
+    if _YAML_INT.fullmatch(text):
+        return int(text.replace("_", ""))
+    if based := _YAML_BASED_INT.fullmatch(text):
+        sign, digits = based.groups()
+        base = {"b": 2, "x": 16}.get(digits[0], 8)
+        number = int(digits.replace("_", "").lstrip("bx") or "0", base)
+        return -number if sign == "-" else number
+    if text in _YAML_SPECIAL_FLOAT:
+        return float(_YAML_SPECIAL_FLOAT[text])
+    if _YAML_FLOAT.fullmatch(text) and any(c.isdigit() for c in text):
+        return float(text.replace("_", ""))
+    return text
+
+
+def _quoted_scalar(text: str, number: int) -> tuple[str, str]:
+    """The quoted string at the start of ``text`` and what follows it on the line."""
+    quote, value, at = text[0], [], 1
+    while at < len(text):
+        char = text[at]
+        if char == quote:
+            if quote == "'" and text[at + 1 : at + 2] == "'":
+                value.append("'")
+                at += 2
+                continue
+            return "".join(value), text[at + 1 :]
+        if char == "\\" and quote == '"':
+            escaped = _DOUBLE_QUOTED_ESCAPES.get(text[at + 1 : at + 2])
+            if escaped is None:
+                raise _yaml_error(number, 'only \\\\, \\", \\/, \\n, \\t and \\0 escape in quotes')
+            value.append(escaped)
+            at += 2
+            continue
+        value.append(char)
+        at += 1
+    raise _yaml_error(number, "a quoted value is not closed on its line")
+
+
+def _value(text: str, number: int):
+    """The scalar of an ``option: value`` line after the colon (comment included)."""
+    text = text.strip(" \t")
+    if text[:1] in ("'", '"'):
+        value, rest = _quoted_scalar(text, number)
+        rest = rest.strip(" \t")
+        if rest and not rest.startswith("#"):
+            raise _yaml_error(number, "text after a quoted value")
+        return value
+    if text.startswith("#"):
+        return None
+    plain = re.split(r"[ \t]#", text, maxsplit=1)[0].rstrip(" \t")
+    if plain.startswith(_STRUCTURE) or plain in ("-", "?") or plain.startswith(("- ", "? ")):
+        raise _yaml_error(
+            number,
+            "an option's value is one plain value (no lists, mappings, anchors, aliases, tags "
+            "or block text)",
+        )
+    if ": " in plain or plain.endswith(":"):
+        raise _yaml_error(number, "one `option: value` per line (options are not nested)")
+    return _plain_scalar(plain)
+
+
+def parse_agent_yaml(text: str) -> dict:
+    """``agent.yaml``'s options: a flat mapping of ``option: value`` lines (comments allowed), the
+    YAML subset every option needs. Read line by line: nothing in it can nest, so no document
+    can make this (or the host, which receives only the flat result) recurse or grow."""
+    options: dict = {}
+    for number, raw in enumerate(text.splitlines(), start=1):
+        line = raw.rstrip(" \t\r")
+        if not line or line.lstrip(" \t").startswith("#"):
+            continue
+        if line in ("---", "...") and not options:
+            continue
+        if line[0] in " \t":
+            raise _yaml_error(number, "indented: options are not nested (one `option: value`)")
+        if line.startswith(("- ", "-\t")) or line == "-":
+            raise _yaml_error(0, "must be a mapping of option: value")
+        name, colon, rest = line.partition(":")
+        if not colon or (rest and rest[0] not in " \t"):
+            raise _yaml_error(number, "not an `option: value` line")
+        if not _OPTION_NAME.fullmatch(name) or len(name) > MAX_OPTION_NAME:
+            raise _yaml_error(number, f"{name[:MAX_OPTION_NAME]!r} is not an option's name")
+        if name in options:
+            raise _yaml_error(number, f"{name} is set twice")
+        value = _value(rest, number)
+        if isinstance(value, str) and len(value) > MAX_OPTION_VALUE:
+            raise _yaml_error(number, f"{name}'s value is over {MAX_OPTION_VALUE} characters")
+        options[name] = value
+        if len(options) > MAX_OPTIONS:
+            raise _yaml_error(number, f"more than {MAX_OPTIONS} options")
+    return options
+
+
+def read_contents(root: Path) -> dict:
+    """What the files configuring the submission say, as the verdict's flat, bounded fields:
+    ``agent_options`` (agent.yaml), ``requirements`` and ``explanation`` (texts)."""
+    agent_yaml = read_config(root, AGENT_YAML)
+    explanation = read_config(root, EXPLANATION, MAX_EXPLANATION_CHARS * 4, cut=True)
+    return {
+        "agent_options": parse_agent_yaml(agent_yaml) if agent_yaml is not None else {},
+        "requirements": read_config(root, REQUIREMENTS),
+        "explanation": None if explanation is None else explanation[:MAX_EXPLANATION_CHARS],
+    }
+
+
+def porting_facts(root: Path) -> dict:
+    """What the porting notes need of the configuration files, read leniently: a file the
+    checks refuse is named by them, and still gets its notes."""
+    try:
+        options = parse_agent_yaml(read_config(root, AGENT_YAML) or "")
+    except Rejected:
+        options = {}
+    try:
+        requirements = read_config(root, REQUIREMENTS) or ""
+    except Rejected:
+        requirements = ""
+    form = options.get("observation_format")
+    return {
+        "observation_format": form if isinstance(form, str) else None,
+        "requirements": requirements,
+        "smarts_config": (root / SMARTS_CONFIG).is_file(),
+    }
+
+
 def check_submission(upload: Path, dest: Path, limits: Limits) -> dict:
     """Check the zip, extract it into ``dest`` and check what it holds; the report's fields."""
     budget = submission_budget(limits)
@@ -488,8 +679,8 @@ def check_submission(upload: Path, dest: Path, limits: Limits) -> dict:
             check_nested_file(path, shown, limits, budget, 0, scratch)
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
-    (dest.parent / PORTING).write_text(json.dumps(scan_sources(dest)))
-    return check_scripts(dest, names)
+    (dest.parent / PORTING).write_text(json.dumps(scan_sources(dest) | porting_facts(dest)))
+    return check_scripts(dest, names) | read_contents(dest)
 
 
 def unpack_wheels(wheels: Path, dest: Path, limits: Limits) -> dict:

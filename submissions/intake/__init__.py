@@ -20,12 +20,7 @@ from arena.config import IntakeSettings, SandboxSettings
 from arena.errors import IntakeError
 from sim.interface import AgentInterface
 from submissions.intake.archive import make_read_only, remove_tree
-from submissions.intake.contents import (
-    REQUIREMENTS,
-    load_explanation,
-    load_interface,
-    read_text,
-)
+from submissions.intake.contents import checked_contents, interface_of
 from submissions.intake.dependencies import install_requirements
 from submissions.intake.pack import pack_folder
 from submissions.intake.porting import porting_notes, read_scan, with_porting_notes
@@ -103,7 +98,7 @@ def prepare_submission(
     except IntakeError as error:
         # A script that fails its checks after extraction: the porting notes are still told.
         try:
-            notes = porting_notes(work / "out" / rules.SUBMISSION_DIR, read_scan(work / "out"))
+            notes = porting_notes(read_scan(work / "out"))
         finally:
             remove_tree(work)  # a zip that fails its checks leaves the previous extraction alone
         raise with_porting_notes(error, notes) from error
@@ -115,19 +110,18 @@ def prepare_submission(
         remove_tree(dest)
         (work / "out" / rules.SUBMISSION_DIR).rename(dest)
         make_read_only(dest)
-        notes = porting_notes(dest, read_scan(work / "out"))
-        if needs_training and not verdict["trains"]:
+        notes = porting_notes(read_scan(work / "out"))
+        contents = checked_contents(verdict)
+        if needs_training and not contents.trains:
             raise IntakeError(
                 rules.TRAIN_SCRIPT,
                 "train-missing",
                 "an offline (Track 2) submission holds train.py beside policy.py; the service "
                 "runs it on the dataset before evaluating (docs/dataset.md)",
             )
-        interface = load_interface(dest)
-        explanation = load_explanation(dest)
-        requirements = read_text(dest, REQUIREMENTS) or ""
+        interface = interface_of(contents.agent_options)
         installed = (
-            install_requirements(requirements, intake, sandbox, data_dir, runner)
+            install_requirements(contents.requirements or "", intake, sandbox, data_dir, runner)
             if install
             else None
         )
@@ -146,9 +140,9 @@ def prepare_submission(
         interface=interface,
         sha256=file_sha256(source),
         size=source.stat().st_size,
-        explanation=explanation,
+        explanation=contents.explanation,
         notes=notes,
-        trains=verdict["trains"],
+        trains=contents.trains,
     )
 
 

@@ -1,67 +1,74 @@
-"""What a checked, extracted submission says about itself: ``agent.yaml``, ``explanation.md``,
-``requirements.txt``. Each is read with a size cap (``policy.py`` and ``train.py`` are checked by
-:mod:`agent_runtime.intake`, inside the sandbox) and ``agent.yaml`` is parsed with the safe loader.
+"""What a checked, extracted submission says about itself, as the sandbox found it.
+
+``agent.yaml``, ``requirements.txt`` and ``explanation.md`` are read and parsed by
+:mod:`agent_runtime.intake` inside the sandbox, with ``policy.py`` and ``train.py``; the host
+opens none of them. It receives the verdict: flat JSON, size-capped, validated here into
+:class:`CheckedContents` before anything reads it, and ``agent.yaml``'s options into the
+:class:`~sim.interface.AgentInterface`.
 """
 
 from __future__ import annotations
 
 import difflib
 from enum import Enum
-from pathlib import Path
+from typing import Annotated
 
-import yaml
-from pydantic import ValidationError
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    StrictBool,
+    StrictFloat,
+    StrictInt,
+    StrictStr,
+    ValidationError,
+)
 
+from agent_runtime import intake as rules
 from arena.errors import IntakeError
 from sim.interface import AgentInterface
 
-POLICY = "policy.py"
-TRAIN_SCRIPT = "train.py"
-AGENT_YAML = "agent.yaml"
-REQUIREMENTS = "requirements.txt"
-EXPLANATION = "explanation.md"
-# The explanation is shown on a web page; the rest of a long file is cut.
-MAX_EXPLANATION_CHARS = 20_000
-# A configuration file is small: a bigger one is refused before it is parsed.
-MAX_CONFIG_BYTES = 64 * 1024
+POLICY = rules.POLICY
+TRAIN_SCRIPT = rules.TRAIN_SCRIPT
+AGENT_YAML = rules.AGENT_YAML
+REQUIREMENTS = rules.REQUIREMENTS
+EXPLANATION = rules.EXPLANATION
+
+OptionName = Annotated[StrictStr, Field(max_length=rules.MAX_OPTION_NAME)]
+OptionValue = (
+    StrictBool
+    | StrictInt
+    | StrictFloat
+    | Annotated[StrictStr, Field(max_length=rules.MAX_OPTION_VALUE)]
+    | None
+)
 
 
-def read_text(
-    root: Path, name: str, max_bytes: int = MAX_CONFIG_BYTES, cut: bool = False
-) -> str | None:
-    """A root-level text file of the submission, or None when it is absent. Longer than
-    ``max_bytes``: cut there with ``cut``, else refused."""
-    path = root / name
-    if not path.is_file():
-        return None
-    with path.open("rb") as handle:
-        data = handle.read(max_bytes + 1)
-    if len(data) > max_bytes:
-        if not cut:
-            raise IntakeError(name, "file-too-large", f"is larger than {max_bytes // 1024} KiB")
-        data = data[:max_bytes]
+class CheckedContents(BaseModel):
+    """The fields of an accepted verdict the host uses (``agent_runtime.intake.read_contents``
+    and ``check_scripts``), each bounded: anything else is not a verdict of ours."""
+
+    model_config = ConfigDict(frozen=True, extra="ignore")
+
+    trains: StrictBool
+    agent_options: dict[OptionName, OptionValue] = Field(max_length=rules.MAX_OPTIONS)
+    requirements: Annotated[StrictStr, Field(max_length=rules.MAX_CONFIG_BYTES)] | None
+    explanation: Annotated[StrictStr, Field(max_length=rules.MAX_EXPLANATION_CHARS)] | None
+
+
+def checked_contents(verdict: dict) -> CheckedContents:
     try:
-        return data.decode("utf-8-sig", errors="replace" if cut else "strict")
-    except UnicodeDecodeError as error:
-        raise IntakeError(name, "not-utf8", f"is not UTF-8 text ({error})") from error
+        return CheckedContents.model_validate(verdict)
+    except ValidationError as error:
+        raise IntakeError(
+            rules.ARCHIVE, "intake-crashed", f"the check's verdict is malformed ({error})"
+        ) from error
 
 
-def load_interface(root: Path) -> AgentInterface:
-    text = read_text(root, AGENT_YAML)
-    if text is None:
-        return AgentInterface()
+def interface_of(options: dict) -> AgentInterface:
+    """``agent.yaml``'s options (flat, as the sandbox parsed them) as the agent's interface."""
     try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as error:
-        raise IntakeError(AGENT_YAML, "agent-yaml", f"is not valid YAML: {error}") from error
-    except RecursionError as error:
-        raise IntakeError(AGENT_YAML, "agent-yaml", "nests too deeply") from error
-    if data is None:
-        return AgentInterface()
-    if not isinstance(data, dict):
-        raise IntakeError(AGENT_YAML, "agent-yaml", "must be a mapping of option: value")
-    try:
-        return AgentInterface.model_validate(data)
+        return AgentInterface.model_validate(options)
     except ValidationError as error:
         problems = "; ".join(_problem(e) for e in error.errors())
         raise IntakeError(AGENT_YAML, "agent-yaml", problems) from error
@@ -91,8 +98,3 @@ def _problem(error) -> str:
 def _did_you_mean(word: str, allowed: list[str]) -> str:
     close = difflib.get_close_matches(word, allowed, n=1, cutoff=0.6)
     return f"; did you mean {close[0]!r}?" if close else ""
-
-
-def load_explanation(root: Path) -> str | None:
-    text = read_text(root, EXPLANATION, MAX_EXPLANATION_CHARS * 4, cut=True)
-    return None if text is None else text[:MAX_EXPLANATION_CHARS]

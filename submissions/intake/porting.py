@@ -8,20 +8,19 @@ wheel does, with a message naming the line and the versions that do have one.
 from __future__ import annotations
 
 import contextlib
-import json
 import platform
 import re
 from pathlib import Path
 
-import yaml
 from packaging.requirements import InvalidRequirement, Requirement
 from packaging.utils import canonicalize_name
 
 from agent_runtime import intake as rules
 from arena.errors import IntakeError
-from submissions.intake.contents import AGENT_YAML, POLICY, REQUIREMENTS, read_text
+from submissions.intake.contents import POLICY, REQUIREMENTS
+from submissions.intake.runner import read_sandbox_json
 
-SMARTS_CONFIG = "config.yaml"
+SMARTS_CONFIG = rules.SMARTS_CONFIG
 SMARTS_FORMAT = "smarts2022"
 # The modules (and names imported from them) of agent_runtime/compat/smarts.
 SMARTS_COMPAT_MODULES = frozenset(
@@ -55,16 +54,16 @@ _VERSIONS = re.compile(r"\(from versions: ([^)]*)\)")
 _SHOWN_VERSIONS = 5  # the newest few versions with a wheel, named in the message
 
 
-def porting_notes(root: Path, scan: dict | None) -> tuple[str, ...]:
-    """Messages about SMARTS 2022 leftovers in the extracted submission ``root`` (empty when
-    there are none): what the three published 2022 agents needed when ported
-    (``docs/submissions.md``). ``scan``: what its Python files import and use, found by
-    :func:`agent_runtime.intake.scan_sources` in the sandbox (None: not scanned)."""
+def porting_notes(scan: dict | None) -> tuple[str, ...]:
+    """Messages about SMARTS 2022 leftovers in a submission (empty when there are none): what the
+    three published 2022 agents needed when ported (``docs/submissions.md``). ``scan``: what its
+    Python files import and use and what its configuration files say, found in the sandbox by
+    :func:`agent_runtime.intake.scan_sources` and ``porting_facts`` (None: not scanned)."""
     scan = scan or {}
     imports = _names(scan, "imports")
     numpy_aliases = _names(scan, "numpy_aliases") & set(rules.NUMPY_ALIASES)
-    smarts_format = _observation_format(root) == SMARTS_FORMAT
-    requirements_text = _text(root, REQUIREMENTS)
+    smarts_format = scan.get("observation_format") == SMARTS_FORMAT
+    requirements_text = _bounded_text(scan.get("requirements"))
     requirements = _required_projects(requirements_text)
     notes = []
     if scan.get("defines_wrappers") is True and not smarts_format:
@@ -110,7 +109,7 @@ def porting_notes(root: Path, scan: dict | None) -> tuple[str, ...]:
             f"types ({', '.join(rules.NUMPY_ALIASES[a] for a in aliases)}), or pin an older "
             "numpy in requirements.txt (e.g. numpy==1.23.5), which the policy then imports."
         )
-    if (root / SMARTS_CONFIG).is_file():
+    if scan.get("smarts_config") is True:
         notes.append(
             f"{SMARTS_CONFIG} is not read by Driving Arena (it is only a file your policy may "
             "open). Interface options (action space, waypoints, rasters, observation format) go "
@@ -128,16 +127,10 @@ def with_porting_notes(error: IntakeError, notes: tuple[str, ...]) -> IntakeErro
 
 
 def read_scan(output: Path) -> dict | None:
-    """The sandbox's scan of the Python files (:data:`agent_runtime.intake.PORTING` in the
-    intake's output folder, written where the participant's bytes were handled: bounded)."""
-    path = output / rules.PORTING
-    if not path.is_file() or path.stat().st_size > _MAX_SCAN_REPORT_BYTES:
-        return None
-    try:
-        scan = json.loads(path.read_text())
-    except (ValueError, UnicodeDecodeError):
-        return None
-    return scan if isinstance(scan, dict) else None
+    """The sandbox's scan of the Python files and configuration (:data:`agent_runtime.intake.
+    PORTING` in the intake's output folder, written where the participant's bytes were handled:
+    bounded)."""
+    return read_sandbox_json(output / rules.PORTING, _MAX_SCAN_REPORT_BYTES)
 
 
 def _names(scan: dict, key: str) -> set[str]:
@@ -145,21 +138,8 @@ def _names(scan: dict, key: str) -> set[str]:
     return {v for v in values if isinstance(v, str)} if isinstance(values, list) else set()
 
 
-def _text(root: Path, name: str) -> str:
-    """A configuration file read for advice only: absent, too large or not UTF-8 reads as empty
-    (the checks proper refuse those)."""
-    try:
-        return read_text(root, name) or ""
-    except IntakeError:
-        return ""
-
-
-def _observation_format(root: Path) -> str | None:
-    try:
-        options = yaml.safe_load(_text(root, AGENT_YAML)) or {}
-    except yaml.YAMLError:
-        return None
-    return options.get("observation_format") if isinstance(options, dict) else None
+def _bounded_text(value) -> str:
+    return value if isinstance(value, str) and len(value) <= rules.MAX_CONFIG_BYTES else ""
 
 
 def _required_projects(text: str) -> set[str]:

@@ -13,6 +13,7 @@ import dataclasses
 import json
 import os
 import shutil
+import stat
 from pathlib import Path
 from typing import Protocol
 
@@ -23,6 +24,8 @@ from submissions.intake.archive import limits
 
 # report.json is ours, but written where the participant's bytes were handled: bounded too.
 MAX_REPORT_BYTES = 1024**2
+# A rejection's entry, rule and message are shown to the team: bounded like the rest.
+MAX_REJECTION_CHARS = 4096
 
 
 class IntakeRunner(Protocol):
@@ -45,14 +48,36 @@ def write_inputs(inputs: Path, intake: IntakeSettings, files: dict[str, Path]) -
             shutil.copyfile(source, target)
 
 
+def read_sandbox_json(path: Path, max_bytes: int) -> dict | None:
+    """A JSON object written where a participant's bytes were handled: not followed if it is a
+    link, at most ``max_bytes``, None when it is absent or not a JSON object."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
+    except OSError:
+        return None
+    with os.fdopen(fd, "rb") as handle:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            return None
+        data = handle.read(max_bytes + 1)
+    if len(data) > max_bytes:
+        return None
+    try:
+        value = json.loads(data)
+    except (ValueError, RecursionError):
+        return None
+    return value if isinstance(value, dict) else None
+
+
 def read_report(output: Path) -> dict:
     """The verdict in ``output``; a rejection raised as IntakeError."""
-    path = output / rules.REPORT
-    if not path.is_file() or path.stat().st_size > MAX_REPORT_BYTES:
+    verdict = read_sandbox_json(output / rules.REPORT, MAX_REPORT_BYTES)
+    if verdict is None:
         raise IntakeError(rules.ARCHIVE, "intake-crashed", "the check ended without a verdict")
-    verdict = json.loads(path.read_text())
-    if not verdict.get("ok"):
-        raise IntakeError(verdict["entry"], verdict["rule"], verdict["message"])
+    if verdict.get("ok") is not True:
+        entry, rule, message = (verdict.get(k) for k in ("entry", "rule", "message"))
+        if not all(isinstance(v, str) and len(v) <= MAX_REJECTION_CHARS for v in (entry, rule)):
+            raise IntakeError(rules.ARCHIVE, "intake-crashed", "the check's verdict is malformed")
+        raise IntakeError(entry, rule, str(message)[:MAX_REJECTION_CHARS])
     return verdict
 
 

@@ -60,3 +60,11 @@ def bad_crc_zip(files: dict[str, bytes | str]) -> bytes:
     at = raw.rfind(last)
     raw[at] ^= 0xFF
     return bytes(raw)
+
+
+def renamed_entry_zip(files: dict[str, bytes | str], placeholder: str, stored: bytes) -> bytes:
+    """A zip whose entry ``placeholder`` is stored under the raw name ``stored`` (in its local
+    header and the directory): a name zipfile itself cannot write, such as one holding a NUL."""
+    raw = zip_bytes(files)
+    assert len(stored) == len(placeholder.encode()), "the records keep their lengths"
+    return raw.replace(placeholder.encode(), stored)
