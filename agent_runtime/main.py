@@ -407,7 +407,8 @@ class WrappedServer:
                 self.pending = self.first()
                 if env is None:  # wrappers learn the agent ids at construction, as in SMARTS
                     interface = self.compat.agent_interface(self.options, self.action_space)
-                    env = self.compat.SandboxEnv(self, dict.fromkeys(self.pending, interface))
+                    agents = dict.fromkeys(self.pending, interface)
+                    env = self.compat.SandboxEnv(self, agents, self.options)
                     for wrap in self.wrappers:
                         env = wrap(env)
                 observations = env.reset()
@@ -473,18 +474,14 @@ def imported_stack() -> dict[str, str]:
 
 
 def run_agent(stream: Stream, args: argparse.Namespace, started: float) -> int:
-    """One agent's life on ``stream``: hello, build the policy, ready, serve until close."""
-    put_submission_first(args.submission, args.deps)
-    import numpy  # after the submission's folders: a numpy it installed is the one loaded
+    """One agent's life on ``stream``: hello, build the policy, ready, serve until close.
 
-    stream.send(
-        {
-            "type": "hello",
-            "protocol": PROTOCOL_VERSION,
-            "python": sys.version.split()[0],
-            "numpy": numpy.__version__,
-        }
-    )
+    Hello comes before anything of the submission is read or imported: the evaluator charges
+    whatever ends the sandbox before hello to itself and everything after it to the team
+    (docs/protocol.md, "Whose failure it is"), so a module of the submission that shadows one
+    the runtime imports must not run before it."""
+    stream.send({"type": "hello", "protocol": PROTOCOL_VERSION, "python": sys.version.split()[0]})
+    put_submission_first(args.submission, args.deps)
     options = json.loads(args.interface or "{}")
     try:
         adapter = load_adapter(args.observation_format, args.action_space, options)

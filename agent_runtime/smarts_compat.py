@@ -325,7 +325,8 @@ class SandboxEnv:
     ``io.answer(actions)`` sends actions, ``io.next()`` waits for the next act's observations
     (converted by the adapter) or raises :class:`EpisodeOver`. When every agent of an act is
     done the episode is over for the wrappers (``dones["__all__"]``) and the act is answered
-    here with no actions, as SMARTS asks for none after its last step."""
+    here with no actions, as SMARTS asks for none after its last step. ``options``: agent.yaml's
+    (``format_obs_keys``)."""
 
     metadata: ClassVar[dict[str, Any]] = {"render.modes": []}
     reward_range = (-float("inf"), float("inf"))
@@ -333,9 +334,13 @@ class SandboxEnv:
     action_space = None
     observation_space = None
 
-    def __init__(self, io, interfaces: dict[str, AgentInterface]) -> None:
+    def __init__(
+        self, io, interfaces: dict[str, AgentInterface], options: dict[str, Any] | None = None
+    ) -> None:
         self.io = io
         self.agent_interfaces = interfaces
+        # Which names FormatObs gives its keys: comp-1's or later SMARTS's (agent.yaml's option).
+        self.format_obs_keys = (options or {}).get("format_obs_keys", "comp-1")
         self.agent_specs = {k: AgentSpec(interface=v) for k, v in interfaces.items()}
         self.agent_ids = set(interfaces)
 

@@ -7,6 +7,7 @@ the submission intake validates ``agent.yaml`` into :class:`AgentInterface`.
 from __future__ import annotations
 
 from enum import StrEnum
+from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
@@ -60,6 +61,9 @@ class AgentInterface(BaseModel):
     # behind to 20 m ahead): docs/agent-interface.md. Not in the fixed-shape arrays format.
     lidar_point_cloud: bool = False
     road_waypoints: bool = False
+    # smarts2022 only: the names the kit's FormatObs gives its keys, SMARTS comp-1's (`ego`,
+    # `rgb`, `waypoints`, ...) or later SMARTS's (`ego_vehicle_state`, ...): docs/smarts-compat.md.
+    format_obs_keys: Literal["comp-1", "later"] = "comp-1"
 
     @model_validator(mode="after")
     def _arrays_have_fixed_parts_only(self) -> AgentInterface:

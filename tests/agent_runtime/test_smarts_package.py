@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 
+import gym
 import numpy as np
 import pytest
 from smarts.core.controllers import ActionSpaceType
@@ -16,7 +17,7 @@ from smarts.core.utils.math import (
     vec_to_radians,
 )
 from smarts.env.wrappers.format_action import FormatAction
-from smarts.env.wrappers.format_obs import FormatObs
+from smarts.env.wrappers.format_obs import LATER_KEYS, FormatObs
 from smarts.env.wrappers.frame_stack import FrameStack
 
 from agent_runtime.main import act_all
@@ -81,7 +82,12 @@ class Exchange:
         return self.obs
 
 
-def test_the_kits_wrappers_take_every_observation_the_adapter_builds() -> None:
+COMP1_KEYS = {"dist", "ego", "events", "mission", "dagm", "lidar", "neighbors", "ogm", "rgb"}
+COMP1_KEYS |= {"waypoints"}
+
+
+@pytest.mark.parametrize("key_set", ["comp-1", "later"])
+def test_the_kits_wrappers_take_every_observation_the_adapter_builds(key_set) -> None:
     obs = adapted()
     options = {
         "top_down_rgb": True,
@@ -90,36 +96,37 @@ def test_the_kits_wrappers_take_every_observation_the_adapter_builds() -> None:
         "lidar_point_cloud": True,
         "img_pixels": 64,
         "img_meters": 32.0,
+        "format_obs_keys": key_set,
     }
     interface = agent_interface(options, "TargetPose")
     exchange = Exchange(obs)
-    env = SandboxEnv(exchange, dict.fromkeys(obs, interface))
+    env = SandboxEnv(exchange, dict.fromkeys(obs, interface), options)
     env = FormatAction(FormatObs(env), ActionSpaceType["TargetPose"])
     env = FrameStack(env, num_stack=2)
     first = env.reset()
     assert set(first) == {"Agent_0", "Agent_1"} and len(first["Agent_0"]) == 2
-    std = first["Agent_0"][-1]
-    assert set(std) == {
-        "distance_travelled",
-        "ego_vehicle_state",
-        "events",
-        "mission",
-        "drivable_area_grid_map",
-        "lidar_point_cloud",
-        "neighborhood_vehicle_states",
-        "occupancy_grid_map",
-        "top_down_rgb",
-        "waypoint_paths",
-    }
-    assert std["top_down_rgb"].shape == (64, 64, 3)
-    assert std["occupancy_grid_map"].shape == (64, 64, 1)
-    assert std["lidar_point_cloud"]["hit"].sum() == 150
-    assert np.all(std["lidar_point_cloud"]["point_cloud"][1] == 0)  # a miss: inf -> 0
-    assert std["waypoint_paths"]["pos"].shape == (4, 20, 3)
-    assert std["neighborhood_vehicle_states"]["box"].shape == (10, 3)
-    assert std["ego_vehicle_state"]["box"] == pytest.approx([4.5, 1.8, 1.5])
+    std = first["Agent_0"][0]
+    key = {k: k for k in COMP1_KEYS} if key_set == "comp-1" else LATER_KEYS
+    assert set(std) == {key[k] for k in COMP1_KEYS}
+    assert std[key["rgb"]].shape == (64, 64, 3)
+    assert std[key["ogm"]].shape == (64, 64, 1)
+    assert std[key["lidar"]]["hit"].sum() == 150
+    assert np.all(std[key["lidar"]]["point_cloud"][1] == 0)  # a miss: inf -> 0
+    assert std[key["waypoints"]]["pos"].shape == (4, 20, 3)
+    assert std[key["neighbors"]]["box"].shape == (10, 3)
+    assert std[key["ego"]]["box"] == pytest.approx([4.5, 1.8, 1.5])
+    assert (
+        std[key["ego"]]["pos"].dtype == np.float64 and std[key["ego"]]["speed"].dtype == np.float32
+    )
     assert std["mission"]["goal_pos"].shape == (3,)
-    assert env.observation_space["Agent_0"]["top_down_rgb"].shape == (64, 64, 3)
+    # FrameStack's space: per agent a Tuple of num_stack FormatObs spaces, which hold each value.
+    stacked = env.observation_space["Agent_0"]
+    assert isinstance(stacked, gym.spaces.Tuple) and len(stacked) == 2
+    assert stacked[0][key["rgb"]].shape == (64, 64, 3)
+    assert stacked[0][key["waypoints"]]["pos"].dtype == np.float64
+    for name, space in stacked[0].spaces.items():
+        if not isinstance(space, gym.spaces.Dict):
+            assert space.contains(std[name]), name
     _, rewards, dones, _ = env.step({k: np.array([1.0, 2.0, 0.0, 0.1]) for k in first})
     assert exchange.sent[0]["Agent_0"].dtype == np.float32  # as SMARTS's FormatAction casts
     assert dones["__all__"] is False and set(rewards) == {"Agent_0", "Agent_1"}
@@ -127,6 +134,72 @@ def test_the_kits_wrappers_take_every_observation_the_adapter_builds() -> None:
     rgb = obs["Agent_0"].top_down_rgb
     assert rgb.metadata.resolution == 0.5 and rgb.metadata.width == 64
     assert obs["Agent_0"].road_waypoints.lanes["E1_0"][0][0].lane_id == "E1_0"
+
+
+def test_frame_stack_puts_the_newest_frame_first_as_smarts_does() -> None:
+    class Counter(gym.Env):
+        def __init__(self) -> None:
+            self.agent_specs = {"Agent_0": None}
+            self.t = 0
+
+        def reset(self):
+            self.t = 0
+            return {"Agent_0": self.t}
+
+        def step(self, action):
+            self.t += 1
+            return {"Agent_0": self.t}, {}, {"__all__": False}, {}
+
+    env = FrameStack(Counter(), num_stack=3)
+    assert env.reset() == {"Agent_0": (0, 0, 0)}
+    assert env.step({})[0] == {"Agent_0": (1, 0, 0)}
+    assert env.step({})[0] == {"Agent_0": (2, 1, 0)}
+    assert env.reset() == {"Agent_0": (0, 0, 0)}
+    with pytest.raises(AssertionError):
+        FrameStack(Counter(), num_stack=1)
+
+
+def test_gym_has_the_space_base_and_the_spaces_full_constructors() -> None:
+    assert issubclass(gym.spaces.Box, gym.Space) and gym.Space is gym.spaces.Space
+    box = gym.spaces.Box(low=-1.0, high=np.array([1.0, 2.0]), shape=(2,), dtype=np.float64, seed=3)
+    assert box.shape == (2,) and box.dtype == np.float64 and box.is_bounded()
+    assert (
+        box.sample().tolist()
+        == gym.spaces.Box(-1.0, np.array([1.0, 2.0]), None, np.float64, 3).sample().tolist()
+    )
+    assert gym.spaces.Discrete(n=4, seed=1).contains(3)
+    assert gym.spaces.MultiBinary(n=5, seed=1).sample().shape == (5,)
+    assert gym.spaces.MultiDiscrete(nvec=[2, 3], dtype=np.int64, seed=1).contains([1, 2])
+    pair = gym.spaces.Tuple(spaces=[gym.spaces.Discrete(2)] * 2, seed=1)
+    assert len(pair.sample()) == 2
+    # gym 0.21 sorts a plain dict's keys; an OrderedDict or keywords keep theirs.
+    assert list(gym.spaces.Dict({"b": box, "a": box}).keys()) == ["a", "b"]
+    assert list(gym.spaces.Dict(b=box, a=box).keys()) == ["a", "b"]
+
+    class Named(gym.Wrapper):
+        pass
+
+    class Base(gym.Env):
+        saved = 7
+
+    wrapped = Named(Base())
+    wrapped.observation_space = box
+    assert wrapped.observation_space is box and wrapped.action_space is None
+    assert wrapped.saved == 7  # attributes of the wrapped env, as the kit's Action wrapper reads
+
+
+def test_smarts_colours_are_those_the_rasters_are_drawn_in() -> None:
+    from smarts.core.colors import Colors, SceneColors
+
+    from sim.bev import SMARTS_COLOURS
+
+    def rgb(colour) -> tuple[int, ...]:
+        return tuple(round(c * 255) for c in colour.value[:3])
+
+    assert rgb(SceneColors.Road) == SMARTS_COLOURS["road"]
+    assert rgb(SceneColors.SocialVehicle) == SMARTS_COLOURS["vehicle"]
+    assert rgb(SceneColors.Agent) == SMARTS_COLOURS["ego"] == SMARTS_COLOURS["mission_agent"]
+    assert Colors.GreenTransparent.value[3] == 0.3
 
 
 class Looping:

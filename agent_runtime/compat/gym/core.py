@@ -40,6 +40,14 @@ class Env:
         return False
 
 
+class GoalEnv(Env):
+    """An ``Env`` whose observations are dicts with ``observation``, ``achieved_goal`` and
+    ``desired_goal`` (gym 0.21)."""
+
+    def compute_reward(self, achieved_goal, desired_goal, info):
+        raise NotImplementedError
+
+
 class Wrapper(Env):
     def __init__(self, env: Env) -> None:
         self.env = env

@@ -1,4 +1,8 @@
-"""gym 0.21's spaces, enough for agents that declare or sample them."""
+"""gym 0.21's spaces with their constructors' full signatures (``Box(low, high, shape=None,
+dtype=np.float32, seed=None)``, ``Discrete(n, seed=None)``, ``MultiBinary(n, seed=None)``,
+``MultiDiscrete(nvec, dtype=np.int64, seed=None)``, ``Tuple(spaces, seed=None)``,
+``Dict(spaces=None, seed=None, **spaces_kwargs)``), enough for agents that declare, sample or
+check them."""
 
 from __future__ import annotations
 
@@ -57,6 +61,20 @@ class Box(Space):
         if self.dtype.kind in "iu":
             return self.np_random.integers(low, high, endpoint=True).astype(self.dtype)
         return self.np_random.uniform(low, high).astype(self.dtype)
+
+    @property
+    def bounded_below(self) -> np.ndarray:
+        return -np.inf < self.low
+
+    @property
+    def bounded_above(self) -> np.ndarray:
+        return np.inf > self.high
+
+    def is_bounded(self, manner: str = "both") -> bool:
+        below, above = bool(np.all(self.bounded_below)), bool(np.all(self.bounded_above))
+        if manner not in ("both", "below", "above"):
+            raise ValueError("manner is not in {'below', 'above', 'both'}")
+        return {"both": below and above, "below": below, "above": above}[manner]
 
     def contains(self, x) -> bool:
         x = np.asarray(x)
@@ -135,8 +153,14 @@ class Tuple(Space):
 
 
 class Dict(Space):
+    """gym 0.21's: a plain dict's keys are sorted (an ``OrderedDict`` or a list of pairs keeps
+    its order), so flattening and networks see the keys in one order."""
+
     def __init__(self, spaces=None, seed=None, **spaces_kwargs) -> None:
-        spaces = dict(spaces or {}, **spaces_kwargs)
+        if spaces is None:
+            spaces = spaces_kwargs
+        if isinstance(spaces, dict) and not isinstance(spaces, OrderedDict):
+            spaces = sorted(spaces.items())
         self.spaces = OrderedDict(spaces)
         super().__init__(None, None, seed)
 

@@ -1,10 +1,13 @@
 """The competition kit's ``FormatObs``: SMARTS observations as dicts of fixed-shape numpy arrays
 (the ``StdObs`` of ``smarts.env.wrappers.format_obs``), one per agent.
 
-Every agent gets ``distance_travelled``, ``ego_vehicle_state``, ``events`` and ``mission``; each
-option the agent interface turns on adds its entry: ``drivable_area_grid_map``,
-``lidar_point_cloud`` (300 rays), ``neighborhood_vehicle_states`` (10 nearest, zero-padded),
-``occupancy_grid_map``, ``top_down_rgb``, ``waypoint_paths`` (4 paths of 20, zero-padded).
+The keys are those of SMARTS ``comp-1``, the branch the 2022 competition shipped: every agent gets
+``dist``, ``ego``, ``events`` and ``mission``; each option the agent interface turns on adds its
+entry: ``dagm``, ``lidar`` (300 rays), ``neighbors`` (10 nearest, zero-padded), ``ogm``, ``rgb``,
+``waypoints`` (4 paths of 20, zero-padded). Later SMARTS releases renamed them
+(``distance_travelled``, ``ego_vehicle_state``, ..., :data:`LATER_KEYS`); an agent written for
+those sets ``format_obs_keys: later`` in ``agent.yaml`` and the environment says so
+(``env.format_obs_keys``). Shapes, dtypes and values are the same under both names.
 """
 
 from __future__ import annotations
@@ -20,19 +23,33 @@ NEIGHBOURS = 10
 WAYPOINT_SHAPE = (4, 20)  # paths, waypoints per path
 _BIG = 1e10
 
-# StdObs key -> the agent interface option that adds it (None: always there).
+# comp-1's StdObs key -> the agent interface option that adds it (None: always there).
 _OPTIONS = {
-    "distance_travelled": None,
-    "ego_vehicle_state": None,
+    "dist": None,
+    "ego": None,
     "events": None,
     "mission": None,
-    "drivable_area_grid_map": "drivable_area_grid_map",
-    "lidar_point_cloud": "lidar_point_cloud",
-    "neighborhood_vehicle_states": "neighborhood_vehicle_states",
-    "occupancy_grid_map": "occupancy_grid_map",
-    "top_down_rgb": "top_down_rgb",
-    "waypoint_paths": "waypoint_paths",
+    "dagm": "drivable_area_grid_map",
+    "lidar": "lidar",
+    "neighbors": "neighborhood_vehicles",
+    "ogm": "ogm",
+    "rgb": "rgb",
+    "waypoints": "waypoints",
 }
+# The same keys in later SMARTS releases (``format_obs_keys: later``).
+LATER_KEYS = {
+    "dist": "distance_travelled",
+    "ego": "ego_vehicle_state",
+    "events": "events",
+    "mission": "mission",
+    "dagm": "drivable_area_grid_map",
+    "lidar": "lidar_point_cloud",
+    "neighbors": "neighborhood_vehicle_states",
+    "ogm": "occupancy_grid_map",
+    "rgb": "top_down_rgb",
+    "waypoints": "waypoint_paths",
+}
+KEY_SETS = ("comp-1", "later")
 _EVENT_NAMES = (
     "agents_alive_done",
     "collisions",
@@ -69,51 +86,67 @@ def _ego_space(accelerometer: bool) -> gym.spaces.Dict:
     return gym.spaces.Dict(space)
 
 
-def _raster_space(setting, channels: int) -> gym.spaces.Box:
-    return _box(0, 255, (setting.height, setting.width, channels), np.uint8)
+def _lidar_space(_) -> gym.spaces.Dict:
+    rays = (LIDAR_RAYS, 3)
+    return gym.spaces.Dict(
+        {
+            "hit": gym.spaces.MultiBinary(LIDAR_RAYS),
+            "point_cloud": _box(-_BIG, _BIG, rays, np.float64),
+            "ray_origin": _box(-_BIG, _BIG, rays, np.float64),
+            "ray_vector": _box(-_BIG, _BIG, rays, np.float64),
+        }
+    )
 
 
-def _space(name: str, setting, accelerometer: bool) -> gym.spaces.Space:
-    n, paths = NEIGHBOURS, WAYPOINT_SHAPE
-    if name == "distance_travelled":
-        return _box(0, _BIG, (), np.float32)
-    if name == "ego_vehicle_state":
-        return _ego_space(accelerometer)
-    if name == "events":
-        return gym.spaces.Dict({e: gym.spaces.Discrete(2) for e in _EVENT_NAMES})
-    if name == "mission":
-        return gym.spaces.Dict({"goal_pos": _box(-_BIG, _BIG, (3,), np.float64)})
-    if name == "lidar_point_cloud":
-        rays = (LIDAR_RAYS, 3)
-        return gym.spaces.Dict(
-            {
-                "hit": gym.spaces.MultiBinary(LIDAR_RAYS),
-                "point_cloud": _box(-_BIG, _BIG, rays, np.float64),
-                "ray_origin": _box(-_BIG, _BIG, rays, np.float64),
-                "ray_vector": _box(-_BIG, _BIG, rays, np.float64),
-            }
-        )
-    if name == "neighborhood_vehicle_states":
-        return gym.spaces.Dict(
-            {
-                "box": _box(0, _BIG, (n, 3), np.float32),
-                "heading": _box(-math.pi, math.pi, (n,), np.float32),
-                "lane_index": _box(0, 127, (n,), np.int8),
-                "pos": _box(-_BIG, _BIG, (n, 3), np.float64),
-                "speed": _box(0, _BIG, (n,), np.float32),
-            }
-        )
-    if name == "waypoint_paths":
-        return gym.spaces.Dict(
-            {
-                "heading": _box(-math.pi, math.pi, paths, np.float32),
-                "lane_index": _box(0, 127, paths, np.int8),
-                "lane_width": _box(0, _BIG, paths, np.float32),
-                "pos": _box(-_BIG, _BIG, (*paths, 3), np.float64),
-                "speed_limit": _box(0, _BIG, paths, np.float32),
-            }
-        )
-    return _raster_space(setting, 3 if name == "top_down_rgb" else 1)
+def _neighbours_space(_) -> gym.spaces.Dict:
+    n = NEIGHBOURS
+    return gym.spaces.Dict(
+        {
+            "box": _box(0, _BIG, (n, 3), np.float32),
+            "heading": _box(-math.pi, math.pi, (n,), np.float32),
+            "lane_index": _box(0, 127, (n,), np.int8),
+            "pos": _box(-_BIG, _BIG, (n, 3), np.float64),
+            "speed": _box(0, _BIG, (n,), np.float32),
+        }
+    )
+
+
+def _waypoints_space(_) -> gym.spaces.Dict:
+    paths = WAYPOINT_SHAPE
+    return gym.spaces.Dict(
+        {
+            "heading": _box(-math.pi, math.pi, paths, np.float32),
+            "lane_index": _box(0, 127, paths, np.int8),
+            "lane_width": _box(0, _BIG, paths, np.float32),
+            "pos": _box(-_BIG, _BIG, (*paths, 3), np.float64),
+            "speed_limit": _box(0, _BIG, paths, np.float32),
+        }
+    )
+
+
+def _raster_space(channels: int):
+    return lambda setting: _box(0, 255, (setting.height, setting.width, channels), np.uint8)
+
+
+def get_spaces() -> dict[str, Any]:
+    """comp-1's StdObs key -> a function of the interface option's setting giving its space."""
+    return {
+        "dist": lambda _: _box(0, _BIG, (), np.float32),
+        "ego": _ego_space,  # of whether the accelerometer is on
+        "events": lambda _: gym.spaces.Dict({e: gym.spaces.Discrete(2) for e in _EVENT_NAMES}),
+        "dagm": _raster_space(1),
+        "lidar": _lidar_space,
+        "mission": lambda _: gym.spaces.Dict({"goal_pos": _box(-_BIG, _BIG, (3,), np.float64)}),
+        "neighbors": _neighbours_space,
+        "ogm": _raster_space(1),
+        "rgb": _raster_space(3),
+        "waypoints": _waypoints_space,
+    }
+
+
+def intrfc_to_stdobs(intrfc: str) -> str | None:
+    """The comp-1 StdObs key an agent interface option adds (None for options that add none)."""
+    return {option: key for key, option in _OPTIONS.items() if option is not None}.get(intrfc)
 
 
 def _interfaces(env) -> dict[str, Any]:
@@ -124,6 +157,14 @@ def _interfaces(env) -> dict[str, Any]:
     return dict(interfaces)
 
 
+def _key_names(env) -> dict[str, str]:
+    """comp-1's key -> the key this environment's agents read (``format_obs_keys``)."""
+    chosen = getattr(env, "format_obs_keys", "comp-1")
+    if chosen not in KEY_SETS:
+        raise ValueError(f"format_obs_keys must be one of {KEY_SETS}, got {chosen!r}")
+    return LATER_KEYS if chosen == "later" else {key: key for key in LATER_KEYS}
+
+
 class FormatObs(gym.ObservationWrapper):
     """SMARTS observations -> ``StdObs`` dicts of numpy arrays. Every agent must have the same
     agent interface (as in SMARTS)."""
@@ -132,46 +173,48 @@ class FormatObs(gym.ObservationWrapper):
         super().__init__(env)
         interfaces = _interfaces(env)
         first = next(iter(interfaces.values()))
-        enabled = {}
-        for name, option in _OPTIONS.items():
-            setting = True if option is None else getattr(first, option)
-            if not setting:
-                continue
-            if option is not None and any(
-                getattr(i, option) != setting for i in interfaces.values()
-            ):
-                raise AssertionError(
-                    f"To use FormatObs, all agents must have the same AgentInterface.{option}"
-                )
-            enabled[name] = setting
+        spaces = get_spaces()
         self._accelerometer = bool(getattr(first, "accelerometer", False))
-        self._space = {
-            name: _space(name, setting, self._accelerometer) for name, setting in enabled.items()
-        }
+        self._names = _key_names(env)
+        self._space = {}
+        for key, option in _OPTIONS.items():
+            setting = self._accelerometer if key == "ego" else True
+            if option is not None:
+                setting = getattr(first, option)
+                if not setting:
+                    continue
+                if any(getattr(i, option) != setting for i in interfaces.values()):
+                    raise AssertionError(
+                        f"To use FormatObs, all agents must have the same AgentInterface.{option}"
+                    )
+            self._space[self._names[key]] = spaces[key](setting)
         self.observation_space = gym.spaces.Dict(
             {agent_id: gym.spaces.Dict(self._space) for agent_id in interfaces}
         )
+        self._keys = [key for key in _OPTIONS if self._names[key] in self._space]
 
     def observation(self, obs: dict[str, Any]) -> dict[str, dict[str, Any]]:
         return {agent_id: self._format(agent_obs) for agent_id, agent_obs in obs.items()}
 
     def _format(self, o) -> dict[str, Any]:
         out = {}
-        for name in self._space:
-            if name == "ego_vehicle_state":
-                out[name] = std_ego_vehicle_state(o.ego_vehicle_state, self._accelerometer)
-            elif name == "mission":
-                out[name] = std_mission(o.ego_vehicle_state)
+        for key in self._keys:
+            if key == "ego":
+                value = std_ego(o.ego_vehicle_state, self._accelerometer)
+            elif key == "mission":
+                value = std_mission(o.ego_vehicle_state)
             else:
-                out[name] = _CONVERTERS[name](getattr(o, name))
+                field, convert = _CONVERTERS[key]
+                value = convert(getattr(o, field))
+            out[self._names[key]] = value
         return out
 
 
-def std_distance_travelled(value: float) -> np.float32:
+def std_dist(value: float) -> np.float32:
     return np.float32(value)
 
 
-def std_ego_vehicle_state(ego, accelerometer: bool) -> dict[str, Any]:
+def std_ego(ego, accelerometer: bool) -> dict[str, Any]:
     out = {
         "angular_velocity": np.asarray(ego.angular_velocity).astype(np.float32),
         "box": np.array(ego.bounding_box.as_lwh, dtype=np.float32),
@@ -202,7 +245,7 @@ def std_mission(ego) -> dict[str, np.ndarray]:
     return {"goal_pos": np.array(position, dtype=np.float64)}
 
 
-def std_lidar_point_cloud(value) -> dict[str, np.ndarray]:
+def std_lidar(value) -> dict[str, np.ndarray]:
     points, hits, rays = value
     point_cloud = np.nan_to_num(np.array(points, dtype=np.float64), nan=0.0, posinf=0.0, neginf=0.0)
     origins, ends = zip(*rays, strict=True)
@@ -217,7 +260,7 @@ def std_lidar_point_cloud(value) -> dict[str, np.ndarray]:
     return out
 
 
-def std_neighborhood_vehicle_states(neighbours) -> dict[str, np.ndarray]:
+def std_neighbors(neighbours) -> dict[str, np.ndarray]:
     n = NEIGHBOURS
     out = {
         "box": np.zeros((n, 3), np.float32),
@@ -235,7 +278,7 @@ def std_neighborhood_vehicle_states(neighbours) -> dict[str, np.ndarray]:
     return out
 
 
-def std_waypoint_paths(paths) -> dict[str, np.ndarray]:
+def std_waypoints(paths) -> dict[str, np.ndarray]:
     """The first 4 paths, each cut to the shortest path's length and to 20 waypoints."""
     rows, cols = WAYPOINT_SHAPE
     out = {
@@ -260,13 +303,14 @@ def std_raster(value) -> np.ndarray:
     return value.data.astype(np.uint8)
 
 
+# StdObs key -> (the Observation field it comes from, its converter).
 _CONVERTERS = {
-    "distance_travelled": std_distance_travelled,
-    "events": std_events,
-    "lidar_point_cloud": std_lidar_point_cloud,
-    "neighborhood_vehicle_states": std_neighborhood_vehicle_states,
-    "waypoint_paths": std_waypoint_paths,
-    "drivable_area_grid_map": std_raster,
-    "occupancy_grid_map": std_raster,
-    "top_down_rgb": std_raster,
+    "dist": ("distance_travelled", std_dist),
+    "events": ("events", std_events),
+    "lidar": ("lidar_point_cloud", std_lidar),
+    "neighbors": ("neighborhood_vehicle_states", std_neighbors),
+    "waypoints": ("waypoint_paths", std_waypoints),
+    "dagm": ("drivable_area_grid_map", std_raster),
+    "ogm": ("occupancy_grid_map", std_raster),
+    "rgb": ("top_down_rgb", std_raster),
 }

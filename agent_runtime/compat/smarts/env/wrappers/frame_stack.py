@@ -1,5 +1,8 @@
-"""The competition kit's ``FrameStack``: each agent's last ``num_stack`` observations, oldest
-first, as a tuple; after a reset the first observation fills every slot."""
+"""The competition kit's ``FrameStack``: each agent's last ``num_stack`` observations as a tuple,
+**newest first** (SMARTS ``comp-1`` and later push each frame on the left); after a reset the
+first observation fills every slot. The observation space becomes, per agent, a ``Tuple`` of
+``num_stack`` copies of the wrapped environment's space (when it has one), which wrappers built
+on top (the kit's ``Concatenate``) read."""
 
 from __future__ import annotations
 
@@ -11,33 +14,33 @@ import gym
 
 class FrameStack(gym.Wrapper):
     def __init__(self, env, num_stack: int = 3) -> None:
-        if num_stack < 1:
-            raise ValueError(f"num_stack must be at least 1, got {num_stack}")
+        if num_stack < 2:
+            raise AssertionError(f"Expected num_stack > 1, but got {num_stack}.")
         super().__init__(env)
         self._num_stack = num_stack
         self._frames: dict[str, deque] = {}
+        space = self.observation_space
+        if space:
+            self.observation_space = gym.spaces.Dict(
+                {
+                    agent_id: gym.spaces.Tuple([agent_space] * num_stack)
+                    for agent_id, agent_space in space.spaces.items()
+                }
+            )
 
     def _stacked(self, obs: dict) -> dict:
         out = {}
         for agent_id, frame in obs.items():
-            frames = self._frames.get(agent_id)
-            if frames is None:
-                frames = deque(
-                    (copy.deepcopy(frame) for _ in range(self._num_stack - 1)),
-                    maxlen=self._num_stack,
-                )
-                self._frames[agent_id] = frames
-            frames.append(frame)
-            out[agent_id] = tuple(frames)
+            frames = self._frames.setdefault(agent_id, deque(maxlen=self._num_stack))
+            frames.appendleft(frame)
+            while len(frames) < self._num_stack:
+                frames.appendleft(frame)
+            out[agent_id] = copy.deepcopy(tuple(frames))
         return out
 
     def step(self, action):
         obs, rewards, dones, infos = self.env.step(action)
-        stacked = self._stacked(obs)
-        for agent_id, done in dones.items():
-            if done and agent_id != "__all__":  # its last frame is stacked: forget it
-                self._frames.pop(agent_id, None)
-        return stacked, rewards, dones, infos
+        return self._stacked(obs), rewards, dones, infos
 
     def reset(self, **kwargs):
         self._frames = {}
