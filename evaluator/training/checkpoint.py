@@ -17,7 +17,13 @@ import time
 from pathlib import Path
 
 from arena.errors import ArenaError
-from evaluator.training.model import output_usage, pack_model, regular_files, unpack_model
+from evaluator.training.model import (
+    PackRefused,
+    output_usage,
+    pack_model,
+    regular_files,
+    unpack_model,
+)
 
 # The sandbox user owns the output folder it writes (Docker and bubblewrap run as nobody).
 SANDBOX_UID = 65534
@@ -75,7 +81,10 @@ class CheckpointWatch:
         if not signature or signature == self._last_signature:
             return False
         try:
-            pack_model(self.output, archive)
+            # Capped again while packing: the folder may grow between the measure and the pack.
+            pack_model(self.output, archive, max_bytes=self.max_bytes, max_entries=self.max_entries)
+        except PackRefused as error:
+            raise SnapshotFailed(f"not saved: {error}") from error
         except (OSError, tarfile.TarError) as error:
             archive.unlink(missing_ok=True)
             raise SnapshotFailed(

@@ -3,19 +3,36 @@
 The same folder always packs to the same bytes (sorted entries, no times or owners), so the
 sha256 the service stores names the model itself. Only regular files and folders are kept: a
 symlink the training left could point anywhere on the worker.
+
+The folder is the team's, and a checkpoint packs it while ``train.py`` still writes it: it is
+walked by descriptors (each name opened ``O_NOFOLLOW`` relative to its folder's descriptor, never
+a path resolved again), so a name swapped for a link between the listing and the opening is
+skipped, not followed; hard-linked files are skipped too (a link to a file the team does not
+own). The archive is streamed, and its caps are counted in the files' apparent sizes as they are
+packed: a sparse file counts what it reads as.
 """
 
 from __future__ import annotations
 
 import gzip
 import hashlib
-import io
 import os
+import stat
 import tarfile
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
+from arena.errors import ArenaError
+
 MODEL_ARCHIVE = "model.tar.gz"
+# How a name below the folder is opened: never through a link, never blocking on a fifo.
+_OPEN_FLAGS = os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC
+_HASH_CHUNK = 1024**2
+
+
+class PackRefused(ArenaError):
+    """The folder is past a cap of the packing, or a file changed size while it was packed."""
 
 
 @dataclass(frozen=True)
@@ -86,26 +103,81 @@ def folder_digest(folder: Path) -> str:
     return digest.hexdigest()
 
 
-def pack_model(folder: Path, archive: Path) -> str:
-    """Write ``folder``'s regular files to ``archive``; returns the archive's sha256."""
-    buffer = io.BytesIO()
-    with tarfile.open(fileobj=buffer, mode="w", format=tarfile.PAX_FORMAT) as tar:
-        for path in regular_files(folder):
-            info = tarfile.TarInfo(str(path.relative_to(folder)))
-            info.mode = 0o644
-            # The size of the file opened, not of the path: a checkpoint snapshot packs a folder
-            # whose files training may replace meanwhile (evaluator/training/checkpoint.py).
-            with path.open("rb") as handle:
-                info.size = os.fstat(handle.fileno()).st_size
-                tar.addfile(info, handle)
+def pack_model(
+    folder: Path,
+    archive: Path,
+    *,
+    max_bytes: int | None = None,
+    max_entries: int | None = None,
+) -> str:
+    """Write ``folder``'s regular files to ``archive`` (streamed: memory stays small whatever
+    the folder holds); returns the archive's sha256. Past ``max_bytes`` of files (apparent
+    sizes) or ``max_entries`` files and folders: :class:`PackRefused`, nothing left."""
     archive.parent.mkdir(parents=True, exist_ok=True)
-    # No name and no time in the gzip header: the same files give the same bytes.
-    with (
-        archive.open("wb") as raw,
-        gzip.GzipFile(filename="", fileobj=raw, mode="wb", mtime=0) as zipped,
-    ):
-        zipped.write(buffer.getvalue())
-    return hashlib.sha256(archive.read_bytes()).hexdigest()
+    try:
+        # No name and no time in the gzip header: the same files give the same bytes.
+        with (
+            archive.open("wb") as raw,
+            gzip.GzipFile(filename="", fileobj=raw, mode="wb", mtime=0) as zipped,
+            tarfile.open(fileobj=zipped, mode="w", format=tarfile.PAX_FORMAT) as tar,
+        ):
+            packed = 0
+            for name, handle in _files_below(folder, max_entries):
+                with handle:
+                    info = tarfile.TarInfo(name)
+                    info.mode = 0o644
+                    # The size of the file opened, not of the path: training may replace it.
+                    info.size = os.fstat(handle.fileno()).st_size
+                    packed += info.size
+                    if max_bytes is not None and packed > max_bytes:
+                        raise PackRefused(f"the folder holds more than {max_bytes} bytes")
+                    try:
+                        tar.addfile(info, handle)
+                    except OSError as error:  # shorter than its size said: changed meanwhile
+                        raise PackRefused(f"{name} changed while it was packed") from error
+    except BaseException:
+        archive.unlink(missing_ok=True)
+        raise
+    digest = hashlib.sha256()
+    with archive.open("rb") as handle:
+        while chunk := handle.read(_HASH_CHUNK):
+            digest.update(chunk)
+    return digest.hexdigest()
+
+
+def _files_below(folder: Path, max_entries: int | None) -> Iterator[tuple[str, object]]:
+    """(relative name, open binary file) of every regular file below ``folder``, sorted, each
+    reached from its folder's descriptor without following a link; the caller closes each."""
+    root = os.open(folder, os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC)
+    entries = 0
+    pending: list[tuple[int, str]] = [(root, "")]
+    try:
+        while pending:
+            directory, prefix = pending.pop()
+            subfolders: list[tuple[int, str]] = []
+            try:
+                for name in sorted(os.listdir(directory)):
+                    entries += 1
+                    if max_entries is not None and entries > max_entries:
+                        raise PackRefused(f"the folder holds more than {max_entries} entries")
+                    try:
+                        fd = os.open(name, _OPEN_FLAGS, dir_fd=directory)
+                    except OSError:  # a link (ELOOP), a socket, or gone meanwhile: not packed
+                        continue
+                    info = os.fstat(fd)
+                    if stat.S_ISDIR(info.st_mode):
+                        subfolders.append((fd, f"{prefix}{name}/"))
+                    elif stat.S_ISREG(info.st_mode) and info.st_nlink == 1:
+                        yield f"{prefix}{name}", os.fdopen(fd, "rb")
+                    else:
+                        os.close(fd)
+            finally:
+                os.close(directory)
+                # Depth first, in name order: the same folder gives the same archive.
+                pending.extend(reversed(subfolders))
+    finally:
+        for directory, _ in pending:
+            os.close(directory)
 
 
 def unpack_model(archive: Path, dest: Path) -> Path:
