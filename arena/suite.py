@@ -50,12 +50,14 @@ class SuiteManifest(BaseModel):
     netconvert: str | None = None  # the netconvert that built the maps (builds are byte-exact)
     scenarios: tuple[ManifestEntry, ...]
     # A build with --naturalistic-dir: the scene files its scenarios were cut from (name, file,
-    # sha256, recording location, source; their vehicles' poses are beside the manifest in
-    # naturalistic-tracks.json), the files it skipped
-    # (file, reason) and how many recorded vehicles it rejected as missions, per reason.
+    # sha256, recording location, source, the origin of its local frame; their vehicles' poses
+    # are beside the manifest in naturalistic-tracks.json), the files it skipped
+    # (file, reason), how many recorded vehicles it rejected as missions, per reason, and the
+    # drawn missions the log replay expert did not finish (file, vehicle, reason).
     naturalistic_scenes: tuple[dict[str, Any], ...] | None = None
     naturalistic_skipped: tuple[dict[str, str], ...] | None = None
     naturalistic_rejected: dict[str, int] | None = None
+    naturalistic_unsolved: tuple[dict[str, str], ...] | None = None
     seed: int | None = None  # public suites only
     seed_fingerprint: str | None = None  # hidden suites: the seed itself is never written
 
@@ -67,6 +69,7 @@ class SuiteManifest(BaseModel):
                 "naturalistic_scenes",
                 "naturalistic_skipped",
                 "naturalistic_rejected",
+                "naturalistic_unsolved",
                 "seed",
                 "seed_fingerprint",
             },
@@ -78,6 +81,7 @@ class SuiteManifest(BaseModel):
             data["naturalistic_scenes"] = list(self.naturalistic_scenes)
             data["naturalistic_skipped"] = list(self.naturalistic_skipped or ())
             data["naturalistic_rejected"] = dict(self.naturalistic_rejected or {})
+            data["naturalistic_unsolved"] = list(self.naturalistic_unsolved or ())
         if self.seed is not None:
             data["seed"] = self.seed
         if self.seed_fingerprint is not None:

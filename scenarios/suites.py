@@ -26,6 +26,7 @@ from scenarios.recorded.naturalistic_pool import TRACKS_FILE, NaturalisticPool
 from scenarios.recorded.recorder import Recording
 from scenarios.recorded.scenes import SCENES, recorded
 from scenarios.variants import KIND_SCENE, VARIANTS
+from scenarios.verify import replay_unsolved
 from scenarios.writer import write_reactive
 
 PUBLIC_SEED = 2022
@@ -133,6 +134,27 @@ class _ReplayPool:
                 return scene, rec, chosen
         raise RuntimeError(f"scene {scene!r} has no unused {kind!r} vehicle left")
 
+    def write(
+        self, folder: Path, sid: str, spec: Spec, rng: np.random.Generator, seed: int
+    ) -> Scenario:
+        """Replay row ``sid`` (``spec``) at ``folder``; a non-reactive one from the first drawn
+        vehicles whose recorded drive the log replay expert finishes."""
+        while True:
+            scene, recording, chosen = self.take(spec.variant, spec.agents, rng)
+            scenario = write_replay(
+                folder,
+                sid,
+                spec.variant,
+                recording,
+                chosen,
+                self.maps.path(SCENES[scene].template),
+                seed,
+                BUBBLE_RADIUS if spec.reactive else None,
+            )
+            if spec.reactive or replay_unsolved(folder, self.maps.cache_dir) is None:
+                return scenario
+            shutil.rmtree(folder)
+
     def _record(self, scene: str, take: int) -> tuple[Recording, dict[str, list[Candidate]]]:
         parts = ("scene", scene) if take == 0 else ("scene", scene, take)
         rec = recorded(SCENES[scene], derive_seed(self.suite, self.seed, *parts), self.maps)
@@ -163,7 +185,9 @@ def build_suite(
     """Write every scenario of ``suite`` under ``out`` plus ``manifest.json``; returns the
     manifest. ``out`` is replaced. With ``naturalistic_dir`` (a folder of CommonRoad / NGSIM CSV
     scenes) the one-agent non-reactive replay rows of each kind are drawn from its recorded
-    vehicles of that kind while they last (:mod:`scenarios.recorded.naturalistic_pool`)."""
+    vehicles of that kind while they last (:mod:`scenarios.recorded.naturalistic_pool`). Every
+    non-reactive replay, corpus or ours, enters the suite only once the log replay expert has
+    finished it: nothing unsolvable is drawn."""
     specs = SUITES[suite]()
     if isinstance(naturalistic_dir, Path):
         naturalistic_dir = CorpusOptions(naturalistic_dir)
@@ -193,23 +217,18 @@ def build_suite(
         scenario_seed = derive_seed(suite, seed, index, spec.family, spec.variant, spec.volume)
         rng = np.random.default_rng(scenario_seed)
         folder = out / sid
-        if natural is not None and natural.takes(spec):
-            scenario, source = natural.write(out, suite, index, spec, scenario_seed)
+        written = (
+            natural.write(out, suite, index, spec, scenario_seed)
+            if natural is not None and natural.takes(spec)
+            else None
+        )
+        if written is not None:
+            scenario, source = written
             entries.append(manifest_entry(scenario, out / scenario.id, source))
             progress(scenario.id)
             continue
         if spec.family is Family.replay:
-            scene, recording, chosen = replays.take(spec.variant, spec.agents, rng)
-            scenario = write_replay(
-                folder,
-                sid,
-                spec.variant,
-                recording,
-                chosen,
-                maps.path(SCENES[scene].template),
-                scenario_seed,
-                BUBBLE_RADIUS if spec.reactive else None,
-            )
+            scenario = replays.write(folder, sid, spec, rng, scenario_seed)
         else:
             draft = GENERATORS[spec.family](spec, rng, maps)
             scenario = write_reactive(
@@ -224,6 +243,7 @@ def build_suite(
         naturalistic_scenes=natural.scene_list() if natural is not None else None,
         naturalistic_skipped=natural.skipped_list() if natural is not None else None,
         naturalistic_rejected=natural.corpus.rejected() if natural is not None else None,
+        naturalistic_unsolved=tuple(natural.unsolved) if natural is not None else None,
         seed=seed if suite == "public" else None,
         seed_fingerprint=None if suite == "public" else seed_fingerprint(seed),
     )

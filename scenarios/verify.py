@@ -7,15 +7,21 @@ threads each wait on one child. Unsolved reasons go into the manifest's ``unsolv
 
 from __future__ import annotations
 
+import functools
+import hashlib
+import json
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
+from arena.files import write_atomically
+from arena.scenario import content_hash
 from arena.suite import load_suite, write_manifest
 from scenarios.experts import expert_factory, expert_interface, uses_log_replay
 from sim.isolation import run_episode_isolated
+from sim.result import EpisodeResult
 
 EPISODE_TIMEOUT_S = 600.0
 
@@ -38,15 +44,52 @@ def verify_scenario(folder: Path, record_dir: Path) -> VerifyResult:
         record_path=record_dir / f"{folder.name}.npz",
         timeout_s=EPISODE_TIMEOUT_S,
     )
-    failed = [a for a in result.agents if not a.reached_goal]
-    reason = None
-    if result.simulator_error:
-        reason = f"simulator error: {result.simulator_error.strip().splitlines()[-1][:200]}"
-    elif failed:
-        reason = f"{expert} expert: " + ", ".join(
-            f"{a.id} {a.reason.value} at step {a.done_step}" for a in failed
-        )
+    reason = unsolved_reason(result, expert)
     return VerifyResult(result.scenario_id, expert, reason is None, result.steps, reason)
+
+
+def replay_unsolved(folder: Path, cache_dir: Path) -> str | None:
+    """Why the log replay expert does not finish the non-reactive replay at ``folder`` (None
+    when it does): what a suite build asks of every replay before it enters the suite. The
+    verdict is a function of the folder's bytes and the simulator's code, and kept in
+    ``cache_dir`` under both, so a rebuild drives no episode twice."""
+    key = hashlib.sha256(f"{content_hash(folder)}\0{_simulator_code()}".encode()).hexdigest()
+    cached = Path(cache_dir) / "verdicts" / f"{key[:32]}.json"
+    if cached.is_file():
+        return json.loads(cached.read_text())["reason"]
+    with tempfile.TemporaryDirectory(prefix="arena-verify-") as tmp:
+        reason = verify_scenario(folder, Path(tmp)).reason
+    write_atomically(cached, json.dumps({"reason": reason}).encode())
+    return reason
+
+
+@functools.cache
+def _simulator_code() -> str:
+    """sha256 of the source the log replay expert's episode runs: the simulator and the expert."""
+    root = Path(__file__).resolve().parents[1]
+    digest = hashlib.sha256()
+    for path in sorted([*(root / "sim").rglob("*.py"), root / "scenarios" / "experts.py"]):
+        digest.update(path.relative_to(root).as_posix().encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest()
+
+
+def unsolved_reason(result: EpisodeResult, expert: str, agents: Iterable[str] = ()) -> str | None:
+    """Why ``expert`` did not solve the episode of ``result`` (``agents`` only, if named): a
+    simulator error, or each mission it did not finish, how and when, with the failure's last
+    line; None when solved."""
+    if result.simulator_error:
+        return f"simulator error: {_last_line(result.simulator_error)}"
+    failed = [a for a in result.agents if not a.reached_goal and (not agents or a.id in agents)]
+    if not failed:
+        return None
+    reason = f"{expert} expert: " + ", ".join(
+        f"{a.id} {a.reason.value} at step {a.done_step}" for a in failed
+    )
+    return f"{reason} ({_last_line(result.detail)})" if result.detail.strip() else reason
+
+
+def _last_line(text: str) -> str:
+    return text.strip().splitlines()[-1][:200]
 
 
 def verify_suite(

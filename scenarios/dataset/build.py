@@ -3,9 +3,10 @@
 Sources: the corpus scenes (one episode per recorded vehicle that finishes its mission, once
 per vehicle however many scene files it appears in, see :mod:`scenarios.recorded.corpus`) and the
 non-reactive replays of the public set (our SUMO recordings). A scene sharing a file or a single
-recorded vehicle with a hidden suite (its manifest's ``naturalistic_scenes``) is left out.
-``DIR/dataset-manifest.json`` says which scenes and vehicles it holds, which it left out and
-skipped, and why.
+recorded vehicle with a hidden suite (its manifest's ``naturalistic_scenes``) is left out. Only
+what the log replay expert finished is kept: a mission it does not finish is listed with the
+reason. ``DIR/dataset-manifest.json`` says which scene files (by sha256 and name) and vehicles
+it holds, which it left out and skipped, and why; a build that keeps no episode fails.
 """
 
 from __future__ import annotations
@@ -83,39 +84,53 @@ class HiddenTracks:
         return None
 
 
+@dataclass(frozen=True)
+class Source:
+    """A replay scenario to collect episodes from, and the manifest facts of its episodes."""
+
+    folder: Path
+    facts: dict
+
+
 def _sources(
     corpus: Corpus | None, public_dir: Path | None, hidden: HiddenTracks, work: Path
-) -> tuple[list[tuple[Path, dict]], list[dict]]:
-    """(scenario folder, manifest facts) per source scenario, and the scene files left out
-    (file and reason)."""
-    out, left_out = [], []
+) -> tuple[list[Source], list[dict], list[CorpusScene]]:
+    """The scenarios to collect, the scene files left out (file and reason) and the corpus
+    scenes the scenarios are cut from."""
+    out, left_out, used = [], [], []
     if corpus is not None:
         seen: set = set()  # vehicle identities already an episode (scenes of one recording)
         for s in corpus.scenes:
             reason = hidden.shared(s)
             if reason is not None:
-                left_out.append({"file": s.scene.source_file.name, "reason": reason})
+                left_out.append({"file": s.file, "reason": reason})
                 continue
             for ego in s.egos:
-                identity = corpus.identity[(s.scene.name, ego.vehicle_id)]
+                identity = corpus.identity[(s.file, ego.vehicle_id)]
                 if identity in seen:
                     continue
                 seen.add(identity)
-                folder = work / f"{s.scene.name}_{ego.vehicle_id}"
-                write_naturalistic(folder, folder.name, s.scene, ego, s.net, seed=0)
+                folder = work / str(len(out))
+                sid = f"{Path(s.file).stem}_{ego.vehicle_id}"
+                write_naturalistic(folder, sid, s.scene, ego, s.net, seed=0)
                 facts = {
                     "source": s.scene.provenance.source,
                     "label": s.scene.provenance.label.value,
                     "scene": s.scene.name,
+                    "file": s.file,
                     "vehicle": ego.vehicle_id,
                 }
-                out.append((folder, facts))
+                out.append(Source(folder, facts))
+                if not used or used[-1] is not s:
+                    used.append(s)
     if public_dir is not None:
         for folder in sorted(p for p in Path(public_dir).iterdir() if p.is_dir()):
             scenario = load_scenario(folder)
             if scenario.traffic.kind == "replay" and not scenario.reactive:
-                out.append((folder, {"source": DataLabel.recorded.value, "scene": scenario.id}))
-    return out, left_out
+                out.append(
+                    Source(folder, {"source": DataLabel.recorded.value, "scene": scenario.id})
+                )
+    return out, left_out, used
 
 
 def build_dataset(
@@ -157,17 +172,25 @@ def build_dataset(
     rows: list[dict] = []
     buffers = []
     episodes: list[Episode] = []
+    unsolved: list[dict] = []
     with tempfile.TemporaryDirectory(prefix="arena-dataset-") as tmp:
-        sources, left_out = _sources(corpus, public_dir, hidden, Path(tmp))
+        sources, left_out, used = _sources(corpus, public_dir, hidden, Path(tmp))
         if not sources:
             raise DatasetError(_nothing_left(corpus, left_out))
         on_sources(len(sources))
         # Each episode runs in its own simulator process: threads only wait for them.
         with ThreadPoolExecutor(max_workers=jobs) as pool:
-            collected = pool.map(collect, [folder for folder, _ in sources])
-            for (folder, facts), folder_episodes in zip(sources, collected, strict=True):
-                _add(folder_episodes, facts, episodes, buffers, rows, EpisodeBuffer)
-                progress(folder.name)
+            collected = pool.map(collect, [source.folder for source in sources])
+            for source, (folder_episodes, reason) in zip(sources, collected, strict=True):
+                _add(folder_episodes, source.facts, episodes, buffers, rows, EpisodeBuffer)
+                if reason is not None:
+                    unsolved.append({**source.facts, "reason": reason})
+                progress(source.folder.name)
+    if not rows:
+        raise DatasetError(
+            f"no episode left: the log replay expert finished none of the {len(sources)} "
+            f"scenarios (first: {unsolved[0]['reason']})"
+        )
     out.mkdir(parents=True, exist_ok=True)
     os.environ["MINARI_DATASETS_PATH"] = str(out)  # where minari writes and looks up datasets
     if DATASET_ID in minari.list_local_datasets():
@@ -180,6 +203,17 @@ def build_dataset(
     manifest = {
         "dataset_id": DATASET_ID,
         "episodes": rows,
+        "scenes": [  # the scene files the episodes were cut from, by content and name
+            {
+                "file": s.file,
+                "sha256": s.sha256(),
+                "scene": s.scene.name,
+                "origin": list(s.scene.origin),
+            }
+            for s in used
+            if any(row.get("file") == s.file for row in rows)
+        ],
+        "unsolved": unsolved,
         "excluded_scenes": left_out,
         "skipped_scenes": [{"file": k.file, "reason": k.reason} for k in corpus.skipped]
         if corpus is not None

@@ -75,7 +75,7 @@ def build(
         except NaturalisticImportError as exc:
             raise typer.BadParameter(str(exc), param_hint="--scenes") from exc
         except DatasetError as exc:
-            raise typer.BadParameter(str(exc), param_hint="--exclude-suite") from exc
+            raise typer.BadParameter(str(exc)) from exc
     console = progress.console
     steps = sum(e["steps"] for e in manifest["episodes"])
     console.print(
@@ -84,4 +84,6 @@ def build(
     )
     for left in manifest["excluded_scenes"]:
         console.print(f"left out {left['file']}: {left['reason']}", markup=False)
+    for failed in manifest["unsolved"]:
+        console.print(f"not finished {failed['scene']}: {failed['reason']}", markup=False)
     print_corpus_report(manifest["skipped_scenes"], manifest["rejected_vehicles"])

@@ -20,6 +20,7 @@ from scenarios.dataset.features import (
     pose_action,
 )
 from scenarios.experts import LogReplayExpert, expert_interface
+from scenarios.verify import unsolved_reason
 from sim.isolation import run_episode_isolated
 
 CRASH_EVENTS = ("collisions", "off_road")
@@ -75,8 +76,9 @@ class Episode:
     truncations: np.ndarray  # (n,) bool
 
 
-def collect(scenario_dir: Path) -> list[Episode]:
-    """The episodes of one non-reactive replay scenario (one per mission vehicle).
+def collect(scenario_dir: Path) -> tuple[list[Episode], str | None]:
+    """The episodes of one non-reactive replay scenario, one per mission vehicle the expert
+    brought to its goal, and why it did not bring the others (None when it did).
 
     The simulator gives no observation after an agent is done, so an episode ends at the last
     observation the agent received: its final transition is *truncated* (or *terminated* when it
@@ -91,13 +93,14 @@ def collect(scenario_dir: Path) -> list[Episode]:
             expert_interface(scenario_dir),
             record_path=Path(tmp) / "record.npz",
         )
-        if result.simulator_error:
-            raise RuntimeError(f"{scenario.id}: simulator error: {result.simulator_error}")
-        data = dict(np.load(out))
+        data = dict(np.load(out)) if out.is_file() else {}
+    finished = (
+        {a.id for a in result.agents if a.reached_goal} if not result.simulator_error else set()
+    )
     episodes = []
     for mission in scenario.missions:
         key = mission.agent_id
-        if f"{key}/obs" not in data or len(data[f"{key}/obs"]) < 2:
+        if key not in finished or f"{key}/obs" not in data or len(data[f"{key}/obs"]) < 2:
             continue
         goal_d = data[f"{key}/goal_distance"]
         reached, crashed = data[f"{key}/reached_goal"], data[f"{key}/crashed"]
@@ -117,4 +120,4 @@ def collect(scenario_dir: Path) -> list[Episode]:
                 ~terminations & (np.arange(n) == n - 1),
             )
         )
-    return episodes
+    return episodes, unsolved_reason(result, "log replay")

@@ -13,12 +13,19 @@ open 2020a files only. The two formats differ in what we read as follows:
 CommonRoad positions are already the shape centre in metres and orientations are radians
 counter-clockwise from +x, as ours. Scenarios stepped at another rate than 0.1 s are resampled by
 linear interpolation.
+
+An obstacle whose states are not exact poses has no trajectory to replay and is counted by what
+it holds: an occupancy set or a single state, *set-valued* states (a position as a shape, an
+orientation or velocity as an interval: a prediction) or *point-mass* states (velocities along x
+and y, no orientation). Each obstacle's ``type`` (car, truck, bus, bicycle, pedestrian, train, ...)
+is kept beside its trajectory: it decides what the vehicle can be (:mod:`.naturalistic`).
 """
 
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
+from collections import Counter
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -74,8 +81,27 @@ class CommonRoadScene:
     trajectories: tuple[Trajectory, ...]  # resampled to STEP_S
     source: str  # the file's own ``source`` attribute, e.g. "Next Generation Simulation (NGSIM)"
     tags: frozenset[str]  # scenario tags: "urban", "interstate", ...
-    # Obstacles that have no recorded trajectory (set-based occupancies, a single state).
-    untracked: int = 0
+    # CommonRoad obstacle type of each trajectory, by vehicle id ("car", "train", ...).
+    types: dict[str, str] = field(default_factory=dict)
+    # Obstacles that have no recorded trajectory, per what they hold instead (:data:`UNTRACKED`).
+    untracked: dict[str, int] = field(default_factory=dict)
+
+
+# What an obstacle without a replayable trajectory holds, by the words a skip reason uses.
+UNTRACKED = ("occupancy sets only", "a single state", "set-valued states", "point-mass states")
+
+
+# A state's fields and the child holding an exact value (intervals and shapes are sets).
+EXACT_VALUES = (
+    ("time", "exact"),
+    ("position", "point"),
+    ("orientation", "exact"),
+    ("velocity", "exact"),
+)
+
+
+class _NotExact(ValueError):
+    """A state that is not an exact pose; the message is one of :data:`UNTRACKED`."""
 
 
 def read_commonroad(path: Path) -> list[Trajectory]:
@@ -115,10 +141,10 @@ def read_scene(path: Path) -> CommonRoadScene:
             if el.tag == "dynamicObstacle"
             or (el.tag == "obstacle" and el.findtext("role") == "dynamic")
         ]
-        read = [_trajectory(el, dt) for el in obstacles]
+        read = [(_trajectory(el, dt), el.findtext("type", "car").strip()) for el in obstacles]
     except (ValueError, TypeError, AttributeError) as exc:
         raise CommonRoadImportError(f"{path}: malformed CommonRoad {version}: {exc}") from exc
-    trajectories = tuple(t for t in read if t is not None)
+    trajectories = tuple(t for t, _ in read if isinstance(t, Trajectory))
     return CommonRoadScene(
         root.get("benchmarkID", path.stem),
         version,
@@ -127,7 +153,8 @@ def read_scene(path: Path) -> CommonRoadScene:
         trajectories,
         source=root.get("source", ""),
         tags=tags,
-        untracked=len(read) - len(trajectories),
+        types={t.vehicle_id: kind for t, kind in read if isinstance(t, Trajectory)},
+        untracked=dict(sorted(Counter(t for t, _ in read if isinstance(t, str)).items())),
     )
 
 
@@ -196,8 +223,15 @@ def _lanelet(el: ET.Element, signs: dict[int, float], default_limit: float) -> L
 
 
 def _state(el: ET.Element) -> tuple[float, float, float, float, float]:
-    """(time step, x, y, orientation, velocity) of a state; velocity 0 where absent."""
+    """(time step, x, y, orientation, velocity) of a state; velocity 0 where absent. A state of
+    another model raises :class:`_NotExact`."""
     what = f"the state at time step {el.findtext('time/exact')}"
+    for name, exact in EXACT_VALUES:
+        value = el.find(name)
+        if value is not None and len(value) and value.find(exact) is None:
+            raise _NotExact("set-valued states")  # an interval, a shape, a lanelet
+    if el.find("orientation") is None and el.find("velocityY") is not None:
+        raise _NotExact("point-mass states")
     point = el.find("position/point")
     if point is None:
         raise ValueError(f"{what} has no exact <position/point>")
@@ -211,20 +245,22 @@ def _state(el: ET.Element) -> tuple[float, float, float, float, float]:
     )
 
 
-def _trajectory(obstacle: ET.Element, dt: float) -> Trajectory | None:
-    """The obstacle's recorded trajectory; None for one without (an occupancy set, one state)."""
+def _trajectory(obstacle: ET.Element, dt: float) -> Trajectory | str:
+    """The obstacle's recorded trajectory, or what it holds instead (one of :data:`UNTRACKED`)."""
     oid = obstacle.get("id")
     initial = obstacle.find("initialState")
     if initial is None:
         raise ValueError(f"obstacle {oid} has no initialState")
     if obstacle.find("trajectory") is None:
-        return None
+        return UNTRACKED[0] if obstacle.find("occupancySet") is not None else UNTRACKED[1]
     try:
         states = [_state(initial), *(_state(s) for s in obstacle.findall("trajectory/state"))]
+    except _NotExact as exc:
+        return str(exc)
     except (ValueError, TypeError, AttributeError) as exc:
         raise ValueError(f"obstacle {oid}: {exc}") from exc
     if len(states) < 2:
-        return None
+        return UNTRACKED[1]
     arr = np.array(sorted(states))
     t = arr[:, 0] * dt
     heading = np.unwrap(arr[:, 3])

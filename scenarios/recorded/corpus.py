@@ -29,7 +29,7 @@ from scenarios.recorded.naturalistic import (
 )
 from scenarios.recorded.tracks import Pose, TrackIndex, recording_location, track_poses
 
-TrackKey = tuple[str, str]  # (scene name, vehicle id)
+TrackKey = tuple[str, str]  # (scene file name, vehicle id)
 
 
 @dataclass(frozen=True)
@@ -38,6 +38,12 @@ class CorpusScene:
     net: Path
     egos: tuple[Ego, ...]
     rejected: dict[str, int]  # recorded vehicles that make no mission, per reason
+
+    @property
+    def file(self) -> str:
+        """The scene's file name: what names a scene of a corpus (a file's own id need not be
+        unique: two files may carry one ``benchmarkID``)."""
+        return self.scene.source_file.name
 
     @property
     def location(self) -> str:
@@ -55,7 +61,7 @@ class CorpusScene:
 class Corpus:
     scenes: list[CorpusScene]  # usable, in file-name order
     skipped: list[Skipped]
-    # Every recorded vehicle's identity: the first (scene, vehicle) it was seen as.
+    # Every recorded vehicle's identity: the first (file, vehicle) it was seen as.
     identity: dict[TrackKey, TrackKey] = field(default_factory=dict)
 
     def rejected(self) -> dict[str, int]:
@@ -117,7 +123,7 @@ def _identities(scenes: list[CorpusScene]) -> dict[TrackKey, TrackKey]:
     link transitively: a long scene can tie together two that do not overlap."""
     index = TrackIndex()
     parent: dict[TrackKey, TrackKey] = {}
-    files: dict[TrackKey, set[str]] = {}  # per root: the scenes its sightings are in
+    files: dict[TrackKey, set[str]] = {}  # per root: the files its sightings are in
 
     def root(key: TrackKey) -> TrackKey:
         while parent[key] != key:
@@ -127,8 +133,8 @@ def _identities(scenes: list[CorpusScene]) -> dict[TrackKey, TrackKey]:
 
     for s in scenes:
         for vehicle, poses in s.tracks().items():
-            key = (s.scene.name, vehicle)
-            parent[key], files[key] = key, {s.scene.name}
+            key = (s.file, vehicle)
+            parent[key], files[key] = key, {s.file}
             for other in sorted(index.same_vehicle(poses)):
                 a, b = sorted((root(key), root(other)))
                 # Two obstacles of one file are two vehicles, however alike (simulated traffic

@@ -7,11 +7,23 @@ A scene gives one scenario per *ego choice*: a recorded vehicle whose every pose
 the built map (:mod:`scenarios.recorded.map_match`), whose path is long enough to be a task, and
 whose recorded box overlaps no other recorded vehicle's (the log replay expert must be able to
 solve the scenario). Scenario folders carry the source's licence and attribution.
+
+Every scene is moved to a local frame on import: its coordinates less :func:`local_origin`, the
+kilometre grid point nearest its road's centre. A georeferenced file (UTM: x ~ 686 km,
+y ~ 5,335 km) then lies within a few kilometres of 0 like any other, so every limit (an action's
+magnitude, a record's float32) applies to local values; a file already in local coordinates keeps
+them (origin 0, 0). The origin is in the suite manifest (``naturalistic_scenes``).
+
+A recorded road user's type decides what it can be: cars, trucks and buses are missions or traffic
+(:data:`MISSION_TYPES`), other road vehicles traffic only (:data:`TRAFFIC_TYPES`), and the rest
+(trains and trams, bicycles, pedestrians), which our simulation has no model of, are left out of
+the replay and counted.
 """
 
 from __future__ import annotations
 
 import csv
+import dataclasses
 import itertools
 import math
 from collections import Counter
@@ -55,6 +67,10 @@ TURN_RAD = math.radians(45.0)
 ATTRIBUTION_FILE = "ATTRIBUTION.md"
 NGSIM_LANE_WIDTH = 12 * 0.3048  # [m] the US-101 / I-80 lanes are 12 ft wide
 SCENE_SUFFIXES = (".xml", ".csv")
+LOCAL_GRID_M = 1000.0  # [m] a local origin is a point of this grid
+# CommonRoad obstacle types (an NGSIM CSV's vehicles are all cars): what a road user can be.
+MISSION_TYPES = frozenset({"car", "truck", "bus", "taxi"})
+TRAFFIC_TYPES = MISSION_TYPES | {"motorcycle", "priorityVehicle", "parkedVehicle", "unknown"}
 
 
 class NaturalisticImportError(ArenaError, ValueError):
@@ -66,8 +82,11 @@ class NaturalisticScene:
     name: str
     source_file: Path
     lanelets: tuple[Lanelet, ...]
-    trajectories: tuple[Trajectory, ...]
+    trajectories: tuple[Trajectory, ...]  # the replayed road users, in the local frame
     provenance: Provenance
+    origin: tuple[float, float] = (0.0, 0.0)  # [m] the file's coordinates of the local 0, 0
+    types: dict[str, str] = dataclasses.field(default_factory=dict)  # by vehicle id; else car
+    left_out: dict[str, int] = dataclasses.field(default_factory=dict)  # road users, per type
 
     @property
     def variant_prefix(self) -> str:
@@ -99,31 +118,74 @@ class SceneFolder:
 def load_scene(
     path: Path, label: DataLabel | None = None, licence: Path | None = None
 ) -> NaturalisticScene:
-    """One scene file; provenance from the file and the licence file beside it unless
-    ``label`` / ``licence`` say otherwise. An unusable file raises
+    """One scene file in its local frame; provenance from the file and the licence file beside
+    it unless ``label`` / ``licence`` say otherwise. An unusable file raises
     :class:`NaturalisticImportError` naming it and the problem."""
     path = Path(path)
     try:
         if path.suffix.lower() == ".xml":
             cr = read_scene(path)
             prov = provenance(cr.source, path.parent, label=label, licence=licence)
-            scene = NaturalisticScene(cr.benchmark_id, path, cr.lanelets, cr.trajectories, prov)
+            name, lanelets, trajectories, types = (
+                cr.benchmark_id,
+                cr.lanelets,
+                cr.trajectories,
+                cr.types,
+            )
             untracked = cr.untracked
         elif path.suffix.lower() == ".csv":
             trajectories = tuple(read_ngsim(path))
             prov = provenance("", path.parent, csv=True, label=label, licence=licence)
-            scene = NaturalisticScene(path.stem, path, ngsim_lanelets(path), trajectories, prov)
-            untracked = 0
+            name, lanelets, types, untracked = path.stem, ngsim_lanelets(path), {}, {}
         else:
             raise NaturalisticImportError(f"{path}: not a CommonRoad .xml or NGSIM .csv scene")
     except (CommonRoadImportError, NgsimFormatError) as exc:
         raise NaturalisticImportError(str(exc)) from exc
-    if not scene.lanelets:
+    if not lanelets:
         raise NaturalisticImportError(f"{path}: the scene has no road (no lanelets)")
-    if not scene.trajectories:
-        what = f" ({untracked} obstacles without one, e.g. occupancy sets)" if untracked else ""
-        raise NaturalisticImportError(f"{path}: the scene has no recorded vehicle trajectory{what}")
-    return scene
+    kinds = {t.vehicle_id: types.get(t.vehicle_id, "car") for t in trajectories}
+    replayed = tuple(t for t in trajectories if kinds[t.vehicle_id] in TRAFFIC_TYPES)
+    left_out = Counter(kind for kind in kinds.values() if kind not in TRAFFIC_TYPES)
+    if not replayed:
+        what = [f"{n} with {kind}" for kind, n in untracked.items()]
+        what += [f"{n} of type {kind}, not replayed" for kind, n in sorted(left_out.items())]
+        total = sum(untracked.values()) + sum(left_out.values())
+        detail = f" ({total} obstacles without one: {', '.join(what)})" if what else ""
+        raise NaturalisticImportError(
+            f"{path}: the scene has no recorded vehicle trajectory{detail}"
+        )
+    origin = local_origin(lanelets)
+    return NaturalisticScene(
+        name,
+        path,
+        tuple(_moved_lanelet(ln, origin) for ln in lanelets),
+        tuple(_moved_trajectory(t, origin) for t in replayed),
+        prov,
+        origin,
+        {t.vehicle_id: kinds[t.vehicle_id] for t in replayed},
+        dict(sorted(left_out.items())),
+    )
+
+
+def local_origin(lanelets: Sequence[Lanelet]) -> tuple[float, float]:
+    """The point of the :data:`LOCAL_GRID_M` grid nearest the centre of the road's bounding box
+    [m]: 0, 0 for a file already in local coordinates."""
+    points = np.concatenate([np.concatenate([ln.left, ln.right]) for ln in lanelets])
+    centre = (points.min(axis=0) + points.max(axis=0)) / 2
+    x, y = np.round(centre / LOCAL_GRID_M) * LOCAL_GRID_M + 0.0  # + 0.0: no -0.0
+    return float(x), float(y)
+
+
+def _moved_lanelet(ln: Lanelet, origin: tuple[float, float]) -> Lanelet:
+    if origin == (0.0, 0.0):
+        return ln
+    return dataclasses.replace(ln, left=ln.left - origin, right=ln.right - origin)
+
+
+def _moved_trajectory(tr: Trajectory, origin: tuple[float, float]) -> Trajectory:
+    if origin == (0.0, 0.0):
+        return tr
+    return dataclasses.replace(tr, x=tr.x - origin[0], y=tr.y - origin[1])
 
 
 def scene_files(folder: Path) -> list[Path]:
@@ -230,6 +292,8 @@ def collides(ego: Trajectory, others: Sequence[Trajectory]) -> str | None:
 
 # Why a recorded vehicle makes no mission (counted per reason by a corpus build).
 REJECTIONS = {
+    "traffic_only": "a road vehicle other than a car, truck or bus: replayed, never a mission",
+    "not_replayed": "a train or tram, bicycle or pedestrian: left out of the replay",
     "short": f"recorded for less than {MIN_PATH_S} s or travels less than {MIN_TRAVEL_M} m",
     "off_lanes": "a recorded pose fits no lane of the built map",
     "off_road": "its recorded centre leaves the built road surface",
@@ -246,10 +310,14 @@ def screen_egos(scene: NaturalisticScene, net_path: Path) -> tuple[list[Ego], Co
     net = sumolib.net.readNet(str(net_path), withInternal=False)
     out: list[Ego] = []
     rejected: Counter = Counter()
+    if scene.left_out:
+        rejected["not_replayed"] = sum(scene.left_out.values())
     for tr in sorted(scene.trajectories, key=lambda t: t.vehicle_id):
         reason = None
         fits, route = None, None
-        if tr.time[-1] - tr.time[0] < MIN_PATH_S - 1e-6 or (
+        if scene.types.get(tr.vehicle_id, "car") not in MISSION_TYPES:
+            reason = "traffic_only"
+        elif tr.time[-1] - tr.time[0] < MIN_PATH_S - 1e-6 or (
             math.hypot(tr.x[-1] - tr.x[0], tr.y[-1] - tr.y[0]) < MIN_TRAVEL_M
         ):
             reason = "short"

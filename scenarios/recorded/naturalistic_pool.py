@@ -1,10 +1,13 @@
 """The corpus replays of a suite build: the one-agent non-reactive replay rows of each kind
 (cruise, lane change, turns) are filled from the ego choices of that kind of every usable scene of
 an organiser's folder, drawn by the suite seed; a recorded vehicle is the mission of at most one
-scenario, whichever scene files it appears in. Rows no candidate fits keep our SUMO replays."""
+scenario, whichever scene files it appears in. A drawn mission enters the suite only once the log
+replay expert has finished it; one it does not finish is listed with the reason and the next is
+drawn. Rows no candidate fits keep our SUMO replays."""
 
 from __future__ import annotations
 
+import shutil
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -16,6 +19,7 @@ from scenarios.generators import Spec
 from scenarios.ids import derive_seed, scenario_id
 from scenarios.recorded.corpus import Corpus, CorpusScene, TrackKey, read_corpus
 from scenarios.recorded.naturalistic import Ego, NaturalisticImportError, write_naturalistic
+from scenarios.verify import replay_unsolved
 
 TRACKS_FILE = "naturalistic-tracks.json"  # in a built suite's folder, beside manifest.json
 
@@ -25,8 +29,10 @@ class NaturalisticPool:
     corpus: Corpus
     rng: np.random.Generator
     by_kind: dict[str, list[tuple[CorpusScene, Ego]]]  # candidates in file and vehicle order
+    cache_dir: Path  # maps, and the expert's verdicts
     used_vehicles: set[TrackKey] = field(default_factory=set)  # identities already missions
-    used_scenes: dict[str, CorpusScene] = field(default_factory=dict)
+    used_scenes: dict[str, CorpusScene] = field(default_factory=dict)  # by file name
+    unsolved: list[dict] = field(default_factory=list)  # drawn, not finished by the expert
 
     @classmethod
     def load(
@@ -57,13 +63,13 @@ class NaturalisticPool:
             for ego in s.egos:
                 by_kind.setdefault(ego.kind, []).append((s, ego))
         rng = np.random.default_rng(derive_seed(suite, seed, "naturalistic"))
-        return cls(corpus, rng, by_kind)
+        return cls(corpus, rng, by_kind, cache_dir)
 
     def _free(self, kind: str) -> list[tuple[CorpusScene, Ego]]:
         return [
             (s, ego)
             for s, ego in self.by_kind.get(kind, ())
-            if self.corpus.identity[(s.scene.name, ego.vehicle_id)] not in self.used_vehicles
+            if self.corpus.identity[(s.file, ego.vehicle_id)] not in self.used_vehicles
         ]
 
     def takes(self, spec: Spec) -> bool:
@@ -78,37 +84,45 @@ class NaturalisticPool:
 
     def write(
         self, out: Path, suite: str, index: int, spec: Spec, seed: int
-    ) -> tuple[Scenario, str]:
-        """Row ``index`` (``spec``) from a candidate of its kind drawn by the seed: the scenario
-        and its provenance source."""
-        free = self._free(spec.variant)
-        s, ego = free[int(self.rng.integers(len(free)))]
-        self.used_vehicles.add(self.corpus.identity[(s.scene.name, ego.vehicle_id)])
-        self.used_scenes[s.scene.name] = s
-        variant = f"{s.scene.variant_prefix}_{ego.kind}"
-        sid = scenario_id(suite, index, Spec(Family.replay, variant, None, 1, False))
-        scenario = write_naturalistic(out / sid, sid, s.scene, ego, s.net, seed)
-        return scenario, s.scene.provenance.source
+    ) -> tuple[Scenario, str] | None:
+        """Row ``index`` (``spec``) from a candidate of its kind drawn by the seed that the log
+        replay expert finishes: the scenario and its provenance source; None when no candidate
+        of the kind is left."""
+        while free := self._free(spec.variant):
+            s, ego = free[int(self.rng.integers(len(free)))]
+            self.used_vehicles.add(self.corpus.identity[(s.file, ego.vehicle_id)])
+            variant = f"{s.scene.variant_prefix}_{ego.kind}"
+            sid = scenario_id(suite, index, Spec(Family.replay, variant, None, 1, False))
+            scenario = write_naturalistic(out / sid, sid, s.scene, ego, s.net, seed)
+            reason = replay_unsolved(out / sid, self.cache_dir)
+            if reason is None:
+                self.used_scenes[s.file] = s
+                return scenario, s.scene.provenance.source
+            shutil.rmtree(out / sid)
+            self.unsolved.append({"file": s.file, "vehicle": ego.vehicle_id, "reason": reason})
+        return None
 
     def scene_list(self) -> list[dict]:
-        """The scenes the suite's scenarios were cut from (for the manifest)."""
+        """The scene files the suite's scenarios were cut from, by content and name (for the
+        manifest), each with the origin of its local frame in the file's coordinates."""
         return [
             {
                 "scene": s.scene.name,
-                "file": s.scene.source_file.name,
+                "file": s.file,
                 "sha256": s.sha256(),
                 "location": s.location,
                 "source": s.scene.provenance.source,
+                "origin": list(s.scene.origin),
             }
             for s in self._used()
         ]
 
     def track_list(self) -> dict[str, list[dict]]:
-        """Every recorded vehicle's moving poses per scene of :meth:`scene_list`: what a
+        """Every recorded vehicle's moving poses per scene file of :meth:`scene_list`: what a
         dataset build must not contain (``--exclude-suite``), beside the manifest (:data:
         `TRACKS_FILE`) so the manifest every evaluation reads stays small."""
         return {
-            s.scene.name: [
+            s.file: [
                 {"vehicle": vehicle, "poses": [list(p) for p in poses]}
                 for vehicle, poses in s.tracks().items()
             ]
@@ -116,7 +130,7 @@ class NaturalisticPool:
         }
 
     def _used(self) -> list[CorpusScene]:
-        return sorted(self.used_scenes.values(), key=lambda s: s.scene.source_file.name)
+        return [self.used_scenes[file] for file in sorted(self.used_scenes)]
 
     def skipped_list(self) -> list[dict]:
         return [{"file": s.file, "reason": s.reason} for s in self.corpus.skipped]

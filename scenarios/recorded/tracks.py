@@ -1,12 +1,18 @@
 """Which recorded vehicles are one vehicle: CommonRoad cuts one recording into scenes ``X_1``,
 ``X_2``, ... that share most of their vehicles, under other obstacle ids and with each scene's
-clock starting at 0. Files say nothing of this, so vehicles are matched by what they did.
+clock starting at 0; a file may also be another moved, turned or delayed (a rotated tutorial
+copy, a georeferenced export). Files say nothing of this, so vehicles are matched by the shape of
+what they did: their motion relative to themselves, never their absolute positions.
 
 A track's *poses* are its moving frames as (frame, x, y, heading), rounded as a manifest stores
-them. Two tracks are one vehicle when at least :data:`MIN_SHARED_POSES` of their poses coincide
-(position to 5 cm, heading to 0.05 rad) at one constant frame offset: the same vehicle seen
-through two scene clocks. Two vehicles following one lane pass the same points, but at a
-varying offset, and a stopped vehicle's poses are left out (any two queue at one stop line).
+them. Each frame that has poses :data:`WINDOW` and twice and three times :data:`WINDOW` frames
+later gives a *shape token*: the distances between those four positions (how far it drove in each
+of three seconds, and how much it turned), which no rigid motion and no change of clock alters.
+Tracks sharing at least :data:`MIN_TOKENS` tokens at one constant frame offset are candidates; two
+are one vehicle when the positions of every frame they share at that offset are one rigid motion
+apart, to :data:`MAX_RESIDUAL_M`, over at least :data:`MIN_SHARED_POSES` frames. Two vehicles
+following one lane drive the same line but not the same speeds, and a stopped vehicle's poses
+are left out (any two queue at one stop line).
 """
 
 from __future__ import annotations
@@ -20,9 +26,11 @@ from sim.trajectories import Trajectory
 
 STEP_S = 0.1  # [s]
 MOVING_SPEED = 1.0  # [m/s] slower frames are not evidence of identity
-MIN_SHARED_POSES = 5
-_POSITION_CELL = 0.05  # [m]
-_HEADING_CELL = 0.05  # [rad]
+WINDOW = 5  # frames between the positions of a shape token (0.5 s)
+_DISTANCE_CELL = 0.1  # [m] a token's distances are rounded to this
+MIN_TOKENS = 3  # shared tokens at one frame offset that make two tracks a candidate pair
+MIN_SHARED_POSES = 15  # frames two tracks of one vehicle share at least (1.5 s)
+MAX_RESIDUAL_M = 0.1  # [m] farthest a shared frame's position may be from the rigid fit
 
 Pose = tuple[int, float, float, float]  # (frame, x [m], y [m], heading [rad])
 
@@ -41,28 +49,82 @@ def track_poses(tr: Trajectory) -> list[Pose]:
     ]
 
 
-def _token(pose: Sequence[float]) -> tuple[int, int, int]:
-    _, x, y, h = pose
-    return (round(x / _POSITION_CELL), round(y / _POSITION_CELL), round(h / _HEADING_CELL))
+def _arrays(poses: Iterable[Sequence[float]]) -> tuple[np.ndarray, np.ndarray]:
+    """(frames (n,) int, positions (n, 2)) of ``poses``, in frame order."""
+    rows = sorted((int(p[0]), float(p[1]), float(p[2])) for p in poses)
+    if not rows:
+        return np.zeros(0, int), np.zeros((0, 2))
+    arr = np.array(rows)
+    return arr[:, 0].astype(int), arr[:, 1:]
+
+
+def _tokens(frames: np.ndarray, xy: np.ndarray) -> tuple[np.ndarray, list[tuple]]:
+    """The frames that start a shape token, and their tokens."""
+    index = {int(f): i for i, f in enumerate(frames)}
+    starts = [
+        (f, [index[int(f)], *(index.get(int(f) + k * WINDOW) for k in (1, 2, 3))]) for f in frames
+    ]
+    starts = [(f, rows) for f, rows in starts if None not in rows]
+    if not starts:
+        return np.zeros(0, int), []
+    rows = np.array([r for _, r in starts])
+    p = xy[rows]  # (m, 4, 2)
+    sides = np.stack(
+        [np.hypot(*(p[:, b] - p[:, a]).T) for a, b in ((0, 1), (1, 2), (2, 3), (0, 2), (1, 3))],
+        axis=1,
+    )
+    cells = np.round(sides / _DISTANCE_CELL).astype(int)
+    return np.array([f for f, _ in starts]), [tuple(c) for c in cells.tolist()]
+
+
+def _rigid_residual(a: np.ndarray, b: np.ndarray) -> float:
+    """Largest distance [m] between ``b`` and ``a`` moved by the rotation and translation that
+    fit it best (least squares; no mirroring)."""
+    ca, cb = a - a.mean(axis=0), b - b.mean(axis=0)
+    u, _, vt = np.linalg.svd(ca.T @ cb)
+    d = np.sign(np.linalg.det(u @ vt)) or 1.0
+    rotation = u @ np.diag([1.0, d]) @ vt
+    return float(np.hypot(*(ca @ rotation - cb).T).max())
 
 
 class TrackIndex:
     """Tracks by key (any hashable), queried for the keys of the same vehicle."""
 
     def __init__(self) -> None:
-        self._by_token: dict[tuple[int, int, int], list[tuple[object, int]]] = defaultdict(list)
+        self._by_token: dict[tuple, list[tuple[object, int]]] = defaultdict(list)
+        self._tracks: dict[object, tuple[np.ndarray, np.ndarray]] = {}
 
     def add(self, key: object, poses: Iterable[Sequence[float]]) -> None:
-        for pose in poses:
-            self._by_token[_token(pose)].append((key, int(pose[0])))
+        frames, xy = _arrays(poses)
+        self._tracks[key] = (frames, xy)
+        starts, tokens = _tokens(frames, xy)
+        for frame, token in zip(starts.tolist(), tokens, strict=True):
+            self._by_token[token].append((key, frame))
 
     def same_vehicle(self, poses: Iterable[Sequence[float]]) -> set:
         """Keys of the indexed tracks that are the vehicle of ``poses``."""
+        frames, xy = _arrays(poses)
+        starts, tokens = _tokens(frames, xy)
         offsets: Counter = Counter()
-        for pose in poses:
-            for key, frame in self._by_token.get(_token(pose), ()):
-                offsets[(key, frame - int(pose[0]))] += 1
-        return {key for (key, _), n in offsets.items() if n >= MIN_SHARED_POSES}
+        for frame, token in zip(starts.tolist(), tokens, strict=True):
+            for key, other in self._by_token.get(token, ()):
+                offsets[(key, other - frame)] += 1
+        return {
+            key
+            for (key, offset), n in offsets.items()
+            if n >= MIN_TOKENS and self._one_motion_apart(key, offset, frames, xy)
+        }
+
+    def _one_motion_apart(
+        self, key: object, offset: int, frames: np.ndarray, xy: np.ndarray
+    ) -> bool:
+        other_frames, other_xy = self._tracks[key]
+        shared, mine, theirs = np.intersect1d(
+            frames + offset, other_frames, assume_unique=True, return_indices=True
+        )
+        if len(shared) < MIN_SHARED_POSES:
+            return False
+        return _rigid_residual(xy[mine], other_xy[theirs]) <= MAX_RESIDUAL_M
 
 
 def recording_location(scene_name: str) -> str:

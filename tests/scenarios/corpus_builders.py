@@ -115,3 +115,81 @@ def malformed(out: Path) -> Path:
 
 def unsupported_version(src: Path, out: Path) -> Path:
     return copy_scene(src, out, out.stem, commonRoadVersion="2017a")
+
+
+def transformed(
+    src: Path,
+    out: Path,
+    *,
+    shift: tuple[float, float] = (0.0, 0.0),
+    rotate: float = 0.0,
+    time_shift: int = 0,
+    benchmark_id: str | None = None,
+) -> Path:
+    """``src`` moved rigidly: every point rotated by ``rotate`` [rad] about the origin, then
+    shifted by ``shift`` [m]; every orientation turned by ``rotate``; every state's time step
+    delayed by ``time_shift``. A georeferenced scene is a shift by UTM-sized offsets; a rotated
+    copy is the same scene another way up."""
+    root = ET.parse(src).getroot()
+    root.set("benchmarkID", benchmark_id or out.stem)
+    c, s = math.cos(rotate), math.sin(rotate)
+    for point in root.iter("point"):
+        x, y = float(point.findtext("x")), float(point.findtext("y"))
+        point.find("x").text = f"{c * x - s * y + shift[0]:.4f}"
+        point.find("y").text = f"{s * x + c * y + shift[1]:.4f}"
+    for obstacle in _obstacles(root):
+        for state in _states(obstacle):
+            exact = state.find("orientation/exact")
+            if exact is not None:
+                h = float(exact.text) + rotate
+                exact.text = f"{(h + math.pi) % (2 * math.pi) - math.pi:.6f}"
+            if time_shift:
+                step = state.find("time/exact")
+                step.text = str(int(step.text) + time_shift)
+    return _write(root, out)
+
+
+def with_road_user(src: Path, out: Path, vehicle: str, kind: str, length: float) -> Path:
+    """``src`` with recorded vehicle ``vehicle`` (id without ``cr``) recast as a road user of
+    CommonRoad type ``kind`` (``train``, ``bicycle``, ``pedestrian`` ...) of ``length`` metres."""
+    root = ET.parse(src).getroot()
+    root.set("benchmarkID", out.stem)
+    obstacle = next(o for o in _obstacles(root) if o.get("id") == vehicle)
+    obstacle.find("type").text = kind
+    obstacle.find("shape/rectangle/length").text = f"{length}"
+    return _write(root, out)
+
+
+def with_states(src: Path, out: Path, kind: str) -> Path:
+    """``src`` with every vehicle's states of another state model: ``set-valued`` (positions as
+    rectangles, orientations as intervals, as in a prediction) or ``point-mass`` (velocity along
+    x and y, no orientation)."""
+    root = ET.parse(src).getroot()
+    root.set("benchmarkID", out.stem)
+    for obstacle in _obstacles(root):
+        for state in _states(obstacle):
+            orientation = state.find("orientation")
+            h = float(orientation.findtext("exact"))
+            if kind == "set-valued":
+                point = state.find("position/point")
+                x, y = float(point.findtext("x")), float(point.findtext("y"))
+                position = state.find("position")
+                position.remove(point)
+                rect = ET.SubElement(position, "rectangle")
+                for tag, value in (("length", 1.0), ("width", 1.0)):
+                    ET.SubElement(rect, tag).text = str(value)
+                centre = ET.SubElement(rect, "center")
+                ET.SubElement(centre, "x").text = f"{x:.4f}"
+                ET.SubElement(centre, "y").text = f"{y:.4f}"
+                orientation.remove(orientation.find("exact"))
+                ET.SubElement(orientation, "intervalStart").text = f"{h - 0.1:.4f}"
+                ET.SubElement(orientation, "intervalEnd").text = f"{h + 0.1:.4f}"
+            elif kind == "point-mass":
+                v = float(state.findtext("velocity/exact"))
+                state.find("velocity/exact").text = f"{v * math.cos(h):.4f}"
+                vy = ET.SubElement(state, "velocityY")
+                ET.SubElement(vy, "exact").text = f"{v * math.sin(h):.4f}"
+                state.remove(orientation)
+            else:
+                raise ValueError(kind)
+    return _write(root, out)

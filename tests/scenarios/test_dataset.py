@@ -115,7 +115,8 @@ def test_actions_reproduce_the_recorded_motion(tmp_path, scenes_dir):
     for ego in ego_choices(scene, net)[:3]:
         folder = tmp_path / ego.vehicle_id
         write_naturalistic(folder, folder.name, scene, ego, net, seed=0)
-        (episode,) = collect(folder)
+        (episode,), unsolved = collect(folder)
+        assert unsolved is None
         recorded = read_trajectories(folder / EXPERT_FILE)["Agent_0"]
         n = len(episode.poses)
         assert (
@@ -214,7 +215,7 @@ def test_unusable_files_are_skipped_and_one_vehicle_is_one_episode(tmp_path, sce
         "broken.xml",
     }
     corpus = read_corpus(scenes, tmp_path / "cache")
-    identities = [corpus.identity[(e["scene"], e["vehicle"])] for e in manifest["episodes"]]
+    identities = [corpus.identity[(e["file"], e["vehicle"])] for e in manifest["episodes"]]
     assert len(identities) == len(set(identities))
     assert len(identities) < corpus.candidates()  # the second file's copies were left out
     assert manifest["rejected_vehicles"].get("short", 0) > 0

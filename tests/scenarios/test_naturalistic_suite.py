@@ -152,19 +152,19 @@ def test_split_recording_files_are_one_recording_sharing_vehicles(corpus_dir, ca
     merged = {k: v for k, v in corpus.identity.items() if k != v}
     split = {k: v for k, v in merged.items() if k[0].startswith("USA_Split")}
     assert len(split) >= 10
-    for (scene, vehicle), (first_scene, first_vehicle) in split.items():
-        assert (scene, first_scene) == ("USA_Split-1_2_T-1", "USA_Split-1_1_T-1")
+    for (file, vehicle), (first_file, first_vehicle) in split.items():
+        assert (file, first_file) == ("USA_Split-1_2_T-1.xml", "USA_Split-1_1_T-1.xml")
         assert int(vehicle[2:]) == int(first_vehicle[2:]) + 900000  # how the split renumbered
     assert recording_location("USA_Split-1_2_T-1") == "USA_Split-1"
     # A copy of a file under another name holds the same vehicles, whatever it is called.
-    copies = [k for k in corpus.identity if k[0] == "DEU_Sim-1_1_T-1"]
+    copies = [k for k in corpus.identity if k[0] == "sim.xml"]
     assert len(copies) == 12
     for key in copies:
-        assert corpus.identity[key] == corpus.identity[("USA_Truck-1_1_T-1", key[1])]
+        assert corpus.identity[key] == corpus.identity[("USA_Truck-1_1_T-1.xml", key[1])]
     # Vehicles following each other in one lane are not merged: every vehicle of one file is
     # its own identity.
     for s in corpus.scenes:
-        own = [corpus.identity[(s.scene.name, t.vehicle_id)] for t in s.scene.trajectories]
+        own = [corpus.identity[(s.file, t.vehicle_id)] for t in s.scene.trajectories]
         assert len(set(own)) == len(own)
 
 
@@ -249,11 +249,11 @@ def test_manifest_lists_exactly_the_scenes_used_with_their_tracks(hidden_corpus,
     files = {s["file"] for s in listed}
     assert not files & set(BROKEN)
     tracks = json.loads((hidden_corpus / TRACKS_FILE).read_text())
-    assert set(tracks) == {s["scene"] for s in listed}
+    assert set(tracks) == {s["file"] for s in listed}
     for s in listed:
         assert s["location"] and "tracks" not in s  # the manifest stays small
         scene = load_scene(corpus_dir / s["file"])
-        assert {t["vehicle"] for t in tracks[s["scene"]]} == {
+        assert {t["vehicle"] for t in tracks[s["file"]]} == {
             t.vehicle_id for t in scene.trajectories
         }
     assert len(listed) <= len(used)
