@@ -12,19 +12,8 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
-# Reasons that are the agent's own fault as a program (not a driving mistake such as a collision):
-# `arena evaluate` exits non-zero when any scenario ends with one of them.
-AGENT_FAULTS = frozenset(
-    {
-        "invalid_action",
-        "agent_error",
-        "init_timeout",
-        "step_timeout",
-        "episode_timeout",
-        "memory_limit",
-        "agent_exited",
-    }
-)
+from arena.outcome import Verdict, episode_verdict
+
 # An agent that ends with one of these before driving a single step never got going.
 STARTUP_FAULTS = frozenset({"agent_error", "init_timeout", "memory_limit", "agent_exited"})
 # How many scenarios in a row must show the agent failing to start before a run stops early.
@@ -56,7 +45,9 @@ def never_started(agents: Sequence[AgentEnd]) -> bool:
 
 
 def is_agent_fault(agents: Iterable[AgentEnd]) -> bool:
-    return any(a.reason in AGENT_FAULTS for a in agents)
+    """The episode's verdict is the team's program (:func:`arena.outcome.verdict`): `arena
+    evaluate` exits non-zero when any episode's is."""
+    return episode_verdict(a.reason for a in agents) is Verdict.agent
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 from arena.config import SandboxKind, SandboxSettings
 from arena.cpu_limits import CpuLimits
 from arena.episodes import Episode, traffic_seed
-from arena.outcome import AgentOutcome, DoneReason, ScenarioStatus
+from arena.outcome import UNCHARGED, AgentOutcome, ScenarioStatus, Verdict, episode_verdict
 from arena.record_format import RECORD_SUFFIX
 from arena.scenario import load_scenario
 from evaluator import sandbox as sandboxes
@@ -114,13 +114,20 @@ class ScenarioOutcome:
     episode: int = 0  # which episode of the scenario (arena.episodes)
     seed: int | None = None  # the SUMO traffic seed it ran with
     environment: Environment | None = None  # the software it ran under (evaluator.provenance)
-    # The CPU time the agent's acts used [s] (0 where no meter reads it): what the evaluation's
+    # The CPU time the agent used from its loading [s] (0 where no meter reads it): what the evaluation's
     # budget counts. Only the attempt that counts is charged, never one that failed on our side.
     agent_cpu_s: float = 0.0
 
     @property
     def key(self) -> Episode:
         return Episode(self.scenario_id, self.episode)
+
+    @property
+    def verdict(self) -> Verdict:
+        """Whose its end is (:func:`arena.outcome.verdict`): an uncharged status is ours."""
+        if self.status in UNCHARGED:
+            return Verdict.ours
+        return episode_verdict(a.reason for a in self.agents)
 
     @classmethod
     def ours(
@@ -202,8 +209,9 @@ def run_scenario(
                 episode_timeout_s=config.episode_timeout_s,
             )
         logs.append(_log_text(result, attempt, key))
-        lost_sandbox = any(a.reason is DoneReason.sandbox_error for a in result.agents)
-        if result.simulator_error is None and not lost_sandbox:
+        reasons = [a.reason for a in result.agents]
+        simulator_failed = result.simulator_error is not None
+        if episode_verdict(reasons, simulator_failed=simulator_failed) is not Verdict.ours:
             return dataclasses.replace(
                 _outcome(result, record_path, "\n".join(logs), attempt, started, episode),
                 seed=seed,
@@ -211,9 +219,10 @@ def run_scenario(
                     kind.value, config.agent_image, result.extra.get("agent_stack", {})
                 ),
             )
-        # The episode's process died, SUMO failed, or a sandbox ended before our runner started
-        # in it (killed from outside, the daemon failed): none of it is the agent's doing, so
-        # the episode runs again. Its agent's sandbox may never have been closed.
+        # Ours (arena.outcome.verdict): the episode's process died or SUMO failed while the
+        # agent was healthy, or a sandbox ended before our runner said hello in it (killed from
+        # outside, the daemon failed). The episode runs again; its agent's sandbox may never
+        # have been closed.
         sandboxes.cleanup(config, labels)
     record_path.unlink(missing_ok=True)
     if result.simulator_error is None:

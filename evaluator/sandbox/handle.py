@@ -2,6 +2,12 @@
 
 Every way an agent can fail is turned into one :class:`AgentFailed` with a named reason and the
 tail of its stderr, after the sandbox has been killed: a failing agent never outlives its failure.
+
+The episode's CPU is the team's from the moment its code is loaded: the runtime says hello before
+it reads anything of the submission, and from then on every second the sandbox's meter reads
+(importing ``policy.py``, ``Policy()``, ``reset``, every ``act``, ``close``, and whatever the
+agent's threads do between them) is added to ``episode_cpu_s``, the episode's budget and the
+evaluation's; a failure carries what was used up to it. Only an act has the step's own limit.
 """
 
 from __future__ import annotations
@@ -57,8 +63,8 @@ class AgentHandle:
         self._episode_cpu_s = limits.episode_s
         self._init_timeout_s = config.init_timeout_s
         self._meter: CpuReader | None = None
-        self._cpu_mark: float | None = None  # the meter after the last answer [s]
-        self.episode_cpu_s = 0.0  # agent CPU time of this episode's acts so far [s]
+        self._cpu_mark: float | None = None  # the meter when last charged [s]
+        self.episode_cpu_s = 0.0  # agent CPU time of this episode so far, from its loading [s]
         self._channel: Channel | None = None
         self._closed = False
         self.hello: dict[str, Any] = {}
@@ -69,14 +75,22 @@ class AgentHandle:
 
     def handshake(self) -> None:
         deadline = time.monotonic() + self._init_timeout_s
+        # Until hello the sandbox runs our runtime only (it says hello before it reads anything
+        # of the submission): whatever ends it before then is ours (sandbox_error, not charged;
+        # arena.outcome.verdict), after it the team's.
         try:
             self._channel = self._sandbox.connect(deadline)
         except ChannelTimeout:
-            self._fail(DoneReason.init_timeout, "the sandbox did not start in time")
+            self._fail(DoneReason.sandbox_error, "the sandbox did not start in time")
         except ChannelClosed:
             self._fail(DoneReason.sandbox_error, self._ended_detail("before the runner started"))
+        meter = self._sandbox.cpu_meter()
+        self._meter = meter.open() if meter is not None else None
         self.hello = self._expect("hello", deadline, DoneReason.init_timeout, startup=True)
+        # From here on the sandbox loads and runs the team's code: every CPU second is theirs.
+        self._cpu_mark = self._cpu_now()
         ready = self._expect("ready", deadline, DoneReason.init_timeout)
+        self._charge_episode()
         init_s = ready.get("init_s")
         # The agent's own figure: kept only when it is a plain, sane number.
         self.init_s = (
@@ -85,19 +99,18 @@ class AgentHandle:
         self.stack = reported_stack(ready.get("stack"))
         if self._arrays is not None:  # no answer: the runner keeps it for the act frames
             self._send("layout", self._arrays.layout.describe(), deadline, DoneReason.init_timeout)
-        meter = self._sandbox.cpu_meter()
-        self._meter = meter.open() if meter is not None else None
 
     def reset(self) -> None:
         self._send("reset", None, time.monotonic() + self._init_timeout_s, DoneReason.init_timeout)
         self._expect("done", time.monotonic() + self._init_timeout_s, DoneReason.init_timeout)
-        self.episode_cpu_s = 0.0
-        self._cpu_mark = self._cpu_now()
+        self._charge_episode()
 
     def act(self, obs: dict[str, Observation]) -> dict[str, Any]:
         """The agent's actions for ``obs``, within the step's CPU limit (the wall clock where
         no meter reads CPU) and the wall-clock backstop, and the episode's CPU budget."""
-        started = self._cpu_mark if self._cpu_mark is not None else self._cpu_now()
+        if self._cpu_mark is None:
+            self._cpu_mark = self._cpu_now()
+        started = self._cpu_mark
         metered = started is not None
         limit = self._step_timeout_s if metered else self._step_cpu_s
         deadline = time.monotonic() + limit
@@ -109,7 +122,7 @@ class AgentHandle:
             "actions", deadline, DoneReason.step_timeout, cpu_from=started if metered else None
         )
         if metered:
-            self._charge(started)
+            self._charge_act()
         actions, failed = message.get("actions"), message.get("failed")
         if not isinstance(actions, dict) or not isinstance(failed, dict | None):
             self._fail(DoneReason.agent_error, "protocol violation: actions are not a dict")
@@ -128,6 +141,7 @@ class AgentHandle:
                 self._channel.receive(deadline)
             except (ChannelClosed, ChannelTimeout, ChannelViolation):
                 pass
+        self._account()  # what Policy.close() used, or the agent in the grace it had
         if self._meter is not None:
             self._meter.close()
         self._sandbox.kill()
@@ -167,20 +181,35 @@ class AgentHandle:
     def _cpu_now(self) -> float | None:
         return self._meter.seconds() if self._meter is not None else None
 
-    def _charge(self, started: float) -> None:
-        """Count the CPU the agent used since ``started`` (a meter reading) against the step's
-        limit and the episode's budget."""
-        now = self._cpu_now()
+    def _account(self) -> float | None:
+        """Add the CPU the sandbox used since the last mark to the episode's, and mark now;
+        what was added [s] (None: nothing reads CPU, or nothing of the team's ran yet)."""
+        if self._cpu_mark is None or self._meter is None:
+            return None
+        now = self._meter.seconds()
         if now is None:
-            return
-        used = now - started
+            return None
+        used = now - self._cpu_mark
         self._cpu_mark = now
         self.episode_cpu_s += used
-        if used > self._step_cpu_s:
+        return used
+
+    def _charge_act(self) -> None:
+        """Charge an answered act: against the step's limit and the episode's budget."""
+        used = self._account()
+        if used is not None and used > self._step_cpu_s:
             self._fail(
                 DoneReason.step_timeout,
                 f"one act used {used:.2f} s of CPU (limit {self._step_cpu_s:g} s)",
             )
+        self._check_episode_budget()
+
+    def _charge_episode(self) -> None:
+        """Charge loading or resetting the agent: against the episode's budget only."""
+        self._account()
+        self._check_episode_budget()
+
+    def _check_episode_budget(self) -> None:
         if self.episode_cpu_s > self._episode_cpu_s:
             self._fail(
                 DoneReason.episode_timeout,
@@ -202,8 +231,7 @@ class AgentHandle:
                     raise
             now = self._cpu_now()
             if now is not None and now - cpu_from > self._step_cpu_s:
-                # Charged too: the evaluation's budget counts what the act used before it ended.
-                self.episode_cpu_s += now - cpu_from
+                # Charged too (by _fail): the evaluation's budget counts what the act used.
                 self._fail(
                     DoneReason.step_timeout,
                     f"one act used more than {self._step_cpu_s:g} s of CPU without answering",
@@ -222,6 +250,8 @@ class AgentHandle:
         try:
             message = self._receive(deadline, cpu_from)
         except ChannelTimeout:
+            if startup:
+                self._fail(DoneReason.sandbox_error, f"the runner did not say {kind} in time")
             if late is not DoneReason.step_timeout:
                 limit = self._init_timeout_s
             elif cpu_from is None:
@@ -263,9 +293,10 @@ class AgentHandle:
 
     def _fail(self, reason: DoneReason, detail: str) -> NoReturn:
         self._closed = True
+        self._account()  # read before the kill: a cgroup's counter goes with its sandbox
         self._sandbox.kill()
         tail = self._sandbox.logs()
-        raise AgentFailed(reason, detail, tail)
+        raise AgentFailed(reason, detail, tail, cpu_s=self.episode_cpu_s)
 
 
 # What of a reported stack is kept: a report is the sandbox's word, so only a few short strings.
