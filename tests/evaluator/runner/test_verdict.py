@@ -122,13 +122,25 @@ def _run(tmp_path, settings, kind, body, *, files=None, broken=False, config=Non
     )
 
 
-def test_before_hello_is_ours(tmp_path, settings, kind):
-    """Too little memory for the interpreter: the sandbox ends before the runtime says hello,
-    before anything of the team's is read."""
-    tiny = settings.sandbox.model_copy(update={"agent_memory_bytes": 8 * 1024**2})
-    outcome = _run(tmp_path, settings, kind, DRIVE.format(pause=0), config=tiny)
+def test_a_sandbox_silent_before_hello_is_ours(tmp_path, settings, kind):
+    """No hello within the start-up limit: only our runtime had run (it says hello before it
+    reads anything of the team's)."""
+    hasty = settings.sandbox.model_copy(update={"init_timeout_s": 0.001})
+    outcome = _run(tmp_path, settings, kind, DRIVE.format(pause=0), config=hasty)
     assert outcome.verdict is Verdict.ours, outcome.log
     assert outcome.status is ScenarioStatus.evaluator_error and outcome.attempts == 2
+    assert "sandbox_error" in outcome.log
+
+
+@pytest.mark.slow
+def test_a_sandbox_ending_before_hello_is_ours(tmp_path, settings):
+    """Too little memory for the interpreter (the process backend's rlimit; the isolating
+    backends' cgroups let an interpreter start): it ends before the runtime says hello."""
+    tiny = settings.sandbox.model_copy(update={"agent_memory_bytes": 8 * 1024**2})
+    outcome = _run(tmp_path, settings, SandboxKind.process, DRIVE.format(pause=0), config=tiny)
+    assert outcome.verdict is Verdict.ours, outcome.log
+    assert outcome.status is ScenarioStatus.evaluator_error and outcome.attempts == 2
+    assert "before the runner started" in outcome.error
 
 
 def test_an_exit_in_an_import_is_the_teams(tmp_path, settings, kind):
