@@ -14,7 +14,7 @@ from dataclasses import dataclass
 @dataclass(frozen=True)
 class CpuLimits:
     step_s: float  # one act [s]
-    episode_s: float  # every act of one episode together [s]
+    episode_s: float  # one episode, from the agent's loading (init, reset, acts, close) [s]
     evaluation_s: float  # every episode of one evaluation together [s]
 
     def overridden(

@@ -47,11 +47,16 @@ class AgentFailed(ParticipantError):
     """The agent as a whole failed (crashed, timed out, died), not one bad action; the episode
     then ends for every mission vehicle with ``reason``, keeping the steps already driven."""
 
-    def __init__(self, reason: DoneReason, detail: str = "", stderr_tail: str = "") -> None:
+    def __init__(
+        self, reason: DoneReason, detail: str = "", stderr_tail: str = "", cpu_s: float = 0.0
+    ) -> None:
         super().__init__(f"{reason}: {detail}" if detail else str(reason))
         self.reason = reason
         self.detail = detail
         self.stderr_tail = stderr_tail
+        # The agent's CPU up to the failure [s], from its loading: charged like a finished
+        # episode's (an agent failing in __init__ still used the evaluation's budget).
+        self.cpu_s = cpu_s
 
 
 class SandboxUnavailable(InfrastructureError):

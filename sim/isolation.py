@@ -243,8 +243,8 @@ def _close_agent(agent: Agent) -> str | None:
 
 
 def _agent_cpu_s(agent: Agent) -> float:
-    """The CPU time the agent's acts used, when it measures it (the evaluator's sandboxed
-    handle does, an in-process test policy does not)."""
+    """The CPU time the agent used, from its loading, when it measures it (the evaluator's
+    sandboxed handle does, an in-process test policy does not)."""
     used = getattr(agent, "episode_cpu_s", 0.0)
     return float(used) if isinstance(used, int | float) else 0.0
 
@@ -264,6 +264,7 @@ def _write_failed_start(scenario_dir, interface, record_path, seed, exc: AgentFa
         agents=sim.outcomes,
         record_path=str(record_path),
         detail=exc.detail or str(exc),
+        agent_cpu_s=exc.cpu_s,
     )
 
 

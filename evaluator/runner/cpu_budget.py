@@ -25,7 +25,7 @@ class AgentCpu(BaseModel):
 
     used_s: float
     budget_s: float
-    # episode name (arena.episodes.Episode.name) -> CPU its agent's acts used [s]
+    # episode name (arena.episodes.Episode.name) -> CPU its agent used, from its loading [s]
     episodes: dict[str, float] = {}
 
     @property

@@ -114,8 +114,9 @@ class ScenarioOutcome:
     episode: int = 0  # which episode of the scenario (arena.episodes)
     seed: int | None = None  # the SUMO traffic seed it ran with
     environment: Environment | None = None  # the software it ran under (evaluator.provenance)
-    # The CPU time the agent used from its loading [s] (0 where no meter reads it): what the evaluation's
-    # budget counts. Only the attempt that counts is charged, never one that failed on our side.
+    # The CPU time the agent used from its loading [s] (0 where no meter reads it): what the
+    # evaluation's budget counts. Only the attempt that counts is charged, never one that failed
+    # on our side.
     agent_cpu_s: float = 0.0
 
     @property
