@@ -1,5 +1,6 @@
 """Two evaluations side by side (``arena compare``, ``arena admin compare``): the four metrics
-with the completion interval, per family, and the episodes whose outcome differs.
+with the completion interval and B - A paired over the scenarios both ran (with its interval and
+the chance B ranks ahead), per family, and the episodes whose outcome differs.
 
 Each side is a :class:`Side`, built from a results folder's ``summary.json`` here or from a
 stored run by the service, so both commands print the same thing. A side scored over several
@@ -17,14 +18,18 @@ from dataclasses import dataclass, field
 
 from rich.console import Console
 
+from arena.figures import METRICS as METRIC_NAMES
+from arena.figures import interval_text, percent
+from arena.figures import metric_text as value_text
 from arena.terminal import print_rows
 from evaluator.runner.results import stored_episodes
-from evaluator.scoring import Interval, Metrics
+from evaluator.scoring import Interval, Metrics, MetricSamples, load_profile
 from evaluator.scoring.seeds import Spread
+from evaluator.scoring.significance import PairedDifference, paired_difference
 from evaluator.summary import Summary
 
-METRIC_NAMES = ("completion", "time", "humanness", "rules")
 REACHED = "reached_goal"
+METRIC_ROW_FIELDS = ("metric", "a", "b", "b_minus_a", "b_minus_a_paired_interval")
 
 
 @dataclass(frozen=True)
@@ -51,6 +56,8 @@ class Side:
     suite: str = ""
     seeds: tuple[SeedRun, ...] = ()  # scored over several training seeds, in seed order
     spread: Spread | None = None  # the seeds' completion errors
+    # The per-episode values the metrics are built from (None: scored before they were kept).
+    samples: MetricSamples | None = None
 
 
 def outcome_text(reasons: list[str], status: str) -> str:
@@ -72,16 +79,12 @@ def side_of_summary(label: str, summary: Summary) -> Side:
         families=summary.families,
         outcomes=outcomes,
         suite=summary.manifest_hash,
+        samples=summary.metric_samples(load_profile(summary.profile.name).averaging),
     )
 
 
 def metric_text(name: str, metrics: Metrics | None) -> str:
-    if metrics is None:
-        return "-"
-    value = getattr(metrics, name)
-    if value is None:
-        return "—"  # no agent drove a step: nothing measured
-    return f"{value:.1f}" if name == "time" else f"{value:.4f}"
+    return "-" if metrics is None else value_text(name, getattr(metrics, name))
 
 
 def difference(name: str, a: Metrics | None, b: Metrics | None) -> str:
@@ -91,30 +94,53 @@ def difference(name: str, a: Metrics | None, b: Metrics | None) -> str:
     x, y = getattr(a, name), getattr(b, name)
     if x is None or y is None:
         return "-"
-    delta = y - x
-    return f"{delta:+.1f}" if name == "time" else f"{delta:+.4f}"
+    return value_text(name, y - x, signed=True)
 
 
-def metric_rows(a: Side, b: Side) -> list[tuple[str, str, str, str]]:
-    """(metric, A, B, B - A) for the four metrics, then the completion interval."""
+def paired(a: Side, b: Side) -> PairedDifference | None:
+    """B - A paired over the scenarios both ran (None: a side without per-episode values, or
+    different suites)."""
+    if a.samples is None or b.samples is None:
+        return None
+    return paired_difference(a.samples, b.samples)
+
+
+def metric_rows(a: Side, b: Side) -> list[tuple[str, str, str, str, str]]:
+    """(metric, A, B, B - A, B - A's 95% interval paired over the shared scenarios) for the four
+    metrics, then the completion interval and the chance B ranks ahead of A."""
+    pair = paired(a, b)
     rows = [
         (
             name,
             metric_text(name, a.metrics),
             metric_text(name, b.metrics),
             difference(name, a.metrics, b.metrics),
+            _paired_interval(pair, index, name),
         )
-        for name in METRIC_NAMES
+        for index, name in enumerate(METRIC_NAMES)
     ]
-    rows.append(
-        (
-            "completion 95% interval",
-            _interval(a),
-            _interval(b),
-            _overlap(a.interval, b.interval),
-        )
-    )
+    rows.append(("completion 95% interval", _interval(a), _interval(b), "", ""))
+    rows.append(("B ranks ahead of A", "", "", "", _ahead(a, b, pair)))
     return rows
+
+
+def _paired_interval(pair: PairedDifference | None, index: int, name: str) -> str:
+    if pair is None or pair.low[index] is None or pair.high[index] is None:
+        return "-"
+    low, high = pair.low[index], pair.high[index]
+    text = f"[{value_text(name, low, signed=True)}, {value_text(name, high, signed=True)}]"
+    if low > 0 or high < 0:
+        return f"{text} {'A' if low > 0 else 'B'} better"
+    return text
+
+
+def _ahead(a: Side, b: Side, pair: PairedDifference | None) -> str:
+    """The chance B ranks ahead of A by the hierarchy, paired, or why there is none."""
+    if pair is not None:
+        return f"{percent(pair.b_ahead)} of resamples over {pair.scenarios} shared scenarios"
+    if a.samples is None or b.samples is None:
+        return "- (a side was scored before per-episode values were kept)"
+    return "- (different suites: nothing to pair)"
 
 
 def _interval(side: Side) -> str:
@@ -124,17 +150,7 @@ def _interval(side: Side) -> str:
     if interval is None:
         return "-"
     over = f" over {len(side.seeds)} seeds x scenarios" if side.seeds else ""
-    return f"[{interval.low:.4f}, {interval.high:.4f}]{over}"
-
-
-def _overlap(a: Interval | None, b: Interval | None) -> str:
-    if a is None or b is None:
-        return "-"
-    if a.high < b.low:
-        return "A better (no overlap)"
-    if b.high < a.low:
-        return "B better (no overlap)"
-    return "overlap: may be chance"
+    return f"{interval_text(interval.low, interval.high)}{over}"
 
 
 def family_rows(a: Side, b: Side) -> list[tuple[str, str, str, str, str, str]]:
@@ -178,7 +194,10 @@ def spread_rows(a: Side, b: Side) -> list[tuple[str, str, str]]:
         if side.spread is None:
             return "-"
         s = side.spread
-        return f"{s.low:.4f} to {s.high:.4f} (std {s.std:.4f})"
+        return (
+            f"{value_text('completion', s.low)} to {value_text('completion', s.high)} "
+            f"(std {value_text('completion', s.std)})"
+        )
 
     return [("training seeds", count(a), count(b)), ("seeds' completion", spread(a), spread(b))]
 
@@ -246,8 +265,12 @@ def comparison_document(a: Side, b: Side) -> dict:
         "a": a.label,
         "b": b.label,
         "metrics": [
-            dict(zip(("metric", "a", "b", "b_minus_a"), r, strict=True)) for r in metric_rows(a, b)
+            dict(
+                zip(("metric", "a", "b", "b_minus_a", "b_minus_a_paired_interval"), r, strict=True)
+            )
+            for r in metric_rows(a, b)
         ],
+        "paired": _paired_json(paired(a, b)),
         "families": [
             dict(
                 zip(
@@ -291,8 +314,8 @@ def comparison_document(a: Side, b: Side) -> dict:
 
 
 def print_comparison(console: Console, a: Side, b: Side, *, as_json: bool = False) -> None:
-    """The three tables: metrics (with B - A and whether the intervals overlap), per family,
-    and the episodes whose outcome differs."""
+    """The three tables: metrics (with B - A, its interval paired over the shared scenarios and
+    the chance B ranks ahead), per family, and the episodes whose outcome differs."""
     if as_json:
         sys.stdout.write(json.dumps(comparison_document(a, b), indent=2) + "\n")
         return
@@ -305,9 +328,10 @@ def print_comparison(console: Console, a: Side, b: Side, *, as_json: bool = Fals
         )
     print_rows(
         console,
-        ("metric", "A", "B", "B - A"),
+        ("metric", "A", "B", "B - A", "B - A 95% interval (paired)"),
         metric_rows(a, b),
-        title="metrics (errors: smaller is better; B - A < 0: B is better)",
+        title="metrics (errors: smaller is better; B - A < 0: B is better; the interval "
+        "resamples the scenarios both ran, the same draws for both)",
         numeric=("A", "B", "B - A"),
     )
     print_rows(
@@ -330,6 +354,20 @@ def print_comparison(console: Console, a: Side, b: Side, *, as_json: bool = Fals
         )
     else:
         console.print("every episode ended the same way in both")
+
+
+def _paired_json(pair: PairedDifference | None) -> dict | None:
+    """B - A paired over the shared scenarios, as numbers (None: nothing to pair)."""
+    if pair is None:
+        return None
+    return {
+        "scenarios": pair.scenarios,
+        "b_ranks_ahead": pair.b_ahead,
+        **{
+            name: {"b_minus_a": pair.difference[i], "low": pair.low[i], "high": pair.high[i]}
+            for i, name in enumerate(METRIC_NAMES)
+        },
+    }
 
 
 def _spread_json(side: Side) -> dict | None:

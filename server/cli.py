@@ -10,6 +10,7 @@ from typing import Annotated
 
 import typer
 
+from arena.figures import METRICS, interval_text, metric_text
 from arena.neutralise.console import plain, safe
 from arena.neutralise.log_view import quoted
 from arena.terminal import make_console, print_rows
@@ -143,11 +144,6 @@ def teams_rotate(name: str) -> None:
 # --- submissions ------------------------------------------------------------------------------
 
 
-def _metric(value: float | None, digits: int = 4) -> str:
-    """A metric as printed: ``-`` when there is none (``—``-style "not measured" included)."""
-    return "-" if value is None else f"{value:.{digits}f}"
-
-
 def _status_text(row, rerunning: set[int]) -> str:
     """A scored submission with a new attempt under way keeps its old score meanwhile: say so,
     instead of "scored" next to 10/128."""
@@ -196,8 +192,8 @@ def submissions_list(
                 r.method_name,
                 _status_text(r, rerunning),
                 f"{r.progress.done}/{r.progress.total}",
-                _metric(r.metrics and r.metrics.completion),
-                _metric(r.metrics and r.metrics.time, 1),
+                metric_text("completion", r.metrics and r.metrics.completion),
+                metric_text("time", r.metrics and r.metrics.time),
             )
             for r in rows
         ],
@@ -220,6 +216,8 @@ def submissions_show(
     with ctx.db.read_session() as session:
         submission = _run(lambda: submissions.get_submission(session, submission_id))
         view = standing.team_view(session, ctx.settings.service, ctx.settings.sandbox, submission)
+        # The organisers' own count: a team sees a hidden phase's run only in quarters.
+        progress = submissions.exact_progress(session, submission)
         runs = [
             (
                 run.attempt,
@@ -255,7 +253,7 @@ def submissions_show(
         ("submission", f"{view.id} by {view.team}: {view.method_name} ({view.track})"),
         ("phase", view.phase),
         ("status", f"{view.status} {view.status_reason}".strip()),
-        ("progress", f"{view.progress.done}/{view.progress.total}"),
+        ("progress", f"{progress.done}/{progress.total}"),
         ("submitted", _at(view.created_at)),
         ("timings", _timings(view)),
         ("rank", _rank_text(view.standing)),
@@ -264,12 +262,14 @@ def submissions_show(
             "metrics",
             "-"
             if m is None
-            else f"completion {m.completion:.4f}{_interval_text(view.completion_interval)}, "
-            f"time {m.time:.1f}, humanness {_metric(m.humanness)}, rules {_metric(m.rules)}",
+            else f"completion {metric_text('completion', m.completion)}"
+            f"{_interval_text(view.completion_interval)}, time {metric_text('time', m.time)}, "
+            f"humanness {metric_text('humanness', m.humanness)}, "
+            f"rules {metric_text('rules', m.rules)}",
         ),
         ("episodes", f"{view.episodes_per_scenario} per reactive scenario"),
         *_seed_rows(view.seeds),
-        *_manifest_rows(view.manifest),
+        *_manifest_rows(view.manifest, scored=m is not None),
     ):
         console.print(f"{name}: {plain(value)}", markup=False, highlight=False)
     for attempt, status, worker, profile, error, results in runs:
@@ -281,12 +281,13 @@ def _seed_rows(seeds) -> list[tuple[str, str]]:
     """A submission scored over several training seeds: their spread and each one's."""
     if seeds is None:
         return []
-    each = ", ".join(f"{s.seed}: {s.completion:.4f}" for s in seeds.per_seed)
+    each = ", ".join(f"{s.seed}: {metric_text('completion', s.completion)}" for s in seeds.per_seed)
     return [
         (
             "seeds",
-            f"{seeds.count}, completion from {seeds.completion_min:.4f} to "
-            f"{seeds.completion_max:.4f} (std {seeds.completion_std:.4f}); per seed {each}",
+            f"{seeds.count}, completion from {metric_text('completion', seeds.completion_min)} "
+            f"to {metric_text('completion', seeds.completion_max)} "
+            f"(std {metric_text('completion', seeds.completion_std)}); per seed {each}",
         )
     ]
 
@@ -310,14 +311,15 @@ def _rank_text(standing) -> str:
         return "not ranked"
     return (
         f"team ranks {standing.rank} of {standing.teams_ranked} "
-        f"(with submission {standing.ranked_submission_id})"
+        f"(with submission {standing.ranked_submission_id}); {standing.statistics}"
     )
 
 
-def _manifest_rows(manifest) -> list[tuple[str, str]]:
+def _manifest_rows(manifest, *, scored: bool) -> list[tuple[str, str]]:
     """The reproducibility manifest, in the lines of `submissions show` (docs/scoring.md)."""
     if manifest is None:
-        return [("manifest", "- (scored before manifests were kept)")]
+        why = "scored before manifests were kept" if scored else "not scored"
+        return [("manifest", f"- ({why})")]
     software = "; ".join(
         f"arena {e.arena}, Python {e.python}, numpy {e.numpy}, SUMO {e.sumo}, {e.sandbox}"
         + (f", image {e.agent_image}" if e.agent_image else "")
@@ -343,7 +345,7 @@ def _models_text(manifest) -> str:
 
 
 def _interval_text(interval) -> str:
-    return "" if interval is None else f" [{interval.low:.4f}, {interval.high:.4f}]"
+    return "" if interval is None else f" {interval_text(interval.low, interval.high)}"
 
 
 @submissions_app.command("logs")
@@ -459,7 +461,7 @@ def rescore(
                     target.attempt,
                     target.phase,
                     used,
-                    *(_metric(metrics[k]) for k in ("completion", "time", "humanness", "rules")),
+                    *(metric_text(name, metrics[name]) for name in METRICS),
                 )
             )
             progress.advance(task)

@@ -147,7 +147,14 @@ class Standing(Schema):
     rank: int | None
     teams_ranked: int
     ranked_submission_id: int | None  # the team's submission that holds that place
-    tied_with: list[int]  # ranks whose completion interval overlaps the team's
+    # The entry's rank range and chance to beat the entry below, as on the leaderboard; tied_with
+    # the other ranks in the range (None / empty: not ranked yet).
+    rank_low: int | None = None
+    rank_high: int | None = None
+    rank_range: str | None = None
+    beats_next: float | None = None
+    tied_with: list[int]
+    statistics: str = ""  # the above in words, as the leaderboard and the CLI say them
     tries_left_today: int  # uploads left in this phase and track until 00:00 UTC
     daily_quota: int
 
@@ -223,11 +230,10 @@ class LeaderboardEntry(Schema):
     submitted_at: datetime
     metrics: Metrics
     completion_interval: CompletionInterval | None
-    # Ranks of the neighbours (just above, just below) whose completion interval overlaps this
-    # one's: statistically tied, their order may be chance.
-    tied_with: list[int]
     # Ranks this entry could hold: entries whose difference is not significant share them
     # (docs/scoring.md, "Rank ranges"); rank_range is "2-4", or "3" when the rank is certain.
+    # tied_with: the other ranks in that range, the entries it is statistically tied with.
+    tied_with: list[int]
     rank_low: int
     rank_high: int
     rank_range: str

@@ -9,7 +9,7 @@ from evaluator.scoring.episode import (
     score_episode,
     score_without_record,
 )
-from evaluator.scoring.interval import Interval, bootstrap_interval, tied_neighbours
+from evaluator.scoring.interval import Interval, bootstrap_interval
 from evaluator.scoring.metrics import Metrics, aggregate, by_family, scenario_metrics
 from evaluator.scoring.profile import DEFAULT_PROFILE, ProfileError, ScoringProfile, load_profile
 from evaluator.scoring.ranking import rank, rank_key
@@ -38,5 +38,4 @@ __all__ = [
     "scenario_metrics",
     "score_episode",
     "score_without_record",
-    "tied_neighbours",
 ]

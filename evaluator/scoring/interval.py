@@ -1,9 +1,10 @@
-"""How sure a completion figure is: a bootstrap confidence interval, and ties between neighbours.
+"""How sure a completion figure is: a bootstrap confidence interval.
 
 Two evaluations of agents that are equally good differ by chance (which scenarios the suite
 drew, which traffic each episode met). The interval resamples both and says how far that
-chance alone moves the completion error; two leaderboard neighbours whose intervals overlap are
-statistically tied: their order may be luck.
+chance alone moves the completion error. Whether two entries are tied is not read from their
+intervals overlapping (two entries paired over one suite can be told apart with overlapping
+intervals): that is the rank ranges' question (:mod:`evaluator.scoring.significance`).
 """
 
 from __future__ import annotations
@@ -25,9 +26,6 @@ _CHUNK = 100
 class Interval:
     low: float
     high: float
-
-    def overlaps(self, other: Interval) -> bool:
-        return self.low <= other.high and other.low <= self.high
 
 
 def bootstrap_interval(
@@ -63,22 +61,3 @@ def bootstrap_interval(
     tail = 100 * (1 - level) / 2
     low, high = np.percentile(np.concatenate(means), [tail, 100 - tail])
     return Interval(float(low), float(high))
-
-
-def tied_neighbours(intervals: Sequence[Interval | None]) -> list[tuple[int, ...]]:
-    """For entries in rank order, the positions (0-based) of the neighbours just above and
-    below whose interval overlaps the entry's; an entry without an interval ties with nobody."""
-    ties = []
-    for position, interval in enumerate(intervals):
-        near = (position - 1, position + 1)
-        ties.append(
-            tuple(
-                other
-                for other in near
-                if 0 <= other < len(intervals)
-                and interval is not None
-                and intervals[other] is not None
-                and interval.overlaps(intervals[other])
-            )
-        )
-    return ties

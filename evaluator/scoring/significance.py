@@ -17,7 +17,9 @@ entry (the second stage, at the cost of one gather per resample whatever the epi
 
 An entry's rank range runs from one plus the number of entries that beat it significantly to the
 number of entries minus those it beats significantly: entries whose difference is not
-significant share ranks.
+significant share ranks. "Tied" means exactly that and nothing else: an entry is tied with the
+other ranks inside its range (:attr:`RankRange.tied_with`), the one definition the leaderboard's
+badge, the team's standing, the API, the CSV and the CLI all show.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from arena.figures import percent
 from evaluator.scoring.interval import BOOTSTRAP_SEED, LEVEL, RESAMPLES
 
 # One row per episode: what the suite metrics are built from (evaluator/scoring/episode.py).
@@ -74,13 +77,40 @@ class MetricSamples:
 
 @dataclass(frozen=True)
 class RankRange:
-    low: int  # best rank the entry could hold (1-based)
+    rank: int  # the entry's position on the leaderboard (1-based)
+    low: int  # best rank the entry could hold
     high: int  # worst
     beats_next: float | None  # chance it ranks ahead of the entry just below; None for the last
 
     @property
     def label(self) -> str:
         return str(self.low) if self.low == self.high else f"{self.low}-{self.high}"
+
+    @property
+    def tied_with(self) -> tuple[int, ...]:
+        """The other ranks the entry could hold: those it is statistically tied with (none when
+        its rank is certain)."""
+        return tuple(r for r in range(self.low, self.high + 1) if r != self.rank)
+
+    @property
+    def statement(self) -> str:
+        """The range and the chance against the entry below in words, as every view says them:
+        ``could rank 1 to 2 (statistically tied with rank 2); ahead of rank 2 in 71.5% of the
+        bootstrap resamples``."""
+        if self.tied_with:
+            ranks = " and ".join(str(r) for r in self.tied_with)
+            where = (
+                f"could rank {self.low} to {self.high} (statistically tied with "
+                f"rank{'s' if len(self.tied_with) > 1 else ''} {ranks})"
+            )
+        else:
+            where = f"rank {self.rank} is certain (no entry statistically tied)"
+        if self.beats_next is None:
+            return where
+        return (
+            f"{where}; ahead of rank {self.rank + 1} in {percent(self.beats_next)} of the "
+            "bootstrap resamples"
+        )
 
 
 def _metrics(sums: np.ndarray, counts: np.ndarray) -> np.ndarray:
@@ -221,9 +251,66 @@ def ranges_from_replicates(
         beats_next = None if i + 1 == n or np.isnan(raw[i, i + 1]) else float(raw[i, i + 1])
         ranges.append(
             RankRange(
+                rank=i + 1,
                 low=min(i + 1, 1 + int(above.sum())),
                 high=max(i + 1, n - int(below.sum())),
                 beats_next=beats_next,
             )
         )
     return ranges
+
+
+@dataclass(frozen=True)
+class PairedDifference:
+    """B minus A over the scenarios both ran, each of the four metrics with its interval (None
+    where either side measured nothing), and the chance B ranks ahead of A by the hierarchy."""
+
+    scenarios: int  # shared scenarios the difference is taken over
+    difference: tuple[float | None, ...]
+    low: tuple[float | None, ...]
+    high: tuple[float | None, ...]
+    b_ahead: float
+
+
+def paired_difference(
+    a: MetricSamples,
+    b: MetricSamples,
+    *,
+    level: float = LEVEL,
+    resamples: int = RESAMPLES,
+    seed: int = BOOTSTRAP_SEED,
+) -> PairedDifference | None:
+    """B - A paired over the scenarios both evaluations ran: every resample draws the same
+    scenarios (and, where both ran as many episodes of a scenario, the same episode indices,
+    episode ``k`` having the same traffic for both) for the two, so what is common to both
+    cancels and the interval is that of the difference itself, narrower than the two
+    intervals side by side. None when they ran different suites (a scenario id then names two
+    different scenarios) or share no scenario."""
+    shared = sorted(set(a.scenarios) & set(b.scenarios))
+    if a.suite != b.suite or not shared:
+        return None
+    sides = [
+        MetricSamples(side.suite, {sid: side.scenarios[sid] for sid in shared}) for side in (a, b)
+    ]
+    reps_a, reps_b = (replicates(side, resamples=resamples, seed=seed) for side in sides)
+    tail = 100 * (1 - level) / 2
+    with np.errstate(invalid="ignore"):
+        point = sides[1].metrics() - sides[0].metrics()
+        diff = reps_b - reps_a
+    bounds = []
+    for column in diff.T:
+        measured = column[~np.isnan(column)]
+        bounds.append(
+            np.percentile(measured, [tail, 100 - tail]) if len(measured) else (np.nan, np.nan)
+        )
+    return PairedDifference(
+        scenarios=len(shared),
+        difference=_optional(point),
+        low=_optional([low for low, _ in bounds]),
+        high=_optional([high for _, high in bounds]),
+        b_ahead=float(beat_matrix([reps_a, reps_b])[1, 0]),
+    )
+
+
+def _optional(values) -> tuple[float | None, ...]:
+    return tuple(None if np.isnan(v) else float(v) for v in values)

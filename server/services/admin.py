@@ -12,7 +12,7 @@ from arena.config import EvaluationSettings, ServiceSettings, Settings
 from arena.episodes import Episode
 from arena.outcome import FINISHED, ScenarioStatus
 from evaluator.compare import METRIC_NAMES, SeedRun, Side, outcome_text
-from evaluator.scoring import Interval, ProfileError, ScoringProfile, load_profile
+from evaluator.scoring import Interval, MetricSamples, ProfileError, ScoringProfile, load_profile
 from evaluator.scoring import Metrics as ScoringMetrics
 from evaluator.scoring.seeds import Spread
 from server.core.artifacts import ArtifactStore
@@ -316,6 +316,7 @@ def comparison_side(db: Database, submission_id: int) -> Side:
                 family: _compared_metrics(values) for family, values in score.families.items()
             },
             "suite": runs[0][1].manifest_sha256,
+            "samples": MetricSamples.from_json(score.samples) if score.samples else None,
         }
         who = f"submission {submission.id} of {submission.team.name} ({submission.phase}"
         if not isinstance(score, SeedSetScore):

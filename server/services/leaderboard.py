@@ -2,10 +2,9 @@
 scoring spec.
 
 The ordering rule lives in :func:`evaluator.scoring.rank` (lexicographic on the four errors, full
-ties to the earlier submission), the statistical ties in :func:`evaluator.scoring.tied_neighbours`
-and the rank ranges in :mod:`evaluator.scoring.significance`; this module only chooses the
-candidates and caches the result (and each score's bootstrap replicates, which never change while
-the score stands).
+ties to the earlier submission), the rank ranges and the statistical ties they define in
+:mod:`evaluator.scoring.significance`; this module only chooses the candidates and caches the
+result (and each score's bootstrap replicates, which never change while the score stands).
 """
 
 from __future__ import annotations
@@ -21,10 +20,11 @@ import numpy as np
 from sqlalchemy import or_, select
 from sqlalchemy.orm import Session
 
+from arena.figures import METRICS
 from arena.neutralise.spreadsheet import write_rows
-from evaluator.scoring import Interval, MetricSamples, rank, tied_neighbours
 from evaluator.scoring import Metrics as ScoringMetrics
-from evaluator.scoring.significance import ranges_from_replicates, replicates
+from evaluator.scoring import MetricSamples, rank
+from evaluator.scoring.significance import RankRange, ranges_from_replicates, replicates
 from server.core.db import Database
 from server.models import (
     EvaluationRun,
@@ -47,8 +47,6 @@ from server.services.phases import DEFAULT_PHASE, get_phase, list_phases
 from server.services.seed_sets import seed_results
 from server.services.submissions import completion_interval
 from server.status import RunStatus, SubmissionStatus
-
-METRICS = ("completion", "time", "humanness", "rules")
 
 # A score's bootstrap replicates (None: scored before per-episode values were kept), by its
 # table, id and when it was computed (a re-score writes a new row).
@@ -139,7 +137,6 @@ def compute(
     for row in rank(latest.values(), metrics=metrics, submitted_at=submitted_at):
         best_per_team.setdefault(row[1], row)
     intervals = [completion_interval(row[3]) for row in best_per_team.values()]
-    ties = tied_neighbours([Interval(i.low, i.high) if i is not None else None for i in intervals])
     scores = [row[3] for row in best_per_team.values()]
     ranges = ranges_from_replicates(_replicates(session, scores, {} if known is None else known))
     entries = [
@@ -151,7 +148,7 @@ def compute(
             submitted_at=submission.created_at,
             metrics=Metrics.model_validate(score),
             completion_interval=interval,
-            tied_with=[other + 1 for other in tied],
+            tied_with=list(ranks.tied_with),
             rank_low=ranks.low,
             rank_high=ranks.high,
             rank_range=ranks.label,
@@ -163,11 +160,16 @@ def compute(
                 for family, values in score.families.items()
             },
         )
-        for position, ((submission, team, _, score, episodes), interval, tied, ranks) in enumerate(
-            zip(best_per_team.values(), intervals, ties, ranges, strict=True), start=1
+        for position, ((submission, team, _, score, episodes), interval, ranks) in enumerate(
+            zip(best_per_team.values(), intervals, ranges, strict=True), start=1
         )
     ]
     return Leaderboard(phase=phase, track=track, entries=entries)
+
+
+def rank_range(entry: LeaderboardEntry) -> RankRange:
+    """The entry's rank range, to say it in words (:attr:`RankRange.statement`)."""
+    return RankRange(entry.rank, entry.rank_low, entry.rank_high, entry.beats_next)
 
 
 def with_gap(board: Leaderboard, reference: Leaderboard) -> Leaderboard:

@@ -50,7 +50,12 @@ def standing(session: Session, service: ServiceSettings, submission: Submission)
         rank=ours.rank if ours else None,
         teams_ranked=len(board.entries),
         ranked_submission_id=ours.submission_id if ours else None,
+        rank_low=ours.rank_low if ours else None,
+        rank_high=ours.rank_high if ours else None,
+        rank_range=ours.rank_range if ours else None,
+        beats_next=ours.beats_next if ours else None,
         tied_with=ours.tied_with if ours else [],
+        statistics=leaderboard.rank_range(ours).statement if ours else "",
         tries_left_today=tries_left_today(
             session, service, submission.team_id, phase, submission.track, utcnow()
         ),

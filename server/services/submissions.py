@@ -318,6 +318,13 @@ def shown_run(submission: Submission) -> EvaluationRun | None:
     return active_run(submission) or current_run(submission)
 
 
+def exact_progress(session: Session, submission: Submission) -> Progress:
+    """Episodes done of the shown run's seed set, counted exactly (the organisers' view: its
+    team sees a hidden phase's run under way only in quarters)."""
+    run, runs = _shown_runs(submission)
+    return shown_progress(run, runs, finished_counts(session, [r.id for r in runs]), hidden=False)
+
+
 def _shown_runs(submission: Submission) -> tuple[EvaluationRun | None, list[EvaluationRun]]:
     """The shown run and its seed set's runs (itself alone but for several seeds)."""
     run = shown_run(submission)

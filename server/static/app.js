@@ -100,7 +100,8 @@ const Arena = (() => {
   }
 
   function fmt(metric, value) {
-    // As in the templates' _format.html: "—" when no agent drove a step (nothing measured).
+    // The rule of arena/figures.py, which every page, the CSV and the CLI use: toFixed rounds
+    // halves away from zero on the exact value as it does; "—" when nothing was measured.
     if (value === null || value === undefined) return "—";
     return metric === "time" ? value.toFixed(1) : value.toFixed(4);
   }
@@ -193,8 +194,8 @@ const Arena = (() => {
       : `Your team holds rank ${st.rank} of ${st.teams_ranked} on ${board}` +
         (st.ranked_submission_id === s.id ? " with this submission"
           : ` with submission ${st.ranked_submission_id}`) +
-        (st.tied_with.length ? ` (statistically tied with rank ${st.tied_with.join(" and ")})`
-          : "") + ".";
+        // The rank range in the words of the leaderboard and the CLI (said by the server).
+        `: ${st.statistics}.`;
     text += ` ${st.tries_left_today} of ${st.daily_quota} uploads left today in this phase.`;
     $("standing").textContent = text;
   }

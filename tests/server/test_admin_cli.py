@@ -84,7 +84,7 @@ def test_rescore_rerun_and_export(arena, db, settings):
     sid = queued_submission(db, team)
     run_everything(db, settings, start(db, settings, sid))
     output = arena("rescore", str(sid))
-    assert "100.0000" in output  # time of three successes at step 100
+    assert "\t100.0\t" in output  # time of three successes at step 100, as every view writes it
     arena("rescore", "--all")
     refused = arena("rescore", "--phase", "final", "--profile", "nope", ok=False)
     assert "unknown scoring profile" in refused
@@ -346,14 +346,21 @@ def test_compare_two_submissions_of_a_hidden_phase(arena, db, settings):
     output = arena("compare", str(worse), str(better))
     assert f"A: submission {worse} of alpha (final, attempt 1" in output
     lines = [line.split("\t") for line in output.splitlines()]
+    # B - A, and B - A paired over the scenarios both ran: every one differs alike.
     assert next(row for row in lines if row[0] == "completion")[1:] == [
         "1.0000",
         "0.0000",
         "-1.0000",
+        "[-1.0000, -1.0000] B better",
     ]
+    ahead = next(row for row in lines if row[0] == "B ranks ahead of A")
+    assert ahead[-1] == "100.0% of resamples over 3 shared scenarios"
     assert "3 episode(s) ended differently" in output
     document = json.loads(arena("compare", str(worse), str(better), "--json"))
     assert {row["b"] for row in document["differing_outcomes"]} == {"reached_goal"}
+    paired = document["paired"]
+    assert (paired["scenarios"], paired["b_ranks_ahead"]) == (3, 1.0)
+    assert paired["completion"] == {"b_minus_a": -1.0, "low": -1.0, "high": -1.0}
     queued = queued_submission(db, team)
     assert "no score yet" in arena("compare", str(worse), str(queued), ok=False)
 

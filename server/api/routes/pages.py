@@ -12,6 +12,7 @@ from fastapi import Path as PathParam
 from fastapi.responses import HTMLResponse
 
 from arena.config import EvaluationSettings
+from arena.figures import interval_text, metric_text, percent
 from server.api.deps import (
     MAX_ROW_ID,
     EvaluationDep,
@@ -26,11 +27,18 @@ from server.api.security import page_templates
 from server.models import Phase, utcnow
 from server.services import phases, scenarios
 from server.services.errors import NotFound
-from server.services.leaderboard import METRICS, with_gap
+from server.services.leaderboard import METRICS, rank_range, with_gap
 from server.services.phases import DEFAULT_PHASE
 from server.tracks import Track
 
 templates = page_templates(Path(__file__).resolve().parents[2] / "templates")
+# One way to write a figure and a rank range on every page (and in the CLI, the CSV, the API).
+templates.env.globals.update(
+    metric_text=metric_text,
+    interval_text=interval_text,
+    percent=percent,
+    rank_statement=lambda entry: rank_range(entry).statement,
+)
 router = APIRouter(include_in_schema=False)
 
 

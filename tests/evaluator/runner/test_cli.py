@@ -71,7 +71,10 @@ def test_compare_two_results_folders_side_by_side(results, tmp_path):
     assert result.exit_code == 0, result.output
     lines = [line.split("\t") for line in result.output.splitlines()]
     completion = next(row for row in lines if row[0] == "completion")
-    assert completion == ["completion", "0.5000", "0.0000", "-0.5000"]
+    # Two scenarios, B better on one: paired over them, the difference is -1 or 0 per draw.
+    assert completion == ["completion", "0.5000", "0.0000", "-0.5000", "[-1.0000, +0.0000]"]
+    ahead = next(row for row in lines if row[0] == "B ranks ahead of A")[-1]
+    assert ahead.endswith("of resamples over 2 shared scenarios")
     assert any(row[0] == "completion 95% interval" for row in lines)
     merge = next(row for row in lines if row[0] == "merge")
     assert merge[1:3] == ["1.0000", "0.0000"]

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from evaluator.scoring import Interval, bootstrap_interval, tied_neighbours
+from evaluator.scoring import Interval, bootstrap_interval
 
 
 def test_identical_values_give_a_point_interval():
@@ -55,13 +55,3 @@ def test_empty_input_is_refused():
         bootstrap_interval([])
     with pytest.raises(ValueError):
         bootstrap_interval([[0.5], []])
-
-
-def test_neighbours_whose_intervals_overlap_are_tied():
-    intervals = [Interval(0.0, 0.1), Interval(0.05, 0.2), Interval(0.3, 0.4), None]
-    assert tied_neighbours(intervals) == [(1,), (0,), (), ()]
-
-
-def test_touching_intervals_tie_and_a_chain_ties_each_to_both_sides():
-    intervals = [Interval(0.0, 0.2), Interval(0.2, 0.4), Interval(0.35, 0.5)]
-    assert tied_neighbours(intervals) == [(1,), (0, 2), (1,)]

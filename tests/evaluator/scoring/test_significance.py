@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from evaluator.scoring import MetricSamples, RankRange, rank_ranges
-from evaluator.scoring.significance import beat_matrix, replicates
+from evaluator.scoring.significance import beat_matrix, paired_difference, replicates
 from tests.evaluator.scoring.builders import MAX_STEPS, simulated
 
 
@@ -86,7 +86,7 @@ def test_time_decides_when_completion_is_equal_and_so_does_humanness():
     first, second = rank_ranges([smooth, jerky])
     assert (first.label, second.label) == ("1", "2")
     twin = MetricSamples(smooth.suite, dict(smooth.scenarios))
-    assert rank_ranges([smooth, twin])[0] == RankRange(1, 2, beats_next=0.5)
+    assert rank_ranges([smooth, twin])[0] == RankRange(1, 1, 2, beats_next=0.5)
 
 
 def test_an_agent_that_drove_beats_one_that_never_did_in_every_resample():
@@ -112,6 +112,50 @@ def test_pairing_over_a_shared_suite_sees_a_consistent_small_difference():
     apart = rank_ranges([a, unpaired])
     assert together[0].label == "1" and together[0].beats_next > 0.975
     assert apart[0].high == 2  # drawn independently, the suite's spread hides the difference
+
+
+def test_tied_means_sharing_a_rank_range_and_nothing_else():
+    """Two entries paired over one suite whose completion intervals overlap but whose ranks are
+    certain are not tied (the badge once said they were, beside ranges "1" and "2")."""
+    rng = np.random.default_rng(7)
+    a = simulated(rng, rng.random(60), scenarios=60, episodes=1)
+    b_table = {sid: rows.copy() for sid, rows in a.scenarios.items()}
+    for sid in list(b_table)[::6]:
+        b_table[sid][:, 0] = 1.0
+    first, second = rank_ranges([a, MetricSamples("suite", b_table)])
+    assert (first.label, second.label) == ("1", "2") and first.beats_next > 0.975
+    assert first.tied_with == second.tied_with == ()
+    assert first.statement.startswith("rank 1 is certain (no entry statistically tied); ahead")
+    spread = RankRange(rank=2, low=1, high=4, beats_next=0.53125)
+    assert spread.tied_with == (1, 3, 4)
+    assert spread.statement == (
+        "could rank 1 to 4 (statistically tied with ranks 1 and 3 and 4); ahead of rank 3 in "
+        "53.1% of the bootstrap resamples"
+    )
+    assert (
+        RankRange(3, 2, 3, None).statement == "could rank 2 to 3 (statistically tied with rank 2)"
+    )
+
+
+def test_a_paired_difference_sees_what_the_two_intervals_side_by_side_do_not():
+    rng = np.random.default_rng(7)
+    a = simulated(rng, rng.random(60), scenarios=60, episodes=2)
+    b_table = {sid: rows.copy() for sid, rows in a.scenarios.items()}
+    for sid in list(b_table)[::6]:
+        b_table[sid][:, 0] = 1.0
+    b_table["only in b"] = b_table[next(iter(b_table))]
+    b = MetricSamples("suite", b_table)
+    pair = paired_difference(a, b)
+    assert pair.scenarios == 60  # the scenario only B ran is left out
+    shared = MetricSamples("suite", {sid: b_table[sid] for sid in a.scenarios})
+    assert pair.difference[0] == pytest.approx(shared.metrics()[0] - a.metrics()[0])
+    assert 0 < pair.low[0] <= pair.difference[0] <= pair.high[0]
+    assert pair.b_ahead < 0.025
+    # Against itself: no difference at all, in every resample.
+    same = paired_difference(a, a)
+    assert same.difference[:2] == same.low[:2] == same.high[:2] == (0.0, 0.0)
+    assert same.b_ahead == 0.5
+    assert paired_difference(a, MetricSamples("another suite", b_table)) is None
 
 
 def test_entries_without_samples_keep_their_rank_and_no_range_crosses_them():

@@ -9,6 +9,7 @@ from datetime import timedelta
 
 import numpy as np
 
+from evaluator.scoring import MetricSamples, bootstrap_interval
 from server.core.queue import TaskQueue
 from server.models import utcnow
 from server.services import submissions
@@ -16,7 +17,7 @@ from server.services.leaderboard import LeaderboardCache
 from server.status import SubmissionStatus
 from server.tracks import Track
 from tests.evaluator.scoring.builders import simulated
-from tests.server.builders import make_team, seed_scored
+from tests.server.builders import bearer, make_team, seed_scored
 
 
 def board(client, track="freestyle"):
@@ -108,29 +109,86 @@ def test_an_entry_that_never_drove_shows_dashes_and_ranks_last(client, db):
     assert (rows[1]["team"], rows[1]["humanness"], rows[1]["rules"]) == ("never", "", "")
 
 
-def test_intervals_are_shown_and_overlapping_neighbours_marked_tied(client, db):
-    t0 = utcnow() - timedelta(hours=5)
-    teams = {name: make_team(db, name)[0] for name in ("a", "b", "c", "d")}
-    seed_scored(db, teams["a"], (0.10, 300.0, 0.1, 0.0), interval=(0.05, 0.15), created_at=t0)
-    seed_scored(db, teams["b"], (0.12, 300.0, 0.1, 0.0), interval=(0.08, 0.20), created_at=t0)
-    seed_scored(db, teams["c"], (0.40, 300.0, 0.1, 0.0), interval=(0.30, 0.50), created_at=t0)
-    seed_scored(db, teams["d"], (0.45, 300.0, 0.1, 0.0), created_at=t0)  # scored before intervals
+def paired_entries(db, rng) -> None:
+    """The final phase the issue met: two teams evaluated on one suite, B failing a little more
+    than A scenario by scenario; their completion intervals overlap, yet paired over the suite
+    the difference is certain."""
+    a = simulated(rng, rng.random(60), scenarios=60, episodes=1)
+    b_table = {sid: rows.copy() for sid, rows in a.scenarios.items()}
+    for sid in list(b_table)[::6]:
+        b_table[sid][:, 0] = 1.0
+    b = MetricSamples("suite", b_table)
+    t0 = utcnow() - timedelta(hours=1)
+    for name, samples in (("a", a), ("b", b)):
+        per_scenario = [rows[:, 0].tolist() for rows in samples.scenarios.values()]
+        interval = bootstrap_interval(per_scenario)
+        seed_scored(
+            db,
+            make_team(db, name)[0],
+            tuple(samples.metrics()),
+            samples=samples,
+            interval=(interval.low, interval.high),
+            created_at=t0,
+        )
+
+
+def test_tied_means_what_the_rank_ranges_say_in_every_view(client, db, arena):
+    """Both entries were once badged "tied" and the team page said "statistically tied with
+    rank 2" beside ranges "1" and "2" and beats_next 1.0: one definition now, everywhere."""
+    paired_entries(db, np.random.default_rng(7))
     entries = board(client)
-    assert [e["team"] for e in entries] == ["a", "b", "c", "d"]
-    assert entries[0]["completion_interval"] == {"low": 0.05, "high": 0.15}
-    assert entries[3]["completion_interval"] is None
-    assert [e["tied_with"] for e in entries] == [[2], [1], [], []]
+    first, second = (entries[0]["completion_interval"], entries[1]["completion_interval"])
+    assert first["high"] >= second["low"]  # the intervals overlap
+    assert [e["rank_range"] for e in entries] == ["1", "2"]
+    assert entries[0]["beats_next"] > 0.975
+    assert [e["tied_with"] for e in entries] == [[], []]
 
     page = client.get("/").text
-    assert "0.1000" in page and "[0.0500, 0.1500]" in page and "[0.3000, 0.5000]" in page
-    assert page.count('class="tied"') == 2 + 1  # the two tied rows and the legend
-    assert "statistically tied with rank 2" in page
+    assert 'class="tied"' not in page.split('id="interval-legend"')[0]
+    assert "rank 1 is certain" in page
+    assert f"{100 * entries[0]['beats_next']:.1f}%" in page  # visible, not only on hover
     rows = list(csv.DictReader(io.StringIO(client.get("/api/v1/leaderboard.csv").text)))
-    assert (rows[1]["completion_low"], rows[1]["completion_high"], rows[1]["tied_with"]) == (
-        "0.08",
-        "0.2",
-        "1",
-    )
+    assert [(row["rank_range"], row["tied_with"]) for row in rows] == [("1", ""), ("2", "")]
+
+    shown = arena("submissions", "show", str(entries[0]["submission_id"]))
+    assert "rank 1 is certain (no entry statistically tied)" in shown
+    assert "tied with rank" not in shown
+
+
+def test_a_range_is_tied_in_every_view_and_the_standing_carries_it(client, db):
+    rng = np.random.default_rng(11)
+    a, b = simulated(rng, 0.2, scenarios=60), simulated(rng, 0.2, scenarios=60)
+    t0 = utcnow() - timedelta(hours=1)
+    tokens = {}
+    for name, samples in (("a", a), ("b", b)):
+        team, tokens[name] = make_team(db, name)
+        seed_scored(db, team, tuple(samples.metrics()), samples=samples, created_at=t0)
+    entries = board(client)
+    assert [e["rank_range"] for e in entries] == ["1-2", "1-2"]
+    assert [e["tied_with"] for e in entries] == [[2], [1]]
+    second = entries[1]
+    detail = client.get(
+        f"/api/v1/submissions/{second['submission_id']}", headers=bearer(tokens[second["team"]])
+    ).json()
+    standing = detail["standing"]
+    assert (standing["rank"], standing["rank_range"], standing["tied_with"]) == (2, "1-2", [1])
+    assert (standing["rank_low"], standing["rank_high"]) == (1, 2)
+    assert standing["statistics"] == "could rank 1 to 2 (statistically tied with rank 1)"
+    page = client.get("/").text.split('id="interval-legend"')[0]
+    assert page.count('class="tied"') == 2
+    assert page.count('class="rank-chart"') == 2
+
+
+def test_one_rounding_everywhere(client, db, arena):
+    """An interval once read 0.5313 on the submission page and 0.5312 on the leaderboard and
+    in the CLI: a half at the fourth decimal is rounded alike by every view."""
+    team, _ = make_team(db, "alpha")
+    sid = seed_scored(db, team, (0.53125, 412.25, 0.1, 0.0), interval=(0.40625, 0.65625))
+    page = client.get("/").text
+    assert "0.5313" in page and "[0.4063, 0.6563]" in page and "412.3" in page
+    shown = arena("submissions", "show", str(sid))
+    assert "completion 0.5313 [0.4063, 0.6563], time 412.3" in shown
+    assert "0.5313" in arena("submissions", "list")
 
 
 def test_rank_ranges_share_ranks_the_bootstrap_cannot_tell_apart(client, db):
@@ -160,7 +218,7 @@ def test_rank_ranges_share_ranks_the_bootstrap_cannot_tell_apart(client, db):
 
     page = client.get("/").text
     assert page.count('class="rank-range"') == 4 + 1  # and the legend
-    assert f"ranks ahead of rank 2 in {100 * chances[0]:.1f}% of" in page
+    assert f"ahead of rank 2 in {100 * chances[0]:.1f}% of" in page
 
 
 def test_a_rescore_or_a_new_best_changes_the_ranges_and_the_cache_keeps_only_the_board(
