@@ -163,13 +163,20 @@ class IntakeSettings(_Group):
     max_unzipped_bytes: int = 500 * 1024**2
     max_zip_entries: int = 10_000
     max_compression_ratio: float = 200.0
-    # Requirements: the downloaded wheels, and all of them unpacked (bytes and files).
-    max_deps_download_bytes: int = 400 * 1024**2
-    max_deps_bytes: int = 1536 * 1024**2
-    max_deps_files: int = 30_000
-    # Extra `pip download` options (e.g. `["--no-index", "--find-links", "/srv/wheels"]`); the
-    # package index itself comes from the host's pip configuration.
-    pip_options: list[str] = Field(default_factory=list)
+    # Requirements (docs/submissions.md): one wheel (torch's CPU build is 183 MiB), the whole
+    # stack downloaded, and the whole stack unpacked (bytes and files).
+    max_wheel_bytes: int = 512 * 1024**2
+    max_deps_download_bytes: int = 1536 * 1024**2
+    max_deps_bytes: int = 4096 * 1024**2
+    max_deps_files: int = 100_000
+    # Where requirements resolve from: index URLs (the first is pip's index, the rest extra
+    # indexes) and wheel folders. Empty: the host's pip configuration (index-url,
+    # extra-index-url, find-links; never its constraints). The resolver sandbox reaches these and
+    # nothing else (docs/sandbox.md).
+    package_index: list[str] = Field(default_factory=list)
+    # The resolver sandbox (evaluator/sandbox/resolver.py): its wall time [s] and memory.
+    resolver_timeout_s: float = 600.0
+    resolver_memory_bytes: int = 2 * 1024**3
     # The validation of an upload (agent_runtime/intake.py in the sandbox): its memory, its wall
     # time [s] (per step: the zip, then the wheels). Disk: the unzipped and deps caps above.
     intake_memory_bytes: int = 1024**3

@@ -72,6 +72,9 @@ class Training:
     output_bytes: int  # no single file larger
     gpu: bool = False
     seed: int = 0  # ARENA_TRAIN_SEED
+    # More host folders bound read-only, (where the sandbox sees it, host folder): the
+    # resolver's pip, package index folders and its proxy's socket (evaluator/sandbox/resolver.py).
+    mounts: tuple[tuple[str, Path], ...] = ()
 
     def env(self, dataset: str, output: str) -> dict[str, str]:
         """The training's variables, with the dataset and output as the sandbox sees them."""

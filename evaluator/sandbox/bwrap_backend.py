@@ -123,6 +123,7 @@ class BubblewrapBackend:
         if spec.training is not None:
             binds[DATASET_MOUNT] = spec.training.dataset
             binds[MODEL_MOUNT] = spec.training.output
+            binds |= dict(spec.training.mounts)
         elif spec.model is not None:
             binds[MODEL_MOUNT] = spec.model
         training = spec.training is not None

@@ -127,6 +127,8 @@ def container_options(spec: LaunchSpec, socket_dir: Path | None) -> dict[str, An
     if spec.training is not None:
         volumes[str(spec.training.dataset)] = {"bind": DATASET_MOUNT, "mode": "ro"}
         volumes[str(spec.training.output)] = {"bind": MODEL_MOUNT, "mode": "rw"}
+        for target, source in spec.training.mounts:
+            volumes[str(source)] = {"bind": target, "mode": "ro"}
         cap = spec.training.output_bytes
         extra["ulimits"] = [Ulimit(name="fsize", soft=cap, hard=cap)]
         if spec.training.gpu:

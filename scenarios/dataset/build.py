@@ -64,8 +64,7 @@ class HiddenTracks:
         per_scene = json.loads(tracks_path.read_text()) if tracks_path.is_file() else {}
         tracks = TrackIndex()
         for scene, scene_tracks in per_scene.items():
-            for track in scene_tracks:
-                tracks.add((scene, track["vehicle"]), track["poses"])
+            tracks.add(scene, {track["vehicle"]: track["poses"] for track in scene_tracks})
         return cls(frozenset(s["sha256"] for s in scenes), tracks)
 
     def shared(self, scene: CorpusScene) -> str | None:
@@ -73,8 +72,7 @@ class HiddenTracks:
         suite), or None."""
         if scene.sha256() in self.hashes:
             return "the suite used this file"
-        for vehicle, poses in scene.tracks().items():
-            same = self.tracks.same_vehicle(poses)
+        for vehicle, same in sorted(self.tracks.same_vehicles(scene.tracks()).items()):
             if same:
                 hidden_scene, hidden_vehicle = sorted(same)[0]
                 return (

@@ -132,10 +132,12 @@ def _identities(scenes: list[CorpusScene]) -> dict[TrackKey, TrackKey]:
         return key
 
     for s in scenes:
-        for vehicle, poses in s.tracks().items():
+        tracks = s.tracks()
+        same = index.same_vehicles(tracks)
+        for vehicle in tracks:
             key = (s.file, vehicle)
             parent[key], files[key] = key, {s.file}
-            for other in sorted(index.same_vehicle(poses)):
+            for other in sorted(same.get(vehicle, ())):
                 a, b = sorted((root(key), root(other)))
                 # Two obstacles of one file are two vehicles, however alike (simulated traffic
                 # drives identical paths at identical speeds): never join them, not even
@@ -143,5 +145,5 @@ def _identities(scenes: list[CorpusScene]) -> dict[TrackKey, TrackKey]:
                 if a != b and not files[a] & files[b]:
                     parent[b] = a
                     files[a] |= files.pop(b)
-            index.add(key, poses)
+        index.add(s.file, tracks)
     return {key: root(key) for key in parent}

@@ -8,17 +8,19 @@ A track's *poses* are its moving frames as (frame, x, y, heading), rounded as a 
 them. Each frame that has poses :data:`WINDOW` and twice and three times :data:`WINDOW` frames
 later gives a *shape token*: the distances between those four positions (how far it drove in each
 of three seconds, and how much it turned), which no rigid motion and no change of clock alters.
-Tracks sharing at least :data:`MIN_TOKENS` tokens at one constant frame offset are candidates; two
-are one vehicle when the positions of every frame they share at that offset are one rigid motion
-apart, to :data:`MAX_RESIDUAL_M`, over at least :data:`MIN_SHARED_POSES` frames. Two vehicles
-following one lane drive the same line but not the same speeds, and a stopped vehicle's poses
-are left out (any two queue at one stop line).
+Tracks sharing at least :data:`MIN_TOKENS` tokens at one constant frame offset are candidates,
+kept when the positions of every frame they share at that offset are one rigid motion apart, to
+:data:`MAX_RESIDUAL_M`, over at least :data:`MIN_SHARED_POSES` frames; then they are one vehicle
+if that shape says enough or a neighbour agrees (:class:`TrackIndex`). Two vehicles following one
+lane drive the same line but not the same speeds, and a stopped vehicle's poses are left out
+(any two queue at one stop line).
 """
 
 from __future__ import annotations
 
 from collections import Counter, defaultdict
-from collections.abc import Iterable, Sequence
+from collections.abc import Hashable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -31,6 +33,7 @@ _DISTANCE_CELL = 0.1  # [m] a token's distances are rounded to this
 MIN_TOKENS = 3  # shared tokens at one frame offset that make two tracks a candidate pair
 MIN_SHARED_POSES = 15  # frames two tracks of one vehicle share at least (1.5 s)
 MAX_RESIDUAL_M = 0.1  # [m] farthest a shared frame's position may be from the rigid fit
+SHAPED_M = 0.5  # [m] a segment this far from a straight line at one speed has a shape of its own
 
 Pose = tuple[int, float, float, float]  # (frame, x [m], y [m], heading [rad])
 
@@ -87,44 +90,94 @@ def _rigid_residual(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.hypot(*(ca @ rotation - cb).T).max())
 
 
+def _line_deviation(frames: np.ndarray, xy: np.ndarray) -> float:
+    """Farthest [m] ``xy`` lies from the best constant-velocity straight line through it: how
+    much shape a segment has (none when it cruises straight at one speed)."""
+    design = np.stack([np.ones(len(frames)), frames - frames[0]], axis=1).astype(float)
+    fit, *_ = np.linalg.lstsq(design, xy, rcond=None)
+    return float(np.hypot(*(design @ fit - xy).T).max())
+
+
+Key = tuple[Hashable, str]  # (scene, vehicle id)
+
+
+@dataclass(frozen=True)
+class _Pair:
+    """A query vehicle whose shared frames are one rigid motion from an indexed one's."""
+
+    vehicle: str
+    key: Key
+    offset: int  # indexed frame - query frame
+    frames: np.ndarray  # (n,) the shared frames, on the indexed track's clock
+    mine: np.ndarray  # (n, 2) the query's positions at the shared frames
+    theirs: np.ndarray  # (n, 2) the indexed track's
+
+
 class TrackIndex:
-    """Tracks by key (any hashable), queried for the keys of the same vehicle."""
+    """Scenes' tracks, queried with another scene's for the vehicles that are one.
+
+    A pair of tracks of one shape is one vehicle when the shape says enough on its own (it
+    deviates :data:`SHAPED_M` from a straight line at one speed), or when another pair of the two
+    scenes at the same clock offset is moved by the very same rigid motion: the vehicles' places
+    relative to each other agree too. Two cars cruising straight at one speed have one shape, but
+    not one neighbourhood."""
 
     def __init__(self) -> None:
-        self._by_token: dict[tuple, list[tuple[object, int]]] = defaultdict(list)
-        self._tracks: dict[object, tuple[np.ndarray, np.ndarray]] = {}
+        self._by_token: dict[tuple, list[tuple[Key, int]]] = defaultdict(list)
+        self._tracks: dict[Key, tuple[np.ndarray, np.ndarray]] = {}
 
-    def add(self, key: object, poses: Iterable[Sequence[float]]) -> None:
-        frames, xy = _arrays(poses)
-        self._tracks[key] = (frames, xy)
-        starts, tokens = _tokens(frames, xy)
-        for frame, token in zip(starts.tolist(), tokens, strict=True):
-            self._by_token[token].append((key, frame))
+    def add(self, scene: Hashable, tracks: Mapping[str, Iterable[Sequence[float]]]) -> None:
+        """Index every track of ``scene`` (vehicle id -> poses)."""
+        for vehicle, poses in tracks.items():
+            key = (scene, vehicle)
+            frames, xy = _arrays(poses)
+            self._tracks[key] = (frames, xy)
+            starts, tokens = _tokens(frames, xy)
+            for frame, token in zip(starts.tolist(), tokens, strict=True):
+                self._by_token[token].append((key, frame))
 
-    def same_vehicle(self, poses: Iterable[Sequence[float]]) -> set:
-        """Keys of the indexed tracks that are the vehicle of ``poses``."""
+    def same_vehicles(self, tracks: Mapping[str, Iterable[Sequence[float]]]) -> dict[str, set[Key]]:
+        """Per vehicle of a scene's ``tracks``, the indexed (scene, vehicle)s it is."""
+        pairs = [pair for vehicle, poses in tracks.items() for pair in self._pairs(vehicle, poses)]
+        out: dict[str, set[Key]] = {}
+        for pair in pairs:
+            if _line_deviation(pair.frames, pair.mine) >= SHAPED_M or any(
+                _one_motion(pair, other) for other in pairs
+            ):
+                out.setdefault(pair.vehicle, set()).add(pair.key)
+        return out
+
+    def _pairs(self, vehicle: str, poses: Iterable[Sequence[float]]) -> list[_Pair]:
         frames, xy = _arrays(poses)
         starts, tokens = _tokens(frames, xy)
-        offsets: Counter = Counter()
+        votes: Counter = Counter()
         for frame, token in zip(starts.tolist(), tokens, strict=True):
             for key, other in self._by_token.get(token, ()):
-                offsets[(key, other - frame)] += 1
-        return {
-            key
-            for (key, offset), n in offsets.items()
-            if n >= MIN_TOKENS and self._one_motion_apart(key, offset, frames, xy)
-        }
+                votes[(key, other - frame)] += 1
+        out = []
+        for (key, offset), n in votes.items():
+            if n < MIN_TOKENS:
+                continue
+            other_frames, other_xy = self._tracks[key]
+            shared, mine, theirs = np.intersect1d(
+                frames + offset, other_frames, assume_unique=True, return_indices=True
+            )
+            if len(shared) >= MIN_SHARED_POSES:
+                pair = _Pair(vehicle, key, offset, shared, xy[mine], other_xy[theirs])
+                if _rigid_residual(pair.mine, pair.theirs) <= MAX_RESIDUAL_M:
+                    out.append(pair)
+        return out
 
-    def _one_motion_apart(
-        self, key: object, offset: int, frames: np.ndarray, xy: np.ndarray
-    ) -> bool:
-        other_frames, other_xy = self._tracks[key]
-        shared, mine, theirs = np.intersect1d(
-            frames + offset, other_frames, assume_unique=True, return_indices=True
-        )
-        if len(shared) < MIN_SHARED_POSES:
-            return False
-        return _rigid_residual(xy[mine], other_xy[theirs]) <= MAX_RESIDUAL_M
+
+def _one_motion(a: _Pair, b: _Pair) -> bool:
+    """Whether ``b``, another vehicle pair of the same two scenes at the same clock offset, is
+    moved by ``a``'s rigid motion too."""
+    if a.vehicle == b.vehicle or a.key[1] == b.key[1] or a.key[0] != b.key[0]:
+        return False
+    if a.offset != b.offset:
+        return False
+    both = _rigid_residual(np.concatenate([a.mine, b.mine]), np.concatenate([a.theirs, b.theirs]))
+    return both <= 2 * MAX_RESIDUAL_M
 
 
 def recording_location(scene_name: str) -> str:

@@ -22,6 +22,11 @@ def _obstacles(root: ET.Element) -> list[ET.Element]:
     ]
 
 
+def vehicle_ids(path: Path) -> list[str]:
+    """The ids of a file's recorded vehicles, in file order (without the ``cr`` prefix)."""
+    return [o.get("id") for o in _obstacles(ET.parse(path).getroot())]
+
+
 def _states(obstacle: ET.Element) -> list[ET.Element]:
     return [obstacle.find("initialState"), *obstacle.findall("trajectory/state")]
 
@@ -124,12 +129,14 @@ def transformed(
     shift: tuple[float, float] = (0.0, 0.0),
     rotate: float = 0.0,
     time_shift: int = 0,
+    slower: int = 1,
     benchmark_id: str | None = None,
 ) -> Path:
     """``src`` moved rigidly: every point rotated by ``rotate`` [rad] about the origin, then
     shifted by ``shift`` [m]; every orientation turned by ``rotate``; every state's time step
-    delayed by ``time_shift``. A georeferenced scene is a shift by UTM-sized offsets; a rotated
-    copy is the same scene another way up."""
+    multiplied by ``slower`` (the same paths driven that many times slower), then delayed by
+    ``time_shift``. A georeferenced scene is a shift by UTM-sized offsets; a rotated copy is the
+    same scene another way up."""
     root = ET.parse(src).getroot()
     root.set("benchmarkID", benchmark_id or out.stem)
     c, s = math.cos(rotate), math.sin(rotate)
@@ -143,9 +150,11 @@ def transformed(
             if exact is not None:
                 h = float(exact.text) + rotate
                 exact.text = f"{(h + math.pi) % (2 * math.pi) - math.pi:.6f}"
-            if time_shift:
-                step = state.find("time/exact")
-                step.text = str(int(step.text) + time_shift)
+            step = state.find("time/exact")
+            step.text = str(int(step.text) * slower + time_shift)
+            velocity = state.find("velocity/exact")
+            if velocity is not None and slower != 1:
+                velocity.text = f"{float(velocity.text) / slower:.4f}"
     return _write(root, out)
 
 
