@@ -122,9 +122,10 @@ class Limits:
     max_unzipped_bytes: int
     max_entries: int
     max_compression_ratio: float
-    # Requirements: every wheel together, unpacked.
+    # Requirements: one wheel (its file), and every wheel together, unpacked.
     max_deps_bytes: int = 0
     max_deps_files: int = 0
+    max_wheel_bytes: int = 0
 
 
 class Budget:
@@ -155,14 +156,17 @@ def submission_budget(limits: Limits) -> Budget:
     return Budget(limits.max_entries, limits.max_unzipped_bytes)
 
 
-def open_zip(path: Path, limits: Limits, shown: str = ARCHIVE) -> zipfile.ZipFile:
-    """The zip at ``path``, once its end record says the directory is within the limits."""
+def open_zip(
+    path: Path, limits: Limits, shown: str = ARCHIVE, size_rule: str = "max-zip-bytes"
+) -> zipfile.ZipFile:
+    """The zip at ``path``, once its end record says the directory is within the limits (its
+    own size: the upload's cap, or with ``size_rule="max-wheel-bytes"`` one wheel's)."""
     size = path.stat().st_size
     if size == 0:
         raise Rejected(shown, "empty-file", "the upload is an empty file, not a zip")
-    if size > limits.max_zip_bytes:
-        limit = limits.max_zip_bytes / 1024**2
-        raise Rejected(shown, "max-zip-bytes", f"the zip is larger than {limit:g} MiB")
+    cap = limits.max_wheel_bytes if size_rule == "max-wheel-bytes" else limits.max_zip_bytes
+    if size > cap:
+        raise Rejected(shown, size_rule, f"the zip is larger than {cap / 1024**2:g} MiB")
     try:
         with path.open("rb") as handle:
             # The end record, read before zipfile parses (and holds) every directory record.
@@ -684,23 +688,39 @@ def check_submission(upload: Path, dest: Path, limits: Limits) -> dict:
 
 
 def unpack_wheels(wheels: Path, dest: Path, limits: Limits) -> dict:
-    """Install the wheels of ``wheels`` into ``dest`` as ``pip install --target`` would (a wheel
-    is a zip; installing one runs no code), under the archive rules and the dependencies' own
-    caps on total unpacked bytes and files."""
+    """Install each wheel of ``wheels`` into ``dest/<wheel name>`` as ``pip install --target``
+    would (a wheel is a zip; installing one runs no code), under the archive rules, one wheel's
+    cap on its file, and the stack's caps on the unpacked bytes and files of all of them. A
+    wheel's ratio is also judged whole: entries each under the ratio's floor add up."""
     budget = Budget(limits.max_deps_files, limits.max_deps_bytes, "requirements, all wheels")
     dest.mkdir(parents=True, exist_ok=True)
     installed = []
     for wheel in sorted(wheels.glob("*.whl")):
         shown = f"requirements.txt: {wheel.name}"
-        with open_zip(wheel, limits, shown) as archive:
+        with open_zip(wheel, limits, shown, size_rule="max-wheel-bytes") as archive:
             check_directory(archive, limits, budget, prefix=f"{wheel.name}!")
+            check_whole_ratio(archive, wheel, limits, shown)
             staging = dest.parent / "wheel-staging"
             shutil.rmtree(staging, ignore_errors=True)
             extract(archive, staging, prefix=f"{wheel.name}!")
-        merge_wheel(staging, dest)
+        target = dest / wheel.name
+        target.mkdir()
+        merge_wheel(staging, target)
         shutil.rmtree(staging, ignore_errors=True)
         installed.append(wheel.name)
     return {"wheels": installed}
+
+
+def check_whole_ratio(archive: zipfile.ZipFile, path: Path, limits: Limits, shown: str) -> None:
+    unpacked = sum(info.file_size for info in archive.infolist())
+    ratio = unpacked / max(path.stat().st_size, 1)
+    if unpacked > RATIO_FLOOR_BYTES and ratio > limits.max_compression_ratio:
+        raise Rejected(
+            shown,
+            "compression-ratio",
+            f"unpacks {ratio:.0f}:1 as a whole (limit {limits.max_compression_ratio:g}:1): "
+            "a zip bomb?",
+        )
 
 
 def merge_wheel(staging: Path, dest: Path) -> None:
@@ -725,7 +745,8 @@ def _merge(source: Path, dest: Path) -> None:
 
 def main(argv: list[str]) -> int:
     """``MODE INPUT OUTPUT``: ``submission`` (INPUT/upload.zip into OUTPUT/submission) or
-    ``wheels`` (INPUT/wheels/*.whl into OUTPUT/deps); limits from INPUT/limits.json."""
+    ``wheels`` (INPUT/wheels/*.whl, each into OUTPUT/deps/<wheel>); limits from
+    INPUT/limits.json."""
     mode, source, output = argv[0], Path(argv[1]), Path(argv[2])
     limits = Limits(**json.loads((source / LIMITS).read_text()))
     try:

@@ -32,7 +32,7 @@ from evaluator.sandbox.backend import (
     Training,
 )
 from submissions.intake import PreparedSubmission, prepare_submission
-from submissions.intake.runner import IntakeRunner, read_report
+from submissions.intake.runner import RESOLVER_MODES, IntakeRunner, read_report
 
 POLL_S = 0.1
 SANDBOX_UID = 65534
@@ -68,6 +68,21 @@ def sandboxed(
     def run(mode: str, inputs: Path, output: Path) -> dict:
         from evaluator import sandbox
 
+        if mode in RESOLVER_MODES:
+            # deferred: the resolver builds on this module's helpers
+            from evaluator.resolver import run_resolver
+
+            return run_resolver(
+                mode,
+                inputs,
+                output,
+                intake=intake,
+                config=config,
+                data_dir=data_dir,
+                kind=kind,
+                labels=labels,
+            )
+
         limits, batch = intake_limits(intake, config, inputs, output)
         disk_cap = intake.max_unzipped_bytes if mode == "submission" else intake.max_deps_bytes
         files_cap = intake.max_zip_entries if mode == "submission" else intake.max_deps_files
@@ -80,8 +95,8 @@ def sandboxed(
         with tempfile.TemporaryDirectory(prefix="arena-intake-stub-", dir=shared) as stub_dir:
             program = Path(stub_dir)
             (program / TRAIN_SCRIPT).write_text(_stub(mode))
-            _open_to_sandbox(program, inputs)
-            _writable(output)
+            open_to_sandbox(program, inputs)
+            writable_by_sandbox(output)
             started = time.monotonic()
             box = sandbox.start_training(
                 SimpleNamespace(root=program, deps_dir=None),
@@ -99,7 +114,7 @@ def sandboxed(
                             "intake-timeout",
                             f"checking took longer than {intake.intake_timeout_s:g} s",
                         )
-                    size, count = _usage(output)
+                    size, count = output_usage(output)
                     if size > disk_cap:
                         raise IntakeError(
                             rules.ARCHIVE, "intake-disk", f"unpacks to more than {disk_cap} bytes"
@@ -128,7 +143,7 @@ def sandboxed(
     return run
 
 
-def _open_to_sandbox(program: Path, inputs: Path) -> None:
+def open_to_sandbox(program: Path, inputs: Path) -> None:
     """The sandbox user (not us) reads the stub and the inputs."""
     for root in (program, inputs):
         root.chmod(0o755)
@@ -136,7 +151,7 @@ def _open_to_sandbox(program: Path, inputs: Path) -> None:
             path.chmod(0o755 if path.is_dir() else 0o644)
 
 
-def _writable(output: Path) -> None:
+def writable_by_sandbox(output: Path) -> None:
     output.mkdir(parents=True, exist_ok=True)
     if os.geteuid() == 0:
         os.chown(output, SANDBOX_UID, SANDBOX_UID)
@@ -144,7 +159,7 @@ def _writable(output: Path) -> None:
         output.chmod(0o777)
 
 
-def _usage(folder: Path) -> tuple[int, int]:
+def output_usage(folder: Path) -> tuple[int, int]:
     size = count = 0
     for path, _, files in os.walk(folder):
         for name in files:

@@ -25,6 +25,7 @@ def limits(intake: IntakeSettings) -> rules.Limits:
         max_compression_ratio=intake.max_compression_ratio,
         max_deps_bytes=intake.max_deps_bytes,
         max_deps_files=intake.max_deps_files,
+        max_wheel_bytes=intake.max_wheel_bytes,
     )
 
 

@@ -1,57 +1,76 @@
-"""A submission's ``requirements.txt``: wheels only, downloaded with a cap, unpacked under one.
+"""A submission's ``requirements.txt``: resolved, downloaded and built only in the resolver
+sandbox, kept in a wheel store shared by every submission.
 
-pip resolves and downloads on the host, where the package index is reachable (as the host's pip
-configuration says, plus ``ARENA_PIP_OPTIONS``), with ``--only-binary=:all:`` (an sdist would
-run its build code) and the download folder's size watched: past ``ARENA_MAX_DEPS_DOWNLOAD_BYTES``
-pip is stopped. Unpacking the wheels (a wheel is a zip; installing one runs no code) is the
-intake runner's ``wheels`` step, in the sandbox for the service, under the archive rules and the
-caps on total unpacked bytes and files. Folders are shared by every submission with the same
-requirements, keyed by their content; the service deletes those no submission uses any more.
+The host never runs pip on a team's lines. It parses them (options, URLs and local paths are
+refused, every line keeps its number) and hands them to the intake runner's resolver modes
+(``agent_runtime/resolve.py``): ``download`` in a sandbox whose only reachable address is the
+package index (:mod:`submissions.intake.package_index`), then ``build`` with no network at all
+for each source distribution, then ``wheels``, which unpacks each new wheel under the archive
+rules. The service's runner does each in a sandbox (``evaluator/sandbox/resolver.py``); a
+participant's own machine runs the same program as a plain child with a minimal environment.
 
-pip resolves for the **sandbox's** interpreter, not the host's: its Python version and glibc
-(``agent_python_version``, ``agent_glibc_version``), so the folder holds wheels the policy can
-import there; a set pip cannot satisfy together is refused with pip's own words naming the
-conflict. The sandbox puts this folder ahead of its own libraries (numpy included), so what the
-submission pins is what its policy imports.
+**The wheel store** (``DATA/deps/wheels/<sha256>``) holds each wheel unpacked once, named by the
+hash of its bytes. A submission's folder (``DATA/deps/<key>``, keyed by its requirements, the
+sandbox's interpreter and the sources) is made of hard links into it: read-only, mounted at
+``/deps``, and on disk once however many submissions share a wheel. Its manifest
+(``.stack.json``) names each wheel, its hash and sizes, and which framework builds were chosen
+(torch's ``+cpu`` where the sandbox has no GPU). :func:`collect_garbage` removes the folders no
+kept submission uses, then the wheels no folder uses.
+
+Caps (``docs/submissions.md``): ``max_wheel_bytes`` per wheel, ``max_deps_download_bytes`` for
+the whole stack downloaded, ``max_deps_bytes`` and ``max_deps_files`` unpacked.
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
+import json
 import os
 import platform
-import shutil
-import subprocess
-import sys
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from packaging.requirements import InvalidRequirement, Requirement
 
 from agent_runtime import intake as rules
+from agent_runtime import resolve as resolver_rules
 from arena.config import IntakeSettings, SandboxSettings
 from arena.errors import IntakeError
 from submissions.intake.archive import make_read_only, remove_tree
 from submissions.intake.contents import REQUIREMENTS
+from submissions.intake.package_index import PackageSources, package_sources
 from submissions.intake.porting import explain_missing_wheel
 from submissions.intake.runner import IntakeRunner, write_inputs
 
-PIP_TIMEOUT_S = 600
-POLL_S = 0.2
-COMPLETE_MARKER = ".complete"
 DEPS_CACHE = "deps"
+WHEEL_STORE = "wheels"
+MANIFEST = ".stack.json"
+# Frameworks published as CPU and GPU builds: the CPU build is chosen (the sandbox has no GPU).
+CPU_FRAMEWORKS = ("torch", "torchvision", "torchaudio")
 
 
 @dataclass(frozen=True)
 class InstalledRequirements:
-    key: str  # content key: the normalised requirements and the sandbox target
+    key: str  # content key: the normalised requirements, the sandbox target and the sources
     folder: Path
 
 
-def parse_requirements(text: str) -> list[str]:
-    """Normalised requirement lines; pip options, URLs and local paths are refused."""
+@dataclass(frozen=True)
+class StackWheel:
+    """One wheel of a submission's stack, as the manifest records it."""
+
+    name: str
+    sha256: str
+    bytes: int  # the wheel file
+    unpacked_bytes: int
+
+
+def parse_requirements(text: str) -> list[tuple[int, str]]:
+    """``(line number, normalised requirement)`` of every requirement line, in the file's order;
+    pip options, URLs and local paths are refused."""
     lines = []
     for number, raw in enumerate(text.splitlines(), start=1):
         line = raw.split(" #", 1)[0].strip()
@@ -66,13 +85,15 @@ def parse_requirements(text: str) -> list[str]:
             raise IntakeError(entry, "requirements-syntax", f"{line!r}: {error}") from error
         if requirement.url:
             raise IntakeError(entry, "requirements-url", f"direct URLs are not allowed: {line}")
-        lines.append(str(requirement))
-    return sorted(lines)
+        lines.append((number, str(requirement)))
+    return lines
 
 
 def sandbox_target(sandbox: SandboxSettings) -> list[str]:
     """pip's options selecting wheels for the sandbox's CPython and glibc on this machine's
-    architecture: every manylinux tag that glibc runs (pip does not widen a PEP 600 tag itself)."""
+    architecture: every manylinux tag that glibc runs (pip does not widen a PEP 600 tag itself).
+    Only where the resolver does not run on the sandbox's own interpreter (a participant's
+    machine); in the sandbox pip resolves for the interpreter it runs on."""
     version = sandbox.agent_python_version
     abi = "cp" + version.replace(".", "")
     arch = platform.machine()
@@ -85,12 +106,42 @@ def sandbox_target(sandbox: SandboxSettings) -> list[str]:
     return options
 
 
-def requirements_key(requirements: list[str], target: list[str]) -> str:
-    return hashlib.sha256("\n".join([*target, *requirements]).encode()).hexdigest()[:32]
+def resolve_request(
+    lines: list[tuple[int, str]],
+    sources: PackageSources,
+    sandbox: SandboxSettings,
+    intake: IntakeSettings,
+) -> dict:
+    """What the resolver is asked (``resolve.json``); the runner adds where pip and the proxy
+    are. Target options are for a runner that is not the sandbox's interpreter (``target``)."""
+    return {
+        "requirements": [[number, line] for number, line in lines],
+        "index_urls": list(sources.index_urls),
+        "find_links": list(sources.find_links),
+        "cert": sources.cert,
+        "file_hosts": list(sources.file_hosts),
+        "target": sandbox_target(sandbox),
+        "python_version": sandbox.agent_python_version,
+        "gpu": False,
+        "cpu_frameworks": list(CPU_FRAMEWORKS),
+        "constraints": [],
+        "max_wheel_bytes": intake.max_wheel_bytes,
+        "max_download_bytes": intake.max_deps_download_bytes,
+    }
+
+
+def requirements_key(request: dict) -> str:
+    keyed = {k: v for k, v in request.items() if k != "requirements"}
+    keyed["lines"] = sorted(line for _, line in request["requirements"])
+    return hashlib.sha256(json.dumps(keyed, sort_keys=True).encode()).hexdigest()[:32]
 
 
 def deps_cache(data_dir: Path) -> Path:
     return data_dir / DEPS_CACHE
+
+
+def wheel_store(data_dir: Path) -> Path:
+    return deps_cache(data_dir) / WHEEL_STORE
 
 
 def install_requirements(
@@ -101,140 +152,221 @@ def install_requirements(
     runner: IntakeRunner,
 ) -> InstalledRequirements | None:
     """The folder holding the installed requirements, or None when there are none."""
-    requirements = parse_requirements(text)
-    if not requirements:
+    lines = parse_requirements(text)
+    if not lines:
         return None
-    target_options = sandbox_target(sandbox)
-    key = requirements_key(requirements, target_options)
+    request = resolve_request(lines, package_sources(intake), sandbox, intake)
+    key = requirements_key(request)
     cache = deps_cache(data_dir)
     target = cache / key
-    if (target / COMPLETE_MARKER).is_file():
+    if (target / MANIFEST).is_file():
         return InstalledRequirements(key, target)
     cache.mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix=".deps-", dir=cache))
     try:
-        listed = work / REQUIREMENTS
-        listed.write_text("\n".join(requirements) + "\n")
-        wheels = work / "wheels"
-        try:
-            download_wheels(listed, wheels, intake, sandbox, target_options)
-        except IntakeError as error:
-            raise explain_missing_wheel(error, text, sandbox.agent_python_version) from error
-        write_inputs(work / "in", intake, {rules.WHEELS_DIR: wheels})
-        runner("wheels", work / "in", work / "out")
-        installed = work / "out" / rules.DEPS_DIR
-        (installed / COMPLETE_MARKER).write_text("\n".join(requirements) + "\n")
-        make_read_only(installed)
-        # Moving a folder to another parent rewrites its "..": it stays writable until then
-        # (root does not care; an unprivileged intake, such as the API's in docker-compose.yml,
-        # is refused otherwise).
-        installed.chmod(0o755)
-        try:
-            installed.rename(target)
-        except OSError:
+        wheels, report = resolve(request, intake, work, runner, text)
+        stack = store_wheels(wheels, intake, data_dir, work, runner)
+        assemble(stack, report, request, data_dir, work / "stack")
+        with contextlib.suppress(OSError):
             # Another intake finished the same requirements first; theirs is as good as ours.
-            remove_tree(installed)
-            if not (target / COMPLETE_MARKER).is_file():
-                raise
-        else:
-            target.chmod(0o555)
+            (work / "stack").rename(target)
+        if not (target / MANIFEST).is_file():
+            raise IntakeError(REQUIREMENTS, "intake-crashed", "the requirements' folder is gone")
+        target.chmod(0o555)
     finally:
-        remove_tree(work / "out")
-        shutil.rmtree(work, ignore_errors=True)
+        remove_tree(work)
     return InstalledRequirements(key, target)
 
 
-def download_wheels(
-    listed: Path, wheels: Path, intake: IntakeSettings, sandbox: SandboxSettings, target: list[str]
-) -> None:
-    """``pip download`` of the listed requirements' wheels (and their dependencies' wheels) for
-    the sandbox's interpreter (``target``: :func:`sandbox_target`), stopped once the download
-    folder holds more than the cap."""
-    command = [
-        sys.executable,
-        "-m",
-        "pip",
-        "--disable-pip-version-check",
-        "-q",
-        "download",
-        "--only-binary=:all:",
-        *target,
-        *intake.pip_options,
-        "--dest",
-        str(wheels),
-        "-r",
-        str(listed),
-    ]
-    cap = intake.max_deps_download_bytes
-    failure = (
-        "could not be resolved to wheels for the sandbox's Python "
-        f"{sandbox.agent_python_version} (source distributions are not accepted)"
+def resolve(
+    request: dict, intake: IntakeSettings, work: Path, runner: IntakeRunner, text: str
+) -> tuple[list[Path], dict]:
+    """The wheels of the resolved requirements (sdists built into wheels), and the report."""
+    inputs = work / "resolve-in"
+    inputs.mkdir()
+    (inputs / resolver_rules.REQUEST).write_text(json.dumps(request))
+    downloaded = work / "resolve-out"
+    report = runner("download", inputs, downloaded)
+    if report.get("cap") == "max-wheel-bytes":
+        raise wheel_cap_error(REQUIREMENTS, intake)
+    if not report.get("ok"):
+        raise explain_missing_wheel(report, text, request["python_version"])
+    wheels = sorted((downloaded / resolver_rules.WHEELS_DIR).glob("*.whl"))
+    if report.get("sdists"):
+        build_in = work / "build-in"
+        build_in.mkdir()
+        (build_in / resolver_rules.REQUEST).write_text(json.dumps(request))
+        for name in (resolver_rules.SDISTS_DIR, resolver_rules.BUILD_DEPS_DIR):
+            if (downloaded / name).is_dir():
+                (downloaded / name).rename(build_in / name)
+        built = runner("build", build_in, work / "build-out")
+        if not built.get("ok"):
+            raise explain_missing_wheel(built, text, request["python_version"])
+        wheels += sorted((work / "build-out" / resolver_rules.WHEELS_DIR).glob("*.whl"))
+    for wheel in wheels:
+        size = wheel.stat().st_size
+        if size > intake.max_wheel_bytes:
+            raise wheel_cap_error(f"{REQUIREMENTS}: {wheel.name}", intake)
+    total = sum(w.stat().st_size for w in wheels)
+    if total > intake.max_deps_download_bytes:
+        raise download_cap_error(intake)
+    return wheels, report
+
+
+def wheel_cap_error(entry: str, intake: IntakeSettings) -> IntakeError:
+    return IntakeError(
+        entry,
+        "max-wheel-bytes",
+        f"a wheel is larger than {intake.max_wheel_bytes / 1024**2:g} MiB, the cap on one wheel "
+        "(a framework's GPU build is: the sandbox has no GPU, pin its CPU build)",
     )
-    with tempfile.TemporaryFile() as log:
-        process = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT)
-        started = time.monotonic()
-        try:
-            while process.poll() is None:
-                time.sleep(POLL_S)
-                if folder_bytes(wheels) > cap:
-                    raise IntakeError(
-                        REQUIREMENTS,
-                        "max-deps-download",
-                        f"the requirements' wheels are larger than {cap / 1024**2:g} MiB",
-                    )
-                if time.monotonic() - started > PIP_TIMEOUT_S:
-                    raise IntakeError(REQUIREMENTS, "no-wheel", f"{failure}: pip timed out")
-        finally:
-            if process.poll() is None:
-                process.kill()
-                process.wait()
-        if folder_bytes(wheels) > cap:
-            raise IntakeError(
-                REQUIREMENTS,
-                "max-deps-download",
-                f"the requirements' wheels are larger than {cap / 1024**2:g} MiB",
-            )
-        if process.returncode != 0:
-            log.seek(0)
-            output = log.read(256 * 1024).decode("utf-8", "replace")
-            raise IntakeError(REQUIREMENTS, "no-wheel", f"{failure}: {pip_error_summary(output)}")
 
 
-def folder_bytes(folder: Path) -> int:
-    if not folder.is_dir():
-        return 0
+def download_cap_error(intake: IntakeSettings) -> IntakeError:
+    return IntakeError(
+        REQUIREMENTS,
+        "max-deps-download",
+        f"the requirements' wheels are larger than {intake.max_deps_download_bytes / 1024**2:g} "
+        "MiB together",
+    )
+
+
+def file_sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with path.open("rb") as handle:
+        while chunk := handle.read(1024**2):
+            digest.update(chunk)
+    return digest.hexdigest()
+
+
+def store_wheels(
+    wheels: list[Path], intake: IntakeSettings, data_dir: Path, work: Path, runner: IntakeRunner
+) -> list[StackWheel]:
+    """Each wheel unpacked into the store once, by the hash of its bytes (the ``wheels`` step,
+    in the sandbox for the service, only for the wheels the store lacks)."""
+    store = wheel_store(data_dir)
+    store.mkdir(parents=True, exist_ok=True)
+    hashes = {wheel: file_sha256(wheel) for wheel in wheels}
+    sizes = {wheel: wheel.stat().st_size for wheel in wheels}
+    missing = [wheel for wheel in wheels if not (store / hashes[wheel]).is_dir()]
+    if missing:
+        staged = work / "wheels-in" / "staged"
+        staged.mkdir(parents=True)
+        for wheel in missing:
+            wheel.rename(staged / wheel.name)
+        write_inputs(work / "wheels-in", intake, {rules.WHEELS_DIR: staged})
+        runner("wheels", work / "wheels-in", work / "wheels-out")
+        for wheel in missing:
+            unpacked = work / "wheels-out" / rules.DEPS_DIR / wheel.name
+            make_read_only(unpacked)
+            unpacked.chmod(0o755)  # moved below: its ".." changes
+            with contextlib.suppress(OSError):
+                unpacked.rename(store / hashes[wheel])
+            (store / hashes[wheel]).chmod(0o555)
+            # The same wheel may be checked by two intakes at once; either copy serves.
+            remove_tree(unpacked)
+    return [
+        StackWheel(wheel.name, hashes[wheel], sizes[wheel], tree_bytes(store / hashes[wheel]))
+        for wheel in wheels
+    ]
+
+
+def tree_bytes(folder: Path) -> int:
     total = 0
-    for entry in os.scandir(folder):
-        if entry.is_file(follow_symlinks=False):
-            total += entry.stat(follow_symlinks=False).st_size
+    for path, _, files in os.walk(folder):
+        for name in files:
+            total += os.lstat(os.path.join(path, name)).st_size
     return total
 
 
-def pip_error_summary(output: str) -> str:
-    """pip's own ERROR lines, without its warnings, notices and prefixes (what a participant
-    needs: which requirement has no wheel); its last lines when it printed no ERROR line."""
-    lines = [line.strip() for line in output.strip().splitlines() if line.strip()]
-    errors = [line.removeprefix("ERROR: ") for line in lines if line.startswith("ERROR:")]
-    if errors:
-        return " / ".join(dict.fromkeys(errors))
-    kept = [line for line in lines if not line.startswith(("WARNING:", "[notice]"))]
-    return " / ".join((kept or lines)[-3:])
+def assemble(
+    stack: list[StackWheel], report: dict, request: dict, data_dir: Path, folder: Path
+) -> None:
+    """The submission's folder: every wheel's files hard-linked from the store (the first wheel
+    providing a path wins, as one ``pip install --target`` would), and its manifest."""
+    store = wheel_store(data_dir)
+    folder.mkdir()
+    for wheel in stack:
+        link_tree(store / wheel.sha256, folder)
+    manifest = {
+        "requirements": request["requirements"],
+        "wheels": [asdict(wheel) for wheel in stack],
+        "cpu_builds": report.get("cpu_builds", {}),
+        "built_from_source": report.get("sdists", []),
+    }
+    (folder / MANIFEST).write_text(json.dumps(manifest, indent=1))
+    make_read_only(folder)
+    folder.chmod(0o755)  # renamed into place by the caller
+
+
+def link_tree(source: Path, dest: Path) -> None:
+    for item in source.iterdir():
+        target = dest / item.name
+        if item.is_dir() and not item.is_symlink():
+            target.mkdir(exist_ok=True)
+            link_tree(item, target)
+        elif not target.exists():
+            os.link(item, target)
+
+
+def read_manifest(folder: Path) -> dict:
+    return json.loads((folder / MANIFEST).read_text())
+
+
+def installed_versions(deps_dir: Path | None) -> dict[str, str]:
+    """``{project: version}`` of a submission's stack, from its wheels' names: what the agent
+    imports (the sandbox puts the folder ahead of its own libraries)."""
+    if deps_dir is None or not (deps_dir / MANIFEST).is_file():
+        return {}
+    versions = {}
+    for wheel in read_manifest(deps_dir)["wheels"]:
+        project, version = wheel["name"].split("-")[:2]
+        versions[project.lower().replace("_", "-")] = version
+    return versions
+
+
+def exclusive_bytes(data_dir: Path, keys_by_owner: dict[str, set[str]]) -> dict[str, int]:
+    """Per owner (a team), the unpacked bytes of the wheels only its folders use: what a shared
+    wheel costs is charged to no one."""
+    users: dict[str, set[str]] = {}
+    sizes: dict[str, int] = {}
+    cache = deps_cache(data_dir)
+    for owner, keys in keys_by_owner.items():
+        for key in keys:
+            if not (cache / key / MANIFEST).is_file():
+                continue
+            for wheel in read_manifest(cache / key)["wheels"]:
+                users.setdefault(wheel["sha256"], set()).add(owner)
+                sizes[wheel["sha256"]] = wheel["unpacked_bytes"]
+    charged = dict.fromkeys(keys_by_owner, 0)
+    for sha, owners in users.items():
+        if len(owners) == 1:
+            charged[next(iter(owners))] += sizes[sha]
+    return charged
 
 
 def collect_garbage(data_dir: Path, keys_in_use: set[str], min_age_s: float = 0.0) -> int:
-    """Delete the requirement folders whose key no kept submission uses; returns how many.
-    Folders being installed (``.deps-*``) and those younger than ``min_age_s`` (installed for
-    a validation not yet recorded) are left alone."""
+    """Delete the requirement folders whose key no kept submission uses, then the stored wheels
+    no folder links; returns how many folders went. Folders being installed (``.deps-*``) and
+    those younger than ``min_age_s`` (installed for a validation not yet recorded) are kept."""
     cache = deps_cache(data_dir)
     if not cache.is_dir():
         return 0
     removed = 0
     cutoff = time.time() - min_age_s
+    kept_wheels: set[str] = set()
     for folder in cache.iterdir():
-        if folder.name.startswith(".") or folder.name in keys_in_use:
+        if folder.name.startswith(".") or folder.name == WHEEL_STORE:
             continue
-        if folder.stat().st_mtime > cutoff:
+        if folder.name in keys_in_use or folder.stat().st_mtime > cutoff:
+            with contextlib.suppress(OSError, ValueError, KeyError):
+                kept_wheels |= {w["sha256"] for w in read_manifest(folder)["wheels"]}
             continue
         remove_tree(folder)
         removed += 1
+    store = wheel_store(data_dir)
+    if store.is_dir() and not any(p.name.startswith(".deps-") for p in cache.iterdir()):
+        for wheel in store.iterdir():
+            if wheel.name not in kept_wheels and wheel.stat().st_mtime <= cutoff:
+                remove_tree(wheel)
     return removed

@@ -17,6 +17,7 @@ from packaging.utils import canonicalize_name
 
 from agent_runtime import intake as rules
 from arena.errors import IntakeError
+from arena.neutralise.log_view import visible
 from submissions.intake.contents import POLICY, REQUIREMENTS
 from submissions.intake.runner import read_sandbox_json
 
@@ -49,9 +50,7 @@ SMARTS_COMPAT_MODULES = frozenset(
     }
 )
 _MAX_SCAN_REPORT_BYTES = 256 * 1024
-_NO_MATCH = re.compile(r"No matching distribution found for ([^\s/]+)")
-_VERSIONS = re.compile(r"\(from versions: ([^)]*)\)")
-_SHOWN_VERSIONS = 5  # the newest few versions with a wheel, named in the message
+_SHOWN_VERSIONS = 5  # versions suggested for one line
 
 
 def porting_notes(scan: dict | None) -> tuple[str, ...]:
@@ -170,49 +169,105 @@ def _pins_old_numpy(text: str) -> bool:
 
 
 def explain_missing_wheel(
-    error: IntakeError, requirements_text: str, python_version: str = "3.11"
+    report: dict, requirements_text: str, python_version: str = "3.11"
 ) -> IntakeError:
-    """``error`` (pip found no wheel) restated: which line, which versions have a wheel, and
-    what to do. The original error when pip's message names no distribution."""
-    match = _NO_MATCH.search(error.message)
-    if match is None:
-        return error
-    wanted = match.group(1)
-    versions = _VERSIONS.search(error.message)
-    available = [v.strip() for v in versions.group(1).split(",")] if versions else []
-    available = [v for v in available if v and v != "none"]
-    line = _line_naming(requirements_text, wanted)
-    where = f"{REQUIREMENTS}:{line}" if line else REQUIREMENTS
-    subject = wanted if line else f"{wanted} (a dependency of a listed requirement)"
-    listed = "it" if line else "the requirement that pulls it in"
-    if available:
-        choice = f"pin a version that has one ({', '.join(available[-_SHOWN_VERSIONS:])})"
-    else:
-        choice = "replace it with a package that ships wheels"
-    return IntakeError(
-        where,
-        "no-wheel",
-        f"{subject} has no wheel for the sandbox's CPython {python_version} on Linux "
-        f"{platform.machine()}, and only wheels are installed "
-        f"(no build code runs on our machines). {choice[0].upper()}{choice[1:]}, or remove "
-        f"{listed} if the agent does not import it here: SMARTS 2022 requirement files list "
-        "simulator packages (Panda3D, smarts) that a Driving Arena agent does not need.",
+    """A failed resolution (the resolver's report) told in one round: every line that no
+    version satisfies, in the team's own line numbers, with versions to pin that resolve with
+    the file's other lines; a dependency no index has; pip's explanation of a conflict, kept
+    and neutralised, each requested project followed by its line. No path of ours is shown."""
+    lines = _requirement_lines(requirements_text)
+    told = []
+    numbered = []
+    for error in report.get("errors") or []:
+        if not isinstance(error, dict):
+            continue
+        project = _bounded_text(error.get("project"))[:_MAX_NAME]
+        number = error.get("line") if isinstance(error.get("line"), int) else None
+        suggestions = [_bounded_text(v)[:_MAX_NAME] for v in error.get("suggestions") or []]
+        where_python = f"the sandbox's CPython {python_version} on Linux {platform.machine()}"
+        if number is not None:
+            numbered.append(number)
+            shown = _bounded_text(lines.get(number, project))[:_MAX_NAME]
+            if error.get("available") == "none":
+                fix = (
+                    "the package index has no distribution of it at all: remove it, or use a "
+                    "package that has one"
+                )
+            elif suggestions:
+                fix = (
+                    f"pin one of {', '.join(suggestions[:_SHOWN_VERSIONS])} (each resolves "
+                    "with your other lines)"
+                )
+            else:
+                fix = "no version of it resolves with your other lines; change or remove it"
+            told.append(
+                f"line {number} `{shown}`: no version of {project} on the package index for "
+                f"{where_python} matches; {fix}"
+            )
+        else:
+            available = _bounded_text(error.get("available"))[:_MAX_LIST]
+            told.append(
+                f"{project} (a dependency of a listed requirement) has no distribution on the "
+                f"package index for {where_python} (versions there: {available}); pin the "
+                "requirement that pulls it in to a version that does not need it"
+            )
+    conflict = [_neutral(line, lines) for line in report.get("conflict") or []][:_MAX_LINES]
+    if conflict:
+        told.append("pip: " + " / ".join(conflict))
+    tail = [_neutral(line, lines) for line in report.get("tail") or []][:_MAX_LINES]
+    if not told and tail:
+        told.append("pip: " + " / ".join(tail))
+    if not told:
+        told.append("pip could not resolve them and said nothing we can show")
+    if any(canonicalize_name(p) in _SIMULATOR_PROJECTS for p in _projects_of(report)):
+        told.append(
+            "SMARTS 2022 requirement files list simulator packages (Panda3D, smarts) that a "
+            "Driving Arena agent does not need: remove them"
+        )
+    entry = (
+        f"{REQUIREMENTS}:{numbered[0]}" if len(numbered) == 1 and len(told) == 1 else REQUIREMENTS
     )
+    rule = "requirements-conflict" if conflict and not numbered else "no-distribution"
+    return IntakeError(entry, rule, "; ".join(told))
 
 
-def _line_naming(text: str, wanted: str) -> int | None:
-    """The number of the requirements line naming the project of ``wanted`` (e.g. ``a==1``)."""
-    try:
-        project = canonicalize_name(Requirement(wanted).name)
-    except InvalidRequirement:
-        project = canonicalize_name(re.split(r"[=<>!~\[; ]", wanted, maxsplit=1)[0])
+# Projects of a SMARTS 2022 requirements file that no Driving Arena agent needs.
+_SIMULATOR_PROJECTS = frozenset({"panda3d", "panda3d-gltf", "panda3d-simplepbr", "smarts"})
+_MAX_NAME = 200
+_MAX_LIST = 500
+_MAX_LINES = 40
+# An absolute path in pip's words is one of ours (the sandbox's folders, a temporary file).
+_PATH = re.compile(r"(?<![\w.:/])/(?:[\w.+-]+/)*[\w.+-]*")
+_REQUESTED = re.compile(r"The user requested \(?(?:constraint )?([A-Za-z0-9._-]+)")
+
+
+def _requirement_lines(text: str) -> dict[int, str]:
+    numbered = {}
     for number, raw in enumerate(text.splitlines(), start=1):
         line = raw.split(" #", 1)[0].strip()
-        if not line or line.startswith(("#", "-")):
-            continue
-        try:
-            if canonicalize_name(Requirement(line).name) == project:
-                return number
-        except InvalidRequirement:
-            continue
-    return None
+        if line and not line.startswith(("#", "-")):
+            numbered[number] = line
+    return numbered
+
+
+def _projects_of(report: dict) -> list[str]:
+    return [
+        e["project"]
+        for e in report.get("errors") or []
+        if isinstance(e, dict) and isinstance(e.get("project"), str)
+    ]
+
+
+def _neutral(line, numbered: dict[int, str]) -> str:
+    """One line of pip's output as shown: bounded, control characters spelled out, our paths
+    hidden, a requested project followed by the line of the team's file naming it."""
+    text = visible(_bounded_text(line)[:_MAX_LIST])
+    text = _PATH.sub("<path>", text)
+    requested = _REQUESTED.search(text)
+    if requested:
+        wanted = canonicalize_name(requested.group(1))
+        for number, entry in numbered.items():
+            with contextlib.suppress(InvalidRequirement):
+                if canonicalize_name(Requirement(entry).name) == wanted:
+                    return f"{text} ({REQUIREMENTS}:{number})"
+    return text

@@ -1,10 +1,14 @@
-"""Where :mod:`agent_runtime.intake` runs: a :class:`IntakeRunner` takes a mode, a folder of
-inputs (the zip or the wheels, and ``limits.json``) and an empty output folder, and returns the
-verdict ``report.json`` holds.
+"""Where :mod:`agent_runtime.intake` and :mod:`agent_runtime.resolve` run: a
+:class:`IntakeRunner` takes a mode, a folder of inputs (the zip or the wheels, and
+``limits.json``; or the resolver's ``resolve.json``) and an empty output folder, and returns the
+verdict ``report.json`` holds. The intake's modes are ``submission`` and ``wheels``; the
+resolver's (:data:`RESOLVER_MODES`) ``download`` and ``build``, whose report is returned as it
+is (a failed resolution is explained by ``submissions.intake.porting``).
 
 :func:`in_process` is for participants' own zips on their own machine (``arena submission
-check``, local evaluation). The service runs it in the sandbox instead
-(``evaluator.validation.sandboxed``), under memory, CPU, time, file-size and disk limits.
+check``, local evaluation): the checks in this process, the resolver as a child with a minimal
+environment. The service runs both in the sandbox instead (``evaluator.validation.sandboxed``,
+``evaluator.sandbox.resolver``), under memory, CPU, time, file-size and disk limits.
 """
 
 from __future__ import annotations
@@ -14,16 +18,22 @@ import json
 import os
 import shutil
 import stat
+import subprocess
+import sys
 from pathlib import Path
 from typing import Protocol
 
 from agent_runtime import intake as rules
+from agent_runtime import resolve
 from arena.config import IntakeSettings
 from arena.errors import IntakeError
 from submissions.intake.archive import limits
 
 # report.json is ours, but written where the participant's bytes were handled: bounded too.
 MAX_REPORT_BYTES = 1024**2
+RESOLVER_MODES = ("download", "build")
+# What a participant's machine needs to reach its package index (its proxies).
+LOCAL_RESOLVER_VARIABLES = ("http_proxy", "https_proxy", "no_proxy", "HTTP_PROXY", "HTTPS_PROXY")
 # A rejection's entry, rule and message are shown to the team: bounded like the rest.
 MAX_REJECTION_CHARS = 4096
 
@@ -81,8 +91,40 @@ def read_report(output: Path) -> dict:
     return verdict
 
 
+def read_resolver_report(output: Path) -> dict:
+    """The resolver's report (bounded: written where a team's requirements were handled)."""
+    path = output / resolve.REPORT
+    if not path.is_file() or path.stat().st_size > MAX_REPORT_BYTES:
+        raise IntakeError(
+            rules.REQUIREMENTS,
+            "intake-crashed",
+            "resolving the requirements ended without a report",
+        )
+    try:
+        report = json.loads(path.read_text())
+    except (ValueError, UnicodeDecodeError) as error:
+        raise IntakeError(
+            rules.REQUIREMENTS, "intake-crashed", "malformed resolver report"
+        ) from error
+    if not isinstance(report, dict):
+        raise IntakeError(rules.REQUIREMENTS, "intake-crashed", "malformed resolver report")
+    return report
+
+
 def in_process(mode: str, inputs: Path, output: Path) -> dict:
-    """Run the checks in this process (no sandbox: for a participant's own zip)."""
+    """Run the checks in this process, the resolver in a child with a minimal environment (no
+    sandbox: for a participant's own zip on their own machine)."""
     output.mkdir(parents=True, exist_ok=True)
+    if mode in RESOLVER_MODES:
+        subprocess.run(
+            [sys.executable, "-I", "-B", resolve.__file__, mode, str(inputs), str(output)],
+            env={
+                "PATH": os.defpath,
+                **{k: v for k, v in os.environ.items() if k in LOCAL_RESOLVER_VARIABLES},
+            },
+            stdin=subprocess.DEVNULL,
+            check=False,
+        )
+        return read_resolver_report(output)
     rules.main([mode, str(inputs), str(output)])
     return read_report(output)

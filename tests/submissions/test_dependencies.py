@@ -1,125 +1,370 @@
-"""Requirements are resolved from PyPI (the one network the tests may use)."""
+"""Requirements resolve from a package index on loopback that the tests build (fake wheels and
+sdists, a fake torch with CPU and plain builds): no test reaches a real index."""
 
 from __future__ import annotations
 
+import io
+import json
+import os
+import tarfile
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
+from agent_runtime import intake as rules
 from arena.config import Settings
 from arena.errors import IntakeError
+from evaluator.validation import validate
 from submissions.intake import prepare_submission
-from submissions.intake.dependencies import parse_requirements
+from submissions.intake.dependencies import (
+    MANIFEST,
+    collect_garbage,
+    exclusive_bytes,
+    parse_requirements,
+    wheel_store,
+)
+from submissions.intake.porting import explain_missing_wheel
 from tests.settings import with_fields
+from tests.submissions.package_index import build_wheel, served_index, write_simple_index
 from tests.submissions.zips import with_policy, write_zip
 
-pytestmark = pytest.mark.slow
+MiB = 1024**2
+SECRET = "s3cret-admin-token-4f1c"
+# An sdist built by its own in-tree backend (no setuptools needed offline): importing the backend
+# is the participant's code running. It tries to leave a file on the host and looks for the
+# secret everywhere it can read, and records what it found in the wheel it builds.
+PROBE_BACKEND = """
+import os, sys, zipfile
+# Spelled backwards: this file itself is readable in the sandbox.
+SECRET = {secret!r}[::-1]
+MARKER = {marker!r}
+try:
+    open(MARKER, "w").write("built here")
+except OSError:
+    pass
+
+def _scan():
+    found, scanned = [], 0
+    def look(where, data):
+        nonlocal scanned
+        scanned += 1
+        if SECRET.encode() in data:
+            found.append(where)
+    look("environ", repr(dict(os.environ)).encode())
+    look("argv", repr(sys.argv).encode())
+    for pid in os.listdir("/proc"):
+        if pid.isdigit():
+            for part in ("environ", "cmdline"):
+                try:
+                    look(f"/proc/{{pid}}/{{part}}", open(f"/proc/{{pid}}/{{part}}", "rb").read())
+                except OSError:
+                    pass
+    for top in ("/", ):
+        for root, dirs, files in os.walk(top):
+            skipped = ("/proc", "/sys", "/dev", "/usr")
+            dirs[:] = [d for d in dirs if os.path.join(root, d) not in skipped]
+            for name in files:
+                try:
+                    with open(os.path.join(root, name), "rb") as handle:
+                        look(os.path.join(root, name), handle.read(4 * 1024 * 1024))
+                except OSError:
+                    pass
+    return found, scanned
+
+def get_requires_for_build_wheel(config_settings=None):
+    return []
+
+def build_wheel(wheel_directory, config_settings=None, metadata_directory=None):
+    found, scanned = _scan()
+    name = "probe-1.0-py3-none-any.whl"
+    with zipfile.ZipFile(os.path.join(wheel_directory, name), "w") as w:
+        w.writestr("probe/__init__.py", "FOUND = %r\\nSCANNED = %d\\n" % (found, scanned))
+        info = "probe-1.0.dist-info/"
+        w.writestr(info + "METADATA", "Metadata-Version: 2.1\\nName: probe\\nVersion: 1.0\\n")
+        w.writestr(info + "WHEEL", "Wheel-Version: 1.0\\nTag: py3-none-any\\n")
+        w.writestr("probe-1.0.dist-info/RECORD", "")
+    return name
+"""
 
 
-def test_requirements_install_from_wheels_and_are_cached(tmp_path: Path) -> None:
-    settings = with_fields(Settings(), storage={"data_dir": tmp_path / "data"})
-    upload = write_zip(tmp_path / "a.zip", with_policy(**{"requirements.txt": "six==1.16.0\n"}))
-    first = prepare_submission(
-        upload,
-        tmp_path / "a",
+def probe_sdist(folder: Path, marker: Path) -> Path:
+    base = "probe-1.0"
+    files = {
+        f"{base}/pyproject.toml": (
+            '[build-system]\nrequires = []\nbuild-backend = "backend"\nbackend-path = ["."]\n'
+        ),
+        f"{base}/backend.py": PROBE_BACKEND.format(secret=SECRET[::-1], marker=str(marker)),
+        f"{base}/PKG-INFO": "Metadata-Version: 2.1\nName: probe\nVersion: 1.0\n",
+    }
+    path = folder / f"{base}.tar.gz"
+    with tarfile.open(path, "w:gz") as archive:
+        for name, text in files.items():
+            data = text.encode()
+            info = tarfile.TarInfo(name)
+            info.size = len(data)
+            archive.addfile(info, io.BytesIO(data))
+    return path
+
+
+@pytest.fixture(scope="module")
+def index(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, Path]]:
+    """The loopback index's URL and the host path the probe sdist tries to write."""
+    root = tmp_path_factory.mktemp("index")
+    files = root / "files"
+    files.mkdir()
+    build_wheel(files, "smallpkg", "1.0")
+    build_wheel(files, "smallpkg", "1.1")
+    build_wheel(files, "otherpkg", "2.0", requires=("smallpkg==1.0",))
+    # A plotting library whose newest release needs a newer smallpkg than a file may pin.
+    build_wheel(files, "plotlib", "3.0", requires=("smallpkg>=1.1",))
+    build_wheel(files, "plotlib", "2.0", requires=("smallpkg>=1.0",))
+    # torch: a plain (GPU) build that pulls a large GPU library, and CPU builds.
+    build_wheel(files, "torch", "2.1.0", requires=("gpulib",))
+    build_wheel(files, "gpulib", "1.0", {"gpulib/big.bin": os.urandom(3 * MiB)})
+    build_wheel(files, "torch", "2.1.0+cpu")
+    build_wheel(files, "torch", "2.0.0+cpu")
+    # Incompressible: more than the zip cap, less than a wheel's (torch's CPU build is 183 MiB).
+    build_wheel(files, "bigwheel", "1.0", {"bigwheel/blob.bin": os.urandom(3 * MiB)})
+    marker = root / "built-on-the-host"
+    probe_sdist(files, marker)
+    # A wheel whose metadata names an sdist by direct URL: pip builds it whatever --only-binary.
+    with served_index(files, root / "web") as url:
+        sdist_url = url.removesuffix("/simple") + "/files/probe-1.0.tar.gz"
+        build_wheel(files, "lure", "1.0", requires=(f"probe @ {sdist_url}",))
+        write_simple_index(files, root / "web")
+        yield url, marker
+
+
+def settings_for(tmp_path: Path, url: str, **intake) -> Settings:
+    return with_fields(
+        Settings(),
+        storage={"data_dir": tmp_path / "data"},
+        intake={"package_index": [url], **intake},
+    )
+
+
+def upload_with(tmp_path: Path, requirements: str, name: str = "a") -> Path:
+    return write_zip(tmp_path / f"{name}.zip", with_policy(**{"requirements.txt": requirements}))
+
+
+def validated(tmp_path: Path, settings: Settings, requirements: str, name: str = "a"):
+    return validate(
+        upload_with(tmp_path, requirements, name),
+        tmp_path / name,
         settings.intake,
         settings.sandbox,
         settings.storage.resolved_data_dir,
+        kind="bubblewrap",
     )
-    assert first.deps_dir is not None and (first.deps_dir / "six.py").is_file()
-    second = prepare_submission(
-        upload,
+
+
+def test_requirement_lines_keep_their_numbers() -> None:
+    assert parse_requirements("numpy >= 1.24  # fast\n\n# comment\nsix==1.16.0\n") == [
+        (1, "numpy>=1.24"),
+        (4, "six==1.16.0"),
+    ]
+
+
+@pytest.mark.parametrize(
+    ("line", "rule"),
+    [
+        ("-r other.txt", "requirements-option"),
+        ("--index-url http://x/simple", "requirements-option"),
+        ("pkg @ https://example.invalid/pkg.whl", "requirements-url"),
+        ("not a requirement!", "requirements-syntax"),
+    ],
+)
+def test_options_urls_and_bad_lines_are_refused_with_their_line(line: str, rule: str) -> None:
+    with pytest.raises(IntakeError) as caught:
+        parse_requirements(f"six==1.16.0\n{line}\n")
+    assert (caught.value.entry, caught.value.rule) == ("requirements.txt:2", rule)
+
+
+def test_a_failed_resolution_is_told_in_one_round_in_the_teams_line_numbers() -> None:
+    report = {
+        "ok": False,
+        "errors": [
+            {"line": 3, "project": "panda3d", "available": "none", "suggestions": []},
+            {"line": 7, "project": "plotlib", "available": "3.0, 2.0", "suggestions": ["2.0"]},
+        ],
+        "conflict": [
+            "Cannot install plotlib==3.0 and smallpkg==1.0",
+            "The conflict is caused by:",
+            "The user requested smallpkg==1.0",
+            "plotlib 3.0 depends on smallpkg>=1.1 \x1b[2J",
+            "see /model/tmp/pip-req-build-x/requirements.txt (line 29)",
+        ],
+    }
+    text = "# mine\n\npanda3d==1.10.9\n\n\nsmallpkg==1.0\nplotlib==9\n"
+    error = explain_missing_wheel(report, text)
+    message = error.message
+    assert error.entry == "requirements.txt"
+    assert "line 3 `panda3d==1.10.9`" in message and "line 7 `plotlib==9`" in message
+    assert "pin one of 2.0" in message
+    assert "The user requested smallpkg==1.0 (requirements.txt:6)" in message
+    assert "\x1b" not in message and "\\x1b[2J" in message
+    assert "/model" not in message and "pip-req-build" not in message
+    assert "Panda3D" in message
+
+
+@pytest.mark.slow  # the resolver sandbox (bubblewrap)
+def test_requirements_resolve_in_the_sandbox_and_are_shared_by_content(
+    tmp_path: Path, index: tuple[str, Path]
+) -> None:
+    settings = settings_for(tmp_path, index[0])
+    first = validated(tmp_path, settings, "smallpkg==1.0\n", "a")
+    assert first.deps_dir is not None and (first.deps_dir / "smallpkg" / "__init__.py").is_file()
+    second = validated(tmp_path, settings, "otherpkg==2.0\n", "b")
+    # smallpkg 1.0 is in both stacks, on disk once.
+    shared = [folder / "smallpkg" / "__init__.py" for folder in (first.deps_dir, second.deps_dir)]
+    assert shared[0].stat().st_ino == shared[1].stat().st_ino
+    assert len(list(wheel_store(settings.storage.resolved_data_dir).iterdir())) == 2
+    owners = {"team-a": {first.deps_key}, "team-b": {second.deps_key}}
+    charged = exclusive_bytes(settings.storage.resolved_data_dir, owners)
+    assert charged["team-a"] == 0 and charged["team-b"] > 0  # otherpkg is b's alone
+    data = settings.storage.resolved_data_dir
+    assert collect_garbage(data, {second.deps_key}) == 1
+    assert shared[1].is_file() and len(list(wheel_store(data).iterdir())) == 2
+    assert collect_garbage(data, set()) == 1
+    assert not any(wheel_store(data).iterdir())
+
+
+@pytest.mark.slow  # the resolver sandbox (bubblewrap)
+def test_a_variable_in_a_requirement_line_never_reads_the_hosts_environment(
+    tmp_path: Path, index: tuple[str, Path], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """pip expands ${VAR} in requirement files: on the host, this line once returned the admin
+    token in the rejection."""
+    monkeypatch.setenv("ARENA_ADMIN_TOKEN", SECRET)
+    settings = settings_for(tmp_path, index[0])
+    with pytest.raises(IntakeError) as caught:
+        validated(tmp_path, settings, "smallpkg===${ARENA_ADMIN_TOKEN}\n")
+    assert SECRET not in str(caught.value)
+    assert caught.value.entry == "requirements.txt:1"
+
+
+@pytest.mark.slow  # the resolver sandbox (bubblewrap)
+def test_an_sdist_is_built_only_in_the_sandbox_where_no_secret_is_readable(
+    tmp_path: Path, index: tuple[str, Path], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A wheel whose metadata names an sdist by URL once got that sdist built on the worker, as
+    root. Now its build code runs in the resolver sandboxes: it cannot write on the host, and
+    finds no secret in its environment, argv or any file it can read."""
+    url, marker = index
+    monkeypatch.setenv("ARENA_ADMIN_TOKEN", SECRET)
+    secret_file = tmp_path / "admin_token"
+    secret_file.write_text(SECRET)
+    monkeypatch.setenv("ARENA_ADMIN_TOKEN_FILE", str(secret_file))
+    settings = settings_for(tmp_path, url)
+    prepared = validated(tmp_path, settings, "lure==1.0\n")
+    assert not marker.exists()
+    probe = (prepared.deps_dir / "probe" / "__init__.py").read_text()
+    scope: dict = {}
+    exec(probe, scope)
+    assert scope["FOUND"] == [] and scope["SCANNED"] > 10
+    manifest = json.loads((prepared.deps_dir / MANIFEST).read_text())
+    assert manifest["built_from_source"] == ["probe-1.0.tar.gz"]
+
+
+@pytest.mark.slow  # the resolver sandbox (bubblewrap)
+def test_every_unresolvable_line_is_reported_at_once_with_pins_that_fit_the_file(
+    tmp_path: Path, index: tuple[str, Path]
+) -> None:
+    settings = settings_for(tmp_path, index[0])
+    text = "# agent\nsmallpkg==1.0\nnothere==1.0\n\nplotlib==9\n"
+    with pytest.raises(IntakeError) as caught:
+        validated(tmp_path, settings, text)
+    message = caught.value.message
+    assert "line 3 `nothere==1.0`" in message and "line 5 `plotlib==9`" in message
+    # plotlib 3.0 needs smallpkg>=1.1, which line 2 excludes: only 2.0 is suggested.
+    assert "pin one of 2.0 " in message
+    assert "/tmp" not in message and ".deps-" not in message
+
+
+@pytest.mark.slow  # the resolver sandbox (bubblewrap)
+def test_a_conflict_keeps_pips_explanation_with_the_teams_lines(
+    tmp_path: Path, index: tuple[str, Path]
+) -> None:
+    settings = settings_for(tmp_path, index[0])
+    with pytest.raises(IntakeError) as caught:
+        validated(tmp_path, settings, "smallpkg==1.1\notherpkg==2.0\n")
+    message = caught.value.message
+    assert caught.value.rule == "requirements-conflict"
+    assert "The conflict is caused by" in message
+    assert "The user requested smallpkg==1.1 (requirements.txt:1)" in message
+
+
+@pytest.mark.slow  # the resolver sandbox (bubblewrap)
+@pytest.mark.parametrize(("line", "build"), [("torch", "2.1.0+cpu"), ("torch==2.0.0", "2.0.0+cpu")])
+def test_a_framework_installs_its_cpu_build(
+    tmp_path: Path, index: tuple[str, Path], line: str, build: str
+) -> None:
+    settings = settings_for(tmp_path, index[0])
+    prepared = validated(tmp_path, settings, f"{line}\n")
+    manifest = json.loads((prepared.deps_dir / MANIFEST).read_text())
+    assert manifest["cpu_builds"] == {"torch": build}
+    assert not (prepared.deps_dir / "gpulib").exists()
+    assert (prepared.deps_dir / "torch" / "__init__.py").read_text() == f"V = {build!r}\n"
+
+
+@pytest.mark.slow  # the resolver sandbox (bubblewrap)
+def test_a_wheel_larger_than_the_zip_cap_installs_and_the_wheel_cap_holds(
+    tmp_path: Path, index: tuple[str, Path]
+) -> None:
+    """The zip's 100 MiB cap was applied to each wheel, so torch's CPU build (183 MiB) could not
+    install; one wheel has its own cap."""
+    settings = settings_for(tmp_path, index[0], max_zip_bytes=1 * MiB)
+    prepared = validated(tmp_path, settings, "bigwheel==1.0\n")
+    assert (prepared.deps_dir / "bigwheel" / "blob.bin").stat().st_size == 3 * MiB
+    capped = settings_for(tmp_path / "b", index[0], max_wheel_bytes=1 * MiB)
+    with pytest.raises(IntakeError) as caught:
+        validated(tmp_path, capped, "bigwheel==1.0\n", "b")
+    assert caught.value.rule == "max-wheel-bytes"
+
+
+def test_a_wheel_of_many_small_entries_is_judged_on_its_whole_ratio(tmp_path: Path) -> None:
+    """1,100 entries of 1 MiB each (every one under the ratio check's floor) once unpacked to
+    1.1 GiB from a small wheel."""
+    wheels = tmp_path / "wheels"
+    wheels.mkdir()
+    build_wheel(wheels, "padded", "1.0", {f"padded/f{n}.bin": bytes(MiB // 2) for n in range(8)})
+    limits = rules.Limits(
+        max_zip_bytes=MiB,
+        max_unzipped_bytes=MiB,
+        max_entries=100,
+        max_compression_ratio=100.0,
+        max_deps_bytes=64 * MiB,
+        max_deps_files=100,
+        max_wheel_bytes=MiB,
+    )
+    with pytest.raises(rules.Rejected) as caught:
+        rules.unpack_wheels(wheels, tmp_path / "out", limits)
+    assert caught.value.rule == "compression-ratio"
+
+
+@pytest.mark.slow  # pip resolves from the loopback index
+def test_prepared_locally_a_participant_resolves_without_the_hosts_variables(
+    tmp_path: Path, index: tuple[str, Path], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """On a participant's own machine the resolver is a child with a minimal environment."""
+    monkeypatch.setenv("ARENA_ADMIN_TOKEN", SECRET)
+    settings = settings_for(tmp_path, index[0])
+    with pytest.raises(IntakeError) as caught:
+        prepare_submission(
+            upload_with(tmp_path, "smallpkg===${ARENA_ADMIN_TOKEN}\n"),
+            tmp_path / "a",
+            settings.intake,
+            settings.sandbox,
+            settings.storage.resolved_data_dir,
+        )
+    assert SECRET not in str(caught.value)
+    installed = prepare_submission(
+        upload_with(tmp_path, "smallpkg==1.1\n", "b"),
         tmp_path / "b",
         settings.intake,
         settings.sandbox,
         settings.storage.resolved_data_dir,
     )
-    assert second.deps_dir == first.deps_dir
-
-
-def test_a_requirement_without_a_wheel_is_rejected(tmp_path: Path) -> None:
-    settings = with_fields(Settings(), storage={"data_dir": tmp_path / "data"})
-    # PyYAML 5.1 (2019) published no wheels for CPython 3.11 on Linux: source only.
-    upload = write_zip(tmp_path / "a.zip", with_policy(**{"requirements.txt": "PyYAML==5.1\n"}))
-    with pytest.raises(IntakeError) as caught:
-        prepare_submission(
-            upload,
-            tmp_path / "a",
-            settings.intake,
-            settings.sandbox,
-            settings.storage.resolved_data_dir,
-        )
-    assert (caught.value.entry, caught.value.rule) == ("requirements.txt:1", "no-wheel")
-    assert not (tmp_path / "a").exists()
-
-
-def test_requirements_are_normalised_before_hashing() -> None:
-    assert parse_requirements("numpy >= 1.24  # fast\n\n# comment\nsix==1.16.0\n") == [
-        "numpy>=1.24",
-        "six==1.16.0",
-    ]
-
-
-def test_pip_noise_is_left_out_of_the_rejection():
-    from submissions.intake.dependencies import pip_error_summary
-
-    output = (
-        "WARNING: Location 'file:///somewhere/simple/nope/' is ignored: it is neither a file nor a"
-        " directory.\n"
-        "ERROR: Could not find a version that satisfies the requirement nope-pkg==9 (from "
-        "versions: none)\n"
-        "\n[notice] A new release of pip is available\n"
-        "ERROR: No matching distribution found for nope-pkg==9\n"
-    )
-    assert pip_error_summary(output) == (
-        "Could not find a version that satisfies the requirement nope-pkg==9 (from versions: "
-        "none) / No matching distribution found for nope-pkg==9"
-    )
-    assert pip_error_summary("WARNING: x\nsomething broke\n") == "something broke"
-
-
-def test_requirements_resolve_for_the_sandbox_python_not_the_hosts(tmp_path: Path) -> None:
-    """numpy 1.23.5 has wheels for CPython 3.11 (the host's and the sandbox's) but none for
-    3.12: a sandbox on 3.12 refuses the pin, naming its Python, though the host could install it."""
-    requirements = {"requirements.txt": "numpy==1.23.5\n"}
-    upload = write_zip(tmp_path / "a.zip", with_policy(**requirements))
-    sandbox_311 = with_fields(Settings(), storage={"data_dir": tmp_path / "data"})
-    installed = prepare_submission(
-        upload,
-        tmp_path / "a",
-        sandbox_311.intake,
-        sandbox_311.sandbox,
-        sandbox_311.storage.resolved_data_dir,
-    )
     assert installed.deps_dir is not None
-    assert (installed.deps_dir / "numpy-1.23.5.dist-info").is_dir()
-    sandbox_312 = with_fields(
-        Settings(),
-        storage={"data_dir": tmp_path / "data"},
-        sandbox={"agent_python_version": "3.12"},
-    )
-    with pytest.raises(IntakeError) as caught:
-        prepare_submission(
-            upload,
-            tmp_path / "b",
-            sandbox_312.intake,
-            sandbox_312.sandbox,
-            sandbox_312.storage.resolved_data_dir,
-        )
-    assert caught.value.rule == "no-wheel" and "3.12" in str(caught.value)
-
-
-def test_requirements_that_conflict_are_refused_naming_the_conflict(tmp_path: Path) -> None:
-    settings = with_fields(Settings(), storage={"data_dir": tmp_path / "data"})
-    text = "numpy==1.23.5\nnumpy>=2\n"
-    upload = write_zip(tmp_path / "a.zip", with_policy(**{"requirements.txt": text}))
-    with pytest.raises(IntakeError) as caught:
-        prepare_submission(
-            upload,
-            tmp_path / "a",
-            settings.intake,
-            settings.sandbox,
-            settings.storage.resolved_data_dir,
-        )
-    assert "numpy==1.23.5" in str(caught.value) and "numpy>=2" in str(caught.value)
-    assert "conflicting" in str(caught.value)
+    assert (installed.deps_dir / "smallpkg" / "__init__.py").read_text() == "V = '1.1'\n"

@@ -11,7 +11,7 @@ from arena.cli import app
 from arena.config import Settings
 from arena.errors import IntakeError
 from evaluator.validation import validate
-from submissions.intake import check_zip, prepare_submission
+from submissions.intake import check_zip
 from submissions.intake.porting import explain_missing_wheel
 from tests.settings import with_fields
 from tests.submissions.zips import GOOD_POLICY, write_zip
@@ -53,43 +53,40 @@ def test_check_prints_the_porting_notes(tmp_path: Path) -> None:
     assert "porting note" in result.output and "submitted_wrappers" in result.output
 
 
-def test_missing_wheel_of_a_dependency_is_named_as_one() -> None:
-    # pip's own wording (its last lines), for a package pulled in by a listed requirement.
-    pip_said = IntakeError(
-        "requirements.txt",
-        "no-wheel",
-        "could not be resolved to wheels: ERROR: Could not find a version that satisfies the "
-        "requirement gym==0.19.0 (from versions: none) / ERROR: No matching distribution found "
-        "for gym==0.19.0",
-    )
-    explained = explain_missing_wheel(pip_said, "d3rlpy==1.1.1\n")
-    assert explained.entry == "requirements.txt" and explained.rule == "no-wheel"
-    assert "gym==0.19.0 (a dependency of a listed requirement)" in explained.message
-    assert "Replace it with a package that ships wheels" in explained.message
-    assert "remove the requirement that pulls it in" in explained.message
+def test_missing_distribution_of_a_dependency_is_named_as_one() -> None:
+    # The resolver's report for a package pulled in by a listed requirement.
+    report = {
+        "ok": False,
+        "errors": [{"line": None, "project": "gym", "available": "0.26.2", "suggestions": []}],
+        "conflict": [],
+    }
+    explained = explain_missing_wheel(report, "d3rlpy==1.1.1\n")
+    assert explained.entry == "requirements.txt" and explained.rule == "no-distribution"
+    assert "gym (a dependency of a listed requirement)" in explained.message
+    assert "versions there: 0.26.2" in explained.message
+    assert "pin the requirement that pulls it in" in explained.message
 
 
-@pytest.mark.slow
-def test_a_smarts_requirement_without_a_wheel_names_its_line_and_versions(tmp_path: Path) -> None:
-    """The 1st-place team's Panda3D pin (resolved from PyPI, as the service does)."""
-    settings = with_fields(Settings(), storage={"data_dir": tmp_path / "data"})
+def test_a_smarts_requirement_without_a_distribution_names_its_line() -> None:
+    """The 1st-place team's Panda3D pin: its line in the team's numbering, the versions that
+    resolve with the file, and that an arena agent does not need it."""
     requirements = "# from the SMARTS 2022 submission\nsix==1.16.0\nPanda3D==1.10.9\n"
-    upload = write_zip(
-        tmp_path / "a.zip", {"policy.py": GOOD_POLICY, "requirements.txt": requirements}
-    )
-    with pytest.raises(IntakeError) as caught:
-        prepare_submission(
-            upload,
-            tmp_path / "a",
-            settings.intake,
-            settings.sandbox,
-            settings.storage.resolved_data_dir,
-        )
-    error = caught.value
-    assert (error.entry, error.rule) == ("requirements.txt:3", "no-wheel")
-    assert error.message.startswith("Panda3D==1.10.9 has no wheel for the sandbox's CPython 3.11")
-    assert "Pin a version that has one (1.10." in error.message
-    assert "remove it" in error.message
+    report = {
+        "ok": False,
+        "errors": [
+            {
+                "line": 3,
+                "project": "panda3d",
+                "available": "1.10.14, 1.10.13",
+                "suggestions": ["1.10.14", "1.10.13"],
+            }
+        ],
+    }
+    error = explain_missing_wheel(report, requirements)
+    assert error.entry == "requirements.txt" and error.rule == "no-distribution"
+    assert error.message.startswith("line 3 `Panda3D==1.10.9`: no version of panda3d")
+    assert "CPython 3.11" in error.message and "pin one of 1.10.14, 1.10.13" in error.message
+    assert "a Driving Arena agent does not need: remove them" in error.message
 
 
 DS2022_POLICY = (

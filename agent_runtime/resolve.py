@@ -1,0 +1,464 @@
+"""Resolving a submission's ``requirements.txt`` inside the resolver sandbox.
+
+Standard library only, and no import of this project: ``evaluator/sandbox/resolver.py`` runs this
+file in a sandbox of its own (``python3 resolve.py MODE INPUT OUTPUT``) with no secret and no host
+variable in its environment, as uid 65534, bounded in time, memory and bytes. pip is the
+evaluator's own (a pure-Python package mounted read-only), run on the sandbox's interpreter, so
+what it resolves is what the agent imports. Its configuration is what ``INPUT/resolve.json`` says
+and nothing else (``PIP_CONFIG_FILE=/dev/null``: no host file, constraint or variable reaches it).
+
+Two modes, two sandboxes:
+
+- ``download``: the only reachable address is the package index, through a relay to the host's
+  index proxy (``proxy``: a unix socket; the sandbox's network namespace has only loopback) or a
+  folder mounted read-only. pip resolves and downloads wheels, and sdists where a project has no
+  wheel (their metadata hooks run here, never on the host), then the build requirements of each
+  sdist. A failed resolution is told in one round: every line that no version satisfies, pip's
+  conflict explanation, and versions to pin that resolve with the file's other lines.
+- ``build``: no network at all; each sdist is built into a wheel from the downloaded build
+  requirements only. The wheels are then checked like any other (``intake.py wheels``).
+
+The verdict is ``OUTPUT/report.json``: ``{"ok": true, ...}`` or ``{"ok": false, "errors": [...],
+"conflict": [...]}``, each error ``{"line", "project", "message", "suggestions"}``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import re
+import socket
+import subprocess
+import sys
+import tarfile
+import threading
+import tomllib
+import zipfile
+from pathlib import Path
+
+REQUEST = "resolve.json"
+REPORT = "report.json"
+WHEELS_DIR = "wheels"
+BUILD_DEPS_DIR = "build-deps"
+SDISTS_DIR = "sdists"
+SDIST_SUFFIXES = (".tar.gz", ".zip", ".tar.bz2", ".tgz")
+# setuptools' own default when an sdist says nothing (PEP 517 legacy path).
+DEFAULT_BUILD_REQUIRES = ["setuptools>=40.8.0", "wheel"]
+MAX_PIP_OUTPUT = 256 * 1024
+MAX_SUGGESTIONS = 3
+# How many versions of one line are tried against the others before giving up on suggesting.
+MAX_TRIED_VERSIONS = 4
+RELAY_CHUNK = 64 * 1024
+FILE_TOO_LARGE = "[Errno 27] File too large"
+_VERSIONS_LINE = re.compile(r"^Available versions: (.*)$", re.MULTILINE)
+_NO_MATCH = re.compile(r"No matching distribution found for (\S+)")
+_FROM_VERSIONS = re.compile(r"\(from versions: ([^)]*)\)")
+
+
+def start_relay(proxy_socket: str) -> int:
+    """A loopback port forwarding each connection to the host's index proxy (a unix socket): the
+    sandbox's network namespace has no other way out. Returns the port."""
+    listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    listener.bind(("127.0.0.1", 0))
+    listener.listen(16)
+
+    def pump(source: socket.socket, sink: socket.socket) -> None:
+        try:
+            while chunk := source.recv(RELAY_CHUNK):
+                sink.sendall(chunk)
+        except OSError:
+            pass
+        finally:
+            for end in (source, sink):
+                with contextlib.suppress(OSError):
+                    end.shutdown(socket.SHUT_RDWR)
+
+    def serve() -> None:
+        while True:
+            client, _ = listener.accept()
+            upstream = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+            try:
+                upstream.connect(proxy_socket)
+            except OSError:
+                client.close()
+                upstream.close()
+                continue
+            for a, b in ((client, upstream), (upstream, client)):
+                threading.Thread(target=pump, args=(a, b), daemon=True).start()
+
+    threading.Thread(target=serve, name="index-relay", daemon=True).start()
+    return listener.getsockname()[1]
+
+
+class Pip:
+    """pip as this request configures it, and nothing else."""
+
+    def __init__(self, request: dict, output: Path, proxy_port: int | None) -> None:
+        self.request = request
+        scratch = output / "tmp"
+        scratch.mkdir(parents=True, exist_ok=True)
+        self.env = {
+            "PATH": os.environ.get("PATH", "/usr/bin:/bin"),
+            "HOME": str(scratch),
+            # On disk, where the host counts the bytes (a wheel may not fit a small /tmp).
+            "TMPDIR": str(scratch),
+            "LANG": "C.UTF-8",
+            "PIP_CONFIG_FILE": os.devnull,
+            "PIP_NO_INPUT": "1",
+            "PIP_DISABLE_PIP_VERSION_CHECK": "1",
+            "PIP_CACHE_DIR": str(output / "cache"),
+            "PYTHONDONTWRITEBYTECODE": "1",
+        }
+        if request.get("pip_path"):
+            self.env["PYTHONPATH"] = request["pip_path"]
+        self.proxy = [] if proxy_port is None else ["--proxy", f"http://127.0.0.1:{proxy_port}"]
+
+    def index_options(self) -> list[str]:
+        urls = list(self.request.get("index_urls") or [])
+        options = ["--index-url", urls[0]] if urls else ["--no-index"]
+        for url in urls[1:]:
+            options += ["--extra-index-url", url]
+        for link in self.request.get("find_links") or []:
+            options += ["--find-links", link]
+        if self.request.get("cert"):
+            options += ["--cert", self.request["cert"]]
+        return options
+
+    def target_options(self, binary_only: bool = False) -> list[str]:
+        """Another interpreter's wheels (a participant's own machine): wheels only, as pip
+        requires; in the sandbox the interpreter is the agent's, and sdists are allowed."""
+        target = list(self.request.get("target") or [])
+        if target or binary_only:
+            return [*target, "--only-binary=:all:"]
+        return ["--prefer-binary"]
+
+    def run(self, command: str, *arguments: str) -> tuple[int, str]:
+        process = subprocess.run(
+            [sys.executable, "-m", "pip", "--no-color", *self.proxy, command, *arguments],
+            env=self.env,
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            check=False,
+        )
+        return process.returncode, process.stdout[-MAX_PIP_OUTPUT:].decode("utf-8", "replace")
+
+    def versions(self, project: str) -> list[str]:
+        """Every version of ``project`` the index has for this interpreter, newest first."""
+        target = list(self.request.get("target") or [])
+        code, output = self.run(
+            "index", "versions", "--pre", project, *self.index_options(), *target
+        )
+        found = _VERSIONS_LINE.search(output)
+        if code != 0 or found is None:
+            return []
+        return [v.strip() for v in found.group(1).split(",") if v.strip()]
+
+
+def packaging():
+    """pip's own copy of ``packaging`` (pip is on the path; this file imports nothing else)."""
+    from pip._vendor.packaging import requirements, utils, version
+
+    return requirements, utils, version
+
+
+def requirement_of(text: str):
+    requirements, _, _ = packaging()
+    try:
+        return requirements.Requirement(text)
+    except requirements.InvalidRequirement:
+        return None
+
+
+def project_of(text: str) -> str:
+    _, utils, _ = packaging()
+    parsed = requirement_of(text)
+    name = parsed.name if parsed else re.split(r"[=<>!~\[;@ ]", text, maxsplit=1)[0]
+    return utils.canonicalize_name(name)
+
+
+def allowed(text: str, versions: list[str]) -> list[str]:
+    """The ``versions`` (newest first) the requirement line accepts."""
+    _, _, version = packaging()
+    parsed = requirement_of(text)
+    if parsed is None:
+        return []
+    kept = []
+    for candidate in versions:
+        try:
+            if parsed.specifier.contains(version.Version(candidate), prereleases=True):
+                kept.append(candidate)
+        except version.InvalidVersion:
+            continue
+    return kept
+
+
+def cpu_builds(pip: Pip, lines: list[str]) -> dict[str, str]:
+    """For each framework line (torch...) in a sandbox without a GPU: the newest ``+cpu`` build
+    its specifier accepts, pinned exactly, so pip does not pick a CUDA build (gigabytes of GPU
+    libraries the sandbox cannot use)."""
+    if pip.request.get("gpu"):
+        return {}
+    frameworks = set(pip.request.get("cpu_frameworks") or [])
+    chosen = {}
+    for line in lines:
+        project = project_of(line)
+        if project not in frameworks or project in chosen:
+            continue
+        cpu = [v for v in allowed(line, pip.versions(project)) if v.endswith("+cpu")]
+        if cpu:
+            chosen[project] = cpu[0]
+    return chosen
+
+
+def write_lines(path: Path, lines: list[str]) -> Path:
+    path.write_text("".join(f"{line}\n" for line in lines))
+    return path
+
+
+def download(pip: Pip, lines: list[str], constraints: list[str], dest: Path, scratch: Path) -> str:
+    """pip download of ``lines`` into ``dest``; '' on success, else pip's output. The lines are
+    arguments, not a requirements file: pip expands ``${VAR}`` in files, never in arguments."""
+    constraint_file = write_lines(scratch / "constraints.txt", constraints)
+    code, output = pip.run(
+        "download",
+        "--progress-bar",
+        "off",
+        "--dest",
+        str(dest),
+        *pip.target_options(),
+        *pip.index_options(),
+        "-c",
+        str(constraint_file),
+        "--",
+        *lines,
+    )
+    return "" if code == 0 else output
+
+
+def resolves(pip: Pip, lines: list[str], constraints: list[str], scratch: Path) -> bool:
+    """Whether ``lines`` resolve together (pip's dry run: nothing installed)."""
+    constraint_file = write_lines(scratch / "constraints-check.txt", constraints)
+    code, _ = pip.run(
+        "install",
+        "--dry-run",
+        "--ignore-installed",
+        # Not into the interpreter's own packages: a Debian Python refuses those (PEP 668).
+        "--target",
+        str(scratch / "dry-run"),
+        "--quiet",
+        *pip.target_options(),
+        *pip.index_options(),
+        "-c",
+        str(constraint_file),
+        "--",
+        *lines,
+    )
+    return code == 0
+
+
+def conflict_block(output: str) -> list[str]:
+    """pip's explanation of a conflict: what cannot be installed together and why."""
+    lines = output.splitlines()
+    kept = [line.removeprefix("ERROR: ") for line in lines if line.startswith("ERROR: Cannot ")]
+    try:
+        start = next(i for i, line in enumerate(lines) if line.startswith("The conflict is"))
+    except StopIteration:
+        return kept
+    kept.append(lines[start])
+    for line in lines[start + 1 :]:
+        if not line.strip():
+            break
+        kept.append(line.strip())
+    return kept
+
+
+def unresolvable_lines(
+    pip: Pip, numbered: list[list], constraints: list[str], scratch: Path
+) -> list[dict]:
+    """Every line that no available version satisfies, each with versions to pin instead that
+    resolve with the file's other lines (newest first)."""
+    errors = []
+    failing = set()
+    for number, line in numbered:
+        project = project_of(line)
+        versions = pip.versions(project)
+        if allowed(line, versions):
+            continue
+        failing.add(number)
+        errors.append(
+            {
+                "line": number,
+                "project": project,
+                "versions": versions,
+                "available": ", ".join(versions[:MAX_SUGGESTIONS]) or "none",
+            }
+        )
+    others_ok = [line for number, line in numbered if number not in failing]
+    for error in errors:
+        suggestions = []
+        for candidate in error.pop("versions")[:MAX_TRIED_VERSIONS]:
+            if resolves(
+                pip, [*others_ok, f"{error['project']}=={candidate}"], constraints, scratch
+            ):
+                suggestions.append(candidate)
+            if len(suggestions) == MAX_SUGGESTIONS:
+                break
+        error["suggestions"] = suggestions
+    return errors
+
+
+def missing_dependencies(output: str, numbered: list[list]) -> list[dict]:
+    """Projects pip found no distribution for that no line names (a dependency of a line)."""
+    listed = {project_of(line) for _, line in numbered}
+    found = []
+    for match in _NO_MATCH.finditer(output):
+        project = project_of(match.group(1))
+        if project in listed or any(e["project"] == project for e in found):
+            continue
+        versions = _FROM_VERSIONS.search(output[match.start() - 2048 : match.end()])
+        shown = versions.group(1) if versions else "none"
+        found.append({"line": None, "project": project, "available": shown, "suggestions": []})
+    return found
+
+
+def build_requires(sdist: Path) -> list[str]:
+    """The sdist's ``[build-system] requires`` (setuptools' default when it has none), read
+    without running anything."""
+    text = None
+    try:
+        if sdist.name.endswith(".zip"):
+            with zipfile.ZipFile(sdist) as archive:
+                names = [n for n in archive.namelist() if n.count("/") == 1]
+                name = next((n for n in names if n.endswith("/pyproject.toml")), None)
+                text = archive.read(name).decode() if name else None
+        else:
+            with tarfile.open(sdist) as archive:
+                member = next(
+                    (
+                        m
+                        for m in archive.getmembers()
+                        if m.name.count("/") == 1 and m.name.endswith("/pyproject.toml")
+                    ),
+                    None,
+                )
+                handle = archive.extractfile(member) if member is not None else None
+                text = handle.read().decode() if handle is not None else None
+        requires = tomllib.loads(text).get("build-system", {}).get("requires") if text else None
+    except (OSError, ValueError, KeyError, tarfile.TarError, zipfile.BadZipFile):
+        requires = None
+    if not isinstance(requires, list) or not all(isinstance(r, str) for r in requires):
+        return list(DEFAULT_BUILD_REQUIRES)
+    return requires
+
+
+def run_download(request: dict, output: Path, proxy_port: int | None) -> dict:
+    pip = Pip(request, output, proxy_port)
+    scratch = output / "tmp"
+    numbered = request["requirements"]
+    lines = [line for _, line in numbered]
+    builds = cpu_builds(pip, lines)
+    constraints = [*request.get("constraints", []), *(f"{p}=={v}" for p, v in builds.items())]
+    wheels = output / WHEELS_DIR
+    failure = download(pip, lines, constraints, wheels, scratch)
+    if FILE_TOO_LARGE in failure:
+        # The sandbox's file-size limit is one wheel's cap: pip's write past it failed.
+        return {"ok": False, "cap": "max-wheel-bytes"}
+    if failure:
+        errors = unresolvable_lines(pip, numbered, constraints, scratch)
+        errors += missing_dependencies(failure, numbered)
+        return {
+            "ok": False,
+            "errors": errors,
+            "conflict": conflict_block(failure),
+            "tail": [] if errors else failure.strip().splitlines()[-8:],
+        }
+    sdists = [p for p in sorted(wheels.iterdir()) if p.name.endswith(SDIST_SUFFIXES)]
+    if sdists:
+        (output / SDISTS_DIR).mkdir()
+        for sdist in sdists:
+            sdist.rename(output / SDISTS_DIR / sdist.name)
+        requires = sorted({r for s in sdists for r in build_requires(output / SDISTS_DIR / s.name)})
+        (output / BUILD_DEPS_DIR).mkdir()
+        code, failed = (
+            (0, "")
+            if not requires
+            else pip.run(
+                "download",
+                "--progress-bar",
+                "off",
+                "--dest",
+                str(output / BUILD_DEPS_DIR),
+                *pip.target_options(binary_only=True),
+                *pip.index_options(),
+                "--",
+                *requires,
+            )
+        )
+        if code != 0:
+            return {
+                "ok": False,
+                "errors": [],
+                "conflict": [],
+                "tail": [
+                    "the build requirements of the source distributions:",
+                    *failed.strip().splitlines()[-6:],
+                ],
+            }
+    return {
+        "ok": True,
+        "wheels": sorted(p.name for p in wheels.glob("*.whl")),
+        "sdists": [s.name for s in sdists],
+        "cpu_builds": builds,
+    }
+
+
+def run_build(request: dict, source: Path, output: Path) -> dict:
+    """Each sdist of ``source`` built into a wheel, with no network (``--no-index``) and only
+    the build requirements downloaded before."""
+    pip = Pip(request, output, None)
+    wheels = output / WHEELS_DIR
+    built = []
+    for sdist in sorted((source / SDISTS_DIR).iterdir()):
+        code, failed = pip.run(
+            "wheel",
+            "--no-index",
+            "--no-deps",
+            "--find-links",
+            str(source / BUILD_DEPS_DIR),
+            "--wheel-dir",
+            str(wheels),
+            str(sdist),
+        )
+        if code != 0:
+            return {
+                "ok": False,
+                "errors": [],
+                "conflict": [],
+                "tail": [f"building {sdist.name} failed:", *failed.strip().splitlines()[-8:]],
+            }
+        built.append(sdist.name)
+    return {"ok": True, "wheels": sorted(p.name for p in wheels.glob("*.whl")), "built": built}
+
+
+def main(argv: list[str]) -> int:
+    """``MODE INPUT OUTPUT``: ``download`` or ``build``; the request in INPUT/resolve.json."""
+    mode, source, output = argv[0], Path(argv[1]), Path(argv[2])
+    request = json.loads((source / REQUEST).read_text())
+    if request.get("pip_path"):
+        sys.path.insert(0, request["pip_path"])
+    if mode == "download":
+        proxy = request.get("proxy")
+        report = run_download(request, output, start_relay(proxy) if proxy else None)
+    elif mode == "build":
+        report = run_build(request, source, output)
+    else:
+        raise SystemExit(f"unknown mode {mode!r}")
+    (output / REPORT).write_text(json.dumps(report))
+    return 0
+
+
+if __name__ == "__main__":
+    os.umask(0o022)
+    raise SystemExit(main(sys.argv[1:]))
