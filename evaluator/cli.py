@@ -16,6 +16,8 @@ from rich.markup import escape
 
 from arena.config import SandboxKind
 from arena.errors import ArenaError
+from arena.neutralise.console import plain, safe
+from arena.neutralise.storable import storable_text
 from arena.terminal import make_console, print_rows
 from evaluator.failures import (
     describe_end,
@@ -90,7 +92,8 @@ def evaluate(
     """Evaluate a submission on a scenario set and print its four metrics.
 
     Exits 1 when a scenario failed for the agent's fault (an exception, a bad action, a timeout),
-    2 when the evaluation could not run."""
+    2 when the evaluation could not run, 3 when an episode failed on our side and was not
+    charged (the scores leave it out: a bug of ours, said with what to do)."""
     # deferred: CLI start-up time
     from arena.config import get_settings
     from arena.suite import resolve_suite
@@ -124,15 +127,33 @@ def evaluate(
         progress.stop()
     if per_submission:
         out = out / summary.submission[:12]
-    if as_json or not could_not_start(summary):
+    scored = any(entry.metrics is not None for entry in summary.scenarios)
+    if as_json or (scored and not could_not_start(summary)):
         _report(summary, out, console, as_json, per_scenario)
-    else:  # no table of meaningless scores: the one error is the result
+    else:  # no table of meaningless scores: the errors are the result
+        _print_uncharged(summary, console)
         console.print(f"results in {out} (agent logs in {out / 'logs'})")
     notes = make_console(stderr=True) if as_json else console
     explain_failures(summary, out, notes, verbose=verbose)
     over_budget = _report_agent_cpu(out, settings.sandbox.cpu_limits, notes)
     if over_budget or any(is_agent_fault(episode.agents) for _, episode in _episodes(summary)):
         raise typer.Exit(1)
+    if summary.uncharged:
+        explain_uncharged(summary, out, notes)
+        raise typer.Exit(3)
+
+
+def explain_uncharged(summary: Summary, results_dir: Path, console: Console) -> None:
+    """Why the run is not a result: episodes failed on our side (arena.outcome.verdict), never
+    the agent's doing, and the scores leave them out."""
+    ids = summary.uncharged
+    shown = ", ".join(ids[:5]) + (f" and {len(ids) - 5} more" if len(ids) > 5 else "")
+    console.print(
+        f"[bold red]{len(ids)} scenario(s) failed on our side[/] and were not charged: {shown}. "
+        "This is a bug of Driving Arena, not of your agent; the scores leave them out. Run "
+        "again with the same --out to retry them; if they fail again, please report it with "
+        f"their logs ({results_dir / 'logs'})."
+    )
 
 
 def over_cpu_budget(results_dir: Path) -> bool:
@@ -215,7 +236,7 @@ def train(
 
             def progress(elapsed: float, log: str) -> bool:
                 last = log.strip().splitlines()[-1:] or [""]
-                status.update(f"training {elapsed:.0f} s  {escape(last[0][:100])}")
+                status.update(f"training {elapsed:.0f} s  {safe(last[0][:100])}")
                 return True
 
             result = run_training(
@@ -230,10 +251,10 @@ def train(
                 seed=seed,
             )
     log_file = out.parent / f"{out.name}.train.log"
-    log_file.write_text(result.log)
-    console.print(escape(result.log), highlight=False, markup=False)
+    log_file.write_text(storable_text(result.log))
+    console.print(plain(result.log), highlight=False, markup=False)
     if not result.ok:
-        console.print(f"[bold red]{result.failure}[/]: {escape(result.detail)}")
+        console.print(f"[bold red]{result.failure}[/]: {safe(result.detail)}")
         console.print(f"train.py's output: {escape(str(log_file))}")
         raise typer.Exit(1)
     console.print(
@@ -498,13 +519,17 @@ def _report(
     console.print("All four are errors: smaller is better.", style="dim")
     _print_interval(summary, console)
     _print_outcomes(summary, console)
-    for scenario_id in summary.uncharged:
-        entry = next(e for e in summary.scenarios if e.id == scenario_id)
-        error = escape(str(entry.error))
-        console.print(f"[red]not charged[/] {scenario_id} ({entry.status}): {error}")
+    _print_uncharged(summary, console)
     if not summary.complete and not could_not_start(summary) and not over_cpu_budget(results_dir):
         console.print("[bold yellow]incomplete:[/] re-run with the same --out to finish")
     console.print(f"results in {results_dir} (agent logs in {results_dir / 'logs'})")
+
+
+def _print_uncharged(summary: Summary, console: Console) -> None:
+    for scenario_id in summary.uncharged:
+        entry = next(e for e in summary.scenarios if e.id == scenario_id)
+        error = safe(entry.error)
+        console.print(f"[red]not charged[/] {scenario_id} ({entry.status}): {error}")
 
 
 def _scenario_outcome(entry) -> str:
@@ -577,7 +602,7 @@ def explain_failures(
             f"[bold red]your agent could not start[/] (stopped after {len(ran)} scenarios, "
             "every one failed the same way before its first step):"
         )
-        console.print(escape(error), highlight=False)
+        console.print(safe(error), highlight=False)
         if "ModuleNotFoundError" in error:
             console.print(
                 "a package your policy imports is missing: list it in requirements.txt "
@@ -592,7 +617,7 @@ def explain_failures(
         where = ", ".join(group.scenarios[:5]) + (f" and {n - 5} more" if n > 5 else "")
         times = f" ({n} scenarios)" if n > 1 else ""
         console.print(f"[bold red]failure[/]{times} in {where}:")
-        console.print(escape(group.text), highlight=False)
+        console.print(safe(group.text), highlight=False)
     if found and not verbose:
         console.print("(--verbose for every traceback; full logs in the logs folder)", style="dim")
 

@@ -1,10 +1,11 @@
-"""Text from an agent made storable on every database.
+"""Text from an agent made storable on every database and in every UTF-8 file.
 
 PostgreSQL refuses a NUL character in ``text`` and ``\\u0000`` in ``jsonb`` (psycopg
 ``DataError``), and no database driver encodes a lone surrogate (a JSON ``"\\ud800"``) as UTF-8.
 One such byte in an agent's output failed the recording, the scenario was re-simulated and the
 submission failed without counting towards the quota: free evaluations on the hidden set. Both
-are replaced by U+FFFD, the replacement character, before anything is stored.
+are replaced by U+FFFD, the replacement character, before anything is stored. The same lone
+surrogate crashed `arena evaluate` writing the episode's log file.
 """
 
 from __future__ import annotations

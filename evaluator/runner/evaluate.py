@@ -31,6 +31,7 @@ from arena.cpu_limits import CpuLimits
 from arena.episodes import Episode, episodes_of
 from arena.errors import ArenaError, SandboxUnavailable
 from arena.files import write_atomically
+from arena.neutralise.storable import storable_text
 from arena.outcome import ScenarioStatus
 from arena.suite import Suite, load_suite
 from evaluator.failures import FAIL_FAST_AFTER, never_started
@@ -365,7 +366,8 @@ class ResultsFolder:
             self.outcomes[key] = outcome
             self.cache[key] = scored
             self.timings[key.name] = round(outcome.wall_time_s, 3)
-            write_atomically(self.out_dir / LOGS_DIR / f"{key.name}.txt", outcome.log)
+            log = storable_text(outcome.log)  # the agent's text: any code point
+            write_atomically(self.out_dir / LOGS_DIR / f"{key.name}.txt", log)
 
     def _manifest(self) -> Manifest:
         """The manifest of the finished episodes; those a previous run finished keep the seeds

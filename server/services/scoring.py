@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from arena.episodes import Episode
+from arena.neutralise.storable import storable_json, storable_text
 from arena.outcome import FINISHED, AgentOutcome, DoneReason, ScenarioStatus
 from arena.suite import load_suite
 from evaluator.provenance import Environment, EpisodeRun, Manifest, manifest_of
@@ -22,7 +23,6 @@ from evaluator.scoring import Interval, ScoringProfile, load_profile
 from evaluator.summary import Summary
 from server.core.artifacts import ArtifactStore, MissingArtifact
 from server.models import EvaluationRun, ScenarioResult
-from server.services.storable import storable_json, storable_text
 
 
 @dataclass(frozen=True)

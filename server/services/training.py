@@ -18,6 +18,7 @@ from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from arena.config import ServiceSettings, Settings
+from arena.neutralise.storable import storable_text
 from server.core.queue import RunPlan
 from server.models import Submission, TrainingJob
 from server.models import utcnow as now
@@ -25,7 +26,6 @@ from server.services import leases, phases, seed_sets
 from server.services.errors import Conflict
 from server.services.evaluation import cannot_start, create_run, lock, stop_seed_set
 from server.services.leases import lease_until
-from server.services.storable import storable_text
 from server.status import (
     ACTIVE_RUN,
     ACTIVE_TRAINING,

@@ -20,6 +20,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from arena.config import get_settings
+from arena.neutralise.storable import storable_text
 from evaluator import sandbox
 from evaluator.sandbox.warm_pool import warm_agents
 from evaluator.training import unpack_model
@@ -27,7 +28,6 @@ from evaluator.validation import validate
 from server.core.artifacts import ArtifactStore, artifact_store
 from server.core.db import Database
 from server.core.queue import TaskQueue
-from server.services.storable import storable_text
 from submissions.intake import PreparedSubmission
 from submissions.intake.archive import remove_tree
 

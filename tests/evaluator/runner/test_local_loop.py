@@ -102,3 +102,40 @@ def test_scenarios_list_public_plain_and_json():
     listed = json.loads(CliRunner().invoke(app, ["scenarios", "list", "public", "--json"]).stdout)
     assert [row["id"] for row in listed] == ids
     assert len(listed[0]["hash"]) == 64
+
+
+def test_agent_text_with_a_lone_surrogate_is_written_and_printed(tmp_path):
+    """Its exception message crashed `arena evaluate` writing the episode's log
+    (UnicodeEncodeError): every local sink of agent text goes through arena.neutralise."""
+    body = """
+class Policy:
+    def act(self, obs):
+        raise ValueError("bad \\ud800 text")
+"""
+    agent = write_policy(tmp_path / "agent", body)
+    result = evaluate(str(agent), "--out", str(tmp_path / "out"))
+    assert result.exit_code == 1, result.output
+    assert "ValueError: bad \ufffd" in result.output  # one per byte of its UTF-8 form
+    log = (tmp_path / "out" / "logs" / f"{SCENARIOS[0]}.txt").read_text(encoding="utf-8")
+    assert "ValueError: bad \ufffd" in log
+
+
+def test_an_episode_not_charged_fails_the_exit_code_and_says_why(tmp_path):
+    """It exited 0 with a table of 0 scenarios: now 3, with which scenario failed on our side,
+    why, and what to do."""
+    from tests.sim.builders import make_scenario
+
+    suite = tmp_path / "suite"
+    make_scenario(suite / "broken")
+    for net in (suite / "broken").glob("*.net.xml"):
+        net.write_text("<net><edge id=")  # SUMO cannot load it: ours
+    entries = [{"id": "broken", "family": "cruise"}]
+    (suite / "manifest.json").write_text(json.dumps({"suite": "unit", "scenarios": entries}))
+    agent = write_policy(tmp_path / "agent", KEEP_LANE.replace("SPEED", "8.0"))
+    result = evaluate(
+        str(agent), "--suite", str(suite), "--out", str(tmp_path / "out"), scenarios=[]
+    )
+    assert result.exit_code == 3, result.output
+    assert "not charged broken (simulator_error)" in result.output
+    assert "failed on our side" in result.output and "not of your agent" in result.output
+    assert "completion" not in result.output  # no table of scores of nothing
