@@ -5,16 +5,24 @@ Every tunable (paths, limits, service URLs, sandbox choice) is read here from th
 once, and handed out by :func:`get_settings`. Only entry points (command lines, the service's
 dependencies and tasks) call it; each layer below takes the group it needs as a parameter.
 No other module reads ``os.environ`` for configuration.
+
+The secrets (the admin token, the database's and the broker's credentials, the hidden seed) are
+read from files in a deployment (``ARENA_<FIELD>_FILE``: compose ``secrets:``, mode 0400), so
+that no process holds them in its environment, where every child would inherit them. The plain
+variables still work for local use; :func:`get_settings` withdraws them from this process's
+environment once read, and :func:`arena.child_env.child_environment` never passes one on.
 """
 
 from __future__ import annotations
 
+import os
 from enum import StrEnum
 from functools import lru_cache
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, ClassVar
+from urllib.parse import quote
 
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from arena.cpu_limits import CpuLimits
@@ -42,7 +50,39 @@ def _seed_or_none(value: object) -> object:
     return parse_seed(value) if isinstance(value, str | int) else value
 
 
-class _Group(BaseSettings):
+# A secret file holds one value, a line at most; more is a wrong path (a folder's archive, a log).
+SECRET_FILE_MAX_BYTES = 64 * 1024
+
+
+def read_secret_file(path: Path, variable: str) -> str:
+    """The secret in ``path`` (named by ``variable``), its final newline dropped."""
+    try:
+        with open(path, "rb") as handle:
+            data = handle.read(SECRET_FILE_MAX_BYTES + 1)
+    except OSError as error:
+        raise ValueError(f"{variable}: cannot read {path}: {error.strerror}") from None
+    if len(data) > SECRET_FILE_MAX_BYTES:
+        raise ValueError(f"{variable}: {path} is larger than a secret ({len(data)} bytes)")
+    value = data.decode("utf-8", errors="strict").rstrip("\r\n")
+    if not value:
+        raise ValueError(f"{variable}: {path} is empty")
+    return value
+
+
+def url_with_password(url: str, password: str) -> str:
+    """``url`` with ``password`` (percent-encoded) as its user's password: a password-free URL
+    in the environment, the password from a secret file."""
+    scheme, separator, rest = url.partition("://")
+    netloc, slash, path = rest.partition("/")
+    userinfo, _, host = netloc.rpartition("@")
+    if not separator or not host:
+        raise ValueError(f"{url!r} names no host to log in to")
+    if ":" in userinfo:
+        raise ValueError("the URL already holds a password: give it in one place")
+    return f"{scheme}://{userinfo}:{quote(password, safe='')}@{host}{slash}{path}"
+
+
+class SettingsGroup(BaseSettings):
     """One concern's settings, read from ``ARENA_<FIELD>`` in the environment or ``.env``.
 
     Each group reads only its own names; the others' in the same ``.env`` are not its business
@@ -51,8 +91,16 @@ class _Group(BaseSettings):
     """
 
     model_config = SettingsConfigDict(
-        env_prefix="ARENA_", env_file=".env", extra="ignore", frozen=True, populate_by_name=True
+        env_prefix="ARENA_",
+        env_file=".env",
+        extra="ignore",
+        frozen=True,
+        populate_by_name=True,
+        # A refused value may be a secret: the error names the variable, never echoes its value.
+        hide_input_in_errors=True,
     )
+    # The fields holding a secret: each also read from the file its `<field>_file` names.
+    secret_fields: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, **values: Any) -> None:
         fields = type(self).model_fields
@@ -70,15 +118,51 @@ class _Group(BaseSettings):
             for name, field in cls.model_fields.items()
         }
 
+    @classmethod
+    def secret_env_names(cls) -> frozenset[str]:
+        """The variables that hold a secret itself (not the ones naming its file)."""
+        names = cls.env_names()
+        return frozenset(names[field] for field in cls.secret_fields)
 
-class StorageSettings(_Group):
+    @model_validator(mode="before")
+    @classmethod
+    def _read_secret_files(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            return data
+        names = cls.env_names()
+        for field in cls.secret_fields:
+            path = data.get(f"{field}_file")
+            if path is None or path == "":
+                continue
+            variable = names[f"{field}_file"]
+            value = read_secret_file(Path(path), variable)
+            given = data.get(field)
+            # Settings copied with their values (tests' with_fields) carry both, equal.
+            if given not in (None, "") and str(given) != value:
+                raise ValueError(
+                    f"both {names[field]} and {variable} are set: keep one (the file, in a "
+                    "deployment)"
+                )
+            data = {**data, field: value}
+        return data
+
+
+class StorageSettings(SettingsGroup):
     """Where everything the service writes lives, and its backends."""
 
     # The database, uploads, results, scenario builds.
     data_dir: Path = Path(".arena")
     # Service backends. Empty: the embedded default under data_dir (SQLite + SQLAlchemy broker).
+    # Secrets when they hold a password: in a deployment, a password-free URL here and the
+    # password in a file (`*_password_file`), or the whole URL in a file (`*_url_file`).
     database_url: str = ""
+    database_url_file: Path | None = None
+    database_password: str = ""
+    database_password_file: Path | None = None
     broker_url: str = ""
+    broker_url_file: Path | None = None
+    broker_password: str = ""
+    broker_password_file: Path | None = None
     # Where uploads and episode records live between processes (server/core/artifacts.py).
     artifact_store: ArtifactBackend = ArtifactBackend.folder
 
@@ -86,30 +170,54 @@ class StorageSettings(_Group):
     def resolved_data_dir(self) -> Path:
         return self.data_dir.expanduser().resolve()
 
+    secret_fields = ("database_url", "database_password", "broker_url", "broker_password")
+
+    @model_validator(mode="after")
+    def _passwords_need_urls(self) -> StorageSettings:
+        for kind in ("database", "broker"):
+            url, password = getattr(self, f"{kind}_url"), getattr(self, f"{kind}_password")
+            if password:
+                if not url:
+                    raise ValueError(f"ARENA_{kind.upper()}_PASSWORD is set without a URL")
+                url_with_password(url, password)  # a URL it cannot join fails now, not later
+        return self
+
     @property
     def resolved_database_url(self) -> str:
-        return self.database_url or f"sqlite:///{self.resolved_data_dir / 'arena.db'}"
+        if not self.database_url:
+            return f"sqlite:///{self.resolved_data_dir / 'arena.db'}"
+        if self.database_password:
+            return url_with_password(self.database_url, self.database_password)
+        return self.database_url
 
     @property
     def resolved_broker_url(self) -> str:
-        return self.broker_url or f"sqla+sqlite:///{self.resolved_data_dir / 'broker.db'}"
+        if not self.broker_url:
+            return f"sqla+sqlite:///{self.resolved_data_dir / 'broker.db'}"
+        if self.broker_password:
+            return url_with_password(self.broker_url, self.broker_password)
+        return self.broker_url
 
 
-class SuiteSettings(_Group):
+class SuiteSettings(SettingsGroup):
     """The scenario suites: their seeds and folders."""
 
     development_seed: int = 20221128
-    # The organisers' secret seed for the hidden suite; never committed, only set in deployment.
-    # A number or a passphrase (arena/seeds.py: how to pick a strong one).
+    # The organisers' secret seed for the hidden suite; never committed, only set in deployment
+    # (a file, read by the suite builder alone). A number or a passphrase (arena/seeds.py: how
+    # to pick a strong one).
     hidden_seed: Annotated[int | None, BeforeValidator(_seed_or_none)] = None
+    hidden_seed_file: Path | None = None
     hidden_suite_dir: Path | None = None
     public_suite_dir: Path | None = None
     # The naturalistic scenes (CommonRoad NGSIM); None: the shipped
     # scenarios/data/naturalistic/commonroad-ngsim.
     naturalistic_dir: Path | None = None
 
+    secret_fields = ("hidden_seed",)
 
-class SandboxSettings(_Group):
+
+class SandboxSettings(SettingsGroup):
     """Where a participant's code runs, and its limits."""
 
     # ARENA_SANDBOX, as before the settings were grouped.
@@ -156,7 +264,7 @@ class SandboxSettings(_Group):
         return CpuLimits(self.step_cpu_s, self.episode_cpu_s, self.evaluation_cpu_s)
 
 
-class IntakeSettings(_Group):
+class IntakeSettings(SettingsGroup):
     """The checks an upload passes before it is accepted."""
 
     max_zip_bytes: int = 100 * 1024**2
@@ -183,7 +291,7 @@ class IntakeSettings(_Group):
     intake_timeout_s: float = 300.0
 
 
-class TrainingSettings(_Group):
+class TrainingSettings(SettingsGroup):
     """Track 2 training (docs/dataset.md).
 
     `train.py` runs in the sandbox with the sandbox's memory and CPU limits, the dataset
@@ -208,7 +316,7 @@ class TrainingSettings(_Group):
     train_checkpoint_bytes: int = 256 * 1024**2
 
 
-class EvaluationSettings(_Group):
+class EvaluationSettings(SettingsGroup):
     """How a submission is evaluated and scored (a phase may override the first two)."""
 
     # Episodes of each reactive scenario, each with other traffic (arena/episodes.py); the
@@ -218,11 +326,12 @@ class EvaluationSettings(_Group):
     jobs: int = Field(default=2, ge=1)
 
 
-class ServiceSettings(_Group):
+class ServiceSettings(SettingsGroup):
     """The web service and its workers."""
 
     daily_quota: int = 5
     admin_token: str | None = None
+    admin_token_file: Path | None = None
     # A claim's lease [s]: renewed every third of it; a dead worker's scenario is re-sent after
     # at most this plus one reaper interval.
     lease_seconds: int = 30
@@ -238,6 +347,8 @@ class ServiceSettings(_Group):
     # uvicorn: a client must send its request headers within this [s]; idle keep-alive ends after.
     http_header_timeout_s: float = 10.0
     http_keep_alive_s: float = 5.0
+
+    secret_fields = ("admin_token",)
 
 
 class Settings(BaseModel):
@@ -258,7 +369,7 @@ class Settings(BaseModel):
     service: ServiceSettings = Field(default_factory=ServiceSettings)
 
     @classmethod
-    def load(cls, env_file: Path | str | None = ".env", **groups: _Group) -> Settings:
+    def load(cls, env_file: Path | str | None = ".env", **groups: SettingsGroup) -> Settings:
         """Every group from the environment and `env_file` (None: the environment only), but
         those given."""
         read = {
@@ -268,7 +379,27 @@ class Settings(BaseModel):
         }
         return cls(**read, **groups)
 
+    @classmethod
+    def secret_env_names(cls) -> frozenset[str]:
+        """Every variable that holds a secret, whatever its group."""
+        return frozenset().union(
+            *(field.annotation.secret_env_names() for field in cls.model_fields.values())
+        )
+
+    @classmethod
+    def env_names(cls) -> frozenset[str]:
+        """Every settings variable, secrets and their files included."""
+        return frozenset().union(
+            *(field.annotation.env_names().values() for field in cls.model_fields.values())
+        )
+
 
 @lru_cache
 def get_settings() -> Settings:
-    return Settings()
+    """This process's settings. The secrets' plain variables are withdrawn from its environment
+    once read, so that no child inherits them, even one started by a library (multiprocessing's
+    fork server, a pool) rather than through :func:`arena.child_env.child_environment`."""
+    settings = Settings()
+    for name in Settings.secret_env_names():
+        os.environ.pop(name, None)
+    return settings

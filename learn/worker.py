@@ -19,6 +19,7 @@ import traceback
 from pathlib import Path
 from typing import Any, BinaryIO
 
+from arena.child_env import HOST_TOOL_VARIABLES, child_environment
 from arena.errors import InfrastructureError
 from learn.protocol import Config, Reply
 from learn.record_views import RecordViews
@@ -41,11 +42,9 @@ class SimulatorProcess:
 
     def __init__(self, config: Config) -> None:
         self._views = RecordViews(ObservationLayout(config.interface))
-        env = dict(os.environ)
         # The child must import the same code as this process (a worktree before an install).
-        env["PYTHONPATH"] = os.pathsep.join(
-            [str(PROJECT_ROOT), *filter(None, [env.get("PYTHONPATH")])]
-        )
+        path = os.pathsep.join([str(PROJECT_ROOT), *filter(None, [os.environ.get("PYTHONPATH")])])
+        env = child_environment({"PYTHONPATH": path}, inherit=HOST_TOOL_VARIABLES)
         self._child = subprocess.Popen(
             [sys.executable, "-m", "learn.worker"],
             stdin=subprocess.PIPE,

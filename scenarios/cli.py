@@ -60,7 +60,7 @@ def _hidden_seed(seed: str | None, dev: bool) -> int:
     if dev:
         return settings.suites.development_seed
     raise typer.BadParameter(
-        "no hidden seed: pass --seed, set ARENA_HIDDEN_SEED in the organisers' environment, or "
+        "no hidden seed: pass --seed, set ARENA_HIDDEN_SEED_FILE (or ARENA_HIDDEN_SEED), or "
         "use --dev for the development seed (never for a real competition)",
         param_hint="--seed",
     )
@@ -102,7 +102,8 @@ def build(
         typer.Option(
             help="Hidden suite seed (secret): a number or a passphrase (sha256 gives the number); "
             "pick 128 random bits, e.g. `python3 -c 'import secrets; "
-            "print(secrets.token_urlsafe(24))'`."
+            "print(secrets.token_urlsafe(24))'`. On a shared host prefer ARENA_HIDDEN_SEED_FILE: "
+            "`ps` shows a command line."
         ),
     ] = None,
     dev: Annotated[bool, typer.Option(help="Hidden suite from the development seed.")] = False,

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 
+from arena.child_env import HOST_TOOL_VARIABLES, child_environment
 from arena.errors import ArenaError
 from arena.files import write_atomically
 
@@ -315,9 +316,15 @@ class MapBuildError(ArenaError, RuntimeError):
     pass
 
 
+def _tool_env() -> dict[str, str]:
+    return child_environment(inherit=HOST_TOOL_VARIABLES)
+
+
 @lru_cache(maxsize=1)
 def netconvert_version() -> str:
-    out = subprocess.run(["netconvert", "--version"], capture_output=True, text=True, check=True)
+    out = subprocess.run(
+        ["netconvert", "--version"], capture_output=True, text=True, check=True, env=_tool_env()
+    )
     return out.stdout.splitlines()[0].strip()
 
 
@@ -346,7 +353,7 @@ def convert_plain_xml(
             (tmpdir / f"map.{suffix}.xml").write_text(text)
         cmd = ["netconvert", "-n", "map.nod.xml", "-e", "map.edg.xml", "-x", "map.con.xml"]
         cmd += ["-o", "map.net.xml", *options, "--no-warnings"]
-        proc = subprocess.run(cmd, cwd=tmpdir, capture_output=True, text=True)
+        proc = subprocess.run(cmd, cwd=tmpdir, capture_output=True, text=True, env=_tool_env())
         if proc.returncode != 0:
             raise MapBuildError(f"netconvert failed for {name}: {proc.stderr.strip()}")
         data = _HEADER.sub(b"", (tmpdir / "map.net.xml").read_bytes(), count=1)

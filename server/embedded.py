@@ -25,7 +25,16 @@ import httpx
 from rich.console import Console
 from rich.panel import Panel
 
-from arena.config import SandboxSettings, StorageSettings, SuiteSettings, get_settings
+from arena.child_env import SERVICE_VARIABLES, child_environment
+from arena.config import (
+    SandboxSettings,
+    ServiceSettings,
+    Settings,
+    SettingsGroup,
+    StorageSettings,
+    SuiteSettings,
+    get_settings,
+)
 from arena.errors import ArenaError
 from arena.suite import hidden_suite_dir, load_suite, public_suite_dir
 from evaluator import sandbox
@@ -53,11 +62,8 @@ def run_embedded(console: Console, *, host: str, port: int, demo_team: str) -> N
     data.mkdir(parents=True, exist_ok=True)
     lock = _lock_data_folder(data)  # held until this process ends, however it ends
     _check_port_free(host, port)
-    env = dict(os.environ)
-    env["ARENA_DATA_DIR"] = str(data)
-
     admin_token = settings.service.admin_token or _stored_admin_token(data)
-    env["ARENA_ADMIN_TOKEN"] = admin_token
+    env = service_environment(settings, data, secrets_folder(data))
 
     console.print(f"database: {settings.storage.resolved_database_url}")
     upgrade_database(settings.storage.resolved_database_url)
@@ -171,19 +177,61 @@ def _remove_leftover_sandboxes(console: Console, config: SandboxSettings, data_d
         console.print(f"removed {removed} leftover sandbox(es)")
 
 
+def _admin_token_path(data: Path) -> Path:
+    return data / "admin_token"
+
+
 def _stored_admin_token(data: Path) -> str:
     """The admin token of this data folder, made once and kept readable only by its owner."""
-    path = data / "admin_token"
+    path = _admin_token_path(data)
     if not path.exists():
         path.write_text(secrets.token_urlsafe(32) + "\n")
         path.chmod(0o600)
     return path.read_text().strip()
 
 
-def _build_suite(console: Console, env: dict, suite: str, out: Path, seed: int | None) -> None:
-    command = [*ARENA, "scenarios", "build", "--suite", suite, "--out", str(out)]
-    if seed is not None:
-        command += ["--seed", str(seed)]
+def secrets_folder(data: Path) -> Path:
+    """Where the secrets given as plain variables are handed to the children, owner-only."""
+    folder = data / "secrets"
+    folder.mkdir(mode=0o700, exist_ok=True)
+    folder.chmod(0o700)
+    return folder
+
+
+def service_environment(settings: Settings, data: Path, secrets_dir: Path) -> dict[str, str]:
+    """The API's and the worker's environment: the settings' variables but the secrets, which
+    they read from files (never from their environment, which their own children would
+    inherit); the hidden seed is the suite builder's alone."""
+    env = child_environment({"ARENA_DATA_DIR": str(data)}, inherit=SERVICE_VARIABLES)
+    env.pop(SuiteSettings.env_names()["hidden_seed_file"], None)
+    env |= _secret_files(secrets_dir, settings.storage, settings.service)
+    if settings.service.admin_token is None:
+        env[ServiceSettings.env_names()["admin_token_file"]] = str(_admin_token_path(data))
+    return env
+
+
+def _secret_files(folder: Path, *groups: SettingsGroup) -> dict[str, str]:
+    """The ``*_FILE`` variable of each secret of ``groups`` that was given as a plain variable,
+    naming a file in ``folder`` (owner-only) that holds it; those given as files are inherited
+    as they are."""
+    env = {}
+    for group in groups:
+        names = type(group).env_names()
+        for field in type(group).secret_fields:
+            value = getattr(group, field)
+            if value in (None, "") or getattr(group, f"{field}_file") is not None:
+                continue
+            path = folder / field
+            path.unlink(missing_ok=True)
+            descriptor = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o400)
+            with os.fdopen(descriptor, "w") as handle:
+                handle.write(f"{value}\n")
+            env[names[f"{field}_file"]] = str(path)
+    return env
+
+
+def _build_suite(console: Console, env: dict, suite: str, out: Path, *options: str) -> None:
+    command = [*ARENA, "scenarios", "build", "--suite", suite, "--out", str(out), *options]
     console.print(f"building the {suite} scenario suite in {out} …")
     subprocess.run(command, env=env, check=True)
 
@@ -193,7 +241,7 @@ def _public_suite(console: Console, suites: SuiteSettings, data_dir: Path, env: 
     if not (folder / "manifest.json").exists():
         folder = data_dir / "suites" / "public"
         if not (folder / "manifest.json").exists():
-            _build_suite(console, env, "public", folder, None)
+            _build_suite(console, env, "public", folder)
     console.print(f"public suite: {folder}")
     return folder
 
@@ -208,11 +256,13 @@ def _hidden_suite(console: Console, suites: SuiteSettings, data_dir: Path, env: 
         if built_from == seed_fingerprint(suites.development_seed):
             _warn_development_seed(console, suites.development_seed)
         return folder
-    seed = suites.hidden_seed
-    if seed is None:
-        seed = suites.development_seed
-        _warn_development_seed(console, seed)
-    _build_suite(console, env, "hidden", folder, seed)
+    if suites.hidden_seed is None:
+        _warn_development_seed(console, suites.development_seed)
+        _build_suite(console, env, "hidden", folder, "--dev")
+    else:
+        # From a file, never the command line (which `ps` shows to every user).
+        seed_file = _secret_files(secrets_folder(data_dir), suites)
+        _build_suite(console, env | seed_file, "hidden", folder)
     return folder
 
 

@@ -12,6 +12,7 @@ from typing import Protocol
 
 import agent_runtime
 from agent_runtime import confine
+from arena.child_env import child_environment
 from arena.config import SandboxKind, SandboxSettings
 from evaluator.sandbox.channel import Channel
 from evaluator.sandbox.cpu import CpuMeter
@@ -136,16 +137,25 @@ class LaunchSpec:
             return ["-B", "-s", f"{SUBMISSION_MOUNT}/{TRAIN_SCRIPT}"]
         return self.runner_args()
 
-    def sandbox_env(self) -> dict[str, str]:
-        """The environment inside Docker and bubblewrap (fixed mount points)."""
-        env = dict(RUNTIME_ENV)
+    def sandbox_env(
+        self,
+        path: str,
+        *,
+        deps: str = DEPS_MOUNT,
+        dataset: str = DATASET_MOUNT,
+        model: str = MODEL_MOUNT,
+    ) -> dict[str, str]:
+        """The whole environment of the sandbox's process (:func:`child_environment`: nothing
+        of the host's, no secret), with ``PATH`` and the folders as the sandbox sees them
+        (the fixed mount points but with the process backend)."""
+        env = dict(RUNTIME_ENV, PATH=path)
         if self.training is not None:
-            env |= self.training.env(DATASET_MOUNT, MODEL_MOUNT)
+            env |= self.training.env(dataset, model)
             if self.deps:
-                env["PYTHONPATH"] = DEPS_MOUNT
+                env["PYTHONPATH"] = deps
         elif self.model is not None:
-            env[MODEL_ENV] = MODEL_MOUNT
-        return env
+            env[MODEL_ENV] = model
+        return child_environment(env)
 
     def seccomp_program(self) -> bytes:
         """The sandbox's seccomp filter (``agent_runtime/confine.py``): the agents' own, or for

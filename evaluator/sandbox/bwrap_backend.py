@@ -25,6 +25,7 @@ import tempfile
 from pathlib import Path
 
 from agent_runtime import confine
+from arena.child_env import child_environment
 from arena.config import SandboxKind, SandboxSettings
 from arena.errors import SandboxUnavailable
 from evaluator.sandbox import cgroup
@@ -48,6 +49,8 @@ from evaluator.sandbox.subprocess_sandbox import (
 )
 
 RUNTIME_PYTHON = Path("/usr/bin/python3")
+# The root is the host's /usr alone: /usr/local (the host's own tools) stays off the path.
+SANDBOX_PATH = "/usr/bin:/bin"
 UNPRIVILEGED_ID = 65534
 # Debian finds BLAS through /etc/alternatives symlinks; nothing else of /etc is bound.
 ETC_NEEDED = ("/etc/alternatives", "/etc/ld.so.cache")
@@ -152,7 +155,7 @@ class BubblewrapBackend:
                 [*prefix, *self.command(spec, binds, seccomp, group)],
                 **sandbox_streams(training, child_end),
                 cwd="/",
-                env={"PATH": os.defpath, LABELS_ENV: encode_labels(spec.all_labels)},
+                env=child_environment({LABELS_ENV: encode_labels(spec.all_labels)}),
                 start_new_session=True,
                 pass_fds=(seccomp,),
                 preexec_fn=preexec,
@@ -203,7 +206,7 @@ class BubblewrapBackend:
             writable = spec.training is not None and target == MODEL_MOUNT
             mounts += ["--bind" if writable else "--ro-bind", str(source), target]
         environment = []
-        for key, value in spec.sandbox_env().items():
+        for key, value in spec.sandbox_env(SANDBOX_PATH).items():
             environment += ["--setenv", key, value]
         # A warm parent is the namespace's PID 1 itself: no signal from its children reaches it.
         as_pid_1 = ["--as-pid-1"] if spec.zygote else []
@@ -246,9 +249,6 @@ class BubblewrapBackend:
             "--chdir",
             SUBMISSION_MOUNT,
             "--clearenv",
-            "--setenv",
-            "PATH",
-            "/usr/bin:/bin",
             # Inside too, so cleanup() finds the agent's own processes, not just bwrap.
             "--setenv",
             LABELS_ENV,

@@ -41,6 +41,9 @@ SOCKET_MOUNT = "/run/arena"
 SOCKET_NAME = "agent.sock"
 UNPRIVILEGED_ID = 65534
 UNPRIVILEGED_USER = f"{UNPRIVILEGED_ID}:{UNPRIVILEGED_ID}"
+# Docker's default: the agent image's python3 is in /usr/local/bin (Dockerfile.agent) or /usr/bin
+# (the offline image).
+IMAGE_PATH = "/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin"
 # The log driver keeps this much per container; we show the last agent_log_tail_bytes of it.
 LOG_MAX_SIZE = "1m"
 # How long a killed container may take to be reported dead [s].
@@ -158,7 +161,7 @@ def container_options(spec: LaunchSpec, socket_dir: Path | None) -> dict[str, An
         "user": UNPRIVILEGED_USER,
         "ipc_mode": "none",
         "working_dir": SUBMISSION_MOUNT,
-        "environment": spec.sandbox_env(),
+        "environment": spec.sandbox_env(IMAGE_PATH),
         "volumes": volumes,
         "labels": spec.all_labels,
         "log_config": LogConfig(

@@ -15,6 +15,7 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
+from arena.child_env import HOST_TOOL_VARIABLES, PACKAGE_INDEX_VARIABLES, child_environment
 from arena.config import SandboxSettings
 from arena.errors import SandboxUnavailable
 from arena.files import replaced_atomically
@@ -102,7 +103,8 @@ def build_rootfs_tarball(
             str(root),
             mirror,
         ]
-        done = subprocess.run(command, capture_output=True, text=True)
+        env = child_environment(inherit=[*HOST_TOOL_VARIABLES, *PACKAGE_INDEX_VARIABLES])
+        done = subprocess.run(command, capture_output=True, text=True, env=env)
         if done.returncode != 0:
             raise SandboxUnavailable(f"debootstrap failed:\n{done.stdout[-4000:]}{done.stderr}")
         # debootstrap can leave /proc (and /sys) of the chroot mounted; a tar of a live /proc
@@ -115,6 +117,7 @@ def build_rootfs_tarball(
             subprocess.run(
                 ["tar", "--one-file-system", "-C", str(root), "-cf", str(partial), "."],
                 check=True,
+                env=child_environment(),
             )
     log(f"cached runtime root at {target}")
 
@@ -128,7 +131,7 @@ def _unmount_below(root: Path) -> None:
         if line.split()[1].startswith(prefix)
     ]
     for mount in sorted(mounts, key=len, reverse=True):
-        subprocess.run(["umount", "--lazy", mount], check=False)
+        subprocess.run(["umount", "--lazy", mount], check=False, env=child_environment())
 
 
 def build_image(

@@ -19,8 +19,6 @@ import sys
 
 from arena.config import SandboxKind, SandboxSettings
 from evaluator.sandbox.backend import (
-    MODEL_ENV,
-    RUNTIME_ENV,
     RUNTIME_MAIN,
     TRAIN_SCRIPT,
     LaunchSpec,
@@ -48,19 +46,21 @@ class ProcessBackend:
         return None
 
     def launch(self, spec: LaunchSpec) -> PopenSandbox:
-        env = {
-            "PATH": os.defpath,
-            **RUNTIME_ENV,
-            "HOME": str(spec.submission),
-            LABELS_ENV: encode_labels(spec.all_labels),
-        }
-        env.pop("TMPDIR")
         training = spec.training
+        model = training.output if training is not None else spec.model
+        env = spec.sandbox_env(
+            os.defpath,
+            deps=str(spec.deps),
+            dataset=str(training.dataset) if training is not None else "",
+            model=str(model),
+        )
+        # No private /tmp here: the submission folder is its home, the system's temporary
+        # folder its scratch.
+        env["HOME"] = str(spec.submission)
+        env.pop("TMPDIR")
+        env[LABELS_ENV] = encode_labels(spec.all_labels)
         if training is not None:
             command = [sys.executable, "-B", "-s", str(spec.submission / TRAIN_SCRIPT)]
-            env |= training.env(str(training.dataset), str(training.output))
-            if spec.deps:
-                env["PYTHONPATH"] = str(spec.deps)
         else:
             deps = ["--deps", str(spec.deps)] if spec.deps else []
             command = [
@@ -73,8 +73,6 @@ class ProcessBackend:
                 *deps,
                 *spec.format_args(),
             ]
-            if spec.model is not None:
-                env[MODEL_ENV] = str(spec.model)
         control, child_end = control_pair(spec.zygote)
         try:
             process = subprocess.Popen(

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from arena import portable_math
+from arena.child_env import HOST_TOOL_VARIABLES, child_environment
 from arena.errors import ArenaError
 from scenarios.traffic import Routes
 from sim.trajectories import Trajectory
@@ -67,7 +68,9 @@ def record_scene(net_path: Path, routes: Routes, seed: int, duration_s: float) -
             "--no-warnings",
             "true",
         ]
-        proc = subprocess.run(cmd, capture_output=True, text=True)
+        proc = subprocess.run(
+            cmd, capture_output=True, text=True, env=child_environment(inherit=HOST_TOOL_VARIABLES)
+        )
         if proc.returncode != 0:
             raise RecordingError(f"sumo failed: {proc.stderr.strip()[-2000:]}")
         return parse_fcd(fcd, _dimensions(routes))

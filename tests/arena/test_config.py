@@ -14,6 +14,8 @@ VARIABLES = {
     "ARENA_DATA_DIR": ("storage", "data_dir", "/srv/arena", Path("/srv/arena")),
     "ARENA_DATABASE_URL": ("storage", "database_url", "postgresql://db/a", "postgresql://db/a"),
     "ARENA_BROKER_URL": ("storage", "broker_url", "redis://r:6379/0", "redis://r:6379/0"),
+    "ARENA_DATABASE_PASSWORD": ("storage", "database_password", "pw1", "pw1"),
+    "ARENA_BROKER_PASSWORD": ("storage", "broker_password", "pw2", "pw2"),
     "ARENA_ARTIFACT_STORE": ("storage", "artifact_store", "database", "database"),
     "ARENA_DEVELOPMENT_SEED": ("suites", "development_seed", "7", 7),
     "ARENA_HIDDEN_SEED": ("suites", "hidden_seed", "11", 11),
@@ -88,6 +90,17 @@ def test_every_variable_reaches_its_field(monkeypatch):
         assert getattr(getattr(settings, group), name) == value, variable
 
 
+# The secrets' files (a deployment's way: tests/arena/test_secret_settings.py reads them).
+SECRET_FILE_VARIABLES = {
+    "ARENA_DATABASE_URL_FILE": ("storage", "database_url_file"),
+    "ARENA_DATABASE_PASSWORD_FILE": ("storage", "database_password_file"),
+    "ARENA_BROKER_URL_FILE": ("storage", "broker_url_file"),
+    "ARENA_BROKER_PASSWORD_FILE": ("storage", "broker_password_file"),
+    "ARENA_HIDDEN_SEED_FILE": ("suites", "hidden_seed_file"),
+    "ARENA_ADMIN_TOKEN_FILE": ("service", "admin_token_file"),
+}
+
+
 def test_every_field_has_a_listed_variable():
     # A field added to a group without its variable here is a name nobody checked.
     named = {
@@ -95,7 +108,8 @@ def test_every_field_has_a_listed_variable():
         for group, field in Settings.model_fields.items()
         for name, variable in field.annotation.env_names().items()
     }
-    assert named == {(g, n): v for v, (g, n, _, _) in VARIABLES.items()}
+    listed = {(g, n): v for v, (g, n, _, _) in VARIABLES.items()}
+    assert named == listed | {place: v for v, place in SECRET_FILE_VARIABLES.items()}
 
 
 def test_the_env_file_is_read_by_every_group(tmp_path, monkeypatch):
