@@ -233,11 +233,31 @@ def reap(session: Session, service: ServiceSettings, *, queue_empty: bool) -> li
     return resend
 
 
+# A submission in one of these will never run again: its requirements' folder is freed.
+DEPS_RELEASED = (
+    SubmissionStatus.rejected,
+    SubmissionStatus.cancelled,
+    SubmissionStatus.disqualified,
+)
+
+
 def deps_in_use(session: Session) -> set[str]:
-    """Requirement folders a kept submission names (rejected ones keep none)."""
+    """Requirement folders a submission that may still run names (a rejected, cancelled or
+    disqualified one keeps none; a failed one may be re-run by an organiser)."""
     keys = session.scalars(
         select(Submission.deps_key).where(
-            Submission.deps_key.is_not(None), Submission.status != SubmissionStatus.rejected
+            Submission.deps_key.is_not(None), Submission.status.not_in(DEPS_RELEASED)
+        )
+    )
+    return set(keys)
+
+
+def deps_released(session: Session) -> set[str]:
+    """Requirement folders named by submissions that will never run again (maybe also by one
+    that may: :func:`deps_in_use` decides)."""
+    keys = session.scalars(
+        select(Submission.deps_key).where(
+            Submission.deps_key.is_not(None), Submission.status.in_(DEPS_RELEASED)
         )
     )
     return set(keys)

@@ -17,6 +17,7 @@ from arena.config import (
     SandboxSettings,
     ServiceSettings,
     Settings,
+    get_settings,
 )
 from arena.errors import IntakeError
 from evaluator import sandbox
@@ -102,6 +103,10 @@ class Validations:
             resend = validation.reap(session, service, queue_empty=queue_empty)
         for submission_id in resend:
             queue.validate(submission_id)
+        # The reaper is a task body: it reads the settings. Cancelled, disqualified and
+        # rejected submissions' requirements are freed here whoever ended them.
+        settings = get_settings()
+        free_requirements(local.database(), settings.intake, settings.storage.resolved_data_dir)
         return len(resend)
 
 
@@ -167,16 +172,22 @@ def record(
             written = validation.record_rejected(
                 session, claim, worker, result.reason, ours=result.ours
             )
-    if not written:
-        return
-    if result.prepared is not None:
+    if written and result.prepared is not None:
         queue.evaluate(claim.submission_id)
-        return
-    store.delete_prefix(str(Path(claim.upload_key).parent))
+    elif written:
+        store.delete_prefix(str(Path(claim.upload_key).parent))
+    # Not written: the submission was cancelled meanwhile; its folder is freed now too.
+    free_requirements(db, intake, data_dir)
+
+
+def free_requirements(db: Database, intake: IntakeSettings, data_dir: Path) -> int:
+    """Delete the requirement folders (and stored wheels) no submission that may still run
+    uses; folders younger than a few validations may belong to one not yet recorded."""
     with db.read_session() as session:
         in_use = validation.deps_in_use(session)
-    # Young folders may belong to a validation not yet recorded.
-    collect_garbage(data_dir, in_use, min_age_s=4 * intake.intake_timeout_s)
+        released = validation.deps_released(session) - in_use
+    age = 4 * (intake.intake_timeout_s + intake.resolver_timeout_s)
+    return collect_garbage(data_dir, in_use, min_age_s=age, released=released)
 
 
 VALIDATIONS = Validations()

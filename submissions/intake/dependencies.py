@@ -345,28 +345,39 @@ def exclusive_bytes(data_dir: Path, keys_by_owner: dict[str, set[str]]) -> dict[
     return charged
 
 
-def collect_garbage(data_dir: Path, keys_in_use: set[str], min_age_s: float = 0.0) -> int:
+def collect_garbage(
+    data_dir: Path, keys_in_use: set[str], min_age_s: float = 0.0, released: set[str] = frozenset()
+) -> int:
     """Delete the requirement folders whose key no kept submission uses, then the stored wheels
     no folder links; returns how many folders went. Folders being installed (``.deps-*``) and
-    those younger than ``min_age_s`` (installed for a validation not yet recorded) are kept."""
+    those younger than ``min_age_s`` (maybe installed for a validation not yet recorded) are
+    kept, unless ``released``: named by a submission that will never run again."""
     cache = deps_cache(data_dir)
     if not cache.is_dir():
         return 0
     removed = 0
     cutoff = time.time() - min_age_s
     kept_wheels: set[str] = set()
+    freed_wheels: set[str] = set()  # linked by a released folder removed now
     for folder in cache.iterdir():
         if folder.name.startswith(".") or folder.name == WHEEL_STORE:
             continue
-        if folder.name in keys_in_use or folder.stat().st_mtime > cutoff:
-            with contextlib.suppress(OSError, ValueError, KeyError):
-                kept_wheels |= {w["sha256"] for w in read_manifest(folder)["wheels"]}
+        wheels: set[str] = set()
+        with contextlib.suppress(OSError, ValueError, KeyError):
+            wheels = {w["sha256"] for w in read_manifest(folder)["wheels"]}
+        young = folder.stat().st_mtime > cutoff and folder.name not in released
+        if folder.name in keys_in_use or young:
+            kept_wheels |= wheels
             continue
+        if folder.name in released:
+            freed_wheels |= wheels
         remove_tree(folder)
         removed += 1
     store = wheel_store(data_dir)
+    # An intake under way may be linking stored wheels no folder names yet.
     if store.is_dir() and not any(p.name.startswith(".deps-") for p in cache.iterdir()):
         for wheel in store.iterdir():
-            if wheel.name not in kept_wheels and wheel.stat().st_mtime <= cutoff:
+            old = wheel.stat().st_mtime <= cutoff or wheel.name in freed_wheels
+            if wheel.name not in kept_wheels and old:
                 remove_tree(wheel)
     return removed
