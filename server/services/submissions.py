@@ -74,6 +74,7 @@ from server.services.training import shown_training
 from server.status import (
     ACTIVE_RUN,
     ACTIVE_SUBMISSION,
+    ACTIVE_TRAINING,
     SUBMISSION_MOVES,
     SubmissionStatus,
     advance,
@@ -220,9 +221,17 @@ def accept_upload(
 
 def keys_in_work(session: Session) -> tuple[set[str], set[str]]:
     """The zips and trained outputs of submissions still being trained or evaluated: what a
-    worker keeps unpacked; the rest of its scratch can go."""
-    working = Submission.status.in_(
-        [SubmissionStatus.queued, SubmissionStatus.training, SubmissionStatus.running]
+    worker keeps unpacked; the rest of its scratch can go. By their runs and trainings, not only
+    their status: a re-run (or re-training) of a scored submission keeps showing its score while
+    it works, and removing its unpacked zip under it failed its episodes as the team's."""
+    evaluating = select(EvaluationRun.submission_id).where(EvaluationRun.status.in_(ACTIVE_RUN))
+    training = select(TrainingJob.submission_id).where(TrainingJob.status.in_(ACTIVE_TRAINING))
+    working = or_(
+        Submission.status.in_(
+            [SubmissionStatus.queued, SubmissionStatus.training, SubmissionStatus.running]
+        ),
+        Submission.id.in_(evaluating),
+        Submission.id.in_(training),
     )
     uploads = set(session.scalars(select(Submission.upload_key).where(working)))
     models = set(

@@ -92,11 +92,13 @@ _models: dict[str, Path] = {}
 
 
 def prepared(upload_key: str) -> PreparedSubmission:
-    """One preparation per submission and worker process, even with several threads asking."""
+    """One preparation per submission and worker process, even with several threads asking;
+    prepared again if its folder is no longer whole (it never is half: :func:`_discard`)."""
     with _unpack_lock:
-        if upload_key not in _prepared:
-            _prepared[upload_key] = _prepare(upload_key)
-        return _prepared[upload_key]
+        ready = _prepared.get(upload_key)
+        if ready is None or not (ready.root.parent / PREPARED_DESCRIPTION).is_file():
+            _prepared[upload_key] = ready = _prepare(upload_key)
+        return ready
 
 
 def _prepare(upload_key: str) -> PreparedSubmission:
@@ -107,7 +109,9 @@ def _prepare(upload_key: str) -> PreparedSubmission:
 
     Into a folder named after the zip's digest, made whole in a staging folder then renamed,
     and never changed while it is in work: a warm agent binds it (its pool is keyed by that
-    digest), and two uploads of the same zip share it."""
+    digest), and two uploads of the same zip share it. The folder is whole when its description
+    is there; one without (a removal cut short by a restart before removals were atomic) is
+    replaced, never renamed onto (``ENOTEMPTY``) nor run."""
     root = scratch() / "submissions"
     staging = root / f"staging-{uuid.uuid4().hex}"
     try:
@@ -125,12 +129,24 @@ def _prepare(upload_key: str) -> PreparedSubmission:
                 kind=sandbox_kind(),
             )
             (staging / PREPARED_DESCRIPTION).write_bytes(pickle.dumps(ready))
+            _discard(final)
             staging.rename(final)
         # Written by this process into its own scratch folder, which no sandbox can write.
         ready = pickle.loads(described.read_bytes())
     finally:
         remove_tree(staging)
     return dataclasses.replace(ready, root=final / "prepared")
+
+
+def _discard(folder: Path) -> None:
+    """Remove ``folder`` so that nobody ever finds it half removed: renamed aside (atomic),
+    then deleted. A process killed in between leaves a ``trash-`` folder, never a broken one."""
+    trash = folder.with_name(f"trash-{uuid.uuid4().hex}")
+    try:
+        folder.rename(trash)
+    except FileNotFoundError:
+        return
+    remove_tree(trash)
 
 
 def _file_sha256(path: Path) -> str:
@@ -159,6 +175,7 @@ def _unpacked_model(model_key: str) -> Path:
         archive = store().fetch(model_key, staging / "model.tar.gz")
         unpack_model(archive, staging / "model")
         (staging / "model.tar.gz").unlink()
+        _discard(folder)
         staging.rename(folder)
     finally:
         remove_tree(staging)
@@ -181,10 +198,10 @@ def forget_finished(upload_keys: set[str], model_keys: set[str]) -> int:
         gone_models = [_models.pop(key) for key in list(_models) if key not in model_keys]
         for folder, sha256 in folders.items():
             warm_agents().close(sha256)
-            remove_tree(folder)
+            _discard(folder)
         for model_dir in gone_models:
             warm_agents().close(model_dir=model_dir)
-            remove_tree(model_dir.parent)
+            _discard(model_dir.parent)
     return len(folders) + len(gone_models)
 
 

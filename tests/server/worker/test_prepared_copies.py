@@ -89,3 +89,39 @@ def test_two_uploads_of_one_zip_share_a_folder_that_stays_while_either_runs(work
     assert (second.root / "policy.py").is_file()
     local.forget_finished(set(), set())
     assert not second.root.exists()
+
+
+def test_a_rerun_of_a_scored_submission_keeps_its_unpacked_zip(settings, db):
+    """A re-run keeps showing the submission's score while it works: its zip was not 'in work',
+    the reaper removed the prepared folder under the running episodes, and 10 of 39 ended
+    ``FileNotFoundError: '/submission/policy.py'``, charged to the team."""
+    from server.services import evaluation, submissions
+    from tests.server.builders import make_team, seed_scored
+
+    team_id, _ = make_team(db, "rerun")
+    submission_id = seed_scored(db, team_id, (0.5, 100.0, 0.5, 0.5))
+    with db.session() as session:
+        evaluation.rerun(session, settings, submission_id)
+    with db.read_session() as session:
+        uploads, _ = submissions.keys_in_work(session)
+        key = session.get(submissions.Submission, submission_id).upload_key
+    assert key in uploads
+
+
+def test_a_folder_left_half_removed_is_prepared_again(worker_env, tmp_path):
+    """A removal cut short (a restart) left the digest's folder without its description: the
+    next preparation renamed onto it (``OSError: [Errno 39] Directory not empty``), and one that
+    kept its description but lost policy.py was run. Now a folder without its description is
+    replaced, and removals are atomic (renamed aside first)."""
+    key = upload(tmp_path, 9)
+    ready = local.prepared(key)
+    folder = ready.root.parent
+    (folder / local.PREPARED_DESCRIPTION).unlink()  # what a cut-short removal leaves
+    assert local.prepared(key).root == ready.root  # this process notices, too
+    assert (ready.root / "policy.py").is_file()
+    (folder / local.PREPARED_DESCRIPTION).unlink()
+    local._prepared.clear()  # a restarted worker
+    again = local.prepared(key)
+    assert again.root == ready.root and (again.root / "policy.py").is_file()
+    local.forget_finished(set(), set())
+    assert not folder.exists() and not list(folder.parent.glob("trash-*"))
