@@ -420,7 +420,8 @@ def run_build(request: dict, source: Path, output: Path) -> dict:
     pip = Pip(request, output, None)
     wheels = output / WHEELS_DIR
     built = []
-    for sdist in sorted((source / SDISTS_DIR).iterdir()):
+    sdists = source / SDISTS_DIR
+    for sdist in sorted(sdists.iterdir()) if sdists.is_dir() else []:
         code, failed = pip.run(
             "wheel",
             "--no-index",

@@ -1,0 +1,161 @@
+"""The resolver sandbox: its only way out reaches the package index and nothing else, and the
+child the service spawns holds no secret in its environment or arguments."""
+
+from __future__ import annotations
+
+import http.client
+import json
+import socket
+import time
+import uuid
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from agent_runtime import resolve
+from arena.config import Settings
+from arena.errors import IntakeError
+from evaluator.resolver import PROXY_SOCKET, run_resolver, spawn_resolver
+from evaluator.sandbox.index_proxy import IndexProxy
+from evaluator.sandbox.subprocess_sandbox import labelled_pids
+from tests.settings import with_fields
+from tests.submissions.package_index import build_wheel, served_index
+
+SECRET = "s3cret-admin-token-9b2e"
+
+
+@pytest.fixture
+def two_servers(tmp_path: Path) -> Iterator[tuple[str, str]]:
+    """The package index and another server on loopback (what the sandbox must not reach)."""
+    for name in ("index", "other"):
+        (tmp_path / f"{name}-files").mkdir()
+        build_wheel(tmp_path / f"{name}-files", f"{name}pkg", "1.0")
+    with (
+        served_index(tmp_path / "index-files", tmp_path / "index") as index,
+        served_index(tmp_path / "other-files", tmp_path / "other") as other,
+    ):
+        yield index, other
+
+
+def proxied(socket_path: Path, request: bytes) -> bytes:
+    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as client:
+        client.connect(str(socket_path))
+        client.sendall(request)
+        data = b""
+        while chunk := client.recv(65536):
+            data += chunk
+            if request.startswith(b"CONNECT"):
+                break
+    return data
+
+
+def test_the_index_proxy_reaches_the_index_and_nothing_else(
+    tmp_path: Path, two_servers: tuple[str, str]
+) -> None:
+    index, other = two_servers
+    index_port = int(index.split(":")[2].split("/")[0])
+    other_port = int(other.split(":")[2].split("/")[0])
+    with IndexProxy(tmp_path / PROXY_SOCKET, {("127.0.0.1", index_port)}) as proxy:
+        page = proxied(
+            proxy.socket_path,
+            f"GET {index}/indexpkg/ HTTP/1.1\r\nHost: x\r\nConnection: keep-alive\r\n\r\n".encode(),
+        )
+        assert page.startswith(b"HTTP/1.0 200") and b"indexpkg-1.0" in page
+        refused = proxied(proxy.socket_path, f"GET {other}/otherpkg/ HTTP/1.1\r\n\r\n".encode())
+        assert refused.startswith(b"HTTP/1.1 403")
+        connect = f"CONNECT 127.0.0.1:{other_port} HTTP/1.1\r\n\r\n"
+        tunnel = proxied(proxy.socket_path, connect.encode())
+        assert tunnel.startswith(b"HTTP/1.1 403")
+        assert proxy.refused == [f"{other}/otherpkg/", f"127.0.0.1:{other_port}"]
+
+
+def test_a_proxied_request_carries_one_request_per_connection(
+    tmp_path: Path, two_servers: tuple[str, str]
+) -> None:
+    """A second request on the same connection could name another host: the proxy closes."""
+    index, _ = two_servers
+    port = int(index.split(":")[2].split("/")[0])
+    with (
+        IndexProxy(tmp_path / PROXY_SOCKET, {("127.0.0.1", port)}) as proxy,
+        socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as client,
+    ):
+        client.connect(str(proxy.socket_path))
+        connection = http.client.HTTPConnection("127.0.0.1")
+        connection.sock = client
+        connection.request("GET", f"{index}/indexpkg/", headers={"Connection": "keep-alive"})
+        response = connection.getresponse()
+        assert response.status == 200 and response.will_close
+        response.read()
+
+
+@pytest.mark.slow  # the resolver sandbox (bubblewrap)
+def test_the_resolver_child_holds_no_secret_in_its_environment_or_arguments(
+    tmp_path: Path, two_servers: tuple[str, str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Spawned by the one function that starts it (spawn_resolver), while the parent holds the
+    admin token in its environment: every process of the sandbox is read from /proc."""
+    monkeypatch.setenv("ARENA_ADMIN_TOKEN", SECRET)
+    index, _ = two_servers
+    settings = with_fields(Settings(), storage={"data_dir": tmp_path / "data"})
+    inputs, output, program = tmp_path / "in", tmp_path / "out", tmp_path / "program"
+    for folder in (inputs, program):
+        folder.mkdir()
+    request = {
+        "requirements": [[1, "indexpkg==1.0"]],
+        "index_urls": [index],
+        "find_links": [],
+        "target": [],
+        "constraints": [],
+    }
+    (inputs / resolve.REQUEST).write_text(json.dumps(request))
+    labels = {"arena.test": uuid.uuid4().hex}
+    box = spawn_resolver(
+        "build",  # no sdists to build: the child starts, looks and ends
+        inputs,
+        output,
+        program,
+        intake=settings.intake,
+        config=settings.sandbox,
+        data_dir=settings.storage.resolved_data_dir,
+        kind="bubblewrap",
+        labels=labels,
+    )
+    seen: dict[int, bytes] = {}
+    try:
+        deadline = time.monotonic() + 60
+        while box.exit_status(0.01) is None and time.monotonic() < deadline:
+            for pid in labelled_pids(labels):
+                try:
+                    environ = Path(f"/proc/{pid}/environ").read_bytes()
+                    argv = Path(f"/proc/{pid}/cmdline").read_bytes()
+                except OSError:
+                    continue
+                seen[pid] = environ + b"\0" + argv
+    finally:
+        box.kill()
+    assert seen, "no process of the resolver sandbox was seen"
+    assert not [pid for pid, text in seen.items() if SECRET.encode() in text]
+    assert not [pid for pid, text in seen.items() if b"ARENA_ADMIN_TOKEN" in text]
+
+
+@pytest.mark.slow  # the resolver sandbox (bubblewrap)
+def test_the_resolver_is_bounded_in_time(tmp_path: Path, two_servers: tuple[str, str]) -> None:
+    index, _ = two_servers
+    settings = with_fields(
+        Settings(), storage={"data_dir": tmp_path / "data"}, intake={"resolver_timeout_s": 0.5}
+    )
+    (tmp_path / "in").mkdir()
+    request = {"requirements": [[1, "indexpkg==1.0"]], "index_urls": [index], "find_links": []}
+    (tmp_path / "in" / resolve.REQUEST).write_text(json.dumps(request))
+    with pytest.raises(IntakeError) as caught:
+        run_resolver(
+            "download",
+            tmp_path / "in",
+            tmp_path / "out",
+            intake=settings.intake,
+            config=settings.sandbox,
+            data_dir=settings.storage.resolved_data_dir,
+            kind="bubblewrap",
+        )
+    assert caught.value.rule == "resolver-timeout"
