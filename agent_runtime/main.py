@@ -191,57 +191,6 @@ def checked_act(act, obs: dict) -> dict:
     return actions
 
 
-def act_all(act, obs: dict) -> dict:
-    """The ``actions`` message for ``obs``: ``act`` gets every live agent together, as SMARTS
-    passes them. When it raises an ordinary exception that :func:`blame` pins on one agent
-    (with others in ``obs``), that agent is listed under ``failed`` with its original traceback
-    and ends with ``agent_error``; ``act`` is then called again with the other agents together,
-    the observations SMARTS passes once an agent is gone. An exception no single agent can be
-    blamed for ends the whole agent with its own traceback, as do MemoryError and exits."""
-    failed = {}
-    while True:
-        try:
-            actions = checked_act(act, obs)
-        except Exception as error:
-            culprit = blame(error, obs) if len(obs) > 1 else None
-            if culprit is None:
-                raise
-            failed[culprit] = "".join(traceback.format_exception(error))[-4000:]
-            obs = {agent_id: o for agent_id, o in obs.items() if agent_id != culprit}
-            continue
-        message = {"type": "actions", "actions": actions}
-        if failed:
-            message["failed"] = failed
-        return message
-
-
-def blame(error: BaseException, obs: dict) -> str | None:
-    """The one agent whose observation or id the policy held where ``error`` was raised: the
-    innermost frame of the policy's code whose local variables name exactly one agent of ``obs``
-    (a loop over ``obs.items()``, a per-agent helper). None when no frame does."""
-    ids = {agent_id: agent_id for agent_id in obs}
-    by_identity = {id(o): agent_id for agent_id, o in obs.items()}
-    frames = []
-    tb = error.__traceback__
-    while tb is not None:
-        frames.append(tb.tb_frame)
-        tb = tb.tb_next
-    here = os.path.dirname(os.path.abspath(__file__))
-    for frame in reversed(frames):
-        if os.path.dirname(os.path.abspath(frame.f_code.co_filename)) == here:
-            continue  # the runtime's own frames hold every agent
-        named = set()
-        for value in frame.f_locals.values():
-            if isinstance(value, str):
-                if value in ids:
-                    named.add(value)
-            elif id(value) in by_identity:
-                named.add(by_identity[id(value)])
-        if len(named) == 1:
-            return named.pop()
-    return None
-
-
 class ArrayObservations:
     """Reads arrays act frames (``docs/protocol.md``, "Arrays observations") with the layout
     the evaluator sent once: each agent's record is copied out of the frame into a record of its
@@ -360,10 +309,12 @@ def serve(stream: Stream, policy: object, adapter=None) -> None:
                     obs = arrays.decode(body)
                 else:
                     obs = adapter.observations(body) if adapter else body
-                message = act_all(act, obs)
+                # An exception ends every agent of the episode: the policy drives them all
+                # (docs/protocol.md, "An exception in act").
+                actions = checked_act(act, obs)
                 if adapter:
-                    message["actions"] = adapter.actions(message["actions"])
-                stream.send(message)
+                    actions = adapter.actions(actions)
+                stream.send({"type": "actions", "actions": actions})
                 if kind == "arrays":
                     arrays.prepare()  # after the answer: off the round trip
             except BaseException as error:
@@ -398,6 +349,7 @@ class WrappedServer:
         self.options = options
         self.action_space = action_space
         self.pending = None  # the first observations of an episode, read before env.reset()
+        self.agent_ids: list[str] = []  # every agent of the episode, as the last reset named them
         self.compat = sibling_module(COMPAT)
 
     def serve(self) -> None:
@@ -407,7 +359,9 @@ class WrappedServer:
                 self.pending = self.first()
                 if env is None:  # wrappers learn the agent ids at construction, as in SMARTS
                     interface = self.compat.agent_interface(self.options, self.action_space)
-                    agents = dict.fromkeys(self.pending, interface)
+                    # Every agent of the episode, those that start later too (SMARTS's
+                    # agent_specs); the first observations where a reset named none.
+                    agents = dict.fromkeys(self.agent_ids or self.pending, interface)
                     env = self.compat.SandboxEnv(self, agents, self.options)
                     for wrap in self.wrappers:
                         env = wrap(env)
@@ -427,13 +381,15 @@ class WrappedServer:
             kind, body = self.stream.receive()
             if kind == "act":
                 return self.adapter.observations(body)
-            self.episode_end(kind)
+            self.episode_end(kind, body)
 
-    def episode_end(self, kind: str) -> None:
+    def episode_end(self, kind: str, body: object) -> None:
         if kind == "close":
             self.stream.send({"type": "done"})
             raise Closed
         if kind == "reset":
+            if isinstance(body, dict) and isinstance(body.get("agents"), list):
+                self.agent_ids = [str(agent_id) for agent_id in body["agents"]]
             self.adapter.reset()
             reset = getattr(self.policy, "reset", None)
             if reset is not None:
@@ -458,7 +414,7 @@ class WrappedServer:
         kind, body = self.stream.receive()
         if kind == "act":
             return self.adapter.observations(body)
-        self.episode_end(kind)
+        self.episode_end(kind, body)
         raise self.compat.EpisodeOver
 
 

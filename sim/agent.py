@@ -7,14 +7,17 @@ arrays``) is given :class:`sim.observation_record.ArraysObservation` values, the
 simulator writes in place, instead of observation dicts. One with a true
 ``takes_packed_waypoints`` (a sandbox handle of the other formats) is given observation dicts whose
 ``waypoint_paths`` are packed for the protocol (:mod:`agent_runtime.packed_waypoints`): its runtime
-makes them the dicts an in-process agent gets.
+makes them the dicts an in-process agent gets. One with a true ``takes_agent_ids`` (a sandbox
+handle) is reset with ``reset(agent_ids)``: every mission's agent id of the episode, those that
+start later included, which SMARTS's wrappers learn when they are built.
+
+An exception of the agent's ends every still-live agent of the episode: the agent drives them all
+(``docs/protocol.md``, "An exception in act").
 """
 
 from __future__ import annotations
 
 from typing import Any, Protocol
-
-from arena.errors import ParticipantError
 
 Observation = dict[str, Any]
 Action = list[float]
@@ -29,13 +32,3 @@ class Agent(Protocol):
 
     def close(self) -> None:
         """Release the agent (process, container)."""
-
-
-class SomeAgentsFailed(ParticipantError):
-    """The agent answered for some of its mission vehicles and raised for the others: those end
-    with ``agent_error`` (``failed``: id -> detail), the rest drive on with ``actions``."""
-
-    def __init__(self, actions: dict[str, Any], failed: dict[str, str]) -> None:
-        super().__init__(f"agent_error for {', '.join(sorted(failed))}")
-        self.actions = actions
-        self.failed = failed

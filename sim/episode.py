@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 from arena.errors import AgentFailed
 from arena.outcome import DoneReason
 from arena.scenario import load_scenario
-from sim.agent import Agent, SomeAgentsFailed
+from sim.agent import Agent
 from sim.interface import AgentInterface
 from sim.result import EpisodeResult
 from sim.simulation import Simulation
@@ -33,10 +33,10 @@ def run_episode(
     step limit; write the record to ``record_path`` (always, even with no rows).
 
     Calls ``agent.reset()`` first and never ``agent.close()`` (the caller owns the agent). An
-    :class:`AgentFailed` (from ``reset`` or ``act``) ends every still-live agent with its reason;
-    :class:`SomeAgentsFailed` ends the agents it names with ``agent_error`` and the rest drive on; a
-    bad action ends only its agent (``invalid_action``); passing ``wall_timeout_s`` ends the rest
-    with ``episode_timeout``. ``inputs`` are the scenario's files already parsed
+    :class:`AgentFailed` (from ``reset`` or ``act``) ends every still-live agent with its reason,
+    and so does any other exception of an in-process agent (``agent_error``); a bad action ends
+    only its agent (``invalid_action``); passing ``wall_timeout_s`` ends the rest with
+    ``episode_timeout``. ``inputs`` are the scenario's files already parsed
     (:mod:`sim.inputs`).
     SUMO errors propagate (the isolated runner turns them into ``simulator_error``).
     """
@@ -62,11 +62,6 @@ def run_episode(
                 break
             try:
                 actions = agent.act(obs) if obs else {}
-            except SomeAgentsFailed as exc:  # the others drive on (see agent_runtime/main.py)
-                failed = [agent_id for agent_id in exc.failed if agent_id in obs]
-                sim.fail(DoneReason.agent_error, failed)
-                detail = "\n".join(f"{k}: {v}" for k, v in exc.failed.items())[-4000:]
-                actions = exc.actions
             except AgentFailed as exc:
                 sim.fail(exc.reason)
                 detail = exc.detail or str(exc)
@@ -99,10 +94,10 @@ def _reset_agent(agent: Agent, sim: Simulation) -> str:
     """Reset the agent; a failure of its own (raising, timing out, exiting) ends every mission
     with its reason, as in ``act``: the agent's, so charged. Why it failed, or "" if it did not."""
     try:
-        agent.reset()
-    except SomeAgentsFailed as exc:  # a reset has no actions to keep: all of them failed
-        sim.fail(DoneReason.agent_error)
-        return "\n".join(f"{k}: {v}" for k, v in exc.failed.items())[-4000:] or "reset failed"
+        if getattr(agent, "takes_agent_ids", False):  # see sim.agent
+            agent.reset([v.id for v in sim.vehicles])
+        else:
+            agent.reset()
     except AgentFailed as exc:
         sim.fail(exc.reason)
         return exc.detail or str(exc)

@@ -13,6 +13,7 @@ evaluation's; a failure carries what was used up to it. Only an act has the step
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from typing import Any, NoReturn
 
 from arena.config import SandboxSettings
@@ -23,7 +24,7 @@ from evaluator.sandbox.array_frames import ArrayFrames
 from evaluator.sandbox.backend import ExitStatus, Sandbox
 from evaluator.sandbox.channel import Channel, ChannelClosed, ChannelTimeout, ChannelViolation
 from evaluator.sandbox.cpu import CpuReader
-from sim.agent import Observation, SomeAgentsFailed
+from sim.agent import Observation
 from sim.interface import AgentInterface, ObservationFormat
 
 # How long a closing agent may take to say goodbye before it is killed [s].
@@ -58,6 +59,7 @@ class AgentHandle:
         # waypoint paths of observation dicts for the runtime to unpack (sim.agent)
         self.takes_arrays = self._arrays is not None
         self.takes_packed_waypoints = self._arrays is None
+        self.takes_agent_ids = True  # reset names the episode's agents (sim.agent)
         self._step_cpu_s = limits.step_s
         self._step_timeout_s = config.step_timeout_s
         self._episode_cpu_s = limits.episode_s
@@ -100,8 +102,10 @@ class AgentHandle:
         if self._arrays is not None:  # no answer: the runner keeps it for the act frames
             self._send("layout", self._arrays.layout.describe(), deadline, DoneReason.init_timeout)
 
-    def reset(self) -> None:
-        self._send("reset", None, time.monotonic() + self._init_timeout_s, DoneReason.init_timeout)
+    def reset(self, agent_ids: Sequence[str] = ()) -> None:
+        """A new episode of the agents ``agent_ids`` (all of them, those starting later too)."""
+        deadline = time.monotonic() + self._init_timeout_s
+        self._send("reset", {"agents": list(agent_ids)}, deadline, DoneReason.init_timeout)
         self._expect("done", time.monotonic() + self._init_timeout_s, DoneReason.init_timeout)
         self._charge_episode()
 
@@ -123,11 +127,9 @@ class AgentHandle:
         )
         if metered:
             self._charge_act()
-        actions, failed = message.get("actions"), message.get("failed")
-        if not isinstance(actions, dict) or not isinstance(failed, dict | None):
+        actions = message.get("actions")
+        if not isinstance(actions, dict):
             self._fail(DoneReason.agent_error, "protocol violation: actions are not a dict")
-        if failed:
-            raise SomeAgentsFailed(actions, {str(k): str(v) for k, v in failed.items()})
         return actions
 
     def close(self) -> None:

@@ -20,7 +20,6 @@ from smarts.env.wrappers.format_action import FormatAction
 from smarts.env.wrappers.format_obs import LATER_KEYS, FormatObs
 from smarts.env.wrappers.frame_stack import FrameStack
 
-from agent_runtime.main import act_all
 from agent_runtime.smarts_compat import SandboxEnv, SmartsAdapter, agent_interface
 from submissions.sample import sample_observation
 
@@ -200,38 +199,3 @@ def test_smarts_colours_are_those_the_rasters_are_drawn_in() -> None:
     assert rgb(SceneColors.SocialVehicle) == SMARTS_COLOURS["vehicle"]
     assert rgb(SceneColors.Agent) == SMARTS_COLOURS["ego"] == SMARTS_COLOURS["mission_agent"]
     assert Colors.GreenTransparent.value[3] == 0.3
-
-
-class Looping:
-    """A policy that loops over its agents, as competition policies did."""
-
-    def __init__(self, bad: str) -> None:
-        self.bad = bad
-        self.calls: list[list[str]] = []
-
-    def act(self, obs):
-        self.calls.append(sorted(obs))
-        out = {}
-        for agent_id, o in obs.items():
-            if agent_id == self.bad:
-                raise KeyError(f"cannot drive {o['id']}")
-            out[agent_id] = [1.0]
-        return out
-
-
-def test_a_failure_is_blamed_on_the_agent_the_policy_was_handling() -> None:
-    obs = {f"Agent_{i}": {"id": f"Agent_{i}"} for i in range(3)}
-    policy = Looping("Agent_1")
-    message = act_all(policy.act, obs)
-    assert message["actions"] == {"Agent_0": [1.0], "Agent_2": [1.0]}
-    assert list(message["failed"]) == ["Agent_1"]
-    assert "KeyError: 'cannot drive Agent_1'" in message["failed"]["Agent_1"]
-    assert policy.calls == [["Agent_0", "Agent_1", "Agent_2"], ["Agent_0", "Agent_2"]]
-
-
-def test_a_failure_no_agent_can_be_blamed_for_ends_the_whole_agent() -> None:
-    def act(obs):
-        raise ValueError(f"broken for all {len(obs)}")
-
-    with pytest.raises(ValueError, match="broken for all 2"):
-        act_all(act, {"Agent_0": {}, "Agent_1": {}})

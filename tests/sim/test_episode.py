@@ -368,12 +368,12 @@ def test_an_action_for_an_unknown_or_missing_agent_id_is_named(tmp_path, run):
     assert "no action for agent id 'Agent_0' [rule: missing-agent-id]" in silent.detail
 
 
-def test_one_agents_failure_ends_that_agent_and_its_team_mate_drives_on(tmp_path):
-    """The sandbox reports Agent_0's exception alone (SomeAgentsFailed): Agent_0 ends with
-    agent_error at that step, Agent_1 takes its action and reaches its goal."""
+def test_an_agents_exception_ends_every_agent_and_reset_names_them_all(tmp_path):
+    """The agent raises at step 5 while driving two mission vehicles: both end with agent_error
+    at that step (one rule, docs/protocol.md "An exception in act"). An agent that takes agent
+    ids is reset with every mission's id."""
     from pathlib import Path
 
-    from sim.agent import SomeAgentsFailed
     from sim.episode import run_episode
     from sim.interface import AgentInterface
     from tests.sim.agents import ScriptedAgent
@@ -388,20 +388,23 @@ def test_one_agents_failure_ends_that_agent_and_its_team_mate_drives_on(tmp_path
         ),
     )
 
-    class FailsAgent0AtStep5(ScriptedAgent):
+    class FailsAtStep5(ScriptedAgent):
+        takes_agent_ids = True
+
+        def reset(self, agent_ids):
+            super().reset()
+            self.agent_ids = agent_ids
+
         def act(self, obs):
             actions = super().act(obs)
-            if len(self.seen) == 5 and "Agent_0" in obs:
-                del actions["Agent_0"]
-                raise SomeAgentsFailed(actions, {"Agent_0": "ValueError: bad input"})
+            if len(self.seen) == 5:
+                raise ValueError("bad input for Agent_0")
             return actions
 
-    agent = FailsAgent0AtStep5(drive_straight(10.0))
+    agent = FailsAtStep5(drive_straight(10.0))
     result = run_episode(
         folder, agent, AgentInterface(), record_path=Path(tmp_path) / "records" / "r.npz"
     )
-    by_id = {o.id: o for o in result.agents}
-    assert by_id["Agent_0"].reason is DoneReason.agent_error and by_id["Agent_0"].steps == 4
-    assert by_id["Agent_1"].reason is DoneReason.reached_goal
-    assert "Agent_0: ValueError: bad input" in result.detail
-    assert all("Agent_0" not in obs for obs in agent.seen[5:])
+    assert agent.agent_ids == ["Agent_0", "Agent_1"]
+    assert [(o.reason, o.steps) for o in result.agents] == [(DoneReason.agent_error, 4)] * 2
+    assert "ValueError: bad input for Agent_0" in result.detail
