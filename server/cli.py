@@ -282,14 +282,12 @@ def _seed_rows(seeds) -> list[tuple[str, str]]:
     if seeds is None:
         return []
     each = ", ".join(f"{s.seed}: {metric_text('completion', s.completion)}" for s in seeds.per_seed)
-    return [
-        (
-            "seeds",
-            f"{seeds.count}, completion from {metric_text('completion', seeds.completion_min)} "
-            f"to {metric_text('completion', seeds.completion_max)} "
-            f"(std {metric_text('completion', seeds.completion_std)}); per seed {each}",
-        )
-    ]
+    spread = seeds.ignores_seed or (
+        f"completion from {metric_text('completion', seeds.completion_min)} "
+        f"to {metric_text('completion', seeds.completion_max)} "
+        f"(std {metric_text('completion', seeds.completion_std)})"
+    )
+    return [("seeds", f"{seeds.count}, {spread}; per seed {each}")]
 
 
 def _timings(view) -> str:

@@ -52,6 +52,10 @@ class SeedResults(Schema):
     completion_max: float
     completion_std: float
     per_seed: list[SeedMetrics]
+    # Seeds whose trained outputs are byte-identical (train.py ignored ARENA_TRAIN_SEED), and
+    # that said in words ("" when every seed trained its own model).
+    identical_models: list[list[int]] = []
+    ignores_seed: str = ""
 
 
 class SeedFailureReasons(Schema):
@@ -96,9 +100,10 @@ class TrainingProgress(Schema):
     else one still under way, else the last). Its log is the team's to read: the dataset it
     trains on is public."""
 
-    attempt: int
+    attempt: int  # the submission's training jobs in order, one per seed: not a retry count
     seed: int = 0  # ARENA_TRAIN_SEED
     seeds: int = 1  # of its seed set (the phase's training seeds)
+    seed_set: int = 1  # the submission's seed sets in order: 2 and on, a retraining
     status: TrainingStatus
     elapsed_s: float
     log_tail: str

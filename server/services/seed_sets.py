@@ -222,6 +222,7 @@ def score_set(session: Session, submission_id: int, seed_set: int) -> bool:
             "seed": job.seed,
             "training_id": job.id,
             "run_id": run.id,
+            "model": job.model_sha256,  # byte-identical models: train.py ignored the seed
             **{name: getattr(score, name) for name in METRICS},
         }
         for job, run, score in zip(jobs, chosen, seed_scores, strict=True)
@@ -273,10 +274,36 @@ def seed_results(score: Score | SeedSetScore | None) -> SeedResults | None:
     """What the team sees of the seeds behind a score; None for a score of one run."""
     if not isinstance(score, SeedSetScore):
         return None
+    same = identical_models(score.per_seed)
     return SeedResults(
         count=len(score.per_seed),
         completion_min=score.seed_completion_min,
         completion_max=score.seed_completion_max,
         completion_std=score.seed_completion_std,
         per_seed=[SeedMetrics.model_validate(seed) for seed in score.per_seed],
+        identical_models=same,
+        ignores_seed=ignored_seed(same, len(score.per_seed)),
+    )
+
+
+def identical_models(per_seed: list[dict]) -> list[list[int]]:
+    """Groups of seeds whose trained outputs are byte-identical (the same sha256 of the
+    deterministic archive): whatever their evaluations say, those seeds trained one model."""
+    by_model: dict[str, list[int]] = {}
+    for seed in per_seed:
+        if seed.get("model"):  # kept since seed sets record it; re-scoring adds it
+            by_model.setdefault(seed["model"], []).append(seed["seed"])
+    return sorted(seeds for seeds in by_model.values() if len(seeds) > 1)
+
+
+def ignored_seed(same: list[list[int]], count: int) -> str:
+    """Said instead of the seeds' spread when some of them trained the same model."""
+    if not same:
+        return ""
+    groups = "; ".join(" and ".join(str(seed) for seed in seeds) for seeds in same)
+    whole = len(same) == 1 and len(same[0]) == count
+    return (
+        f"train.py ignores the seed: {'every seed' if whole else 'seeds ' + groups} trained "
+        "byte-identical models, so the spread over the seeds measures nothing; read "
+        "ARENA_TRAIN_SEED and seed everything random with it (docs/training.md)"
     )

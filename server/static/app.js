@@ -304,9 +304,13 @@ const Arena = (() => {
   function renderSeeds(seeds) {
     // Scored over several training seeds: their spread, then each seed's completion.
     $("seeds-row").hidden = !seeds;
+    // Seeds that trained byte-identical models: their spread would read as a certain 0.
+    const spread = seeds && seeds.ignores_seed ? `${seeds.ignores_seed}; `
+      : seeds ? `completion ${fmt("completion", seeds.completion_min)}–` +
+        `${fmt("completion", seeds.completion_max)} (std ${fmt("completion", seeds.completion_std)}); `
+      : "";
     $("seeds-text").textContent = seeds
-      ? `${seeds.count}: completion ${fmt("completion", seeds.completion_min)}–` +
-        `${fmt("completion", seeds.completion_max)} (std ${fmt("completion", seeds.completion_std)}); ` +
+      ? `${seeds.count}: ${spread}` +
         seeds.per_seed.map((x) => `seed ${x.seed} ${fmt("completion", x.completion)}`).join(", ")
       : "";
   }
@@ -322,8 +326,11 @@ const Arena = (() => {
     const failure = t.failure ? ` · ${t.failure}: ${t.error}` : "";
     const model = t.model_sha256 ? ` · model sha256 ${t.model_sha256.slice(0, 12)}… ` +
       `(${t.model_size} bytes)` : "";
-    const seed = t.seeds > 1 ? ` · seed ${t.seed} of ${t.seeds}` : "";
-    $("training-text").textContent = `attempt ${t.attempt}${seed} · ${when}${failure}${model}`;
+    // Each seed is a training job of its own: a job's number is no retry, a new seed set is.
+    const which = t.seeds > 1
+      ? `seed ${t.seed} of ${t.seeds}` + (t.seed_set > 1 ? ` (retraining ${t.seed_set - 1})` : "")
+      : t.seed_set > 1 ? `retraining ${t.seed_set - 1}` : "training";
+    $("training-text").textContent = `${which} · ${when}${failure}${model}`;
     $("training-log").textContent = t.log_tail || "(no output yet)";
   }
 

@@ -22,7 +22,9 @@ HIDDEN = 64
 EPOCHS = int(os.environ.get("BC_EPOCHS", "60"))
 BATCH = 256
 LEARNING_RATE = 1e-3
-SEED = 0
+# The service trains each seed of a phase with its own ARENA_TRAIN_SEED (docs/training.md): the
+# initial weights and the batch order come from it, so each seed trains another model.
+SEED = int(os.environ.get("ARENA_TRAIN_SEED", "0"))
 STEP_S = 0.1  # [s] the dataset's step: forward [m] per step -> speed [m/s]
 
 

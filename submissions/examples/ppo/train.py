@@ -14,6 +14,7 @@ length, how it ended) go to ``--out``/``monitor-<rank>.monitor.csv`` and PPO's l
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 import warnings
@@ -199,7 +200,8 @@ def main() -> None:
     parser.add_argument("--timesteps", type=int, default=400_000)
     parser.add_argument("--out", type=Path, default=HERE)
     parser.add_argument("--suite", default="public")
-    parser.add_argument("--seed", type=int, default=0)
+    # ARENA_TRAIN_SEED when a service or `arena train --seed` runs it (docs/training.md).
+    parser.add_argument("--seed", type=int, default=int(os.environ.get("ARENA_TRAIN_SEED", "0")))
     parser.add_argument("--minutes", type=float, help="stop earlier after this much wall time")
     # The committed policy's settings: with 256 steps, 3e-4 and no entropy bonus, runs swung
     # between driving and braking everywhere from one checkpoint to the next.

@@ -3,6 +3,9 @@ evaluated with its trained output exactly as `arena train` + `arena evaluate --m
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -36,6 +39,37 @@ def dataset(tmp_path) -> Path:
     folder.mkdir()
     write_transitions(folder / TRANSITIONS, collect(SHIPPED_PUBLIC_DIR / REPLAY))
     return folder
+
+
+def test_each_seed_trains_another_model_and_a_seed_the_same_one_again(tmp_path):
+    """It once hard-coded SEED = 0: two seeds of a phase trained one model, and the page showed
+    a spread of 0. ARENA_TRAIN_SEED seeds its weights and batch order."""
+    dataset = tmp_path / "dataset"
+    dataset.mkdir()
+    rng = np.random.default_rng(0)  # the arrays train.py reads, of a few hundred transitions
+    np.savez(
+        dataset / TRANSITIONS,
+        observations=rng.normal(size=(300, 8)).astype(np.float32),
+        actions=rng.normal(size=(300, 3)).astype(np.float32),
+        episode=np.repeat(np.arange(3), 100),
+    )
+
+    def weights(seed: int, name: str) -> dict[str, np.ndarray]:
+        out = tmp_path / name
+        out.mkdir()
+        env = {
+            **os.environ,
+            "ARENA_DATASET_DIR": str(dataset),
+            "ARENA_MODEL_DIR": str(out),
+            "ARENA_TRAIN_SEED": str(seed),
+            "BC_EPOCHS": "1",
+        }
+        subprocess.run([sys.executable, EXAMPLE / "train.py"], env=env, check=True, timeout=120)
+        return dict(np.load(out / "weights.npz"))
+
+    first, again, other = weights(0, "a"), weights(0, "b"), weights(1, "c")
+    assert all(np.array_equal(first[k], again[k]) for k in first)
+    assert not np.array_equal(first["w0"], other["w0"])
 
 
 @pytest.mark.bwrap

@@ -61,7 +61,7 @@ def claim(db, settings, training_id: int):
         return training.claim_training(session, settings.service, training_id, "w1")
 
 
-def trained(db, settings, job):
+def trained(db, settings, job, model_sha256: str | None = None):
     with db.session() as session:
         return training.record_trained(
             session,
@@ -71,7 +71,8 @@ def trained(db, settings, job):
             elapsed_s=1.0,
             log_tail="saved",
             model_key=f"training/{job.training_id}/model.tar.gz",
-            model_sha256=f"{job.training_id:064x}",  # each seed's model its own digest
+            # Each seed's model its own digest unless given.
+            model_sha256=model_sha256 or f"{job.training_id:064x}",
             model_size=10,
         )
 
@@ -162,6 +163,33 @@ def test_the_rest_api_shows_the_seeds(db, settings, client):
     assert "2 seeds" in page.text
     submit = client.get("/submit")  # said before the upload
     assert "offline submissions train 2 times" in submit.text
+
+
+def test_seeds_that_trained_byte_identical_models_are_called_out_not_a_spread_of_0(
+    db, settings, client, arena
+):
+    """train.py ignored ARENA_TRAIN_SEED: the page once showed "std 0.0000" for two seeds."""
+    set_seeds(db, settings, 3)
+    team_id, token = make_team(db, "same")
+    sid = queued_submission(db, team_id, track=Track.offline)
+    for training_id in start(db, settings, sid):
+        plan = trained(db, settings, claim(db, settings, training_id), model_sha256="ab" * 32)
+        evaluate(db, settings, plan, fails=1)
+    seeds = client.get(f"/api/v1/submissions/{sid}", headers=bearer(token)).json()["seeds"]
+    assert seeds["identical_models"] == [[0, 1, 2]]
+    assert seeds["ignores_seed"].startswith(
+        "train.py ignores the seed: every seed trained byte-identical models"
+    )
+    page = client.get("/", params={"track": "offline", "phase": "final"}).text
+    assert "3 seeds: train.py ignores the seed" in page and "std 0.0000" not in page
+    assert "train.py ignores the seed" in arena("submissions", "show", str(sid))
+    # Seeds of their own models: nothing said.
+    other_team, other_token = make_team(db, "own")
+    other = queued_submission(db, other_team, track=Track.offline)
+    for training_id in start(db, settings, other):
+        evaluate(db, settings, trained(db, settings, claim(db, settings, training_id)), fails=1)
+    shown = client.get(f"/api/v1/submissions/{other}", headers=bearer(other_token)).json()
+    assert (shown["seeds"]["identical_models"], shown["seeds"]["ignores_seed"]) == ([], "")
 
 
 def test_progress_and_agent_cpu_count_every_seeds_run(db, settings, client):
