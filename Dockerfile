@@ -2,9 +2,11 @@
 #   docker build -t driving-arena:latest .
 # Agents never run in this image: the worker starts them in the agent runtime image
 # (Dockerfile.agent) through the host's Docker daemon. See docs/deployment.md.
-# BASE_IMAGE: any Debian-based image with Python 3.11 and pip. Hosts without a registry build one
-# offline (scripts/build_offline_images.py: Debian packages, local wheels, no network).
-ARG BASE_IMAGE=python:3.11-slim
+# BASE_IMAGE: a Debian-based image with Python 3.11 and pip, pinned by digest (no default: a tag
+# moved upstream must not change what is built): `python:3.11-slim@sha256:...`, as
+# scripts/pin_images.py prints it from the pulled image. Hosts without a registry build one offline
+# (scripts/build_offline_images.py: Debian packages, local wheels, no network).
+ARG BASE_IMAGE
 FROM ${BASE_IMAGE}
 
 ENV PYTHONDONTWRITEBYTECODE=1 \

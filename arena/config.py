@@ -223,6 +223,9 @@ class SandboxSettings(SettingsGroup):
     # ARENA_SANDBOX, as before the settings were grouped.
     kind: SandboxKind = Field(default=SandboxKind.auto, validation_alias="ARENA_SANDBOX")
     agent_image: str = "driving-arena-agent:latest"
+    # The OCI runtime the Docker daemon runs agents with: empty, its default (runc); `runsc`,
+    # gVisor's, where the daemon has it registered (docs/sandbox.md, "A stronger tier").
+    docker_runtime: str = ""
     # A folder at the same path for this process and for the Docker daemon, when the worker
     # runs in a container and starts its agents beside it (docker-compose.yml): the agent
     # runtime is copied there and the protocol sockets made there, since the daemon binds host

@@ -32,7 +32,6 @@ import argparse
 import json
 import os
 import re
-import secrets
 import shutil
 import socket
 import subprocess
@@ -86,15 +85,15 @@ class Stack:
         self.data = root / "data"
         self.port = free_port()
         self.project = f"arena-compose-{os.getpid()}"
-        self.admin_token = secrets.token_hex(16)
         self.override = root / "docker-compose.override.yml"
         self.override.write_text(override(images))
+        self.secrets = write_secrets(root / "secrets")
+        self.admin_token = (self.secrets / "admin_token").read_text().strip()
         # In a file of its own (--env-file): `docker-compose ... down` by hand finds it too.
         self.env_file = root / "compose.env"
         settings = {
-            "POSTGRES_PASSWORD": secrets.token_hex(12),
-            "ARENA_ADMIN_TOKEN": self.admin_token,
-            "ARENA_HIDDEN_SEED": "1",
+            "ARENA_SECRETS_DIR": str(self.secrets),
+            **pinned_images(images["tag"]),
             "ARENA_DATA_DIR": str(self.data),
             "ARENA_PORT": str(self.port),
             "ARENA_PUBLISH_ADDRESS": "127.0.0.1",
@@ -184,19 +183,34 @@ class Stack:
 
 
 def override(images: dict[str, str]) -> str:
-    """Only the image names change: everything else is the project's docker-compose.yml."""
-    service = images["service"]
+    """Only the service image's name changes (built offline, not by `compose build`):
+    everything else is the project's docker-compose.yml, PostgreSQL and Redis pinned by digest
+    (:func:`pinned_images`)."""
     lines = ["services:"]
-    for name, image in [
-        ("postgres", images["postgres"]),
-        ("redis", images["redis"]),
-        ("migrate", service),
-        ("suites", service),
-        ("api", service),
-        ("worker", service),
-    ]:
-        lines += [f"  {name}:", f"    image: {image}"]
+    for name in ("migrate", "suites", "api", "worker"):
+        lines += [f"  {name}:", f"    image: {images['service']}"]
     return "\n".join(lines) + "\n"
+
+
+def pinned_images(tag: str) -> dict[str, str]:
+    """The offline stand-ins of the pulled images, pinned as docker-compose.yml wants them."""
+    done = subprocess.run(
+        [sys.executable, str(REPO / "scripts" / "pin_images.py"), "--offline", tag],
+        stdout=subprocess.PIPE,
+        text=True,
+        check=True,
+    )
+    return dict(line.split("=", 1) for line in done.stdout.split())
+
+
+def write_secrets(folder: Path) -> Path:
+    """The deployment's secret files, made as docs/deployment.md has them made."""
+    subprocess.run(
+        ["sh", str(REPO / "scripts" / "compose_secrets.sh"), str(folder)],
+        stdout=subprocess.DEVNULL,
+        check=True,
+    )
+    return folder
 
 
 def free_port() -> int:
@@ -212,7 +226,7 @@ def build_images(tag: str) -> dict[str, str]:
         text=True,
         check=True,
     )
-    return dict(line.split("=", 1) for line in done.stdout.split())
+    return {"tag": tag, **dict(line.split("=", 1) for line in done.stdout.split())}
 
 
 def cut_suite(dest: Path) -> Path:

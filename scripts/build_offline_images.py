@@ -92,9 +92,9 @@ CMD ["postgres"]
 """
 
 # The official image's contract: on an empty data folder, initialise it with POSTGRES_USER (the
-# superuser), POSTGRES_PASSWORD and POSTGRES_DB, UTF-8 (a database in SQL_ASCII hands text to
-# psycopg as bytes), password authentication from every host; then run the server as the
-# postgres user.
+# superuser), POSTGRES_PASSWORD (or the file POSTGRES_PASSWORD_FILE names) and POSTGRES_DB,
+# UTF-8 (a database in SQL_ASCII hands text to psycopg as bytes), password authentication from
+# every host; then run the server as the postgres user.
 POSTGRES_ENTRYPOINT = """\
 #!/bin/sh
 set -eu
@@ -103,8 +103,11 @@ chown -R postgres:postgres "$PGDATA" /run/postgresql
 chmod 700 "$PGDATA"
 as_postgres() { setpriv --reuid=postgres --regid=postgres --init-groups "$@"; }
 user="${POSTGRES_USER:-postgres}"
+if [ -n "${POSTGRES_PASSWORD_FILE:-}" ]; then
+  POSTGRES_PASSWORD="$(cat "$POSTGRES_PASSWORD_FILE")"
+fi
 if [ ! -s "$PGDATA/PG_VERSION" ]; then
-  : "${POSTGRES_PASSWORD:?the postgres stand-in needs POSTGRES_PASSWORD}"
+  : "${POSTGRES_PASSWORD:?the postgres stand-in needs POSTGRES_PASSWORD or POSTGRES_PASSWORD_FILE}"
   pwfile="$(mktemp)"
   printf '%s\\n' "$POSTGRES_PASSWORD" > "$pwfile"
   chown postgres "$pwfile"
@@ -139,7 +142,8 @@ CMD ["redis-server"]
 """
 
 # As the official image: without a configuration file Redis would refuse every client but
-# loopback (protected mode); the server runs as the redis user in /data.
+# loopback (protected mode); the server runs as the redis user in /data. A configuration read
+# from standard input (`redis-server -`, docker-compose.yml's password) stays the last argument.
 REDIS_ENTRYPOINT = """\
 #!/bin/sh
 set -eu

@@ -127,6 +127,8 @@ def container_options(spec: LaunchSpec, socket_dir: Path | None) -> dict[str, An
         volumes[str(spec.deps)] = {"bind": DEPS_MOUNT, "mode": "ro"}
     command = ["python3", *spec.python_args()]
     extra: dict[str, Any] = {}
+    if config.docker_runtime:
+        extra["runtime"] = config.docker_runtime
     if spec.training is not None:
         volumes[str(spec.training.dataset)] = {"bind": DATASET_MOUNT, "mode": "ro"}
         volumes[str(spec.training.output)] = {"bind": MODEL_MOUNT, "mode": "rw"}
@@ -303,6 +305,12 @@ class DockerBackend:
             client.images.get(config.agent_image)
         except docker.errors.ImageNotFound:
             return f"image {config.agent_image} is missing (run `arena sandbox build-image`)"
+        runtime = config.docker_runtime
+        if runtime and runtime not in (client.info().get("Runtimes") or {}):
+            return (
+                f"the Docker daemon has no runtime {runtime!r} (ARENA_DOCKER_RUNTIME): register "
+                'it in /etc/docker/daemon.json (docs/sandbox.md, "A stronger tier")'
+            )
         return None
 
     def contract_gap(self, config: SandboxSettings) -> str | None:
