@@ -91,6 +91,11 @@ def trainer(kind: SandboxKind, work: Path, probe: Path) -> list[float]:
         kind=kind,
         labels=LABELS,
     )
+    return _finished(box, output)
+
+
+def _finished(box, output: Path) -> list[float]:
+    """The batch child's findings, once it ended (killed after two minutes)."""
     try:
         deadline = time.monotonic() + 120.0
         while box.exit_status(0.2) is None and time.monotonic() < deadline:
@@ -115,6 +120,32 @@ def intake(kind: SandboxKind, work: Path, probe: Path) -> list[float]:
         labels=LABELS,
     )
     return run("submission", inputs, output)["findings"]
+
+
+def resolver(kind: SandboxKind, work: Path, probe: Path) -> list[float]:
+    """The requirements resolver's launch (evaluator/resolver.py: its limits, mounts, pip and
+    index folders), with the probe as its program."""
+    from evaluator import resolver as resolvers
+
+    settings = _settings(work)
+    resolvers._stub = lambda mode: probe.read_text()
+    inputs, output, program = work / "inputs", work / "output", work / "program"
+    for folder in (inputs, program):
+        folder.mkdir()
+    request = {"requirements": [], "index_urls": [], "find_links": [], "constraints": []}
+    (inputs / "resolve.json").write_text(json.dumps(request))
+    box = resolvers.spawn_resolver(
+        "build",
+        inputs,
+        output,
+        program,
+        intake=settings.intake,
+        config=settings.sandbox,
+        data_dir=settings.storage.resolved_data_dir,
+        kind=kind,
+        labels=LABELS,
+    )
+    return _finished(box, output)
 
 
 def host_tool(kind: SandboxKind, work: Path, probe: Path) -> list[float]:
@@ -189,6 +220,7 @@ CHILDREN = {
     "warm agent": warm_agent,
     "trainer": trainer,
     "intake": intake,
+    "resolver": resolver,
     "host tool": host_tool,
     "fork server": fork_server,
     "service": service,

@@ -1,7 +1,9 @@
 """No secret reaches any child we start: not in its environment, its command line, nor any file
 or process it can read (docs/deployment.md "Secrets", docs/sandbox.md).
 
-Each child kind is spawned the way the service spawns it, from a process whose own initial
+Each child kind (agent, warm agent, training, upload validation, requirements resolver, a suite
+build's host tool, an episode's fork server, `arena up`'s service processes and suite builder) is
+spawned the way the service spawns it, from a process whose own initial
 environment holds every secret as a plain variable (local use: the worst case, since
 ``/proc/<pid>/environ`` keeps a process's initial environment whatever it does later), with the
 secrets also in files of mode 0400 as a deployment has them. The probe (``secret_probe.py``)
@@ -39,14 +41,14 @@ SANDBOXED = [
     )
     for child in ("agent", "warm agent", "trainer", "intake")
 ]
-# The requirements resolver (issue 38) runs in a sandbox of its own: its child kind joins
-# SANDBOXED here once it exists (nothing in the tree spawns pip in a sandbox yet).
-RESOLVER = pytest.param(
-    SandboxKind.bubblewrap,
-    "resolver",
-    marks=pytest.mark.skip(reason="the sandboxed requirements resolver is not in the tree yet"),
-    id="resolver",
-)
+# The requirements resolver runs only in an isolating sandbox (it refuses the process backend).
+RESOLVER = [
+    pytest.param(kind, "resolver", marks=mark, id=f"resolver-{kind.value}")
+    for kind, mark in (
+        (SandboxKind.bubblewrap, pytest.mark.bwrap),
+        (SandboxKind.docker, pytest.mark.docker),
+    )
+]
 HOST = ["host tool", "fork server", "service", "suite builder"]
 
 pytestmark = pytest.mark.integration
@@ -113,7 +115,7 @@ def scan(child: str, kind: SandboxKind, planted, tmp_path: Path) -> set[str]:
     return {place for place, hit in zip(PLACES, found, strict=True) if hit}
 
 
-@pytest.mark.parametrize(("kind", "child"), [*SANDBOXED, RESOLVER])
+@pytest.mark.parametrize(("kind", "child"), [*SANDBOXED, *RESOLVER])
 def test_no_sandboxed_child_can_find_a_secret(kind, child, planted, tmp_path, settings) -> None:
     usable(kind, settings)
     found = scan(child, kind, planted, tmp_path)
