@@ -4,7 +4,10 @@
 from __future__ import annotations
 
 import json
+import math
 import sys
+import time
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated
 
@@ -33,6 +36,8 @@ console = make_console()
 # The API's bound (server.api.deps.MAX_ROW_ID): a larger id is a usage error, not a driver's
 # overflow traceback.
 MAX_ID = 2**31 - 1
+# [s] between the plain progress lines a long command writes to a pipe.
+PLAIN_PROGRESS_S = 10.0
 SubmissionId = Annotated[int, typer.Argument(help="Submission id.", min=1, max=MAX_ID)]
 
 
@@ -499,6 +504,30 @@ def rerun(submission_id: SubmissionId) -> None:
     console.print(f"submission {submission_id}: attempt {attempt} queued")
 
 
+@contextmanager
+def _episode_progress(what: str):
+    """Progress of a long command on stderr, so that its results on stdout stay clean: a bar on
+    a terminal; piped, a plain line at the first episode, then at most every PLAIN_PROGRESS_S
+    (a pipe never sits silent for minutes, nor floods a log)."""
+    from rich.progress import Progress
+
+    err = make_console(stderr=True)
+    if err.is_terminal:
+        with Progress(console=err, transient=True) as bar:
+            task = bar.add_task(what, total=None)
+            yield lambda done, total: bar.update(task, completed=done, total=total)
+        return
+    said = -math.inf
+
+    def line(done: int, total: int) -> None:
+        nonlocal said
+        if done == total or time.monotonic() - said >= PLAIN_PROGRESS_S:
+            said = time.monotonic()
+            print(f"{what}: {done}/{total} episodes re-run", file=sys.stderr, flush=True)
+
+    yield line
+
+
 @admin_app.command("audit")
 def audit(
     submission_id: Annotated[
@@ -514,8 +543,6 @@ def audit(
     """Re-run scored submissions from their manifests: bit-identical, or the first record that
     differs. Refuses, naming them, when the manifest's components differ here. Exits 1 unless
     every audit is bit-identical."""
-    from rich.progress import Progress
-
     from server.services import audit as audits
 
     if (submission_id is None) == (sample is None):
@@ -525,13 +552,13 @@ def audit(
     if not targets:
         raise _fail(ValueError("no leaderboard entry to audit"))
     clean = True
+    print(
+        f"auditing {len(targets)} submission(s): {', '.join(map(str, targets))}",
+        file=sys.stderr,
+        flush=True,
+    )
     for target in targets:
-        with Progress(console=console, transient=True) as bar:
-            task = bar.add_task(f"submission {target}", total=None)
-
-            def step(done: int, total: int, task=task, bar=bar) -> None:
-                bar.update(task, completed=done, total=total)
-
+        with _episode_progress(f"submission {target}") as step:
             report = _run(
                 lambda target=target, step=step: audits.audit(
                     ctx.db,

@@ -131,6 +131,12 @@ const Arena = (() => {
     return div.innerHTML;
   }
 
+  // Text of ours that names a command in backticks (`arena evaluate`): escaped, and each
+  // backticked part shown as code instead of with literal backticks.
+  function prose(text) {
+    return escape(text).replace(/`([^`]+)`/g, "<code>$1</code>");
+  }
+
   function duration(seconds) {
     if (seconds === null || seconds === undefined) return "";
     const s = Math.round(seconds);
@@ -143,7 +149,7 @@ const Arena = (() => {
     const p = s.phase_window;
     $("phase-name").textContent = s.phase;
     if (!p) return;
-    $("phase-hidden").textContent = p.hidden;
+    $("phase-hidden").innerHTML = prose(p.hidden);
     $("phase-hidden").hidden = !p.hidden;
     const opens = p.starts_at ? `opened ${when(p.starts_at)} UTC` : "open from the start";
     const closes = p.ends_at
@@ -256,7 +262,7 @@ const Arena = (() => {
     renderStanding(s);
     $("status").textContent = s.status;
     $("status").className = `status-${s.status}`;
-    $("status-reason").textContent = s.status_reason || "";
+    $("status-reason").innerHTML = prose(s.status_reason || "");
     const pct = s.progress.total ? (100 * s.progress.done) / s.progress.total : 0;
     $("progress-bar").style.width = `${pct}%`;
     $("progress-text").textContent = progressText(s);
@@ -280,8 +286,10 @@ const Arena = (() => {
       `</tr>`).join("")}</tbody></table>` : "";
     $("chart").innerHTML = families.length ? chart(s.families) : "";
     const failures = Object.entries(s.failure_reasons);
-    // No heading over nothing: failures show once counted, "None." only when it has finished.
-    $("failures-box").hidden = failures.length === 0 && !FINISHED.includes(s.status);
+    // No heading over nothing: failures show once counted, "None." only when it has finished
+    // having run episodes (not one that failed in training, before any could run).
+    $("failures-box").hidden = failures.length === 0 &&
+      !(FINISHED.includes(s.status) && s.progress.total > 0);
     // Over several training seeds the counts are summed over every seed's run, then each seed's.
     const seeds = s.seed_failure_reasons || [];
     $("failures-scope").textContent = seeds.length > 1
@@ -424,7 +432,8 @@ const Arena = (() => {
       $("token-form").hidden = true;
       const s = await response.json();
       render(s, metrics);
-      if (finished.includes(s.status)) {
+      // A hidden phase's agent output goes to the organisers only: not even asked for.
+      if (finished.includes(s.status) && !(s.phase_window && s.phase_window.hidden)) {
         loadLogs(id, token);
       } else {
         setTimeout(poll, 2000);

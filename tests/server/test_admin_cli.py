@@ -412,3 +412,38 @@ def test_submissions_show_prints_the_manifest(arena, db, settings):
     assert "arena 0.1.0, Python 3.11.7, numpy 2.4.6, SUMO 1.28.0, docker, image sha256:" in shown
     document = json.loads(arena("submissions", "show", str(sid), "--json"))
     assert document["manifest"]["environments"][0]["sumo"] == "1.28.0"
+
+
+def test_a_long_command_piped_says_its_progress_on_stderr_at_a_bounded_rate(capsys):
+    """`arena admin audit | tee` once printed nothing for minutes: piped, its progress is plain
+    lines on stderr, the first episode and the last at once, between them one per interval."""
+    from server.cli import _episode_progress
+
+    with _episode_progress("submission 7") as step:
+        for done in range(1, 129):
+            step(done, 128)
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert captured.err.splitlines() == [
+        "submission 7: 1/128 episodes re-run",
+        "submission 7: 128/128 episodes re-run",
+    ]
+
+
+def test_submissions_show_counts_a_hidden_runs_episodes_exactly_and_says_never_scored(
+    arena, db, settings
+):
+    """It once printed `progress: 0/128` (the team's coarse view of a hidden phase's run) beside
+    a table of finished episodes, and "scored before manifests were kept" for a submission never
+    scored."""
+    from tests.server.builders import report_episode
+
+    team, _ = make_team(db, "alpha")
+    sid = queued_submission(db, team)
+    plan = start(db, settings, sid)  # the final phase: hidden
+    for episode in plan.episodes[:2]:
+        report_episode(db, settings, plan, episode, reached_goal=True)
+    shown = arena("submissions", "show", str(sid))
+    assert f"progress: 2/{len(plan.episodes)}" in shown
+    assert shown.count("reached_goal") == 2
+    assert "manifest: - (not scored)" in shown and "manifests were kept" not in shown

@@ -529,7 +529,12 @@ def test_audit_reruns_a_score_bit_identically_and_names_what_differs(
     try:
         same = audit(str(sid))
         assert same.exit_code == 0, same.output
-        assert f"submission {sid}: bit-identical ({len(SCENARIOS)} episodes)" in same.output
+        assert f"submission {sid}: bit-identical ({len(SCENARIOS)} episodes)" in same.stdout
+        # Piped, the progress goes to stderr as plain lines (never a silent pipe for minutes).
+        assert same.stderr.startswith(f"auditing 1 submission(s): {sid}\n")
+        done = len(SCENARIOS)
+        assert f"submission {sid}: {done}/{done} episodes re-run" in same.stderr
+        assert "re-run" not in same.stdout
         sampled = audit("--sample", "5")
         assert sampled.exit_code == 0 and "bit-identical" in sampled.output, sampled.output
 
