@@ -65,6 +65,10 @@ MAX_SCANNED_FILES = 500
 MAX_SCANNED_BYTES = 1024**2
 MAX_SCANNED_NAMES = 1000
 MAX_MODULE_NAME = 200
+# The packages agent_runtime/compat provides for observation_format: smarts2022: each name a
+# submission takes from them is listed with its place (the host checks it against the package).
+COMPAT_PACKAGES = ("smarts", "gym")
+MAX_COMPAT_USES = 2000
 # numpy's aliases of Python types, removed in numpy 1.24 -> the Python type to use instead.
 NUMPY_ALIASES = {
     "float": "float",
@@ -431,6 +435,7 @@ def scan_sources(root: Path) -> dict:
     is past the size cap or the file count is skipped: the notes are advice, not rules)."""
     imports: set[str] = set()
     aliases: set[str] = set()
+    compat_uses: list[list] = []
     defines_wrappers = False
     sources = sorted(
         path for path in root.rglob("*.py") if path.is_file() and not path.is_symlink()
@@ -450,6 +455,9 @@ def scan_sources(root: Path) -> dict:
             )
         numpy_names = {"numpy"}
         nodes = list(ast.walk(tree))
+        if len(compat_uses) < MAX_COMPAT_USES:
+            where = str(path.relative_to(root))[:MAX_MODULE_NAME]
+            compat_uses += compat_names(tree, nodes, where)[: MAX_COMPAT_USES - len(compat_uses)]
         for node in nodes:
             if isinstance(node, ast.Import):
                 for alias in node.names:
@@ -476,7 +484,82 @@ def scan_sources(root: Path) -> dict:
         "imports": sorted(modules)[:MAX_SCANNED_NAMES],
         "numpy_aliases": sorted(aliases),
         "defines_wrappers": defines_wrappers,
+        "compat_uses": compat_uses,
+        "ships_packages": [name for name in COMPAT_PACKAGES if _ships(root, name)],
     }
+
+
+def _ships(root: Path, package: str) -> bool:
+    """Whether the submission holds its own ``package`` (it comes first on ``sys.path``)."""
+    return (root / package / "__init__.py").is_file() or (root / f"{package}.py").is_file()
+
+
+def _guarded(tree: ast.Module) -> set[int]:
+    """The ids of the nodes inside a ``try`` that catches ImportError (or any exception)."""
+    catches = {"ImportError", "ModuleNotFoundError", "Exception", "BaseException"}
+    inside: set[int] = set()
+    for node in ast.walk(tree):
+        if not isinstance(node, ast.Try):
+            continue
+        caught = set()
+        for handler in node.handlers:
+            kinds = handler.type.elts if isinstance(handler.type, ast.Tuple) else [handler.type]
+            caught |= {k.id if isinstance(k, ast.Name) else "" for k in kinds if k is not None}
+            if handler.type is None:
+                caught.add("BaseException")
+        if caught & catches:
+            inside |= {id(n) for statement in node.body for n in ast.walk(statement)}
+    return inside
+
+
+def _dotted(node: ast.AST) -> list[str] | None:
+    """``a.b.c`` as ``["a", "b", "c"]`` (None for anything but names and attributes)."""
+    parts = []
+    while isinstance(node, ast.Attribute):
+        parts.append(node.attr)
+        node = node.value
+    if not isinstance(node, ast.Name):
+        return None
+    return [node.id, *reversed(parts)]
+
+
+def compat_names(tree: ast.Module, nodes: list[ast.AST], where: str) -> list[list]:
+    """What a file takes from :data:`COMPAT_PACKAGES`, as ``[file, line, dotted path, guarded]``:
+    each ``import smarts.a.b`` (the module's path), each ``from smarts.a import X``
+    (``smarts.a.X``), and each attribute read through a name bound to such a module
+    (``m.X`` after ``import smarts.a as m``: ``smarts.a.X``; ``smarts.a.X.y`` after ``import
+    smarts``). Which of these the package has is the host's question: it knows the package."""
+    guarded = _guarded(tree)
+    bound: dict[str, str] = {}  # local name -> the dotted path it stands for
+    uses = []
+
+    def use(node: ast.AST, path: str) -> None:
+        if len(path) <= MAX_MODULE_NAME:
+            uses.append([where, getattr(node, "lineno", 0), path, id(node) in guarded])
+
+    for node in nodes:
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name.split(".")[0] in COMPAT_PACKAGES:
+                    use(node, alias.name)
+                    local = alias.asname or alias.name.split(".")[0]
+                    bound[local] = alias.name if alias.asname else local
+        elif (
+            isinstance(node, ast.ImportFrom)
+            and node.level == 0
+            and (node.module or "").split(".")[0] in COMPAT_PACKAGES
+        ):
+            for alias in node.names:
+                if alias.name != "*":
+                    use(node, f"{node.module}.{alias.name}")
+                    bound[alias.asname or alias.name] = f"{node.module}.{alias.name}"
+    for node in nodes:
+        if not isinstance(node, ast.Attribute) or not isinstance(node.ctx, ast.Load):
+            continue
+        parts = _dotted(node)
+        if parts and parts[0] in bound:
+            use(node, ".".join([bound[parts[0]], *parts[1:]]))
+    return uses
 
 
 def check_scripts(root: Path, names: list[str]) -> dict:

@@ -23,7 +23,12 @@ from submissions.intake.archive import make_read_only, remove_tree
 from submissions.intake.contents import checked_contents, interface_of
 from submissions.intake.dependencies import install_requirements
 from submissions.intake.pack import pack_folder
-from submissions.intake.porting import porting_notes, read_scan, with_porting_notes
+from submissions.intake.porting import (
+    missing_compat_names,
+    porting_notes,
+    read_scan,
+    with_porting_notes,
+)
 from submissions.intake.runner import IntakeRunner, in_process, write_inputs
 
 __all__ = ["IntakeError", "PreparedSubmission", "check_zip", "pack_folder", "prepare_submission"]
@@ -110,7 +115,8 @@ def prepare_submission(
         remove_tree(dest)
         (work / "out" / rules.SUBMISSION_DIR).rename(dest)
         make_read_only(dest)
-        notes = porting_notes(read_scan(work / "out"))
+        scan = read_scan(work / "out")
+        notes = porting_notes(scan)
         contents = checked_contents(verdict)
         if needs_training and not contents.trains:
             raise IntakeError(
@@ -120,6 +126,9 @@ def prepare_submission(
                 "runs it on the dataset before evaluating (docs/dataset.md)",
             )
         interface = interface_of(contents.agent_options)
+        missing = missing_compat_names(scan)  # after agent.yaml's checks: its format decides
+        if missing is not None:
+            raise missing
         installed = (
             install_requirements(contents.requirements or "", intake, sandbox, data_dir, runner)
             if install

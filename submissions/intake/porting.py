@@ -2,19 +2,24 @@
 and what to do about it (``docs/submissions.md``, "Porting a SMARTS 2022 submission").
 
 Notes do not reject a zip (a policy may keep such leftovers unused); a requirement without a
-wheel does, with a message naming the line and the versions that do have one.
+wheel does, with a message naming the line and the versions that do have one, and so does a
+``smarts2022`` submission taking a module or name the sandbox's ``smarts`` / ``gym`` packages lack
+(:func:`missing_compat_names`), naming each with its file and line.
 """
 
 from __future__ import annotations
 
+import ast
 import contextlib
 import platform
 import re
+from functools import lru_cache
 from pathlib import Path
 
 from packaging.requirements import InvalidRequirement, Requirement
 from packaging.utils import canonicalize_name
 
+import agent_runtime
 from agent_runtime import intake as rules
 from arena.errors import IntakeError
 from arena.neutralise.log_view import visible
@@ -23,32 +28,9 @@ from submissions.intake.runner import read_sandbox_json
 
 SMARTS_CONFIG = rules.SMARTS_CONFIG
 SMARTS_FORMAT = "smarts2022"
-# The modules (and names imported from them) of agent_runtime/compat/smarts.
-SMARTS_COMPAT_MODULES = frozenset(
-    {
-        "smarts",
-        "smarts.core",
-        "smarts.core.agent",
-        "smarts.core.agent_interface",
-        "smarts.core.controllers",
-        "smarts.core.coordinates",
-        "smarts.core.events",
-        "smarts.core.observations",
-        "smarts.core.plan",
-        "smarts.core.road_map",
-        "smarts.core.sensors",
-        "smarts.core.utils",
-        "smarts.core.utils.math",
-        "smarts.core.waypoints",
-        "smarts.env",
-        "smarts.env.wrappers",
-        "smarts.env.wrappers.format_action",
-        "smarts.env.wrappers.format_obs",
-        "smarts.env.wrappers.frame_stack",
-        "smarts.zoo",
-        "smarts.zoo.agent_spec",
-    }
-)
+# The packages the sandbox adds for observation_format: smarts2022 (agent_runtime/compat).
+COMPAT_DIR = Path(agent_runtime.__file__).parent / "compat"
+_SHOWN_NAMES = 20  # missing names listed in one rejection
 _MAX_SCAN_REPORT_BYTES = 256 * 1024
 _SHOWN_VERSIONS = 5  # versions suggested for one line
 
@@ -81,12 +63,12 @@ def porting_notes(scan: dict | None) -> tuple[str, ...]:
                 "in agent.yaml (docs/smarts-compat.md)."
             )
         else:
-            missing = [m for m in smarts_modules if m not in SMARTS_COMPAT_MODULES]
-            if missing:
+            guarded = _missing_compat_names(scan, guarded=True)
+            if guarded:
                 notes.append(
-                    f"imports {', '.join(missing)}: not part of the sandbox's `smarts` "
-                    "compatibility package (docs/smarts-compat.md lists what is); the import "
-                    "fails unless you copy what you use into your submission."
+                    f"imports, inside a try that catches ImportError, {_listed(guarded)}: not "
+                    "part of the sandbox's compatibility packages (docs/smarts-compat.md lists "
+                    "what is); that code path takes its except branch."
                 )
     if "gym" in {m.split(".")[0] for m in imports} and "gym" not in requirements:
         if smarts_format:
@@ -115,6 +97,101 @@ def porting_notes(scan: dict | None) -> tuple[str, ...]:
             "in agent.yaml (docs/submissions.md)."
         )
     return tuple(notes)
+
+
+def missing_compat_names(scan: dict | None) -> IntakeError | None:
+    """The rejection of a ``smarts2022`` submission that takes, outside a ``try`` catching
+    ImportError, a module or name the sandbox's ``smarts`` or ``gym`` package lacks (each
+    ``from smarts... import NAME``, ``import smarts...`` and attribute read through such a
+    module, as :func:`agent_runtime.intake.compat_names` found them): it would fail at that
+    import or call when it runs. None when there is none, or when the submission ships or
+    requires its own package."""
+    missing = _missing_compat_names(scan or {}, guarded=False)
+    if not missing:
+        return None
+    first = missing[0].split(" ", 1)[0]
+    return IntakeError(
+        first,
+        "smarts-compat-name",
+        f"takes {_listed(missing)} from the sandbox's compatibility packages, which do not have "
+        "them (docs/smarts-compat.md lists what they have; private names are not provided): "
+        "the agent would fail there when it runs. Copy what you use into your submission.",
+    )
+
+
+def _missing_compat_names(scan: dict, *, guarded: bool) -> list[str]:
+    """``file:line path`` of each use the compat packages lack, in the scan's order, once each;
+    only uses inside (``guarded``) or outside a try catching ImportError."""
+    if scan.get("observation_format") != SMARTS_FORMAT:
+        return []
+    own = _names(scan, "ships_packages") | _required_projects(
+        _bounded_text(scan.get("requirements"))
+    )
+    uses = scan.get("compat_uses")
+    missing: list[str] = []
+    for use in uses if isinstance(uses, list) else []:
+        if not (isinstance(use, list) and len(use) == 4):
+            continue
+        where, line, path, inside = use
+        if not (isinstance(where, str) and isinstance(line, int) and isinstance(path, str)):
+            continue
+        if inside is not guarded or path.split(".")[0] in own or _compat_has(path):
+            continue
+        shown = f"{visible(where[:_MAX_NAME])}:{line} {visible(path[:_MAX_NAME])}"
+        if shown not in missing:
+            missing.append(shown)
+    return missing
+
+
+def _listed(missing: list[str]) -> str:
+    more = len(missing) - _SHOWN_NAMES
+    return "; ".join(missing[:_SHOWN_NAMES]) + (f"; and {more} more" if more > 0 else "")
+
+
+def _compat_has(path: str) -> bool:
+    """Whether ``smarts.a.b.NAME...`` resolves in the compat packages: the longest module prefix,
+    then one name of it (a top-level name or a submodule); what follows a name is not checked."""
+    modules = compat_modules()
+    parts = path.split(".")
+    for end in range(len(parts), 0, -1):
+        module = ".".join(parts[:end])
+        if module in modules:
+            break
+    else:
+        return False
+    if end == len(parts):
+        return True
+    name = parts[end]
+    return name in modules[module] or (name.startswith("__") and name.endswith("__"))
+
+
+@lru_cache(maxsize=1)
+def compat_modules() -> dict[str, frozenset[str]]:
+    """Each module of the compat packages (dotted) -> the names it has: what it defines or
+    imports at its top level, and its submodules. Read from the sources (nothing imported)."""
+    modules: dict[str, set[str]] = {}
+    stars: dict[str, list[str]] = {}  # module -> the modules it star-imports
+    for source in sorted(COMPAT_DIR.rglob("*.py")):
+        parts = source.relative_to(COMPAT_DIR).with_suffix("").parts
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        if not parts:
+            continue  # the compat folder's own __init__: not a package agents import
+        module = ".".join(parts)
+        tree = ast.parse(source.read_text())
+        modules.setdefault(module, set()).update(rules.top_level_names(tree))
+        stars[module] = [
+            node.module
+            for node in tree.body
+            if isinstance(node, ast.ImportFrom) and node.module and node.names[0].name == "*"
+        ]
+        if len(parts) > 1:
+            modules.setdefault(".".join(parts[:-1]), set()).add(parts[-1])
+    for module, sources in stars.items():
+        for source in sources:
+            public = {n for n in modules.get(source, ()) if not n.startswith("_")}
+            modules[module] |= public - {"*"}
+    return {module: frozenset(names - {"*"}) for module, names in modules.items()}
 
 
 def with_porting_notes(error: IntakeError, notes: tuple[str, ...]) -> IntakeError:

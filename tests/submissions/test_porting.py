@@ -113,21 +113,26 @@ def test_what_ds2022_agents_needed_is_named(tmp_path: Path) -> None:
     assert "smarts.core.utils.math" in text and "observation_format: smarts2022" in text
     assert "imports gym" in text
     assert "np.float" in text and "numpy==1.23.5" in text
-    smarts = check_zip(
-        write_zip(
-            tmp_path / "b.zip",
-            {
-                "policy.py": DS2022_POLICY,
-                "agent.yaml": "observation_format: smarts2022\n",
-                "requirements.txt": "numpy==1.23.5\n",
-            },
-        ),
-        settings.intake,
-        settings.sandbox,
-    )
-    (missing, gym_note) = smarts.notes  # np.float is fine with numpy 1.23.5 pinned
-    assert "smarts.core.smarts" in missing and "smarts.core.utils.math" not in missing
-    assert "gym 0.21" in gym_note
+    with pytest.raises(IntakeError) as caught:
+        check_zip(
+            write_zip(
+                tmp_path / "b.zip",
+                {
+                    "policy.py": DS2022_POLICY,
+                    "agent.yaml": "observation_format: smarts2022\n",
+                    "requirements.txt": "numpy==1.23.5\n",
+                },
+            ),
+            settings.intake,
+            settings.sandbox,
+        )
+    # The simulator is not in the sandbox's smarts: rejected, naming the place; what is there
+    # passes, and the gym note comes along (np.float is fine with numpy 1.23.5 pinned).
+    message = caught.value.message
+    assert caught.value.rule == "smarts-compat-name" and caught.value.entry == "policy.py:4"
+    assert "policy.py:4 smarts.core.smarts.SMARTS" in message
+    assert "vec_to_radians" not in message and "FormatObs" not in message
+    assert "gym 0.21" in message and "np.float" not in message
 
 
 def test_a_rejected_port_still_gets_its_notes(tmp_path: Path) -> None:
@@ -138,7 +143,64 @@ def test_a_rejected_port_still_gets_its_notes(tmp_path: Path) -> None:
     with pytest.raises(IntakeError) as caught:
         check_zip(upload, *ZIP_ONLY)
     assert caught.value.entry == "agent.yaml"
-    assert "Porting note" in caught.value.message and "smarts.core.smarts" in caught.value.message
+    assert "Porting note" in caught.value.message and "gym 0.21" in caught.value.message
+
+
+SMARTS_YAML = "observation_format: smarts2022\n"
+
+
+def test_a_name_the_compat_package_lacks_is_rejected_naming_each(tmp_path: Path) -> None:
+    """Issue 41's reproduction (a private name of smarts.core.utils.math), an attribute read
+    through an imported module and a missing module, in two files: each named with its place."""
+    helpers = (
+        "import smarts.core.utils.math as math_utils\n"
+        "from smarts.core.colors import SceneColors\n"
+        "import gym\n\n"
+        "def frame(x):\n"
+        "    road = SceneColors.Road.value\n"
+        "    return math_utils.vec_to_radians(x), math_utils.no_such_helper(x), gym.wrappers\n"
+    )
+    policy = "from smarts.core.utils.math import _gen_ego_frame_matrix\n" + GOOD_POLICY
+    upload = write_zip(
+        tmp_path / "a.zip",
+        {"policy.py": policy, "agent/helpers.py": helpers, "agent.yaml": SMARTS_YAML},
+    )
+    with pytest.raises(IntakeError) as caught:
+        check_zip(upload, *ZIP_ONLY)
+    message = caught.value.message
+    assert caught.value.rule == "smarts-compat-name"
+    assert "agent/helpers.py:7 smarts.core.utils.math.no_such_helper" in message
+    assert "agent/helpers.py:7 gym.wrappers" in message
+    assert "policy.py:1 smarts.core.utils.math._gen_ego_frame_matrix" in message
+    assert "vec_to_radians" not in message and "SceneColors" not in message
+
+
+def test_what_the_compat_package_has_or_the_team_brings_passes(tmp_path: Path) -> None:
+    """Every name the organisers' example and the kit's wrappers import passes; a guarded import
+    is a note; a submission that ships or requires its own smarts is not checked against ours."""
+    policy = (
+        "from smarts.core.controllers import ActionSpaceType\n"
+        "from smarts.env.wrappers.format_action import FormatAction\n"
+        "from smarts.env.wrappers.format_obs import FormatObs, get_spaces, intrfc_to_stdobs\n"
+        "from smarts.env.wrappers.frame_stack import FrameStack\n"
+        "from smarts.core.colors import Colors, SceneColors\n"
+        "from smarts.core.observations import Observation\n"
+        "import gym\n"
+        "SPACE = gym.spaces.Box(0, 1, shape=(1,)), gym.Space, gym.logger.set_level\n"
+        "try:\n"
+        "    from smarts.core.smarts import SMARTS\n"
+        "except ImportError:\n"
+        "    SMARTS = None\n" + GOOD_POLICY
+    )
+    files = {"policy.py": policy, "agent.yaml": SMARTS_YAML}
+    notes = check_zip(write_zip(tmp_path / "a.zip", files), *ZIP_ONLY).notes
+    (guarded,) = [n for n in notes if "try that catches ImportError" in n]
+    assert "policy.py:10 smarts.core.smarts.SMARTS" in guarded
+    own = {"policy.py": "from smarts.core.smarts import SMARTS\n" + GOOD_POLICY}
+    shipped = own | {"smarts/__init__.py": "", "agent.yaml": SMARTS_YAML}
+    check_zip(write_zip(tmp_path / "b.zip", shipped), *ZIP_ONLY)
+    listed = own | {"agent.yaml": SMARTS_YAML, "requirements.txt": "smarts==0.6.1\n"}
+    check_zip(write_zip(tmp_path / "c.zip", listed), *ZIP_ONLY)
 
 
 def test_every_python_file_is_scanned_not_only_policy_py(tmp_path: Path) -> None:
@@ -190,3 +252,15 @@ def test_the_service_scans_the_python_files_in_the_sandbox(tmp_path: Path, kind:
         )
     assert caught.value.rule == "train-syntax" and "np.float" in caught.value.message
     assert not (tmp_path / "b").exists()
+    private = "from smarts.core.utils.math import _gen_ego_frame_matrix\n" + GOOD_POLICY
+    with pytest.raises(IntakeError) as caught:
+        validate(
+            write_zip(tmp_path / "c.zip", {"policy.py": private, "agent.yaml": SMARTS_YAML}),
+            tmp_path / "c",
+            settings.intake,
+            settings.sandbox,
+            settings.storage.resolved_data_dir,
+            kind=kind,
+        )
+    assert caught.value.rule == "smarts-compat-name"
+    assert "policy.py:1 smarts.core.utils.math._gen_ego_frame_matrix" in caught.value.message
