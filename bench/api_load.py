@@ -6,7 +6,7 @@ starts the API as a real uvicorn process, then drives it for a bounded time from
 client process holding several keep-alive connections, and prints requests/s and latency
 percentiles next to the targets (1,000 requests/s, p99 under 50 ms).
 
-    python bench/api_load.py [--seconds 10] [--connections 16] [--database-url URL]
+    python bench/api_load.py [--seconds 10] [--connections 16] [--database-url URL] [--smoke]
 """
 
 from __future__ import annotations
@@ -27,15 +27,13 @@ from pathlib import Path
 
 import numpy as np
 
+from arena.settings_changes import env_only
+from evaluator.scoring.simulated import simulated
 from server.core.db import Database
 from server.core.migrate import upgrade_database
 from server.models import utcnow
-from tests.evaluator.scoring.builders import simulated
-from tests.server.builders import make_team, seed_scored
-from tests.settings import env_only
-
-# The benchmark seeds its database with the service tests' builders.
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from server.sample_data import seed_scored
+from server.services import teams
 
 SUBMISSIONS = 1000
 TEAMS = 200
@@ -46,13 +44,14 @@ TARGET_RPS = 1000.0
 TARGET_P99_MS = 50.0
 
 
-def seed(database_url: str, rng: random.Random) -> None:
+def seed(database_url: str, rng: random.Random, submissions: int, n_teams: int) -> None:
     upgrade_database(database_url)
     db = Database(database_url)
     start = utcnow() - timedelta(days=10)
-    team_ids = [make_team(db, f"team-{k:03d}")[0] for k in range(TEAMS)]
+    with db.session() as session:
+        team_ids = [teams.create_team(session, f"team-{k:03d}")[0].id for k in range(n_teams)]
     draws = np.random.default_rng(rng.randrange(2**32))
-    for k in range(SUBMISSIONS):
+    for k in range(submissions):
         # Per-episode values of 128 scenarios (what the rank ranges resample), a third of them
         # reactive with three episodes; the metrics are the ones they give.
         samples = simulated(
@@ -66,7 +65,7 @@ def seed(database_url: str, rng: random.Random) -> None:
         }
         seed_scored(
             db,
-            team_ids[k % TEAMS],
+            team_ids[k % n_teams],
             metrics,
             created_at=start + timedelta(minutes=k),
             method_name=f"method {k}",
@@ -159,8 +158,12 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=10.0, help="measured time (<= 15)")
     parser.add_argument("--connections", type=int, default=16)
     parser.add_argument("--database-url", default="", help="default: a fresh SQLite file")
+    parser.add_argument("--smoke", action="store_true", help="20 submissions for 1 s: it runs")
     args = parser.parse_args()
     seconds = min(args.seconds, 15.0)  # with seeding, start-up and warm-up: under 20 s
+    submissions, n_teams = SUBMISSIONS, TEAMS
+    if args.smoke:
+        seconds, submissions, n_teams = 1.0, 20, 5
 
     workdir = Path(tempfile.mkdtemp(prefix="arena-bench-"))
     try:
@@ -168,7 +171,7 @@ def main() -> None:
             storage={"data_dir": workdir, "database_url": args.database_url},
             service={"admin_token": "bench"},
         )
-        seed(settings.storage.resolved_database_url, random.Random(7))
+        seed(settings.storage.resolved_database_url, random.Random(7), submissions, n_teams)
         host, port = "127.0.0.1", _free_port()
         server = _start_api(settings, host, port, workdir / "api.log")
         try:
@@ -187,11 +190,11 @@ def main() -> None:
     rps = total / elapsed
     p50 = percentile(latencies, 0.50) * 1000
     p99 = percentile(latencies, 0.99) * 1000
-    print(f"submissions={SUBMISSIONS} teams={TEAMS} connections={args.connections}")
+    print(f"submissions={submissions} teams={n_teams} connections={args.connections}")
     print(f"requests={total} in {elapsed:.1f} s")
     print(f"requests_per_s={rps:.0f} (target {TARGET_RPS:.0f}, ratio {rps / TARGET_RPS:.2f})")
     print(f"p50_ms={p50:.2f} p99_ms={p99:.2f} (target p99 < {TARGET_P99_MS:.0f} ms)")
-    print(f"cold_board_ms={cold * 1000:.0f} (first request: ranks {TEAMS} entries from scratch)")
+    print(f"cold_board_ms={cold * 1000:.0f} (first request: ranks {n_teams} entries from scratch)")
     print(f"rps={rps:.0f} p99_ms={p99:.2f}")
 
 

@@ -32,7 +32,6 @@ import shutil
 import signal
 import socket
 import subprocess
-import sys
 import time
 from collections.abc import Callable
 from contextlib import ExitStack
@@ -40,14 +39,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import NamedTuple
 
-# The campaign drives the service with the end-to-end tests' helpers.
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
 import httpx
+from _prerequisites import require, tool
 from sqlalchemy import func, select
 from sqlalchemy.exc import SQLAlchemyError
 
 from arena.config import ArtifactBackend, SandboxKind, Settings, get_settings
+from arena.errors import SandboxUnavailable
+from arena.settings_changes import env_only, with_fields
 from arena.suite import SHIPPED_PUBLIC_DIR
 from evaluator.sandbox import check_service_kind
 from evaluator.sandbox.backend import SANDBOX_LABEL
@@ -55,19 +54,26 @@ from evaluator.sandbox.subprocess_sandbox import labelled_pids
 from server.core.db import Database
 from server.core.migrate import upgrade_database
 from server.models import EvaluationRun, ScenarioResult, Score, Submission
-from tests.server.builders import EXAMPLES, make_team
-from tests.server.live import ARENA, environment, free_port, start, stop
-from tests.server.service_stack import (
+from server.processes import (
+    ARENA,
+    EXAMPLES,
+    bearer,
     cut_suite,
+    environment,
+    free_port,
     shared_dir,
+    start,
     start_worker,
+    stop,
     upload_folder,
 )
-from tests.settings import env_only, with_fields
+from server.services import teams
 
 # [s] The paced agent's pause per step: ~300 steps make a scenario last seconds, long enough
 # for a fault to land mid-episode (the examples finish one in about a second).
 PACE_S = 0.02
+# [s] The longest one upload's validation may take (its sandboxed intake).
+VALIDATION_LIMIT_S = 180.0
 # [s] The longest a fault may take to recover before it counts as not survived.
 RECOVERY_LIMIT_S = 120.0
 # [s] How long a sandbox runs before it is killed: past the agent's start-up, mid-episode.
@@ -186,14 +192,13 @@ class PrivatePostgres:
             self.process.wait(timeout=60)
 
 
-def _postgres_bin() -> Path:
+def _postgres_bin() -> Path | None:
+    """The folder of PostgreSQL's server programs, None when not installed."""
     found = sorted(Path("/usr/lib/postgresql").glob("*/bin/postgres"))
     if found:
         return found[-1].parent
     initdb = shutil.which("initdb")
-    if initdb is None:
-        raise SystemExit("PostgreSQL server binaries (initdb, postgres) are not installed")
-    return Path(initdb).parent
+    return Path(initdb).parent if initdb else None
 
 
 class PrivateRedis:
@@ -517,7 +522,8 @@ class Campaign:
 
     def start_service(self) -> None:
         """The API and two workers, each with a data folder of its own."""
-        self.token = make_team(self.ledger.db, "fault-team")[1]
+        with self.ledger.db.session() as session:
+            self.token = teams.create_team(session, "fault-team")[1]
         self.workers = [self._worker(1), self._worker(2)]
         port = free_port()
         self.api = start(
@@ -542,9 +548,25 @@ class Campaign:
             return False
 
     def submit(self, url: str, token: str, *agents: Path) -> list[int]:
-        ids = [upload_folder(url, token, agent, self.root / "zips") for agent in agents]
+        """Upload each agent as a team does: the next once the last one's validation is over
+        (a team has one validation slot: a second upload meanwhile is refused, 409)."""
+        ids = []
+        for agent in agents:
+            ids.append(upload_folder(url, token, agent, self.root / "zips"))
+            if not wait_until(lambda: self.validated(url, token, ids[-1]), VALIDATION_LIMIT_S):
+                raise RuntimeError(f"submission {ids[-1]} was not validated in time")
         self.submitted += ids
         return ids
+
+    @staticmethod
+    def validated(url: str, token: str, submission_id: int) -> bool:
+        try:
+            response = httpx.get(
+                f"{url}/api/v1/submissions/{submission_id}", headers=bearer(token), timeout=10
+            )
+        except httpx.HTTPError:
+            return False
+        return response.status_code == 200 and response.json()["status"] != "validating"
 
     def wait_held(self, condition: Callable[[Results], bool]) -> Results:
         """The scenarios workers hold, once ``condition`` holds of them."""
@@ -739,6 +761,9 @@ class Campaign:
         try:
             self.start_backends()
             self.start_service()
+            if self.args.smoke:  # the set-up and two uploads of one team, no fault
+                self.submit(self.api_url, self.token, self.paced, EXAMPLES / "keep_lane")
+                return
             for fault in (
                 self.worker_sigkill,
                 self.sandbox_kill,
@@ -828,8 +853,22 @@ def main() -> None:
     parser.add_argument("--lease-seconds", type=int, default=30)
     parser.add_argument("--reaper-interval-s", type=float, default=10.0)
     parser.add_argument("--keep", action="store_true", help="keep the logs and data folder")
+    parser.add_argument(
+        "--smoke", action="store_true", help="set up the service and upload twice, no fault"
+    )
     args = parser.parse_args()
-    args.sandbox = check_service_kind(args.sandbox or "auto", get_settings().sandbox).value
+    try:
+        args.sandbox = check_service_kind(args.sandbox or "auto", get_settings().sandbox).value
+        sandbox = None
+    except SandboxUnavailable as error:
+        sandbox = f"a sandbox for the service: {error} (scripts/setup.sh --dev sets one up)"
+    require(
+        sandbox,
+        None
+        if _postgres_bin()
+        else "PostgreSQL's server (initdb, postgres): apt-get install postgresql",
+        tool("redis-server", "apt-get install redis-server"),
+    )
     signal.signal(signal.SIGALRM, _on_alarm)
     signal.signal(signal.SIGTERM, _on_term)
     signal.alarm(args.timeout)
@@ -844,7 +883,10 @@ def main() -> None:
             print("interrupted; stopping", flush=True)
         finally:
             signal.alarm(0)
-        summary = campaign.report() if campaign.ledger else "faults_injected=0"
+        if args.smoke:
+            summary = f"smoke: set up, {len(campaign.submitted)} uploads of one team validated"
+        else:
+            summary = campaign.report() if campaign.ledger else "faults_injected=0"
         if args.keep:
             stack.pop_all()
             print(f"kept {campaign.root} (PostgreSQL and Redis stopped)", flush=True)

@@ -4,22 +4,19 @@ from __future__ import annotations
 
 import hashlib
 import json
-from datetime import datetime, timedelta
 from pathlib import Path
 
 from sqlalchemy import select
 
 from arena.config import Settings
-from evaluator.scoring import MetricSamples
 from server.core.db import Database
-from server.models import EvaluationRun, Phase, Score, Submission, Visibility, utcnow
+from server.models import Phase, Submission, Visibility, utcnow
+from server.processes import EXAMPLES, bearer  # noqa: F401  (bearer: the tests take it from here)
+from server.sample_data import METRICS, seed_scored  # noqa: F401  (the tests take it here)
 from server.services import evaluation, teams
-from server.status import RunStatus, SubmissionStatus
+from server.status import SubmissionStatus
 from server.tracks import Track
 from tests.settings import evaluate_args
-
-EXAMPLES = Path(__file__).resolve().parents[2] / "submissions" / "examples"
-METRICS = ("completion", "time", "humanness", "rules")
 
 
 def scenario_ids(plan) -> tuple[str, ...]:
@@ -49,72 +46,10 @@ def make_team(db: Database, name: str) -> tuple[int, str]:
         return team.id, token
 
 
-def bearer(token: str) -> dict[str, str]:
-    return {"Authorization": f"Bearer {token}"}
-
-
 def pack_example(name: str, out_dir: Path) -> Path:
     from submissions.intake import pack_folder
 
     return pack_folder(EXAMPLES / name, out_dir / f"{name}.zip")
-
-
-def seed_scored(
-    db: Database,
-    team_id: int,
-    metrics: tuple[float, float, float, float],
-    *,
-    track: Track = Track.freestyle,
-    created_at: datetime | None = None,
-    method_name: str = "method",
-    families: dict | None = None,
-    status: SubmissionStatus = SubmissionStatus.scored,
-    phase: str = "final",
-    interval: tuple[float, float] | None = None,
-    samples: MetricSamples | None = None,
-) -> int:
-    """A submission with one scored run and its score (completion interval ``interval``,
-    per-episode values ``samples``), as if a worker had evaluated it."""
-    created_at = created_at or utcnow()
-    with db.session() as session:
-        submission = Submission(
-            team_id=team_id,
-            phase=phase,
-            track=track,
-            method_name=method_name,
-            file_sha256="0" * 64,
-            file_size=1,
-            upload_key="submissions/none/upload.zip",
-            status=status,
-            created_at=created_at,
-            started_at=created_at + timedelta(seconds=1),
-        )
-        session.add(submission)
-        session.flush()
-        run = EvaluationRun(
-            submission_id=submission.id,
-            attempt=1,
-            status=RunStatus.scored,
-            suite_dir="/nonexistent",
-            manifest_sha256="0" * 64,
-            episode_count=1,
-            scoring_profile="driving-smarts-2022",
-        )
-        session.add(run)
-        session.flush()
-        session.add(
-            Score(
-                run_id=run.id,
-                profile="driving-smarts-2022",
-                families=families or {},
-                completion_low=interval[0] if interval else None,
-                completion_high=interval[1] if interval else None,
-                samples=samples.to_json() if samples is not None else None,
-                **dict(zip(METRICS, metrics, strict=True)),
-            )
-        )
-        evaluation.bump_leaderboard(session)
-        return submission.id
 
 
 def queued_submission(

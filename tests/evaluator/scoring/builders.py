@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from evaluator.scoring.record import AgentTrack
-from evaluator.scoring.significance import MetricSamples
+from evaluator.scoring.simulated import MAX_STEPS, simulated  # noqa: F401  (the tests take them here)
 
 DT = 0.1  # [s]
 
@@ -133,32 +133,3 @@ def record_arrays(
 def write_record(path: Path, scenario_id: str, agents: list[AgentSpec], **kwargs) -> Path:
     np.savez_compressed(path, **record_arrays(scenario_id, agents, **kwargs))
     return Path(path)
-
-
-MAX_STEPS = 800.0
-
-
-def simulated(
-    rng: np.random.Generator,
-    failure: float | np.ndarray,
-    *,
-    scenarios: int = 40,
-    episodes: int = 3,
-    time: float = 300.0,
-    humanness: float = 0.5,
-    drove: bool = True,
-    suite: str = "suite",
-) -> MetricSamples:
-    """The per-episode values of a simulated agent failing each mission with chance ``failure``
-    (one per scenario, or the same in every scenario), finishing in about ``time`` steps when it
-    succeeds; odd scenarios are reactive and run ``episodes`` times."""
-    chance = np.broadcast_to(failure, (scenarios,))
-    table = {}
-    for s in range(scenarios):
-        k = episodes if s % 2 else 1
-        failed = (rng.random(k) < chance[s]).astype(float)
-        steps = np.where(failed > 0, MAX_STEPS, rng.normal(time, 20.0, k))
-        weight = rng.integers(100, 300, k).astype(float) if drove else np.zeros(k)
-        h = rng.normal(humanness, 0.05, k) * weight
-        table[f"s{s:03d}"] = np.stack([failed, steps, h, 0.1 * weight, weight], axis=1)
-    return MetricSamples(suite, table)
