@@ -196,7 +196,8 @@ def submissions_list(
                 r.track,
                 r.method_name,
                 _status_text(r, rerunning),
-                f"{r.progress.done}/{r.progress.total}",
+                f"{r.progress.done}/{r.progress.total}"
+                + (" quarters" if r.progress.unit == "quarters" else ""),
                 metric_text("completion", r.metrics and r.metrics.completion),
                 metric_text("time", r.metrics and r.metrics.time),
             )

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from datetime import datetime
+from typing import Literal
 
 from pydantic import BaseModel, ConfigDict
 
@@ -68,6 +69,9 @@ class SeedFailureReasons(Schema):
 class Progress(Schema):
     done: int
     total: int  # episodes: one per scenario, episodes_per_scenario per reactive scenario
+    # "quarters": a hidden phase's run under way, told in quarters of it (done of total=4) whatever
+    # its size (server/services/hidden_timing.py); "episodes" otherwise.
+    unit: Literal["episodes", "quarters"] = "episodes"
     # Over several training seeds, every seed's run together (a seed still training counts
     # the episodes its run will have).
     seeds: int = 1
@@ -84,7 +88,9 @@ class SubmissionSummary(Schema):
     queued_at: datetime | None = None
     started_at: datetime | None = None  # the first evaluation (or training) began
     finished_at: datetime | None = None
-    # [s] from start to finish, or so far while it trains or runs; None before it starts.
+    # [s] from start to finish, or so far while it trains or runs; None before it starts. In a
+    # hidden phase: None until it ended, then rounded up to 10 minutes, and no finished_at
+    # (server/services/hidden_timing.py).
     duration_s: float | None = None
     progress: Progress
     metrics: Metrics | None

@@ -40,7 +40,7 @@ from server.schemas import (
     SubmissionSummary,
     TrainingProgress,
 )
-from server.services import validation
+from server.services import hidden_timing, validation
 from server.services.errors import (
     Conflict,
     Forbidden,
@@ -83,8 +83,6 @@ from server.tracks import Track
 from submissions.intake.archive import check_directory
 
 log = logging.getLogger(__name__)
-# What a team sees of the progress of a hidden phase's run under way: quarters.
-HIDDEN_PROGRESS_STEPS = 4
 
 
 @dataclass(frozen=True)
@@ -294,14 +292,15 @@ def shown_progress(
 ) -> Progress:
     """Episodes done of ``total`` over ``runs``, the shown ``run``'s seed set (a seed without a
     run yet counts the episodes it will have); while a hidden phase's run is under way only in
-    steps of a quarter: per-episode progress would time each hidden episode for its team."""
+    quarters of the run: per-episode progress would time each hidden episode for its team
+    (:mod:`server.services.hidden_timing`)."""
     if run is None:
         return Progress(done=0, total=0)
     seeds = run.training.seeds if several(run.training) else 1
     total = sum(r.episode_count for r in runs) + (seeds - len(runs)) * run.episode_count
     finished = sum(done.get(r.id, 0) for r in runs)
-    if any(live_in_hidden_phase(r, hidden) for r in runs) and total:
-        finished = (finished * HIDDEN_PROGRESS_STEPS // total) * total // HIDDEN_PROGRESS_STEPS
+    if any(live_in_hidden_phase(r, hidden) for r in runs):
+        return hidden_timing.quarter_progress(finished, total, seeds)
     return Progress(done=finished, total=total, seeds=seeds)
 
 
@@ -359,6 +358,13 @@ def _summary_fields(
     hidden: bool,
 ) -> dict:
     score = standing_score(submission)
+    finished_at, duration_s = submission.finished_at, _duration_s(submission)
+    if hidden:  # a clock of the hidden run: coarse, and only once it ended
+        finished_at = None
+        if submission.status in ACTIVE_SUBMISSION or duration_s is None:
+            duration_s = None
+        else:
+            duration_s = hidden_timing.coarse_s(duration_s)
     return {
         "id": submission.id,
         "team": submission.team.name,
@@ -369,8 +375,8 @@ def _summary_fields(
         "created_at": submission.created_at,
         "queued_at": submission.queued_at,
         "started_at": submission.started_at,
-        "finished_at": submission.finished_at,
-        "duration_s": _duration_s(submission),
+        "finished_at": finished_at,
+        "duration_s": duration_s,
         "progress": shown_progress(run, runs, done, hidden),
         "metrics": Metrics.model_validate(score) if score is not None else None,
         "completion_interval": completion_interval(score),
@@ -487,6 +493,8 @@ def _agent_cpu(session: Session, runs: list[EvaluationRun], hidden: bool) -> Age
     ):
         return None
     used = [agent_cpu_used(session, run.id) for run in runs]
+    if hidden:  # CPU an agent chose to burn is a clock too
+        used = [hidden_timing.coarse_cpu_s(seconds) for seconds in used]
     return AgentCpu(
         used_s=sum(used),
         budget_s=max(run.evaluation_cpu_s for run in runs),

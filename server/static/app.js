@@ -213,6 +213,8 @@ const Arena = (() => {
       if (s.status === "queued" || s.status === "received") return "queued: waiting for a worker";
       return s.status === "running" ? "starting the evaluation" : "";
     }
+    // A hidden phase's run under way is told in quarters, with no time left (no clock of it).
+    if (s.progress.unit === "quarters") return `${s.progress.done} / 4 quarters done`;
     const left = s.status === "running" ? timeLeft(s.progress) : "";
     // Several episodes per reactive scenario: the progress counts episodes, and says the cost.
     const unit = s.episodes_per_scenario > 1

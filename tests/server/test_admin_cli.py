@@ -91,7 +91,8 @@ def test_rescore_rerun_and_export(arena, db, settings):
     assert "attempt 2 queued" in arena("rerun", str(sid))
     # The old score stands meanwhile; the list says a re-run is going on, not just "scored".
     row = arena("submissions", "list").splitlines()[1].split("\t")
-    assert (row[5], row[6]) == ("scored (re-run running)", "0/3")
+    # Its progress as its team sees it in a hidden phase: quarters (services/hidden_timing.py).
+    assert (row[5], row[6]) == ("scored (re-run running)", "0/4 quarters")
     rows = list(csv.DictReader(io.StringIO(arena("leaderboard", "export"))))
     assert [(row["team"], float(row["completion"])) for row in rows] == [("alpha", 0.0)]
     # Alone on the board: its rank is certain and there is no neighbour to beat.

@@ -207,7 +207,12 @@ def test_progress_and_agent_cpu_count_every_seeds_run(db, settings, client):
     assert shown.status_code == 200, shown.text
     body = shown.json()
     # Seed 2's run is yet to come: its episodes are counted in the total.
-    assert body["progress"] == {"done": 1 + episodes, "total": 3 * episodes, "seeds": 3}
+    assert body["progress"] == {
+        "done": 1 + episodes,
+        "total": 3 * episodes,
+        "seeds": 3,
+        "unit": "episodes",
+    }
     assert body["agent_cpu"]["used_s"] == pytest.approx(1.5 + 2.0 * episodes)
     assert body["agent_cpu"]["most_used_s"] == pytest.approx(2.0 * episodes)
     assert body["agent_cpu"]["evaluations"] == 2
