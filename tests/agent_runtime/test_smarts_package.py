@@ -199,3 +199,77 @@ def test_smarts_colours_are_those_the_rasters_are_drawn_in() -> None:
     assert rgb(SceneColors.SocialVehicle) == SMARTS_COLOURS["vehicle"]
     assert rgb(SceneColors.Agent) == SMARTS_COLOURS["ego"] == SMARTS_COLOURS["mission_agent"]
     assert Colors.GreenTransparent.value[3] == 0.3
+
+
+# Every public name SMARTS comp-1 defines in the modules 2022 agents import (the simulator's
+# machinery aside: docs/smarts-compat.md names what is left out).
+COMP1_PUBLIC_NAMES = {
+    "smarts.core": "current_seed seed gen_id",
+    "smarts.core.utils.math": (
+        "CubicPolynomial batches circular_mean clip comb constrain_angle euclidean_distance "
+        "evaluate_bezier fast_quaternion_from_angle get_bezier_curve "
+        "get_linear_segments_for_range inplace_unwrap is_close lerp line_intersect "
+        "line_intersect_vectorized low_pass_filter min_angles_difference_signed mult_quat "
+        "position_to_ego_frame radians_to_vec ray_boundary_intersect rotate_cw_around_point "
+        "rotate_quat round_param_for_dt rounder_for_dt safe_division sign signed_dist_to_line "
+        "squared_dist vec_2d vec_to_radians world_position_from_ego_frame wrap_value "
+        "yaw_from_quaternion"
+    ),
+    "smarts.core.colors": "Colors SceneColors",
+    "smarts.core.controllers": "ActionSpaceType METER_PER_SECOND_TO_KM_PER_HR",
+    "smarts.core.agent_interface": (
+        "AgentInterface AgentType AgentsAliveDoneCriteria AgentsListAlive DoneCriteria "
+        "DrivableAreaGridMap EventConfiguration LanePositions Lidar NeighborhoodVehicles OGM RGB "
+        "RoadWaypoints Signals Waypoints Accelerometer"
+    ),
+    "smarts.core.sensors": (
+        "LANE_ID_CONSTANT LANE_INDEX_CONSTANT ROAD_ID_CONSTANT Observation "
+        "EgoVehicleObservation VehicleObservation TopDownRGB OccupancyGridMap "
+        "DrivableAreaGridMap GridMapMetadata RoadWaypoints Vias ViaPoint SignalObservation"
+    ),
+    "smarts.core.plan": (
+        "Start Goal EndlessGoal PositionalGoal Via Mission PlanningError VehicleSpec"
+    ),
+    "smarts.env.wrappers.format_obs": "FormatObs get_spaces intrfc_to_stdobs",
+    "smarts.env.wrappers.format_action": "FormatAction",
+    "smarts.env.wrappers.frame_stack": "FrameStack",
+}
+
+
+@pytest.mark.parametrize("module", sorted(COMP1_PUBLIC_NAMES))
+def test_the_modules_agents_import_have_every_public_name_of_comp1(module) -> None:
+    imported = __import__(module, fromlist=["_"])
+    missing = [n for n in COMP1_PUBLIC_NAMES[module].split() if not hasattr(imported, n)]
+    assert missing == []
+
+
+def test_comp1_math_helpers_compute_what_their_names_say() -> None:
+    from smarts.core import utils
+
+    m = utils.math
+    assert m.rotate_cw_around_point((1.0, 0.0), math.pi / 2) == pytest.approx([0.0, -1.0])
+    quarter_turn = [math.cos(math.pi / 4), 0.0, 0.0, math.sin(math.pi / 4)]  # about +z
+    assert m.rotate_quat(quarter_turn, [1.0, 0.0, 0.0]) == pytest.approx([0.0, 1.0, 0.0])
+    angles = np.array([0.0, 3.0, -3.0, 0.5])
+    assert m.inplace_unwrap(angles) is angles and angles == pytest.approx(
+        np.unwrap([0.0, 3.0, -3.0, 0.5])
+    )
+    assert (m.round_param_for_dt(0.1), m.round_param_for_dt(100)) == (1, -2)
+    assert m.rounder_for_dt(0.1)(0.30000000004) == 0.3
+    assert m.CubicPolynomial.from_list([1, 2, 3, 4]).eval(2) == 1 + 4 + 12 + 32
+    points = np.array([[0.0, 0.0], [1.0, 2.0], [3.0, 0.0]])
+    curve = m.get_bezier_curve(points)
+    assert curve(0.0) == pytest.approx(points[0]) and curve(1.0) == pytest.approx(points[-1])
+    assert curve(0.5) == pytest.approx([1.25, 1.0])
+    starts, ends = np.array([[0.0, -1.0], [5.0, -1.0]]), np.array([[0.0, 1.0], [5.0, 1.0]])
+    assert m.line_intersect_vectorized(np.array([-1.0, 0.0]), np.array([1.0, 0.0]), starts, ends)
+    assert not m.line_intersect_vectorized(np.array([1.0, 0.0]), np.array([2.0, 0.0]), starts, ends)
+    boundary = np.array([[2.0, -5.0], [2.0, 5.0], [4.0, 5.0], [4.0, -5.0]])
+    far = m.ray_boundary_intersect([0.0, 0.0], [10.0, 0.0], boundary[2:], early_return=False)
+    assert far == pytest.approx([4.0, 0.0])
+    assert m.ray_boundary_intersect([0.0, 0.0], [10.0, 0.0], boundary, early_return=False)[
+        0
+    ] == pytest.approx(2.0)
+    assert m.sign(-0.5) == -1 and m.sign(0) == 1 and m.comb(5, 2) == 10
+    assert m.circular_mean([np.array([0.0, 1.0])]) == pytest.approx(0.0)  # north
+    assert m.low_pass_filter(1.0, 0.0, 2.0, 0.1) == pytest.approx(0.2)

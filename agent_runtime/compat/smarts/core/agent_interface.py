@@ -52,6 +52,35 @@ class Lidar:
 
 
 @dataclass(frozen=True)
+class LanePositions:
+    """Asks for lane-relative (Frenet) coordinates; always given here."""
+
+
+@dataclass(frozen=True)
+class Signals:
+    lookahead: float = 100.0  # [m]; our scenarios have no traffic signals
+
+
+@dataclass(frozen=True)
+class AgentsListAlive:
+    agents_list: list[str]
+    minimum_agents_alive_in_list: int
+
+
+@dataclass(frozen=True)
+class AgentsAliveDoneCriteria:
+    minimum_ego_agents_alive: int | None = None
+    minimum_total_agents_alive: int | None = None
+    agent_lists_alive: list[AgentsListAlive] | None = None
+
+
+@dataclass(frozen=True)
+class EventConfiguration:
+    not_moving_time: float = 60  # [s]
+    not_moving_distance: float = 1  # [m]
+
+
+@dataclass(frozen=True)
 class DoneCriteria:
     collision: bool = True
     off_road: bool = True

@@ -6,7 +6,18 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
-from smarts.core.coordinates import Heading, Point
+from smarts.core.coordinates import Dimensions, Heading, Point
+
+
+class PlanningError(Exception):
+    """SMARTS's error for a route it cannot plan on the map."""
+
+
+@dataclass(frozen=True)
+class VehicleSpec:
+    veh_id: str
+    veh_config_type: str
+    dimensions: Dimensions
 
 
 @dataclass(frozen=True)

@@ -12,6 +12,11 @@ from smarts.core.events import Collision, Events
 from smarts.core.plan import Mission
 from smarts.core.road_map import Waypoint
 
+# What SMARTS reports for a vehicle on no lane.
+LANE_ID_CONSTANT = "off_lane"
+ROAD_ID_CONSTANT = "off_road"
+LANE_INDEX_CONSTANT = -1
+
 __all__ = [
     "Collision",
     "DrivableAreaGridMap",

@@ -2,6 +2,8 @@
 
 from enum import Enum
 
+METER_PER_SECOND_TO_KM_PER_HR = 3.6
+
 
 class ActionSpaceType(Enum):
     Continuous = 0  # [throttle 0..1, brake 0..1, steering -1..1]

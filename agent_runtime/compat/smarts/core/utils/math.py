@@ -3,8 +3,10 @@ radians, 0 = north (+y), counter-clockwise, so heading h points along (-sin h, c
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -156,3 +158,155 @@ def line_intersect(a, b, c, d) -> np.ndarray | None:
     if 0 <= t <= 1 and 0 <= u <= 1:
         return np.asarray(a[:2], float) + t * r
     return None
+
+
+def line_intersect_vectorized(a, b, c: np.ndarray, d: np.ndarray, ignore_start_pt=False) -> bool:
+    """Whether segment a-b crosses any segment ``c[i]-d[i]`` (rows of (n, 2) arrays). With
+    ``ignore_start_pt``, lines that only touch at the first segment's start do not count."""
+    r = np.asarray(b[:2], float) - np.asarray(a[:2], float)
+    s = np.asarray(d, float)[:, :2] - np.asarray(c, float)[:, :2]
+    denominator = r[0] * s[:, 1] - r[1] * s[:, 0]
+    if not np.any(denominator):
+        return False
+    qp = np.asarray(c, float)[:, :2] - np.asarray(a[:2], float)
+    safe = np.where(denominator == 0, 1.0, denominator)
+    along_ab = np.where(denominator == 0, -1.0, (qp[:, 0] * s[:, 1] - qp[:, 1] * s[:, 0]) / safe)
+    along_cd = np.where(denominator == 0, -1.0, (qp[:, 0] * r[1] - qp[:, 1] * r[0]) / safe)
+    crossing = (along_ab >= 0) & (along_ab <= 1) & (along_cd >= 0) & (along_cd <= 1)
+    if not np.any(crossing):
+        return False
+    return not ignore_start_pt or bool(np.any(crossing[1:])) or along_cd[0] > 0.0
+
+
+def ray_boundary_intersect(ray_start, ray_end, boundary_pts, early_return=True):
+    """Where the ray segment meets the polyline ``boundary_pts``: the first crossing found
+    (``early_return``) or the nearest to ``ray_start``; None when it meets none."""
+    size = len(ray_start)
+    nearest, nearest_distance = None, math.inf
+    for start, end in itertools.pairwise(boundary_pts):
+        point = line_intersect(start[:size], end[:size], ray_start, ray_end)
+        if point is None:
+            continue
+        if early_return:
+            return point
+        distance = float(np.linalg.norm(point - np.asarray(ray_start[:2], float)))
+        if distance < nearest_distance:
+            nearest, nearest_distance = point, distance
+    return nearest
+
+
+def rotate_cw_around_point(point, radians: float, origin=(0, 0)) -> np.ndarray:
+    """comp-1's name of :func:`rotate_around_point` (clockwise)."""
+    return rotate_around_point(point, radians, origin)
+
+
+def sign(x) -> int:
+    """-1 for a negative number, else 1."""
+    return -1 if x < 0 else 1
+
+
+def is_close(a: float, b: float, rel_tol: float = 1e-09, abs_tol: float = 0.0) -> bool:
+    """``math.isclose``'s test, as SMARTS spells it."""
+    return abs(a - b) <= max(rel_tol * max(abs(a), abs(b)), abs_tol)
+
+
+def circular_mean(vectors: Sequence[np.ndarray]) -> float:
+    """The mean direction of 2D vectors, in radians with 0 = north."""
+    total_x = sum(v[0] for v in vectors)
+    total_y = sum(v[1] for v in vectors)
+    return math.atan2(total_y, total_x) - math.pi / 2
+
+
+def low_pass_filter(
+    input_value, previous_filter_state, filter_constant, time_step, lower_bound=-1, raw_value=0
+):
+    """One step of a first-order low-pass filter towards ``input_value``, plus ``raw_value``,
+    kept in [``lower_bound``, 1]."""
+    state = previous_filter_state + time_step * filter_constant * (
+        input_value - previous_filter_state
+    )
+    return np.clip(state + raw_value, lower_bound, 1)
+
+
+def comb(n: int, k: int) -> int:
+    """The binomial coefficient n choose k."""
+    return math.comb(n, k)
+
+
+def get_bezier_curve(points):
+    """The Bezier curve through control ``points`` as a function of t in [0, 1]."""
+    degree = len(points) - 1
+
+    def curve(t):
+        return sum(
+            comb(degree, i) * t**i * (1 - t) ** (degree - i) * points[i] for i in range(degree + 1)
+        )
+
+    return curve
+
+
+def get_linear_segments_for_range(s_start: float, s_end: float, segment_size: float) -> list:
+    """Offsets from ``s_start`` every ``segment_size`` up to ``s_end``."""
+    count = int((s_end - s_start) / segment_size) + 1
+    return [s_start + i * segment_size for i in range(count)]
+
+
+def inplace_unwrap(wp_array):
+    """``np.unwrap`` of angles [rad], written into ``wp_array`` itself (returned)."""
+    angles = np.asarray(wp_array)
+    angles[...] = np.unwrap(angles)
+    return angles
+
+
+def round_param_for_dt(dt: float) -> int:
+    """The ``ndigits`` for ``round`` that keeps a multiple of ``dt`` exact (negative for
+    whole numbers with trailing zeros: 100 -> -2)."""
+    text = np.format_float_positional(dt)
+    point = text.find(".")
+    if point >= len(text) - 1:  # a whole number: "100."
+        return 1 - point
+    return len(text) - point - 1
+
+
+def rounder_for_dt(dt: float):
+    """A function rounding a time to ``dt``'s precision."""
+    ndigits = round_param_for_dt(dt)
+    return lambda value: round(value, ndigits)
+
+
+def mult_quat(q1, q2) -> np.ndarray:
+    """The Hamilton product of quaternions (w, x, y, z)."""
+    w1, x1, y1, z1 = q1
+    w2, x2, y2, z2 = q2
+    return np.array(
+        [
+            w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
+        ]
+    )
+
+
+def rotate_quat(quat, vect) -> np.ndarray:
+    """``vect`` (3,) rotated by the unit quaternion ``quat`` (w, x, y, z)."""
+    pure = np.concatenate([[0.0], np.asarray(vect, float)])
+    conjugate = np.concatenate([[quat[0]], -np.asarray(quat[1:], float)])
+    return mult_quat(mult_quat(quat, pure), conjugate)[1:]
+
+
+@dataclass(frozen=True)
+class CubicPolynomial:
+    """``a + b s + c s^2 + d s^3``."""
+
+    a: float
+    b: float
+    c: float
+    d: float
+
+    @classmethod
+    def from_list(cls, coefficients: Sequence[float]) -> CubicPolynomial:
+        return cls(*coefficients[:4])
+
+    def eval(self, ds: float) -> float:
+        return self.a + ds * (self.b + ds * (self.c + ds * self.d))
