@@ -10,6 +10,7 @@ import typer
 
 from evaluator.cli import app as evaluator_app
 from evaluator.sandbox.cli import sandbox_app
+from evaluator.stacks_cli import stacks_app
 from scenarios.cli import app as scenarios_app
 from scenarios.dataset.cli import app as dataset_app
 from server.cli import admin_app, service_app
@@ -25,6 +26,7 @@ app.add_typer(scenarios_app, name="scenarios", help="Build, list, draw and verif
 app.add_typer(dataset_app, name="dataset", help="Build the offline-learning dataset (Minari).")
 app.add_typer(submission_app, name="submission", help="Pack and check a submission zip.")
 app.add_typer(sandbox_app, name="sandbox", help="The agent sandbox: runtime image, leftovers.")
+app.add_typer(stacks_app, name="stacks", help="Organiser stacks: wheel sets agents build on.")
 app.add_typer(admin_app, name="admin", help="Organiser administration of the service.")
 # `arena evaluate|score|replay` and `arena up|worker|serve` sit at the top level.
 app.add_typer(evaluator_app)

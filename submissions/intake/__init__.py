@@ -30,6 +30,7 @@ from submissions.intake.porting import (
     with_porting_notes,
 )
 from submissions.intake.runner import IntakeRunner, in_process, write_inputs
+from submissions.intake.stacks import check_stack_name, read_stack
 
 __all__ = ["IntakeError", "PreparedSubmission", "check_zip", "pack_folder", "prepare_submission"]
 
@@ -125,12 +126,23 @@ def prepare_submission(
                 "an offline (Track 2) submission holds train.py beside policy.py; the service "
                 "runs it on the dataset before evaluating (docs/dataset.md)",
             )
-        interface = interface_of(contents.agent_options)
+        options = dict(contents.agent_options)
+        stack_name = options.pop("stack", None)
+        if stack_name is not None:
+            check_stack_name(stack_name)
+        interface = interface_of(options)
         missing = missing_compat_names(scan)  # after agent.yaml's checks: its format decides
         if missing is not None:
             raise missing
         installed = (
-            install_requirements(contents.requirements or "", intake, sandbox, data_dir, runner)
+            install_requirements(
+                contents.requirements or "",
+                intake,
+                sandbox,
+                data_dir,
+                runner,
+                stack=read_stack(data_dir, stack_name) if stack_name is not None else None,
+            )
             if install
             else None
         )

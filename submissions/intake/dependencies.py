@@ -32,6 +32,7 @@ import tempfile
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from packaging.requirements import InvalidRequirement, Requirement
 
@@ -44,6 +45,9 @@ from submissions.intake.contents import REQUIREMENTS
 from submissions.intake.package_index import PackageSources, package_sources
 from submissions.intake.porting import explain_missing_wheel
 from submissions.intake.runner import IntakeRunner, write_inputs
+
+if TYPE_CHECKING:
+    from submissions.intake.stacks import Stack
 
 DEPS_CACHE = "deps"
 WHEEL_STORE = "wheels"
@@ -150,12 +154,21 @@ def install_requirements(
     sandbox: SandboxSettings,
     data_dir: Path,
     runner: IntakeRunner,
+    stack: Stack | None = None,
 ) -> InstalledRequirements | None:
-    """The folder holding the installed requirements, or None when there are none."""
+    """The folder holding the installed requirements (on the organiser ``stack``, if any), or
+    None when there are none."""
     lines = parse_requirements(text)
+    if stack is not None:
+        # The stack's own lines (numbered 0: not the team's) and its lock as constraints; its
+        # wheelhouse is read before the index.
+        lines = [(0, line) for line in stack.requirements] + lines
     if not lines:
         return None
     request = resolve_request(lines, package_sources(intake), sandbox, intake)
+    if stack is not None:
+        request["constraints"] = list(stack.lock)
+        request["find_links"] = [str(stack.wheelhouse), *request["find_links"]]
     key = requirements_key(request)
     cache = deps_cache(data_dir)
     target = cache / key

@@ -265,6 +265,7 @@ def explain_missing_wheel(
         if number is not None:
             numbered.append(number)
             shown = _bounded_text(lines.get(number, project))[:_MAX_NAME]
+            place = f"line {number} `{shown}`" if number else f"the stack's `{project}`"
             if error.get("available") == "none":
                 fix = (
                     "the package index has no distribution of it at all: remove it, or use a "
@@ -278,7 +279,7 @@ def explain_missing_wheel(
             else:
                 fix = "no version of it resolves with your other lines; change or remove it"
             told.append(
-                f"line {number} `{shown}`: no version of {project} on the package index for "
+                f"{place}: no version of {project} on the package index for "
                 f"{where_python} matches; {fix}"
             )
         else:

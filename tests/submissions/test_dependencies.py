@@ -15,7 +15,7 @@ import pytest
 from agent_runtime import intake as rules
 from arena.config import Settings
 from arena.errors import IntakeError
-from evaluator.validation import validate
+from evaluator.validation import sandboxed, validate
 from submissions.intake import prepare_submission
 from submissions.intake.dependencies import (
     MANIFEST,
@@ -25,6 +25,7 @@ from submissions.intake.dependencies import (
     wheel_store,
 )
 from submissions.intake.porting import explain_missing_wheel
+from submissions.intake.stacks import build_stack, read_stack
 from tests.settings import with_fields
 from tests.submissions.package_index import build_wheel, served_index, write_simple_index
 from tests.submissions.zips import with_policy, write_zip
@@ -368,3 +369,43 @@ def test_prepared_locally_a_participant_resolves_without_the_hosts_variables(
     )
     assert installed.deps_dir is not None
     assert (installed.deps_dir / "smallpkg" / "__init__.py").read_text() == "V = '1.1'\n"
+
+
+@pytest.mark.slow  # the resolver sandbox (bubblewrap)
+def test_an_organiser_stack_is_built_once_and_a_team_adds_to_it(tmp_path: Path) -> None:
+    """`stack: mini` in agent.yaml: the stack's wheels come from its wheelhouse (the index is
+    gone by then), the team's line is added, torch is the stack's CPU build."""
+    files = tmp_path / "files"
+    files.mkdir()
+    build_wheel(files, "torch", "2.1.0", requires=("gpulib",))
+    build_wheel(files, "torch", "2.1.0+cpu")
+    build_wheel(files, "smallpkg", "1.0")
+    build_wheel(files, "smallpkg", "1.1")
+    with served_index(files, tmp_path / "web") as url:
+        settings = settings_for(tmp_path, url)
+        data_dir = settings.storage.resolved_data_dir
+        runner = sandboxed(settings.intake, settings.sandbox, data_dir, "bubblewrap")
+        manifest = build_stack(
+            "mini", "torch\nsmallpkg\n", settings.intake, settings.sandbox, data_dir, runner
+        )
+    assert manifest["cpu_builds"] == {"torch": "2.1.0+cpu"}
+    assert read_stack(data_dir, "mini").lock == ("smallpkg==1.1", "torch==2.1.0+cpu")
+    (tmp_path / "local").mkdir()
+    build_wheel(tmp_path / "local", "teampkg", "1.0")
+    offline = with_fields(settings, intake={"package_index": [url, str(tmp_path / "local")]})
+    upload = write_zip(
+        tmp_path / "a.zip",
+        with_policy(**{"agent.yaml": "stack: mini\n", "requirements.txt": "teampkg==1.0\n"}),
+    )
+    prepared = validate(
+        upload, tmp_path / "a", offline.intake, offline.sandbox, data_dir, kind="bubblewrap"
+    )
+    deps = prepared.deps_dir
+    assert {"torch", "smallpkg", "teampkg"} <= {p.name for p in deps.iterdir()}
+    assert (deps / "torch" / "__init__.py").read_text() == "V = '2.1.0+cpu'\n"
+    unknown = write_zip(tmp_path / "b.zip", with_policy(**{"agent.yaml": "stack: ds2030\n"}))
+    with pytest.raises(IntakeError) as caught:
+        validate(
+            unknown, tmp_path / "b", offline.intake, offline.sandbox, data_dir, kind="bubblewrap"
+        )
+    assert caught.value.rule == "stack" and "built: mini" in caught.value.message
