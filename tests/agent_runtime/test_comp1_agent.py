@@ -18,15 +18,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from arena.config import SandboxKind, get_settings
-from evaluator.runner import evaluate
 from evaluator.scoring import load_record
-from tests.settings import evaluate_args
+from tests.agent_runtime.ported import SANDBOXES, run_ported
 
 pytestmark = pytest.mark.slow
 
 AGENT = Path(__file__).parent / "comp1_agent"
-AGENT_FAILURES = {"agent_error", "invalid_action", "agent_exited", "step_timeout", "init_timeout"}
 STRAIGHT = 1  # the agent's action.py: straight on at 30 km/h
 SPEED = 30 / 3.6  # [m/s]
 PIXELS = 64  # agent.yaml's img_pixels
@@ -92,30 +89,10 @@ def agent(tmp_path_factory) -> Path:
     return folder
 
 
-@pytest.mark.parametrize(
-    "kind",
-    [
-        pytest.param(SandboxKind.docker, marks=pytest.mark.docker, id="docker"),
-        pytest.param(SandboxKind.bubblewrap, marks=pytest.mark.bwrap, id="bubblewrap"),
-        pytest.param(SandboxKind.process, id="process"),
-    ],
-)
+@pytest.mark.parametrize("kind", SANDBOXES)
 def test_the_organisers_example_style_agent_runs_unmodified(kind, agent, tmp_path):
-    from arena.suite import SHIPPED_PUBLIC_DIR
-
     out = tmp_path / "out"
-    summary = evaluate(
-        agent,
-        SHIPPED_PUBLIC_DIR,
-        **evaluate_args(get_settings()),
-        out_dir=out,
-        scenario_ids=SCENARIOS,
-        sandbox=kind,
-    )
-    reasons = {(s.id, a.id): a.reason for s in summary.scenarios for a in s.agents}
-    logs = "\n".join(p.read_text(errors="replace") for p in (out / "logs").glob("*.txt"))
-    assert summary.complete and summary.uncharged == (), logs[-3000:]
-    assert not {k: r for k, r in reasons.items() if r in AGENT_FAILURES}, (reasons, logs[-3000:])
+    summary, _ = run_ported(agent, SCENARIOS, kind, out)
     # The model's choice, through FilterObs, FrameStack, Concatenate, the discrete action and
     # FormatAction, drove every agent straight on at 30 km/h from its second step.
     for scenario_id in SCENARIOS:
