@@ -106,23 +106,18 @@ const Arena = (() => {
     return metric === "time" ? value.toFixed(1) : value.toFixed(4);
   }
 
-  function chart(families) {
-    const names = Object.keys(families).sort();
-    const row = 22;
-    const bars = names.map((name, i) => {
-      const value = families[name].completion;
-      return `<text x="0" y="${row * i + 15}" class="label">${name}</text>` +
-        `<rect x="150" y="${row * i + 4}" width="${(value * 220).toFixed(1)}" height="14" class="bar">` +
-        `<title>${name}: ${value.toFixed(3)}</title></rect>` +
-        `<text x="${156 + value * 220}" y="${row * i + 15}" class="value">${value.toFixed(2)}</text>`;
-    }).join("");
-    const h = row * names.length;
-    return `<figure class="chart"><figcaption>Completion error per family ` +
-      `(0: every agent reached its goal)</figcaption><svg class="chart" role="img" aria-label="completion error per scenario family" ` +
-      `viewBox="0 0 420 ${h + 24}" width="420">${bars}` +
-      `<line x1="150" x2="370" y1="${h + 4}" y2="${h + 4}" class="axis"/>` +
-      `<text x="150" y="${h + 18}" class="value">0</text>` +
-      `<text x="362" y="${h + 18}" class="value">1</text></svg></figure>`;
+  // The results drawn by the server (GET .../results.svg: completion's interval as a bar, the
+  // four metrics per family beside the leaderboard's median), fetched once per score.
+  const drawn = { key: null };
+  async function loadResultsChart(s, token) {
+    const key = s.metrics ? `${s.id}:${s.status}:${s.metrics.completion}` : null;
+    if (key === drawn.key) return;
+    drawn.key = key;
+    $("results-chart").innerHTML = "";
+    if (!key) return;
+    const response = await fetch(`${API}/submissions/${s.id}/results.svg`,
+      { headers: headers(token) });
+    if (response.ok && drawn.key === key) $("results-chart").innerHTML = await response.text();
   }
 
   function escape(text) {
@@ -286,7 +281,6 @@ const Arena = (() => {
       `<td class="num">${s.families[f].scenarios}</td>` +
       metrics.map((m) => `<td class="num">${fmt(m, s.families[f][m])}</td>`).join("") +
       `</tr>`).join("")}</tbody></table>` : "";
-    $("chart").innerHTML = families.length ? chart(s.families) : "";
     const failures = Object.entries(s.failure_reasons);
     // No heading over nothing: failures show once counted, "None." only when it has finished
     // having run episodes (not one that failed in training, before any could run).
@@ -434,6 +428,7 @@ const Arena = (() => {
       $("token-form").hidden = true;
       const s = await response.json();
       render(s, metrics);
+      loadResultsChart(s, token);
       // A hidden phase's agent output goes to the organisers only: not even asked for.
       if (finished.includes(s.status) && !(s.phase_window && s.phase_window.hidden)) {
         loadLogs(id, token);

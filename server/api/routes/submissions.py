@@ -9,6 +9,7 @@ from server.api.contract import UPLOAD_FORM, errors
 from server.api.deps import (
     CurrentTeam,
     DatabaseDep,
+    LeaderboardDep,
     OwnedSubmission,
     QueueDep,
     SandboxDep,
@@ -20,7 +21,14 @@ from server.api.deps import (
 )
 from server.api.upload import receive_form
 from server.schemas import SubmissionDetail, SubmissionLogs, SubmissionSummary
-from server.services import downloads, replays, standing, submissions, validation
+from server.services import (
+    downloads,
+    replays,
+    result_charts,
+    standing,
+    submissions,
+    validation,
+)
 from server.services.errors import InvalidUpload
 from server.services.phases import DEFAULT_PHASE
 from server.tracks import Track
@@ -118,6 +126,22 @@ def get_logs(session: SessionDep, submission: OwnedSubmission) -> SubmissionLogs
     """The agent's stdout/stderr tail per scenario, in a phase of full visibility (validation);
     403 in a hidden phase, whose agent output goes to the organisers only."""
     return submissions.logs(session, submission)
+
+
+@router.get(
+    "/{submission_id}/results.svg",
+    response_class=Response,
+    responses={200: {"content": {"image/svg+xml": {}}}, **errors(409)},
+)
+def get_results_chart(
+    session: SessionDep, cache: LeaderboardDep, submission: OwnedSubmission
+) -> Response:
+    """The submission's results drawn (the submission page shows it): completion with its 95%
+    interval as a bar, and the four metrics per family beside the leaderboard's median; 409
+    until it is scored."""
+    return Response(
+        result_charts.results_svg(session, cache, submission), media_type="image/svg+xml"
+    )
 
 
 @router.get("/{submission_id}/replays/{scenario_id}", responses=errors(403))

@@ -6,8 +6,10 @@ timings, rank and interval, uploads left today, a training submission said as tr
 from __future__ import annotations
 
 import json
+import os
 import shutil
 from datetime import timedelta
+from pathlib import Path
 
 import pytest
 
@@ -270,4 +272,53 @@ def test_an_organiser_watches_a_hidden_phase_episode(site, browser):  # noqa: F8
     page.evaluate(f"sessionStorage.setItem('arena-admin-token', {json.dumps(ADMIN)})")
     page.reload()
     expect(page.locator("#replay")).to_contain_text("has no recorded episode")
+    page.close()
+
+
+# `ARENA_DOC_IMAGES=1`: the charts' screenshots are written where docs/ shows them.
+DOC_IMAGES = Path(__file__).parents[3] / "docs" / "images"
+
+
+def test_results_and_rank_ranges_are_drawn_at_desktop_and_phone_width(site, browser):  # noqa: F811
+    from playwright.sync_api import expect
+
+    for label, viewport in (("1280", DESKTOP), ("390", PHONE)):
+        page = open_page(browser, site, f"/submissions/{site['final']}", viewport)
+        chart = page.locator("#results-chart svg")
+        expect(chart).to_be_visible()
+        # Every family's four metrics beside the leaderboard median, the interval as a bar.
+        assert chart.locator("rect.bar").count() == len(FAMILIES) * 4
+        assert chart.locator("line.median").count() == len(FAMILIES) * 4
+        expect(chart.locator("g.interval rect.range")).to_have_count(1)
+        expect(chart).to_contain_text("[0.1000, 0.4000]")
+        assert chart.bounding_box()["width"] <= viewport["width"]
+        if os.environ.get("ARENA_DOC_IMAGES"):
+            chart.screenshot(path=DOC_IMAGES / f"results-chart-{label}.png")
+        board = open_page(browser, site, "/", viewport)
+        ranks = board.locator("#leaderboard svg.rank-chart")
+        expect(ranks).to_have_count(2)
+        expect(ranks.first).to_be_visible()  # drawn in the rank cell, not behind a hover
+        if os.environ.get("ARENA_DOC_IMAGES"):
+            board.locator("#leaderboard").screenshot(path=DOC_IMAGES / f"leaderboard-{label}.png")
+        page.close()
+        board.close()
+
+
+def test_a_hidden_phase_page_asks_for_nothing_it_may_not_see(site, browser):  # noqa: F811
+    """Two 403s from /logs once reached the console of a hidden phase's submission page, and
+    its notice showed `literal backticks`."""
+    from playwright.sync_api import expect
+
+    page = offline_page(browser, site["url"], PHONE)
+    asked: list[str] = []
+    page.on("request", lambda request: asked.append(request.url))
+    page.goto(f"{site['url']}/my-submissions")
+    page.evaluate(f"sessionStorage.setItem('arena-token', {json.dumps(site['token'])})")
+    page.goto(f"{site['url']}/submissions/{site['final']}")
+    page.wait_for_load_state("networkidle")
+    notice = page.locator("#phase-hidden")
+    expect(notice).to_contain_text("arena evaluate")
+    assert "`" not in notice.inner_text()
+    expect(notice.locator("code")).to_have_text("arena evaluate")
+    assert not [url for url in asked if url.endswith("/logs")]
     page.close()
