@@ -22,16 +22,12 @@ rasters>`` (targets: at most 3 and at most 1).
 from __future__ import annotations
 
 import argparse
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
+from _prerequisites import module, require, tool
 from sim_throughput import build, in_child, raw_side
 
 from learn.gym_env import DrivingArenaEnv
@@ -84,7 +80,14 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=1000)
     parser.add_argument("--vehicles", type=int, default=100)
     parser.add_argument("--repeat", type=int, default=2)
+    parser.add_argument("--smoke", action="store_true", help="20 steps, 5 vehicles, once")
     args = parser.parse_args()
+    if args.smoke:
+        args.steps, args.vehicles, args.repeat = 20, 5, 1
+    require(
+        tool("netconvert", "apt-get install sumo (or pip install eclipse-sumo)"),
+        module("libsumo", "pip install libsumo (the project's dependencies)"),
+    )
     with tempfile.TemporaryDirectory() as tmp:
         folder = build(Path(tmp) / "bench", args.vehicles, args.steps)
         raw, plain, raster, child = [], [], [], []

@@ -29,9 +29,7 @@ import json
 import os
 import random
 import shutil
-import socket
 import subprocess
-import sys
 import tempfile
 import threading
 import time
@@ -41,16 +39,14 @@ from pathlib import Path
 
 import httpx
 
-from tests.settings import env_only
-
-# The benchmark seeds its database with the service tests' builders.
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from arena.settings_changes import env_only
+from arena.suite import SHIPPED_PUBLIC_DIR
+from server.processes import ARENA, free_port, start, stop
 
 TARGET_RSS_MIB = 300.0
 TARGET_P99_MS = 50.0
 PER_KIND = 3
 HOST = "127.0.0.1"
-ARENA = [sys.executable, "-c", "from arena.cli import app; app()"]
 MiB = 1024**2
 POLICY = b"class Policy:\n    def act(self, obs):\n        return {}\n"
 
@@ -119,44 +115,29 @@ def with_requirements(path: Path, requirement: str) -> Path:
     return path
 
 
-def seed(database_url: str, teams: int) -> dict[str, str]:
+def seed(database_url: str, teams: int, ranked: int = 200) -> dict[str, str]:
     """A leaderboard of 200 scored submissions, and the hostile teams' tokens."""
     from server.core.db import Database
     from server.core.migrate import upgrade_database
-    from tests.server.builders import make_team, seed_scored
+    from server.sample_data import seed_scored
+    from server.services import teams as team_service
 
     upgrade_database(database_url)
     db = Database(database_url)
     rng = random.Random(3)
-    for k in range(200):
-        team, _ = make_team(db, f"ranked-{k:03d}")
+
+    def make_team(name: str) -> tuple[int, str]:
+        with db.session() as session:
+            team, token = team_service.create_team(session, name)
+            return team.id, token
+
+    for k in range(ranked):
+        team, _ = make_team(f"ranked-{k:03d}")
         metrics = (rng.random(), rng.uniform(200, 800), rng.uniform(0, 2), rng.uniform(0, 0.2))
         seed_scored(db, team, metrics, method_name=f"method {k}")
-    tokens = {f"hostile-{k:02d}": make_team(db, f"hostile-{k:02d}")[1] for k in range(teams)}
+    tokens = {f"hostile-{k:02d}": make_team(f"hostile-{k:02d}")[1] for k in range(teams)}
     db.dispose()
     return tokens
-
-
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind((HOST, 0))
-        return sock.getsockname()[1]
-
-
-def start(command: list[str], env: dict[str, str], log: Path) -> subprocess.Popen:
-    return subprocess.Popen(
-        command, env=env, stdout=log.open("wb"), stderr=subprocess.STDOUT, start_new_session=True
-    )
-
-
-def stop(process: subprocess.Popen) -> None:
-    if process.poll() is None:
-        os.killpg(process.pid, 15)
-        try:
-            process.wait(timeout=60)
-        except subprocess.TimeoutExpired:
-            os.killpg(process.pid, 9)
-            process.wait()
 
 
 def wait_up(url: str, process: subprocess.Popen, log: Path) -> None:
@@ -287,7 +268,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sandbox", default="auto", choices=["auto", "docker", "bubblewrap"])
     parser.add_argument("--timeout", type=float, default=600.0, help="for every verdict [s]")
+    parser.add_argument("--smoke", action="store_true", help="one upload of each kind")
     args = parser.parse_args()
+    per_kind, ranked, idle_s = (1, 20, 1.0) if args.smoke else (PER_KIND, 200, 5.0)
 
     work = Path(tempfile.mkdtemp(prefix="arena-hostile-"))
     rng = random.Random(23)
@@ -305,6 +288,8 @@ def main() -> None:
             # The requirements come from the local wheel folder: nothing leaves the machine.
             "ARENA_PIP_OPTIONS": json.dumps(["--no-index", "--find-links", str(wheels)]),
             "ARENA_HTTP_HEADER_TIMEOUT_S": "5",
+            # A suite for the phases to evaluate on (uploads to a phase without one are refused).
+            "ARENA_HIDDEN_SUITE_DIR": str(SHIPPED_PUBLIC_DIR),
         }
         zips = work / "zips"
         zips.mkdir()
@@ -316,7 +301,9 @@ def main() -> None:
         }
         parallel = with_requirements(zips / "parallel.zip", "fatpkg==1.0")
         tokens = list(
-            seed(settings.storage.resolved_database_url, PER_KIND * len(payloads) + 1).values()
+            seed(
+                settings.storage.resolved_database_url, per_kind * len(payloads) + 1, ranked
+            ).values()
         )
         port = free_port()
         url = f"http://{HOST}:{port}"
@@ -325,7 +312,7 @@ def main() -> None:
         try:
             wait_up(url, api, work / "api.log")
             with Probe(url, api.pid) as idle:
-                time.sleep(5)
+                time.sleep(idle_s)
             deadline = time.monotonic() + args.timeout
             sent = refused = 0
             verdicts: list[tuple[str, str]] = []
@@ -333,16 +320,16 @@ def main() -> None:
                 jobs = []
                 for kind, path in payloads.items():
                     track = "offline" if kind == "offline-without-train" else "freestyle"
-                    for _ in range(PER_KIND):
+                    for _ in range(per_kind):
                         jobs.append(pool.submit(upload, url, tokens.pop(), path, track))
                 quota_token = tokens.pop()
-                jobs += [pool.submit(upload, url, quota_token, parallel) for _ in range(PER_KIND)]
+                jobs += [pool.submit(upload, url, quota_token, parallel) for _ in range(per_kind)]
                 slow = pool.submit(
-                    lambda: asyncio.run(_gather(*(slow_headers(port, 30) for _ in range(PER_KIND))))
+                    lambda: asyncio.run(_gather(*(slow_headers(port, 30) for _ in range(per_kind))))
                 )
                 accepted = []
-                kinds = [kind for kind in payloads for _ in range(PER_KIND)]
-                kinds += ["parallel-quota"] * PER_KIND
+                kinds = [kind for kind in payloads for _ in range(per_kind)]
+                kinds += ["parallel-quota"] * per_kind
                 for kind, job in zip(kinds, jobs, strict=True):
                     response = job.result()
                     sent += 1
@@ -353,7 +340,7 @@ def main() -> None:
                         refused += 1
                         verdicts.append((kind, f"refused {response.status_code}"))
                 cut_off = sum(slow.result())
-                sent += PER_KIND
+                sent += per_kind
                 refused += cut_off
                 verdicts += [("slow-headers", "cut off")] * cut_off
                 for kind, token, submission_id in accepted:
@@ -363,7 +350,7 @@ def main() -> None:
             stop(api)
         validated = [v for _, v in verdicts if not v.startswith(("refused", "cut off"))]
         rejected = refused + sum(v.startswith(("rejected", "failed")) for v in validated)
-        print(f"sandbox={args.sandbox} uploads_per_kind={PER_KIND} kinds={len(payloads) + 2}")
+        print(f"sandbox={args.sandbox} uploads_per_kind={per_kind} kinds={len(payloads) + 2}")
         for kind in [*payloads, "parallel-quota", "slow-headers"]:
             print(f"  {kind}: {', '.join(sorted(v for k, v in verdicts if k == kind))}")
         print(f"refused at once (4xx or cut off): {refused}")

@@ -74,9 +74,14 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--max-steps", type=int, default=400)
+    parser.add_argument("--smoke", action="store_true", help="2 scenarios of 20 steps, once")
     args = parser.parse_args()
+    if args.smoke:
+        args.repeat, args.max_steps = 1, 20
 
     folders = [SHIPPED_PUBLIC_DIR / e.id for e in load_suite(SHIPPED_PUBLIC_DIR).scenarios]
+    if args.smoke:
+        folders = folders[:2]
     actions = {folder: episode(folder, False, args.max_steps)[2] for folder in folders}
     evaluator = dict.fromkeys((False, True), 0.0)
     runtime = dict.fromkeys((False, True), 0.0)

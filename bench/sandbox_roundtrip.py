@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
-import sys
 import tempfile
 import time
 from collections.abc import Callable
@@ -47,10 +46,9 @@ from pathlib import Path
 import numpy as np
 
 # The benchmark borrows the tests' settings helper: run from a checkout, the repository root.
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
 from agent_runtime.packed_waypoints import POINT_VALUES
 from arena.config import SandboxKind, Settings
+from arena.settings_changes import with_fields
 from evaluator.sandbox import backend, start
 from evaluator.sandbox.warm import WarmAgent
 from sim.interface import AgentInterface
@@ -58,7 +56,6 @@ from sim.observation_arrays import ObservationEncoder, ObservationLayout
 from sim.observation_record import ArraysObservation
 from submissions.intake import prepare_submission
 from submissions.sample import sample_observation
-from tests.settings import with_fields
 
 TRIVIAL_POLICY = """
 class Policy:
@@ -157,7 +154,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--steps", type=int, default=2000)
     parser.add_argument("--kinds", default="process,bubblewrap,docker")
+    parser.add_argument("--smoke", action="store_true", help="20 steps, the process sandbox")
     args = parser.parse_args()
+    if args.smoke:
+        args.steps, args.kinds = 20, "process"
 
     base = Path(tempfile.mkdtemp(prefix="arena-bench-"))
     settings = with_fields(Settings(), storage={"data_dir": base / "data"})

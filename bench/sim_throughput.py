@@ -29,15 +29,14 @@ import cProfile
 import io
 import multiprocessing as mp
 import pstats
-import sys
 import tempfile
 import time
 from pathlib import Path
 from queue import Empty
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from _prerequisites import module, require, tool
 
-from tests.sim.builders import (
+from scenarios.handmade import (
     ScenarioSpec,
     lane_y,
     make_scenario,
@@ -251,7 +250,14 @@ def main() -> None:
     parser.add_argument(
         "--sumo-costs", action="store_true", help="first print SUMO's own cost of ego variants"
     )
+    parser.add_argument("--smoke", action="store_true", help="20 steps, 5 vehicles, once")
     args = parser.parse_args()
+    if args.smoke:
+        args.steps, args.vehicles, args.repeat = 20, 5, 1
+    require(
+        tool("netconvert", "apt-get install sumo (or pip install eclipse-sumo)"),
+        module("libsumo", "pip install libsumo (the project's dependencies)"),
+    )
     with tempfile.TemporaryDirectory() as tmp:
         folder = str(build(Path(tmp) / "bench", args.vehicles, args.steps))
         if args.sumo_costs:
