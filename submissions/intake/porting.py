@@ -113,9 +113,10 @@ def missing_compat_names(scan: dict | None) -> IntakeError | None:
     return IntakeError(
         first,
         "smarts-compat-name",
-        f"takes {_listed(missing)} from the sandbox's compatibility packages, which do not have "
-        "them (docs/smarts-compat.md lists what they have; private names are not provided): "
-        "the agent would fail there when it runs. Copy what you use into your submission.",
+        "uses what the sandbox's `smarts` / `gym` compatibility packages do not have, so the "
+        f"agent would fail there when it runs: {_listed(missing)}. Copy what you use into your "
+        "submission (docs/smarts-compat.md lists what the packages have; private names are "
+        "not provided).",
     )
 
 
