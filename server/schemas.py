@@ -164,6 +164,7 @@ class Standing(Schema):
     rank_high: int | None = None
     rank_range: str | None = None
     beats_next: float | None = None
+    compared: bool = True
     tied_with: list[int]
     statistics: str = ""  # the above in words, as the leaderboard and the CLI say them
     tries_left_today: int  # uploads left in this phase and track until 00:00 UTC
@@ -251,6 +252,8 @@ class LeaderboardEntry(Schema):
     # The chance this entry ranks ahead of the entry just below it over the bootstrap
     # resamples; None for the last entry and next to a score without per-episode values.
     beats_next: float | None
+    # False: scored before per-episode values were kept; never compared, its rank its position.
+    compared: bool = True
     episodes_per_scenario: int
     families: dict[str, FamilyMetrics]
     seeds: SeedResults | None = None  # scored over several training seeds

@@ -81,6 +81,8 @@ class RankRange:
     low: int  # best rank the entry could hold
     high: int  # worst
     beats_next: float | None  # chance it ranks ahead of the entry just below; None for the last
+    # False: scored before per-episode values were kept, so never compared (its rank stands).
+    compared: bool = True
 
     @property
     def label(self) -> str:
@@ -97,6 +99,11 @@ class RankRange:
         """The range and the chance against the entry below in words, as every view says them:
         ``could rank 1 to 2 (statistically tied with rank 2); ahead of rank 2 in 71.5% of the
         bootstrap resamples``."""
+        if not self.compared:
+            return (
+                f"rank {self.rank}: scored before per-episode values were kept, so not compared "
+                "with the others (arena admin rescore --all computes them)"
+            )
         if self.tied_with:
             ranks = " and ".join(str(r) for r in self.tied_with)
             where = (
@@ -255,6 +262,7 @@ def ranges_from_replicates(
                 low=min(i + 1, 1 + int(above.sum())),
                 high=max(i + 1, n - int(below.sum())),
                 beats_next=beats_next,
+                compared=not unknown[i],
             )
         )
     return ranges

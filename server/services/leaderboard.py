@@ -153,6 +153,7 @@ def compute(
             rank_high=ranks.high,
             rank_range=ranks.label,
             beats_next=ranks.beats_next,
+            compared=ranks.compared,
             episodes_per_scenario=episodes,
             seeds=seed_results(score),
             families={
@@ -169,7 +170,9 @@ def compute(
 
 def rank_range(entry: LeaderboardEntry) -> RankRange:
     """The entry's rank range, to say it in words (:attr:`RankRange.statement`)."""
-    return RankRange(entry.rank, entry.rank_low, entry.rank_high, entry.beats_next)
+    return RankRange(
+        entry.rank, entry.rank_low, entry.rank_high, entry.beats_next, compared=entry.compared
+    )
 
 
 def with_gap(board: Leaderboard, reference: Leaderboard) -> Leaderboard:

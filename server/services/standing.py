@@ -54,6 +54,7 @@ def standing(session: Session, service: ServiceSettings, submission: Submission)
         rank_high=ours.rank_high if ours else None,
         rank_range=ours.rank_range if ours else None,
         beats_next=ours.beats_next if ours else None,
+        compared=ours.compared if ours else True,
         tied_with=ours.tied_with if ours else [],
         statistics=leaderboard.rank_range(ours).statement if ours else "",
         tries_left_today=tries_left_today(

@@ -164,6 +164,8 @@ def test_entries_without_samples_keep_their_rank_and_no_range_crosses_them():
     ranges = rank_ranges([a, None, b])
     assert [r.label for r in ranges] == ["1", "2", "3"]
     assert ranges[0].beats_next is None and ranges[1].beats_next is None
+    assert [r.compared for r in ranges] == [True, False, True]
+    assert ranges[1].statement.startswith("rank 2: scored before per-episode values were kept")
 
 
 def test_paired_replicates_of_one_agent_are_identical():

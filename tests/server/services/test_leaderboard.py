@@ -211,6 +211,7 @@ def test_rank_ranges_share_ranks_the_bootstrap_cannot_tell_apart(client, db):
     assert [(e["rank_low"], e["rank_high"]) for e in entries] == [(1, 2), (1, 2), (3, 3), (4, 4)]
     chances = [e["beats_next"] for e in entries]
     assert 0.5 <= chances[0] < 0.975 and chances[1] > 0.975 and chances[2:] == [None, None]
+    assert [e["compared"] for e in entries] == [True, True, True, False]
 
     rows = list(csv.DictReader(io.StringIO(client.get("/api/v1/leaderboard.csv").text)))
     assert [row["rank_range"] for row in rows] == ["1-2", "1-2", "3", "4"]
