@@ -43,14 +43,12 @@ from pathlib import Path
 
 import docker
 import httpx
+from _prerequisites import require, tool
 
-# The benchmark borrows the tests' settings helper: run from a checkout, the repository root.
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
+from arena.settings_changes import env_only
 from arena.suite import SHIPPED_PUBLIC_DIR
 from evaluator.sandbox.backend import OWNER_LABEL, owner_labels
 from submissions.intake import pack_folder
-from tests.settings import env_only
 
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLES = REPO / "submissions" / "examples"
@@ -421,6 +419,39 @@ class Checks:
             self.failures.append(what)
 
 
+def prerequisites() -> list[str | None]:
+    """What the run needs, checked before minutes of image building: a Docker daemon that
+    answers, docker-compose (scripts/setup.sh --dev installs both) and bubblewrap for the
+    local side of the comparison."""
+    try:
+        docker.from_env().ping()
+        daemon = None
+    except docker.errors.DockerException as error:
+        daemon = f"a Docker daemon: {error} (scripts/setup.sh --dev starts one)"
+    return [
+        daemon,
+        tool("docker-compose", "apt-get install docker-compose (or scripts/setup.sh --dev)"),
+        tool("bwrap", "apt-get install bubblewrap"),
+    ]
+
+
+def compose_services() -> list[str]:
+    """The services of docker-compose.yml as docker-compose reads it, its pinned images given
+    placeholders (they are resolved when the images are built)."""
+    text = (REPO / "docker-compose.yml").read_text()
+    needed = set(re.findall(r"\$\{(\w+):\?", text))
+    env = {**os.environ, **{name: f"placeholder-{name.lower()}" for name in needed}}
+    done = subprocess.run(
+        ["docker-compose", "-f", str(REPO / "docker-compose.yml"), "config", "--services"],
+        env=env,
+        capture_output=True,
+        text=True,
+    )
+    if done.returncode != 0:
+        raise SystemExit(f"docker-compose cannot read docker-compose.yml: {done.stderr[-2000:]}")
+    return done.stdout.split()
+
+
 def same_metrics(service: dict | None, local: dict | None) -> bool:
     if service is None or local is None:
         return service == local
@@ -436,7 +467,15 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=3)
     parser.add_argument("--tag", default="compose-test", help="tag of the images built")
     parser.add_argument("--keep", action="store_true", help="leave the stack up at the end")
+    parser.add_argument(
+        "--smoke", action="store_true", help="the prerequisites and the compose file only"
+    )
     arguments = parser.parse_args()
+    require(*prerequisites())
+    if arguments.smoke:
+        services = compose_services()
+        log(f"smoke: docker-compose reads docker-compose.yml: {' '.join(services)}")
+        return
     checks = Checks()
 
     images = build_images(arguments.tag)

@@ -74,14 +74,16 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+from _prerequisites import require
 from sandbox_roundtrip import floor_round_trip_ms  # a sibling script (bench/ is on sys.path)
 
 from arena.config import SandboxKind, get_settings
 from arena.episodes import episodes_of
-from arena.suite import load_suite
+from arena.suite import SHIPPED_PUBLIC_DIR, load_suite
 from evaluator.runner import evaluate
 from evaluator.runner.evaluate import TIMINGS_FILE
 from evaluator.runner.results import RECORDS_DIR
+from evaluator.sandbox import backend
 from sim.interface import AgentInterface
 from sim.simulation import CONTEXT_MARGIN
 
@@ -264,9 +266,7 @@ class SumoCosts:
     sumo_steps: int  # steps of the SUMO-traffic scenarios (none: a suite of replays only)
 
 
-def sumo_costs(
-    suite: Path, steps: dict[str, int], records: Path, watch_radius: float
-) -> SumoCosts:
+def sumo_costs(suite: Path, steps: dict[str, int], records: Path, watch_radius: float) -> SumoCosts:
     ctx = mp.get_context("spawn")
     queue = ctx.Queue()
     args = (str(suite), steps, str(records), watch_radius, queue)
@@ -306,7 +306,17 @@ def main() -> None:
         default=3,
         help="with --episodes: episodes of each reactive scenario run, the rest extrapolated",
     )
+    parser.add_argument(
+        "--smoke",
+        action="store_true",
+        help="the first 2 public scenarios, the trivial agent, the process sandbox",
+    )
     args = parser.parse_args()
+    if args.smoke:
+        args.suite, args.first, args.only = SHIPPED_PUBLIC_DIR, 2, "trivial"
+        args.sandbox = SandboxKind.process
+    unavailable = backend(args.sandbox).unavailable_reason(get_settings().sandbox)
+    require(unavailable and f"the {args.sandbox.value} sandbox: {unavailable} (--sandbox)")
     if args.episodes is not None and (args.episodes < 1 or args.measure_episodes < 1):
         parser.error("--episodes and --measure-episodes must be at least 1")
     if args.episodes is not None and args.only:

@@ -302,14 +302,15 @@ class Ledger:
         return None
 
     def upload_folders(self, run_ids: set[int]) -> dict[int, str]:
-        """Run -> the folder of its submission's upload (where workers prepare it)."""
+        """Run -> the folder workers prepare its submission in: named after the zip's digest
+        (server/worker/local.py)."""
         with self.db.session() as session:
             rows = session.execute(
-                select(EvaluationRun.id, Submission.upload_key)
+                select(EvaluationRun.id, Submission.file_sha256)
                 .join(Submission, Submission.id == EvaluationRun.submission_id)
                 .where(EvaluationRun.id.in_(run_ids))
             ).all()
-        return {run_id: Path(key).parent.name for run_id, key in rows}
+        return dict(rows)
 
     def submissions(self, ids: list[int]) -> dict[int, tuple[str, str]]:
         with self.db.session() as session:
@@ -435,7 +436,7 @@ def _gone_ok(action: Callable[[], object]) -> Callable[[], None]:
 
 def _driver_of(paths: str) -> tuple[str, str]:
     """The worker and submission of the prepared submission a sandbox mounts,
-    ``<data>/scratch/<host>-<pid>/submissions/<upload folder>/`` (server/worker/local.py); claims
+    ``<data>/scratch/<host>-<pid>/submissions/<zip digest>/`` (server/worker/local.py); claims
     name the worker ``<host>:<pid>``. A warm sandbox serves many runs of its submission, so
     this, not a run label, ties it to the scenario it is driving."""
     match = re.search(r"/scratch/([^/\s]+)-(\d+)/submissions/([^/\s]+)/", paths)
