@@ -51,9 +51,25 @@ MAX_SUGGESTIONS = 3
 MAX_TRIED_VERSIONS = 4
 RELAY_CHUNK = 64 * 1024
 FILE_TOO_LARGE = "[Errno 27] File too large"
+MAX_TAIL_LINES = 24
+_WORKING_ON = ("Collecting ", "Downloading ", "Processing ", "Building wheel for ")
+_BOILERPLATE = ("note:", "hint:", "╰─> See above", "[notice]")
 _VERSIONS_LINE = re.compile(r"^Available versions: (.*)$", re.MULTILINE)
 _NO_MATCH = re.compile(r"No matching distribution found for (\S+)")
 _FROM_VERSIONS = re.compile(r"\(from versions: ([^)]*)\)")
+
+
+def pump(source: socket.socket, sink: socket.socket) -> None:
+    """Copy ``source`` to ``sink`` until it ends, then end ``sink``'s writing half (the relay
+    here and the host's index proxy both move bytes this way)."""
+    try:
+        while chunk := source.recv(RELAY_CHUNK):
+            sink.sendall(chunk)
+    except OSError:
+        pass
+    finally:
+        with contextlib.suppress(OSError):
+            sink.shutdown(socket.SHUT_WR)
 
 
 def start_relay(proxy_socket: str) -> int:
@@ -62,17 +78,6 @@ def start_relay(proxy_socket: str) -> int:
     listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
     listener.bind(("127.0.0.1", 0))
     listener.listen(16)
-
-    def pump(source: socket.socket, sink: socket.socket) -> None:
-        try:
-            while chunk := source.recv(RELAY_CHUNK):
-                sink.sendall(chunk)
-        except OSError:
-            pass
-        finally:
-            for end in (source, sink):
-                with contextlib.suppress(OSError):
-                    end.shutdown(socket.SHUT_RDWR)
 
     def serve() -> None:
         while True:
@@ -323,6 +328,19 @@ def missing_dependencies(output: str, numbered: list[list]) -> list[dict]:
     return found
 
 
+def failure_tail(output: str) -> list[str]:
+    """What pip's failure says that a team can act on: the distribution it was working on and
+    the error's own lines (a build's output comes first), not pip's closing boilerplate."""
+    lines = [line.rstrip() for line in output.strip().splitlines() if line.strip()]
+    working = [line.strip() for line in lines if line.lstrip().startswith(_WORKING_ON)]
+    start = next(
+        (i for i, line in enumerate(lines) if line.lstrip().startswith(("×", "ERROR:", "error:"))),
+        max(len(lines) - MAX_TAIL_LINES, 0),
+    )
+    told = [line.strip() for line in lines[start:] if not line.lstrip().startswith(_BOILERPLATE)]
+    return working[-1:] + told[:MAX_TAIL_LINES]
+
+
 def build_requires(sdist: Path) -> list[str]:
     """The sdist's ``[build-system] requires`` (setuptools' default when it has none), read
     without running anything."""
@@ -372,7 +390,7 @@ def run_download(request: dict, output: Path, proxy_port: int | None) -> dict:
             "ok": False,
             "errors": errors,
             "conflict": conflict_block(failure),
-            "tail": [] if errors else failure.strip().splitlines()[-8:],
+            "tail": [] if errors else failure_tail(failure),
         }
     sdists = [p for p in sorted(wheels.iterdir()) if p.name.endswith(SDIST_SUFFIXES)]
     if sdists:
@@ -437,7 +455,7 @@ def run_build(request: dict, source: Path, output: Path) -> dict:
                 "ok": False,
                 "errors": [],
                 "conflict": [],
-                "tail": [f"building {sdist.name} failed:", *failed.strip().splitlines()[-8:]],
+                "tail": [f"building {sdist.name} failed:", *failure_tail(failed)],
             }
         built.append(sdist.name)
     return {"ok": True, "wheels": sorted(p.name for p in wheels.glob("*.whl")), "built": built}

@@ -17,8 +17,9 @@ from collections.abc import Iterable
 from pathlib import Path
 from urllib.parse import urlsplit
 
+from agent_runtime.resolve import pump
+
 MAX_HEAD_BYTES = 64 * 1024
-CHUNK = 64 * 1024
 CONNECT_TIMEOUT_S = 30.0
 DEFAULT_PORTS = {"http": 80, "https": 443}
 
@@ -107,10 +108,10 @@ class IndexProxy:
                     client.sendall(b"HTTP/1.1 200 Connection established\r\n\r\n")
                 else:
                     upstream.sendall(forward)
-                pump = threading.Thread(target=_pump, args=(client, upstream), daemon=True)
-                pump.start()
-                _pump(upstream, client)
-                pump.join(timeout=CONNECT_TIMEOUT_S)
+                sending = threading.Thread(target=pump, args=(client, upstream), daemon=True)
+                sending.start()
+                pump(upstream, client)
+                sending.join(timeout=CONNECT_TIMEOUT_S)
 
 
 def _read_head(client: socket.socket) -> bytes | None:
@@ -128,14 +129,3 @@ def _read_head(client: socket.socket) -> bytes | None:
 def _refuse(client: socket.socket, status: int) -> None:
     with contextlib.suppress(OSError):
         client.sendall(f"HTTP/1.1 {status} Refused\r\nContent-Length: 0\r\n\r\n".encode())
-
-
-def _pump(source: socket.socket, sink: socket.socket) -> None:
-    try:
-        while chunk := source.recv(CHUNK):
-            sink.sendall(chunk)
-    except OSError:
-        pass
-    finally:
-        with contextlib.suppress(OSError):
-            sink.shutdown(socket.SHUT_WR)

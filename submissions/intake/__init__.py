@@ -10,7 +10,6 @@ the :class:`~arena.errors.IntakeError` it raises together with the entry at faul
 
 from __future__ import annotations
 
-import hashlib
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,7 +18,7 @@ from agent_runtime import intake as rules
 from arena.config import IntakeSettings, SandboxSettings
 from arena.errors import IntakeError
 from sim.interface import AgentInterface
-from submissions.intake.archive import make_read_only, remove_tree
+from submissions.intake.archive import file_sha256, make_read_only, remove_tree
 from submissions.intake.contents import checked_contents, interface_of
 from submissions.intake.dependencies import install_requirements
 from submissions.intake.pack import pack_folder
@@ -51,14 +50,6 @@ class PreparedSubmission:
     model_dir: Path | None = None
     # The content key of its requirements' folder (submissions.intake.dependencies), if any.
     deps_key: str | None = None
-
-
-def file_sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with path.open("rb") as handle:
-        while chunk := handle.read(1024**2):
-            digest.update(chunk)
-    return digest.hexdigest()
 
 
 def prepare_submission(

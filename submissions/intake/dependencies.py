@@ -40,7 +40,7 @@ from agent_runtime import intake as rules
 from agent_runtime import resolve as resolver_rules
 from arena.config import IntakeSettings, SandboxSettings
 from arena.errors import IntakeError
-from submissions.intake.archive import make_read_only, remove_tree
+from submissions.intake.archive import file_sha256, make_read_only, remove_tree
 from submissions.intake.contents import REQUIREMENTS
 from submissions.intake.package_index import PackageSources, package_sources
 from submissions.intake.porting import explain_missing_wheel
@@ -242,14 +242,6 @@ def download_cap_error(intake: IntakeSettings) -> IntakeError:
         f"the requirements' wheels are larger than {intake.max_deps_download_bytes / 1024**2:g} "
         "MiB together",
     )
-
-
-def file_sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with path.open("rb") as handle:
-        while chunk := handle.read(1024**2):
-            digest.update(chunk)
-    return digest.hexdigest()
 
 
 def store_wheels(

@@ -44,18 +44,15 @@ def build_wheel(
     return path
 
 
-def build_sdist(folder: Path, name: str, version: str, setup_py: str) -> Path:
-    """An sdist whose ``setup.py`` is ``setup_py`` (setuptools' legacy build, no pyproject)."""
+def build_sdist(folder: Path, name: str, version: str, files: dict[str, str]) -> Path:
+    """An sdist holding ``files`` (paths inside ``<name>-<version>/``) and its PKG-INFO."""
     base = f"{name}-{version}"
     path = folder / f"{base}.tar.gz"
-    files = {
-        f"{base}/setup.py": setup_py,
-        f"{base}/PKG-INFO": f"Metadata-Version: 2.1\nName: {name}\nVersion: {version}\n",
-    }
+    files = {**files, "PKG-INFO": f"Metadata-Version: 2.1\nName: {name}\nVersion: {version}\n"}
     with tarfile.open(path, "w:gz") as archive:
         for member_name, text in files.items():
             data = text.encode()
-            info = tarfile.TarInfo(member_name)
+            info = tarfile.TarInfo(f"{base}/{member_name}")
             info.size = len(data)
             archive.addfile(info, io.BytesIO(data))
     return path

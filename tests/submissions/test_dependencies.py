@@ -3,10 +3,8 @@ sdists, a fake torch with CPU and plain builds): no test reaches a real index.""
 
 from __future__ import annotations
 
-import io
 import json
 import os
-import tarfile
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -27,7 +25,12 @@ from submissions.intake.dependencies import (
 from submissions.intake.porting import explain_missing_wheel
 from submissions.intake.stacks import build_stack, read_stack
 from tests.settings import with_fields
-from tests.submissions.package_index import build_wheel, served_index, write_simple_index
+from tests.submissions.package_index import (
+    build_sdist,
+    build_wheel,
+    served_index,
+    write_simple_index,
+)
 from tests.submissions.zips import with_policy, write_zip
 
 MiB = 1024**2
@@ -90,22 +93,18 @@ def build_wheel(wheel_directory, config_settings=None, metadata_directory=None):
 
 
 def probe_sdist(folder: Path, marker: Path) -> Path:
-    base = "probe-1.0"
-    files = {
-        f"{base}/pyproject.toml": (
-            '[build-system]\nrequires = []\nbuild-backend = "backend"\nbackend-path = ["."]\n'
-        ),
-        f"{base}/backend.py": PROBE_BACKEND.format(secret=SECRET[::-1], marker=str(marker)),
-        f"{base}/PKG-INFO": "Metadata-Version: 2.1\nName: probe\nVersion: 1.0\n",
-    }
-    path = folder / f"{base}.tar.gz"
-    with tarfile.open(path, "w:gz") as archive:
-        for name, text in files.items():
-            data = text.encode()
-            info = tarfile.TarInfo(name)
-            info.size = len(data)
-            archive.addfile(info, io.BytesIO(data))
-    return path
+    """An sdist built by the probe backend (its pyproject names no build requirement)."""
+    return build_sdist(
+        folder,
+        "probe",
+        "1.0",
+        {
+            "pyproject.toml": (
+                '[build-system]\nrequires = []\nbuild-backend = "backend"\nbackend-path = ["."]\n'
+            ),
+            "backend.py": PROBE_BACKEND.format(secret=SECRET[::-1], marker=str(marker)),
+        },
+    )
 
 
 @pytest.fixture(scope="module")
