@@ -8,7 +8,7 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict
 
 from evaluator.provenance import PublicManifest
-from server.status import SubmissionStatus, TrainingStatus
+from server.status import RunStatus, SubmissionStatus, TrainingStatus
 from server.tracks import Track
 
 
@@ -187,12 +187,24 @@ class TeamStatus(Schema):
     allowances: list[Allowance]
 
 
+class Attempt(Schema):
+    """A simulation attempt (an organiser's re-run is a new one) as its team may see it."""
+
+    attempt: int
+    status: RunStatus  # queued, running, scored, failed, cancelled
+    # Why it failed, in the team's words ("" otherwise); a failure on our side says so.
+    error: str
+
+
 class SubmissionDetail(SubmissionSummary):
     description: str
     status_reason: str
     file_sha256: str
     file_size: int  # [bytes]
-    attempt: int
+    attempt: int  # of the run whose score stands (or, before any score, the latest)
+    # The latest attempt, whatever the score shown: a re-run under way, or one that failed
+    # while the earlier score still stands. None before the first evaluation starts.
+    latest_attempt: Attempt | None = None
     scoring_profile: str | None
     families: dict[str, FamilyMetrics]
     # family -> failure reason -> number of episodes (of scenarios, when each ran once). Scenario

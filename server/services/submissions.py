@@ -29,6 +29,7 @@ from server.models import (
 )
 from server.schemas import (
     AgentCpu,
+    Attempt,
     CompletionInterval,
     FamilyMetrics,
     Metrics,
@@ -401,6 +402,14 @@ def completion_interval(score: Score | SeedSetScore | None) -> CompletionInterva
     return CompletionInterval(low=score.completion_low, high=score.completion_high)
 
 
+def latest_attempt(submission: Submission) -> Attempt | None:
+    """The state of the submission's latest run: REST shows it beside the score that stands."""
+    if not submission.runs:
+        return None
+    run = submission.runs[-1]  # in attempt order
+    return Attempt(attempt=run.attempt, status=run.status, error=run.error)
+
+
 def detail(session: Session, submission: Submission) -> SubmissionDetail:
     """Everything its own team may see. Never hands out hidden scenario ids; in a hidden phase,
     no failure reason before the run is over (read live, episode by episode, the reasons an agent
@@ -425,6 +434,7 @@ def detail(session: Session, submission: Submission) -> SubmissionDetail:
         file_sha256=submission.file_sha256,
         file_size=submission.file_size,
         attempt=run.attempt if run is not None else 0,
+        latest_attempt=latest_attempt(submission),
         scoring_profile=standing.profile if standing is not None else None,
         families={
             family: FamilyMetrics.model_validate(values)

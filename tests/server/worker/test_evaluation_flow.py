@@ -262,6 +262,36 @@ def test_rerun_is_a_new_attempt_and_the_old_score_stands_meanwhile(db, settings,
     assert view.attempt == 2 and view.metrics.completion == 0.0
 
 
+def test_rest_shows_the_latest_attempt_beside_the_score_that_stands(db, settings, submission_id):
+    """A re-run that failed on our side left REST saying only ``scored`` (attempt 1): the
+    team could not tell its re-run had run, nor that its failure was not theirs."""
+    from server.services import submissions
+
+    def view():
+        with db.session() as session:
+            return submissions.detail(session, session.get(Submission, submission_id))
+
+    queue = TaskQueue(settings)
+    run_everything(db, settings, start(db, settings, submission_id))
+    assert view().latest_attempt.model_dump() == {"attempt": 1, "status": "scored", "error": ""}
+    admin.rerun(db, settings, queue, submission_id)
+    shown = view()
+    assert (shown.status, shown.attempt) == (SubmissionStatus.scored, 1)
+    assert (shown.latest_attempt.attempt, shown.latest_attempt.status) == (2, RunStatus.queued)
+    with db.session() as session:
+        second = session.scalar(select(EvaluationRun).where(EvaluationRun.attempt == 2))
+        plan = RunPlan(run_id=second.id, episodes=evaluation.pending_episodes(second))
+    for sid in scenario_ids(plan):
+        claim(db, settings, plan.run_id, sid)
+        finish(db, plan.run_id, sid, status=ScenarioStatus.simulator_error)
+    aggregate(db, plan.run_id)
+    shown = view()
+    assert (shown.status, shown.attempt) == (SubmissionStatus.scored, 1)  # its score stands
+    latest = shown.latest_attempt
+    assert (latest.attempt, latest.status) == (2, RunStatus.failed)
+    assert "failed on our side (not the submission's fault)" in latest.error
+
+
 def test_rescore_recomputes_from_stored_results(db, settings, submission_id):
     plan = start(db, settings, submission_id)
     run_everything(db, settings, plan)
