@@ -292,6 +292,14 @@ class IntakeSettings(SettingsGroup):
     # time [s] (per step: the zip, then the wheels). Disk: the unzipped and deps caps above.
     intake_memory_bytes: int = 1024**3
     intake_timeout_s: float = 300.0
+    # Validation time [s] per team per UTC day: every validation (queued or rejected) is charged
+    # the time it held a worker, and runs at most what is left; a team past it uploads again the
+    # next day (docs/submissions.md).
+    validation_budget_s: float = Field(default=1800.0, gt=0)
+    # [s] A validation that has run this long yields its worker to a waiting validation of a team
+    # that has used less validation time today (sent again, charged what it used): one team's
+    # validations never hold up another's for longer.
+    validation_slice_s: float = Field(default=30.0, gt=0)
 
 
 class TrainingSettings(SettingsGroup):

@@ -211,6 +211,10 @@ class UploadValidation(Base):
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     started_at: Mapped[datetime | None]
     finished_at: Mapped[datetime | None]
+    # Worker time [s] its claims have held so far (the team's validation budget pays it), and
+    # when the current claim took it.
+    used_s: Mapped[float] = mapped_column(Float, default=0.0, server_default="0")
+    claimed_at: Mapped[datetime | None]
 
     submission: Mapped[Submission] = relationship()
 

@@ -28,6 +28,11 @@ class LeasedRow(Protocol):
     lease_expires_at: datetime | None
 
 
+# What a kind's renew answers when the job is still its worker's but should let another run
+# first: the heartbeat hands it back (released and sent again, server/worker/engine.py).
+HAND_BACK = "hand back"
+
+
 def lease_until(service: ServiceSettings) -> datetime:
     return now() + timedelta(seconds=service.lease_seconds)
 

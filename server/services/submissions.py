@@ -124,7 +124,8 @@ def quota_used(session: Session, team_id: int, phase: str, track: Track, moment:
 def check_quota(
     session: Session, settings: Settings, team_id: int, phase: str, track: Track
 ) -> None:
-    """Refuse an upload outside the phase's dates or beyond its daily quota."""
+    """Refuse an upload outside the phase's dates, beyond its daily quota, or once the team used
+    its validation time today."""
     moment = utcnow()
     try:
         definition = get_phase(session, phase)
@@ -139,6 +140,7 @@ def check_quota(
             f"phase {phase!r} cannot evaluate submissions right now (the organisers' setup of "
             "it is broken; they are told by `arena admin status`); try again later"
         ) from None
+    validation.check_budget(session, settings.intake, team_id)
     limit = daily_quota(definition, settings.service)
     if quota_used(session, team_id, phase, track, moment) >= limit:
         raise QuotaExceeded(

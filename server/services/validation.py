@@ -6,6 +6,16 @@ records the verdict through the fence (:func:`record_valid`, which queues the su
 
 A team has at most one upload ``validating`` (a unique partial index, migration 0010), so parallel
 uploads cannot cost more intakes than one at a time, and none beyond the quota.
+
+Validation time is the team's, fairly shared (migration 0017): every claim of a validation is
+charged the worker time it held (``used_s``; a dead worker's is ours), whatever the verdict, to
+the team's daily budget (``ARENA_VALIDATION_BUDGET_S``): a validation runs at most what is left,
+and a team past it cannot upload until the next UTC day. A validation task is a token: it claims
+the waiting validation of the team that has used the least validation time today (the oldest
+among equals), not the one it names, and a validation that has run for a slice
+(``ARENA_VALIDATION_SLICE_S``) while a team that used less waits yields its worker (handed back,
+sent again: :data:`server.services.leases.HAND_BACK`). So one team's validations never hold up
+another's for more than a slice.
 """
 
 from __future__ import annotations
@@ -13,16 +23,17 @@ from __future__ import annotations
 import uuid
 from collections.abc import Callable
 from dataclasses import dataclass
+from datetime import datetime, time
 
 from sqlalchemy import select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from arena.config import ServiceSettings
+from arena.config import IntakeSettings, ServiceSettings
 from server.core.db import Database
 from server.models import Submission, Team, UploadValidation, utcnow
 from server.services import leases
-from server.services.errors import Conflict
+from server.services.errors import Conflict, QuotaExceeded
 from server.services.evaluation import lock
 from server.status import SUBMISSION_MOVES, SubmissionStatus, advance
 from server.tracks import Track
@@ -41,6 +52,38 @@ class ValidationClaim:
     upload_key: str
     needs_training: bool  # an offline (Track 2) submission: train.py is required
     claim_number: int  # the fence token
+    # [s] What this claim may run: the intake's timeout, or what is left of the team's budget
+    # today (0: nothing left, rejected without running).
+    time_budget_s: float = 0.0
+    slice_s: float = 0.0  # [s] after which it yields to a team that used less today
+
+
+def used_today(session: Session, team_id: int, moment: datetime) -> float:
+    """Validation time [s] the team's uploads used since the UTC day began (a claim under way
+    counted up to ``moment``)."""
+    day_start = datetime.combine(moment.date(), time.min, tzinfo=moment.tzinfo)
+    rows = session.execute(
+        select(UploadValidation.used_s, UploadValidation.claimed_at)
+        .join(Submission, Submission.id == UploadValidation.submission_id)
+        .where(Submission.team_id == team_id, UploadValidation.created_at >= day_start)
+    ).all()
+    return sum(used + _running_s(claimed, moment) for used, claimed in rows)
+
+
+def _running_s(claimed_at: datetime | None, moment: datetime) -> float:
+    return max(0.0, (moment - claimed_at).total_seconds()) if claimed_at is not None else 0.0
+
+
+def check_budget(session: Session, intake: IntakeSettings, team_id: int) -> None:
+    """Refuse an upload once the team's validations used its validation time today."""
+    used = used_today(session, team_id, utcnow())
+    if used >= intake.validation_budget_s:
+        raise QuotaExceeded(
+            f"your team's uploads used {used:.0f} s of validation time today, its budget of "
+            f"{intake.validation_budget_s:g} s (every validation is charged the time it took, "
+            "rejected ones too): upload again after 00:00 UTC, and check zips locally first "
+            "(arena submission check)"
+        )
 
 
 def check_not_busy(session: Session, team_id: int) -> None:
@@ -118,22 +161,77 @@ def _job(session: Session, submission_id: int) -> UploadValidation | None:
     )
 
 
+def _waiting(session: Session) -> list[UploadValidation]:
+    """Validations no live claim holds, of submissions still validating."""
+    jobs = session.scalars(
+        select(UploadValidation)
+        .join(Submission, Submission.id == UploadValidation.submission_id)
+        .where(
+            UploadValidation.finished_at.is_(None),
+            Submission.status == SubmissionStatus.validating,
+        )
+    ).all()
+    return [job for job in jobs if not leases.held(job)]
+
+
+def fair_order(session: Session, jobs: list[UploadValidation]) -> list[UploadValidation]:
+    """``jobs`` by their team's validation time today, then age: the next to run first."""
+    moment = utcnow()
+    teams = {job.submission.team_id for job in jobs}
+    used = {team: used_today(session, team, moment) for team in teams}
+    return sorted(jobs, key=lambda job: (used[job.submission.team_id], job.created_at, job.id))
+
+
 def claim(
-    session: Session, service: ServiceSettings, submission_id: int, worker: str
+    session: Session, service: ServiceSettings, intake: IntakeSettings, worker: str
 ) -> ValidationClaim | None:
-    """Take the validation for ``worker``; None when it is over or held by a live lease."""
-    submission = lock(session, Submission, submission_id)
-    job = _job(session, submission_id)
-    if job is None or submission.status != SubmissionStatus.validating or leases.held(job):
-        return None
-    job.claims += 1
-    job.started_at = job.started_at or utcnow()
-    leases.take(job, worker, service)
-    return ValidationClaim(
-        submission_id=submission_id,
-        upload_key=submission.upload_key,
-        needs_training=submission.track == Track.offline,
-        claim_number=job.claims,
+    """Take, for ``worker``, the waiting validation that is fairest to run next (a task is a
+    token, whichever upload sent it); None when none waits unheld."""
+    for candidate in fair_order(session, _waiting(session)):
+        submission = lock(session, Submission, candidate.submission_id)
+        job = _job(session, candidate.submission_id)
+        if job is None or submission.status != SubmissionStatus.validating or leases.held(job):
+            continue  # another worker took it meanwhile
+        moment = utcnow()
+        left = intake.validation_budget_s - used_today(session, submission.team_id, moment)
+        job.claims += 1
+        job.started_at = job.started_at or moment
+        job.claimed_at = moment
+        leases.take(job, worker, service)
+        return ValidationClaim(
+            submission_id=submission.id,
+            upload_key=submission.upload_key,
+            needs_training=submission.track == Track.offline,
+            claim_number=job.claims,
+            time_budget_s=max(0.0, min(intake.intake_timeout_s, left)),
+            slice_s=intake.validation_slice_s,
+        )
+    return None
+
+
+def _charge(job: UploadValidation) -> None:
+    """The claim ends: the time it held its worker is added to what the team used."""
+    job.used_s += _running_s(job.claimed_at, utcnow())
+    job.claimed_at = None
+
+
+def should_yield(session: Session, claim: ValidationClaim) -> bool:
+    """The claim has run a slice and a validation of a team that used less today waits."""
+    job = session.get(UploadValidation, _job_id(session, claim.submission_id))
+    if job is None or _running_s(job.claimed_at, utcnow()) < claim.slice_s:
+        return False
+    ours = job.submission.team_id
+    others = [other for other in _waiting(session) if other.submission.team_id != ours]
+    if not others:
+        return False
+    moment = utcnow()
+    mine = used_today(session, ours, moment)
+    return any(used_today(session, o.submission.team_id, moment) < mine for o in others)
+
+
+def _job_id(session: Session, submission_id: int) -> int | None:
+    return session.scalar(
+        select(UploadValidation.id).where(UploadValidation.submission_id == submission_id)
     )
 
 
@@ -146,12 +244,28 @@ def _fence(claim: ValidationClaim, worker: str) -> tuple:
     )
 
 
-def renew(session: Session, service: ServiceSettings, claim: ValidationClaim, worker: str) -> bool:
-    return leases.renew(session, service, UploadValidation, _fence(claim, worker))
+def renew(
+    session: Session, service: ServiceSettings, claim: ValidationClaim, worker: str
+) -> bool | str:
+    """Extend the lease; False when the claim is no longer ours, :data:`leases.HAND_BACK` when
+    it should yield its worker to a fairer validation."""
+    if not leases.renew(session, service, UploadValidation, _fence(claim, worker)):
+        return False
+    return leases.HAND_BACK if should_yield(session, claim) else True
 
 
 def release(session: Session, claim: ValidationClaim, worker: str) -> bool:
-    return leases.release(session, UploadValidation, _fence(claim, worker))
+    """Hand the claim back (its run has ended): charged what it used, and not counted as a
+    claim a worker died with (``max_claims``), so a validation that yields its worker again and
+    again is not taken for one that kills workers. Its claim number is free again: the run
+    that held it is over."""
+    job = session.scalar(select(UploadValidation).where(*_fence(claim, worker)).with_for_update())
+    if job is None:
+        return False
+    _charge(job)
+    leases.drop(job)
+    job.claims -= 1
+    return True
 
 
 def _finish(session: Session, claim: ValidationClaim, worker: str) -> Submission | None:
@@ -160,6 +274,7 @@ def _finish(session: Session, claim: ValidationClaim, worker: str) -> Submission
     job = _job(session, claim.submission_id)
     if job is None or (job.worker, job.claims) != (worker, claim.claim_number):
         return None  # a duplicate delivery, or a superseded claim: the verdict is not ours
+    _charge(job)
     leases.drop(job)
     job.finished_at = utcnow()
     return submission if submission.status == SubmissionStatus.validating else None
@@ -212,6 +327,7 @@ def reap(session: Session, service: ServiceSettings, *, queue_empty: bool) -> li
     active = UploadValidation.finished_at.is_(None)
     for job in session.scalars(leases.expired(UploadValidation, active)):
         leases.drop(job)
+        job.claimed_at = None  # its worker died: that time is ours, not the team's
         resend.append(job.submission_id)
     if queue_empty:
         idle = session.scalars(

@@ -83,8 +83,9 @@ class JobKind(Protocol[ClaimT, ResultT]):
         claim: ClaimT,
         worker: str,
         **progress: Any,
-    ) -> bool:
-        """Extend the lease (writing the progress); False when the claim is no longer ours."""
+    ) -> bool | str:
+        """Extend the lease (writing the progress); False when the claim is no longer ours,
+        :data:`server.services.leases.HAND_BACK` when it should let another job run first."""
 
     def release(self, session: Session, claim: ClaimT, worker: str) -> bool:
         """Hand the job back: any worker may claim it at once. False when no longer ours."""

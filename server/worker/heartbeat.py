@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 from sqlalchemy.exc import SQLAlchemyError
 
 from arena.config import ServiceSettings
+from server.services.leases import HAND_BACK
 from server.worker import local
 
 if TYPE_CHECKING:  # the engine imports this module; only its types are needed here
@@ -134,7 +135,10 @@ class Heartbeat:
             # The database is briefly away: the lease has time left, the next round tries again.
             log.warning("lease heartbeat of %s %s failed: %s", lease.kind.name, lease.claim, exc)
             return
-        if not active:
+        if active == HAND_BACK:
+            lease.handed_back.set()
+            lease.stop()
+        elif not active:
             lease.lost.set()
             lease.stop()
 

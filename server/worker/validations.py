@@ -48,7 +48,9 @@ class Validations:
     def claim(
         self, session: Session, settings: Settings, worker: str, *, submission_id: int
     ) -> ValidationClaim | None:
-        return validation.claim(session, settings.service, submission_id, worker)
+        # The task is a token: the fairest waiting validation is taken, whichever it names.
+        del submission_id
+        return validation.claim(session, settings.service, settings.intake, worker)
 
     def renew(
         self,
@@ -57,7 +59,7 @@ class Validations:
         claim: ValidationClaim,
         worker: str,
         **_: object,
-    ) -> bool:
+    ) -> bool | str:
         return validation.renew(session, service, claim, worker)
 
     def release(self, session: Session, claim: ValidationClaim, worker: str) -> bool:
@@ -67,18 +69,26 @@ class Validations:
         queue.validate(claim.submission_id)
 
     def run(self, claim: ValidationClaim, lease: Lease, settings: Settings) -> Verdict | None:
+        if claim.time_budget_s <= 0:
+            return Verdict(None, _budget_spent(settings.intake))
         labels = {"arena.validation": f"s{claim.submission_id}c{claim.claim_number}"}
         lease.stop_with(partial(sandbox.cleanup, settings.sandbox, labels))
-        verdict = judge(
-            claim,
-            local.store(),
-            local.sandbox_kind(),
-            labels,
-            local.scratch(),
-            intake=settings.intake,
-            config=settings.sandbox,
-            data_dir=settings.storage.resolved_data_dir,
-        )
+        try:
+            verdict = judge(
+                claim,
+                local.store(),
+                local.sandbox_kind(),
+                labels,
+                local.scratch(),
+                # At most what is left of the team's validation time today.
+                intake=settings.intake.model_copy(update={"intake_timeout_s": claim.time_budget_s}),
+                config=settings.sandbox,
+                data_dir=settings.storage.resolved_data_dir,
+            )
+        except Exception:
+            if lease.stopped:  # killed on purpose (handed back, or the claim lost)
+                return None
+            raise
         return None if lease.stopped else verdict
 
     def ours(self, claim: ValidationClaim, reason: str, error: str) -> Verdict:
@@ -108,6 +118,16 @@ class Validations:
         settings = get_settings()
         free_requirements(local.database(), settings.intake, settings.storage.resolved_data_dir)
         return len(resend)
+
+
+def _budget_spent(intake: IntakeSettings) -> str:
+    error = IntakeError(
+        "<zip>",
+        "validation-budget",
+        f"your team's validations used its {intake.validation_budget_s:g} s of validation time "
+        "today before this one could run: upload again after 00:00 UTC",
+    )
+    return str(error)
 
 
 def judge(

@@ -189,9 +189,9 @@ def validate_uploads(db: Database, settings: Settings, worker: str = "test-worke
     kind = check_service_kind(None, settings.sandbox)
     queue = TaskQueue(settings)
     try:
-        for submission_id in pending:
+        for _ in pending:
             with db.session() as session:
-                claim = validation.claim(session, settings.service, submission_id, worker)
+                claim = validation.claim(session, settings.service, settings.intake, worker)
             assert claim is not None
             scratch = settings.storage.resolved_data_dir / "scratch" / worker
             verdict = judge(
