@@ -30,27 +30,24 @@ import time
 from contextlib import AbstractContextManager, ExitStack
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
+from _package_index import build_wheel, served_index
 from _prerequisites import require
 
 from arena.config import SandboxKind, Settings
 from arena.errors import IntakeError
 from evaluator.sandbox import backend
 from evaluator.validation import sandboxed, validate
+from submissions.intake import pack_folder
 from submissions.intake.dependencies import MANIFEST
 from submissions.intake.stacks import BUILTIN_STACKS, build_stack
-from tests.settings import with_fields
-from tests.submissions.zips import with_policy, write_zip
 
 SMOKE_STACK = "torch\nsmallpkg==1.0\n"
+POLICY = "class Policy:\n    def act(self, obs):\n        return {}\n"
 SMOKE_TEAM_REQUIREMENTS = "otherpkg==2.0\n"
 
 
 def smoke_index(root: Path) -> AbstractContextManager[str]:
-    """A loopback index with what the smoke run installs (tests/submissions/package_index)."""
-    from tests.submissions.package_index import build_wheel, served_index
-
+    """A loopback index with what the smoke run installs."""
     files = root / "files"
     files.mkdir()
     build_wheel(files, "torch", "2.1.0", requires=("gpulib",))
@@ -64,7 +61,11 @@ def smoke_index(root: Path) -> AbstractContextManager[str]:
 def upload(settings: Settings, work: Path, name: str, files: dict[str, str], kind: str):
     """Validate one agent zip as the service does; (seconds, the prepared submission or the
     rejection)."""
-    zip_path = write_zip(work / f"{name}.zip", with_policy(**files))
+    source = work / f"{name}-src"
+    source.mkdir()
+    for file_name, text in {"policy.py": POLICY, **files}.items():
+        (source / file_name).write_text(text)
+    zip_path = pack_folder(source, work / f"{name}.zip")
     started = time.monotonic()
     try:
         outcome = validate(
@@ -100,7 +101,12 @@ def main() -> None:
             stack_name, stack_text = "smoke", SMOKE_STACK
         elif not args.requirements:
             team_requirements = ""
-        settings = with_fields(settings, storage={"data_dir": work / "data"}, intake=intake)
+        settings = settings.model_copy(
+            update={
+                "storage": settings.storage.model_copy(update={"data_dir": work / "data"}),
+                "intake": settings.intake.model_copy(update=intake),
+            }
+        )
         data_dir = settings.storage.resolved_data_dir
         runner = sandboxed(settings.intake, settings.sandbox, data_dir, args.sandbox)
         started = time.monotonic()
@@ -116,9 +122,8 @@ def main() -> None:
         print(
             f"stack {stack_name}: {len(manifest['wheels'])} wheels, {mib:.0f} MiB, {build_s:.1f} s"
         )
-        print(
-            f"  CPU builds: {manifest['cpu_builds']}; built from source: {manifest['built_from_source']}"
-        )
+        built = manifest["built_from_source"]
+        print(f"  CPU builds: {manifest['cpu_builds']}; built from source: {built}")
         seconds, on_stack = upload(
             settings,
             work,

@@ -16,11 +16,11 @@ import pytest
 from agent_runtime import resolve
 from arena.config import Settings
 from arena.errors import IntakeError
+from bench._package_index import build_wheel, served_index
 from evaluator.resolver import PROXY_SOCKET, run_resolver, spawn_resolver
 from evaluator.sandbox.index_proxy import IndexProxy
 from evaluator.sandbox.subprocess_sandbox import labelled_pids
 from tests.settings import with_fields
-from tests.submissions.package_index import build_wheel, served_index
 
 SECRET = "s3cret-admin-token-9b2e"
 

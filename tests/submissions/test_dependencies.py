@@ -13,6 +13,12 @@ import pytest
 from agent_runtime import intake as rules
 from arena.config import Settings
 from arena.errors import IntakeError
+from bench._package_index import (
+    build_sdist,
+    build_wheel,
+    served_index,
+    write_simple_index,
+)
 from evaluator.validation import sandboxed, validate
 from submissions.intake import prepare_submission
 from submissions.intake.dependencies import (
@@ -25,12 +31,6 @@ from submissions.intake.dependencies import (
 from submissions.intake.porting import explain_missing_wheel
 from submissions.intake.stacks import build_stack, read_stack
 from tests.settings import with_fields
-from tests.submissions.package_index import (
-    build_sdist,
-    build_wheel,
-    served_index,
-    write_simple_index,
-)
 from tests.submissions.zips import with_policy, write_zip
 
 MiB = 1024**2

@@ -1,5 +1,6 @@
-"""A package index on loopback for the requirement tests: wheels and sdists the test builds itself,
-served as a PEP 503 simple index by a thread of the test process (nothing leaves the machine)."""
+"""A package index on loopback for bench/stacks.py's smoke mode and the requirement tests: wheels
+and sdists the caller builds itself, served as a PEP 503 simple index by a thread of its own
+process (nothing leaves the machine). A shared helper, not a benchmark."""
 
 from __future__ import annotations
 
