@@ -229,7 +229,8 @@ def run_scenario(
     if result.simulator_error is None:
         return ScenarioOutcome.ours(
             scenario.id,
-            "an agent's sandbox ended before the runner started in it, on every attempt",
+            "an agent's sandbox ended or stayed silent before the runner started in it, on every "
+            "attempt",
             log="\n".join(logs),
             attempts=SIMULATOR_ATTEMPTS,
             episode=episode,
