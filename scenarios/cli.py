@@ -168,16 +168,27 @@ def build(
             f"{len(manifest.naturalistic_scenes or ())} scene files"
         )
         print_corpus_report(manifest.naturalistic_skipped, manifest.naturalistic_rejected)
+        for u in manifest.naturalistic_unsolved or ():
+            _console().print(
+                f"not finished {u['file']} {u['vehicle']}: {u['reason']}",
+                markup=False,
+                highlight=False,
+            )
 
 
 def print_corpus_report(skipped, rejected) -> None:
     """The scene files a build skipped with their reasons, and the rejected vehicles."""
+    # deferred: CLI start-up time
+    from scenarios.recorded.naturalistic import REJECTIONS
+
     console = _console()
     for s in skipped or ():
         console.print(f"skipped {s['file']}: {s['reason']}", markup=False, highlight=False)
     if rejected:
         counts = ", ".join(f"{n} {reason}" for reason, n in rejected.items())
         console.print(f"recorded vehicles not used as missions: {counts}")
+        for reason in rejected:
+            console.print(f"  {reason}: {REJECTIONS.get(reason, reason)}", highlight=False)
 
 
 @app.command("list")

@@ -244,9 +244,11 @@ def _add(new: list[Episode], facts: dict, episodes: list, buffers: list, rows: l
 def _nothing_left(corpus: Corpus | None, left_out: list[dict]) -> str:
     if corpus is None:
         return "no source: give a scenes folder or include the public replays"
+    unusable = "; ".join(f"{k.file}: {k.reason}" for k in corpus.skipped[:10])
     return (
         f"no episode left: {len(left_out)} scene files share vehicles with the excluded suite, "
-        f"{len(corpus.skipped)} are unusable, {corpus.rejected() or 'no'} vehicles rejected "
+        f"{len(corpus.skipped)} are unusable{f' ({unusable})' if unusable else ''}, "
+        f"{corpus.rejected() or 'no'} vehicles rejected "
         "(a dataset needs scenes the hidden suite did not use)"
     )
 

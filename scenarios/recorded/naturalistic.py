@@ -385,7 +385,9 @@ def write_naturalistic(
         [Trajectory("Agent_0", me.time, me.x, me.y, me.heading, me.speed, me.length, me.width)],
     )
     (folder / ATTRIBUTION_FILE).write_text(
-        attribution(scene.provenance, scene.name, scene.source_file.name, ego.vehicle_id)
+        attribution(
+            scene.provenance, scene.name, scene.source_file.name, ego.vehicle_id, scene.origin
+        )
     )
     scenario = Scenario(
         id=scenario_id,

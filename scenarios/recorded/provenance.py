@@ -65,8 +65,15 @@ def provenance(
     return Provenance(label or found_label, source, statement, text)
 
 
-def attribution(prov: Provenance, scene: str, file: str, vehicle_id: str) -> str:
-    """Provenance and licence text shipped in every scenario folder cut from a corpus scene."""
+def attribution(
+    prov: Provenance,
+    scene: str,
+    file: str,
+    vehicle_id: str,
+    origin: tuple[float, float] = (0.0, 0.0),
+) -> str:
+    """Provenance and licence text shipped in every scenario folder cut from a corpus scene
+    (``origin``: the file's coordinates of the scenario's 0, 0)."""
     kind = (
         "naturalistic driving data"
         if prov.label is DataLabel.naturalistic
@@ -77,6 +84,10 @@ def attribution(prov: Provenance, scene: str, file: str, vehicle_id: str) -> str
         f"Scene `{scene}` (file `{file}`); the mission vehicle replaces recorded vehicle "
         f"`{vehicle_id}`.\n",
     ]
+    if origin != (0.0, 0.0):
+        lines.append(
+            f"- Coordinates: the file's, less ({origin[0]:.0f}, {origin[1]:.0f}) m (a local frame)."
+        )
     if prov.statement:
         lines.append(f"- The file states its source as: {prov.statement}.")
     if prov.source == "NGSIM":

@@ -73,6 +73,8 @@ def test_a_georeferenced_scene_is_driven_drawn_and_kept_in_a_dataset(tmp_path, s
     start = load_scenario(tmp_path / "one").missions[0].start
     assert max(abs(start[0]), abs(start[1])) < 1000.0  # the scenario's frame is the local one
     assert "<polygon" in draw_scenario(tmp_path / "one", step=10)
+    attribution = (tmp_path / "one" / "ATTRIBUTION.md").read_text()
+    assert "less (686000, 5335000) m" in attribution and "public domain" in attribution
 
     result = _dataset(tmp_path / "dataset", folder, tmp_path=tmp_path)
     assert result.exit_code == 0, result.output

@@ -9,6 +9,7 @@ rows are filled by kind, and provenance comes from the files, by name and conten
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import re
@@ -29,6 +30,8 @@ from scenarios.recorded.naturalistic_pool import TRACKS_FILE, NaturalisticPool
 from scenarios.recorded.tracks import recording_location
 from scenarios.suites import REPLAYS
 from scenarios.verify import verify_scenario
+from scenarios.writer import TRAJECTORIES_FILE
+from sim.trajectories import read_trajectories
 from tests.scenarios import corpus_builders as cb
 from tests.scenarios.conftest import manifest
 
@@ -281,14 +284,18 @@ def test_the_seed_draws_from_all_candidates(corpus_dir, cache_dir, tmp_path):
 
 @pytest.mark.slow  # builds a whole hidden suite (the hidden_corpus fixture)
 def test_manifest_lists_exactly_the_scenes_used_with_their_tracks(hidden_corpus, corpus_dir):
+    """By file name and content: ``shifted.xml`` carries the shipped Lanker scene's id."""
     listed = manifest(hidden_corpus)["naturalistic_scenes"]
-    used = {
-        load_scenario(hidden_corpus / e["id"]).id
+    cut_from = {
+        _mission_source(hidden_corpus / e["id"])[0]
         for e in manifest(hidden_corpus)["scenarios"]
         if "source" in e
     }
-    assert used
     files = {s["file"] for s in listed}
+    assert files == cut_from and len(listed) == len(files)
+    assert {"shifted.xml", "USA_Lanker-1_1_T-1.xml"} <= files  # one benchmarkID, two files
+    for s in listed:
+        assert s["sha256"] == hashlib.sha256((corpus_dir / s["file"]).read_bytes()).hexdigest()
     assert not files & set(BROKEN)
     tracks = json.loads((hidden_corpus / TRACKS_FILE).read_text())
     assert set(tracks) == {s["file"] for s in listed}
@@ -298,7 +305,42 @@ def test_manifest_lists_exactly_the_scenes_used_with_their_tracks(hidden_corpus,
         assert {t["vehicle"] for t in tracks[s["file"]]} == {
             t.vehicle_id for t in scene.trajectories
         }
-    assert len(listed) <= len(used)
+
+
+@pytest.mark.slow  # builds a whole hidden suite (the hidden_corpus fixture)
+def test_every_scene_is_drawn_in_its_local_frame_and_recorded_with_its_origin(
+    hidden_corpus, corpus_dir
+):
+    listed = {s["file"]: s for s in manifest(hidden_corpus)["naturalistic_scenes"]}
+    assert listed[GEO]["origin"] == list(UTM)
+    for file, s in listed.items():
+        assert s["origin"] == list(load_scene(corpus_dir / file).origin)
+    from_geo = [
+        e["id"]
+        for e in manifest(hidden_corpus)["scenarios"]
+        if "source" in e and _mission_source(hidden_corpus / e["id"])[0] == GEO
+    ]
+    assert from_geo  # and verified by the log replay expert with every corpus scenario
+    for sid in from_geo:
+        mission = load_scenario(hidden_corpus / sid).missions[0]
+        assert max(abs(v) for v in (*mission.start[:2], *mission.goal.position)) < 1000.0
+        assert "less (686000, 5335000) m" in (hidden_corpus / sid / ATTRIBUTION_FILE).read_text()
+
+
+@pytest.mark.slow  # builds a whole hidden suite (the hidden_corpus fixture)
+def test_a_tram_is_left_out_and_a_motorcycle_is_traffic_only(hidden_corpus, corpus_dir):
+    rejected = manifest(hidden_corpus)["naturalistic_rejected"]
+    assert rejected["not_replayed"] == 1 and rejected["traffic_only"] == 1
+    tram = load_scene(corpus_dir / "USA_Tram-1_1_T-1.xml")
+    assert tram.left_out == {"train": 1}
+    for e in manifest(hidden_corpus)["scenarios"]:
+        if "source" not in e:
+            continue
+        traffic = read_trajectories(hidden_corpus / e["id"] / TRAJECTORIES_FILE)
+        assert all(t.length != 15.0 for t in traffic.values()), e["id"]  # no tram replayed
+        assert load_scenario(hidden_corpus / e["id"]).missions[0].vehicle.length != 2.2
+    output = (hidden_corpus / "build-output.txt").read_text()
+    assert "not_replayed: a train or tram, bicycle or pedestrian" in output
 
 
 @pytest.mark.slow  # builds a whole hidden suite (the hidden_corpus fixture)
