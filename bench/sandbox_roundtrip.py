@@ -21,15 +21,21 @@ evaluator path from the simulator's observation dict to the actions, once per fo
   calls the policy, answers in JSON; we decode the JSON.
 
 ``docker (forked)`` is an agent forked in a warm Docker sandbox, as evaluations run them
-(docs/protocol.md). The ``floor`` columns are the same round trip with an empty observation
-(native: one agent with an empty dict; arrays: a frame of no agents): what the transport alone
-costs, the rest of the median is encoding and decoding the observation.
+(docs/protocol.md). ``gvisor`` is the Docker sandbox under gVisor's runtime
+(``ARENA_DOCKER_RUNTIME=runsc``, docs/sandbox.md "A stronger tier") where the daemon has it:
+its agents run cold (a forked agent cannot make its episode's namespaces there), so its start,
+a new sandbox per episode, is timed beside Docker's (``start s``: from launch to the policy
+built, the median of the formats' starts, printed on the last line). The ``floor`` columns are
+the same round trip with an empty observation (native: one agent with an empty dict; arrays: a
+frame of no agents): what the transport alone costs, the rest of the median is encoding and
+decoding the observation.
 
-    python bench/sandbox_roundtrip.py [--steps 2000] [--kinds process,bubblewrap,docker]
+    python bench/sandbox_roundtrip.py [--steps 2000] [--kinds process,bubblewrap,docker,gvisor]
 
 The last line is ``docker_median_ms=<arrays, Docker> docker_native_median_ms=<native, Docker>
 bwrap_median_ms=<arrays, bubblewrap> docker_ratio=<arrays Docker / in-process>
-docker_floor_ms=<arrays, Docker>``.
+docker_floor_ms=<arrays, Docker> gvisor_median_ms=<arrays, gVisor> docker_start_s=<Docker>
+gvisor_start_s=<gVisor>`` (nan where not measured).
 """
 
 from __future__ import annotations
@@ -47,7 +53,7 @@ import numpy as np
 
 # The benchmark borrows the tests' settings helper: run from a checkout, the repository root.
 from agent_runtime.packed_waypoints import POINT_VALUES
-from arena.config import SandboxKind, Settings
+from arena.config import SandboxKind, SandboxSettings, Settings
 from arena.settings_changes import with_fields
 from evaluator.sandbox import backend, start
 from evaluator.sandbox.warm import WarmAgent
@@ -63,6 +69,7 @@ class Policy:
         return {agent_id: [10.0, 0.0] for agent_id in obs}
 """
 FORMATS = ("native", "arrays")
+GVISOR_ROW, GVISOR_RUNTIME = "gvisor", "runsc"
 WARMUP = 200
 EMPTY = {"native": {"Agent_0": {}}, "arrays": {}}
 LANE_ID = itemgetter("lane_id")
@@ -153,7 +160,7 @@ def in_process_act(folder: Path):
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--steps", type=int, default=2000)
-    parser.add_argument("--kinds", default="process,bubblewrap,docker")
+    parser.add_argument("--kinds", default="process,bubblewrap,docker,gvisor")
     parser.add_argument("--smoke", action="store_true", help="20 steps, the process sandbox")
     args = parser.parse_args()
     if args.smoke:
@@ -185,21 +192,24 @@ def main() -> None:
         )
     }
     labels = {"bench": "roundtrip"}
+    starts: dict[str, list[float]] = {}  # row -> its sandboxes' start times [s]
     for name in args.kinds.split(","):
-        kind = SandboxKind(name)
-        reason = backend(kind).unavailable_reason(settings.sandbox)
+        kind, config = row_sandbox(name, settings)
+        reason = backend(kind).unavailable_reason(config)
         if reason:
             print(f"{name}: skipped ({reason})")
             continue
         # Formats interleaved per row, so that both see the same load on a shared machine.
         for fmt, submission in submissions.items():
+            started = time.perf_counter()
             with start(
                 submission,
                 kind=kind,
-                config=settings.sandbox,
+                config=config,
                 data_dir=settings.storage.resolved_data_dir,
                 labels=labels,
             ) as handle:
+                starts.setdefault(name, []).append(time.perf_counter() - started)
                 results.setdefault(name, {})[fmt] = both(handle.act, submission, args.steps)
         if kind is SandboxKind.docker:
             for fmt, submission in submissions.items():
@@ -243,8 +253,24 @@ def main() -> None:
         f"docker_native_median_ms={median_of(results, 'docker', 'native', 0):.4f} "
         f"bwrap_median_ms={median_of(results, 'bubblewrap', 'arrays', 0):.4f} "
         f"docker_ratio={docker / baseline:.1f} "
-        f"docker_floor_ms={median_of(results, 'docker', 'arrays', 1):.4f}"
+        f"docker_floor_ms={median_of(results, 'docker', 'arrays', 1):.4f} "
+        f"gvisor_median_ms={median_of(results, 'gvisor', 'arrays', 0):.4f} "
+        f"docker_start_s={median_start(starts, 'docker'):.2f} "
+        f"gvisor_start_s={median_start(starts, 'gvisor'):.2f}"
     )
+
+
+def row_sandbox(name: str, settings: Settings) -> tuple[SandboxKind, SandboxSettings]:
+    """A row's sandbox: a backend, or ``gvisor``, Docker under gVisor's runtime."""
+    if name == GVISOR_ROW:
+        return SandboxKind.docker, settings.sandbox.model_copy(
+            update={"docker_runtime": GVISOR_RUNTIME}
+        )
+    return SandboxKind(name), settings.sandbox
+
+
+def median_start(starts: dict[str, list[float]], name: str) -> float:
+    return float(np.median(starts[name])) if name in starts else float("nan")
 
 
 def floor_round_trip_ms(

@@ -46,6 +46,12 @@ UNPRIVILEGED_USER = f"{UNPRIVILEGED_ID}:{UNPRIVILEGED_ID}"
 IMAGE_PATH = "/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin"
 # The log driver keeps this much per container; we show the last agent_log_tail_bytes of it.
 LOG_MAX_SIZE = "1m"
+# OCI runtimes that run the container on a kernel of their own in user space (gVisor's runsc),
+# and the host tasks that kernel needs: measured on the ptrace platform, 66 with one idle agent
+# process and 306 with 51 (about 5 per process, none per thread), so twice that as the bound.
+USER_SPACE_KERNELS = frozenset({"runsc"})
+USER_SPACE_KERNEL_TASKS = 128
+USER_SPACE_KERNEL_TASKS_PER_PROCESS = 10
 # How long a killed container may take to be reported dead [s].
 KILL_WAIT_S = 10.0
 # How often a starting container is checked for having died before it connected [s].
@@ -127,15 +133,23 @@ def container_options(spec: LaunchSpec, socket_dir: Path | None) -> dict[str, An
         volumes[str(spec.deps)] = {"bind": DEPS_MOUNT, "mode": "ro"}
     command = ["python3", *spec.python_args()]
     extra: dict[str, Any] = {}
+    ulimits = []
+    pids_limit = config.agent_pids
     if config.docker_runtime:
         extra["runtime"] = config.docker_runtime
+    if config.docker_runtime in USER_SPACE_KERNELS:
+        # The container's cgroup holds gVisor's kernel (its threads, its ptrace stubs), not the
+        # agent's processes one for one: the agent's are counted by that kernel, per uid, and
+        # every sandbox has a kernel of its own, so RLIMIT_NPROC is a per-sandbox limit there.
+        ulimits.append(Ulimit(name="nproc", soft=config.agent_pids, hard=config.agent_pids))
+        pids_limit = USER_SPACE_KERNEL_TASKS + USER_SPACE_KERNEL_TASKS_PER_PROCESS * pids_limit
     if spec.training is not None:
         volumes[str(spec.training.dataset)] = {"bind": DATASET_MOUNT, "mode": "ro"}
         volumes[str(spec.training.output)] = {"bind": MODEL_MOUNT, "mode": "rw"}
         for target, source in spec.training.mounts:
             volumes[str(source)] = {"bind": target, "mode": "ro"}
         cap = spec.training.output_bytes
-        extra["ulimits"] = [Ulimit(name="fsize", soft=cap, hard=cap)]
+        ulimits.append(Ulimit(name="fsize", soft=cap, hard=cap))
         if spec.training.gpu:
             extra["device_requests"] = [DeviceRequest(count=-1, capabilities=[["gpu"]])]
     else:
@@ -157,7 +171,8 @@ def container_options(spec: LaunchSpec, socket_dir: Path | None) -> dict[str, An
         "mem_limit": config.agent_memory_bytes,
         "memswap_limit": config.agent_memory_bytes,
         "nano_cpus": int(config.agent_cpus * 1e9),
-        "pids_limit": config.agent_pids,
+        "pids_limit": pids_limit,
+        "ulimits": ulimits,
         "cap_drop": ["ALL"],
         "security_opt": ["no-new-privileges", f"seccomp={spec.seccomp_profile()}"],
         "user": UNPRIVILEGED_USER,
