@@ -151,3 +151,80 @@ def _interval(completion: float, low: float, high: float) -> tuple[str, int]:
         f"{escape(said)}</text></g>",
         64,
     )
+
+
+def curves_chart(seeds: Mapping[int, Sequence], *, live: bool) -> str:
+    """Training curves (:class:`evaluator.training.metrics.Curve` per seed): one panel per
+    metric name, a line per seed over its steps; ``live`` while a seed still trains."""
+    names = sorted({curve.name for curves in seeds.values() for curve in curves})
+    panel, top_gap = 120, 34
+    height = top_gap + max(len(names), 1) * panel
+    status = "training: updated as train.py writes" if live else "trained"
+    parts = [
+        f'<text x="0" y="{_LABEL}" class="label head">training curves ({status})</text>',
+        f'<text x="0" y="{2 * _LABEL + 4}" class="note">{len(seeds)} seed(s): '
+        + " · ".join(
+            f'<tspan class="seed-{seed % 4}">seed {seed}</tspan>' for seed in sorted(seeds)
+        )
+        + "</text>",
+    ]
+    if not names:
+        parts.append(
+            f'<text x="0" y="{top_gap + _LABEL}" class="value">nothing logged yet: train.py '
+            "appends step,name,value lines to $ARENA_MODEL_DIR/training_metrics.csv</text>"
+        )
+    for index, name in enumerate(names):
+        curves = {
+            seed: curve for seed, found in seeds.items() for curve in found if curve.name == name
+        }
+        parts.append(_curve_panel(name, curves, top_gap + index * panel, panel - 24))
+    said = f"training curves of {len(seeds)} seed(s): {', '.join(names) or 'none yet'}"
+    return (
+        f'<svg class="chart curves-chart" role="img" viewBox="0 0 {WIDTH} {height}" '
+        f'width="{WIDTH}" xmlns="http://www.w3.org/2000/svg" aria-label="{escape(said)}">'
+        f"<title>{escape(said)}</title>{''.join(parts)}</svg>"
+    )
+
+
+def _curve_panel(name: str, curves: Mapping[int, object], top: int, height: int) -> str:
+    steps = [step for curve in curves.values() for step in curve.steps]
+    values = [value for curve in curves.values() for value in curve.values]
+    first, last = min(steps), max(steps)
+    low, high = min(values), max(values)
+    left, right = 52, WIDTH - 6
+    plot_top, plot_bottom = top + _LABEL + 6, top + height
+
+    def x(step: int) -> float:
+        return round(
+            left + (right - left) * ((step - first) / (last - first) if last > first else 1.0), 1
+        )
+
+    def y(value: float) -> float:
+        share = (value - low) / (high - low) if high > low else 0.5
+        return round(plot_bottom - (plot_bottom - plot_top) * share, 1)
+
+    parts = [
+        f'<text x="0" y="{top + _LABEL}" class="label">{escape(name)}</text>',
+        f'<line x1="{left}" x2="{right}" y1="{plot_bottom}" y2="{plot_bottom}" class="axis"/>',
+        f'<text x="{left - 4}" y="{plot_top + 8}" class="value" text-anchor="end">'
+        f"{_short(high)}</text>",
+        f'<text x="{left - 4}" y="{plot_bottom}" class="value" text-anchor="end">'
+        f"{_short(low)}</text>",
+        f'<text x="{right}" y="{plot_bottom + _LABEL + 2}" class="value" text-anchor="end">'
+        f"step {last}</text>",
+    ]
+    for seed, curve in sorted(curves.items()):
+        points = " ".join(
+            f"{x(step)},{y(value)}" for step, value in zip(curve.steps, curve.values, strict=True)
+        )
+        parts.append(
+            f'<polyline points="{points}" class="curve seed-{seed % 4}"><title>seed {seed}, '
+            f"{escape(name)}: {_short(curve.values[-1])} at step {curve.steps[-1]}</title>"
+            "</polyline>"
+        )
+    return "".join(parts)
+
+
+def _short(value: float) -> str:
+    """A logged value in a few characters (any magnitude a loss or a reward takes)."""
+    return f"{value:.4g}"

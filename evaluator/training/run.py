@@ -22,6 +22,7 @@ from arena.errors import ArenaError, DatasetError, IntakeError
 from evaluator import sandbox
 from evaluator.sandbox.backend import TRAIN_SCRIPT, ExitStatus, Training
 from evaluator.training.checkpoint import hand_to_sandbox_user, restore
+from evaluator.training.metrics import METRICS_FILE
 from evaluator.training.model import OutputUsage, output_usage, regular_files
 
 # How often the run is looked at (exit, budget) [s].
@@ -206,10 +207,11 @@ def _judged(
     past = usage.over(caps.bytes, caps.entries, caps.depth)
     if past:
         return result(TrainFailure.train_output_too_large, f"the output folder holds {past}")
-    if not regular_files(output):
+    if not [path for path in regular_files(output) if path != Path(output) / METRICS_FILE]:
         return result(
             TrainFailure.no_model_produced,
-            "train.py finished but wrote no file into the output folder (ARENA_MODEL_DIR)",
+            "train.py finished but wrote no file into the output folder (ARENA_MODEL_DIR) "
+            f"besides {METRICS_FILE} (its curves, not a model)",
         )
     return result(None)
 

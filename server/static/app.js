@@ -338,6 +338,22 @@ const Arena = (() => {
     $("training-log").textContent = t.log_tail || "(no output yet)";
   }
 
+  // The curves each seed's train.py logs, drawn by the server: refreshed about every 10 s
+  // while it trains, once more when it ends; a hidden phase's go to the organisers only.
+  const curvesDrawn = { key: null };
+  async function loadTrainingCurves(s, token) {
+    const t = s.training;
+    const shown = Boolean(t) && !(s.phase_window && s.phase_window.hidden);
+    $("training-curves").hidden = !shown;
+    if (!shown) return;
+    const key = `${t.seed_set}:${t.status}:${Math.floor(t.elapsed_s / 10)}`;
+    if (key === curvesDrawn.key) return;
+    curvesDrawn.key = key;
+    const response = await fetch(`${API}/submissions/${s.id}/training.svg`,
+      { headers: headers(token) });
+    if (response.ok) $("training-curves").innerHTML = await response.text();
+  }
+
   async function loadLogs(id, token) {
     const response = await fetch(`${API}/submissions/${id}/logs`, { headers: headers(token) });
     if (response.status === 403) {  // a hidden phase: the agent's output goes to the organisers
@@ -429,6 +445,7 @@ const Arena = (() => {
       const s = await response.json();
       render(s, metrics);
       loadResultsChart(s, token);
+      loadTrainingCurves(s, token);
       // A hidden phase's agent output goes to the organisers only: not even asked for.
       if (finished.includes(s.status) && !(s.phase_window && s.phase_window.hidden)) {
         loadLogs(id, token);

@@ -4,6 +4,7 @@ output packed into the artifact store, then the evaluation of that output sent
 
 from __future__ import annotations
 
+import contextlib
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
@@ -14,9 +15,11 @@ from arena.config import ServiceSettings, Settings
 from arena.errors import DatasetError
 from evaluator.runner import new_run_key
 from evaluator.training import MODEL_ARCHIVE, TrainingResult, TrainingStopped, pack_model, train
+from evaluator.training.metrics import METRICS_FILE
 from server.core.queue import TaskQueue
 from server.services import training
 from server.services.training import TrainingClaim
+from server.services.training_curves import CurvePublisher
 from server.worker import checkpoints, local
 from server.worker.heartbeat import Lease, beat_interval_s
 
@@ -76,11 +79,13 @@ class Trainings:
             staging=output.parent,
         )
         resume_from = saved.latest()
+        curves = CurvePublisher(local.store(), claim.training_id, output)
 
         def progress(elapsed_s: float, log: str) -> bool:
             alive = lease.report(elapsed_s=elapsed_s, log_tail=local.tail(log))
             if alive:  # only the live claim saves; the heartbeat thread renews meanwhile
                 saved.save_if_due()
+                curves.publish()  # shown while it trains
             return alive
 
         try:
@@ -127,6 +132,11 @@ class Trainings:
                 )
             return
         tail = local.tail(result.log)
+        output = _output(claim)
+        CurvePublisher(local.store(), claim.training_id, output).publish()  # the last points
+        # Not part of the model: a curve's timing must not make two seeds' models differ.
+        with contextlib.suppress(OSError):  # missing, or a folder of that name (left in)
+            (output / METRICS_FILE).unlink()
         if not result.ok:
             shutil.rmtree(_output(claim).parent, ignore_errors=True)
             with local.database().session() as session:

@@ -24,6 +24,7 @@ from server.api.deps import (
 )
 from server.schemas import SubmissionSummary
 from server.services import admin, replays, submissions
+from server.services.training_curves import training_svg as training_curves_svg
 
 router = APIRouter(
     prefix="/admin",
@@ -51,6 +52,20 @@ def replay(
     """Any episode of any submission, hidden phases included."""
     submission = submissions.get_submission(session, submission_id)
     return replays.submission_replay(session, store, submission, scenario_id, organiser=True)
+
+
+@router.get(
+    "/submissions/{submission_id}/training.svg",
+    response_class=Response,
+    responses={200: {"content": {"image/svg+xml": {}}}},
+)
+def training_curves(submission_id: SubmissionId, session: SessionDep, store: StoreDep) -> Response:
+    """The training curves each seed's train.py logged, hidden phases included."""
+    submission = submissions.get_submission(session, submission_id)
+    return Response(
+        training_curves_svg(session, store, submission, organiser=True),
+        media_type="image/svg+xml",
+    )
 
 
 @router.post("/submissions/{submission_id}/disqualify", response_model=SubmissionSummary)

@@ -27,6 +27,7 @@ from server.services import (
     result_charts,
     standing,
     submissions,
+    training_curves,
     validation,
 )
 from server.services.errors import InvalidUpload
@@ -141,6 +142,21 @@ def get_results_chart(
     until it is scored."""
     return Response(
         result_charts.results_svg(session, cache, submission), media_type="image/svg+xml"
+    )
+
+
+@router.get(
+    "/{submission_id}/training.svg",
+    response_class=Response,
+    responses={200: {"content": {"image/svg+xml": {}}}, **errors(403)},
+)
+def get_training_curves(
+    session: SessionDep, store: StoreDep, submission: OwnedSubmission
+) -> Response:
+    """The training curves each seed's train.py logged (docs/training.md), live while it
+    trains; in a phase whose results the team sees in full (403 in a hidden one)."""
+    return Response(
+        training_curves.training_svg(session, store, submission), media_type="image/svg+xml"
     )
 
 

@@ -97,6 +97,9 @@ def main():
                 m_hat, v_hat = m / (1 - 0.9**step), v / (1 - 0.999**step)
                 params[k] -= LEARNING_RATE * m_hat / (np.sqrt(v_hat) + 1e-8)
         loss = float(((forward(params, xn)[0] - yn) ** 2).mean())
+        # One line per epoch, step,name,value: the service draws it as a curve while it trains.
+        with (out / "training_metrics.csv").open("a") as metrics:
+            metrics.write(f"{epoch + 1},loss,{loss:.6g}\n")
         print(
             f"epoch {epoch + 1}/{EPOCHS} loss {loss:.4f} ({time.monotonic() - started:.0f} s)",
             flush=True,

@@ -77,6 +77,29 @@ def training_submission(db, team_id: int) -> int:
         return submission.id
 
 
+def publish_curves(settings, db, submission_id: int, output) -> None:
+    """Curves as the worker publishes them while the submission's train.py runs."""
+    from sqlalchemy import select
+
+    from evaluator.training.metrics import METRICS_FILE
+    from server.core.artifacts import artifact_store
+    from server.services.training_curves import CurvePublisher
+
+    with db.read_session() as session:
+        job = session.scalar(
+            select(TrainingJob.id).where(TrainingJob.submission_id == submission_id)
+        )
+    output.mkdir()
+    (output / METRICS_FILE).write_text(
+        "".join(
+            f"{epoch},loss,{0.9 * 0.93**epoch + 0.02 * (epoch % 3):.4f}\n"
+            f"{epoch},val_loss,{0.95 * 0.95**epoch + 0.03:.4f}\n"
+            for epoch in range(1, 41)
+        )
+    )
+    CurvePublisher(artifact_store(settings.storage, db), job, output).publish()
+
+
 @pytest.fixture(scope="module")
 def site(tmp_path_factory):
     """A served API with one team's submissions in every state and phase, a closed phase and a
@@ -131,6 +154,7 @@ def site(tmp_path_factory):
     add_results(db, validation, [("cruise", "done", "agent_error", TRACEBACK)] * 3)
     running = running_submission(db, team_id, total=10)
     training = training_submission(db, team_id)
+    publish_curves(settings, db, training, root / "curves")
     queued = queued_submission(db, team_id)
     db.dispose()
     log = tmp_path_factory.mktemp("phone") / "api.log"
@@ -322,3 +346,18 @@ def test_a_hidden_phase_page_asks_for_nothing_it_may_not_see(site, browser):  # 
     expect(notice.locator("code")).to_have_text("arena evaluate")
     assert not [url for url in asked if url.endswith("/logs")]
     page.close()
+
+
+def test_training_curves_are_drawn_while_it_trains(site, browser):  # noqa: F811
+    from playwright.sync_api import expect
+
+    for label, viewport in (("1280", DESKTOP), ("390", PHONE)):
+        page = open_page(browser, site, f"/submissions/{site['training']}", viewport)
+        curves = page.locator("#training-curves svg")
+        expect(curves).to_be_visible()
+        expect(curves).to_contain_text("training: updated as train.py writes")
+        expect(curves.locator("polyline")).to_have_count(2)  # loss and val_loss
+        assert curves.bounding_box()["width"] <= viewport["width"]
+        if os.environ.get("ARENA_DOC_IMAGES"):
+            curves.screenshot(path=DOC_IMAGES / f"training-curves-{label}.png")
+        page.close()

@@ -9,9 +9,11 @@ fails the submission and leaves nothing of the other seed running or stored."""
 from __future__ import annotations
 
 import hashlib
+import io
 import shutil
 import signal
 import subprocess
+import tarfile
 import time
 import uuid
 from pathlib import Path
@@ -168,6 +170,15 @@ def test_offline_submission_trains_then_is_evaluated_and_ranked(stack_settings, 
             assert model.status_code == 200
             assert hashlib.sha256(model.content).hexdigest() == training["model_sha256"]
             assert model.headers["x-model-sha256"] == training["model_sha256"]
+            # Its loss per epoch, logged to the metrics file, drawn for the organisers (a
+            # hidden phase: not for the team); the file is no part of the model.
+            curves = httpx.get(
+                f"{url}/api/v1/admin/submissions/{good}/training.svg", headers=bearer(ADMIN_TOKEN)
+            )
+            assert curves.status_code == 200 and "<polyline" in curves.text
+            assert ">loss<" in curves.text
+            with tarfile.open(fileobj=io.BytesIO(model.content)) as archive:
+                assert "training_metrics.csv" not in archive.getnames()
 
             failed = wait_finished(url, slow_token, slow)
             assert failed["status"] == "failed"
