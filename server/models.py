@@ -177,6 +177,9 @@ class Submission(Base):
     # Failed through no fault of the team (our scenarios failed): the one failure that gives the
     # daily quota back. Everything else counts from the moment the upload is accepted.
     failed_on_our_side: Mapped[bool] = mapped_column(default=False, server_default=false())
+    # Its run stopped early because its agent could not be loaded (import, __init__): nothing of
+    # a scenario reached it, so it gives the daily quota back too (docs/submissions.md).
+    never_started: Mapped[bool] = mapped_column(default=False, server_default=false())
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     queued_at: Mapped[datetime | None]
     # Set when the first evaluation starts: a submission cancelled before it does not count

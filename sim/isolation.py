@@ -265,6 +265,7 @@ def _write_failed_start(scenario_dir, interface, record_path, seed, exc: AgentFa
         record_path=str(record_path),
         detail=exc.detail or str(exc),
         agent_cpu_s=exc.cpu_s,
+        observed=False,
     )
 
 

@@ -18,4 +18,7 @@ class EpisodeResult:
     wall_time_s: float = 0.0
     # CPU time of the agent's acts [s], as its handle measured it (0 where nothing measures it).
     agent_cpu_s: float = 0.0
+    # Whether the agent was sent an observation: False when it failed while it was loaded
+    # (import, __init__, init_timeout), before anything of the scenario reached it.
+    observed: bool = True
     extra: dict = field(default_factory=dict)

@@ -118,6 +118,8 @@ class ScenarioOutcome:
     # evaluation's budget counts. Only the attempt that counts is charged, never one that failed
     # on our side.
     agent_cpu_s: float = 0.0
+    # Whether its agent was sent an observation (False: it failed while it was loaded).
+    observed: bool = True
 
     @property
     def key(self) -> Episode:
@@ -268,6 +270,7 @@ def _outcome(
         wall_time_s=time.monotonic() - started,
         episode=episode,
         agent_cpu_s=result.agent_cpu_s,
+        observed=result.observed,
     )
 
 

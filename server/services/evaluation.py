@@ -369,18 +369,27 @@ def _give_up_if_agent_cannot_start(session: Session, run: EvaluationRun) -> bool
     ):
         return False
     shown = str(results[0].reason)
+    # Free only when no observation reached the agent: one that failed at its first act had seen
+    # a scenario, and a free run would let it tell its team about the hidden suite for nothing.
+    never_started = all(r.detail.get("observed") is False for r in results)
     phase = phases.get_phase(session, run.submission.phase)
     if phases.team_sees_everything(phase):
         error = failures.startup_error(results[0].log_tail).splitlines()
         shown = error[-1] if error else shown
     else:
         shown += " (evaluate in the validation phase or locally to see its output)"
+    charge = (
+        "it does not count against your daily quota"
+        if never_started
+        else "it counts against your daily quota: your agent failed after it was sent a scenario"
+    )
     _fail_run(
         session,
         run,
         f"your agent could not start: {shown} "
-        f"(the same in the first {len(results)} episodes; the others were not run)",
+        f"(the same in the first {len(results)} episodes; the others were not run; {charge})",
     )
+    run.submission.never_started = never_started
     return True
 
 

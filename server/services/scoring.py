@@ -56,6 +56,7 @@ def result_values(
                 "agents": [agent.model_dump(mode="json") for agent in outcome.agents],
                 "attempts": outcome.attempts,
                 "wall_time_s": outcome.wall_time_s,
+                "observed": outcome.observed,
                 "error": outcome.error,
                 # What the reproducibility manifest pins (evaluator/provenance.py).
                 "seed": outcome.seed,

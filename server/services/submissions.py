@@ -98,8 +98,9 @@ def quota_used(session: Session, team_id: int, phase: str, track: Track, moment:
     """Submissions of the phase and the UTC day so far that count: every one being validated or
     accepted (rejected ones by the validation do not), failed ones
     included (an agent that crashes costs its team a try, or a crash would buy free evaluations
-    of the hidden suite), except those that failed on our side and those cancelled before their
-    evaluation started."""
+    of the hidden suite), except those that failed on our side, those whose agent could not be
+    loaded (no scenario reached it: nothing of the suite to learn) and those cancelled before
+    their evaluation started."""
     day_start = datetime.combine(moment.date(), time.min, tzinfo=moment.tzinfo)
     return session.scalar(
         select(func.count())
@@ -114,6 +115,7 @@ def quota_used(session: Session, team_id: int, phase: str, track: Track, moment:
                 Submission.status != SubmissionStatus.failed,
                 Submission.failed_on_our_side.is_(False),
             ),
+            Submission.never_started.is_(False),
             or_(
                 Submission.status != SubmissionStatus.cancelled, Submission.started_at.is_not(None)
             ),

@@ -7,7 +7,7 @@ from arena.outcome import AgentOutcome, ScenarioStatus
 from evaluator.runner import ScenarioOutcome
 from server.core.artifacts import DatabaseStore
 from server.models import EvaluationRun, Submission
-from server.services import evaluation
+from server.services import evaluation, submissions
 from server.status import RunStatus, SubmissionStatus
 from tests.server.builders import make_team, queued_submission, scenario_ids
 from tests.server.worker.test_evaluation_flow import claim, start
@@ -20,8 +20,9 @@ TORCH = (
 )
 
 
-def record(db, job, *, reason, steps, log=""):
+def record(db, job, *, reason, steps, log="", observed=True):
     outcome = ScenarioOutcome(
+        observed=observed,
         scenario_id=job.scenario_id,
         status=ScenarioStatus.done,
         steps=steps,
@@ -83,3 +84,40 @@ def test_an_agent_that_drove_once_runs_every_scenario(db, settings):
     assert last is True  # every scenario finished: the run goes on to be aggregated
     with db.session() as session:
         assert evaluation.finish_run(session, DatabaseStore(db), plan.run_id) == RunStatus.scored
+
+
+def failed_fast(db, settings, name: str, *, observed: bool) -> tuple[int, int]:
+    team, _ = make_team(db, name)
+    submission_id = queued_submission(db, team)  # final: a hidden phase
+    plan = start(db, settings, submission_id)
+    for sid in scenario_ids(plan)[:2]:
+        job = claim(db, settings, plan.run_id, sid)
+        record(db, job, reason="agent_error", steps=0, log=TORCH, observed=observed)
+    return team, submission_id
+
+
+def test_an_agent_that_could_not_be_loaded_gives_the_quota_back(db, settings):
+    """As docs/submissions.md says: nothing of a scenario reached it, so nothing is charged."""
+    team, submission_id = failed_fast(db, settings, "delta", observed=False)
+    with db.session() as session:
+        submission = session.get(Submission, submission_id)
+        assert submission.status == SubmissionStatus.failed and submission.never_started
+        assert "does not count against your daily quota" in submission.status_reason
+        used = submissions.quota_used(
+            session, team, "final", submission.track, submission.created_at
+        )
+    assert used == 0
+
+
+def test_an_agent_that_failed_at_its_first_observation_is_charged(db, settings):
+    """It saw a hidden scenario: a free run would carry what it saw to its team for nothing
+    (issue 40: an agent sleeping an observation-dependent time, then raising)."""
+    team, submission_id = failed_fast(db, settings, "epsilon", observed=True)
+    with db.session() as session:
+        submission = session.get(Submission, submission_id)
+        assert submission.status == SubmissionStatus.failed and not submission.never_started
+        assert "counts against your daily quota" in submission.status_reason
+        used = submissions.quota_used(
+            session, team, "final", submission.track, submission.created_at
+        )
+    assert used == 1
