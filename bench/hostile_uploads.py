@@ -13,9 +13,17 @@ rejected:
 - ``parallel-quota``: one team's parallel uploads with one try left;
 - ``slow-headers``: connections trickling their request headers (slowloris).
 
+First, on the idle service, the **validation-queue fairness** case (issue 40): a team uploads a zip
+of one-MiB ``.py`` files (480 of them; 500 once kept a validation busy for its whole 300 s, and
+another team's upload waited 299 s behind it), then another team uploads a small good zip; the
+figures are how long the other team waited for its verdict and how long the hostile validation
+took in all, with the slice after which a validation yields (``ARENA_VALIDATION_SLICE_S``, 5 s
+here so that a yield shows) and the hostile team's validation time as charged.
+
 Prints the figures idle and under load side by side with the targets (resident memory under
 300 MiB, ``/leaderboard`` p99 under 50 ms); the last line is
-``api_rss_mib=<n> leaderboard_p99_ms=<n> hostile_uploads=<n> rejected=<n>``.
+``api_rss_mib=<n> leaderboard_p99_ms=<n> hostile_uploads=<n> rejected=<n>
+other_team_wait_s=<n> hostile_validation_s=<n>``.
 
     python bench/hostile_uploads.py [--sandbox docker|bubblewrap] [--timeout 600]
 """
@@ -46,6 +54,7 @@ from server.processes import ARENA, free_port, start, stop
 TARGET_RSS_MIB = 300.0
 TARGET_P99_MS = 50.0
 PER_KIND = 3
+SLICE_S = 5.0
 HOST = "127.0.0.1"
 MiB = 1024**2
 POLICY = b"class Policy:\n    def act(self, obs):\n        return {}\n"
@@ -108,6 +117,42 @@ def fat_wheel(folder: Path) -> None:
         wheel.writestr(deflated(f"{dist}/RECORD"), "")
 
 
+def many_sources(path: Path, count: int) -> Path:
+    """``count`` one-MiB Python files (100,000-odd statements each) and a policy.py without a
+    Policy class: every file is extracted (and once every one was parsed) before the rejection."""
+    body = "".join(f"v{k} = {k}\n" for k in range(120_000)).encode()[:MiB]
+    body = body[: body.rfind(b"\n") + 1]
+    with zipfile.ZipFile(path, "w") as archive:
+        archive.writestr(deflated("policy.py"), b"class Agent:\n    pass\n")
+        for k in range(count):
+            archive.writestr(deflated(f"lib/m{k:03d}.py"), body)
+    return path
+
+
+def fairness(
+    url: str, hostile_token: str, other_token: str, zips: Path, files: int, timeout: float
+) -> tuple[float, float, str, str]:
+    """(seconds the other team waited for its verdict, seconds the hostile validation took, both
+    verdicts): the hostile upload first, the other team's a second later."""
+    hostile_zip = many_sources(zips / "many-sources.zip", files)
+    good = zips / "good.zip"
+    with zipfile.ZipFile(good, "w") as archive:
+        archive.writestr(deflated("policy.py"), POLICY)
+    started = time.monotonic()
+    hostile = upload(url, hostile_token, hostile_zip)
+    hostile.raise_for_status()
+    time.sleep(1.0)  # the hostile validation has a worker by now
+    asked = time.monotonic()
+    other = upload(url, other_token, good)
+    other.raise_for_status()
+    deadline = asked + timeout
+    other_verdict = final_status(url, other_token, other.json()["id"], deadline)
+    waited = time.monotonic() - asked
+    hostile_verdict = final_status(url, hostile_token, hostile.json()["id"], deadline)
+    took = time.monotonic() - started
+    return waited, took, other_verdict, hostile_verdict
+
+
 def with_requirements(path: Path, requirement: str) -> Path:
     with zipfile.ZipFile(path, "w") as archive:
         archive.writestr(deflated("policy.py"), POLICY)
@@ -138,6 +183,21 @@ def seed(database_url: str, teams: int, ranked: int = 200) -> dict[str, str]:
     tokens = {f"hostile-{k:02d}": make_team(f"hostile-{k:02d}")[1] for k in range(teams)}
     db.dispose()
     return tokens
+
+
+def validation_used(database_url: str, team_name: str) -> float:
+    """Validation time [s] charged today to the team ``team_name``."""
+    from server.core.db import Database
+    from server.models import Team, utcnow
+    from server.services.validation import used_today
+
+    db = Database(database_url)
+    try:
+        with db.read_session() as session:
+            team = session.query(Team).filter(Team.name == team_name).one()
+            return used_today(session, team.id, utcnow())
+    finally:
+        db.dispose()
 
 
 def wait_up(url: str, process: subprocess.Popen, log: Path) -> None:
@@ -271,6 +331,7 @@ def main() -> None:
     parser.add_argument("--smoke", action="store_true", help="one upload of each kind")
     args = parser.parse_args()
     per_kind, ranked, idle_s = (1, 20, 1.0) if args.smoke else (PER_KIND, 200, 5.0)
+    source_files = 60 if args.smoke else 480
 
     work = Path(tempfile.mkdtemp(prefix="arena-hostile-"))
     rng = random.Random(23)
@@ -288,6 +349,7 @@ def main() -> None:
             # The requirements come from the local wheel folder: nothing leaves the machine.
             "ARENA_PIP_OPTIONS": json.dumps(["--no-index", "--find-links", str(wheels)]),
             "ARENA_HTTP_HEADER_TIMEOUT_S": "5",
+            "ARENA_VALIDATION_SLICE_S": str(SLICE_S),
             # A suite for the phases to evaluate on (uploads to a phase without one are refused).
             "ARENA_HIDDEN_SUITE_DIR": str(SHIPPED_PUBLIC_DIR),
         }
@@ -300,11 +362,9 @@ def main() -> None:
             "offline-without-train": with_requirements(zips / "offline.zip", "fatpkg==1.0"),
         }
         parallel = with_requirements(zips / "parallel.zip", "fatpkg==1.0")
-        tokens = list(
-            seed(
-                settings.storage.resolved_database_url, per_kind * len(payloads) + 1, ranked
-            ).values()
-        )
+        seeded = seed(settings.storage.resolved_database_url, per_kind * len(payloads) + 3, ranked)
+        tokens = list(seeded.values())
+        hostile_team = list(seeded)[-1]  # the first token popped
         port = free_port()
         url = f"http://{HOST}:{port}"
         api = start([*ARENA, "serve", "--host", HOST, "--port", str(port)], env, work / "api.log")
@@ -313,6 +373,11 @@ def main() -> None:
             wait_up(url, api, work / "api.log")
             with Probe(url, api.pid) as idle:
                 time.sleep(idle_s)
+            # On the idle service: nothing else holds the worker or the queue.
+            waited, took, other_verdict, hostile_verdict = fairness(
+                url, tokens.pop(), tokens.pop(), zips, source_files, args.timeout
+            )
+            charged = validation_used(settings.storage.resolved_database_url, hostile_team)
             deadline = time.monotonic() + args.timeout
             sent = refused = 0
             verdicts: list[tuple[str, str]] = []
@@ -364,8 +429,15 @@ def main() -> None:
             f"(target < {TARGET_P99_MS:.0f}, ratio {loaded.p99_ms() / TARGET_P99_MS:.2f})"
         )
         print(
+            f"validation fairness: {source_files} one-MiB .py files ({hostile_verdict}) took "
+            f"{took:.1f} s, charged {charged:.1f} s of validation time; the other team's upload "
+            f"({other_verdict}) had its verdict after {waited:.1f} s (a validation yields after "
+            f"{SLICE_S:g} s to a team that used less)"
+        )
+        print(
             f"api_rss_mib={loaded.peak_rss:.0f} leaderboard_p99_ms={loaded.p99_ms():.1f} "
-            f"hostile_uploads={sent} rejected={rejected}"
+            f"hostile_uploads={sent} rejected={rejected} "
+            f"other_team_wait_s={waited:.1f} hostile_validation_s={took:.1f}"
         )
     finally:
         shutil.rmtree(work, ignore_errors=True)
