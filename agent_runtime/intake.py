@@ -52,6 +52,10 @@ MAX_EXPLANATION_CHARS = 20_000
 MAX_OPTIONS = 64
 MAX_OPTION_NAME = 64
 MAX_OPTION_VALUE = 256
+# A requirement line the host parses (packaging's parser recurses into parentheses: 20,000 deep
+# raised RecursionError in the worker): bounded here, where the team's bytes are read.
+MAX_REQUIREMENT_CHARS = 1000
+MAX_REQUIREMENT_NESTING = 8
 REPORT = "report.json"
 LIMITS = "limits.json"
 SUBMISSION_DIR = "submission"
@@ -729,14 +733,36 @@ def parse_agent_yaml(text: str) -> dict:
     return options
 
 
+def check_requirements(text: str) -> None:
+    """Every line of ``requirements.txt`` short and shallow enough for the host's parser."""
+    for number, line in enumerate(text.splitlines(), start=1):
+        entry = f"{REQUIREMENTS}:{number}"
+        if len(line) > MAX_REQUIREMENT_CHARS:
+            raise Rejected(
+                entry, "requirements-syntax", f"a line is over {MAX_REQUIREMENT_CHARS} characters"
+            )
+        depth = deepest = 0
+        for char in line:
+            depth += (char == "(") - (char == ")")
+            deepest = max(deepest, depth)
+        if deepest > MAX_REQUIREMENT_NESTING:
+            raise Rejected(
+                entry,
+                "requirements-syntax",
+                f"parentheses nest {deepest} deep (at most {MAX_REQUIREMENT_NESTING})",
+            )
+
+
 def read_contents(root: Path) -> dict:
     """What the files configuring the submission say, as the verdict's flat, bounded fields:
     ``agent_options`` (agent.yaml), ``requirements`` and ``explanation`` (texts)."""
     agent_yaml = read_config(root, AGENT_YAML)
     explanation = read_config(root, EXPLANATION, MAX_EXPLANATION_CHARS * 4, cut=True)
+    requirements = read_config(root, REQUIREMENTS)
+    check_requirements(requirements or "")
     return {
         "agent_options": parse_agent_yaml(agent_yaml) if agent_yaml is not None else {},
-        "requirements": read_config(root, REQUIREMENTS),
+        "requirements": requirements,
         "explanation": None if explanation is None else explanation[:MAX_EXPLANATION_CHARS],
     }
 
@@ -750,6 +776,7 @@ def porting_facts(root: Path) -> dict:
         options = {}
     try:
         requirements = read_config(root, REQUIREMENTS) or ""
+        check_requirements(requirements)
     except Rejected:
         requirements = ""
     form = options.get("observation_format")

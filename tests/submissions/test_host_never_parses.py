@@ -92,6 +92,24 @@ def test_the_host_reads_the_verdict_not_the_teams_files(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize(
+    "line",
+    [
+        "numpy; " + "(" * 20_000 + 'python_version > "3"' + ")" * 20_000,  # RecursionError once
+        "numpy; " + "(" * 300 + 'python_version > "3"' + ")" * 300,
+        "numpy" + " " * 2000,
+    ],
+    ids=["20000-deep", "300-deep", "long"],
+)
+def test_a_requirement_line_the_hosts_parser_could_not_take_is_refused(
+    line: str, tmp_path: Path
+) -> None:
+    upload = write_zip(tmp_path / "a.zip", with_policy(**{"requirements.txt": line + "\n"}))
+    with pytest.raises(IntakeError) as caught:
+        check_zip(upload, *ZIP_ONLY)
+    assert (caught.value.entry, caught.value.rule) == ("requirements.txt:1", "requirements-syntax")
+
+
+@pytest.mark.parametrize(
     "text",
     [
         "a: 1e3\nb: -1\nc: .5\nd: 1_000\ne: 0x10\nf: 010\ng: -.inf\nh: ~\ni:\n",
