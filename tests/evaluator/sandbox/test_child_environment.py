@@ -3,14 +3,14 @@ or process it can read (docs/deployment.md "Secrets", docs/sandbox.md).
 
 Each child kind (agent, warm agent, training, upload validation, requirements resolver, a suite
 build's host tool, an episode's fork server, `arena up`'s service processes and suite builder) is
-spawned the way the service spawns it, from a process whose own initial
-environment holds every secret as a plain variable (local use: the worst case, since
-``/proc/<pid>/environ`` keeps a process's initial environment whatever it does later), with the
-secrets also in files of mode 0400 as a deployment has them. The probe (``secret_probe.py``)
-looks for the secrets' values everywhere the child can. On the old code the process backend
-passed nothing secret but bubblewrap and Docker neither; `arena up` gave its API and worker the
-admin token and database URL in their environment and its suite builder the seed on its command
-line, and every host tool inherited the whole environment.
+spawned the way the service spawns it, from a process whose own initial environment holds every
+secret as a plain variable (local use: the worst case, since ``/proc/<pid>/environ`` keeps a
+process's initial environment whatever it does later), with the secrets also in files of mode
+0400 as a deployment has them. The probe (``secret_probe.py``) looks for the secrets' values
+everywhere the child can. Before the secrets were kept out, the sandboxes' own environments were
+already explicit, but `arena up` gave its API and worker the admin token in their environment
+and its suite builder the seed on its command line, and every host tool and every episode's fork
+server inherited the whole environment.
 """
 
 from __future__ import annotations
