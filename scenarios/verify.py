@@ -65,10 +65,12 @@ def replay_unsolved(folder: Path, cache_dir: Path) -> str | None:
 
 @functools.cache
 def _simulator_code() -> str:
-    """sha256 of the source the log replay expert's episode runs: the simulator and the expert."""
+    """sha256 of the source the log replay expert's episode runs: the simulator, the contracts
+    it reads scenarios and writes records by, and the expert."""
     root = Path(__file__).resolve().parents[1]
     digest = hashlib.sha256()
-    for path in sorted([*(root / "sim").rglob("*.py"), root / "scenarios" / "experts.py"]):
+    sources = [*(root / "sim").rglob("*.py"), *(root / "arena").glob("*.py")]
+    for path in sorted([*sources, root / "scenarios" / "experts.py"]):
         digest.update(path.relative_to(root).as_posix().encode() + b"\0" + path.read_bytes())
     return digest.hexdigest()
 

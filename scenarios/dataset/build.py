@@ -108,8 +108,8 @@ def _sources(
                 if identity in seen:
                     continue
                 seen.add(identity)
-                folder = work / str(len(out))
                 sid = f"{Path(s.file).stem}_{ego.vehicle_id}"
+                folder = work / f"{len(out):05d}-{sid}"  # ids of two files may coincide
                 write_naturalistic(folder, sid, s.scene, ego, s.net, seed=0)
                 facts = {
                     "source": s.scene.provenance.source,
