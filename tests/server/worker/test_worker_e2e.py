@@ -573,3 +573,87 @@ def test_audit_reruns_a_score_bit_identically_and_names_what_differs(
     finally:
         get_settings.cache_clear()
     db.dispose()
+
+
+def restart(stack_settings, tmp_path: Path, worker: subprocess.Popen, n: int):
+    """The whole service stops (SIGTERM) and starts again: a new worker process, new scratch."""
+    stop(worker)
+    return start_worker(stack_settings, tmp_path / f"worker-{n}.log")
+
+
+def attempt_results(db: Database, sid: int, attempt: int) -> list[tuple]:
+    """(scenario, episode, status, reason, steps) of one attempt's episodes."""
+    from server.models import EvaluationRun
+
+    with db.session() as session:
+        rows = session.execute(
+            select(
+                ScenarioResult.scenario_id,
+                ScenarioResult.episode,
+                ScenarioResult.status,
+                ScenarioResult.reason,
+                ScenarioResult.steps,
+            )
+            .join(EvaluationRun, EvaluationRun.id == ScenarioResult.run_id)
+            .where(EvaluationRun.submission_id == sid, EvaluationRun.attempt == attempt)
+        ).all()
+    return sorted(tuple(row) for row in rows)
+
+
+@pytest.mark.parametrize(
+    "kind",
+    [pytest.param("bubblewrap", id="bubblewrap"), pytest.param("docker", marks=pytest.mark.docker)],
+)
+@pytest.mark.parametrize("example", ["keep_lane", "ppo"])  # ppo: a requirements.txt
+def test_organiser_actions_after_a_restart(stack_settings, tmp_path, kind, example):
+    """The service restarts between the upload and each action. A re-run of the PPO example
+    (requirements) after a restart ended scored with 10/39 episodes FileNotFoundError
+    '/submission/policy.py' (its prepared folder removed under it) or ENOTEMPTY: now every
+    action works, a re-run reproduces the first attempt exactly and nothing of ours is shown
+    as the team's."""
+    from server.core.queue import TaskQueue
+    from server.services import admin, submissions
+    from server.services.errors import Conflict
+
+    settings = with_fields(stack_settings, sandbox={"kind": kind})
+    db = Database(settings.storage.database_url)
+    queue = TaskQueue(settings)
+    _, token = make_team(db, "restarted")
+    worker = start_worker(settings, tmp_path / "worker-0.log")
+    try:
+        with api_server(settings, tmp_path / "api-0.log") as (url, _):
+            sid = upload_example(url, token, example, tmp_path)
+            first = wait_finished(url, token, sid, timeout_s=900)
+        assert first["status"] == "scored", first
+        worker = restart(settings, tmp_path, worker, 1)
+        with api_server(settings, tmp_path / "api-1.log") as (url, _):
+            assert admin.rerun(db, settings, queue, sid) == 2
+            deadline = time.monotonic() + 900
+            while True:
+                body = httpx.get(
+                    f"{url}/api/v1/submissions/{sid}", headers=bearer(token), timeout=10
+                ).json()
+                if body["latest_attempt"]["status"] not in ("queued", "running"):
+                    break
+                assert time.monotonic() < deadline, body
+                time.sleep(1)
+            assert body["latest_attempt"] == {"attempt": 2, "status": "scored", "error": ""}
+            assert body["attempt"] == 2 and body["metrics"] == first["metrics"]
+        assert attempt_results(db, sid, 2) == attempt_results(db, sid, 1)
+        worker = restart(settings, tmp_path, worker, 2)
+        with pytest.raises(Conflict):  # nothing is lost: nothing to re-send
+            admin.requeue(db, settings, queue, sid)
+        with db.session() as session:
+            run_id = submissions.current_run(session.get(submissions.Submission, sid)).id
+        profile, metrics = admin.rescore_run(
+            db, settings.evaluation, artifact_store(settings.storage, db), run_id
+        )
+        assert metrics["completion"] == first["metrics"]["completion"], profile
+        with api_server(settings, tmp_path / "api-2.log") as (url, _):
+            other = upload_example(url, token, example, tmp_path)
+            worker = restart(settings, tmp_path, worker, 3)
+            assert submissions.cancel(db, queue, other).status == "cancelled"
+            assert wait_finished(url, token, other)["status"] == "cancelled"
+    finally:
+        stop(worker)
+    db.dispose()
