@@ -87,6 +87,8 @@ class NaturalisticScene:
     origin: tuple[float, float] = (0.0, 0.0)  # [m] the file's coordinates of the local 0, 0
     types: dict[str, str] = dataclasses.field(default_factory=dict)  # by vehicle id; else car
     left_out: dict[str, int] = dataclasses.field(default_factory=dict)  # road users, per type
+    # Obstacles without a recorded trajectory, per what they hold instead (not replayed).
+    untracked: dict[str, int] = dataclasses.field(default_factory=dict)
 
     @property
     def variant_prefix(self) -> str:
@@ -164,6 +166,7 @@ def load_scene(
         origin,
         {t.vehicle_id: kinds[t.vehicle_id] for t in replayed},
         dict(sorted(left_out.items())),
+        untracked,
     )
 
 
@@ -294,6 +297,8 @@ def collides(ego: Trajectory, others: Sequence[Trajectory]) -> str | None:
 REJECTIONS = {
     "traffic_only": "a road vehicle other than a car, truck or bus: replayed, never a mission",
     "not_replayed": "a train or tram, bicycle or pedestrian: left out of the replay",
+    "no_trajectory": "no exact recorded trajectory (an occupancy set, a single state, set-valued "
+    "or point-mass states): left out of the replay",
     "short": f"recorded for less than {MIN_PATH_S} s or travels less than {MIN_TRAVEL_M} m",
     "off_lanes": "a recorded pose fits no lane of the built map",
     "off_road": "its recorded centre leaves the built road surface",
@@ -312,6 +317,8 @@ def screen_egos(scene: NaturalisticScene, net_path: Path) -> tuple[list[Ego], Co
     rejected: Counter = Counter()
     if scene.left_out:
         rejected["not_replayed"] = sum(scene.left_out.values())
+    if scene.untracked:
+        rejected["no_trajectory"] = sum(scene.untracked.values())
     for tr in sorted(scene.trajectories, key=lambda t: t.vehicle_id):
         reason = None
         fits, route = None, None

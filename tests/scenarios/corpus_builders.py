@@ -169,13 +169,13 @@ def with_road_user(src: Path, out: Path, vehicle: str, kind: str, length: float)
     return _write(root, out)
 
 
-def with_states(src: Path, out: Path, kind: str) -> Path:
-    """``src`` with every vehicle's states of another state model: ``set-valued`` (positions as
-    rectangles, orientations as intervals, as in a prediction) or ``point-mass`` (velocity along
-    x and y, no orientation)."""
+def with_states(src: Path, out: Path, kind: str, vehicles: int | None = None) -> Path:
+    """``src`` with every vehicle's (or the first ``vehicles``') states of another state model:
+    ``set-valued`` (positions as rectangles, orientations as intervals, as in a prediction) or
+    ``point-mass`` (velocity along x and y, no orientation)."""
     root = ET.parse(src).getroot()
     root.set("benchmarkID", out.stem)
-    for obstacle in _obstacles(root):
+    for obstacle in _obstacles(root)[:vehicles]:
         for state in _states(obstacle):
             orientation = state.find("orientation")
             h = float(orientation.findtext("exact"))

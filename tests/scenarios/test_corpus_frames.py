@@ -159,6 +159,18 @@ def test_a_file_of_other_state_models_is_skipped_naming_what_it_holds(tmp_path, 
     assert f"12 with {kind} states" in str(error.value) and "malformed" not in str(error.value)
 
 
+def test_obstacles_without_an_exact_trajectory_beside_recorded_ones_are_counted(
+    tmp_path, scenes_dir
+):
+    """A file mixing recorded vehicles and a predicted one: the prediction is not replayed, and
+    the build says so."""
+    path = cb.with_states(scenes_dir / cb.HIGHWAY_2018, tmp_path / "a.xml", "set-valued", 1)
+    scene = load_scene(path)
+    assert scene.untracked == {"set-valued states": 1} and len(scene.trajectories) == 11
+    _, rejected = screen_egos(scene, scene_net(scene, tmp_path / "cache"))
+    assert rejected["no_trajectory"] == 1
+
+
 @pytest.mark.slow
 def test_a_mission_the_expert_cannot_finish_never_enters_a_suite_or_dataset(tmp_path, scenes_dir):
     """Every vehicle of the slowed copy drives its path 50 times slower: longer than an
