@@ -12,6 +12,7 @@ from datetime import timedelta
 from pathlib import Path
 
 import pytest
+from sqlalchemy import select
 
 from arena.suite import SHIPPED_PUBLIC_DIR, load_suite
 from server.core.db import Database
@@ -42,7 +43,9 @@ pytestmark = [
     ),
 ]
 ADMIN = "admin-token-for-the-phone-pages"
-SITE_KEYS = ("final", "validation", "running", "training", "queued", "scenario")
+SITE_KEYS = (
+    "final", "validation", "running", "training", "queued", "failed_training", "scenario"
+)  # fmt: skip
 FAMILIES = {
     name: {"scenarios": 9, "completion": 0.25, "time": 716.1, "humanness": 0.5, "rules": 0.125}
     for name in ("cruise", "cut_in", "left_turn_t", "merge", "overtake", "naturalistic_replay")
@@ -79,8 +82,6 @@ def training_submission(db, team_id: int) -> int:
 
 def publish_curves(settings, db, submission_id: int, output) -> None:
     """Curves as the worker publishes them while the submission's train.py runs."""
-    from sqlalchemy import select
-
     from evaluator.training.metrics import METRICS_FILE
     from server.core.artifacts import artifact_store
     from server.services.training_curves import CurvePublisher
@@ -156,6 +157,14 @@ def site(tmp_path_factory):
     training = training_submission(db, team_id)
     publish_curves(settings, db, training, root / "curves")
     queued = queued_submission(db, team_id)
+    failed_training = training_submission(db, team_id)
+    with db.session() as session:
+        session.get(Submission, failed_training).status = SubmissionStatus.failed
+        session.get(Submission, failed_training).status_reason = "train_error: train.py exited 1"
+        job = session.scalar(
+            select(TrainingJob).where(TrainingJob.submission_id == failed_training)
+        )
+        job.status, job.failure, job.error = TrainingStatus.failed, "train_error", "exited 1"
     db.dispose()
     log = tmp_path_factory.mktemp("phone") / "api.log"
     with api_server(settings, log) as (url, _):
@@ -167,6 +176,7 @@ def site(tmp_path_factory):
             "running": running,
             "training": training,
             "queued": queued,
+            "failed_training": failed_training,
             "scenario": scenario,
         }
     shutil.rmtree(root, ignore_errors=True)
@@ -244,7 +254,7 @@ def test_a_team_sees_phase_timings_rank_and_what_is_hidden(site, browser):  # no
     expect(page.locator("#progress-text")).not_to_contain_text("0 / 0")
     page.goto(f"{site['url']}/my-submissions")
     rows = page.locator("#mine tbody tr")
-    expect(rows).to_have_count(5)
+    expect(rows).to_have_count(6)
     expect(page.locator("#mine thead")).to_contain_text("Phase")
     expect(rows.last).to_contain_text("final")
     page.close()
@@ -361,3 +371,16 @@ def test_training_curves_are_drawn_while_it_trains(site, browser):  # noqa: F811
         if os.environ.get("ARENA_DOC_IMAGES"):
             curves.screenshot(path=DOC_IMAGES / f"training-curves-{label}.png")
         page.close()
+
+
+def test_a_submission_that_failed_in_training_lists_no_failures(site, browser):  # noqa: F811
+    """It once said "Failures: None." under a submission whose train.py failed: no episode ran."""
+    from playwright.sync_api import expect
+
+    page = open_page(browser, site, f"/submissions/{site['failed_training']}", PHONE)
+    expect(page.locator("#status")).to_have_text("failed")
+    expect(page.locator("#training-text")).to_contain_text("train_error")
+    expect(page.locator("#failures-box")).to_be_hidden()
+    page.goto(f"{site['url']}/submissions/{site['validation']}")  # ran episodes: counted
+    expect(page.locator("#failures-box")).to_be_visible()
+    page.close()
