@@ -28,6 +28,7 @@ import contextlib
 import json
 import os
 import re
+import shutil
 import socket
 import subprocess
 import sys
@@ -52,6 +53,12 @@ MAX_TRIED_VERSIONS = 4
 RELAY_CHUNK = 64 * 1024
 FILE_TOO_LARGE = "[Errno 27] File too large"
 MAX_TAIL_LINES = 24
+LEGACY_BUILD_ENV = "legacy-build-env"
+# What legacy setup.py files import without declaring it (d3rlpy 1.1.1: Cython and numpy, which
+# pip's isolated build environment lacks); the file's own numpy pin applies (the built extension
+# must match the numpy the agent imports).
+LEGACY_BUILD_REQUIRES = ("setuptools", "wheel", "Cython<3", "numpy")
+_LEGACY_FAILURE = re.compile(r"metadata-generation-failed|ModuleNotFoundError: No module named")
 _WORKING_ON = ("Collecting ", "Downloading ", "Processing ", "Building wheel for ")
 _BOILERPLATE = ("note:", "hint:", "╰─> See above", "[notice]")
 _VERSIONS_LINE = re.compile(r"^Available versions: (.*)$", re.MULTILINE)
@@ -118,6 +125,13 @@ class Pip:
         if request.get("pip_path"):
             self.env["PYTHONPATH"] = request["pip_path"]
         self.proxy = [] if proxy_port is None else ["--proxy", f"http://127.0.0.1:{proxy_port}"]
+        self.isolation: list[str] = []
+
+    def use_build_env(self, folder: Path) -> None:
+        """Build sdists against ``folder``'s packages, not in pip's isolated environment."""
+        paths = [self.request.get("pip_path"), str(folder)]
+        self.env["PYTHONPATH"] = os.pathsep.join(p for p in paths if p)
+        self.isolation = ["--no-build-isolation"]
 
     def index_options(self) -> list[str]:
         urls = list(self.request.get("index_urls") or [])
@@ -200,18 +214,16 @@ def allowed(text: str, versions: list[str]) -> list[str]:
 
 
 def cpu_builds(pip: Pip, lines: list[str]) -> dict[str, str]:
-    """For each framework line (torch...) in a sandbox without a GPU: the newest ``+cpu`` build
-    its specifier accepts, pinned exactly, so pip does not pick a CUDA build (gigabytes of GPU
-    libraries the sandbox cannot use)."""
+    """For each framework (torch...) in a sandbox without a GPU: the newest ``+cpu`` build its
+    line accepts (any, when only a dependency pulls it in), pinned exactly, so pip does not pick
+    a CUDA build (gigabytes of GPU libraries the sandbox cannot use)."""
     if pip.request.get("gpu"):
         return {}
-    frameworks = set(pip.request.get("cpu_frameworks") or [])
+    named = {project_of(line): line for line in reversed(lines)}
     chosen = {}
-    for line in lines:
-        project = project_of(line)
-        if project not in frameworks or project in chosen:
-            continue
-        cpu = [v for v in allowed(line, pip.versions(project)) if v.endswith("+cpu")]
+    for project in pip.request.get("cpu_frameworks") or []:
+        cpu = [v for v in allowed(named.get(project, project), pip.versions(project))]
+        cpu = [v for v in cpu if v.endswith("+cpu")]
         if cpu:
             chosen[project] = cpu[0]
     return chosen
@@ -232,6 +244,7 @@ def download(pip: Pip, lines: list[str], constraints: list[str], dest: Path, scr
         "off",
         "--dest",
         str(dest),
+        *pip.isolation,
         *pip.target_options(),
         *pip.index_options(),
         "-c",
@@ -240,6 +253,27 @@ def download(pip: Pip, lines: list[str], constraints: list[str], dest: Path, scr
         *lines,
     )
     return "" if code == 0 else output
+
+
+def legacy_build_env(pip: Pip, lines: list[str], constraints: list[str], output: Path) -> bool:
+    """Install :data:`LEGACY_BUILD_REQUIRES` (as the file's pins and the constraints allow) for
+    building sdists without isolation; whether that worked."""
+    pins = [line for line in lines if "==" in line]
+    constraint_file = write_lines(output / "tmp" / "constraints-build.txt", [*constraints, *pins])
+    code, _ = pip.run(
+        "install",
+        "--target",
+        str(output / LEGACY_BUILD_ENV),
+        *pip.target_options(binary_only=True),
+        *pip.index_options(),
+        "-c",
+        str(constraint_file),
+        "--",
+        *LEGACY_BUILD_REQUIRES,
+    )
+    if code == 0:
+        pip.use_build_env(output / LEGACY_BUILD_ENV)
+    return code == 0
 
 
 def resolves(pip: Pip, lines: list[str], constraints: list[str], scratch: Path) -> bool:
@@ -380,6 +414,10 @@ def run_download(request: dict, output: Path, proxy_port: int | None) -> dict:
     constraints = [*request.get("constraints", []), *(f"{p}=={v}" for p, v in builds.items())]
     wheels = output / WHEELS_DIR
     failure = download(pip, lines, constraints, wheels, scratch)
+    if _LEGACY_FAILURE.search(failure) and legacy_build_env(pip, lines, constraints, output):
+        # A legacy setup.py importing what it never declared: once more, against the usual ones.
+        shutil.rmtree(wheels, ignore_errors=True)
+        failure = download(pip, lines, constraints, wheels, scratch)
     if FILE_TOO_LARGE in failure:
         # The sandbox's file-size limit is one wheel's cap: pip's write past it failed.
         return {"ok": False, "cap": "max-wheel-bytes"}
@@ -436,6 +474,8 @@ def run_build(request: dict, source: Path, output: Path) -> dict:
     """Each sdist of ``source`` built into a wheel, with no network (``--no-index``) and only
     the build requirements downloaded before."""
     pip = Pip(request, output, None)
+    if (source / LEGACY_BUILD_ENV).is_dir():
+        pip.use_build_env(source / LEGACY_BUILD_ENV)
     wheels = output / WHEELS_DIR
     built = []
     sdists = source / SDISTS_DIR
@@ -444,6 +484,7 @@ def run_build(request: dict, source: Path, output: Path) -> dict:
             "wheel",
             "--no-index",
             "--no-deps",
+            *pip.isolation,
             "--find-links",
             str(source / BUILD_DEPS_DIR),
             "--wheel-dir",

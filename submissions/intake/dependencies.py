@@ -209,7 +209,11 @@ def resolve(
         build_in = work / "build-in"
         build_in.mkdir()
         (build_in / resolver_rules.REQUEST).write_text(json.dumps(request))
-        for name in (resolver_rules.SDISTS_DIR, resolver_rules.BUILD_DEPS_DIR):
+        for name in (
+            resolver_rules.SDISTS_DIR,
+            resolver_rules.BUILD_DEPS_DIR,
+            resolver_rules.LEGACY_BUILD_ENV,
+        ):
             if (downloaded / name).is_dir():
                 (downloaded / name).rename(build_in / name)
         built = runner("build", build_in, work / "build-out")
