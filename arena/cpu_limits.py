@@ -33,11 +33,12 @@ class CpuLimits:
     def over_budget(self, used_s: float) -> bool:
         return used_s > self.evaluation_s
 
-    def budget_exceeded(self, used_s: float, episodes: int) -> str:
+    def budget_exceeded(self, used_s: float, episodes: int | None) -> str:
         """What the team is told when its agent's CPU passed the evaluation's budget: how much,
-        where the episodes stopped, and what to change."""
+        where the episodes stopped (None: not told, in a hidden phase), and what to change."""
+        where = f" in {episodes} episode(s)" if episodes is not None else ""
         return (
-            f"your agent used {used_s:.1f} s of CPU in {episodes} episode(s), over this "
+            f"your agent used {used_s:.1f} s of CPU{where}, over this "
             f"evaluation's budget of {self.evaluation_s:g} s, so the remaining episodes were "
             f"not run. Make the policy's act() cheaper (each act may use {self.step_s:g} s, "
             f"each episode {self.episode_s:g} s; `arena evaluate` shows the CPU it used) "

@@ -35,7 +35,7 @@ from server.models import (
     TrainingJob,
 )
 from server.models import utcnow as now
-from server.services import leases, phases, scoring, seed_sets
+from server.services import hidden_timing, leases, phases, scoring, seed_sets
 from server.services.errors import Conflict, NotFound
 from server.services.leases import lease_until
 from server.status import (
@@ -399,7 +399,11 @@ def _stop_over_cpu_budget(session: Session, run: EvaluationRun, limits: CpuLimit
     used = agent_cpu_used(session, run.id)
     if not limits.over_budget(used):
         return False
-    _fail_run(session, run, limits.budget_exceeded(used, finished_count(session, run.id)))
+    if phases.team_sees_everything(phases.get_phase(session, run.submission.phase)):
+        told = limits.budget_exceeded(used, finished_count(session, run.id))
+    else:  # the CPU an agent chose to burn, and where it stopped, would time hidden scenarios
+        told = limits.budget_exceeded(hidden_timing.coarse_cpu_s(used), None)
+    _fail_run(session, run, told)
     return True
 
 

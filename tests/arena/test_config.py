@@ -60,6 +60,8 @@ VARIABLES = {
     "ARENA_RESOLVER_MEMORY_BYTES": ("intake", "resolver_memory_bytes", "17", 17),
     "ARENA_INTAKE_MEMORY_BYTES": ("intake", "intake_memory_bytes", "20", 20),
     "ARENA_INTAKE_TIMEOUT_S": ("intake", "intake_timeout_s", "21", 21.0),
+    "ARENA_VALIDATION_BUDGET_S": ("intake", "validation_budget_s", "900", 900.0),
+    "ARENA_VALIDATION_SLICE_S": ("intake", "validation_slice_s", "12.5", 12.5),
     "ARENA_TRAIN_DATASET_DIR": ("training", "train_dataset_dir", "/d", Path("/d")),
     "ARENA_TRAIN_TIMEOUT_S": ("training", "train_timeout_s", "22", 22.0),
     "ARENA_TRAIN_OUTPUT_BYTES": ("training", "train_output_bytes", "23", 23),
