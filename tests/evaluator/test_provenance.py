@@ -73,3 +73,15 @@ def test_the_agents_stack_is_recorded_but_a_rerun_is_not_refused_over_it():
     assert Manifest.model_validate_json(m.model_dump_json()) == m
     # An audit knows the agent's stack only once it has run the agent again.
     assert differences(m, manifest()) == []
+
+
+def test_a_reported_stack_keeps_a_few_short_strings_only():
+    """The stack is the sandbox's word: what is not a short string pair is dropped, and a
+    report of thousands of entries keeps 32."""
+    from evaluator.sandbox.handle import MAX_STACK_ENTRIES, reported_stack
+
+    assert reported_stack(["numpy"]) == {}
+    kept = reported_stack({"numpy": "1.23.5", "torch": 2, "x" * 65: "1", "scipy": "y" * 65})
+    assert kept == {"numpy": "1.23.5"}
+    many = reported_stack({f"m{i:05d}": "1" for i in range(5000)})
+    assert len(many) == MAX_STACK_ENTRIES
