@@ -37,6 +37,11 @@ const Arena = (() => {
     const form = $("submit-form");
     $("token").value = sessionStorage.getItem(TOKEN_KEY) || "";
     for (const id of ["phase", "track", "token"]) $(id).addEventListener("change", triesLeft);
+    // The chosen phase in full under the select (a phone cuts a long option).
+    const details = JSON.parse($("phase").dataset.details);
+    $("phase").addEventListener("change", () => {
+      $("phase-detail").textContent = details[$("phase").value] || "";
+    });
     triesLeft();
     form.addEventListener("submit", async (event) => {
       event.preventDefault();
@@ -196,7 +201,7 @@ const Arena = (() => {
         (st.ranked_submission_id === s.id ? " with this submission"
           : ` with submission ${st.ranked_submission_id}`) +
         // The rank range in the words of the leaderboard and the CLI (said by the server).
-        `: ${st.statistics}.`;
+        `; ${st.statistics}.`;
     text += ` ${st.tries_left_today} of ${st.daily_quota} uploads left today in this phase.`;
     $("standing").textContent = text;
   }

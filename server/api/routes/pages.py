@@ -81,6 +81,23 @@ def _costs(phase: Phase, episodes: int, evaluation: EvaluationSettings) -> list[
     return costs
 
 
+def _detail(phase: Phase, moment, episodes: int, evaluation: EvaluationSettings) -> str:
+    """A phase as the submit form says it in full."""
+    state = phases.state(phase, moment)
+    if state != "open":
+        return f"Phase {phase.name} is {state}."
+    what = (
+        "public scenarios, full results"
+        if phases.team_sees_everything(phase)
+        else "hidden suite, metrics only"
+    )
+    closes = f"closes {phase.ends_at:%Y-%m-%d %H:%M} UTC" if phase.ends_at else "never closes"
+    return (
+        "; ".join([f"Phase {phase.name}: {what}, {closes}", *_costs(phase, episodes, evaluation)])
+        + "."
+    )
+
+
 @router.get("/submit", response_class=HTMLResponse)
 def submit_page(request: Request, session: SessionDep, evaluation: EvaluationDep) -> HTMLResponse:
     # Every phase, a closed or future one too (disabled, saying when): a phase that just
@@ -100,9 +117,9 @@ def submit_page(request: Request, session: SessionDep, evaluation: EvaluationDep
             "states": {p.name: phases.state(p, moment) for p in known},
             "any_open": any(phases.is_open(p, moment) for p in known),
             "default_phase": default,
-            # Said before the upload: several episodes, or training seeds, multiply the time to
-            # a score.
-            "costs": {p.name: "; ".join(_costs(p, episodes[p.name], evaluation)) for p in known},
+            # Said before the upload, under the select (a phone cuts a long option): when it
+            # closes, and what multiplies the time to a score (episodes, training seeds).
+            "details": {p.name: _detail(p, moment, episodes[p.name], evaluation) for p in known},
         },
     )
 

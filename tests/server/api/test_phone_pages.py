@@ -270,6 +270,11 @@ def test_the_submit_form_says_every_phase_its_dates_and_tries_left(site, browser
     assert any(t.startswith("bonus-round") and "opens" in t for t in texts), texts
     closed = page.locator("#phase option[value='warmup']")
     assert closed.get_attribute("disabled") is not None
+    # Every option short enough for a phone's select; the chosen phase in full below it.
+    assert all(len(text) <= 40 for text in texts), texts
+    expect(page.locator("#phase-detail")).to_contain_text("Phase final: hidden suite")
+    page.select_option("#phase", "validation")
+    expect(page.locator("#phase-detail")).to_contain_text("Phase validation: public scenarios")
     expect(page.locator("#tries-left")).to_contain_text("left today")
     page.close()
 
