@@ -475,16 +475,14 @@ class _RichProgress:
 
 
 def format_metrics(metrics) -> tuple[str, str, str, str]:
-    """The four metrics as printed everywhere (web pages too): time 1 decimal, the others 4."""
+    """The four metrics as printed everywhere (web pages too: arena/figures.py); "—" where no
+    agent drove a step (nothing measured, never 0, the best value)."""
+    # deferred: CLI start-up time
+    from arena.figures import METRICS, metric_text
+
     if metrics is None:
         return ("-", "-", "-", "-")
-    undriven = "—"  # no agent drove a step: nothing measured (never 0, the best value)
-    return (
-        f"{metrics.completion:.4f}",
-        f"{metrics.time:.1f}",
-        undriven if metrics.humanness is None else f"{metrics.humanness:.4f}",
-        undriven if metrics.rules is None else f"{metrics.rules:.4f}",
-    )
+    return tuple(metric_text(name, getattr(metrics, name)) for name in METRICS)
 
 
 def _report(
@@ -574,9 +572,12 @@ def _print_interval(summary: Summary, console: Console) -> None:
         return
     n = summary.episodes_per_scenario
     runs = f"{n} episodes of each reactive scenario" if n > 1 else "one episode per scenario"
+    # deferred: CLI start-up time
+    from arena.figures import interval_text, metric_text
+
     console.print(
-        f"completion {summary.metrics.completion:.4f}, 95% interval "
-        f"[{interval.low:.4f}, {interval.high:.4f}] (bootstrap over scenarios and episodes; "
+        f"completion {metric_text('completion', summary.metrics.completion)}, 95% interval "
+        f"{interval_text(interval.low, interval.high)} (bootstrap over scenarios and episodes; "
         f"{runs})"
     )
 

@@ -145,3 +145,13 @@ def test_a_resumed_runs_progress_counts_the_episodes_it_kept():
     progress.finished(outcome("d", "step_timeout"))
     progress.stop()
     assert progress.counts == {"faults": 2, "missed": 1, "uncharged": 0}
+
+
+def test_arena_evaluate_writes_figures_as_every_other_view_does():
+    """One rounding everywhere: a half at the last decimal goes away from zero (0.53125 reads
+    0.5313 here, on the pages and in the admin CLI), nothing measured reads "—"."""
+    from evaluator.cli import format_metrics
+    from evaluator.scoring import Metrics
+
+    measured = Metrics(completion=0.53125, time=412.25, humanness=None, rules=0.0)
+    assert format_metrics(measured) == ("0.5313", "412.3", "—", "0.0000")
