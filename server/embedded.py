@@ -24,6 +24,7 @@ from pathlib import Path
 import httpx
 from rich.console import Console
 from rich.panel import Panel
+from sqlalchemy import make_url
 
 from arena.child_env import SERVICE_VARIABLES, child_environment
 from arena.config import (
@@ -65,7 +66,8 @@ def run_embedded(console: Console, *, host: str, port: int, demo_team: str) -> N
     admin_token = settings.service.admin_token or _stored_admin_token(data)
     env = service_environment(settings, data, secrets_folder(data))
 
-    console.print(f"database: {settings.storage.resolved_database_url}")
+    shown = make_url(settings.storage.resolved_database_url).render_as_string(hide_password=True)
+    console.print(f"database: {shown}")
     upgrade_database(settings.storage.resolved_database_url)
 
     env["ARENA_PUBLIC_SUITE_DIR"] = str(_public_suite(console, settings.suites, data, env))
