@@ -75,7 +75,7 @@ def test_upload_is_received_validated_then_queued(client, db, settings, keep_lan
     assert submission(client, token, body["id"])["status"] == "queued"
     assert body["team"] == "alpha"
     assert body["file_size"] == len(keep_lane_zip)
-    assert body["progress"] == {"done": 0, "total": 0, "seeds": 1}
+    assert body["progress"] == {"done": 0, "total": 0, "seeds": 1, "unit": "episodes"}
     listed = client.get("/api/v1/submissions", headers=bearer(token)).json()
     assert [item["id"] for item in listed] == [body["id"]]
     with db.session() as session:

@@ -156,6 +156,7 @@ def test_offline_submission_trains_then_is_evaluated_and_ranked(stack_settings, 
                 "done": len(SCENARIOS),
                 "total": len(SCENARIOS),
                 "seeds": 1,
+                "unit": "episodes",
             }
             training = final["training"]
             assert training["status"] == "trained" and training["failure"] == ""

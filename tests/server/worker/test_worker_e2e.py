@@ -92,6 +92,7 @@ def test_three_examples_are_scored_and_ranked(stack_settings, tmp_path):
                     "done": len(SCENARIOS),
                     "total": len(SCENARIOS),
                     "seeds": 1,
+                    "unit": "episodes",
                 }
             assert final["planner"]["metrics"]["completion"] == 0.0
             time.sleep(1.1)  # the API re-checks the leaderboard generation once a second
@@ -424,7 +425,12 @@ def test_several_episodes_per_scenario_through_the_worker(stack_settings, suite,
     reactive = [s for s in SCENARIOS if "replay" not in s]
     assert body["status"] == "scored", body
     episodes = 2 * len(reactive) + 1
-    assert body["progress"] == {"done": episodes, "total": episodes, "seeds": 1}
+    assert body["progress"] == {
+        "done": episodes,
+        "total": episodes,
+        "seeds": 1,
+        "unit": "episodes",
+    }
     assert body["episodes_per_scenario"] == 2
     assert body["metrics"] == local.metrics.model_dump()
     assert body["completion_interval"] == {"low": interval.low, "high": interval.high}
