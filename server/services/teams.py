@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
+from arena.names import did_you_mean
 from server.models import ApiToken, Submission, Team, utcnow
 from server.security import hash_token, new_token
 from server.services.errors import Conflict, InvalidInput, NotFound
@@ -62,7 +63,8 @@ def team_for_token(session: Session, token: str) -> Team | None:
 def get_team(session: Session, name: str) -> Team:
     team = session.scalar(select(Team).where(Team.name == name))
     if team is None:
-        raise NotFound(f"no team named {name!r}")
+        known = session.scalars(select(Team.name))
+        raise NotFound(f"no team named {name!r}{did_you_mean(name, known)}")
     return team
 
 

@@ -36,6 +36,9 @@ def test_teams_create_list_rotate(arena, client):
         == 200
     )
     assert "already exists" in arena("teams", "create", "gamma", ok=False)
+    assert "no team named 'gama'; did you mean 'gamma'?" in arena(
+        "teams", "rotate-token", "gama", ok=False
+    )
     assert "gamma" in arena("teams", "list")
     new = re.search(r"(arena_\S+)", arena("teams", "rotate-token", "gamma")).group(1)
     assert (
