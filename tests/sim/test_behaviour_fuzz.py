@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 
 from arena.outcome import DoneReason
-from sim.episode import run_episode
 from scenarios.suites import SUITES
+from sim.episode import run_episode
 from sim.interface import AgentInterface
 from tests.sim.behaviours import BEHAVIOURS, Behaviour, BehaviourAgent
 
