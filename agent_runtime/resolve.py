@@ -213,20 +213,31 @@ def allowed(text: str, versions: list[str]) -> list[str]:
     return kept
 
 
-def cpu_builds(pip: Pip, lines: list[str]) -> dict[str, str]:
-    """For each framework (torch...) in a sandbox without a GPU: the newest ``+cpu`` build its
-    line accepts (any, when only a dependency pulls it in), pinned exactly, so pip does not pick
-    a CUDA build (gigabytes of GPU libraries the sandbox cannot use)."""
+def cpu_builds(pip: Pip, lines: list[str], projects: set[str]) -> dict[str, str]:
+    """For each framework of ``projects`` (torch...) in a sandbox without a GPU: the newest
+    ``+cpu`` build its line accepts (any, when only a dependency pulls it in), pinned exactly,
+    so pip does not pick a CUDA build (gigabytes of GPU libraries the sandbox cannot use)."""
     if pip.request.get("gpu"):
         return {}
     named = {project_of(line): line for line in reversed(lines)}
     chosen = {}
-    for project in pip.request.get("cpu_frameworks") or []:
-        cpu = [v for v in allowed(named.get(project, project), pip.versions(project))]
-        cpu = [v for v in cpu if v.endswith("+cpu")]
+    for project in sorted(projects & set(pip.request.get("cpu_frameworks") or [])):
+        found = allowed(named.get(project, project), pip.versions(project))
+        cpu = [v for v in found if v.endswith("+cpu")]
         if cpu:
             chosen[project] = cpu[0]
     return chosen
+
+
+def gpu_builds_downloaded(wheels: Path) -> set[str]:
+    """The projects downloaded in a build that is not a CPU one (a framework among them was
+    pulled in by a dependency)."""
+    found = set()
+    for wheel in wheels.glob("*.whl"):
+        project, version = wheel.name.split("-")[:2]
+        if not version.endswith("+cpu"):
+            found.add(project_of(project))
+    return found
 
 
 def write_lines(path: Path, lines: list[str]) -> Path:
@@ -410,10 +421,24 @@ def run_download(request: dict, output: Path, proxy_port: int | None) -> dict:
     scratch = output / "tmp"
     numbered = request["requirements"]
     lines = [line for _, line in numbered]
-    builds = cpu_builds(pip, lines)
+    builds = cpu_builds(pip, lines, {project_of(line) for line in lines})
     constraints = [*request.get("constraints", []), *(f"{p}=={v}" for p, v in builds.items())]
     wheels = output / WHEELS_DIR
     failure = download(pip, lines, constraints, wheels, scratch)
+    if not failure:
+        suspects = gpu_builds_downloaded(wheels) - set(builds)
+    elif FILE_TOO_LARGE in failure:
+        # Maybe a GPU build past one wheel's cap, pulled in by a dependency.
+        suspects = set(request.get("cpu_frameworks") or []) - set(builds)
+    else:
+        suspects = set()
+    pulled_in = cpu_builds(pip, lines, suspects) if suspects else {}
+    if pulled_in:
+        # A dependency pulled in a framework's GPU build: once more, with its CPU build pinned.
+        builds |= pulled_in
+        constraints += [f"{p}=={v}" for p, v in pulled_in.items()]
+        shutil.rmtree(wheels, ignore_errors=True)
+        failure = download(pip, lines, constraints, wheels, scratch)
     if _LEGACY_FAILURE.search(failure) and legacy_build_env(pip, lines, constraints, output):
         # A legacy setup.py importing what it never declared: once more, against the usual ones.
         shutil.rmtree(wheels, ignore_errors=True)
@@ -430,6 +455,10 @@ def run_download(request: dict, output: Path, proxy_port: int | None) -> dict:
             "conflict": conflict_block(failure),
             "tail": [] if errors else failure_tail(failure),
         }
+    for wheel in wheels.glob("*.whl"):
+        project, version = wheel.name.split("-")[:2]
+        if project_of(project) in (request.get("cpu_frameworks") or []) and "+cpu" in version:
+            builds[project_of(project)] = version  # what the page tells: the build installed
     sdists = [p for p in sorted(wheels.iterdir()) if p.name.endswith(SDIST_SUFFIXES)]
     if sdists:
         (output / SDISTS_DIR).mkdir()

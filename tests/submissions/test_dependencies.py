@@ -124,6 +124,10 @@ def index(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, Path]
     build_wheel(files, "gpulib", "1.0", {"gpulib/big.bin": os.urandom(3 * MiB)})
     build_wheel(files, "torch", "2.1.0+cpu")
     build_wheel(files, "torch", "2.0.0+cpu")
+    # The newest torch has a GPU build only: a plain line must still get a CPU one.
+    build_wheel(files, "torch", "2.2.0", requires=("gpulib",))
+    # A library that needs torch without naming a build (d3rlpy does).
+    build_wheel(files, "needstorch", "1.0", requires=("torch>=2",))
     # Incompressible: more than the zip cap, less than a wheel's (torch's CPU build is 183 MiB).
     build_wheel(files, "bigwheel", "1.0", {"bigwheel/blob.bin": os.urandom(3 * MiB)})
     marker = root / "built-on-the-host"
@@ -296,7 +300,10 @@ def test_a_conflict_keeps_pips_explanation_with_the_teams_lines(
 
 
 @pytest.mark.slow  # the resolver sandbox (bubblewrap)
-@pytest.mark.parametrize(("line", "build"), [("torch", "2.1.0+cpu"), ("torch==2.0.0", "2.0.0+cpu")])
+@pytest.mark.parametrize(
+    ("line", "build"),
+    [("torch", "2.1.0+cpu"), ("torch==2.0.0", "2.0.0+cpu"), ("needstorch==1.0", "2.1.0+cpu")],
+)
 def test_a_framework_installs_its_cpu_build(
     tmp_path: Path, index: tuple[str, Path], line: str, build: str
 ) -> None:
