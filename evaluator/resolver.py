@@ -35,6 +35,7 @@ from evaluator.sandbox.backend import (
     Sandbox,
     Training,
 )
+from evaluator.sandbox.docker_backend import shared_copy
 from evaluator.sandbox.index_proxy import IndexProxy, allowed_address
 from evaluator.validation import open_to_sandbox, output_usage, writable_by_sandbox
 from submissions.intake.contents import REQUIREMENTS
@@ -67,10 +68,12 @@ def _stub(mode: str) -> str:
     )
 
 
-def resolver_mounts(request: dict, proxy_dir: Path | None) -> tuple[tuple[str, Path], ...]:
-    """pip, the proxy's socket folder (download only) and the index's folders (at their own
+def resolver_mounts(
+    request: dict, pip: Path, proxy_dir: Path | None
+) -> tuple[tuple[str, Path], ...]:
+    """``pip``, the proxy's socket folder (download only) and the index's folders (at their own
     paths, so ``file:`` URLs and relative links read the same inside)."""
-    mounts = [(f"{PIP_MOUNT}/pip", host_pip())]
+    mounts = [(f"{PIP_MOUNT}/pip", pip)]
     if proxy_dir is not None:
         mounts.append((PROXY_MOUNT, proxy_dir))
     for location in [*request["index_urls"], *request["find_links"]]:
@@ -133,7 +136,14 @@ def spawn_resolver(
         output,
         intake.resolver_timeout_s,
         intake.max_wheel_bytes,
-        mounts=resolver_mounts(request, proxy_dir),
+        # A worker in a container: the daemon binds a copy in the shared folder.
+        mounts=resolver_mounts(
+            request,
+            shared_copy(host_pip(), config.sandbox_shared_dir, "resolver-pip")
+            if chosen is SandboxKind.docker
+            else host_pip(),
+            proxy_dir,
+        ),
     )
     return sandbox.start_training(
         SimpleNamespace(root=program, deps_dir=None),

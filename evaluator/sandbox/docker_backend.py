@@ -71,27 +71,30 @@ def socket_dir_for(instance: str, shared: Path | None) -> Path:
 
 def runtime_source(shared: Path | None) -> Path:
     """The agent runtime folder the daemon binds: the package itself, or, with
-    ``ARENA_SANDBOX_SHARED_DIR`` (a worker in a container), a copy of it there, one per content
-    (several workers and threads make it at once: each copies, then renames)."""
-    package = runtime_dir()
+    ``ARENA_SANDBOX_SHARED_DIR`` (a worker in a container), a copy of it there."""
+    return shared_copy(runtime_dir(), shared, "agent-runtime")
+
+
+def shared_copy(package: Path, shared: Path | None, name: str) -> Path:
+    """The folder ``package`` as the daemon can bind it: itself, or, with a shared folder (a
+    worker in a container), a copy there named ``name`` and its content's digest (several
+    workers and threads make it at once: each copies, then renames)."""
     if shared is None:
         return package
     digest = hashlib.sha256()
-    files = sorted(p for p in package.rglob("*.py") if "__pycache__" not in p.parts)
+    files = sorted(p for p in package.rglob("*") if p.is_file() and "__pycache__" not in p.parts)
     for path in files:
         digest.update(str(path.relative_to(package)).encode() + b"\0" + path.read_bytes())
-    target = shared / f"agent-runtime-{digest.hexdigest()[:16]}"
+    target = shared / f"{name}-{digest.hexdigest()[:16]}"
     if not target.is_dir():
         # The first launch may be an upload's validation, before any agent made the folder.
         shared.mkdir(parents=True, exist_ok=True)
-        partial = Path(tempfile.mkdtemp(prefix=".agent-runtime-", dir=shared))
+        partial = Path(tempfile.mkdtemp(prefix=f".{name}-", dir=shared))
         for path in files:
             (partial / path.relative_to(package)).parent.mkdir(parents=True, exist_ok=True)
             shutil.copyfile(path, partial / path.relative_to(package))
-        for folder in [partial, *(p for p in partial.rglob("*") if p.is_dir())]:
-            folder.chmod(0o755)
-        for path in partial.rglob("*.py"):
-            path.chmod(0o644)
+        for path in [partial, *partial.rglob("*")]:
+            path.chmod(0o755 if path.is_dir() else 0o644)
         try:
             partial.rename(target)
         except OSError:  # another process made it first
