@@ -106,3 +106,16 @@ def test_training_logs_episode_statistics_and_exports_without_warnings(
     assert {"r", "l", "t", "done_reason"} <= set(rows[0])
     assert all(int(row["l"]) > 0 for row in rows)
     assert not [w for w in recwarn if "ONNX" in str(w.message) or "removed" in str(w.message)]
+
+
+@pytest.mark.slow  # stable-baselines3's import (torch)
+def test_sb3_check_env_passes_on_the_environment_the_example_trains_on(example, short_road):
+    """SB3's checker refuses the raw environment's shape-() scalars (docs/training.md); the
+    wrapped one a policy trains on passes it whole."""
+    from stable_baselines3.common.env_checker import check_env
+
+    env = example["train"].make_env(str(short_road), 0, 0)()
+    try:
+        check_env(env, warn=False)
+    finally:
+        env.close()
