@@ -1,8 +1,9 @@
 """A submission written the way Driving SMARTS 2022 agents were (``ds2022_agent/``: ``smarts`` and
 ``gym`` imports, the kit's ``submitted_wrappers()`` with ``FormatObs`` / ``FormatAction`` and a
 wrapper of its own reading SMARTS's observation by attribute, later SMARTS's key names
-(``format_obs_keys: later``), ``numpy==1.23.5`` pinned and ``np.float`` used) runs unmodified on public scenarios in each sandbox, on the numpy it pinned
-(issue 24)."""
+(``format_obs_keys: later``), ``numpy==1.23.5`` pinned and ``np.float`` used) runs unmodified
+on public scenarios in each sandbox, on the numpy it pinned (issue 24), which the results
+manifest names."""
 
 from __future__ import annotations
 
