@@ -347,7 +347,7 @@ def main() -> None:
             "ARENA_SANDBOX": args.sandbox,
             "ARENA_TRAIN_DATASET_DIR": str(dataset),
             # The requirements come from the local wheel folder: nothing leaves the machine.
-            "ARENA_PIP_OPTIONS": json.dumps(["--no-index", "--find-links", str(wheels)]),
+            "ARENA_PACKAGE_INDEX": json.dumps([str(wheels)]),
             "ARENA_HTTP_HEADER_TIMEOUT_S": "5",
             "ARENA_VALIDATION_SLICE_S": str(SLICE_S),
             # A suite for the phases to evaluate on (uploads to a phase without one are refused).
