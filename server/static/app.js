@@ -241,6 +241,11 @@ const Arena = (() => {
       ["episodes per reactive scenario", String(manifest.episodes_per_scenario)],
       ["scoring profile", `${manifest.profile} v${manifest.profile_version}`],
       ["software", env || "—"],
+      // What the agent imported in its sandbox, by version: a framework's local label names its
+      // build (torch 2.13.0+cpu: the CPU build).
+      ["agent's stack", manifest.environments.map((e) => Object.entries(e.agent_stack || {})
+        .map(([name, version]) => `${name} ${version}`).join(", ")).filter(Boolean)
+        .join("; ") || "—"],
     ];
     const list = $("manifest");
     list.replaceChildren();

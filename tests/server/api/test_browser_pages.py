@@ -342,6 +342,7 @@ def test_submission_page_over_training_seeds_counts_every_seeds_failures(
         page.click("#manifest-box summary")
         expect(page.locator("#manifest")).to_contain_text("trained model sha256, seed 0")
         expect(page.locator("#manifest")).to_contain_text("trained model sha256, seed 1")
+        expect(page.locator("#manifest")).to_contain_text("agent's stack")
         shoot(page, "submission-seeds")
         assert page.refused == []
         page.close()
