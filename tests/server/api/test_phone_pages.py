@@ -11,6 +11,7 @@ import shutil
 from datetime import timedelta
 from pathlib import Path
 
+import numpy as np
 import pytest
 from sqlalchemy import select
 
@@ -20,6 +21,7 @@ from server.core.migrate import upgrade_database
 from server.models import Phase, Submission, TrainingJob, Visibility, utcnow
 from server.status import SubmissionStatus, TrainingStatus
 from server.tracks import Track
+from tests.evaluator.scoring.builders import simulated
 from tests.server.api.test_browser import CHROMIUM
 from tests.server.api.test_browser_pages import (
     DESKTOP,
@@ -132,6 +134,8 @@ def site(tmp_path_factory):
                 starts_at=utcnow() + timedelta(days=10),
             )
         )
+    # Per-episode values of two agents the suite cannot tell apart: their ranks are a range.
+    rng = np.random.default_rng(3)
     team_id, token = make_team(db, "a-team-with-a-rather-long-name-for-a-phone")
     other_id, _ = make_team(db, "other")
     final = seed_scored(
@@ -141,8 +145,16 @@ def site(tmp_path_factory):
         method_name="a method with a long descriptive name, version 12",
         interval=(0.1, 0.4),
         families=FAMILIES,
+        samples=simulated(rng, 0.2, scenarios=24),
     )
-    seed_scored(db, other_id, (0.1, 600.0, 0.2, 0.1), interval=(0.02, 0.2), families=FAMILIES)
+    seed_scored(
+        db,
+        other_id,
+        (0.1, 600.0, 0.2, 0.1),
+        interval=(0.02, 0.2),
+        families=FAMILIES,
+        samples=simulated(rng, 0.2, scenarios=24),
+    )
     validation = seed_scored(
         db,
         team_id,
@@ -336,6 +348,9 @@ def test_results_and_rank_ranges_are_drawn_at_desktop_and_phone_width(site, brow
         board = open_page(browser, site, "/", viewport)
         ranks = board.locator("#leaderboard svg.rank-chart")
         expect(ranks).to_have_count(2)
+        # Both could rank 1 to 2: tied, the range drawn and the chance to be ahead shown.
+        expect(board.locator("#leaderboard .tied")).to_have_count(2)
+        expect(board.locator("td.ahead").first).to_contain_text("%")
         expect(ranks.first).to_be_visible()  # drawn in the rank cell, not behind a hover
         if os.environ.get("ARENA_DOC_IMAGES"):
             board.locator("#leaderboard").screenshot(path=DOC_IMAGES / f"leaderboard-{label}.png")
