@@ -185,9 +185,10 @@ def build_dataset(
                     unsolved.append({**source.facts, "reason": reason})
                 progress(source.folder.name)
     if not rows:
+        first = unsolved[0]["reason"] if unsolved else "each ended before its second step"
         raise DatasetError(
             f"no episode left: the log replay expert finished none of the {len(sources)} "
-            f"scenarios (first: {unsolved[0]['reason']})"
+            f"scenarios (first: {first})"
         )
     out.mkdir(parents=True, exist_ok=True)
     os.environ["MINARI_DATASETS_PATH"] = str(out)  # where minari writes and looks up datasets
