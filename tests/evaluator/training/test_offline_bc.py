@@ -37,7 +37,7 @@ def test_its_features_are_the_datasets():
 def dataset(tmp_path) -> Path:
     folder = tmp_path / "dataset"
     folder.mkdir()
-    write_transitions(folder / TRANSITIONS, collect(SHIPPED_PUBLIC_DIR / REPLAY))
+    write_transitions(folder / TRANSITIONS, collect(SHIPPED_PUBLIC_DIR / REPLAY)[0])
     return folder
 
 

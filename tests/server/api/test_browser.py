@@ -138,7 +138,7 @@ def test_an_offline_submission_through_the_form_trains_then_ranks(embedded_setti
 
     dataset = embedded_settings.storage.data_dir.parent / "dataset"
     dataset.mkdir()
-    write_transitions(dataset / TRANSITIONS, collect(SHIPPED_PUBLIC_DIR / "p030_replay_cruise"))
+    write_transitions(dataset / TRANSITIONS, collect(SHIPPED_PUBLIC_DIR / "p030_replay_cruise")[0])
     (dataset / TRANSITIONS).chmod(0o644)
     settings = with_fields(embedded_settings, training={"train_dataset_dir": dataset})
     db = Database(settings.storage.resolved_database_url)
