@@ -17,7 +17,8 @@ them (origin 0, 0). The origin is in the suite manifest (``naturalistic_scenes``
 A recorded road user's type decides what it can be: cars, trucks and buses are missions or traffic
 (:data:`MISSION_TYPES`), other road vehicles traffic only (:data:`TRAFFIC_TYPES`), and the rest
 (trains and trams, bicycles, pedestrians), which our simulation has no model of, are left out of
-the replay and counted.
+the replay and counted. An NGSIM CSV's ``v_Class`` says motorcycle, car or truck; without it
+every vehicle is a car.
 """
 
 from __future__ import annotations
@@ -54,7 +55,7 @@ from scenarios.recorded.commonroad import (
 )
 from scenarios.recorded.lanelet_net import build_lanelet_net
 from scenarios.recorded.map_match import driven_route, fit_trajectory
-from scenarios.recorded.ngsim import NgsimFormatError, read_ngsim
+from scenarios.recorded.ngsim import NgsimFormatError, ngsim_types, read_ngsim
 from scenarios.recorded.provenance import Provenance, attribution, provenance
 from scenarios.writer import TRAJECTORIES_FILE, write_scenario
 from sim.geometry import boxes_overlap
@@ -138,7 +139,8 @@ def load_scene(
         elif path.suffix.lower() == ".csv":
             trajectories = tuple(read_ngsim(path))
             prov = provenance("", path.parent, csv=True, label=label, licence=licence)
-            name, lanelets, types, untracked = path.stem, ngsim_lanelets(path), {}, {}
+            name, lanelets, untracked = path.stem, ngsim_lanelets(path), {}
+            types = ngsim_types(path)
         else:
             raise NaturalisticImportError(f"{path}: not a CommonRoad .xml or NGSIM .csv scene")
     except (CommonRoadImportError, NgsimFormatError) as exc:

@@ -108,6 +108,28 @@ def read_ngsim(path: Path, origin: tuple[float, float] = (0.0, 0.0)) -> list[Tra
     return out
 
 
+# NGSIM's optional ``v_Class`` column: 1 motorcycle, 2 automobile, 3 truck.
+VEHICLE_CLASSES = {1: "motorcycle", 2: "car", 3: "truck"}
+
+
+def ngsim_types(path: Path) -> dict[str, str]:
+    """Each vehicle's CommonRoad obstacle type by its ``v_Class``; empty when the file has no
+    such column (its vehicles are cars)."""
+    with open(path, newline="") as f:
+        reader = csv.DictReader(f)
+        if "v_Class" not in (reader.fieldnames or ()):
+            return {}
+        try:
+            return {
+                str(int(float(row["Vehicle_ID"]))): VEHICLE_CLASSES.get(
+                    int(float(row["v_Class"])), "unknown"
+                )
+                for row in reader
+            }
+        except ValueError as exc:
+            raise NgsimFormatError(f"{path}: v_Class is not a vehicle class: {exc}") from exc
+
+
 def _longest_run(arr: np.ndarray) -> np.ndarray:
     """Rows of the longest run of consecutive frame numbers (column 0)."""
     breaks = np.flatnonzero(np.diff(arr[:, 0]) != 1) + 1

@@ -215,3 +215,20 @@ def test_the_dataset_command_refuses_an_empty_result(tmp_path, scenes_dir):
     get_settings.cache_clear()
     assert result.exit_code == 2
     assert "point-mass states" in result.output
+
+
+def test_an_ngsim_csv_vehicle_class_decides_what_it_can_be(tmp_path):
+    """``v_Class`` 1 is a motorcycle (traffic only), 3 a truck (a mission too)."""
+    header = (
+        "Vehicle_ID,Frame_ID,Total_Frames,Local_X,Local_Y,v_Length,v_Width,v_Vel,Lane_ID,v_Class\n"
+    )
+    rows = [
+        f"{vid},{100 + f},40,{(vid - 0.5) * 12},{60 * vid + 4 * f},15,6,40,{vid},{cls}\n"
+        for vid, cls in ((1, 1), (2, 3))
+        for f in range(40)
+    ]
+    (tmp_path / "scene.csv").write_text(header + "".join(rows))
+    scene = load_scene(tmp_path / "scene.csv")
+    assert scene.types == {"1": "motorcycle", "2": "truck"}
+    egos, rejected = screen_egos(scene, scene_net(scene, tmp_path / "cache"))
+    assert [e.vehicle_id for e in egos] == ["2"] and rejected["traffic_only"] == 1
