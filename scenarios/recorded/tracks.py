@@ -7,7 +7,7 @@ what they did: their motion relative to themselves, never their absolute positio
 A track's *poses* are its moving frames as (frame, x, y, heading), rounded as a manifest stores
 them. Each frame that has poses :data:`WINDOW` and twice and three times :data:`WINDOW` frames
 later gives a *shape token*: the distances between those four positions (how far it drove in each
-of three seconds, and how much it turned), which no rigid motion and no change of clock alters.
+of three half-seconds, and how much it turned), which no rigid motion and no change of clock alters.
 Tracks sharing at least :data:`MIN_TOKENS` tokens at one constant frame offset are candidates,
 kept when the positions of every frame they share at that offset are one rigid motion apart, to
 :data:`MAX_RESIDUAL_M`, over at least :data:`MIN_SHARED_POSES` frames; then they are one vehicle
@@ -142,10 +142,13 @@ class TrackIndex:
     def same_vehicles(self, tracks: Mapping[str, Iterable[Sequence[float]]]) -> dict[str, set[Key]]:
         """Per vehicle of a scene's ``tracks``, the indexed (scene, vehicle)s it is."""
         pairs = [pair for vehicle, poses in tracks.items() for pair in self._pairs(vehicle, poses)]
+        alike: dict[tuple, list[_Pair]] = defaultdict(list)  # by indexed scene and clock offset
+        for pair in pairs:
+            alike[(pair.key[0], pair.offset)].append(pair)
         out: dict[str, set[Key]] = {}
         for pair in pairs:
             if _line_deviation(pair.frames, pair.mine) >= SHAPED_M or any(
-                _one_motion(pair, other) for other in pairs
+                _one_motion(pair, other) for other in alike[(pair.key[0], pair.offset)]
             ):
                 out.setdefault(pair.vehicle, set()).add(pair.key)
         return out
@@ -173,11 +176,9 @@ class TrackIndex:
 
 
 def _one_motion(a: _Pair, b: _Pair) -> bool:
-    """Whether ``b``, another vehicle pair of the same two scenes at the same clock offset, is
-    moved by ``a``'s rigid motion too."""
-    if a.vehicle == b.vehicle or a.key[1] == b.key[1] or a.key[0] != b.key[0]:
-        return False
-    if a.offset != b.offset:
+    """Whether ``b``, a pair of the same two scenes at the same clock offset, of two other
+    vehicles, is moved by ``a``'s rigid motion too."""
+    if a.vehicle == b.vehicle or a.key[1] == b.key[1]:
         return False
     both = _rigid_residual(np.concatenate([a.mine, b.mine]), np.concatenate([a.theirs, b.theirs]))
     return both <= 2 * MAX_RESIDUAL_M
