@@ -84,8 +84,10 @@ def _costs(phase: Phase, episodes: int, evaluation: EvaluationSettings) -> list[
 def _detail(phase: Phase, moment, episodes: int, evaluation: EvaluationSettings) -> str:
     """A phase as the submit form says it in full."""
     state = phases.state(phase, moment)
+    if state == "closed":
+        return f"{phase.name} closed {phase.ends_at:%Y-%m-%d %H:%M} UTC."
     if state != "open":
-        return f"Phase {phase.name} is {state}."
+        return f"{phase.name} opens {phase.starts_at:%Y-%m-%d %H:%M} UTC."
     what = (
         "public scenarios, full results"
         if phases.team_sees_everything(phase)
@@ -116,6 +118,7 @@ def submit_page(request: Request, session: SessionDep, evaluation: EvaluationDep
             "phases": known,
             "states": {p.name: phases.state(p, moment) for p in known},
             "any_open": any(phases.is_open(p, moment) for p in known),
+            "open_names": [p.name for p in known if phases.is_open(p, moment)],
             "default_phase": default,
             # Said before the upload, under the select (a phone cuts a long option): when it
             # closes, and what multiplies the time to a score (episodes, training seeds).
