@@ -119,7 +119,8 @@ class Pip:
             "PIP_CONFIG_FILE": os.devnull,
             "PIP_NO_INPUT": "1",
             "PIP_DISABLE_PIP_VERSION_CHECK": "1",
-            "PIP_CACHE_DIR": str(output / "cache"),
+            # No cache: every byte in the output folder is one the download cap counts once.
+            "PIP_NO_CACHE_DIR": "1",
             "PYTHONDONTWRITEBYTECODE": "1",
         }
         if request.get("pip_path"):

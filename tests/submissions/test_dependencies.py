@@ -124,6 +124,8 @@ def index(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, Path]
     build_wheel(files, "gpulib", "1.0", {"gpulib/big.bin": os.urandom(3 * MiB)})
     build_wheel(files, "torch", "2.1.0+cpu")
     build_wheel(files, "torch", "2.0.0+cpu")
+    # Its dependency is on no index.
+    build_wheel(files, "orphanpkg", "1.0", requires=("ghostpkg>=1",))
     # The newest torch has a GPU build only: a plain line must still get a CPU one.
     build_wheel(files, "torch", "2.2.0", requires=("gpulib",))
     # A library that needs torch without naming a build (d3rlpy does).
@@ -284,6 +286,15 @@ def test_every_unresolvable_line_is_reported_at_once_with_pins_that_fit_the_file
     # plotlib 3.0 needs smallpkg>=1.1, which line 2 excludes: only 2.0 is suggested.
     assert "pin one of 2.0 " in message
     assert "/tmp" not in message and ".deps-" not in message
+
+
+@pytest.mark.slow  # the resolver sandbox (bubblewrap)
+def test_a_dependency_no_index_has_is_named_as_one(tmp_path: Path, index: tuple[str, Path]) -> None:
+    settings = settings_for(tmp_path, index[0])
+    with pytest.raises(IntakeError) as caught:
+        validated(tmp_path, settings, "smallpkg==1.0\norphanpkg==1.0\n")
+    assert caught.value.rule == "no-distribution"
+    assert "ghostpkg (a dependency of a listed requirement)" in caught.value.message
 
 
 @pytest.mark.slow  # the resolver sandbox (bubblewrap)
