@@ -62,7 +62,8 @@ def dataset():
     from scenarios.dataset.collect import collect
 
     root = shared_dir("arena-train-dataset-")
-    write_transitions(root / TRANSITIONS, collect(SHIPPED_PUBLIC_DIR / DATASET_SCENARIO))
+    episodes, _ = collect(SHIPPED_PUBLIC_DIR / DATASET_SCENARIO)  # and why not others
+    write_transitions(root / TRANSITIONS, episodes)
     (root / TRANSITIONS).chmod(0o644)
     yield root
     shutil.rmtree(root, ignore_errors=True)
@@ -457,4 +458,66 @@ def test_a_seeds_train_py_failing_fails_the_submission_and_stops_the_other_seed(
             session.scalars(select(EvaluationRun).where(EvaluationRun.submission_id == sid)).all()
             == []
         )
+    db.dispose()
+
+
+def test_organiser_actions_on_a_seed_set_after_a_restart(stack_settings, tmp_path):
+    """Track 2 over two seeds, the service restarted between the upload and each action: a
+    re-run evaluates every seed's model again and gives the same scores, an audit re-runs them
+    bit-identically, a requeue finds nothing lost and a re-score recomputes the same metrics."""
+    from server.core.queue import TaskQueue
+    from server.services import admin, phases
+    from server.services.errors import Conflict
+
+    db = Database(stack_settings.storage.database_url)
+    queue = TaskQueue(stack_settings)
+    phases.set_phase(db, stack_settings, "final", phases.PhaseChanges(training_seeds=2))
+    _, token = make_team(db, "seeds-restarted")
+    worker = start_worker(stack_settings, tmp_path / "worker-0.log")
+    try:
+        with api_server(stack_settings, tmp_path / "api-0.log") as (url, _):
+            sid = upload(url, token, offline_zip(tmp_path / "seeded", SEEDED), "restarted")
+            first = watch(url, token, sid)[-1]
+        assert first["status"] == "scored", first
+        stop(worker)
+        worker = start_worker(stack_settings, tmp_path / "worker-1.log")
+        admin.rerun(db, stack_settings, queue, sid)
+        with db.session() as session:
+            runs = session.scalars(
+                select(EvaluationRun)
+                .where(EvaluationRun.submission_id == sid)
+                .order_by(EvaluationRun.attempt, EvaluationRun.id)
+            ).all()
+            # The re-run's, in seed order.
+            run_ids = [run.id for run in sorted(runs[2:], key=lambda run: run.training.seed)]
+        assert len(run_ids) == 2  # one per seed
+        deadline = time.monotonic() + 300
+        while True:
+            with db.session() as session:
+                states = [session.get(EvaluationRun, run_id).status for run_id in run_ids]
+            if all(state not in ("queued", "running") for state in states):
+                break
+            assert time.monotonic() < deadline, states
+            time.sleep(1)
+        assert states == ["scored", "scored"]
+        with api_server(stack_settings, tmp_path / "api-1.log") as (url, _):
+            body = httpx.get(
+                f"{url}/api/v1/submissions/{sid}", headers=bearer(token), timeout=10
+            ).json()
+        assert body["seeds"]["per_seed"] == first["seeds"]["per_seed"]
+        assert body["latest_attempt"]["status"] == "scored"
+        stop(worker)
+        worker = start_worker(stack_settings, tmp_path / "worker-2.log")
+        with pytest.raises(Conflict):
+            admin.requeue(db, stack_settings, queue, sid)
+        store = artifact_store(stack_settings.storage, db)
+        rescored = [
+            admin.rescore_run(db, stack_settings.evaluation, store, run_id)[1]["completion"]
+            for run_id in run_ids
+        ]
+        assert rescored == [seed["completion"] for seed in first["seeds"]["per_seed"]]
+        report = audit(db, store, sid, **evaluate_args(stack_settings))
+        assert report.identical, report
+    finally:
+        stop(worker)
     db.dispose()
