@@ -420,6 +420,17 @@ def test_an_organiser_stack_is_built_once_and_a_team_adds_to_it(tmp_path: Path) 
     deps = prepared.deps_dir
     assert {"torch", "smallpkg", "teampkg"} <= {p.name for p in deps.iterdir()}
     assert (deps / "torch" / "__init__.py").read_text() == "V = '2.1.0+cpu'\n"
+    # arena evaluate's way (the resolver a child on the participant's machine): the same stack,
+    # resolved afresh (the folder the service made is collected first).
+    assert collect_garbage(data_dir, set()) == 1
+    with served_index(files, tmp_path / "web-again") as url_again:
+        again = with_fields(
+            settings, intake={"package_index": [url_again, str(tmp_path / "local")]}
+        )
+        local = prepare_submission(
+            upload, tmp_path / "local-a", again.intake, again.sandbox, data_dir
+        )
+    assert (local.deps_dir / "torch" / "__init__.py").read_text() == "V = '2.1.0+cpu'\n"
     unknown = write_zip(tmp_path / "b.zip", with_policy(**{"agent.yaml": "stack: ds2030\n"}))
     with pytest.raises(IntakeError) as caught:
         validate(
