@@ -43,7 +43,7 @@ from arena.errors import IntakeError
 from submissions.intake.archive import file_sha256, make_read_only, remove_tree
 from submissions.intake.contents import REQUIREMENTS
 from submissions.intake.package_index import PackageSources, package_sources
-from submissions.intake.porting import explain_missing_wheel
+from submissions.intake.porting import explain_unresolved
 from submissions.intake.runner import IntakeRunner, write_inputs
 
 if TYPE_CHECKING:
@@ -203,7 +203,7 @@ def resolve(
     if report.get("cap") == "max-wheel-bytes":
         raise wheel_cap_error(REQUIREMENTS, intake)
     if not report.get("ok"):
-        raise explain_missing_wheel(report, text, request["python_version"])
+        raise explain_unresolved(report, text, request["python_version"])
     wheels = sorted((downloaded / resolver_rules.WHEELS_DIR).glob("*.whl"))
     if report.get("sdists"):
         build_in = work / "build-in"
@@ -218,7 +218,7 @@ def resolve(
                 (downloaded / name).rename(build_in / name)
         built = runner("build", build_in, work / "build-out")
         if not built.get("ok"):
-            raise explain_missing_wheel(built, text, request["python_version"])
+            raise explain_unresolved(built, text, request["python_version"])
         wheels += sorted((work / "build-out" / resolver_rules.WHEELS_DIR).glob("*.whl"))
     for wheel in wheels:
         size = wheel.stat().st_size

@@ -246,7 +246,7 @@ def _pins_old_numpy(text: str) -> bool:
     return False
 
 
-def explain_missing_wheel(
+def explain_unresolved(
     report: dict, requirements_text: str, python_version: str = "3.11"
 ) -> IntakeError:
     """A failed resolution (the resolver's report) told in one round: every line that no

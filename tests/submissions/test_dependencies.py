@@ -28,7 +28,7 @@ from submissions.intake.dependencies import (
     parse_requirements,
     wheel_store,
 )
-from submissions.intake.porting import explain_missing_wheel
+from submissions.intake.porting import explain_unresolved
 from submissions.intake.stacks import build_stack, read_stack
 from tests.settings import with_fields
 from tests.submissions.zips import with_policy, write_zip
@@ -203,7 +203,7 @@ def test_a_failed_resolution_is_told_in_one_round_in_the_teams_line_numbers() ->
         ],
     }
     text = "# mine\n\npanda3d==1.10.9\n\n\nsmallpkg==1.0\nplotlib==9\n"
-    error = explain_missing_wheel(report, text)
+    error = explain_unresolved(report, text)
     message = error.message
     assert error.entry == "requirements.txt"
     assert "line 3 `panda3d==1.10.9`" in message and "line 7 `plotlib==9`" in message

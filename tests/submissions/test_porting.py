@@ -12,7 +12,7 @@ from arena.config import Settings
 from arena.errors import IntakeError
 from evaluator.validation import validate
 from submissions.intake import check_zip
-from submissions.intake.porting import explain_missing_wheel
+from submissions.intake.porting import explain_unresolved
 from tests.settings import with_fields
 from tests.submissions.zips import GOOD_POLICY, write_zip
 
@@ -60,7 +60,7 @@ def test_missing_distribution_of_a_dependency_is_named_as_one() -> None:
         "errors": [{"line": None, "project": "gym", "available": "0.26.2", "suggestions": []}],
         "conflict": [],
     }
-    explained = explain_missing_wheel(report, "d3rlpy==1.1.1\n")
+    explained = explain_unresolved(report, "d3rlpy==1.1.1\n")
     assert explained.entry == "requirements.txt" and explained.rule == "no-distribution"
     assert "gym (a dependency of a listed requirement)" in explained.message
     assert "versions there: 0.26.2" in explained.message
@@ -82,7 +82,7 @@ def test_a_smarts_requirement_without_a_distribution_names_its_line() -> None:
             }
         ],
     }
-    error = explain_missing_wheel(report, requirements)
+    error = explain_unresolved(report, requirements)
     assert error.entry == "requirements.txt" and error.rule == "no-distribution"
     assert error.message.startswith("line 3 `Panda3D==1.10.9`: no version of panda3d")
     assert "CPython 3.11" in error.message and "pin one of 1.10.14, 1.10.13" in error.message
