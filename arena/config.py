@@ -280,6 +280,9 @@ class IntakeSettings(SettingsGroup):
     max_deps_download_bytes: int = 1536 * 1024**2
     max_deps_bytes: int = 4096 * 1024**2
     max_deps_files: int = 100_000
+    # What one team's kept submissions may add to the shared wheel store, unpacked: the wheels
+    # no other team's submissions use (a shared wheel is charged to no one).
+    max_team_deps_bytes: int = 16 * 1024**3
     # Where requirements resolve from: index URLs (the first is pip's index, the rest extra
     # indexes) and wheel folders. Empty: the host's pip configuration (index-url,
     # extra-index-url, find-links; never its constraints). The resolver sandbox reaches these and

@@ -368,6 +368,19 @@ def deps_in_use(session: Session) -> set[str]:
     return set(keys)
 
 
+def deps_by_team(session: Session) -> dict[int, set[str]]:
+    """The requirement folders of each team's submissions that may still run."""
+    rows = session.execute(
+        select(Submission.team_id, Submission.deps_key).where(
+            Submission.deps_key.is_not(None), Submission.status.not_in(DEPS_RELEASED)
+        )
+    )
+    teams: dict[int, set[str]] = {}
+    for team_id, key in rows:
+        teams.setdefault(team_id, set()).add(key)
+    return teams
+
+
 def deps_released(session: Session) -> set[str]:
     """Requirement folders named by submissions that will never run again (maybe also by one
     that may: :func:`deps_in_use` decides)."""

@@ -25,13 +25,15 @@ from evaluator.validation import validate
 from server.core.artifacts import ArtifactStore
 from server.core.db import Database
 from server.core.queue import TaskQueue
+from server.models import Submission
 from server.services import validation
 from server.services.validation import ValidationClaim
 from server.worker import local
 from server.worker.heartbeat import Lease
 from submissions.intake import PreparedSubmission
 from submissions.intake.archive import remove_tree
-from submissions.intake.dependencies import collect_garbage
+from submissions.intake.contents import REQUIREMENTS
+from submissions.intake.dependencies import collect_garbage, exclusive_bytes
 
 
 @dataclass(frozen=True)
@@ -89,6 +91,15 @@ class Validations:
             if lease.stopped:  # killed on purpose (handed back, or the claim lost)
                 return None
             raise
+        if verdict.prepared is not None and verdict.prepared.deps_key is not None:
+            over = team_share_exceeded(
+                local.database(),
+                settings.intake,
+                settings.storage.resolved_data_dir,
+                claim.submission_id,
+                verdict.prepared.deps_key,
+            )
+            verdict = verdict if over is None else Verdict(None, over)
         return None if lease.stopped else verdict
 
     def ours(self, claim: ValidationClaim, reason: str, error: str) -> Verdict:
@@ -198,6 +209,31 @@ def record(
         store.delete_prefix(str(Path(claim.upload_key).parent))
     # Not written: the submission was cancelled meanwhile; its folder is freed now too.
     free_requirements(db, intake, data_dir)
+
+
+def team_share_exceeded(
+    db: Database, intake: IntakeSettings, data_dir: Path, submission_id: int, deps_key: str
+) -> str | None:
+    """Why the submission's requirements would take its team past its share of the wheel store
+    (``max_team_deps_bytes``: the wheels no other team uses, unpacked), or None."""
+    with db.read_session() as session:
+        team_id = session.get(Submission, submission_id).team_id
+        keys = validation.deps_by_team(session)
+    keys.setdefault(team_id, set()).add(deps_key)
+    charged = exclusive_bytes(data_dir, {str(team): held for team, held in keys.items()})
+    used = charged[str(team_id)]
+    if used <= intake.max_team_deps_bytes:
+        return None
+    cap = intake.max_team_deps_bytes / 1024**3
+    return str(
+        IntakeError(
+            REQUIREMENTS,
+            "team-deps-bytes",
+            f"your team's own wheels (those no other team uses) would take {used / 1024**3:.1f} "
+            f"GiB unpacked with this submission, over the team's {cap:g} GiB: cancel older "
+            "submissions you no longer need, or build on an organiser stack",
+        )
+    )
 
 
 def free_requirements(db: Database, intake: IntakeSettings, data_dir: Path) -> int:

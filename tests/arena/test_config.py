@@ -56,6 +56,7 @@ VARIABLES = {
     "ARENA_MAX_DEPS_FILES": ("intake", "max_deps_files", "19", 19),
     "ARENA_PACKAGE_INDEX": ("intake", "package_index", '["/srv/wheels"]', ["/srv/wheels"]),
     "ARENA_MAX_WHEEL_BYTES": ("intake", "max_wheel_bytes", "17", 17),
+    "ARENA_MAX_TEAM_DEPS_BYTES": ("intake", "max_team_deps_bytes", "17", 17),
     "ARENA_RESOLVER_TIMEOUT_S": ("intake", "resolver_timeout_s", "17", 17.0),
     "ARENA_RESOLVER_MEMORY_BYTES": ("intake", "resolver_memory_bytes", "17", 17),
     "ARENA_INTAKE_MEMORY_BYTES": ("intake", "intake_memory_bytes", "20", 20),
