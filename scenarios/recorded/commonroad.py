@@ -100,7 +100,7 @@ EXACT_VALUES = (
 )
 
 
-class _NotExact(ValueError):
+class _NotExact(ArenaError, ValueError):
     """A state that is not an exact pose; the message is one of :data:`UNTRACKED`."""
 
 

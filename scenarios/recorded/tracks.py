@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from arena import portable_math
 from sim.trajectories import Trajectory
 
 STEP_S = 0.1  # [s]
@@ -84,11 +85,11 @@ def _rigid_residual(a: np.ndarray, b: np.ndarray) -> float:
     """Largest distance [m] between ``b`` and ``a`` moved by the rotation and translation that
     fit it best (least squares; no mirroring: in the plane the best angle has a closed form)."""
     ca, cb = a - a.mean(axis=0), b - b.mean(axis=0)
-    angle = np.arctan2(
+    angle = portable_math.arctan2(
         np.sum(ca[:, 0] * cb[:, 1] - ca[:, 1] * cb[:, 0]),
         np.sum(ca[:, 0] * cb[:, 0] + ca[:, 1] * cb[:, 1]),
     )
-    c, s = np.cos(angle), np.sin(angle)
+    c, s = portable_math.cos(angle), portable_math.sin(angle)
     moved_x, moved_y = c * ca[:, 0] - s * ca[:, 1], s * ca[:, 0] + c * ca[:, 1]
     return float(np.hypot(moved_x - cb[:, 0], moved_y - cb[:, 1]).max())
 
