@@ -9,6 +9,7 @@ import socket
 import subprocess
 import time
 import uuid
+import zipfile
 from pathlib import Path
 
 import httpx
@@ -21,7 +22,8 @@ from arena.config import ArtifactBackend, get_settings
 from server.core.artifacts import artifact_store
 from server.core.db import Database
 from server.core.migrate import upgrade_database
-from server.models import ScenarioResult
+from server.models import ScenarioResult, Team, utcnow
+from server.services import validation
 from tests.server.builders import bearer, make_team
 from tests.server.conftest import REDIS_URL, _create_pg_database, _drop_pg_database
 from tests.server.live import api_server, free_port, stop
@@ -662,4 +664,57 @@ def test_organiser_actions_after_a_restart(stack_settings, tmp_path, kind, examp
             assert wait_finished(url, token, other)["status"] == "cancelled"
     finally:
         stop(worker)
+    db.dispose()
+
+
+def long_validation_zip(path: Path, files: int) -> Path:
+    """A zip whose validation takes long: ``files`` one-MiB Python files (each a run of one
+    statement: the zip stays small), rejected at the end (no Policy class)."""
+    body = (b"x = 0\n" * (1024**2 // 6))[: 1024**2]
+    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as archive:
+        archive.writestr("policy.py", "class Agent:\n    pass\n")
+        for number in range(files):
+            archive.writestr(f"lib/m{number:03d}.py", body)
+    return path
+
+
+def test_a_long_validation_yields_its_worker_to_another_teams_upload(stack_settings, tmp_path):
+    """Issue 40: one team's long validation held the only worker and another team's upload
+    waited behind it. Now, past its slice, it yields to the team that used less validation time:
+    the other team's upload is judged first, and the long one still ends, charged to its team."""
+    settings = with_fields(stack_settings, intake={"validation_slice_s": 1.0})
+    db = Database(settings.storage.database_url)
+    _, slow_token = make_team(db, "slow-team")
+    _, other_token = make_team(db, "other-team")
+    worker = start_worker(settings, tmp_path / "worker.log", concurrency=1)
+    try:
+        with api_server(settings, tmp_path / "api.log") as (url, _):
+            slow_zip = long_validation_zip(tmp_path / "slow.zip", 300)
+            with slow_zip.open("rb") as handle:
+                slow = httpx.post(
+                    f"{url}/api/v1/submissions",
+                    headers=bearer(slow_token),
+                    data={"track": "freestyle", "method_name": "slow"},
+                    files={"file": ("slow.zip", handle, "application/zip")},
+                    timeout=120,
+                ).json()["id"]
+            time.sleep(2.0)  # the slow validation holds the worker by now
+            other = upload_example(url, other_token, "keep_lane", tmp_path)
+            seen = []
+            deadline = time.monotonic() + 600
+            while len(seen) < 2 and time.monotonic() < deadline:
+                for token, sid in ((slow_token, slow), (other_token, other)):
+                    status = httpx.get(
+                        f"{url}/api/v1/submissions/{sid}", headers=bearer(token), timeout=10
+                    ).json()["status"]
+                    if status != "validating" and sid not in seen:
+                        seen.append(sid)
+                time.sleep(0.5)
+            assert seen == [other, slow], "the other team's upload waited for the long one"
+    finally:
+        stop(worker)
+    with db.read_session() as session:
+        slow_team = session.scalar(select(Team.id).where(Team.name == "slow-team"))
+        charged = validation.used_today(session, slow_team, utcnow())
+    assert charged > settings.intake.validation_slice_s
     db.dispose()
