@@ -238,6 +238,12 @@ def submissions_show(
             )
             for run in submission.runs
         ]
+        # A seed's evaluation is a run of its own, not a retry: said beside its number.
+        which = {
+            run.attempt: f" (seed {run.training.seed} of {run.training.seeds})"
+            for run in submission.runs
+            if run.training is not None and run.training.seeds > 1
+        }
     columns = ("scenario", "episode", "family", "status", "reason", "steps")
     if as_json:
         document = view.model_dump(mode="json")
@@ -279,7 +285,10 @@ def submissions_show(
     ):
         console.print(f"{name}: {plain(value)}", markup=False, highlight=False)
     for attempt, status, worker, profile, error, results in runs:
-        title = f"attempt {attempt}: {status} ({profile}) {worker or ''} {error or ''}".strip()
+        title = (
+            f"attempt {attempt}{which.get(attempt, '')}: {status} ({profile}) "
+            f"{worker or ''} {error or ''}"
+        ).strip()
         print_rows(console, columns, results, title=title, numeric=("episode", "steps"))
 
 

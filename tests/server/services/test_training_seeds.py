@@ -182,7 +182,10 @@ def test_seeds_that_trained_byte_identical_models_are_called_out_not_a_spread_of
     )
     page = client.get("/", params={"track": "offline", "phase": "final"}).text
     assert "3 seeds: train.py ignores the seed" in page and "std 0.0000" not in page
-    assert "train.py ignores the seed" in arena("submissions", "show", str(sid))
+    shown = arena("submissions", "show", str(sid))
+    assert "train.py ignores the seed" in shown
+    # Each seed's evaluation is a run of its own: numbered, and said to be that seed's.
+    assert "attempt 2 (seed 1 of 3): scored" in shown
     # Seeds of their own models: nothing said.
     other_team, other_token = make_team(db, "own")
     other = queued_submission(db, other_team, track=Track.offline)
