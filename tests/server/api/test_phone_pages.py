@@ -416,3 +416,19 @@ def test_a_submission_that_failed_in_training_lists_no_failures(site, browser): 
     page.goto(f"{site['url']}/submissions/{site['validation']}")  # ran episodes: counted
     expect(page.locator("#failures-box")).to_be_visible()
     page.close()
+
+
+def test_the_browser_rounds_every_figure_as_the_server_does(site, browser):  # noqa: F811
+    """The submission page writes figures with toFixed (app.js fmt), the server with
+    arena/figures.py: one rule, halves away from zero (0.53125 once read 0.5313 on the page and
+    0.5312 on the leaderboard). Checked on every fraction of a 128- and a 384-scenario suite."""
+    from arena.figures import metric_text
+
+    values = sorted({k / n for n in (128, 384, 256 * 3) for k in range(n + 1)})
+    page = open_page(browser, site, "/", PHONE)
+    shown = page.evaluate("values => values.map((v) => v.toFixed(4))", values)
+    times = [v * 800 for v in values]
+    shown_times = page.evaluate("values => values.map((v) => v.toFixed(1))", times)
+    page.close()
+    assert shown == [metric_text("completion", v) for v in values]
+    assert shown_times == [metric_text("time", v) for v in times]
