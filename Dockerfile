@@ -41,6 +41,7 @@ COPY submissions ./submissions
 COPY evaluator ./evaluator
 COPY learn ./learn
 COPY server ./server
+COPY arena_command ./arena_command
 COPY docs ./docs
 # Editable, so `arena admin db upgrade` finds alembic.ini and migrations/ next to the code.
 RUN pip install --no-cache-dir --no-deps -e . && rm -rf /root/.cache

@@ -130,7 +130,7 @@ def _start_api(settings, host: str, port: int, log: Path) -> subprocess.Popen:
         "ARENA_DATA_DIR": str(settings.storage.data_dir),
         "ARENA_DATABASE_URL": settings.storage.database_url,
     }
-    command = [sys.executable, "-c", "from arena.cli import app; app()", "serve"]
+    command = [sys.executable, "-c", "from arena_command import app; app()", "serve"]
     server = subprocess.Popen(
         [*command, "--host", host, "--port", str(port)],
         env=env,

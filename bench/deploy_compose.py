@@ -325,7 +325,7 @@ def evaluate_locally(agent: str, suite: Path, out: Path) -> tuple[dict, float]:
             [
                 sys.executable,
                 "-c",
-                "from arena.cli import app; app()",
+                "from arena_command import app; app()",
                 "evaluate",
                 str(EXAMPLES / agent),
                 "--suite",

@@ -100,7 +100,7 @@ class SuiteRun:
 
 
 def build_hidden_suite(out: Path, seed: int) -> None:
-    command = [sys.executable, "-c", "from arena.cli import app; app()", "scenarios", "build"]
+    command = [sys.executable, "-c", "from arena_command import app; app()", "scenarios", "build"]
     command += ["--suite", "hidden", "--seed", str(seed), "--out", str(out)]
     subprocess.run(command, check=True, stdout=subprocess.DEVNULL)
 

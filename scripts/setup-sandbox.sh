@@ -45,5 +45,5 @@ fi
 
 # The agent image (offline: debootstrap + docker import; the root tarball is cached in the data dir).
 # The command is idempotent: it only reports an image that is already there.
-python3 -c 'from arena.cli import app; app()' sandbox build-image
+python3 -c 'from arena_command import app; app()' sandbox build-image
 log "ready: bubblewrap and dockerd"

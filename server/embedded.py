@@ -47,7 +47,7 @@ from server.core.permissions import close_service_folders
 from server.services import teams
 from server.services.errors import NotFound
 
-ARENA = [sys.executable, "-c", "from arena.cli import app; app()"]
+ARENA = [sys.executable, "-c", "from arena_command import app; app()"]
 # How long the worker and the API get to stop after SIGTERM before they are killed [s]. The
 # worker hands its running jobs back at once (a job it could not is reaped when its lease ends).
 STOP_GRACE_S = 15.0

@@ -21,7 +21,7 @@ import httpx
 
 from arena.config import Settings
 
-ARENA = [sys.executable, "-c", "from arena.cli import app; app()"]
+ARENA = [sys.executable, "-c", "from arena_command import app; app()"]
 EXAMPLES = Path(__file__).resolve().parents[1] / "submissions" / "examples"
 
 

@@ -142,8 +142,8 @@ def _start_without_main(child: mp.process.BaseProcess, agent_factory) -> None:
 
     multiprocessing runs the parent's main script in every child (as ``__mp_main__``) so that
     objects pickled from ``__main__`` resolve; for the ``arena`` command that is importing
-    arena.cli and every command's modules, about 0.3 s per episode of `arena evaluate` and of the
-    worker. (The fork server's ``__main__`` preload that should avoid it does not work on Python
+    arena_command and every command's modules, about 0.3 s per episode of `arena evaluate` and of
+    the worker. (The fork server's ``__main__`` preload that should avoid it does not work on Python
     3.11: it looks the main path up under the wrong key.) Nothing of the episode comes from
     ``__main__`` unless the factory does, so the main module is marked as a module named
     ``__main__``, which multiprocessing leaves alone, while the child starts."""

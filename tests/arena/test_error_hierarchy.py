@@ -12,7 +12,16 @@ import pytest
 
 from arena.errors import ArenaError
 
-PACKAGES = ("arena", "sim", "scenarios", "submissions", "evaluator", "learn", "server")
+PACKAGES = (
+    "arena_command",
+    "arena",
+    "sim",
+    "scenarios",
+    "submissions",
+    "evaluator",
+    "learn",
+    "server",
+)
 
 
 def our_modules():

@@ -16,7 +16,16 @@ CPU_DEPENDENT = re.compile(
     r"arccosh|arctanh|exp|exp2|expm1|log|log2|log10|log1p|power|float_power|cbrt)\s*\("
 )
 # Everything of the product; tests and benchmarks compare values, they make none that are kept.
-PACKAGES = ("arena", "sim", "scenarios", "submissions", "evaluator", "learn", "server")
+PACKAGES = (
+    "arena_command",
+    "arena",
+    "sim",
+    "scenarios",
+    "submissions",
+    "evaluator",
+    "learn",
+    "server",
+)
 PACKAGES += ("agent_runtime",)
 
 

@@ -12,7 +12,16 @@ from rich.table import Table
 from arena.terminal import make_console
 
 ROOT = Path(__file__).resolve().parents[2]
-PACKAGES = ("arena", "sim", "scenarios", "submissions", "evaluator", "learn", "server")
+PACKAGES = (
+    "arena_command",
+    "arena",
+    "sim",
+    "scenarios",
+    "submissions",
+    "evaluator",
+    "learn",
+    "server",
+)
 
 
 def test_a_panel_and_a_table_in_a_pipe_keep_their_full_text(capsys):

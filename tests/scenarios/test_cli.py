@@ -7,11 +7,11 @@ import sys
 import pytest
 from typer.testing import CliRunner
 
-from arena.cli import app
 from arena.suite import SHIPPED_PUBLIC_DIR
+from arena_command import app
 
 runner = CliRunner()
-ARENA_COMMAND = [sys.executable, "-c", "from arena.cli import app; app()"]
+ARENA_COMMAND = [sys.executable, "-c", "from arena_command import app; app()"]
 
 
 def test_build_hidden_refuses_without_a_seed(tmp_path, monkeypatch):

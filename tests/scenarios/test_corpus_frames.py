@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from arena.cli import app
 from arena.config import get_settings
 from arena.scenario import Family, load_scenario
+from arena_command import app
 from scenarios.dataset.build import MANIFEST
 from scenarios.generators import Spec
 from scenarios.picture import draw_scenario

@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from arena.cli import app
 from arena.config import get_settings
 from arena.scenario import Family
 from arena.suite import SHIPPED_PUBLIC_DIR
+from arena_command import app
 from scenarios.dataset.build import DATASET_ID, MANIFEST, TRANSITIONS
 from scenarios.dataset.collect import collect
 from scenarios.dataset.features import ACTION_SIZE, OBS_SIZE, to_target_pose

@@ -19,9 +19,9 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from arena.cli import app
 from arena.config import get_settings
 from arena.scenario import DataLabel, Family, load_scenario
+from arena_command import app
 from scenarios.generators import Spec
 from scenarios.picture import draw_scenario
 from scenarios.recorded.corpus import read_corpus

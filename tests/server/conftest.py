@@ -16,8 +16,8 @@ from fastapi.testclient import TestClient
 from sqlalchemy import text
 from typer.testing import CliRunner
 
-from arena.cli import app
 from arena.config import Settings, get_settings
+from arena_command import app
 from server.app import create_app
 from server.core.db import Database
 from server.core.migrate import upgrade_database

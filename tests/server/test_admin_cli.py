@@ -11,8 +11,8 @@ import re
 import pytest
 from typer.testing import CliRunner
 
-from arena.cli import app
 from arena.config import get_settings
+from arena_command import app
 from server.models import Submission
 from server.status import SubmissionStatus
 from tests.server.builders import make_team, queued_submission, seed_scored

@@ -13,7 +13,17 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = ROOT / "submissions" / "examples"
-OURS = {"agent_runtime", "arena", "sim", "scenarios", "submissions", "evaluator", "learn", "server"}
+OURS = {
+    "arena_command",
+    "agent_runtime",
+    "arena",
+    "sim",
+    "scenarios",
+    "submissions",
+    "evaluator",
+    "learn",
+    "server",
+}
 
 
 def documented_public_modules() -> set[str]:

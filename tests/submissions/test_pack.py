@@ -6,8 +6,8 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from arena.cli import app
 from arena.errors import IntakeError
+from arena_command import app
 from submissions.intake import pack_folder
 from tests.submissions.zips import GOOD_POLICY
 

@@ -7,9 +7,9 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from arena.cli import app
 from arena.config import Settings
 from arena.errors import IntakeError
+from arena_command import app
 from evaluator.validation import validate
 from submissions.intake import check_zip
 from submissions.intake.porting import explain_unresolved

@@ -6,9 +6,9 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from arena.cli import app
 from arena.outcome import ScenarioStatus
 from arena.suite import ManifestEntry, Suite, SuiteManifest
+from arena_command import app
 from evaluator.runner.results import record_path, score_outcomes
 from evaluator.runner.scenario import ScenarioOutcome
 from evaluator.scoring import load_profile

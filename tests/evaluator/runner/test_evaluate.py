@@ -122,7 +122,7 @@ def test_killed_evaluation_resumes_only_the_missing_scenarios(public_suite, tmp_
     command = [
         sys.executable,
         "-c",
-        "from arena.cli import app; app()",
+        "from arena_command import app; app()",
         "evaluate",
         str(source),
         "--suite",

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from arena.cli import app
+from arena_command import app
 from evaluator.scoring import aggregate, load_profile, load_record, score_episode
 from evaluator.scoring.registry import get_term
 from tests.evaluator.runner.test_cli import results  # noqa: F401  (fixture: a results folder)

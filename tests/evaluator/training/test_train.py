@@ -231,7 +231,7 @@ def test_arena_train_keeps_train_py_output_on_success(tmp_path, dataset):
     """Printed and saved beside the model (never inside it: the model folder is evaluated)."""
     from typer.testing import CliRunner
 
-    from arena.cli import app
+    from arena_command import app
 
     folder = tmp_path / "src"
     folder.mkdir()

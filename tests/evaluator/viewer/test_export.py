@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from arena.cli import app
+from arena_command import app
 from tests.server.api.test_browser import CHROMIUM, CHROMIUM_ARGS
 
 

@@ -503,8 +503,8 @@ def test_audit_reruns_a_score_bit_identically_and_names_what_differs(
     longer matches is reported as the first differing record."""
     from typer.testing import CliRunner
 
-    from arena.cli import app
     from arena.config import get_settings
+    from arena_command import app
     from server.models import Score
 
     db = Database(stack_settings.storage.database_url)

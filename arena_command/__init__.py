@@ -1,4 +1,5 @@
-"""The ``arena`` command: each part of the system contributes its own Typer app.
+"""The ``arena`` command, the composition root above every layer: each part of the system
+contributes its own Typer app and this package mounts them, so no layer imports one above it.
 
 The area CLIs keep their imports light at module level so ``arena --help`` stays fast; heavy work
 (SUMO, Docker, the database) is imported inside the commands.
