@@ -89,6 +89,10 @@ NUMPY_ALIASES = {
 }
 # Ratios are judged only above this size: small files of padding compress absurdly well.
 RATIO_FLOOR_BYTES = 1024**2
+# In a wheel, one entry's ratio only above this size: a repaired wheel's shared library is padded
+# to the 2 MiB page alignment (Pillow's libXau: 2 MiB, 224:1); the wheel's whole ratio and the
+# requirements' byte caps bound what its small entries add up to.
+WHEEL_ENTRY_RATIO_FLOOR_BYTES = 16 * 1024**2
 # A nested archive inside a nested archive inside the submission is as deep as we look.
 MAX_NESTING = 2
 COPY_CHUNK = 1024**2
@@ -245,8 +249,10 @@ def check_kind(info: zipfile.ZipInfo, shown: str) -> None:
         raise Rejected(shown, "special-file", "device files, fifos and sockets are not allowed")
 
 
-def check_ratio(info: zipfile.ZipInfo, limits: Limits, shown: str) -> None:
-    if info.file_size <= RATIO_FLOOR_BYTES:
+def check_ratio(
+    info: zipfile.ZipInfo, limits: Limits, shown: str, floor: int = RATIO_FLOOR_BYTES
+) -> None:
+    if info.file_size <= floor:
         return
     ratio = info.file_size / max(info.compress_size, 1)
     if ratio > limits.max_compression_ratio:
@@ -258,7 +264,11 @@ def check_ratio(info: zipfile.ZipInfo, limits: Limits, shown: str) -> None:
 
 
 def check_directory(
-    archive: zipfile.ZipFile, limits: Limits, budget: Budget, prefix: str = ""
+    archive: zipfile.ZipFile,
+    limits: Limits,
+    budget: Budget,
+    prefix: str = "",
+    ratio_floor: int = RATIO_FLOOR_BYTES,
 ) -> None:
     """Every rule the central directory alone can judge; no entry's data is read."""
     seen: set[PurePosixPath] = set()
@@ -280,7 +290,7 @@ def check_directory(
         if info.is_dir():
             continue
         files.add(path)
-        check_ratio(info, limits, shown)
+        check_ratio(info, limits, shown, ratio_floor)
         budget.take_bytes(shown, info.file_size)
 
 
@@ -817,7 +827,13 @@ def unpack_wheels(wheels: Path, dest: Path, limits: Limits) -> dict:
     for wheel in sorted(wheels.glob("*.whl")):
         shown = f"requirements.txt: {wheel.name}"
         with open_zip(wheel, limits, shown, size_rule="max-wheel-bytes") as archive:
-            check_directory(archive, limits, budget, prefix=f"{wheel.name}!")
+            check_directory(
+                archive,
+                limits,
+                budget,
+                prefix=f"{wheel.name}!",
+                ratio_floor=WHEEL_ENTRY_RATIO_FLOOR_BYTES,
+            )
             check_whole_ratio(archive, wheel, limits, shown)
             staging = dest.parent / "wheel-staging"
             shutil.rmtree(staging, ignore_errors=True)
