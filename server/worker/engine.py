@@ -43,16 +43,16 @@ from __future__ import annotations
 
 import logging
 import traceback
-from typing import Any, Protocol, TypeVar
+from typing import Any
 
 from celery import Task
-from sqlalchemy.orm import Session
 
 from arena.config import ServiceSettings, Settings
 from arena.errors import InfrastructureError
-from server.core.queue import BROKER_ERRORS, TaskQueue
+from server.core.queue import BROKER_ERRORS
 from server.worker import local
-from server.worker.heartbeat import Lease, heartbeat
+from server.worker.heartbeat import heartbeat
+from server.worker.job_kind import JobKind
 
 log = logging.getLogger(__name__)
 
@@ -61,50 +61,6 @@ INFRASTRUCTURE_RETRIES = 2
 RETRY_BACKOFF_S = 10
 # The failure of a job every worker that took it died with.
 WORKER_LOST = "worker_lost"
-
-ClaimT = TypeVar("ClaimT")
-ResultT = TypeVar("ResultT")
-
-
-class JobKind(Protocol[ClaimT, ResultT]):
-    """One kind of job: how to claim, renew, release, run, finish and reap it."""
-
-    name: str  # in logs: "episode", "training"
-    max_claims: int  # claims of one job (workers dying with it) before it fails as ours
-
-    def claim(self, session: Session, settings: Settings, worker: str, **ids: Any) -> ClaimT | None:
-        """Take the job for ``worker``; None when it is over or held by a live lease. (The whole
-        settings here and in ``run`` and ``finish``: each kind needs other groups.)"""
-
-    def renew(
-        self,
-        session: Session,
-        service: ServiceSettings,
-        claim: ClaimT,
-        worker: str,
-        **progress: Any,
-    ) -> bool | str:
-        """Extend the lease (writing the progress); False when the claim is no longer ours,
-        :data:`server.services.leases.HAND_BACK` when it should let another job run first."""
-
-    def release(self, session: Session, claim: ClaimT, worker: str) -> bool:
-        """Hand the job back: any worker may claim it at once. False when no longer ours."""
-
-    def send_again(self, queue: TaskQueue, claim: ClaimT) -> None:
-        """Send the job's task again (after a release)."""
-
-    def run(self, claim: ClaimT, lease: Lease, settings: Settings) -> ResultT | None:
-        """Do the work. Returns None only when it stopped because ``lease.stopped``."""
-
-    def ours(self, claim: ClaimT, reason: str, error: str) -> ResultT:
-        """The result of a job that failed on our side (not charged to the team)."""
-
-    def finish(self, claim: ClaimT, worker: str, result: ResultT, settings: Settings) -> None:
-        """Write the result through the fence, then send any follow-up task."""
-
-    def reap(self, service: ServiceSettings, queue: TaskQueue, *, queue_empty: bool) -> int:
-        """Send again the jobs whose lease expired (and, when the queue is empty, those whose
-        task was lost before any worker held them); how many."""
 
 
 def run_job(kind: JobKind, task: Task, settings: Settings, **ids: Any) -> None:

@@ -19,7 +19,7 @@ from server.core.queue import TaskQueue
 from server.services import evaluation
 from server.services.evaluation import ScenarioJob
 from server.worker import local
-from server.worker.heartbeat import Lease
+from server.worker.job_kind import Lease
 
 log = logging.getLogger(__name__)
 

@@ -16,20 +16,17 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from sqlalchemy.exc import SQLAlchemyError
 
 from arena.config import ServiceSettings
 from server.services.leases import HAND_BACK
 from server.worker import local
-
-if TYPE_CHECKING:  # the engine imports this module; only its types are needed here
-    from server.worker.engine import JobKind
+from server.worker.job_kind import JobKind, Lease
 
 log = logging.getLogger(__name__)
 
@@ -42,37 +39,6 @@ TICK_S = 0.2
 def beat_interval_s(lease_seconds: float) -> float:
     """[s] Renewals three times per lease, at most 5 s apart (the pace progress is shown at)."""
     return min(max(lease_seconds / 3, 0.5), 5.0)
-
-
-@dataclass(eq=False)
-class Lease:
-    """One claim a worker holds while its job runs."""
-
-    kind: JobKind
-    claim: Any
-    worker: str
-    lost: threading.Event = field(default_factory=threading.Event)
-    handed_back: threading.Event = field(default_factory=threading.Event)
-    progress: dict[str, Any] = field(default_factory=dict)
-    _on_stop: Callable[[], None] | None = None
-
-    @property
-    def stopped(self) -> bool:
-        return self.lost.is_set() or self.handed_back.is_set()
-
-    def stop_with(self, hook: Callable[[], None]) -> None:
-        """What ends the job from outside when its lease is lost or handed back (it may run
-        several times: until the job returns, nothing it starts may outlive the claim)."""
-        self._on_stop = hook
-
-    def report(self, **progress: Any) -> bool:
-        """Progress written with the next renewal; False once the job must stop."""
-        self.progress = progress
-        return not self.stopped
-
-    def stop(self) -> None:
-        if self._on_stop is not None:
-            self._on_stop()
 
 
 class Heartbeat:

@@ -44,8 +44,9 @@ from server.core.celery_app import (
 from server.core.permissions import close_service_folders
 from server.services import adaptive, evaluation, submissions, training
 from server.worker import engine, heartbeat, local
-from server.worker.engine import INFRASTRUCTURE_RETRIES, JobKind
+from server.worker.engine import INFRASTRUCTURE_RETRIES
 from server.worker.episodes import EPISODES
+from server.worker.job_kind import JobKind
 from server.worker.trainings import TRAININGS
 from server.worker.validations import VALIDATIONS
 from submissions.intake.archive import remove_tree

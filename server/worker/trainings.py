@@ -21,7 +21,8 @@ from server.services import training
 from server.services.training import TrainingClaim
 from server.services.training_curves import CurvePublisher
 from server.worker import checkpoints, local
-from server.worker.heartbeat import Lease, beat_interval_s
+from server.worker.heartbeat import beat_interval_s
+from server.worker.job_kind import Lease
 
 
 @dataclass(frozen=True)

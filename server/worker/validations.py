@@ -29,7 +29,7 @@ from server.models import Submission
 from server.services import validation
 from server.services.validation import ValidationClaim
 from server.worker import local
-from server.worker.heartbeat import Lease
+from server.worker.job_kind import Lease
 from submissions.intake import PreparedSubmission
 from submissions.intake.archive import remove_tree
 from submissions.intake.contents import REQUIREMENTS
