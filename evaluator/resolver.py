@@ -35,9 +35,9 @@ from evaluator.sandbox.backend import (
     Sandbox,
     Training,
 )
+from evaluator.sandbox.batch_folders import open_to_sandbox, output_usage, writable_by_sandbox
 from evaluator.sandbox.docker_backend import shared_copy
 from evaluator.sandbox.index_proxy import IndexProxy, allowed_address
-from evaluator.validation import open_to_sandbox, output_usage, writable_by_sandbox
 from submissions.intake.contents import REQUIREMENTS
 from submissions.intake.package_index import local_path
 from submissions.intake.runner import read_resolver_report

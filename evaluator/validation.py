@@ -15,7 +15,6 @@ hands over to the runtime's ``intake.py``, mounted in every sandbox at ``/opt/ar
 
 from __future__ import annotations
 
-import os
 import tempfile
 import time
 from pathlib import Path
@@ -24,6 +23,7 @@ from types import SimpleNamespace
 from agent_runtime import intake as rules
 from arena.config import IntakeSettings, SandboxKind, SandboxSettings
 from arena.errors import IntakeError
+from evaluator.resolver import run_resolver
 from evaluator.sandbox.backend import (
     DATASET_MOUNT,
     MODEL_MOUNT,
@@ -31,11 +31,11 @@ from evaluator.sandbox.backend import (
     TRAIN_SCRIPT,
     Training,
 )
+from evaluator.sandbox.batch_folders import open_to_sandbox, output_usage, writable_by_sandbox
 from submissions.intake import PreparedSubmission, prepare_submission
 from submissions.intake.runner import RESOLVER_MODES, IntakeRunner, read_report
 
 POLL_S = 0.1
-SANDBOX_UID = 65534
 
 
 def _stub(mode: str) -> str:
@@ -69,9 +69,6 @@ def sandboxed(
         from evaluator import sandbox
 
         if mode in RESOLVER_MODES:
-            # deferred: the resolver builds on this module's helpers
-            from evaluator.resolver import run_resolver
-
             return run_resolver(
                 mode,
                 inputs,
@@ -141,34 +138,6 @@ def sandboxed(
         return read_report(output)
 
     return run
-
-
-def open_to_sandbox(program: Path, inputs: Path) -> None:
-    """The sandbox user (not us) reads the stub and the inputs."""
-    for root in (program, inputs):
-        root.chmod(0o755)
-        for path in root.rglob("*"):
-            path.chmod(0o755 if path.is_dir() else 0o644)
-
-
-def writable_by_sandbox(output: Path) -> None:
-    output.mkdir(parents=True, exist_ok=True)
-    if os.geteuid() == 0:
-        os.chown(output, SANDBOX_UID, SANDBOX_UID)
-    else:
-        output.chmod(0o777)
-
-
-def output_usage(folder: Path) -> tuple[int, int]:
-    size = count = 0
-    for path, _, files in os.walk(folder):
-        for name in files:
-            count += 1
-            try:
-                size += os.lstat(os.path.join(path, name)).st_size
-            except FileNotFoundError:
-                continue
-    return size, count
 
 
 def validate(

@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 from arena.errors import ArenaError
+from evaluator.sandbox.batch_folders import SANDBOX_UID
 from evaluator.training.model import (
     PackRefused,
     output_usage,
@@ -24,9 +25,6 @@ from evaluator.training.model import (
     regular_files,
     unpack_model,
 )
-
-# The sandbox user owns the output folder it writes (Docker and bubblewrap run as nobody).
-SANDBOX_UID = 65534
 
 
 class SnapshotFailed(ArenaError):

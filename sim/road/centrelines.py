@@ -11,16 +11,13 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from functools import lru_cache
-from typing import TYPE_CHECKING, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
 from agent_runtime.packed_waypoints import POINT_VALUES, PackedPaths
+from sim.road.lane import WAYPOINT_SPACING, Lane
 
-if TYPE_CHECKING:
-    from sim.road.lane import Lane
-
-WAYPOINT_SPACING = 1.0  # [m] distance between consecutive waypoints along a lane
 # [m] offsets of a piece's points from its first (a longer piece makes its own: _piece_steps)
 _STEPS = WAYPOINT_SPACING * np.arange(256)
 # Rows of CentrelineTable.values (a column per centreline vertex of every lane); after the

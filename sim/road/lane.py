@@ -10,8 +10,8 @@ from itertools import pairwise
 import numpy as np
 
 from arena import portable_math
-from sim.road.centrelines import WAYPOINT_SPACING
 
+WAYPOINT_SPACING = 1.0  # [m] distance between consecutive waypoints along a lane
 # Lanes of more centreline points than this are projected onto through a grid of their segments
 # (numpy over all segments when the grid cannot tell), fewer with a scalar loop over all; every
 # way gives the same result.

@@ -16,8 +16,8 @@ import math
 from weakref import WeakKeyDictionary
 
 from agent_runtime.packed_waypoints import waypoint_paths as unpacked_paths
-from sim.road.centrelines import WAYPOINT_SPACING, CentrelineTable, WaypointArrays, packed
-from sim.road.lane import Lane
+from sim.road.centrelines import CentrelineTable, WaypointArrays, packed
+from sim.road.lane import WAYPOINT_SPACING, Lane
 from sim.road.network import LanePosition, RoadNetwork
 
 _MAX_LANE_HOPS = 256  # a path crosses at most this many lanes (zero-length junction lanes)

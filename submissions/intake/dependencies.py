@@ -32,7 +32,6 @@ import tempfile
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from packaging.requirements import InvalidRequirement, Requirement
 
@@ -46,9 +45,6 @@ from submissions.intake.package_index import PackageSources, package_sources
 from submissions.intake.porting import explain_unresolved
 from submissions.intake.runner import IntakeRunner, write_inputs
 
-if TYPE_CHECKING:
-    from submissions.intake.stacks import Stack
-
 DEPS_CACHE = "deps"
 WHEEL_STORE = "wheels"
 MANIFEST = ".stack.json"
@@ -60,6 +56,16 @@ CPU_FRAMEWORKS = ("torch", "torchvision", "torchaudio")
 class InstalledRequirements:
     key: str  # content key: the normalised requirements, the sandbox target and the sources
     folder: Path
+
+
+@dataclass(frozen=True)
+class Stack:
+    """An organiser stack (:mod:`submissions.intake.stacks`) a submission's requirements add to."""
+
+    name: str
+    requirements: tuple[str, ...]  # its own lines
+    lock: tuple[str, ...]  # project==version of every wheel built
+    wheelhouse: Path
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,6 @@ import json
 import re
 import shutil
 import tempfile
-from dataclasses import dataclass
 from pathlib import Path
 
 from arena.config import IntakeSettings, SandboxSettings
@@ -24,6 +23,7 @@ from arena.errors import IntakeError
 from submissions.intake.archive import remove_tree
 from submissions.intake.contents import AGENT_YAML
 from submissions.intake.dependencies import (
+    Stack,
     deps_cache,
     parse_requirements,
     resolve,
@@ -43,14 +43,6 @@ STACK_NAME = re.compile(r"[a-z0-9][a-z0-9_.-]{0,63}")
 BUILTIN_STACKS = {
     "ds2022": "torch\nnumpy==1.23.5\ngym==0.26.2\nd3rlpy==1.1.1\n",
 }
-
-
-@dataclass(frozen=True)
-class Stack:
-    name: str
-    requirements: tuple[str, ...]  # its own lines
-    lock: tuple[str, ...]  # project==version of every wheel built
-    wheelhouse: Path
 
 
 def stacks_dir(data_dir: Path) -> Path:
