@@ -83,7 +83,7 @@ from arena.suite import SHIPPED_PUBLIC_DIR, load_suite
 from evaluator.runner import evaluate
 from evaluator.runner.evaluate import TIMINGS_FILE
 from evaluator.runner.results import RECORDS_DIR
-from evaluator.sandbox import backend
+from evaluator.sandbox.backend_registry import backend_for
 from sim.interface import AgentInterface
 from sim.simulation import CONTEXT_MARGIN
 
@@ -315,7 +315,7 @@ def main() -> None:
     if args.smoke:
         args.suite, args.first, args.only = SHIPPED_PUBLIC_DIR, 2, "trivial"
         args.sandbox = SandboxKind.process
-    unavailable = backend(args.sandbox).unavailable_reason(get_settings().sandbox)
+    unavailable = backend_for(args.sandbox).unavailable_reason(get_settings().sandbox)
     require(unavailable and f"the {args.sandbox.value} sandbox: {unavailable} (--sandbox)")
     if args.episodes is not None and (args.episodes < 1 or args.measure_episodes < 1):
         parser.error("--episodes and --measure-episodes must be at least 1")

@@ -55,7 +55,8 @@ import numpy as np
 from agent_runtime.packed_waypoints import POINT_VALUES
 from arena.config import SandboxKind, SandboxSettings, Settings
 from arena.settings_changes import with_fields
-from evaluator.sandbox import backend, start
+from evaluator.sandbox import start
+from evaluator.sandbox.backend_registry import backend_for
 from evaluator.sandbox.warm import WarmAgent
 from sim.interface import AgentInterface
 from sim.observation_arrays import ObservationEncoder, ObservationLayout
@@ -195,7 +196,7 @@ def main() -> None:
     starts: dict[str, list[float]] = {}  # row -> its sandboxes' start times [s]
     for name in args.kinds.split(","):
         kind, config = row_sandbox(name, settings)
-        reason = backend(kind).unavailable_reason(config)
+        reason = backend_for(kind).unavailable_reason(config)
         if reason:
             print(f"{name}: skipped ({reason})")
             continue

@@ -36,7 +36,7 @@ from _prerequisites import require
 
 from arena.config import SandboxKind, Settings
 from arena.errors import IntakeError
-from evaluator.sandbox import backend
+from evaluator.sandbox.backend_registry import backend_for
 from evaluator.validation import sandboxed, validate
 from submissions.intake import pack_folder
 from submissions.intake.dependencies import MANIFEST
@@ -103,7 +103,7 @@ def main() -> None:
     parser.add_argument("--smoke", action="store_true", help="a loopback index, a small stack")
     args = parser.parse_args()
     settings = Settings()
-    require(backend(SandboxKind(args.sandbox)).unavailable_reason(settings.sandbox))
+    require(backend_for(SandboxKind(args.sandbox)).unavailable_reason(settings.sandbox))
     if args.smoke:
         team_files = {"smoke": SMOKE_TEAM_REQUIREMENTS}
     else:

@@ -50,7 +50,7 @@ from evaluator.runner.results import (
 )
 from evaluator.runner.scenario import ScenarioOutcome, run_scenario
 from evaluator.runner.score_cache import SCORES_FILE, ScoreCache
-from evaluator.sandbox import backend, resolve_kind
+from evaluator.sandbox.backend_registry import backend_for, resolve_kind
 from evaluator.sandbox.warm_pool import warm_agents
 from evaluator.scoring import DEFAULT_PROFILE, ScoringProfile, load_profile
 from evaluator.summary import (
@@ -244,7 +244,7 @@ def _usable_sandbox(kind: SandboxKind | None, config: SandboxSettings) -> Sandbo
     """The concrete sandbox, checked once: a missing daemon or tool fails the evaluation before
     any scenario, instead of every scenario failing on it."""
     kind = resolve_kind(kind, config)
-    reason = backend(kind).unavailable_reason(config)
+    reason = backend_for(kind).unavailable_reason(config)
     if reason is not None:
         raise SandboxUnavailable(f"sandbox {kind.value} cannot run here: {reason}")
     return kind

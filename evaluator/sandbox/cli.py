@@ -60,11 +60,11 @@ def status() -> None:
     # deferred: CLI start-up time
     from arena.config import SandboxKind, get_settings
     from arena.errors import SandboxUnavailable
-    from evaluator.sandbox import backend, resolve_kind
+    from evaluator.sandbox.backend_registry import backend_for, resolve_kind
 
     config = get_settings().sandbox
     for kind in (SandboxKind.docker, SandboxKind.bubblewrap, SandboxKind.process):
-        reason = backend(kind).unavailable_reason(config)
+        reason = backend_for(kind).unavailable_reason(config)
         note = " (no isolation: local use only)" if kind is SandboxKind.process else ""
         shown = "[green]available[/]" if reason is None else f"[red]unavailable[/]: {reason}"
         console.print(f"{kind.value:>10}: {shown}{note}")

@@ -75,6 +75,24 @@ class AgentHandle:
         # reported them at ready (the results manifest's agent_stack); bounded, strings only.
         self.stack: dict[str, str] = {}
 
+    @classmethod
+    def started(
+        cls,
+        sandbox: Sandbox,
+        config: SandboxSettings,
+        interface: AgentInterface | None = None,
+        limits: CpuLimits | None = None,
+    ) -> AgentHandle:
+        """The handle of a launched ``sandbox`` once its agent said hello and ready; the sandbox
+        is closed (killed) when the handshake fails, so a failed start leaves nothing running."""
+        handle = cls(sandbox, config, interface, limits)
+        try:
+            handle.handshake()
+        except BaseException:
+            handle.close()
+            raise
+        return handle
+
     def handshake(self) -> None:
         deadline = time.monotonic() + self._init_timeout_s
         # Until hello the sandbox runs our runtime only (it says hello before it reads anything

@@ -34,6 +34,7 @@ from arena.config import SandboxKind, SandboxSettings
 from arena.cpu_limits import CpuLimits
 from arena.errors import SandboxUnavailable
 from evaluator.sandbox.backend import SANDBOX_LABEL, ExitStatus, LaunchSpec, Sandbox
+from evaluator.sandbox.backend_registry import backend_for
 from evaluator.sandbox.channel import (
     HEADER,
     Channel,
@@ -80,13 +81,7 @@ class ForkedAgent:
     def start(self, limits: CpuLimits | None = None) -> AgentHandle:
         """The agent's handle, after its hello and ready (in the episode process); its acts
         run under ``limits`` (default: the sandbox settings')."""
-        handle = AgentHandle(ForkedSandbox(self), self.config, self.interface, limits)
-        try:
-            handle.handshake()
-        except BaseException:
-            handle.close()
-            raise
-        return handle
+        return AgentHandle.started(ForkedSandbox(self), self.config, self.interface, limits)
 
 
 class ForkedSandbox:
@@ -169,13 +164,10 @@ class WarmAgent:
         """Start ``submission``'s zygote. Raises :class:`SandboxUnavailable` when it does not say
         hello and ready in ``init_timeout_s``: it runs none of the participant's code, so that
         is ours (the caller then starts each agent cold, which reports the agent's own errors)."""
-        # deferred: evaluator.sandbox (whose backend() this is) imports this module via warm_pool
-        from evaluator.sandbox import backend
-
         spec = LaunchSpec.of_agent(
             submission, config, data_dir, {**(labels or {}), WARM_LABEL: "1"}, zygote=True
         )
-        sandbox = backend(kind).launch(spec)
+        sandbox = backend_for(kind).launch(spec)
         deadline = time.monotonic() + config.init_timeout_s
         try:
             channel = sandbox.connect(deadline)

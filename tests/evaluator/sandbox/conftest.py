@@ -9,8 +9,9 @@ from pathlib import Path
 import pytest
 
 from arena.config import SandboxKind, Settings
-from evaluator.sandbox import backend, start
+from evaluator.sandbox import start
 from evaluator.sandbox.backend import SANDBOX_LABEL
+from evaluator.sandbox.backend_registry import backend_for
 from evaluator.sandbox.subprocess_sandbox import labelled_pids
 from tests.evaluator.sandbox.agents import agent, observation
 from tests.settings import sandbox_args, with_fields
@@ -32,7 +33,7 @@ def settings(tmp_path_factory: pytest.TempPathFactory) -> Settings:
 
 
 def usable(kind: SandboxKind, settings: Settings) -> SandboxKind:
-    reason = backend(kind).unavailable_reason(settings.sandbox)
+    reason = backend_for(kind).unavailable_reason(settings.sandbox)
     if reason is not None:
         # CI installs and starts every sandbox (scripts/setup-sandbox.sh): there a missing one is
         # a failure, not a reason to skip the hostile-submission tests.

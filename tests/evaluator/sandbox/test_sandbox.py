@@ -214,9 +214,9 @@ def test_requirements_are_importable_inside(any_kind, settings, labels, tmp) -> 
 
 
 def test_auto_prefers_docker_and_the_service_refuses_process(settings) -> None:
-    from evaluator.sandbox import backend
+    from evaluator.sandbox.backend_registry import backend_for
 
-    docker_ok = backend(SandboxKind.docker).unavailable_reason(settings.sandbox) is None
+    docker_ok = backend_for(SandboxKind.docker).unavailable_reason(settings.sandbox) is None
     expected = SandboxKind.docker if docker_ok else SandboxKind.bubblewrap
     assert resolve_kind("auto", settings.sandbox) is expected
     assert resolve_kind("process", settings.sandbox) is SandboxKind.process
