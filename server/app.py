@@ -20,7 +20,7 @@ from evaluator.viewer.page import WEB_DIR as REPLAY_WEB_DIR
 from server.api.contract import allowed_methods
 from server.api.main import api_router
 from server.api.routes import docs_pages, pages
-from server.api.security import SecurityHeaders
+from server.api.security_headers import SecurityHeaders
 from server.core.db import Database
 from server.core.queue import TaskQueue
 from server.services.errors import ServiceError

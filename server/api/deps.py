@@ -23,9 +23,9 @@ from server.core.artifacts import ArtifactStore, artifact_store
 from server.core.db import Database
 from server.core.queue import TaskQueue
 from server.models import Submission, Team
-from server.security import same_secret
 from server.services.leaderboard import LeaderboardCache
 from server.services.teams import team_for_token
+from server.tokens import same_secret
 
 bearer = HTTPBearer(auto_error=False)
 # Row ids are 32-bit integers on PostgreSQL (64-bit on SQLite): a larger id in a path or query

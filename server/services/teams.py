@@ -10,8 +10,8 @@ from sqlalchemy.orm import Session
 
 from arena.names import did_you_mean
 from server.models import ApiToken, Submission, Team, utcnow
-from server.security import hash_token, new_token
 from server.services.errors import Conflict, InvalidInput, NotFound
+from server.tokens import hash_token, new_token
 
 TEAM_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9 _.-]{0,63}$")
 

@@ -23,7 +23,7 @@ from server.api.deps import (
     SessionDep,
     SuitesDep,
 )
-from server.api.security import page_templates
+from server.api.security_headers import page_templates
 from server.models import Phase, utcnow
 from server.services import phases, scenarios
 from server.services.errors import NotFound
