@@ -34,12 +34,14 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from packaging.requirements import InvalidRequirement, Requirement
+from packaging.utils import canonicalize_name
 
 from agent_runtime import intake as rules
 from agent_runtime import resolve as resolver_rules
 from arena.config import IntakeSettings, SandboxSettings
 from arena.errors import IntakeError
-from submissions.intake.archive import file_sha256, make_read_only, remove_tree
+from arena.files import file_sha256
+from submissions.intake.archive import make_read_only, remove_tree
 from submissions.intake.contents import REQUIREMENTS
 from submissions.intake.package_index import PackageSources, package_sources
 from submissions.intake.porting import explain_unresolved
@@ -165,7 +167,14 @@ def install_requirements(
     """The folder holding the installed requirements (on the organiser ``stack``, if any), or
     None when there are none."""
     lines = parse_requirements(text)
+    conflicts = []
     if stack is not None:
+        # A line the stack's lock excludes is told with the rest of the file's errors: it is
+        # left out of the resolution so that pip, which names one conflict a run, names the
+        # others (a 2022 file pins numpy, click, cloudpickle... the stack holds other versions).
+        conflicts = lock_conflicts(lines, stack)
+        excluded = {number for number, _ in conflicts}
+        lines = [(n, line) for n, line in lines if n not in excluded]
         # The stack's own lines (numbered 0: not the team's) and its lock as constraints; its
         # wheelhouse is read before the index.
         lines = [(0, line) for line in stack.requirements] + lines
@@ -178,12 +187,19 @@ def install_requirements(
     key = requirements_key(request)
     cache = deps_cache(data_dir)
     target = cache / key
-    if (target / MANIFEST).is_file():
+    if not conflicts and (target / MANIFEST).is_file():
         return InstalledRequirements(key, target)
     cache.mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix=".deps-", dir=cache))
     try:
-        wheels, report = resolve(request, intake, work, runner, text)
+        try:
+            wheels, report = resolve(request, intake, work, runner, text)
+        except IntakeError as error:
+            if not conflicts:
+                raise
+            raise with_lock_conflicts(error, conflicts) from error
+        if conflicts:
+            raise with_lock_conflicts(None, conflicts)
         stack = store_wheels(wheels, intake, data_dir, work, runner)
         assemble(stack, report, request, data_dir, work / "stack")
         with contextlib.suppress(OSError):
@@ -195,6 +211,39 @@ def install_requirements(
     finally:
         remove_tree(work)
     return InstalledRequirements(key, target)
+
+
+def lock_conflicts(lines: list[tuple[int, str]], stack: Stack) -> list[tuple[int, str]]:
+    """``(line number, message)`` of each team line whose version range excludes the version
+    the stack's lock holds of that project."""
+    locked = {}
+    for pin in stack.lock:
+        name, _, version = pin.partition("==")
+        locked[canonicalize_name(name)] = version
+    found = []
+    for number, line in lines:
+        requirement = Requirement(line)
+        held = locked.get(canonicalize_name(requirement.name))
+        if held is not None and not requirement.specifier.contains(held, prereleases=True):
+            found.append(
+                (
+                    number,
+                    f"line {number} `{line}`: the stack {stack.name} holds "
+                    f"{requirement.name} {held} (its versions are fixed): remove the line or "
+                    "its version",
+                )
+            )
+    return found
+
+
+def with_lock_conflicts(error: IntakeError | None, conflicts: list[tuple[int, str]]) -> IntakeError:
+    """The rejection telling the lines the stack excludes, and ``error``, the resolution's own
+    rejection of the other lines, if any."""
+    told = "; ".join(message for _, message in conflicts)
+    if error is None:
+        entry = f"{REQUIREMENTS}:{conflicts[0][0]}" if len(conflicts) == 1 else REQUIREMENTS
+        return IntakeError(entry, "requirements-conflict", told)
+    return IntakeError(REQUIREMENTS, error.rule, f"{told}; {error.message}")
 
 
 def resolve(

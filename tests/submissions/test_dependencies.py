@@ -475,3 +475,42 @@ def test_an_organiser_stack_is_built_once_and_a_team_adds_to_it(tmp_path: Path) 
             unknown, tmp_path / "b", offline.intake, offline.sandbox, data_dir, kind="bubblewrap"
         )
     assert caught.value.rule == "stack" and "built: mini" in caught.value.message
+
+
+@pytest.mark.slow  # the resolver sandbox (bubblewrap)
+def test_every_line_the_stacks_lock_excludes_is_told_in_one_round(tmp_path: Path) -> None:
+    """A 2022 file on `stack: ds2022` pinned numpy, torch, click, cloudpickle... to versions the
+    stack does not hold: pip named one conflict a run, so one line was told per upload."""
+    files = tmp_path / "files"
+    files.mkdir()
+    build_wheel(files, "torch", "2.0.0+cpu")
+    build_wheel(files, "torch", "2.1.0+cpu")
+    build_wheel(files, "smallpkg", "1.0")
+    build_wheel(files, "smallpkg", "1.1")
+    build_wheel(files, "teampkg", "1.0")
+    with served_index(files, tmp_path / "web") as url:
+        settings = settings_for(tmp_path, url)
+        data_dir = settings.storage.resolved_data_dir
+        runner = sandboxed(settings.intake, settings.sandbox, data_dir, "bubblewrap")
+        stack = "torch\nsmallpkg\n"
+        build_stack("mini", stack, settings.intake, settings.sandbox, data_dir, runner)
+        requirements = "smallpkg==1.0\nteampkg==1.0\ntorch==2.0.0+cpu\nnosuchpkg==1.0\n"
+        upload = write_zip(
+            tmp_path / "a.zip",
+            with_policy(**{"agent.yaml": "stack: mini\n", "requirements.txt": requirements}),
+        )
+        with pytest.raises(IntakeError) as caught:
+            validate(
+                upload,
+                tmp_path / "a",
+                settings.intake,
+                settings.sandbox,
+                data_dir,
+                kind="bubblewrap",
+            )
+    message = caught.value.message
+    assert "line 1 `smallpkg==1.0`: the stack mini holds smallpkg 1.1" in message
+    assert "line 3 `torch==2.0.0+cpu`: the stack mini holds torch 2.1.0+cpu" in message
+    assert "line 4 `nosuchpkg==1.0`" in message
+    assert "line 2" not in message
+    assert caught.value.rule == "no-distribution"
