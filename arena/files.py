@@ -1,8 +1,10 @@
-"""Files that readers see whole or not at all, however many writers race for them."""
+"""Files that readers see whole or not at all, however many writers race for them, and the digest
+that names a file by its content."""
 
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import os
 import secrets
 from collections.abc import Iterator
@@ -34,3 +36,12 @@ def write_atomically(dest: Path, data: bytes | str) -> Path:
         else:
             partial.write_bytes(data)
     return Path(dest)
+
+
+def file_sha256(path: Path) -> str:
+    """The hex sha256 of the file's bytes, read a MiB at a time (uploads and models are large)."""
+    digest = hashlib.sha256()
+    with Path(path).open("rb") as handle:
+        while chunk := handle.read(1 << 20):
+            digest.update(chunk)
+    return digest.hexdigest()

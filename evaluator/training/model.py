@@ -24,11 +24,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from arena.errors import ArenaError
+from arena.files import file_sha256
 
 MODEL_ARCHIVE = "model.tar.gz"
 # How a name below the folder is opened: never through a link, never blocking on a fifo.
 _OPEN_FLAGS = os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC
-_HASH_CHUNK = 1024**2
 
 
 class PackRefused(ArenaError):
@@ -138,11 +138,7 @@ def pack_model(
     except BaseException:
         archive.unlink(missing_ok=True)
         raise
-    digest = hashlib.sha256()
-    with archive.open("rb") as handle:
-        while chunk := handle.read(_HASH_CHUNK):
-            digest.update(chunk)
-    return digest.hexdigest()
+    return file_sha256(archive)
 
 
 def _files_below(folder: Path, max_entries: int | None) -> Iterator[tuple[str, object]]:

@@ -17,7 +17,7 @@ from sqlalchemy import delete, or_, select
 
 from arena.config import ArtifactBackend, StorageSettings
 from arena.errors import ArenaError
-from arena.files import replaced_atomically, write_atomically
+from arena.files import file_sha256, replaced_atomically, write_atomically
 from server.core.db import Database
 from server.models import Artifact, utcnow
 
@@ -49,14 +49,6 @@ def checked_key(key: str) -> str:
     return path.as_posix()
 
 
-def _sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with path.open("rb") as handle:
-        for block in iter(lambda: handle.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
-
-
 class FolderStore:
     def __init__(self, root: Path) -> None:
         self.root = Path(root)
@@ -69,7 +61,7 @@ class FolderStore:
         if Path(source).resolve() != dest.resolve():
             with replaced_atomically(dest) as partial:
                 shutil.copyfile(source, partial)
-        return _sha256(dest)
+        return file_sha256(dest)
 
     def fetch(self, key: str, dest: Path) -> Path:
         return write_atomically(Path(dest), self.read(key))

@@ -13,7 +13,6 @@ what differs is named with its seed.
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import random
 import tempfile
 from collections.abc import Callable
@@ -28,6 +27,7 @@ from arena.config import IntakeSettings, SandboxKind, SandboxSettings
 from arena.cpu_limits import CpuLimits
 from arena.episodes import Episode, traffic_seed
 from arena.errors import ArenaError
+from arena.files import file_sha256
 from arena.outcome import FINISHED
 from arena.scenario import load_scenario
 from arena.suite import Suite, load_suite
@@ -198,8 +198,8 @@ def _audit(
         current = manifest_of(
             suite,
             [EpisodeRun(e.scenario_id, e.episode, _seed(suite, e), here) for e in target.episodes],
-            submission=_sha256(upload),
-            model=_sha256(model) if model is not None else None,
+            submission=file_sha256(upload),
+            model=file_sha256(model) if model is not None else None,
             episodes_per_scenario=recorded.episodes_per_scenario,
             profile=recorded.profile,
             profile_version=recorded.profile_version,
@@ -345,14 +345,6 @@ def _nan(values: np.ndarray) -> np.ndarray:
 def _seed(suite: Suite, stored: _Stored) -> int:
     entry = load_scenario(suite.scenario_dir(stored.scenario_id))
     return traffic_seed(stored.scenario_id, entry.seed, stored.episode)
-
-
-def _sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with path.open("rb") as file:
-        for block in iter(lambda: file.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def sample(db: Database, count: int, rng: random.Random | None = None) -> list[int]:

@@ -20,6 +20,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from arena.config import get_settings
+from arena.files import file_sha256
 from arena.neutralise.storable import storable_text
 from evaluator import sandbox
 from evaluator.sandbox.warm_pool import warm_agents
@@ -116,7 +117,7 @@ def _prepare(upload_key: str) -> PreparedSubmission:
     staging = root / f"staging-{uuid.uuid4().hex}"
     try:
         zip_path = store().fetch(upload_key, staging / "upload.zip")
-        final = root / _file_sha256(zip_path)
+        final = root / file_sha256(zip_path)
         described = final / PREPARED_DESCRIPTION
         if not described.is_file():
             settings = get_settings()
@@ -147,14 +148,6 @@ def _discard(folder: Path) -> None:
     except FileNotFoundError:
         return
     remove_tree(trash)
-
-
-def _file_sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as file:
-        while chunk := file.read(1 << 20):
-            digest.update(chunk)
-    return digest.hexdigest()
 
 
 def model(model_key: str) -> Path:

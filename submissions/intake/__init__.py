@@ -17,8 +17,9 @@ from pathlib import Path
 from agent_runtime import intake as rules
 from arena.config import IntakeSettings, SandboxSettings
 from arena.errors import IntakeError
+from arena.files import file_sha256
 from sim.interface import AgentInterface
-from submissions.intake.archive import file_sha256, make_read_only, remove_tree
+from submissions.intake.archive import make_read_only, remove_tree
 from submissions.intake.contents import checked_contents, interface_of
 from submissions.intake.dependencies import install_requirements
 from submissions.intake.pack import pack_folder

@@ -5,7 +5,6 @@ the API's cheap check of a zip's directory, and read-only trees.
 
 from __future__ import annotations
 
-import hashlib
 import shutil
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -62,11 +61,3 @@ def remove_tree(root: Path) -> None:
         if path.is_dir() and not path.is_symlink():
             path.chmod(0o755)
     shutil.rmtree(root)
-
-
-def file_sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with path.open("rb") as handle:
-        while chunk := handle.read(1024**2):
-            digest.update(chunk)
-    return digest.hexdigest()

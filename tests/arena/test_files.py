@@ -1,10 +1,11 @@
 from __future__ import annotations
 
+import hashlib
 import os
 
 import pytest
 
-from arena.files import replaced_atomically, write_atomically
+from arena.files import file_sha256, replaced_atomically, write_atomically
 
 
 def test_two_writers_of_one_file_interleaved_both_finish_and_the_last_wins(tmp_path):
@@ -40,3 +41,11 @@ def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
     return mask
+
+
+@pytest.mark.parametrize("size", [0, 1, (1 << 20) - 1, 1 << 20, 3 * (1 << 20) + 7])
+def test_a_files_digest_is_the_sha256_of_its_bytes_across_chunk_edges(tmp_path, size):
+    data = os.urandom(size)
+    path = tmp_path / "blob"
+    path.write_bytes(data)
+    assert file_sha256(path) == hashlib.sha256(data).hexdigest()
