@@ -106,6 +106,7 @@ class Simulation:
         # Present before reset() so that an agent failing at start-up still has outcomes.
         self.vehicles = [MissionVehicle.from_mission(m) for m in self._missions]
         self._lanes: dict[str, LanePosition] = {}
+        self._moved_to: dict[str, LanePosition] = {}  # this step's lane, until _lane_of reads it
         self.step_count = 0
         self._mission_ids = {m.agent_id for m in self._missions}
         # Why each agent that sent an invalid action was stopped (agent id -> message).
@@ -146,6 +147,7 @@ class Simulation:
         self.step_count = 0
         self.violations = {}
         self._lanes = {}
+        self._moved_to = {}
         self._records = {}
         entering = [v for v in self.vehicles if v.mission.start_step <= 0]
         for v in entering:
@@ -206,7 +208,8 @@ class Simulation:
             new = DECODERS[space](action, v.pose, ctx)
             v.target_lane = ctx.target_lane
             v.advance(new, self.dt)
-            traffic.move(v.id, new.x, new.y, new.heading, new.speed)
+            lane = self._moved_to[v.id] = self.road.nearest_lane(new.x, new.y, new.heading)
+            traffic.move(v.id, new.x, new.y, new.heading, new.speed, lane)
             driven.append(v)
         entering = [
             v for v in self.vehicles if v.status is Status.waiting and v.mission.start_step <= step
@@ -371,7 +374,9 @@ class Simulation:
         return Surroundings(near, distance)
 
     def _lane_of(self, v: MissionVehicle) -> LanePosition:
-        lane = self.road.nearest_lane(v.pose.x, v.pose.y, v.pose.heading)
+        lane = self._moved_to.pop(v.id, None)  # found for SUMO's mapping, at the same pose
+        if lane is None:
+            lane = self.road.nearest_lane(v.pose.x, v.pose.y, v.pose.heading)
         self._lanes[v.id] = lane
         return lane
 

@@ -17,6 +17,7 @@ from typing import Protocol
 import numpy as np
 
 from arena.errors import InfrastructureError
+from sim.road import LanePosition
 from sim.vehicle.states import VehicleStates
 
 _open_instance: SumoTraffic | None = None
@@ -24,6 +25,12 @@ _open_instance: SumoTraffic | None = None
 # Speed / lane-change modes of SUMO: 0 = obey nothing (we or a script drive it); defaults below.
 DEFAULT_SPEED_MODE = 31
 DEFAULT_LANE_CHANGE_MODE = 1621
+# moveToXY's keepRoute: 2 = the best-scored lane of any edge within 100 m, the vehicle exactly
+# where it is told (on or off the road); 3 = the nearest lane of the vehicle's route, exactly there
+SEARCH_NEAR, ALONG_ROUTE = 2, 3
+# [m] room a front bumper keeps before its lane's end for the two mappings to agree (SUMO extends
+# lane shapes by a little and measures the distance to a junction lane from its start)
+LANE_END_ROOM = 1.0
 
 
 class SumoError(InfrastructureError, RuntimeError):
@@ -45,6 +52,33 @@ def sumo_command(net: Path, routes: Path | None, seed: int, step_length: float) 
     return [*cmd, *(item for pair in options.items() for item in pair)]
 
 
+def sumo_mapping(
+    lane: LanePosition | None, heading: float, half_length: float, route: Collection[str]
+) -> int:
+    """How SUMO maps a vehicle we move (moveToXY's keepRoute), given our map's ``lane`` under its
+    centre, its ``heading`` [rad], ``half_length`` [m] and the edges of the ``route`` SUMO knows
+    it by.
+
+    SUMO maps the front bumper. Along the route SUMO tries only the route's lanes, the search
+    near scores every lane within 100 m by distance (normalised by the farthest candidate),
+    angle and being on the route (28 µs a move on a junction map against 4 µs on a straight
+    road). Both choose the same lane, and so the same position on it, where the front bumper is
+    on a lane of a route edge, off a junction, short of the lane's end and within a quarter of
+    the lane's width of its centre: that lane is the nearest and outscores every other by
+    SUMO's weights. Elsewhere the search near may choose another lane than our map: another of
+    the junction lanes fanning out from one point, a ramp's lane beside the road, or none past
+    the road's end. There, and off the route, the vehicle is searched for as before, so that
+    SUMO's drivers see every ego where they always did (docs/performance.md)."""
+    if lane is None or lane.lane.is_internal or lane.lane.edge_id not in route:
+        return SEARCH_NEAR
+    turn = heading - lane.heading
+    front_s = lane.s + half_length * math.cos(turn)
+    front_t = lane.t + half_length * math.sin(turn)
+    if front_s + LANE_END_ROOM > lane.lane.length or abs(front_t) > lane.lane.width / 4:
+        return SEARCH_NEAR
+    return ALONG_ROUTE
+
+
 def sumo_running() -> bool:
     """Whether this process already runs its one SUMO simulation."""
     return _open_instance is not None
@@ -57,7 +91,15 @@ class Traffic(Protocol):
     def add_vehicle(
         self, vid: str, edges: list[str], length: float, width: float, height: float = 1.5
     ) -> None: ...
-    def move(self, vid: str, x: float, y: float, heading: float, speed: float) -> None: ...
+    def move(
+        self,
+        vid: str,
+        x: float,
+        y: float,
+        heading: float,
+        speed: float,
+        lane: LanePosition | None = None,
+    ) -> None: ...
     def remove(self, vid: str) -> None: ...
     def watch_around(self, vid: str, radius: float) -> None: ...
     def step(self) -> None: ...
@@ -86,6 +128,7 @@ class SumoTraffic:
         # vehicle id -> (half length, length, width) [m]
         self._dims: dict[str, tuple[float, float, float]] = {}
         self._routes = 0
+        self._route_edges: dict[str, frozenset[str]] = {}  # vehicle id -> its route in SUMO
         self._around: dict[str, dict] = {}  # vehicle id -> SUMO's report of its surroundings
         self._vars = [
             self._tc.VAR_POSITION,
@@ -141,16 +184,27 @@ class SumoTraffic:
         except ls.TraCIException as exc:
             raise SumoError(f"cannot add vehicle {vid} on route {edges}: {exc}") from exc
         self._dims[vid] = (length / 2, length, width)
+        self._route_edges[vid] = frozenset(edges)
 
-    def move(self, vid: str, x: float, y: float, heading: float, speed: float) -> None:
+    def move(
+        self,
+        vid: str,
+        x: float,
+        y: float,
+        heading: float,
+        speed: float,
+        lane: LanePosition | None = None,
+    ) -> None:
         """Put vehicle ``vid`` with its centre at (x, y) [m], ``heading`` [rad], ``speed`` [m/s]
-        at the next step. SUMO maps it to the nearest lane of any edge (keepRoute=2) so that its
-        drivers see it; where no lane is near (off road) the vehicle stays where it was."""
+        at the next step, exactly there (on the road or off it), on the lane SUMO maps it to so
+        that its drivers see it: along its route where ``lane`` (our map's, at this pose) says
+        that gives the same lane, else the best lane near (:func:`sumo_mapping`)."""
         half = self._dims[vid][0]
         fx, fy = x + half * math.cos(heading), y + half * math.sin(heading)
         angle = 90.0 - math.degrees(heading)
+        keep_route = sumo_mapping(lane, heading, half, self._route_edges[vid])
         try:
-            self._ls.vehicle.moveToXY(vid, "", -1, fx, fy, angle, keepRoute=2)
+            self._ls.vehicle.moveToXY(vid, "", -1, fx, fy, angle, keepRoute=keep_route)
             self._ls.vehicle.setPreviousSpeed(vid, speed)
         except self._ls.TraCIException:
             pass
@@ -275,7 +329,15 @@ class MissionsOnlyTraffic:
     ) -> None:
         self._present.add(vid)
 
-    def move(self, vid: str, x: float, y: float, heading: float, speed: float) -> None:
+    def move(
+        self,
+        vid: str,
+        x: float,
+        y: float,
+        heading: float,
+        speed: float,
+        lane: LanePosition | None = None,
+    ) -> None:
         pass  # where a mission vehicle is, only the simulation's own state says
 
     def remove(self, vid: str) -> None:
