@@ -80,7 +80,7 @@ from sandbox_roundtrip import floor_round_trip_ms  # a sibling script (bench/ is
 from arena.config import SandboxKind, get_settings
 from arena.episodes import episodes_of
 from arena.suite import SHIPPED_PUBLIC_DIR, load_suite
-from evaluator.runner import evaluate
+from evaluator.runner import EvaluationRequest, evaluate
 from evaluator.runner.evaluate import TIMINGS_FILE
 from evaluator.runner.results import RECORDS_DIR
 from evaluator.sandbox.backend_registry import backend_for
@@ -118,16 +118,18 @@ def timed_evaluation(
     settings = get_settings()
     started = time.perf_counter()
     summary = evaluate(
-        agent,
-        suite,
+        EvaluationRequest(
+            agent,
+            suite,
+            out_dir=out,
+            scenario_ids=ids,
+            jobs=jobs,
+            sandbox=sandbox,
+            episodes_per_scenario=episodes,
+        ),
         intake=settings.intake,
         config=settings.sandbox,
         data_dir=settings.storage.resolved_data_dir,
-        out_dir=out,
-        scenario_ids=ids,
-        jobs=jobs,
-        sandbox=sandbox,
-        episodes_per_scenario=episodes,
     )
     wall = time.perf_counter() - started
     if summary.uncharged:

@@ -97,6 +97,7 @@ def evaluate(
     # deferred: CLI start-up time
     from arena.config import get_settings
     from arena.suite import resolve_suite
+    from evaluator.runner import EvaluationRequest
     from evaluator.runner import evaluate as run_evaluation
 
     settings = get_settings()
@@ -107,21 +108,23 @@ def evaluate(
     try:
         with _exit_on_error(console):
             summary = run_evaluation(
-                path,
-                resolve_suite(suite, settings.suites, settings.storage.resolved_data_dir),
+                EvaluationRequest(
+                    path,
+                    resolve_suite(suite, settings.suites, settings.storage.resolved_data_dir),
+                    out_dir=out,
+                    per_submission=per_submission,
+                    force=force,
+                    scenario_ids=scenario,
+                    jobs=jobs or settings.evaluation.jobs,
+                    sandbox=sandbox or settings.sandbox.kind,
+                    profile=profile or settings.evaluation.scoring_profile,
+                    episodes_per_scenario=episodes or settings.evaluation.episodes_per_scenario,
+                    model_dir=model,
+                ),
                 intake=settings.intake,
                 config=settings.sandbox,
                 data_dir=settings.storage.resolved_data_dir,
-                out_dir=out,
-                per_submission=per_submission,
-                force=force,
-                scenario_ids=scenario,
-                jobs=jobs or settings.evaluation.jobs,
-                sandbox=sandbox or settings.sandbox.kind,
-                profile=profile or settings.evaluation.scoring_profile,
                 progress=progress,
-                episodes_per_scenario=episodes or settings.evaluation.episodes_per_scenario,
-                model_dir=model,
             )
     finally:
         progress.stop()

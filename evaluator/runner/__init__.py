@@ -5,7 +5,7 @@ turns outcomes into a :class:`evaluator.summary.Summary` (the service stores wha
 ``evaluate`` runs a whole suite locally with resume.
 """
 
-from evaluator.runner.evaluate import Progress, ResultsDirError, evaluate
+from evaluator.runner.evaluate import EvaluationRequest, Progress, ResultsDirError, evaluate
 from evaluator.runner.results import score_outcome, score_outcomes, score_results_dir
 from evaluator.runner.scenario import (
     SandboxedAgentFactory,
@@ -16,6 +16,7 @@ from evaluator.runner.scenario import (
 )
 
 __all__ = [
+    "EvaluationRequest",
     "Progress",
     "ResultsDirError",
     "SandboxedAgentFactory",

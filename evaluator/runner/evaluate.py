@@ -22,6 +22,7 @@ import traceback
 from collections.abc import Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from time import monotonic
 from typing import Protocol
@@ -84,57 +85,68 @@ class Progress(Protocol):
     def finished(self, outcome: ScenarioOutcome) -> None: ...
 
 
+@dataclass(frozen=True)
+class EvaluationRequest:
+    """What to evaluate and how: one ``arena evaluate``.
+
+    ``source``: the submission (a folder or a zip); ``suite_dir``: the scenario set, of which
+    ``scenario_ids`` (all when None) run; results go to ``out_dir``. ``per_submission`` puts them
+    in ``out_dir/<first 12 hex of the submission's sha256>``, so an edited agent gets a folder of
+    its own; ``force`` discards the results already there. ``episodes_per_scenario`` episodes of
+    each reactive scenario run (one of each replay); the episodes a previous run finished are
+    kept, so raising it reuses them. When the first ``fail_fast_after`` episodes all end with the
+    agent failing to start, the rest are not run (the summary stays incomplete): one error, not
+    one per scenario. ``model_dir`` is a trained output (``arena train``) the policy reads as
+    ARENA_MODEL_DIR; the results then belong to the submission and that model together. The
+    agent acts under ``cpu_limits`` (default: the sandbox settings'); once the CPU its episodes
+    used passes the evaluation's budget, the rest are not run (the summary stays incomplete, and
+    ``agent_cpu.json`` says why). Up to ``jobs`` episodes run at once, with ``sandbox`` (None:
+    the setting) and scored with ``profile``.
+    """
+
+    source: Path
+    suite_dir: Path
+    out_dir: Path
+    scenario_ids: Sequence[str] | None = None
+    jobs: int = 1
+    sandbox: SandboxKind | None = None
+    profile: str = DEFAULT_PROFILE
+    per_submission: bool = False
+    force: bool = False
+    fail_fast_after: int | None = FAIL_FAST_AFTER
+    episodes_per_scenario: int = 1
+    model_dir: Path | None = None
+    cpu_limits: CpuLimits | None = None
+
+
 def evaluate(
-    source: Path,
-    suite_dir: Path,
+    request: EvaluationRequest,
     *,
     intake: IntakeSettings,
     config: SandboxSettings,
     data_dir: Path,
-    out_dir: Path,
-    scenario_ids: Sequence[str] | None = None,
-    jobs: int = 1,
-    sandbox: SandboxKind | None = None,
-    profile: str = DEFAULT_PROFILE,
     progress: Progress | None = None,
-    per_submission: bool = False,
-    force: bool = False,
-    fail_fast_after: int | None = FAIL_FAST_AFTER,
-    episodes_per_scenario: int = 1,
-    model_dir: Path | None = None,
-    cpu_limits: CpuLimits | None = None,
 ) -> Summary:
-    """Run the episodes not yet finished in ``out_dir`` and return the summary.
-
-    ``per_submission`` puts the results in ``out_dir/<first 12 hex of the submission's sha256>``,
-    so an edited agent gets a folder of its own; ``force`` discards the results already there.
-    ``episodes_per_scenario`` episodes of each reactive scenario run (one of each replay); the
-    episodes a previous run finished are kept, so raising it reuses them.
-    When the first ``fail_fast_after`` episodes all end with the agent failing to start, the
-    rest are not run (the summary stays incomplete): one error, not one per scenario.
-    ``model_dir`` is a trained output (``arena train``) the policy reads as ARENA_MODEL_DIR; the
-    results then belong to the submission and that model together. ``intake`` and ``config``:
-    the intake's limits and the sandbox's; ``data_dir``: the data folder (the requirements'
-    cache, the sandboxes' owner). The agent acts under ``cpu_limits`` (default: ``config``'s);
-    once the CPU its episodes used passes the evaluation's budget, the rest are not run (the
-    summary stays incomplete, and ``agent_cpu.json`` says why).
-    """
-    cpu_limits = cpu_limits or config.cpu_limits
-    scoring_profile = load_profile(profile)
-    sandbox = _usable_sandbox(sandbox, config)
-    suite = load_suite(suite_dir).select(scenario_ids)
-    out_dir = Path(out_dir)
+    """Run the episodes of ``request`` not yet finished in its ``out_dir`` and return the
+    summary. ``intake`` and ``config``: the intake's limits and the sandbox's; ``data_dir``: the
+    data folder (the requirements' cache, the sandboxes' owner)."""
+    cpu_limits = request.cpu_limits or config.cpu_limits
+    scoring_profile = load_profile(request.profile)
+    sandbox = _usable_sandbox(request.sandbox, config)
+    suite = load_suite(request.suite_dir).select(request.scenario_ids)
+    out_dir = Path(request.out_dir)
+    model_dir = request.model_dir
     with tempfile.TemporaryDirectory(prefix="arena-submission-") as tmp:
         Path(tmp).chmod(0o755)  # sandboxes run the agent as another user, who must enter it
         submission = prepare_submission(
-            Path(source), Path(tmp) / "submission", intake, config, data_dir
+            Path(request.source), Path(tmp) / "submission", intake, config, data_dir
         )
         identity = submission.sha256
         if model_dir is not None:
             submission, identity = _with_model(submission, Path(model_dir))
-        if per_submission:
+        if request.per_submission:
             out_dir = out_dir / identity[:12]
-        if force:
+        if request.force:
             discard_results(out_dir)
         (out_dir / RECORDS_DIR).mkdir(parents=True, exist_ok=True)
         (out_dir / LOGS_DIR).mkdir(exist_ok=True)
@@ -144,7 +156,7 @@ def evaluate(
             suite,
             scoring_profile,
             identity,
-            episodes_per_scenario,
+            request.episodes_per_scenario,
             pins,
             cpu_limits=cpu_limits,
         )
@@ -164,13 +176,20 @@ def evaluate(
                 limits=cpu_limits,
             )
 
-        with _warm_agents_of(submission), ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
+        with (
+            _warm_agents_of(submission),
+            ThreadPoolExecutor(max_workers=max(1, request.jobs)) as pool,
+        ):
             pending: dict[Future, Episode] = {}
             queue = list(todo)
-            starts = _StartWatch(fail_fast_after)
+            starts = _StartWatch(request.fail_fast_after)
             finished: list[ScenarioOutcome] = []
             while True:
-                while queue and len(pending) < jobs and not (starts.gave_up or run.over_budget):
+                while (
+                    queue
+                    and len(pending) < request.jobs
+                    and not (starts.gave_up or run.over_budget)
+                ):
                     episode = queue.pop(0)
                     run.mark_running(episode)
                     pending[pool.submit(play, episode)] = episode

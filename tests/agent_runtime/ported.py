@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from arena.config import SandboxKind, get_settings
-from evaluator.runner import evaluate
+from evaluator.runner import EvaluationRequest, evaluate
 from evaluator.summary import Summary
 from tests.settings import evaluate_args
 
@@ -28,12 +28,10 @@ def run_ported(
     from arena.suite import SHIPPED_PUBLIC_DIR
 
     summary = evaluate(
-        agent,
-        SHIPPED_PUBLIC_DIR,
+        EvaluationRequest(
+            agent, SHIPPED_PUBLIC_DIR, out_dir=out, scenario_ids=scenarios, sandbox=kind
+        ),
         **evaluate_args(get_settings()),
-        out_dir=out,
-        scenario_ids=scenarios,
-        sandbox=kind,
     )
     reasons = {(s.id, a.id): a.reason for s in summary.scenarios for a in s.agents}
     logs = "\n".join(p.read_text(errors="replace") for p in (out / "logs").glob("*.txt"))

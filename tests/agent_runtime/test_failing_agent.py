@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from arena.config import SandboxKind, get_settings
-from evaluator.runner import evaluate
+from evaluator.runner import EvaluationRequest, evaluate
 from tests.settings import evaluate_args
 
 pytestmark = pytest.mark.slow
@@ -63,12 +63,14 @@ def test_one_agents_exception_ends_every_agent_of_the_episode(source, agent_yaml
     (folder / "agent.yaml").write_text(agent_yaml)
     out = tmp_path / "out"
     summary = evaluate(
-        folder,
-        SHIPPED_PUBLIC_DIR,
+        EvaluationRequest(
+            folder,
+            SHIPPED_PUBLIC_DIR,
+            out_dir=out,
+            scenario_ids=[SCENARIO],
+            sandbox=SandboxKind.process,
+        ),
         **evaluate_args(get_settings()),
-        out_dir=out,
-        scenario_ids=[SCENARIO],
-        sandbox=SandboxKind.process,
     )
     (scenario,) = summary.scenarios
     logs = "\n".join(p.read_text(errors="replace") for p in Path(out / "logs").glob("*.txt"))

@@ -10,7 +10,7 @@ import pytest
 
 from arena.config import get_settings
 from arena.cpu_limits import CpuLimits
-from evaluator.runner import evaluate
+from evaluator.runner import EvaluationRequest, evaluate
 from evaluator.runner.cpu_budget import AGENT_CPU_FILE, read_agent_cpu
 from tests.evaluator.runner.conftest import TEST_SANDBOX, write_policy
 from tests.evaluator.runner.test_evaluate import few_scenarios
@@ -48,15 +48,17 @@ def limits(evaluation_s: float) -> CpuLimits:
 
 def run(source, suite, out, ids, budget_s: float, force: bool = False):
     return evaluate(
-        source,
-        suite,
+        EvaluationRequest(
+            source,
+            suite,
+            out_dir=out,
+            scenario_ids=ids,
+            jobs=1,
+            sandbox=TEST_SANDBOX,
+            cpu_limits=limits(budget_s),
+            force=force,
+        ),
         **evaluate_args(get_settings()),
-        out_dir=out,
-        scenario_ids=ids,
-        jobs=1,
-        sandbox=TEST_SANDBOX,
-        cpu_limits=limits(budget_s),
-        force=force,
     )
 
 

@@ -17,7 +17,7 @@ from arena.episodes import traffic_seed
 from arena.outcome import ScenarioStatus
 from arena.scenario import load_scenario
 from arena.suite import load_suite
-from evaluator.runner import evaluate, score_results_dir
+from evaluator.runner import EvaluationRequest, evaluate, score_results_dir
 from evaluator.scoring import DEFAULT_PROFILE, load_profile
 from evaluator.summary import read_summary
 from tests.evaluator.runner.conftest import TEST_SANDBOX, example, write_policy
@@ -59,13 +59,10 @@ def steady(tmp_path: Path, crash_at=None) -> Path:
 
 def run(source: Path, suite: Path, out: Path, ids=None, jobs: int = 2):
     return evaluate(
-        source,
-        suite,
+        EvaluationRequest(
+            source, suite, out_dir=out, scenario_ids=ids, jobs=jobs, sandbox=TEST_SANDBOX
+        ),
         **evaluate_args(get_settings()),
-        out_dir=out,
-        scenario_ids=ids,
-        jobs=jobs,
-        sandbox=TEST_SANDBOX,
     )
 
 
@@ -176,14 +173,16 @@ def test_a_resumed_run_reuses_the_scores_of_unchanged_records_only(public_suite,
 
     def resume(profile: str = DEFAULT_PROFILE):
         return evaluate(
-            source,
-            public_suite,
+            EvaluationRequest(
+                source,
+                public_suite,
+                out_dir=out,
+                scenario_ids=[scenario_id],
+                sandbox=TEST_SANDBOX,
+                episodes_per_scenario=2,
+                profile=profile,
+            ),
             **evaluate_args(get_settings()),
-            out_dir=out,
-            scenario_ids=[scenario_id],
-            sandbox=TEST_SANDBOX,
-            episodes_per_scenario=2,
-            profile=profile,
         )
 
     first = resume()
@@ -234,12 +233,14 @@ def test_evaluate_in_docker_sandbox(public_suite, tmp_path):
 
     ids = few_scenarios(public_suite, 1)
     summary = evaluate(
-        steady(tmp_path),
-        public_suite,
+        EvaluationRequest(
+            steady(tmp_path),
+            public_suite,
+            out_dir=tmp_path / "out",
+            scenario_ids=ids,
+            sandbox=SandboxKind.docker,
+        ),
         **evaluate_args(get_settings()),
-        out_dir=tmp_path / "out",
-        scenario_ids=ids,
-        sandbox=SandboxKind.docker,
     )
     assert summary.complete and summary.uncharged == ()
     assert summary.scenarios[0].steps > 1
@@ -257,14 +258,16 @@ def test_episodes_repeat_reactive_scenarios_with_other_traffic(public_suite, tmp
     source = steady(tmp_path)
     once = run(source, public_suite, tmp_path / "once", ids)
     twice = evaluate(
-        source,
-        public_suite,
+        EvaluationRequest(
+            source,
+            public_suite,
+            out_dir=tmp_path / "twice",
+            scenario_ids=ids,
+            jobs=2,
+            sandbox=TEST_SANDBOX,
+            episodes_per_scenario=2,
+        ),
         **evaluate_args(get_settings()),
-        out_dir=tmp_path / "twice",
-        scenario_ids=ids,
-        jobs=2,
-        sandbox=TEST_SANDBOX,
-        episodes_per_scenario=2,
     )
 
     records = {name: tmp_path / name / "records" for name in ("once", "twice")}
@@ -293,13 +296,15 @@ def test_episodes_repeat_reactive_scenarios_with_other_traffic(public_suite, tmp
 
     count = Count()
     again = evaluate(
-        source,
-        public_suite,
+        EvaluationRequest(
+            source,
+            public_suite,
+            out_dir=tmp_path / "once",
+            scenario_ids=ids,
+            sandbox=TEST_SANDBOX,
+            episodes_per_scenario=2,
+        ),
         **evaluate_args(get_settings()),
-        out_dir=tmp_path / "once",
-        scenario_ids=ids,
-        sandbox=TEST_SANDBOX,
-        episodes_per_scenario=2,
         progress=count,
     )
     assert (count.total, count.already_done, count.ran) == (3, 2, (reactive, 1))
@@ -319,10 +324,14 @@ def test_warm_and_cold_agents_give_identical_summary_and_records(
         monkeypatch.setenv("ARENA_WARM_AGENTS", str(warm).lower())
         get_settings.cache_clear()
         out[warm] = tmp_path / f"warm-{warm}"
-        evaluate(
-            example("planner"), public_suite, **evaluate_args(get_settings()), out_dir=out[warm],
-            scenario_ids=ids, sandbox=SandboxKind.docker,
-        )  # fmt: skip
+        request = EvaluationRequest(
+            example("planner"),
+            public_suite,
+            out_dir=out[warm],
+            scenario_ids=ids,
+            sandbox=SandboxKind.docker,
+        )
+        evaluate(request, **evaluate_args(get_settings()))
     get_settings.cache_clear()
     assert (out[True] / "summary.json").read_bytes() == (out[False] / "summary.json").read_bytes()
     for scenario_id in ids:

@@ -9,7 +9,7 @@ import pytest
 
 from arena.config import SandboxKind, get_settings
 from arena.outcome import ScenarioStatus
-from evaluator.runner import evaluate, run_scenario
+from evaluator.runner import EvaluationRequest, evaluate, run_scenario
 from tests.evaluator.runner.conftest import TEST_SANDBOX, write_policy
 from tests.settings import evaluate_args, sandbox_args
 
@@ -85,11 +85,13 @@ def test_uncharged_scenario_leaves_n_and_is_listed(tmp_path):
     (suite / "manifest.json").write_text(json.dumps({"suite": "unit", "scenarios": entries}))
 
     summary = evaluate(
-        write_policy(tmp_path / "cruise", CRUISE),
-        suite,
+        EvaluationRequest(
+            write_policy(tmp_path / "cruise", CRUISE),
+            suite,
+            out_dir=tmp_path / "out",
+            sandbox=TEST_SANDBOX,
+        ),
         **evaluate_args(get_settings()),
-        out_dir=tmp_path / "out",
-        sandbox=TEST_SANDBOX,
     )
 
     assert summary.uncharged == ("bad",)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import pytest
 
 from arena.config import SandboxKind, get_settings
-from evaluator.runner import evaluate
+from evaluator.runner import EvaluationRequest, evaluate
 from tests.evaluator.runner.conftest import example
 from tests.settings import evaluate_args
 
@@ -35,13 +35,15 @@ SCENARIOS = [
 @pytest.mark.docker
 def test_smarts_interface_agent_drives_public_scenarios_in_docker(public_suite, tmp_path):
     summary = evaluate(
-        example("smarts_follower"),
-        public_suite,
+        EvaluationRequest(
+            example("smarts_follower"),
+            public_suite,
+            out_dir=tmp_path / "out",
+            scenario_ids=SCENARIOS,
+            jobs=2,
+            sandbox=SandboxKind.docker,
+        ),
         **evaluate_args(get_settings()),
-        out_dir=tmp_path / "out",
-        scenario_ids=SCENARIOS,
-        jobs=2,
-        sandbox=SandboxKind.docker,
     )
     assert summary.complete and summary.uncharged == ()
     reasons = {(s.id, a.id): a.reason for s in summary.scenarios for a in s.agents}

@@ -161,7 +161,7 @@ def test_records_and_scores_do_not_depend_on_the_format(tmp) -> None:
     """The same actions in both formats, on a one-agent and a two-agent scenario (the arrays
     agent also checks its arrays every step): byte-identical records, identical scenario
     results; only the submission's own digest differs in ``summary.json``."""
-    from evaluator.runner import evaluate
+    from evaluator.runner import EvaluationRequest, evaluate
     from tests.evaluator.runner.conftest import TEST_SANDBOX, write_policy
 
     scenarios = ["p016_cruise_2lane_low", "p019_cruise_2lane_low_2agents"]
@@ -180,12 +180,14 @@ def test_records_and_scores_do_not_depend_on_the_format(tmp) -> None:
         yaml = source / "agent.yaml"
         yaml.write_text(yaml.read_text() + f"observation_format: {fmt}\n")
         summaries[fmt] = evaluate(
-            source,
-            PUBLIC_SUITE,
+            EvaluationRequest(
+                source,
+                PUBLIC_SUITE,
+                out_dir=tmp / fmt,
+                scenario_ids=scenarios,
+                sandbox=TEST_SANDBOX,
+            ),
             **evaluate_args(get_settings()),
-            out_dir=tmp / fmt,
-            scenario_ids=scenarios,
-            sandbox=TEST_SANDBOX,
         )
     native, arrays = summaries["native"], summaries["arrays"]
     assert native.complete and not native.uncharged

@@ -13,7 +13,7 @@ import pytest
 
 from arena.config import SandboxKind, get_settings
 from arena.suite import SHIPPED_PUBLIC_DIR
-from evaluator.runner import evaluate
+from evaluator.runner import EvaluationRequest, evaluate
 from evaluator.training import train
 from scenarios.dataset.build import TRANSITIONS, write_transitions
 from scenarios.dataset.collect import collect
@@ -99,13 +99,15 @@ def test_it_trains_in_the_sandbox_and_drives_with_its_model(tmp_path, dataset):
     assert weights["w0"].shape[0] == weights["x_mean"].shape[0]
 
     summary = evaluate(
-        EXAMPLE,
-        SHIPPED_PUBLIC_DIR,
+        EvaluationRequest(
+            EXAMPLE,
+            SHIPPED_PUBLIC_DIR,
+            out_dir=tmp_path / "results",
+            scenario_ids=[SCENARIO],
+            sandbox=kind,
+            model_dir=tmp_path / "model",
+        ),
         **evaluate_args(get_settings()),
-        out_dir=tmp_path / "results",
-        scenario_ids=[SCENARIO],
-        sandbox=kind,
-        model_dir=tmp_path / "model",
     )
     (entry,) = summary.scenarios
     assert entry.status == "done"
@@ -119,11 +121,13 @@ def test_evaluate_refuses_a_missing_model(tmp_path):
 
     with pytest.raises(ResultsDirError, match="arena train"):
         evaluate(
-            EXAMPLE,
-            SHIPPED_PUBLIC_DIR,
+            EvaluationRequest(
+                EXAMPLE,
+                SHIPPED_PUBLIC_DIR,
+                out_dir=tmp_path / "results",
+                scenario_ids=[SCENARIO],
+                sandbox=SandboxKind.process,
+                model_dir=tmp_path / "nowhere",
+            ),
             **evaluate_args(get_settings()),
-            out_dir=tmp_path / "results",
-            scenario_ids=[SCENARIO],
-            sandbox=SandboxKind.process,
-            model_dir=tmp_path / "nowhere",
         )
