@@ -10,6 +10,7 @@ from arena.suite import SHIPPED_PUBLIC_DIR
 from sim.interface import ActionSpace, AgentInterface
 from sim.road import LanePosition, RoadNetwork
 from sim.road.lane import Lane
+from sim.road.waypoints import preferred_successor
 from sim.simulation import Simulation
 from sim.traffic import ALONG_ROUTE, SEARCH_NEAR, SumoTraffic, sumo_mapping, sumo_running
 from tests.sim.builders import ScenarioSpec, lane_y, make_scenario
@@ -65,14 +66,10 @@ def test_sumo_runs_only_where_a_sumo_vehicle_can_meet_a_mission_vehicle(scenario
 
 def _lanes_along_route(road: RoadNetwork, start: Lane, route: tuple[str, ...]) -> list[Lane]:
     """The lanes from ``start`` through the junctions to the end of the route's last edge."""
-    if start.edge_id == route[-1]:
-        return [start]
-    for successor in map(road.lanes.__getitem__, start.successors):
-        if successor.is_internal or successor.edge_id in route:
-            rest = _lanes_along_route(road, successor, route)
-            if rest:
-                return [start, *rest]
-    return []
+    lanes = [start]
+    while lanes[-1].edge_id != route[-1]:
+        lanes.append(preferred_successor(road, lanes[-1], route))
+    return lanes
 
 
 def _drive(folder, road: RoadNetwork, lanes: list[Lane], route: list[str], tell_lane: bool):
