@@ -312,17 +312,19 @@ def test_cancel_while_running_stops_the_evaluation_and_the_worker_goes_on(stack_
 def test_local_evaluation_and_the_service_agree(stack_settings, suite, tmp_path):
     """One evaluation core: `arena evaluate` and the worker + database give the same metrics,
     per-family figures and scenario statuses for the same submission and scenarios."""
-    from evaluator.runner import evaluate
+    from evaluator.runner import EvaluationRequest, evaluate
     from server.core.db import Database
     from tests.server.builders import pack_example
 
     local = evaluate(
-        pack_example("keep_lane", tmp_path),
-        suite,
+        EvaluationRequest(
+            pack_example("keep_lane", tmp_path),
+            suite,
+            out_dir=tmp_path / "local",
+            jobs=2,
+            sandbox="bubblewrap",
+        ),
         **evaluate_args(get_settings()),
-        out_dir=tmp_path / "local",
-        jobs=2,
-        sandbox="bubblewrap",
     )
     db = Database(stack_settings.storage.database_url)
     _, token = make_team(db, "keep-lane-team")
@@ -396,19 +398,21 @@ def test_several_episodes_per_scenario_through_the_worker(stack_settings, suite,
     """A phase running 2 episodes of each reactive scenario: the worker claims each episode on
     its own (the replay runs once), the score and its completion interval are the local
     evaluation's with --episodes 2, and the leaderboard page shows the interval."""
-    from evaluator.runner import evaluate
+    from evaluator.runner import EvaluationRequest, evaluate
     from evaluator.runner.results import stored_episodes
     from server.services import phases
     from tests.server.builders import pack_example
 
     local = evaluate(
-        pack_example("keep_lane", tmp_path),
-        suite,
+        EvaluationRequest(
+            pack_example("keep_lane", tmp_path),
+            suite,
+            out_dir=tmp_path / "local",
+            jobs=2,
+            sandbox="bubblewrap",
+            episodes_per_scenario=2,
+        ),
         **evaluate_args(get_settings()),
-        out_dir=tmp_path / "local",
-        jobs=2,
-        sandbox="bubblewrap",
-        episodes_per_scenario=2,
     )
     interval = local.completion_interval()
     db = Database(stack_settings.storage.database_url)
@@ -459,19 +463,21 @@ def test_adaptive_rounds_through_the_worker_match_a_fixed_evaluation(
     """An adaptive phase whose target is never met: the worker's aggregation sends rounds of one
     episode per reactive scenario up to the cap, and the score is exactly the local evaluation's
     with that many episodes (same seeds, same results)."""
-    from evaluator.runner import evaluate
+    from evaluator.runner import EvaluationRequest, evaluate
     from server.models import EvaluationRun
     from server.services import phases
     from tests.server.builders import pack_example
 
     local = evaluate(
-        pack_example("keep_lane", tmp_path),
-        suite,
+        EvaluationRequest(
+            pack_example("keep_lane", tmp_path),
+            suite,
+            out_dir=tmp_path / "local",
+            jobs=2,
+            sandbox="bubblewrap",
+            episodes_per_scenario=3,
+        ),
         **evaluate_args(get_settings()),
-        out_dir=tmp_path / "local",
-        jobs=2,
-        sandbox="bubblewrap",
-        episodes_per_scenario=3,
     )
     db = Database(stack_settings.storage.database_url)
     changes = phases.PhaseChanges(episodes_per_scenario=1, adaptive_target=1e-6, max_episodes=3)
