@@ -8,12 +8,17 @@ side replays those actions, the two ways taking turns scenario by scenario, ``--
 - evaluator: ``Simulation.step`` plus pickling the step's act message, as the sandbox channel
   does (``evaluator/sandbox/channel.py``), CPU time per step;
 - runtime: unpickling each act message and making its waypoint dicts (``Stream.receive`` in
-  ``agent_runtime/main.py``), then dropping it, CPU time per message.
+  ``agent_runtime/main.py``), then a policy reading every waypoint's position, CPU time per
+  message. The runtime makes a packed path's dicts when the policy reads them
+  (``WaypointPath``); the same messages are also taken with every dict made up front (as before
+  the lazy paths), each way read whole and read as the keep-lane example reads (the first
+  waypoint of each path), taking turns.
 
     python bench/native_act.py [--repeat 3] [--max-steps 400]
 
 The last line is ``evaluator_ratio=<packed/dicts> runtime_ratio=<packed/dicts>
-evaluator_ms=<packed> runtime_ms=<packed>``.
+evaluator_ms=<packed> runtime_ms=<packed> lazy_first_ratio=<lazy/eager, first waypoints read>
+lazy_all_ratio=<lazy/eager, every waypoint read>``.
 """
 
 from __future__ import annotations
@@ -24,7 +29,7 @@ import pickle
 import time
 from pathlib import Path
 
-from agent_runtime.packed_waypoints import expand_observations
+from agent_runtime.packed_waypoints import expand_observations, waypoint_paths
 from arena.scenario import load_scenario
 from arena.suite import SHIPPED_PUBLIC_DIR, load_suite
 from evaluator.sandbox.channel import ObservationPickler
@@ -60,12 +65,27 @@ def episode(
     return cpu, messages, taken
 
 
-def runtime_cpu(messages: list[bytes]) -> float:
-    """CPU [s] to take ``messages`` as the runtime does."""
+def eager(observations: dict) -> None:
+    """Every waypoint dict made up front (the runtime before its lazy paths)."""
+    for obs in observations.values():
+        if isinstance(obs.get("waypoint_paths"), tuple):
+            obs["waypoint_paths"] = waypoint_paths(*obs["waypoint_paths"])
+
+
+def runtime_cpu(messages: list[bytes], expand=expand_observations, whole: bool = True) -> float:
+    """CPU [s] to take ``messages`` as the runtime does (``expand``) and read every waypoint's
+    position (``whole``) or the first waypoint's of each path."""
     started = time.process_time()
     for message in messages:
         _, body = pickle.loads(message)
-        expand_observations(body)
+        expand(body)
+        for obs in body.values():
+            for path in obs["waypoint_paths"]:
+                if whole:
+                    for waypoint in path:
+                        waypoint["pos"]
+                elif path:
+                    path[0]["pos"]
         del body
     return time.process_time() - started
 
@@ -85,6 +105,8 @@ def main() -> None:
     actions = {folder: episode(folder, False, args.max_steps)[2] for folder in folders}
     evaluator = dict.fromkeys((False, True), 0.0)
     runtime = dict.fromkeys((False, True), 0.0)
+    lazy = dict.fromkeys(((expand_observations, True), (eager, True)), 0.0)
+    lazy.update(dict.fromkeys(((expand_observations, False), (eager, False)), 0.0))
     steps = 0
     for rep in range(args.repeat):
         for folder in folders:
@@ -92,6 +114,9 @@ def main() -> None:
                 cpu, messages, _ = episode(folder, packed, args.max_steps, actions[folder])
                 evaluator[packed] += cpu
                 runtime[packed] += runtime_cpu(messages)
+                if packed:
+                    for way in sorted(lazy, key=lambda w: (w[0] is eager) == (rep % 2 == 0)):
+                        lazy[way] += runtime_cpu(messages, *way)
                 steps += len(messages) if packed else 0
     print(f"{len(folders)} scenarios x {args.repeat}, {steps} steps a way, CPU ms per step:")
     for packed, name in ((False, "dicts"), (True, "packed")):
@@ -99,11 +124,19 @@ def main() -> None:
             f"  {name:>6}: evaluator {evaluator[packed] * 1e3 / steps:.4f}"
             f"  runtime {runtime[packed] * 1e3 / steps:.4f}"
         )
+    for whole in (True, False):
+        print(
+            f"  packed, {'every waypoint' if whole else 'first waypoints'} read: runtime with"
+            f" every dict made up front {lazy[eager, whole] * 1e3 / steps:.4f},"
+            f" made when read {lazy[expand_observations, whole] * 1e3 / steps:.4f}"
+        )
     print(
         f"evaluator_ratio={evaluator[True] / evaluator[False]:.3f} "
         f"runtime_ratio={runtime[True] / runtime[False]:.3f} "
         f"evaluator_ms={evaluator[True] * 1e3 / steps:.4f} "
-        f"runtime_ms={runtime[True] * 1e3 / steps:.4f}"
+        f"runtime_ms={runtime[True] * 1e3 / steps:.4f} "
+        f"lazy_first_ratio={lazy[expand_observations, False] / lazy[eager, False]:.3f} "
+        f"lazy_all_ratio={lazy[expand_observations, True] / lazy[eager, True]:.3f}"
     )
 
 

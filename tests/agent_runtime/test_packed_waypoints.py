@@ -2,11 +2,23 @@
 
 from __future__ import annotations
 
+import copy
+import functools
+import json
+import pickle
 import struct
 
 import pytest
 
-from agent_runtime.packed_waypoints import expand_observations, waypoint_paths
+from agent_runtime.packed_waypoints import (
+    expand_observations,
+    lazy_waypoint_paths,
+    waypoint_paths,
+)
+from arena.scenario import load_scenario
+from arena.suite import SHIPPED_PUBLIC_DIR
+from scenarios.experts import PlannerAgent, planner_interface
+from sim.simulation import Simulation
 
 LANES = [("E1_0", 0, 3.2, 13.89, 2), ("J1_0", 0, 3.0, 8.0, 1), ("E1_1", 1, 3.2, 13.89, 1)]
 VALUES = [1.0, 2.0, 0.1, 5.0, 2.0, 2.0, 0.1, 6.0, 3.0, 2.5, -0.0, 0.25, 1.0, 5.2, 0.1, 5.0]
@@ -65,3 +77,62 @@ def test_expanding_leaves_dicts_and_other_messages_alone() -> None:
     assert observations["b"]["waypoint_paths"] is already
     assert observations["c"] == {}
     expand_observations(None)  # a message with no observations
+
+
+@pytest.fixture(scope="module")
+def episode_paths() -> list:
+    """The packed waypoint paths of every observation of a simulated episode: the planner
+    driving two agents on a curved merge (paths across lane joins, ending, of several widths)."""
+    folder = SHIPPED_PUBLIC_DIR / "p012_merge_3lane_curve_mid_2agents"
+    sim = Simulation(load_scenario(folder), folder, planner_interface(), packed_waypoints=True)
+    planner, found = PlannerAgent(), []
+    try:
+        obs = sim.reset()
+        while obs and not sim.done and len(found) < 120:
+            found += [o["waypoint_paths"] for o in obs.values()]
+            for o in obs.values():
+                o["waypoint_paths"] = waypoint_paths(*o["waypoint_paths"])
+            obs = sim.step(planner.act(obs))
+    finally:
+        sim.close()
+    return found
+
+
+def test_lazy_paths_are_the_eager_dicts_however_they_are_read(episode_paths) -> None:
+    for packed_paths in episode_paths:
+        eager = waypoint_paths(*packed_paths)
+        lazy = functools.partial(lazy_waypoint_paths, *packed_paths)  # a new, unread one a call
+
+        assert [len(path) for path in lazy()] == [len(path) for path in eager]
+        assert lazy() == eager and eager == lazy() and (lazy() != eager) is False
+        assert lazy()[0] == eager[0] and eager[-1] == lazy()[-1]
+        assert lazy() == lazy()  # two unfilled paths compare by their dicts
+        assert json.dumps(lazy()) == json.dumps(eager)
+        assert repr(lazy()) == repr(eager)
+        assert [list(w) for path in lazy() for w in path] == [list(w) for p in eager for w in p]
+        assert copy.copy(lazy()) == eager
+        for copied in (
+            pickle.loads(pickle.dumps(lazy())),
+            copy.deepcopy(lazy()),
+            [path.copy() for path in lazy()],
+            [path[:] for path in lazy()],
+        ):
+            assert copied == eager and all(type(path) is list for path in copied)
+        paths = lazy()
+        for path, expected in zip(paths, eager, strict=True):
+            for i in (0, -1, len(expected) // 2):
+                assert path[i] == expected[i] and list(path[i]) == list(expected[i])
+            first = path[0]
+            assert next(iter(path)) is first  # the dict read before is the one the list holds
+            tail = ["x"]  # list + path and path + list read the path as the list it is
+            assert path + tail == [*expected, "x"] and tail + path == ["x", *expected]
+            path.append("end")
+            assert path == [*expected, "end"] and len(path) == len(expected) + 1
+
+
+def test_a_policy_reading_one_point_of_a_path_makes_only_that_dict(episode_paths) -> None:
+    paths = lazy_waypoint_paths(*episode_paths[0])
+    assert all(path[0]["lane_id"] for path in paths if path)
+    assert all(list.__len__(path) == 0 for path in paths)  # no path made as a whole
+    with pytest.raises(IndexError):
+        paths[0][len(paths[0])]
