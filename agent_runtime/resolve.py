@@ -125,7 +125,13 @@ class Pip:
         }
         if request.get("pip_path"):
             self.env["PYTHONPATH"] = request["pip_path"]
-        self.proxy = [] if proxy_port is None else ["--proxy", f"http://127.0.0.1:{proxy_port}"]
+        # The proxy and the index's certificate as pip's variables, not options: the pip that
+        # installs an sdist's build requirements (build isolation) inherits the environment, not
+        # the options, and had no way out (kiwisolver's `cppy` was "on no index").
+        if proxy_port is not None:
+            self.env["PIP_PROXY"] = f"http://127.0.0.1:{proxy_port}"
+        if request.get("cert"):
+            self.env["PIP_CERT"] = request["cert"]
         self.isolation: list[str] = []
 
     def use_build_env(self, folder: Path) -> None:
@@ -141,8 +147,6 @@ class Pip:
             options += ["--extra-index-url", url]
         for link in self.request.get("find_links") or []:
             options += ["--find-links", link]
-        if self.request.get("cert"):
-            options += ["--cert", self.request["cert"]]
         return options
 
     def target_options(self, binary_only: bool = False) -> list[str]:
@@ -155,7 +159,7 @@ class Pip:
 
     def run(self, command: str, *arguments: str) -> tuple[int, str]:
         process = subprocess.run(
-            [sys.executable, "-m", "pip", "--no-color", *self.proxy, command, *arguments],
+            [sys.executable, "-m", "pip", "--no-color", command, *arguments],
             env=self.env,
             stdin=subprocess.DEVNULL,
             stdout=subprocess.PIPE,
@@ -526,7 +530,12 @@ def run_build(request: dict, source: Path, output: Path) -> dict:
                 "ok": False,
                 "errors": [],
                 "conflict": [],
-                "tail": [f"building {sdist.name} failed:", *failure_tail(failed)],
+                "tail": [
+                    f"building {sdist.name} into a wheel failed (no network, only its "
+                    "downloaded build requirements, a C/C++ compiler and Python's headers; a "
+                    "system library it needs is not there: ship a wheel of it instead):",
+                    *failure_tail(failed),
+                ],
             }
         built.append(sdist.name)
     return {"ok": True, "wheels": sorted(p.name for p in wheels.glob("*.whl")), "built": built}

@@ -514,3 +514,37 @@ def test_every_line_the_stacks_lock_excludes_is_told_in_one_round(tmp_path: Path
     assert "line 4 `nosuchpkg==1.0`" in message
     assert "line 2" not in message
     assert caught.value.rule == "no-distribution"
+
+
+@pytest.mark.slow  # the resolver sandbox (bubblewrap)
+def test_an_sdist_whose_build_needs_a_package_from_the_index_installs(tmp_path: Path) -> None:
+    """kiwisolver's sdist (the 3rd-place 2022 agent's pin) builds with `cppy`: the pip that
+    installs build requirements had no proxy, so `cppy` was "on no index"."""
+    files = tmp_path / "files"
+    files.mkdir()
+    build_wheel(files, "buildhelper", "1.0", {"buildhelper/__init__.py": b"TAG = 'helped'\n"})
+    backend = (
+        "import os, zipfile\n"
+        "import buildhelper\n"
+        "def build_wheel(wheel_directory, config_settings=None, metadata_directory=None):\n"
+        "    name = 'needsbuild-1.0-py3-none-any.whl'\n"
+        "    with zipfile.ZipFile(os.path.join(wheel_directory, name), 'w') as w:\n"
+        "        w.writestr('needsbuild/__init__.py', 'TAG = %r\\n' % buildhelper.TAG)\n"
+        "        info = 'needsbuild-1.0.dist-info/'\n"
+        "        w.writestr(info + 'METADATA', 'Metadata-Version: 2.1\\nName: needsbuild\\n'\n"
+        "                   'Version: 1.0\\n')\n"
+        "        w.writestr(info + 'WHEEL', 'Wheel-Version: 1.0\\nTag: py3-none-any\\n')\n"
+        "        w.writestr(info + 'RECORD', '')\n"
+        "    return name\n"
+    )
+    pyproject = (
+        '[build-system]\nrequires = ["buildhelper"]\nbuild-backend = "backend"\n'
+        'backend-path = ["."]\n'
+    )
+    build_sdist(files, "needsbuild", "1.0", {"pyproject.toml": pyproject, "backend.py": backend})
+    with served_index(files, tmp_path / "web") as url:
+        prepared = validated(tmp_path, settings_for(tmp_path, url), "needsbuild==1.0\n")
+    built = prepared.deps_dir / "needsbuild" / "__init__.py"
+    assert built.read_text() == "TAG = 'helped'\n"
+    manifest = json.loads((prepared.deps_dir / MANIFEST).read_text())
+    assert manifest["built_from_source"] == ["needsbuild-1.0.tar.gz"]
