@@ -223,6 +223,9 @@ class SandboxSettings(SettingsGroup):
     # ARENA_SANDBOX, as before the settings were grouped.
     kind: SandboxKind = Field(default=SandboxKind.auto, validation_alias="ARENA_SANDBOX")
     agent_image: str = "driving-arena-agent:latest"
+    # The image the resolver builds sdists into wheels in under Docker: the agent's with a C/C++
+    # toolchain and Python's headers, so the image that runs policies has no compiler.
+    builder_image: str = "driving-arena-builder:latest"
     # The OCI runtime the Docker daemon runs agents with: empty, its default (runc); `runsc`,
     # gVisor's, where the daemon has it registered (docs/sandbox.md, "A stronger tier").
     docker_runtime: str = ""

@@ -11,7 +11,10 @@ read-only, its request as its only input and one writable output folder; memory
 Its network namespace has loopback only. In ``download`` mode its way out is the host's
 :class:`~evaluator.sandbox.index_proxy.IndexProxy`, whose socket is bound in and which reaches
 the package index's hosts and nothing else; in ``build`` mode (sdists into wheels) there is no
-way out at all.
+way out at all. Under Docker, ``build`` mode runs in the builder image
+(``SandboxSettings.builder_image``: the agent's Python with a C/C++ toolchain and its headers),
+so sdists with extensions build without a compiler in the image that runs policies; a daemon
+without that image is ours to fix (:class:`~arena.errors.SandboxUnavailable`), never the team's.
 """
 
 from __future__ import annotations
@@ -36,7 +39,7 @@ from evaluator.sandbox.backend import (
     Training,
 )
 from evaluator.sandbox.batch_folders import open_to_sandbox, output_usage, writable_by_sandbox
-from evaluator.sandbox.docker_backend import shared_copy
+from evaluator.sandbox.docker_backend import missing_image_reason, shared_copy
 from evaluator.sandbox.index_proxy import IndexProxy, allowed_address
 from submissions.intake.contents import REQUIREMENTS
 from submissions.intake.package_index import local_path
@@ -95,6 +98,17 @@ def index_addresses(request: dict) -> set[tuple[str, int]]:
     return {a for a in addresses if a is not None}
 
 
+def resolver_image(mode: str, kind: SandboxKind, config: SandboxSettings) -> str:
+    """The image a Docker resolver runs in: the builder for ``build`` (sdists need a compiler
+    and Python's headers), the agent's otherwise. Raises
+    :class:`~arena.errors.SandboxUnavailable` when the daemon lacks the builder."""
+    if mode != "build" or kind is not SandboxKind.docker:
+        return config.agent_image
+    if missing := missing_image_reason(config.builder_image, "the resolver's sdist builder"):
+        raise SandboxUnavailable(missing)
+    return config.builder_image
+
+
 def spawn_resolver(
     mode: str,
     inputs: Path,
@@ -129,6 +143,7 @@ def spawn_resolver(
         update={
             "agent_memory_bytes": intake.resolver_memory_bytes,
             "agent_pids": max(config.agent_pids, RESOLVER_PIDS),
+            "agent_image": resolver_image(mode, chosen, config),
         }
     )
     batch = Training(

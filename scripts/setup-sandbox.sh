@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The agent sandbox on a fresh Debian machine: bubblewrap (+ Debian's python3-numpy, the runtime it
-# binds), the Docker engine with a running daemon, and the agent image built offline.
+# binds), the Docker engine with a running daemon, and the two images built offline: the agent
+# runtime and the builder the resolver compiles sdists in (about 2 minutes more on a fresh machine).
 # Idempotent; takes about a second when everything is already there. Needs root for apt/dockerd.
 #   scripts/setup-sandbox.sh
 set -euo pipefail
@@ -43,7 +44,7 @@ if ! docker info >/dev/null 2>&1; then
   fi
 fi
 
-# The agent image (offline: debootstrap + docker import; the root tarball is cached in the data dir).
-# The command is idempotent: it only reports an image that is already there.
+# The agent and builder images (offline: debootstrap + docker import; each root tarball is cached in
+# the data dir). The command is idempotent: it only reports an image that is already there.
 python3 -c 'from arena_command import app; app()' sandbox build-image
-log "ready: bubblewrap and dockerd"
+log "ready: bubblewrap, dockerd and both images"

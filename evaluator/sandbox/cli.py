@@ -1,4 +1,4 @@
-"""`arena sandbox` commands: the agent runtime image, leftovers, which backends run here."""
+"""`arena sandbox` commands: the sandbox images, leftovers, which backends run here."""
 
 from __future__ import annotations
 
@@ -16,23 +16,40 @@ errors = make_console(stderr=True)
 @sandbox_app.command("build-image")
 def build_image(
     force: Annotated[bool, typer.Option(help="Rebuild even if the image exists.")] = False,
+    only: Annotated[
+        str | None,
+        typer.Option(
+            help="Only this image: `agent` (runs policies) or `builder` (the resolver's "
+            "sdist builds). Default: both."
+        ),
+    ] = None,
 ) -> None:
-    """Build the agent runtime image offline (debootstrap + docker import)."""
+    """Build the sandbox images offline (debootstrap + docker import): the agent runtime, and
+    the builder the resolver compiles sdists in."""
     # deferred: CLI start-up time
     from arena.config import get_settings
     from arena.errors import SandboxUnavailable
+    from evaluator.sandbox.image import RECIPES
     from evaluator.sandbox.image import build_image as build
 
+    if only is not None and only not in RECIPES:
+        errors.print(f"[bold red]no image {only!r}[/]: choose one of {', '.join(RECIPES)}")
+        raise typer.Exit(2)
     settings = get_settings()
-    try:
-        with console.status("building the agent runtime image"):
-            image_id = build(
-                settings.sandbox, settings.storage.resolved_data_dir, force=force, log=console.print
-            )
-    except SandboxUnavailable as error:
-        errors.print(f"[bold red]cannot build the image[/]: {error}")
-        raise typer.Exit(1) from error
-    console.print(f"[green]ready[/] {image_id}")
+    for recipe in [RECIPES[only]] if only else RECIPES.values():
+        try:
+            with console.status(f"building the {recipe.role} image"):
+                image_id = build(
+                    settings.sandbox,
+                    settings.storage.resolved_data_dir,
+                    force=force,
+                    log=console.print,
+                    recipe=recipe,
+                )
+        except SandboxUnavailable as error:
+            errors.print(f"[bold red]cannot build the {recipe.role} image[/]: {error}")
+            raise typer.Exit(1) from error
+        console.print(f"[green]ready[/] {recipe.name(settings.sandbox)} {image_id}")
 
 
 @sandbox_app.command("cleanup")

@@ -119,6 +119,21 @@ def docker_client():
     return docker.from_env()
 
 
+def missing_image_reason(image: str, purpose: str) -> str | None:
+    """Why the daemon cannot run containers of ``image`` (needed for ``purpose``); None when it
+    has it."""
+    # deferred: the docker client is needed only with the Docker sandbox
+    import docker.errors
+
+    try:
+        docker_client().images.get(image)
+    except docker.errors.ImageNotFound:
+        return f"image {image} ({purpose}) is missing (run `arena sandbox build-image`)"
+    except docker.errors.DockerException as error:
+        return f"no Docker daemon answers ({error})"
+    return None
+
+
 def container_options(spec: LaunchSpec, socket_dir: Path | None) -> dict[str, Any]:
     """Everything ``containers.run`` gets; the safety options are not negotiable. A training run
     (``spec.training``) has no protocol socket: it gets the dataset read-only, the output folder
@@ -319,10 +334,8 @@ class DockerBackend:
             client.ping()
         except docker.errors.DockerException as error:
             return f"no Docker daemon answers ({error})"
-        try:
-            client.images.get(config.agent_image)
-        except docker.errors.ImageNotFound:
-            return f"image {config.agent_image} is missing (run `arena sandbox build-image`)"
+        if missing := missing_image_reason(config.agent_image, "the agent runtime"):
+            return missing
         runtime = config.docker_runtime
         if runtime and runtime not in (client.info().get("Runtimes") or {}):
             return (

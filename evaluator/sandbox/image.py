@@ -1,10 +1,15 @@
-"""The agent runtime image, built offline.
+"""The sandbox's images, built offline: the agent runtime and the resolver's builder.
 
 Production builds ``Dockerfile.agent`` from a registry. Where no registry is reachable (CI,
 air-gapped hosts) :func:`build_image` makes the same runtime from Debian packages: debootstrap a
 minimal bookworm root with ``python3`` and ``python3-numpy``, trim what an agent never needs, and
 ``docker import`` the tarball. The tarball is cached under the data dir, so a rebuild after the
 image was removed takes seconds.
+
+The builder image (:data:`BUILDER`) is made the same way with a C/C++ toolchain and Python's
+headers: the resolver's ``build`` mode turns sdists into wheels in it, so no compiler is ever in
+the image that runs policies. Both come from the same suite, hence the same ``python3`` minor
+version: a wheel built in one is installable in the other.
 """
 
 from __future__ import annotations
@@ -13,6 +18,7 @@ import shutil
 import subprocess
 import tempfile
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 from arena.child_env import HOST_TOOL_VARIABLES, PACKAGE_INDEX_VARIABLES, child_environment
@@ -22,7 +28,28 @@ from arena.files import replaced_atomically
 
 DEBIAN_SUITE = "bookworm"
 APT_SOURCES = (Path("/etc/apt/sources.list"), Path("/etc/apt/sources.list.d"))
-PACKAGES = ("python3", "python3-numpy")
+
+
+@dataclass(frozen=True)
+class ImageRecipe:
+    """One offline image: ``role`` names its cached root, ``packages`` what debootstrap adds,
+    ``setting`` the sandbox setting that names the image."""
+
+    role: str
+    packages: tuple[str, ...]
+    setting: str
+
+    def name(self, config: SandboxSettings) -> str:
+        return getattr(config, self.setting)
+
+
+AGENT = ImageRecipe("agent", ("python3", "python3-numpy"), "agent_image")
+# What ``setup.py build_ext`` needs for C and C++ extensions; no network tool, no numpy (an
+# sdist's build requirements are downloaded wheels).
+BUILDER = ImageRecipe(
+    "builder", ("python3", "python3-dev", "gcc", "g++", "make", "libc6-dev"), "builder_image"
+)
+RECIPES = {recipe.role: recipe for recipe in (AGENT, BUILDER)}
 # Documentation, locales, package caches: nothing an agent needs, a third of the root's size.
 TRIMMED = (
     "usr/share/doc",
@@ -43,8 +70,8 @@ IMAGE_CHANGES = (
 )
 
 
-def rootfs_cache(data_dir: Path) -> Path:
-    return data_dir / "sandbox" / f"agent-rootfs-{DEBIAN_SUITE}.tar"
+def rootfs_cache(data_dir: Path, recipe: ImageRecipe = AGENT) -> Path:
+    return data_dir / "sandbox" / f"{recipe.role}-rootfs-{DEBIAN_SUITE}.tar"
 
 
 def debian_mirror(config: SandboxSettings, apt_sources: tuple[Path, ...] = APT_SOURCES) -> str:
@@ -65,7 +92,7 @@ def debian_mirror(config: SandboxSettings, apt_sources: tuple[Path, ...] = APT_S
             if urls and "/debian" in urls[0] and "security" not in urls[0]:
                 return urls[0].rstrip("/")
     raise SandboxUnavailable(
-        "no Debian mirror to build the agent image from: set ARENA_DEBIAN_MIRROR, or configure "
+        "no Debian mirror to build the sandbox images from: set ARENA_DEBIAN_MIRROR, or configure "
         f"a Debian mirror in apt's sources ({', '.join(str(p) for p in apt_sources)})"
     )
 
@@ -85,7 +112,7 @@ def build_rootfs_tarball(
     target: Path,
     mirror: str,
     log: Callable[[str], None],
-    packages: tuple[str, ...] = PACKAGES,
+    packages: tuple[str, ...] = AGENT.packages,
 ) -> None:
     """debootstrap a minimal root with ``packages`` (the agent's: python3 + numpy) and write it
     as an uncompressed tar."""
@@ -119,7 +146,7 @@ def build_rootfs_tarball(
                 check=True,
                 env=child_environment(),
             )
-    log(f"cached runtime root at {target}")
+    log(f"cached root at {target}")
 
 
 def _unmount_below(root: Path) -> None:
@@ -140,9 +167,11 @@ def build_image(
     *,
     force: bool = False,
     log: Callable[[str], None] = print,
+    recipe: ImageRecipe = AGENT,
 ) -> str:
-    """Make ``config.agent_image`` exist in the local Docker daemon, its Debian root file
-    system cached under ``data_dir``; returns its id."""
+    """Make ``recipe``'s image (``config.agent_image`` or ``config.builder_image``) exist in the
+    local Docker daemon, its Debian root file system cached under ``data_dir``; returns its
+    id."""
     # deferred: the docker client is needed only with the Docker sandbox
     import docker
     import docker.errors
@@ -152,13 +181,13 @@ def build_image(
         client.ping()
     except docker.errors.DockerException as error:
         raise SandboxUnavailable(f"no Docker daemon answers: {error}") from error
-    image = config.agent_image
+    image = recipe.name(config)
     if not force and image_exists(client, image):
         log(f"{image} already present")
         return client.images.get(image).id
-    tarball = rootfs_cache(data_dir)
+    tarball = rootfs_cache(data_dir, recipe)
     if force or not tarball.is_file():
-        build_rootfs_tarball(tarball, debian_mirror(config), log)
+        build_rootfs_tarball(tarball, debian_mirror(config), log, recipe.packages)
     repository, _, tag = image.rpartition(":") if ":" in image else (image, "", "latest")
     log(f"docker import {tarball.name} as {image}")
     client.api.import_image_from_file(

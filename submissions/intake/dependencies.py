@@ -273,7 +273,9 @@ def resolve(
                 (downloaded / name).rename(build_in / name)
         built = runner("build", build_in, work / "build-out")
         if not built.get("ok"):
-            raise explain_unresolved(built, text, request["python_version"])
+            unbuilt = explain_unresolved(built, text, request["python_version"])
+            # The sdist exists: its build failed (the compiler's words are in the message).
+            raise IntakeError(unbuilt.entry, "sdist-build", unbuilt.message)
         wheels += sorted((work / "build-out" / resolver_rules.WHEELS_DIR).glob("*.whl"))
     for wheel in wheels:
         size = wheel.stat().st_size

@@ -24,6 +24,7 @@ VARIABLES = {
     "ARENA_NATURALISTIC_DIR": ("suites", "naturalistic_dir", "/n", Path("/n")),
     "ARENA_SANDBOX": ("sandbox", "kind", "bubblewrap", SandboxKind.bubblewrap),
     "ARENA_AGENT_IMAGE": ("sandbox", "agent_image", "img:1", "img:1"),
+    "ARENA_BUILDER_IMAGE": ("sandbox", "builder_image", "img:2", "img:2"),
     "ARENA_DOCKER_RUNTIME": ("sandbox", "docker_runtime", "runsc", "runsc"),
     "ARENA_SANDBOX_SHARED_DIR": ("sandbox", "sandbox_shared_dir", "/s", Path("/s")),
     "ARENA_DEBIAN_MIRROR": (
