@@ -10,6 +10,7 @@ import subprocess
 import time
 import uuid
 import zipfile
+from datetime import timedelta
 from pathlib import Path
 
 import httpx
@@ -626,8 +627,10 @@ def test_organiser_actions_after_a_restart(stack_settings, tmp_path, kind, examp
     action works, a re-run reproduces the first attempt exactly and nothing of ours is shown
     as the team's."""
     from server.core.queue import TaskQueue
-    from server.services import admin, submissions
+    from server.services import admin, phases, submissions
+    from server.services.audit import audit
     from server.services.errors import Conflict
+    from server.services.release import release_phase
 
     settings = with_fields(stack_settings, sandbox={"kind": kind})
     db = Database(settings.storage.database_url)
@@ -663,11 +666,31 @@ def test_organiser_actions_after_a_restart(stack_settings, tmp_path, kind, examp
             db, settings.evaluation, artifact_store(settings.storage, db), run_id
         )
         assert metrics["completion"] == first["metrics"]["completion"], profile
+        report = audit(db, artifact_store(settings.storage, db), sid, **evaluate_args(settings))
+        assert report.identical, report
         with api_server(settings, tmp_path / "api-2.log") as (url, _):
             other = upload_example(url, token, example, tmp_path)
             worker = restart(settings, tmp_path, worker, 3)
             assert submissions.cancel(db, queue, other).status == "cancelled"
             assert wait_finished(url, token, other)["status"] == "cancelled"
+        worker = restart(settings, tmp_path, worker, 4)
+        with db.session() as session:
+            phase = session.get(submissions.Submission, sid).phase
+        changes = phases.PhaseChanges(ends_at=utcnow() - timedelta(minutes=1))
+        phases.set_phase(db, settings, phase, changes)
+        assert release_phase(db, phase).released_at is not None
+        with api_server(settings, tmp_path / "api-3.log") as (url, _):
+            suite = httpx.get(
+                f"{url}/api/v1/scenarios/released/{phase}.zip", headers=bearer(token), timeout=30
+            )
+            assert suite.status_code == 200 and suite.content[:2] == b"PK"
+            scenario = attempt_results(db, sid, 2)[0][0]
+            replay = httpx.get(
+                f"{url}/api/v1/submissions/{sid}/replays/{scenario}",
+                headers=bearer(token),
+                timeout=30,
+            )
+            assert replay.status_code == 200, replay.text
     finally:
         stop(worker)
     db.dispose()
