@@ -146,6 +146,22 @@ class WaypointPath(list):
             point = self._made[i] = packed.point(self._start + i)
         return point
 
+    def unread(self) -> tuple[memoryview, list[LaneRun]] | None:
+        """While no dict of the path was made: its points' POINT_VALUES (float64) and its runs of
+        points on one lane (``points`` counted in this path), for a reader that wants them in
+        bulk (the SMARTS adapter); else None (read the dicts)."""
+        packed = self._packed
+        if packed is None or self._made:
+            return None
+        start, end = self._start, self._start + self._count
+        runs, run_start = [], 0
+        for run, run_end in zip(packed.lanes, packed.ends, strict=True):
+            points = min(run_end, end) - max(run_start, start)
+            if points > 0:
+                runs.append((*run[:-1], points))
+            run_start = run_end
+        return packed.values[4 * start : 4 * end], runs
+
     def __reduce__(self) -> tuple:
         return list, (list(self._fill()),)
 

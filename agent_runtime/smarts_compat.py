@@ -115,9 +115,14 @@ def _neighbour(n: dict, vehicle_id: str) -> VehicleObservation:
 
 def _path(path: list[dict]) -> list:
     """One waypoint path, positions and headings converted for the whole path at once (a
-    step's observation holds a few hundred waypoints)."""
+    step's observation holds a few hundred waypoints); a path still packed is read without
+    making its dicts (``WaypointPath.unread``: the same values)."""
     if not path:
         return []
+    unread = getattr(path, "unread", None)
+    packed = unread() if unread is not None else None
+    if packed is not None:
+        return _packed_path(*packed)
     xy = np.array([w["pos"][:2] for w in path], dtype=np.float64)  # (n, 2) [m]
     ours = np.array([w["heading"] for w in path], dtype=np.float64)
     headings = ((ours - HALF_PI + math.pi) % TWO_PI - math.pi).tolist()
@@ -132,6 +137,21 @@ def _path(path: list[dict]) -> list:
             w["lane_offset"],
         )
         for i, (w, h) in enumerate(zip(path, headings, strict=True))
+    ]
+
+
+def _packed_path(values: memoryview, runs: list[tuple]) -> list:
+    """:func:`_path` of a packed path: ``values`` x, y, heading, lane offset of each point."""
+    points = np.frombuffer(values, dtype=np.float64).reshape(-1, 4)
+    xy = points[:, :2].copy()  # (n, 2) [m], the policy's own
+    headings = ((points[:, 2] - HALF_PI + math.pi) % TWO_PI - math.pi).tolist()
+    offsets = points[:, 3].tolist()
+    lanes = [run for run in runs for _ in range(run[-1])]
+    return [
+        make_waypoint(xy[i], Heading(h), lane_id, width, speed_limit, lane_index, offset)
+        for i, (h, offset, (lane_id, lane_index, width, speed_limit, _)) in enumerate(
+            zip(headings, offsets, lanes, strict=True)
+        )
     ]
 
 

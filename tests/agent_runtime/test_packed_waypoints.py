@@ -7,6 +7,7 @@ import functools
 import json
 import pickle
 import struct
+from itertools import chain
 
 import pytest
 
@@ -15,6 +16,7 @@ from agent_runtime.packed_waypoints import (
     lazy_waypoint_paths,
     waypoint_paths,
 )
+from agent_runtime.smarts_compat import SmartsAdapter
 from arena.scenario import load_scenario
 from arena.suite import SHIPPED_PUBLIC_DIR
 from scenarios.experts import PlannerAgent, planner_interface
@@ -80,22 +82,27 @@ def test_expanding_leaves_dicts_and_other_messages_alone() -> None:
 
 
 @pytest.fixture(scope="module")
-def episode_paths() -> list:
-    """The packed waypoint paths of every observation of a simulated episode: the planner
-    driving two agents on a curved merge (paths across lane joins, ending, of several widths)."""
+def episode_observations() -> list[dict]:
+    """Every observation of a simulated episode, its waypoint paths packed: the planner driving
+    two agents on a curved merge (paths across lane joins, ending, of several widths)."""
     folder = SHIPPED_PUBLIC_DIR / "p012_merge_3lane_curve_mid_2agents"
     sim = Simulation(load_scenario(folder), folder, planner_interface(), packed_waypoints=True)
     planner, found = PlannerAgent(), []
     try:
         obs = sim.reset()
         while obs and not sim.done and len(found) < 120:
-            found += [o["waypoint_paths"] for o in obs.values()]
+            found += copy.deepcopy(list(obs.values()))
             for o in obs.values():
                 o["waypoint_paths"] = waypoint_paths(*o["waypoint_paths"])
             obs = sim.step(planner.act(obs))
     finally:
         sim.close()
     return found
+
+
+@pytest.fixture(scope="module")
+def episode_paths(episode_observations) -> list:
+    return [o["waypoint_paths"] for o in episode_observations]
 
 
 def test_lazy_paths_are_the_eager_dicts_however_they_are_read(episode_paths) -> None:
@@ -136,3 +143,29 @@ def test_a_policy_reading_one_point_of_a_path_makes_only_that_dict(episode_paths
     assert all(list.__len__(path) == 0 for path in paths)  # no path made as a whole
     with pytest.raises(IndexError):
         paths[0][len(paths[0])]
+
+
+def test_the_smarts_adapter_makes_the_same_waypoints_from_packed_paths(episode_observations):
+    # The smarts2022 adapter reads a path still packed without its dicts: SMARTS's waypoints
+    # are those it makes of the eager dicts, value for value and type for type.
+    adapter = SmartsAdapter()
+    for o in episode_observations:
+        lazy, eager = copy.deepcopy(o), copy.deepcopy(o)
+        expand_observations({"a": lazy})
+        eager["waypoint_paths"] = waypoint_paths(*eager["waypoint_paths"])
+        assert all(path.unread() is not None for path in lazy["waypoint_paths"])
+        ours = adapter.observation("Agent_0", lazy).waypoint_paths
+        expected = adapter.observation("Agent_0", eager).waypoint_paths
+        assert [len(path) for path in ours] == [len(path) for path in expected]
+        pairs = zip(chain.from_iterable(ours), chain.from_iterable(expected), strict=True)
+        for mine, theirs in pairs:
+            assert mine.pos.dtype == theirs.pos.dtype and mine.pos.flags.writeable
+            assert mine.pos.tolist() == theirs.pos.tolist()
+            for field in ("heading", "lane_id", "lane_width", "speed_limit", "lane_index"):
+                assert getattr(mine, field) == getattr(theirs, field)
+                assert type(getattr(mine, field)) is type(getattr(theirs, field))
+            assert repr(mine.lane_offset) == repr(theirs.lane_offset)
+        paths = lazy["waypoint_paths"]
+        if paths and paths[0]:
+            paths[0][0]  # a dict made: the adapter reads the dicts (the policy may hold it)
+            assert paths[0].unread() is None
