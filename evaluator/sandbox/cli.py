@@ -78,6 +78,7 @@ def status() -> None:
     from arena.config import SandboxKind, get_settings
     from arena.errors import SandboxUnavailable
     from evaluator.sandbox.backend_registry import backend_for, resolve_kind
+    from evaluator.sandbox.docker_backend import missing_image_reason
 
     config = get_settings().sandbox
     for kind in (SandboxKind.docker, SandboxKind.bubblewrap, SandboxKind.process):
@@ -85,6 +86,10 @@ def status() -> None:
         note = " (no isolation: local use only)" if kind is SandboxKind.process else ""
         shown = "[green]available[/]" if reason is None else f"[red]unavailable[/]: {reason}"
         console.print(f"{kind.value:>10}: {shown}{note}")
+        if kind is SandboxKind.docker and reason is None:
+            # Only the resolver's sdist builds need it: its absence leaves agents running.
+            missing = missing_image_reason(config.builder_image, "the resolver's sdist builder")
+            console.print(f"{'':>10}  builder: {missing or '[green]' + config.builder_image}")
     try:
         console.print(f"setting {config.kind.value!r} -> {resolve_kind(None, config).value}")
     except SandboxUnavailable as error:
