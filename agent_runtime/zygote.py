@@ -253,15 +253,24 @@ def hold_namespaces() -> None:
     (several RCU grace periods: tens of ms on a busy host) happens when the parent kills it
     after the episode, not when the agent exits while the evaluator waits for its end. It holds
     no descriptor and runs nothing; an agent that kills it only brings the teardown back to its
-    own exit."""
-    if os.fork() != 0:
+    own exit. It is born with its name (set on this thread around the fork): named after the
+    fork, an agent could meet it under this process's name first."""
+    import ctypes
+
+    prctl = ctypes.CDLL(None).prctl
+    with open("/proc/thread-self/comm", "rb") as comm:
+        own_name = comm.read().rstrip(b"\n")
+    prctl(PR_SET_NAME, HOLDER_NAME, 0, 0, 0)
+    pid = -1
+    try:
+        pid = os.fork()
+    finally:
+        if pid != 0:  # this process (the fork failed or made the holder): its own name back
+            prctl(PR_SET_NAME, own_name, 0, 0, 0)
+    if pid != 0:
         return
     try:
         os.closerange(0, os.sysconf("SC_OPEN_MAX"))
-        with contextlib.suppress(Exception):
-            import ctypes
-
-            ctypes.CDLL(None).prctl(PR_SET_NAME, HOLDER_NAME, 0, 0, 0)
         while True:
             signal.pause()
     finally:
