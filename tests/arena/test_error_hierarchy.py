@@ -11,21 +11,12 @@ import pkgutil
 import pytest
 
 from arena.errors import ArenaError
+from tests.packages import HOST
 
-PACKAGES = (
-    "arena_command",
-    "arena",
-    "sim",
-    "scenarios",
-    "submissions",
-    "evaluator",
-    "learn",
-    "server",
-)
 
 
 def our_modules():
-    for name in PACKAGES:
+    for name in HOST:
         package = importlib.import_module(name)
         yield name
         for info in pkgutil.walk_packages(package.__path__, f"{name}."):

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from arena import portable_math
+from tests.packages import ALL
 
 REPO = Path(__file__).resolve().parents[2]
 # numpy's functions whose kernels it picks by CPU at run time (SVML's on AVX-512 machines).
@@ -16,17 +17,6 @@ CPU_DEPENDENT = re.compile(
     r"arccosh|arctanh|exp|exp2|expm1|log|log2|log10|log1p|power|float_power|cbrt)\s*\("
 )
 # Everything of the product; tests and benchmarks compare values, they make none that are kept.
-PACKAGES = (
-    "arena_command",
-    "arena",
-    "sim",
-    "scenarios",
-    "submissions",
-    "evaluator",
-    "learn",
-    "server",
-)
-PACKAGES += ("agent_runtime",)
 
 
 @pytest.mark.parametrize(
@@ -58,7 +48,7 @@ def test_arctan2_broadcasts_as_numpy_does():
 def test_no_cpu_dependent_numpy_functions_in_the_product():
     found = [
         f"{path.relative_to(REPO)}:{number}: {line.strip()}"
-        for package in PACKAGES
+        for package in ALL
         for path in sorted((REPO / package).rglob("*.py"))
         for number, line in enumerate(path.read_text().splitlines(), 1)
         if CPU_DEPENDENT.search(line.split("#", 1)[0])

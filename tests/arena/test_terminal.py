@@ -10,18 +10,9 @@ from rich.panel import Panel
 from rich.table import Table
 
 from arena.terminal import make_console
+from tests.packages import HOST
 
 ROOT = Path(__file__).resolve().parents[2]
-PACKAGES = (
-    "arena_command",
-    "arena",
-    "sim",
-    "scenarios",
-    "submissions",
-    "evaluator",
-    "learn",
-    "server",
-)
 
 
 def test_a_panel_and_a_table_in_a_pipe_keep_their_full_text(capsys):
@@ -42,7 +33,7 @@ def test_a_panel_and_a_table_in_a_pipe_keep_their_full_text(capsys):
 
 def test_no_console_is_built_outside_make_console():
     built = []
-    for package in PACKAGES:
+    for package in HOST:
         for path in (ROOT / package).rglob("*.py"):
             if path == ROOT / "arena" / "terminal.py":
                 continue

@@ -11,19 +11,11 @@ from pathlib import Path
 
 import pytest
 
+from tests.packages import ALL
+
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = ROOT / "submissions" / "examples"
-OURS = {
-    "arena_command",
-    "agent_runtime",
-    "arena",
-    "sim",
-    "scenarios",
-    "submissions",
-    "evaluator",
-    "learn",
-    "server",
-}
+OURS = set(ALL)
 
 
 def documented_public_modules() -> set[str]:
