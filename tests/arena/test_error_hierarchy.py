@@ -14,7 +14,6 @@ from arena.errors import ArenaError
 from tests.packages import HOST
 
 
-
 def our_modules():
     for name in HOST:
         package = importlib.import_module(name)
