@@ -102,7 +102,8 @@ def test_upload_through_the_form_and_read_the_result(embedded_settings, tmp_path
             )
             completion = float(page.locator("#metric-completion").inner_text())
             assert 0.0 <= completion <= 1.0
-            assert page.locator("#chart svg rect.bar").count() >= 1
+            # The results drawn by the server: a bar per metric and family.
+            expect(page.locator("#results-chart svg rect.bar").first).to_be_attached()
             # The CPU the worker measured, against the evaluation's budget and the phase's limits.
             expect(page.locator("#agent-cpu")).to_contain_text(
                 "used of this evaluation's budget of 18 h 0 min"
