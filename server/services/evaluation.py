@@ -79,7 +79,12 @@ class ScenarioJob:
 
 
 def lock(session: Session, model, row_id: int):
-    row = session.scalar(select(model).where(model.id == row_id).with_for_update())
+    row = session.scalar(
+        select(model)
+        .where(model.id == row_id)
+        .with_for_update()
+        .execution_options(populate_existing=True)  # as locked, not as first read
+    )
     if row is None:
         raise NotFound(f"no {model.__tablename__[:-1].replace('_', ' ')} {row_id}")
     return row

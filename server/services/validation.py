@@ -158,6 +158,9 @@ def _job(session: Session, submission_id: int) -> UploadValidation | None:
         select(UploadValidation)
         .where(UploadValidation.submission_id == submission_id)
         .with_for_update()
+        # The row as it is once locked, not as this session first read it (fair_order did):
+        # a stale "not held" let two workers claim one validation.
+        .execution_options(populate_existing=True)
     )
 
 
