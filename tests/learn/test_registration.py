@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import base64
 import hashlib
-import importlib
 import os
 import subprocess
 import sys
@@ -36,12 +35,21 @@ def test_the_registered_env_resets_into_its_space() -> None:
 
 @pytest.mark.filterwarnings("ignore::UserWarning")  # setuptools says it builds an editable wheel
 def test_every_wheel_carries_the_start_up_hook(tmp_path) -> None:
-    sys.path.insert(0, str(ROOT / "build_backend"))
-    try:
-        backend = importlib.import_module("driving_arena_build")
-    finally:
-        sys.path.remove(str(ROOT / "build_backend"))
-    name = backend.build_editable(str(tmp_path))
+    # In an interpreter of its own, as pip runs a build backend: setuptools refuses to load
+    # where another test already imported the standard library's distutils.
+    build = (
+        "import sys; sys.path.insert(0, sys.argv[1]); import driving_arena_build as backend; "
+        "print(backend.build_editable(sys.argv[2]))"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", build, str(ROOT / "build_backend"), str(tmp_path)],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    name = done.stdout.split()[-1]
     with zipfile.ZipFile(tmp_path / name) as wheel:
         hook = wheel.read("driving_arena_gymnasium.pth")
         record = next(n for n in wheel.namelist() if n.endswith(".dist-info/RECORD"))
