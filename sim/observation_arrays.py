@@ -4,7 +4,9 @@
 The observation (``docs/agent-interface.md``) has variable-length lists (neighbours, waypoints)
 and strings (road and lane ids); fixed shapes need more. The arrays keep every numeric field
 under its interface name, pad the lists to fixed sizes with a ``mask``, and leave out the ids
-and ``done``. Rasters pass through.
+and ``done``. Rasters pass through. A scalar is an array of shape ``(1,)``, not ``()``: every
+leaf has a dimension to check and batch along (Stable-Baselines3's ``check_env`` indexes each
+box's out-of-bounds entries, which a 0-d array does not allow); the record's bytes are the same.
 
 An :class:`ObservationLayout` places every array (a :class:`Leaf`) at a fixed offset in one flat
 record, so an observation moves as raw bytes and is read back as views with no parsing: the
@@ -36,7 +38,7 @@ EVENT_NAMES = (
     "reached_goal",
     "reached_max_episode_steps",
 )
-# (name, length) of the ego vectors; scalars have length 0 (shape ()).
+# (name, length) of the ego vectors; scalars have length 0 (an array of shape (1,)).
 EGO_FIELDS = (
     ("position", 3),
     ("heading", 0),
@@ -85,20 +87,20 @@ def _leaf_specs(
     """(path, dtype, shape, low, high) of every leaf, in record order. The leading scalars,
     events and ego fields form the record's fixed head (:class:`ObservationEncoder`)."""
     p, w = interface.max_waypoint_paths, interface.waypoints_per_path
-    yield ("dt",), F32, (), 0.0, _INF
-    yield ("step_count",), I32, (), 0, np.iinfo(np.int32).max
-    yield ("elapsed_sim_time",), F32, (), 0.0, _INF
-    yield ("distance_travelled",), F32, (), 0.0, _INF
+    yield ("dt",), F32, (1,), 0.0, _INF
+    yield ("step_count",), I32, (1,), 0, np.iinfo(np.int32).max
+    yield ("elapsed_sim_time",), F32, (1,), 0.0, _INF
+    yield ("distance_travelled",), F32, (1,), 0.0, _INF
     for name in EVENT_NAMES:
         # 0/1 as uint8 boxes: Discrete/MultiBinary would break vectorised batching of the
         # nested dict in some training libraries, a Box never does.
-        yield ("events", name), U8, (), 0, 1
+        yield ("events", name), U8, (1,), 0, 1
     ego = "ego_vehicle_state"
     for name, size in EGO_FIELDS:
-        yield (ego, name), F32, (size,) if size else (), -_INF, _INF
-    yield (ego, "lane_index"), I32, (), 0, 255
+        yield (ego, name), F32, (size or 1,), -_INF, _INF
+    yield (ego, "lane_index"), I32, (1,), 0, 255
     yield (ego, "goal_position"), F32, (2,), -_INF, _INF
-    yield (ego, "goal_radius"), F32, (), 0.0, _INF
+    yield (ego, "goal_radius"), F32, (1,), 0.0, _INF
     yield (NEIGHBOURS, "mask"), U8, (n,), 0, 1
     yield (NEIGHBOURS, "position"), F32, (n, 3), -_INF, _INF
     yield (NEIGHBOURS, "heading"), F32, (n,), -_INF, _INF

@@ -24,13 +24,13 @@ def features(encoded: dict) -> dict[str, np.ndarray]:
     [100 m], sine and cosine of the heading error to the goal, speed [20 m/s]."""
     ego = encoded["ego_vehicle_state"]
     dx, dy = ego["goal_position"] - ego["position"][:2]
-    error = math.atan2(dy, dx) - float(ego["heading"])
+    error = math.atan2(dy, dx) - float(ego["heading"][0])
     vector = np.array(
         [
             min(math.hypot(dx, dy) / 100.0, 5.0),
             math.sin(error),
             math.cos(error),
-            float(ego["speed"]) / 20.0,
+            float(ego["speed"][0]) / 20.0,
         ],
         np.float32,
     )
