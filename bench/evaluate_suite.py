@@ -23,8 +23,10 @@ Prints, in order:
 - ``sumo_ego_ratio``: SUMO alone again on the suite's SUMO-traffic scenarios, with the trivial
   agent's egos moved in along their recorded paths and watched by the context subscription the
   simulator reads, against the same scenarios stepped raw: what SUMO itself costs an episode on
-  top of its traffic (moving an ego maps it onto the nearest lane of any edge, which SUMO does
-  by scoring every lane within 100 m), which ``raw_step_ms`` leaves out;
+  top of its traffic, which ``raw_step_ms`` leaves out. Each ego is mapped onto a lane as the
+  simulator maps it (:func:`sim.traffic.sumo_mapping`, from our map's lane under it, found
+  before the clock starts): along its route where that gives the lane SUMO's search would,
+  else by SUMO's search of every lane within 100 m;
 - ``floor_ms = raw_step_ms + round_trip_floor_ms``, both measured in this run, and
   ``floor_ratio = step_ms / floor_ms``: what the evaluator adds per step over SUMO and the
   transport (observation building, encoding, scoring, records).
@@ -63,6 +65,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import math
 import multiprocessing as mp
 import os
 import subprocess
@@ -215,6 +218,7 @@ def raw_stepping(
 
     # deferred: libsumo loads only in the process that simulates (one simulation per process)
     from arena.scenario import load_scenario
+    from sim.road import RoadNetwork
     from sim.traffic import SumoTraffic, sumo_command
 
     elapsed = 0.0
@@ -237,17 +241,18 @@ def raw_stepping(
         sumo_steps += n
         record = np.load(Path(records) / f"{scenario_id}.npz")
         path = np.stack([record["x"], record["y"], record["heading"], record["speed"]], axis=-1)
+        steps = min(n, path.shape[1])
+        moves = ego_moves(RoadNetwork.load(folder / sc.map), path[:, :steps])
         traffic = SumoTraffic(folder / sc.map, routes, sc.seed, sc.step_length)
         try:
             for m in sc.missions:  # as the simulator enters them
                 traffic.add_vehicle(m.agent_id, list(m.route), m.vehicle.length, m.vehicle.width)
                 traffic.watch_around(m.agent_id, watch_radius)
             started = time.perf_counter()
-            for k in range(min(n, path.shape[1])):
+            for k in range(steps):
                 moving = time.perf_counter()
-                for agent, (x, y, heading, speed) in enumerate(path[:, k].tolist()):
-                    if np.isfinite(x):
-                        traffic.move(sc.missions[agent].agent_id, x, y, heading, speed)
+                for agent, x, y, heading, speed, lane in moves[k]:
+                    traffic.move(sc.missions[agent].agent_id, x, y, heading, speed, lane)
                 sumo_moves += time.perf_counter() - moving
                 libsumo.simulationStep()
                 for m in sc.missions:
@@ -257,6 +262,21 @@ def raw_stepping(
         finally:
             traffic.close()
     queue.put((elapsed, sumo_raw, sumo_egos, sumo_moves, sumo_steps))
+
+
+def ego_moves(road, path: np.ndarray) -> list[list[tuple]]:
+    """For each step of ``path`` (agents, steps, [x, y, heading, speed]), the moves of the
+    agents present: (agent, x, y, heading, speed, our map's lane there), the lane found as the
+    simulator finds it, so that SUMO maps each ego as in an episode (sim.traffic.sumo_mapping).
+    Found before the clock starts: the simulator finds it once a step for its own events too."""
+    moves = []
+    for k in range(path.shape[1]):
+        step = []
+        for agent, (x, y, heading, speed) in enumerate(path[:, k].tolist()):
+            if math.isfinite(x):
+                step.append((agent, x, y, heading, speed, road.nearest_lane(x, y, heading)))
+        moves.append(step)
+    return moves
 
 
 @dataclass(frozen=True)
