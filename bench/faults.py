@@ -264,7 +264,7 @@ class Ledger:
 
     def results(self) -> Results | None:
         """Every scenario result; None while the database is down."""
-        columns = (ScenarioResult.status, ScenarioResult.worker, ScenarioResult.attempts)
+        columns = (ScenarioResult.status, ScenarioResult.worker, ScenarioResult.claim_number)
         try:
             with self.db.session() as session:
                 rows = session.execute(

@@ -27,9 +27,11 @@ from sqlalchemy import (
     false,
     text,
 )
+from sqlalchemy.ext.hybrid import hybrid_property
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
 from arena.outcome import ScenarioStatus
+from server.jobs.rows import LeasedJob
 from server.status import RunStatus, SubmissionStatus, TrainingStatus
 from server.tracks import Track
 
@@ -199,18 +201,14 @@ class Submission(Base):
     )
 
 
-class UploadValidation(Base):
+class UploadValidation(LeasedJob, Base):
     """The job validating an upload (``agent_runtime/intake.py`` in the sandbox), while its
-    submission is ``validating``. Claimed and leased like every job of the engine
-    (server/worker/engine.py): ``claims`` fences a dead worker's late verdict."""
+    submission is ``validating``: under way until its verdict is written."""
 
     __tablename__ = "upload_validations"
 
     id: Mapped[int] = mapped_column(primary_key=True)
     submission_id: Mapped[int] = mapped_column(ForeignKey("submissions.id"), unique=True)
-    worker: Mapped[str] = mapped_column(String(255), default="")
-    claims: Mapped[int] = mapped_column(Integer, default=0)
-    lease_expires_at: Mapped[datetime | None]
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     started_at: Mapped[datetime | None]
     finished_at: Mapped[datetime | None]
@@ -221,12 +219,20 @@ class UploadValidation(Base):
 
     submission: Mapped[Submission] = relationship()
 
+    @hybrid_property
+    def under_way(self) -> bool:
+        return self.finished_at is None
 
-class TrainingJob(Base):
+    @under_way.inplace.expression
+    @classmethod
+    def _under_way_expression(cls):
+        return cls.finished_at.is_(None)
+
+
+class TrainingJob(LeasedJob, Base):
     """One attempt at training an offline (Track 2) submission: its ``train.py`` in the sandbox,
-    then the trained output in the artifact store with its sha256. Claimed and leased like a
-    scenario: a worker that dies while training stops renewing the lease and the reaper sends
-    the job again (``claims`` fences the dead worker's late writes)."""
+    then the trained output in the artifact store with its sha256. A job of the engine: a worker
+    that dies while training stops renewing the lease and the reaper sends the job again."""
 
     __tablename__ = "training_jobs"
     __table_args__ = (UniqueConstraint("submission_id", "attempt"),)
@@ -235,9 +241,6 @@ class TrainingJob(Base):
     submission_id: Mapped[int] = mapped_column(ForeignKey("submissions.id"), index=True)
     attempt: Mapped[int] = mapped_column(Integer)
     status: Mapped[TrainingStatus] = mapped_column(_enum(TrainingStatus), index=True)
-    worker: Mapped[str] = mapped_column(String(255), default="")
-    claims: Mapped[int] = mapped_column(Integer, default=0)
-    lease_expires_at: Mapped[datetime | None]
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
     started_at: Mapped[datetime | None]
     finished_at: Mapped[datetime | None]
@@ -259,6 +262,10 @@ class TrainingJob(Base):
     seeds: Mapped[int] = mapped_column(Integer, default=1, server_default="1")
 
     submission: Mapped[Submission] = relationship(back_populates="trainings")
+
+    @hybrid_property
+    def under_way(self) -> bool:  # claimed: a queued one has no holder to fence
+        return self.status == TrainingStatus.training
 
 
 class EvaluationRun(Base):
@@ -304,9 +311,11 @@ class EvaluationRun(Base):
     score: Mapped[Score | None] = relationship(back_populates="run")
 
 
-class ScenarioResult(Base):
+class ScenarioResult(LeasedJob, Base):
     """The outcome of one episode of one scenario in one run. Unique per (run, scenario,
-    episode): a redelivered task finds the row already there and cannot count it twice."""
+    episode): a redelivered task finds the row already there and cannot count it twice. A job
+    of the engine while it runs: each claim of the episode has its own lease, so the other
+    episodes of the run renewing theirs does not keep a dead worker's from being taken over."""
 
     __tablename__ = "scenario_results"
     __table_args__ = (UniqueConstraint("run_id", "scenario_id", "episode"),)
@@ -329,14 +338,13 @@ class ScenarioResult(Base):
     # The CPU time the agent's acts used [s]: what the run's evaluation budget counts. None while
     # it runs, and for episodes stored before it was measured.
     agent_cpu_s: Mapped[float | None] = mapped_column(Float)
-    # The worker holding the claim while "running"; empty once the reaper released it.
-    worker: Mapped[str] = mapped_column(String(255), default="")
-    attempts: Mapped[int] = mapped_column(Integer, default=0)  # claims so far: the fence token
-    # The claim's own lease, renewed by its worker's heartbeat while the episode runs.
-    lease_expires_at: Mapped[datetime | None]
     created_at: Mapped[datetime] = mapped_column(default=utcnow)
 
     run: Mapped[EvaluationRun] = relationship(back_populates="results")
+
+    @hybrid_property
+    def under_way(self) -> bool:
+        return self.status == ScenarioStatus.running
 
 
 class Score(Base):

@@ -50,9 +50,9 @@ from celery import Task
 from arena.config import ServiceSettings, Settings
 from arena.errors import InfrastructureError
 from server.core.queue import BROKER_ERRORS
+from server.jobs.heartbeat import heartbeat
+from server.jobs.kind import JobKind
 from server.worker import local
-from server.worker.heartbeat import heartbeat
-from server.worker.job_kind import JobKind
 
 log = logging.getLogger(__name__)
 

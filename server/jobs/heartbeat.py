@@ -7,7 +7,7 @@ third of the lease, at most 5 s apart) the thread renews every lease through its
 finds the claim gone (the job was cancelled, or the reaper gave it to another worker) the lease
 is *lost*; when the worker begins a warm shutdown (:data:`shutting_down`) every lease is *handed
 back*. Either way the job's stop hook runs (e.g. killing its sandbox) and :attr:`Lease.stopped`
-turns true, so the job ends at once; :mod:`server.worker.engine` then drops its result or hands
+turns true, so the job ends at once; :mod:`server.jobs.engine` then drops its result or hands
 the job to another worker.
 """
 
@@ -24,9 +24,8 @@ from typing import Any
 from sqlalchemy.exc import SQLAlchemyError
 
 from arena.config import ServiceSettings
-from server.services.leases import HAND_BACK
+from server.jobs.kind import HAND_BACK, JobKind, Lease
 from server.worker import local
-from server.worker.job_kind import JobKind, Lease
 
 log = logging.getLogger(__name__)
 

@@ -1,6 +1,6 @@
 """What the job engine and the heartbeat share: :class:`JobKind`, one kind of sandboxed job
-(:mod:`server.worker.engine` runs every kind through one life), and :class:`Lease`, one claim a
-worker holds while its job runs (:mod:`server.worker.heartbeat` renews it)."""
+(:mod:`server.jobs.engine` runs every kind through one life), and :class:`Lease`, one claim a
+worker holds while its job runs (:mod:`server.jobs.heartbeat` renews it)."""
 
 from __future__ import annotations
 
@@ -14,8 +14,20 @@ from sqlalchemy.orm import Session
 from arena.config import ServiceSettings, Settings
 from server.core.queue import TaskQueue
 
-ClaimT = TypeVar("ClaimT")
+
+class Claim(Protocol):
+    """What a kind's claim returns: whatever its worker needs, with the fence token."""
+
+    @property
+    def claim_number(self) -> int: ...
+
+
+ClaimT = TypeVar("ClaimT", bound=Claim)
 ResultT = TypeVar("ResultT")
+
+# What a kind's renew answers when the job is still its worker's but should let another run
+# first: the heartbeat hands it back (released and sent again: server/jobs/engine.py hand_back).
+HAND_BACK = "hand back"
 
 
 class JobKind(Protocol[ClaimT, ResultT]):
@@ -37,7 +49,7 @@ class JobKind(Protocol[ClaimT, ResultT]):
         **progress: Any,
     ) -> bool | str:
         """Extend the lease (writing the progress); False when the claim is no longer ours,
-        :data:`server.services.leases.HAND_BACK` when it should let another job run first."""
+        :data:`HAND_BACK` when it should let another job run first."""
 
     def release(self, session: Session, claim: ClaimT, worker: str) -> bool:
         """Hand the job back: any worker may claim it at once. False when no longer ours."""

@@ -18,10 +18,10 @@ from evaluator.scoring.seeds import Spread
 from server.core.artifacts import ArtifactStore
 from server.core.db import Database
 from server.core.queue import BROKER_ERRORS, TaskQueue
+from server.jobs import leases
 from server.models import EvaluationRun, SeedSetScore, Submission, utcnow
 from server.services import (
     evaluation,
-    leases,
     phases,
     scoring,
     seed_sets,

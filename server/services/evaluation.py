@@ -26,6 +26,8 @@ from evaluator.runner import ScenarioOutcome
 from evaluator.scoring import load_profile
 from server.core.artifacts import ArtifactStore
 from server.core.queue import RunPlan
+from server.jobs import leases
+from server.jobs.leases import lease_until
 from server.models import (
     EvaluationRun,
     LeaderboardGeneration,
@@ -35,9 +37,8 @@ from server.models import (
     TrainingJob,
 )
 from server.models import utcnow as now
-from server.services import hidden_timing, leases, phases, scoring, seed_sets
+from server.services import hidden_timing, phases, scoring, seed_sets
 from server.services.errors import Conflict, NotFound
-from server.services.leases import lease_until
 from server.status import (
     ACTIVE_RUN,
     RUN_MOVES,
@@ -61,7 +62,7 @@ class ScenarioJob:
     scenario_id: str
     scenario_dir: str
     upload_key: str  # the submission's zip in the artifact store
-    attempt: int  # 1 for the first claim; more after workers died holding it
+    claim_number: int  # 1 for the first claim; more after workers died holding it
     episode: int = 0  # arena.episodes: which traffic seed
     model_key: str | None = None  # the trained output it evaluates (offline submissions)
     limits: CpuLimits | None = None  # the run's agent CPU limits (None: the settings')
@@ -70,21 +71,13 @@ class ScenarioJob:
     def key(self) -> Episode:
         return Episode(self.scenario_id, self.episode)
 
-    @property
-    def claim_number(self) -> int:
-        return self.attempt
-
     def __str__(self) -> str:
-        return f"{self.key.name} of run {self.run_id} (claim {self.attempt})"
+        return f"{self.key.name} of run {self.run_id} (claim {self.claim_number})"
 
 
 def lock(session: Session, model, row_id: int):
-    row = session.scalar(
-        select(model)
-        .where(model.id == row_id)
-        .with_for_update()
-        .execution_options(populate_existing=True)  # as locked, not as first read
-    )
+    """The row of ``model`` with id ``row_id``, locked (:func:`server.jobs.leases.locked`)."""
+    row = leases.locked(session, model, model.id == row_id)
     if row is None:
         raise NotFound(f"no {model.__tablename__[:-1].replace('_', ' ')} {row_id}")
     return row
@@ -175,12 +168,27 @@ def cannot_start(submission: Submission, detail: str) -> None:
     hidden suite's place is the organisers'); the organisers read the detail in the log and in
     ``arena admin status``."""
     log.error("submission %d cannot start: %s", submission.id, detail)
-    submission.status = advance(submission.status, SubmissionStatus.failed, SUBMISSION_MOVES)
-    submission.finished_at = now()
-    submission.status_reason = (
+    end_submission(
+        submission,
         f"cannot be evaluated: the organisers' setup of phase {submission.phase!r} is broken "
-        "(they are told); ask them to re-run it once fixed"
+        "(they are told); ask them to re-run it once fixed",
     )
+
+
+def end_submission(
+    submission: Submission,
+    reason: str,
+    *,
+    ours: bool = False,
+    status: SubmissionStatus = SubmissionStatus.failed,
+) -> None:
+    """End a submission still under way as ``failed`` (or, from its validation, ``rejected``),
+    ``reason`` being what its team reads; ``ours``: through no fault of the team (the one
+    failure that gives its daily quota try back)."""
+    submission.status = advance(submission.status, status, SUBMISSION_MOVES)
+    submission.status_reason = reason
+    submission.failed_on_our_side = ours
+    submission.finished_at = now()
 
 
 def rerun(session: Session, settings: Settings, submission_id: int) -> tuple[RunPlan, ...]:
@@ -240,11 +248,7 @@ def claim_scenario(
             ScenarioResult.episode == episode,
         )
     )
-    if existing is not None and existing.status != ScenarioStatus.running:
-        return None
-    # Each claim has its own lease: the other scenarios of the run renewing theirs does not keep
-    # a dead worker's scenario from being taken over.
-    if existing is not None and leases.held(existing):
+    if existing is not None and (not existing.under_way or leases.held(existing)):
         return None
     suite = _suite(Path(run.suite_dir))
     entry = next((e for e in suite.scenarios if e.id == scenario_id), None)
@@ -259,12 +263,10 @@ def claim_scenario(
             episode=episode,
             family=entry.family.value,
             status=ScenarioStatus.running,
-            worker=worker,
-            attempts=0,
+            claim_number=0,
         )
         session.add(existing)
-    existing.attempts += 1
-    leases.take(existing, worker, service)
+    claim_number = leases.claim(existing, worker, service)
     if run.status == RunStatus.queued:
         run.status = advance(run.status, RunStatus.running, RUN_MOVES)
         run.started_at = now()
@@ -275,7 +277,7 @@ def claim_scenario(
         scenario_id=scenario_id,
         scenario_dir=str(suite.scenario_dir(scenario_id)),
         upload_key=run.submission.upload_key,
-        attempt=existing.attempts,
+        claim_number=claim_number,
         episode=episode,
         model_key=run.training.model_key if run.training is not None else None,
         limits=run_cpu_limits(run, sandbox),
@@ -314,15 +316,15 @@ def release_claim(session: Session, job: ScenarioJob, worker: str) -> bool:
 
 
 def _claim_of(job: ScenarioJob, worker: str) -> tuple:
-    """The row of ``worker``'s claim number ``job.attempt``: the fence every write goes through,
-    so a superseded episode (its worker presumed dead) can never write into the live run."""
-    return (
+    """The fence of the episode's row: a superseded episode (its worker presumed dead) can never
+    write into the live run."""
+    return leases.fence(
+        ScenarioResult,
+        worker,
+        job.claim_number,
         ScenarioResult.run_id == job.run_id,
         ScenarioResult.scenario_id == job.scenario_id,
         ScenarioResult.episode == job.episode,
-        ScenarioResult.status == ScenarioStatus.running,
-        ScenarioResult.worker == worker,
-        ScenarioResult.attempts == job.attempt,
     )
 
 
@@ -420,9 +422,7 @@ def _fail_run(session: Session, run: EvaluationRun, error: str) -> None:
     run.finished_at = now()
     submission = lock(session, Submission, run.submission_id)
     if submission.status == SubmissionStatus.running:
-        submission.status = advance(submission.status, SubmissionStatus.failed, SUBMISSION_MOVES)
-        submission.status_reason = seed_sets.reason(run.training, run.error)
-        submission.finished_at = now()
+        end_submission(submission, seed_sets.reason(run.training, run.error))
     stop_seed_set(session, submission)
 
 
@@ -481,12 +481,11 @@ def finish_run(session: Session, store: ArtifactStore, run_id: int) -> RunStatus
                 )
             return run.status
         if submission.status == SubmissionStatus.running:
-            submission.status = advance(
-                submission.status, SubmissionStatus.failed, SUBMISSION_MOVES
+            end_submission(
+                submission,
+                seed_sets.reason(run.training, run.error),
+                ours=bool(summary.uncharged),
             )
-            submission.status_reason = seed_sets.reason(run.training, run.error)
-            submission.failed_on_our_side = bool(summary.uncharged)
-            submission.finished_at = now()
         stop_seed_set(session, submission)
         return run.status
     write_score(session, run, run_score, run.scoring_profile, run.scoring_version)
@@ -498,15 +497,12 @@ def finish_run(session: Session, store: ArtifactStore, run_id: int) -> RunStatus
                 return run.status  # the submission is scored once its last seed is
         except seed_sets.SeedsApart:
             if submission.status == SubmissionStatus.running:
-                submission.status = advance(
-                    submission.status, SubmissionStatus.failed, SUBMISSION_MOVES
-                )
-                submission.status_reason = (
+                end_submission(
+                    submission,
                     "its seeds were evaluated on different suites (the phase's suite changed "
-                    "meanwhile); an organiser re-runs the evaluation"
+                    "meanwhile); an organiser re-runs the evaluation",
+                    ours=True,
                 )
-                submission.failed_on_our_side = True
-                submission.finished_at = now()
             return run.status
     if submission.status in (SubmissionStatus.running, SubmissionStatus.failed):
         submission.status = advance(submission.status, SubmissionStatus.scored, SUBMISSION_MOVES)
@@ -582,14 +578,14 @@ def reap(session: Session, service: ServiceSettings, *, queue_empty: bool) -> Re
     """
     moment = now()
     resend: dict[int, set[Episode]] = {}
-    stale_claims = session.scalars(
-        leases.expired(ScenarioResult, ScenarioResult.status == ScenarioStatus.running)
+    expired = (
+        leases.expired(ScenarioResult)
         .join(EvaluationRun, EvaluationRun.id == ScenarioResult.run_id)
         .where(EvaluationRun.status.in_(list(ACTIVE_RUN)))
     )
-    for claim in stale_claims:
-        # Released, so the re-sent task can claim it; the old claim's writes are fenced off.
-        leases.drop(claim)
+    # An episode's task is lost with its run's (below), not on its own: no waiting episodes.
+    stale, _ = leases.reap(session, service, expired, None)
+    for claim in stale:
         resend.setdefault(claim.run_id, set()).add(Episode(claim.scenario_id, claim.episode))
     plans = [
         RunPlan(run_id=run_id, episodes=tuple(sorted(episodes)))

@@ -31,10 +31,10 @@ from evaluator.scoring.seeds import (
     seed_interval,
     spread,
 )
+from server.jobs import leases
 from server.models import EvaluationRun, Score, SeedSetScore, Submission, TrainingJob
 from server.models import utcnow as now
 from server.schemas import SeedMetrics, SeedResults
-from server.services import leases
 from server.status import (
     ACTIVE_RUN,
     ACTIVE_TRAINING,

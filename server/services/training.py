@@ -1,5 +1,5 @@
-"""Training jobs of offline (Track 2) submissions, as database transitions (like
-:mod:`server.services.evaluation`, whose claim, lease and fence they follow).
+"""Training jobs of offline (Track 2) submissions, as database transitions (a job kind of the
+engine: claimed, leased, fenced and reaped by :mod:`server.jobs.leases`).
 
 An offline submission goes ``queued -> training -> running``: :func:`start_training` makes its
 first seed set, one job per seed of its phase (:mod:`server.services.seed_sets`); a worker claims
@@ -20,12 +20,19 @@ from sqlalchemy.orm import Session
 from arena.config import ServiceSettings, Settings
 from arena.neutralise.storable import storable_text
 from server.core.queue import RunPlan
+from server.jobs import leases
+from server.jobs.leases import lease_until
 from server.models import Submission, TrainingJob
 from server.models import utcnow as now
-from server.services import leases, phases, seed_sets
+from server.services import phases, seed_sets
 from server.services.errors import Conflict
-from server.services.evaluation import cannot_start, create_run, lock, stop_seed_set
-from server.services.leases import lease_until
+from server.services.evaluation import (
+    cannot_start,
+    create_run,
+    end_submission,
+    lock,
+    stop_seed_set,
+)
 from server.status import (
     ACTIVE_RUN,
     ACTIVE_TRAINING,
@@ -47,15 +54,11 @@ class TrainingClaim:
     training_id: int
     submission_id: int
     upload_key: str  # the submission's zip in the artifact store
-    claim: int  # 1 for the first claim; more after workers died holding it: the fence token
+    claim_number: int  # 1 for the first claim; more after workers died holding it
     seed: int = 0  # ARENA_TRAIN_SEED
 
-    @property
-    def claim_number(self) -> int:
-        return self.claim
-
     def __str__(self) -> str:
-        return f"{self.training_id} (claim {self.claim})"
+        return f"{self.training_id} (claim {self.claim_number})"
 
 
 def _latest(session: Session, submission_id: int, column) -> int:
@@ -79,7 +82,7 @@ def _job(
         seed=seed,
         seeds=seeds,
         status=TrainingStatus.queued,
-        claims=0,
+        claim_number=0,
         elapsed_s=0.0,
         log_tail="",
         failure="",
@@ -197,29 +200,24 @@ def claim_training(
     job = lock(session, TrainingJob, training_id)
     if job.status not in ACTIVE_TRAINING:
         return None
-    if leases.held(job):
+    claim_number = leases.claim(job, worker, service)
+    if claim_number is None:
         return None
     if job.status == TrainingStatus.queued:
         job.status = advance(job.status, TrainingStatus.training, TRAINING_MOVES)
         job.started_at = now()
-    job.claims += 1
-    leases.take(job, worker, service)
     return TrainingClaim(
         training_id=job.id,
         submission_id=job.submission_id,
         upload_key=job.submission.upload_key,
-        claim=job.claims,
+        claim_number=claim_number,
         seed=job.seed,
     )
 
 
 def _fence(claim: TrainingClaim, worker: str) -> tuple:
-    """``worker``'s claim number ``claim.claim``: a superseded training never writes."""
-    return (
-        TrainingJob.id == claim.training_id,
-        TrainingJob.status == TrainingStatus.training,
-        TrainingJob.worker == worker,
-        TrainingJob.claims == claim.claim,
+    return leases.fence(
+        TrainingJob, worker, claim.claim_number, TrainingJob.id == claim.training_id
     )
 
 
@@ -248,8 +246,8 @@ def release(session: Session, claim: TrainingClaim, worker: str) -> bool:
 
 def _finish(session: Session, claim: TrainingClaim, worker: str) -> TrainingJob | None:
     job = lock(session, TrainingJob, claim.training_id)
-    if (job.status, job.worker, job.claims) != (TrainingStatus.training, worker, claim.claim):
-        return None  # a duplicate delivery, or a superseded claim: the result is not ours
+    if not leases.owned(job, worker, claim.claim_number):
+        return None
     leases.drop(job)
     job.finished_at = now()
     return job
@@ -331,14 +329,12 @@ def record_failed(
             submission.status_reason = seed_sets.seed_lost(job, "training", failure, "trains again")
         return True
     if going:
-        submission.status = advance(submission.status, SubmissionStatus.failed, SUBMISSION_MOVES)
-        submission.status_reason = (
+        reason = (
             seed_sets.reason(job, f"{failure}: {error}")
             if ours
             else seed_sets.training_failed(job, failure, error)
         )
-        submission.failed_on_our_side = ours
-        submission.finished_at = now()
+        end_submission(submission, reason, ours=ours)
     stop_seed_set(session, submission)
     return True
 
@@ -346,25 +342,8 @@ def record_failed(
 def reap(session: Session, service: ServiceSettings, *, queue_empty: bool) -> tuple[int, ...]:
     """Jobs to send again: those whose worker stopped renewing the lease (released at once),
     and, when the queue is empty, those whose task was lost before any worker held them."""
-    moment = now()
-    resend: list[int] = []
-    for job in session.scalars(
-        leases.expired(TrainingJob, TrainingJob.status == TrainingStatus.training)
-    ):
-        leases.drop(job)
-        resend.append(job.id)
-    if queue_empty:
-        idle = session.scalars(
-            select(TrainingJob)
-            .where(
-                TrainingJob.status.in_(list(ACTIVE_TRAINING)),
-                TrainingJob.worker == "",
-                TrainingJob.id.not_in(resend),
-            )
-            .with_for_update()
-        )
-        for job in idle:
-            if job.lease_expires_at is None or job.lease_expires_at < moment:
-                job.lease_expires_at = lease_until(service)
-                resend.append(job.id)
-    return tuple(resend)
+    waiting = leases.unheld(TrainingJob).where(TrainingJob.status.in_(list(ACTIVE_TRAINING)))
+    stale, lost = leases.reap(
+        session, service, leases.expired(TrainingJob), waiting if queue_empty else None
+    )
+    return tuple(job.id for job in stale + lost)

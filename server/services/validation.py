@@ -1,6 +1,6 @@
 """Validating an upload, as database transitions: the API reserves the quota slot and stores the
 zip (:func:`reserve`, :func:`stored`); a worker claims the validation job (:func:`claim`, leased
-like every job of the engine, :mod:`server.services.leases`), validates the zip in the sandbox and
+like every job of the engine, :mod:`server.jobs.leases`), validates the zip in the sandbox and
 records the verdict through the fence (:func:`record_valid`, which queues the submission, or
 :func:`record_rejected`, which gives its quota try back).
 
@@ -14,7 +14,7 @@ and a team past it cannot upload until the next UTC day. A validation task is a 
 the waiting validation of the team that has used the least validation time today (the oldest
 among equals), not the one it names, and a validation that has run for a slice
 (``ARENA_VALIDATION_SLICE_S``) while a team that used less waits yields its worker (handed back,
-sent again: :data:`server.services.leases.HAND_BACK`). So one team's validations never hold up
+sent again: :data:`server.jobs.kind.HAND_BACK`). So one team's validations never hold up
 another's for more than a slice.
 """
 
@@ -31,10 +31,11 @@ from sqlalchemy.orm import Session
 
 from arena.config import IntakeSettings, ServiceSettings
 from server.core.db import Database
+from server.jobs import leases
+from server.jobs.kind import HAND_BACK
 from server.models import Submission, Team, UploadValidation, utcnow
-from server.services import leases
 from server.services.errors import Conflict, QuotaExceeded
-from server.services.evaluation import lock
+from server.services.evaluation import end_submission, lock
 from server.status import SUBMISSION_MOVES, SubmissionStatus, advance
 from server.tracks import Track
 
@@ -123,7 +124,7 @@ def reserve(
                 UploadValidation(
                     submission_id=submission.id,
                     worker="",
-                    claims=0,
+                    claim_number=0,
                     lease_expires_at=leases.lease_until(service),
                 )
             )
@@ -154,14 +155,8 @@ def stored(db: Database, submission_id: int, sha256: str, size: int) -> None:
 
 
 def _job(session: Session, submission_id: int) -> UploadValidation | None:
-    return session.scalar(
-        select(UploadValidation)
-        .where(UploadValidation.submission_id == submission_id)
-        .with_for_update()
-        # The row as it is once locked, not as this session first read it (fair_order did):
-        # a stale "not held" let two workers claim one validation.
-        .execution_options(populate_existing=True)
-    )
+    # Read as locked, not as fair_order first read it (leases.locked).
+    return leases.locked(session, UploadValidation, UploadValidation.submission_id == submission_id)
 
 
 def _waiting(session: Session) -> list[UploadValidation]:
@@ -193,19 +188,20 @@ def claim(
     for candidate in fair_order(session, _waiting(session)):
         submission = lock(session, Submission, candidate.submission_id)
         job = _job(session, candidate.submission_id)
-        if job is None or submission.status != SubmissionStatus.validating or leases.held(job):
+        if job is None or submission.status != SubmissionStatus.validating:
+            continue
+        claim_number = leases.claim(job, worker, service)
+        if claim_number is None:
             continue  # another worker took it meanwhile
         moment = utcnow()
         left = intake.validation_budget_s - used_today(session, submission.team_id, moment)
-        job.claims += 1
         job.started_at = job.started_at or moment
         job.claimed_at = moment
-        leases.take(job, worker, service)
         return ValidationClaim(
             submission_id=submission.id,
             upload_key=submission.upload_key,
             needs_training=submission.track == Track.offline,
-            claim_number=job.claims,
+            claim_number=claim_number,
             time_budget_s=max(0.0, min(intake.intake_timeout_s, left)),
             slice_s=intake.validation_slice_s,
         )
@@ -239,22 +235,18 @@ def _job_id(session: Session, submission_id: int) -> int | None:
 
 
 def _fence(claim: ValidationClaim, worker: str) -> tuple:
-    return (
-        UploadValidation.submission_id == claim.submission_id,
-        UploadValidation.finished_at.is_(None),
-        UploadValidation.worker == worker,
-        UploadValidation.claims == claim.claim_number,
-    )
+    key = UploadValidation.submission_id == claim.submission_id
+    return leases.fence(UploadValidation, worker, claim.claim_number, key)
 
 
 def renew(
     session: Session, service: ServiceSettings, claim: ValidationClaim, worker: str
 ) -> bool | str:
-    """Extend the lease; False when the claim is no longer ours, :data:`leases.HAND_BACK` when
-    it should yield its worker to a fairer validation."""
+    """Extend the lease; False when the claim is no longer ours, :data:`HAND_BACK` when it should
+    yield its worker to a fairer validation."""
     if not leases.renew(session, service, UploadValidation, _fence(claim, worker)):
         return False
-    return leases.HAND_BACK if should_yield(session, claim) else True
+    return HAND_BACK if should_yield(session, claim) else True
 
 
 def release(session: Session, claim: ValidationClaim, worker: str) -> bool:
@@ -267,7 +259,7 @@ def release(session: Session, claim: ValidationClaim, worker: str) -> bool:
         return False
     _charge(job)
     leases.drop(job)
-    job.claims -= 1
+    job.claim_number -= 1
     return True
 
 
@@ -275,8 +267,8 @@ def _finish(session: Session, claim: ValidationClaim, worker: str) -> Submission
     """The submission, when the claim is still ``worker``'s and it is still validating."""
     submission = lock(session, Submission, claim.submission_id)
     job = _job(session, claim.submission_id)
-    if job is None or (job.worker, job.claims) != (worker, claim.claim_number):
-        return None  # a duplicate delivery, or a superseded claim: the verdict is not ours
+    if job is None or not leases.owned(job, worker, claim.claim_number):
+        return None
     _charge(job)
     leases.drop(job)
     job.finished_at = utcnow()
@@ -311,45 +303,25 @@ def record_rejected(
     submission = _finish(session, claim, worker)
     if submission is None:
         return False
-    submission.status = advance(
-        submission.status,
-        SubmissionStatus.failed if ours else SubmissionStatus.rejected,
-        SUBMISSION_MOVES,
-    )
-    submission.status_reason = reason
-    submission.failed_on_our_side = ours
-    submission.finished_at = utcnow()
+    status = SubmissionStatus.failed if ours else SubmissionStatus.rejected
+    end_submission(submission, reason, ours=ours, status=status)
     return True
 
 
 def reap(session: Session, service: ServiceSettings, *, queue_empty: bool) -> list[int]:
     """Validations to send again: those whose worker stopped renewing the lease, and, when the
     queue is empty, those whose task was lost before any worker held them."""
-    moment = utcnow()
-    resend: list[int] = []
-    active = UploadValidation.finished_at.is_(None)
-    for job in session.scalars(leases.expired(UploadValidation, active)):
-        leases.drop(job)
+    waiting = (
+        leases.unheld(UploadValidation)
+        .join(Submission)
+        .where(UploadValidation.under_way, Submission.status == SubmissionStatus.validating)
+    )
+    stale, lost = leases.reap(
+        session, service, leases.expired(UploadValidation), waiting if queue_empty else None
+    )
+    for job in stale:
         job.claimed_at = None  # its worker died: that time is ours, not the team's
-        resend.append(job.submission_id)
-    if queue_empty:
-        idle = session.scalars(
-            select(UploadValidation)
-            .join(Submission)
-            .where(
-                active,
-                UploadValidation.worker == "",
-                Submission.status == SubmissionStatus.validating,
-            )
-            .with_for_update(of=UploadValidation)
-        )
-        for job in idle:
-            if job.submission_id in resend:
-                continue
-            if job.lease_expires_at is None or job.lease_expires_at < moment:
-                job.lease_expires_at = leases.lease_until(service)
-                resend.append(job.submission_id)
-    return resend
+    return [job.submission_id for job in stale + lost]
 
 
 # A submission in one of these will never run again: its requirements' folder is freed.

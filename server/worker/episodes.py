@@ -16,10 +16,10 @@ from evaluator.runner import new_run_key, sandbox_labels
 from evaluator.runner import run_scenario as run_episode
 from evaluator.runner.scenario import ScenarioOutcome
 from server.core.queue import TaskQueue
+from server.jobs.kind import Lease
 from server.services import evaluation
 from server.services.evaluation import ScenarioJob
 from server.worker import local
-from server.worker.job_kind import Lease
 
 log = logging.getLogger(__name__)
 
@@ -66,17 +66,17 @@ class Episodes:
             claim.run_id,
             claim.episode,
             claim.scenario_id,
-            claim.attempt,
+            claim.claim_number,
         )
         # Per run, claim and a random part: two submissions of the same zip (or two claims of one
         # episode) never share sandbox labels, and nothing in it names the scenario.
-        run_key = f"r{claim.run_id}a{claim.attempt}-{new_run_key()}"
+        run_key = f"r{claim.run_id}a{claim.claim_number}-{new_run_key()}"
         # A lost claim kills every sandbox of the episode (all its attempts carry these labels):
         # the runner then returns, and its result is refused by the fence.
         lease.stop_with(partial(sandbox.cleanup, settings.sandbox, sandbox_labels(run_key)))
         # This worker's own scratch folder, one per claim: an episode whose claim was superseded
         # never touches the live one's files.
-        records = local.scratch() / "records" / str(claim.run_id) / f"claim-{claim.attempt}"
+        records = local.scratch() / "records" / str(claim.run_id) / f"claim-{claim.claim_number}"
         submission = local.prepared(claim.upload_key)
         if claim.model_key is not None:
             submission = dataclasses.replace(submission, model_dir=local.model(claim.model_key))
@@ -95,8 +95,8 @@ class Episodes:
     def ours(self, claim: ScenarioJob, reason: str, error: str) -> ScenarioOutcome:
         return ScenarioOutcome.ours(
             claim.scenario_id,
-            f"{reason}: {error} (claim {claim.attempt})",
-            attempts=claim.attempt,
+            f"{reason}: {error} (claim {claim.claim_number})",
+            attempts=claim.claim_number,
             episode=claim.episode,
         )
 
@@ -134,7 +134,7 @@ def _store_record(claim: ScenarioJob, outcome: ScenarioOutcome) -> str | None:
     """Put the episode record in the artifact store, where any worker can score it."""
     if outcome.record_path is None:
         return None
-    key = f"runs/{claim.run_id}/claim-{claim.attempt}/{claim.key.name}.npz"
+    key = f"runs/{claim.run_id}/claim-{claim.claim_number}/{claim.key.name}.npz"
     local.store().put(key, outcome.record_path)
     outcome.record_path.unlink(missing_ok=True)
     return key

@@ -1,5 +1,5 @@
 """Celery tasks of the service: thin wrappers around :mod:`server.services` and the job engine
-(:mod:`server.worker.engine`).
+(:mod:`server.jobs.engine`).
 
 Every task is declared with :func:`arena_task` (late acknowledgement, requeue when the worker
 process dies, one queue, time limits), takes keyword-only ids, returns early when the database
@@ -42,11 +42,12 @@ from server.core.celery_app import (
     TASK_VALIDATE,
 )
 from server.core.permissions import close_service_folders
+from server.jobs import engine, heartbeat
+from server.jobs.engine import INFRASTRUCTURE_RETRIES
+from server.jobs.kind import JobKind
 from server.services import adaptive, evaluation, submissions, training
-from server.worker import engine, heartbeat, local
-from server.worker.engine import INFRASTRUCTURE_RETRIES
+from server.worker import local
 from server.worker.episodes import EPISODES
-from server.worker.job_kind import JobKind
 from server.worker.trainings import TRAININGS
 from server.worker.validations import VALIDATIONS
 from submissions.intake.archive import remove_tree

@@ -17,12 +17,12 @@ from evaluator.runner import new_run_key
 from evaluator.training import MODEL_ARCHIVE, TrainingResult, TrainingStopped, pack_model, train
 from evaluator.training.metrics import METRICS_FILE
 from server.core.queue import TaskQueue
+from server.jobs.heartbeat import beat_interval_s
+from server.jobs.kind import Lease
 from server.services import training
 from server.services.training import TrainingClaim
 from server.services.training_curves import CurvePublisher
 from server.worker import checkpoints, local
-from server.worker.heartbeat import beat_interval_s
-from server.worker.job_kind import Lease
 
 
 @dataclass(frozen=True)
@@ -75,7 +75,7 @@ class Trainings:
             local.store(),
             settings.training,
             claim.training_id,
-            claim.claim,
+            claim.claim_number,
             output,
             staging=output.parent,
         )
@@ -98,7 +98,9 @@ class Trainings:
                 config=settings.sandbox,
                 data_dir=settings.storage.resolved_data_dir,
                 kind=local.sandbox_kind(),
-                labels={"arena.training": f"t{claim.training_id}c{claim.claim}-{new_run_key()}"},
+                labels={
+                    "arena.training": f"t{claim.training_id}c{claim.claim_number}-{new_run_key()}"
+                },
                 on_progress=progress,
                 progress_every_s=beat_interval_s(settings.service.lease_seconds),
                 resume_from=resume_from,
@@ -108,7 +110,7 @@ class Trainings:
             with local.database().session() as session:
                 over = training.ended(session, claim.training_id)
             if over:  # cancelled (e.g. another seed failed): nothing will resume from them
-                checkpoints.discard(local.store(), claim.training_id, claim.claim)
+                checkpoints.discard(local.store(), claim.training_id, claim.claim_number)
             return None
         except DatasetError as exc:
             return OurFailure("no_dataset", str(exc))
@@ -125,7 +127,7 @@ class Trainings:
     ) -> None:
         """Store the trained output and send its evaluation, or record the failure. Either way
         the training is over: its checkpoints go."""
-        checkpoints.discard(local.store(), claim.training_id, claim.claim)
+        checkpoints.discard(local.store(), claim.training_id, claim.claim_number)
         if isinstance(result, OurFailure):
             with local.database().session() as session:
                 training.record_failed(
@@ -176,7 +178,7 @@ class Trainings:
 
 
 def _output(claim: TrainingClaim) -> Path:
-    return local.scratch() / "training" / str(claim.training_id) / f"claim-{claim.claim}"
+    return local.scratch() / "training" / str(claim.training_id) / f"claim-{claim.claim_number}"
 
 
 def _store_model(claim: TrainingClaim) -> tuple[str, str, int]:
@@ -185,7 +187,7 @@ def _store_model(claim: TrainingClaim) -> tuple[str, str, int]:
     archive = output.parent / MODEL_ARCHIVE
     sha256 = pack_model(output, archive)
     size = archive.stat().st_size
-    key = f"training/{claim.training_id}/claim-{claim.claim}/{MODEL_ARCHIVE}"
+    key = f"training/{claim.training_id}/claim-{claim.claim_number}/{MODEL_ARCHIVE}"
     local.store().put(key, archive)
     shutil.rmtree(output.parent, ignore_errors=True)
     return key, sha256, size

@@ -25,11 +25,11 @@ from evaluator.validation import validate
 from server.core.artifacts import ArtifactStore
 from server.core.db import Database
 from server.core.queue import TaskQueue
+from server.jobs.kind import Lease
 from server.models import Submission
 from server.services import validation
 from server.services.validation import ValidationClaim
 from server.worker import local
-from server.worker.job_kind import Lease
 from submissions.intake import PreparedSubmission
 from submissions.intake.archive import remove_tree
 from submissions.intake.contents import REQUIREMENTS

@@ -2,18 +2,23 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
+import pytest
+from alembic import command
 from alembic.autogenerate import compare_metadata
 from alembic.migration import MigrationContext
+from sqlalchemy import text
 
-from server.core.migrate import current_revision, head_revision, upgrade_database
+from server.core.db import make_engine
+from server.core.migrate import alembic_config, current_revision, head_revision, upgrade_database
 from server.models import Base
+from tests.server.conftest import _create_pg_database, _drop_pg_database
 
 
 def test_migrated_schema_matches_the_models(database_url):
     upgrade_database(database_url)  # idempotent on an up-to-date database
     assert current_revision(database_url) == head_revision()
-    from server.core.db import make_engine
-
     engine = make_engine(database_url)
     with engine.connect() as connection:
         context = MigrationContext.configure(connection, opts={"compare_type": True})
@@ -23,10 +28,6 @@ def test_migrated_schema_matches_the_models(database_url):
 
 def test_old_scenario_statuses_move_to_the_core_vocabulary(tmp_path):
     """Migration 0002: rows written with the service's old statuses read as the core's."""
-    from sqlalchemy import text
-
-    from server.core.db import make_engine
-
     url = f"sqlite:///{tmp_path / 'old.db'}"
     upgrade_database(url, "0001")
     engine = make_engine(url)
@@ -73,12 +74,6 @@ def test_episodes_migration_keeps_runs_and_results_and_goes_back(tmp_path):
     """Migration 0008: a run's scenario count becomes its episode count,
     every existing result is episode 0, old scores have no interval; the downgrade keeps first
     episodes only."""
-    from alembic import command
-    from sqlalchemy import text
-
-    from server.core.db import make_engine
-    from server.core.migrate import alembic_config
-
     url = f"sqlite:///{tmp_path / 'old.db'}"
     upgrade_database(url, "0007")
     engine = make_engine(url)
@@ -127,7 +122,7 @@ def test_episodes_migration_keeps_runs_and_results_and_goes_back(tmp_path):
         connection.execute(
             text(
                 "INSERT INTO scenario_results (run_id, scenario_id, episode, family, status,"
-                " reason, steps, log_tail, detail, worker, attempts, created_at) VALUES"
+                " reason, steps, log_tail, detail, worker, claim_number, created_at) VALUES"
                 " (1, 'a', 1, 'cruise', 'done', '', 0, '', '{}', '', 1, '2026')"
             )
         )
@@ -137,4 +132,63 @@ def test_episodes_migration_keeps_runs_and_results_and_goes_back(tmp_path):
         assert sorted(rows) == ["a", "b"]
         count = connection.execute(text("SELECT scenario_count FROM evaluation_runs")).scalar()
         assert count == 2
+    engine.dispose()
+
+
+@pytest.fixture(params=["sqlite", pytest.param("postgresql", marks=pytest.mark.integration)])
+def empty_database_url(request, tmp_path) -> Iterator[str]:
+    """A database of its own, not migrated yet (the shared one must stay at the head)."""
+    if request.param == "sqlite":
+        yield f"sqlite:///{tmp_path / 'old.db'}"
+        return
+    name, url = _create_pg_database()
+    try:
+        yield url
+    finally:
+        _drop_pg_database(name)
+
+
+# Each job table's fence token before migration 0019, and the value the test's row holds.
+OLD_FENCE_TOKENS = {
+    "scenario_results": ("attempts", 2),
+    "training_jobs": ("claims", 3),
+    "upload_validations": ("claims", 1),
+}
+
+
+def test_fence_tokens_keep_their_values_under_one_name_and_go_back(empty_database_url):
+    """Migration 0019: ``attempts`` and ``claims`` become ``claim_number`` with every row's
+    value, and the downgrade gives them their old names back."""
+    url = empty_database_url
+    upgrade_database(url, "0018")
+    engine = make_engine(url)
+    moment = "2026-01-01 00:00:00+00"
+    with engine.begin() as connection:
+        for statement in (
+            "INSERT INTO teams (id, name, created_at) VALUES (1, 't', :moment)",
+            "INSERT INTO submissions (id, team_id, phase, track, method_name, description,"
+            " file_sha256, file_size, upload_key, status, status_reason, created_at) VALUES"
+            " (1, 1, 'final', 'offline', 'm', '', 'x', 1, 'k', 'running', '', :moment)",
+            "INSERT INTO evaluation_runs (id, submission_id, attempt, status, suite_dir,"
+            " manifest_sha256, episode_count, scoring_profile, scoring_version, worker,"
+            " created_at, error) VALUES (1, 1, 1, 'running', 's', 'h', 1, 'p', '1', '', :moment,"
+            " '')",
+            "INSERT INTO scenario_results (run_id, scenario_id, family, status, reason, steps,"
+            " log_tail, detail, worker, attempts, created_at) VALUES (1, 's', 'cruise',"
+            " 'running', '', 0, '', '{}', 'w', 2, :moment)",
+            "INSERT INTO training_jobs (submission_id, attempt, status, worker, claims,"
+            " created_at, elapsed_s, log_tail, failure, error, model_sha256, model_size) VALUES"
+            " (1, 1, 'training', 'w', 3, :moment, 0, '', '', '', '', 0)",
+            "INSERT INTO upload_validations (submission_id, worker, claims, created_at) VALUES"
+            " (1, 'w', 1, :moment)",
+        ):
+            connection.execute(text(statement), {"moment": moment})
+    upgrade_database(url)
+    with engine.connect() as connection:
+        for table, (_, value) in OLD_FENCE_TOKENS.items():
+            assert connection.execute(text(f"SELECT claim_number FROM {table}")).scalar() == value
+    command.downgrade(alembic_config(url), "0018")
+    with engine.connect() as connection:
+        for table, (old, value) in OLD_FENCE_TOKENS.items():
+            assert connection.execute(text(f"SELECT {old} FROM {table}")).scalar() == value
     engine.dispose()

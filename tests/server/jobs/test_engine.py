@@ -13,7 +13,8 @@ import pytest
 from celery import Celery
 
 from arena.config import get_settings
-from server.worker import engine, heartbeat, local
+from server.jobs import engine, heartbeat
+from server.worker import local
 
 WAIT_S = 10.0  # [s] a generous bound on what takes a heartbeat or two (0.5 s each here)
 

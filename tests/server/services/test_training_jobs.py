@@ -105,7 +105,7 @@ def test_a_dead_workers_training_is_resent_and_its_late_result_refused(db, setti
     with db.session() as session:
         assert training.reap(session, settings.service, queue_empty=False) == (training_id,)
     second = claim(db, settings, training_id, "w2")
-    assert second.claim == 2
+    assert second.claim_number == 2
     with db.session() as session:
         assert not training.heartbeat(session, settings.service, first, "w1", 5.0, "")  # fenced off
         assert training.heartbeat(session, settings.service, second, "w2", 5.0, "epoch 1")

@@ -10,10 +10,10 @@ from datetime import timedelta
 
 import pytest
 
+from server.jobs.kind import HAND_BACK
 from server.models import Submission, UploadValidation, utcnow
 from server.services import submissions, validation
 from server.services.errors import QuotaExceeded
-from server.services.leases import HAND_BACK
 from server.tracks import Track
 from tests.server.builders import make_team
 from tests.settings import with_fields

@@ -45,7 +45,7 @@ def job_of(db, run_id, scenario_id) -> tuple[evaluation.ScenarioJob, str]:
         scenario_id=scenario_id,
         scenario_dir="",
         upload_key="",
-        attempt=row.attempts if row else 0,
+        claim_number=row.claim_number if row else 0,
     )
     return job, row.worker if row else ""
 
@@ -159,7 +159,7 @@ def test_reaper_resends_stale_claims_and_lost_messages(db, settings, submission_
         reaped = evaluation.reap(session, settings.service, queue_empty=False)
     assert [scenario_ids(p) for p in reaped.plans] == [(first,)]
     retaken = claim(db, settings, plan.run_id, first, "w2")
-    assert retaken is not None and retaken.attempt == 2  # the task gives up after too many
+    assert retaken is not None and retaken.claim_number == 2  # the task gives up after too many
     assert claim(db, settings, plan.run_id, first, "w3") is None  # w2 holds it now
     # w1's episode was still running after all: its heartbeat learns it lost the claim, and its
     # result is fenced off.

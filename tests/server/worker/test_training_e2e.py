@@ -241,7 +241,7 @@ def test_a_worker_killed_while_training_resumes_from_its_last_checkpoint(stack_s
         stop(worker)
     with db.session() as session:
         jobs = session.scalars(select(TrainingJob).where(TrainingJob.submission_id == sid)).all()
-        assert [(j.attempt, j.claims, j.status) for j in jobs] == [(1, 2, "trained")]
+        assert [(j.attempt, j.claim_number, j.status) for j in jobs] == [(1, 2, "trained")]
         runs = session.scalars(select(EvaluationRun).where(EvaluationRun.submission_id == sid))
         assert len(runs.all()) == 1
     # Once trained, its checkpoints are gone from the store: only the model stays.
@@ -394,7 +394,7 @@ def test_a_worker_killed_while_training_one_seed_retrains_that_seed_alone(stack_
             select(TrainingJob).where(TrainingJob.submission_id == sid).order_by(TrainingJob.seed)
         ).all()
         # Seed 0 trained once, on its first claim; seed 1 again on a second claim.
-        assert [(j.seed, j.claims, j.status) for j in jobs] == [
+        assert [(j.seed, j.claim_number, j.status) for j in jobs] == [
             (0, 1, "trained"),
             (1, 2, "trained"),
         ]

@@ -12,10 +12,11 @@ from celery import Celery
 from arena.config import get_settings
 from arena.errors import SandboxUnavailable
 from server.core.queue import TaskQueue
+from server.jobs import engine, heartbeat
 from server.models import Submission, TrainingJob
 from server.services import admin
 from server.status import RunStatus, SubmissionStatus, TrainingStatus
-from server.worker import engine, heartbeat, local
+from server.worker import local
 from server.worker.trainings import Trainings
 from tests.server.live import export_settings
 from tests.server.services.test_training_seeds import (
@@ -80,7 +81,7 @@ def test_a_seed_whose_sandbox_is_down_is_retried_alone_then_waits(db, settings, 
     train(down, ids[1])
     assert down.tries == 1 + engine.INFRASTRUCTURE_RETRIES  # released and retried each time
     lost = job(db, ids[1])
-    assert (lost.status, lost.failure, lost.claims) == (
+    assert (lost.status, lost.failure, lost.claim_number) == (
         TrainingStatus.failed,
         "SandboxUnavailable",
         3,
@@ -117,7 +118,7 @@ def test_a_seed_whose_workers_kept_dying_waits_without_stopping_the_others(db, s
     ids = start(db, settings, sid)
     first = claim(db, settings, ids[0])
     with db.session() as session:  # every worker that took seed 1 died holding it
-        session.get(TrainingJob, ids[1]).claims = Trainings.max_claims
+        session.get(TrainingJob, ids[1]).claim_number = Trainings.max_claims
     train(Trainings(), ids[1])
     lost = job(db, ids[1])
     assert (lost.status, lost.failure) == (TrainingStatus.failed, engine.WORKER_LOST)
