@@ -14,8 +14,33 @@ from evaluator.sandbox.cli import sandbox_app
 from evaluator.stacks_cli import stacks_app
 from scenarios.cli import app as scenarios_app
 from scenarios.dataset.cli import app as dataset_app
-from server.cli import admin_app, service_app
+from server.commands import (
+    audit,
+    database,
+    leaderboard,
+    phases,
+    runs,
+    service,
+    status,
+    submissions,
+    teams,
+)
 from submissions.cli import init_agent, submission_app
+
+
+def admin_app() -> typer.Typer:
+    """`arena admin`: the service's resources, one module each in `server/commands/`."""
+    admin = typer.Typer(no_args_is_help=True)
+    # Commands of their own, straight under `arena admin`.
+    for commands in (runs.app, audit.app, status.app):
+        admin.add_typer(commands)
+    admin.add_typer(teams.app, name="teams", help="Teams and their API tokens.")
+    admin.add_typer(submissions.app, name="submissions", help="Inspect and act on submissions.")
+    admin.add_typer(leaderboard.app, name="leaderboard", help="Export the leaderboard.")
+    admin.add_typer(database.app, name="db", help="The database schema.")
+    admin.add_typer(phases.app, name="phases", help="Competition phases: suites, dates, quotas.")
+    return admin
+
 
 app = typer.Typer(
     name="arena",
@@ -28,8 +53,8 @@ app.add_typer(dataset_app, name="dataset", help="Build the offline-learning data
 app.add_typer(submission_app, name="submission", help="Pack and check a submission zip.")
 app.add_typer(sandbox_app, name="sandbox", help="The agent sandbox: runtime image, leftovers.")
 app.add_typer(stacks_app, name="stacks", help="Organiser stacks: wheel sets agents build on.")
-app.add_typer(admin_app, name="admin", help="Organiser administration of the service.")
+app.add_typer(admin_app(), name="admin", help="Organiser administration of the service.")
 # `arena evaluate|score|replay` and `arena up|worker|serve` sit at the top level.
 app.add_typer(evaluator_app)
-app.add_typer(service_app)
+app.add_typer(service.app)
 app.command("init")(init_agent)

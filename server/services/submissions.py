@@ -282,6 +282,13 @@ def list_submissions(
     ]
 
 
+def rerunning(session: Session) -> set[int]:
+    """Ids of the submissions with an evaluation run under way (a scored one keeps its old score
+    meanwhile)."""
+    active = select(EvaluationRun.submission_id).where(EvaluationRun.status.in_(list(ACTIVE_RUN)))
+    return set(session.scalars(active))
+
+
 def hidden_phases(session: Session) -> set[str]:
     """Names of the phases whose suite is hidden from the teams."""
     return {phase.name for phase in list_phases(session) if not team_sees_everything(phase)}

@@ -66,13 +66,13 @@ def test_markup_in_a_method_name_neither_crashes_nor_styles_a_terminal_table():
 
 
 def test_admin_submissions_list_on_a_terminal_shows_markup_as_text(arena, db, monkeypatch):
-    import server.cli
+    import server.commands.submissions
 
     team, _ = make_team(db, "alpha")
     seed_scored(db, team, (0.5, 100.0, 0.1, 0.1), method_name=MARKUP)
     buffer = io.StringIO()
     terminal = Console(file=buffer, force_terminal=True, width=300, color_system=None)
-    monkeypatch.setattr(server.cli, "console", terminal)
+    monkeypatch.setattr(server.commands.submissions, "console", terminal)
     arena("submissions", "list")
     assert MARKUP in buffer.getvalue()
 

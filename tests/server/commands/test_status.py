@@ -1,0 +1,33 @@
+"""`arena admin status` (server/commands/status.py). Run against a real database (both backends),
+configured like a deployment: through ARENA_* environment variables."""
+
+from __future__ import annotations
+
+from server.models import Submission
+from tests.server.builders import make_team, queued_submission
+
+
+def test_status_reports_queue_and_stuck_runs(arena, db):
+    output = arena("status")
+    assert "queue depth:" in output and "stuck runs: none" in output
+
+
+def test_status_lists_overdue_work_and_broken_phases(arena, db, settings, monkeypatch):
+    from datetime import timedelta
+
+    from server.models import utcnow
+
+    team, _ = make_team(db, "alpha")
+    late = queued_submission(db, team)
+    with db.session() as session:
+        session.get(Submission, late).queued_at = utcnow() - timedelta(hours=2)
+    queued_submission(db, team)  # queued just now: not overdue
+    output = arena("status")
+    assert "broken phases: none" in output
+    overdue = output.split("# overdue")[1].splitlines()[2:]  # after the title and header
+    assert [line.split("\t")[:4] for line in overdue] == [[str(late), "alpha", "final", "queued"]]
+    import shutil
+
+    shutil.rmtree(settings.suites.hidden_suite_dir)
+    output = arena("status")
+    assert "BROKEN PHASES" in output and "final\tphase 'final': suite 'hidden'" in output
