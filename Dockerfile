@@ -42,6 +42,9 @@ COPY evaluator ./evaluator
 COPY learn ./learn
 COPY server ./server
 COPY arena_command ./arena_command
+# The example agents: the team's code, outside our packages, but the planner is the reference
+# expert of the solvability check and of the public replays (arena/examples.py).
+COPY examples ./examples
 COPY docs ./docs
 # Editable, so `arena admin db upgrade` finds alembic.ini and migrations/ next to the code.
 RUN pip install --no-cache-dir --no-deps -e . && rm -rf /root/.cache

@@ -51,7 +51,7 @@ from evaluator.sandbox.backend import OWNER_LABEL, owner_labels
 from submissions.intake import pack_folder
 
 REPO = Path(__file__).resolve().parents[1]
-EXAMPLES = REPO / "submissions" / "examples"
+EXAMPLES = REPO / "examples"
 AGENTS = ("planner", "ppo")
 TEAMS = 3
 # A cut of the public set: every kind of scenario the planner and PPO meet (reactive traffic of

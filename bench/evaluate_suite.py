@@ -91,8 +91,8 @@ from sim.interface import AgentInterface
 from sim.simulation import CONTEXT_MARGIN
 
 REPO = Path(__file__).resolve().parents[1]
-PLANNER = REPO / "submissions" / "examples" / "planner"
-TRIVIAL = REPO / "submissions" / "examples" / "keep_lane"
+PLANNER = REPO / "examples" / "planner"
+TRIVIAL = REPO / "examples" / "keep_lane"
 
 
 @dataclass(frozen=True)

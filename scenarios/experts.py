@@ -11,12 +11,11 @@ from pathlib import Path
 
 import yaml
 
+from arena.examples import example_dir
 from arena.scenario import load_scenario
 from scenarios.recorded.builder import EXPERT_FILE
 from sim.interface import ActionSpace, AgentInterface
 from sim.trajectories import Trajectory, read_trajectories
-
-PLANNER_DIR = Path(__file__).resolve().parent.parent / "submissions" / "examples" / "planner"
 
 
 class LogReplayExpert:
@@ -50,11 +49,11 @@ class LogReplayExpert:
 
 
 class PlannerAgent:
-    """The reference planner of ``submissions/examples/planner`` as an in-process agent."""
+    """The reference planner of ``examples/planner`` as an in-process agent."""
 
     def __init__(self) -> None:
         spec = importlib.util.spec_from_file_location(
-            "arena_reference_planner", PLANNER_DIR / "policy.py"
+            "arena_reference_planner", example_dir("planner") / "policy.py"
         )
         assert spec is not None and spec.loader is not None
         module = importlib.util.module_from_spec(spec)
@@ -92,5 +91,5 @@ def expert_interface(scenario_dir: Path) -> AgentInterface:
 
 
 def planner_interface() -> AgentInterface:
-    data = yaml.safe_load((PLANNER_DIR / "agent.yaml").read_text()) or {}
+    data = yaml.safe_load((example_dir("planner") / "agent.yaml").read_text()) or {}
     return AgentInterface(**data)

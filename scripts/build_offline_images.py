@@ -65,7 +65,7 @@ ROOT_CHANGES = (
 )
 # What the submissions the deployment test uploads ask for in their requirements.txt: the
 # service resolves them at intake, from the image's wheelhouse (it has no index either).
-EXAMPLE_REQUIREMENTS = (REPO / "submissions" / "examples" / "ppo" / "requirements.txt",)
+EXAMPLE_REQUIREMENTS = (REPO / "examples" / "ppo" / "requirements.txt",)
 
 # The digest of what an image was built from: a changed input rebuilds it.
 INPUTS_LABEL = "driving-arena.inputs"

@@ -20,9 +20,10 @@ from pathlib import Path
 import httpx
 
 from arena.config import Settings
+from arena.examples import examples_dir
 
 ARENA = [sys.executable, "-c", "from arena_command import app; app()"]
-EXAMPLES = Path(__file__).resolve().parents[1] / "submissions" / "examples"
+EXAMPLES = examples_dir()
 
 
 def free_port() -> int:

@@ -31,4 +31,4 @@ class Policy:
     def drive(self, obs: dict) -> list[float]:
         x = features(obs)
         (logits,) = self.session.run(None, {"image": x["image"][None], "vector": x["vector"][None]})
-        return to_action(int(np.argmax(logits[0])), float(obs["ego_vehicle_state"]["speed"]))
+        return to_action(int(np.argmax(logits[0])), float(obs["ego_vehicle_state"]["speed"][0]))

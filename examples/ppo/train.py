@@ -1,7 +1,7 @@
 """Train the PPO baseline on the arena's own simulator and export it to ONNX.
 
     pip install torch==2.13.0 && pip install -e ".[learn]"
-    python submissions/examples/ppo/train.py --minutes 30 --seed 0 --out runs/ppo
+    python examples/ppo/train.py --minutes 30 --seed 0 --out runs/ppo
 
 Stable-Baselines3 PPO on CPU, two environments (each its own simulator process), episodes drawn
 from the public set's single-agent scenarios; ``--seed`` makes a run reproducible. Writes
@@ -52,14 +52,14 @@ class BaselineInputs(gym.Wrapper):
 
     def reset(self, **kwargs):
         obs, info = self.env.reset(**kwargs)
-        self._speed = float(obs["ego_vehicle_state"]["speed"])
+        self._speed = float(obs["ego_vehicle_state"]["speed"][0])
         return features(obs), info
 
     def step(self, action):
         obs, reward, terminated, truncated, info = self.env.step(
             np.asarray(to_action(int(action), self._speed), np.float32)
         )
-        self._speed = float(obs["ego_vehicle_state"]["speed"])
+        self._speed = float(obs["ego_vehicle_state"]["speed"][0])
         return features(obs), reward, terminated, truncated, info
 
 

@@ -19,8 +19,7 @@ def our_modules():
         package = importlib.import_module(name)
         yield name
         for info in pkgutil.walk_packages(package.__path__, f"{name}."):
-            if ".examples." not in info.name:  # example agents are data folders
-                yield info.name
+            yield info.name
 
 
 def exception_classes():

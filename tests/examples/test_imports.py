@@ -11,10 +11,11 @@ from pathlib import Path
 
 import pytest
 
+from arena.examples import examples_dir
 from tests.packages import ALL
 
 ROOT = Path(__file__).resolve().parents[2]
-EXAMPLES = ROOT / "submissions" / "examples"
+EXAMPLES = examples_dir()
 OURS = set(ALL)
 
 

@@ -6,6 +6,7 @@ import math
 import numpy as np
 import pytest
 
+from arena.examples import example_dir
 from arena.suite import SHIPPED_PUBLIC_DIR
 from scenarios.experts import PlannerAgent, planner_interface
 from scenarios.verify import verify_suite
@@ -16,9 +17,9 @@ from tests.scenarios.conftest import manifest
 def _policy_module():
     import importlib.util
 
-    from scenarios.experts import PLANNER_DIR
-
-    spec = importlib.util.spec_from_file_location("planner_policy", PLANNER_DIR / "policy.py")
+    spec = importlib.util.spec_from_file_location(
+        "planner_policy", example_dir("planner") / "policy.py"
+    )
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module

@@ -7,7 +7,7 @@ The digests were taken with the planner as it was before it was made faster, and
 when the planner's and the simulator's arctangents moved from numpy (whose kernels differ in the
 last bit on AVX-512 CPUs) to the C library's; a deliberate change
 of its driving updates them in the same commit, saying why:
-``python -m tests.submissions.examples.test_planner_actions`` prints the current digests.
+``python -m tests.examples.test_planner_actions`` prints the current digests.
 """
 
 from __future__ import annotations

@@ -4,18 +4,18 @@ from __future__ import annotations
 
 import importlib
 import sys
-from pathlib import Path
 
 import numpy as np
 import onnxruntime
 import pytest
 import yaml
 
+from arena.examples import example_dir
 from sim.interface import AgentInterface, ObservationFormat
 from sim.observation_arrays import ObservationEncoder, ObservationLayout
 from submissions.sample import sample_observation
 
-EXAMPLE = Path(__file__).parents[2] / "submissions" / "examples" / "ppo"
+EXAMPLE = example_dir("ppo")
 
 
 def example_interface() -> AgentInterface:

@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from arena.examples import example_dir
 from arena.suite import SHIPPED_PUBLIC_DIR
 from scenarios.experts import PlannerAgent, planner_interface
 from sim.episode import run_episode
@@ -145,7 +146,6 @@ REGRESSION_SCENARIOS = (
     "p029_replay_i80_bubble",
     "p030_replay_cruise",
 )
-KEEP_LANE_DIR = Path(__file__).resolve().parents[2] / "submissions" / "examples" / "keep_lane"
 INTERFACES = {
     "keep_lane_rasters": AgentInterface(
         action_space="LaneWithContinuousSpeed",
@@ -189,7 +189,7 @@ def _array_digest(value) -> list:
 class _KeepLane:
     def reset(self) -> None:
         spec = importlib.util.spec_from_file_location(
-            "keep_lane_policy", KEEP_LANE_DIR / "policy.py"
+            "keep_lane_policy", example_dir("keep_lane") / "policy.py"
         )
         module = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(module)

@@ -9,6 +9,7 @@ import pytest
 
 from arena.config import Settings
 from arena.errors import IntakeError, ParticipantError
+from arena.examples import example_dir
 from sim.interface import ActionSpace
 from submissions.intake import prepare_submission
 from tests.settings import with_fields
@@ -22,7 +23,6 @@ from tests.submissions.zips import (
     zip_bytes,
 )
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "submissions" / "examples"
 MIB = 1024**2
 
 
@@ -34,7 +34,7 @@ def settings(tmp_path: Path) -> Settings:
 @pytest.mark.parametrize("name", ["random", "keep_lane"])
 def test_examples_pass_intake_and_extract_read_only(name: str, tmp_path: Path, settings) -> None:
     prepared = prepare_submission(
-        EXAMPLES / name,
+        example_dir(name),
         tmp_path / "sub",
         settings.intake,
         settings.sandbox,
@@ -73,7 +73,7 @@ def test_zips_without_unix_file_types_are_plain_files(
 
 def test_agent_yaml_is_validated_into_the_interface(tmp_path: Path, settings) -> None:
     prepared = prepare_submission(
-        EXAMPLES / "keep_lane",
+        example_dir("keep_lane"),
         tmp_path / "sub",
         settings.intake,
         settings.sandbox,
@@ -195,13 +195,13 @@ def test_folder_and_its_zip_give_the_same_submission(tmp_path: Path, settings) -
     from submissions.intake import pack_folder
 
     from_folder = prepare_submission(
-        EXAMPLES / "random",
+        example_dir("random"),
         tmp_path / "a",
         settings.intake,
         settings.sandbox,
         settings.storage.resolved_data_dir,
     )
-    zipped = pack_folder(EXAMPLES / "random", tmp_path / "random.zip")
+    zipped = pack_folder(example_dir("random"), tmp_path / "random.zip")
     from_zip = prepare_submission(
         zipped,
         tmp_path / "b",

@@ -7,11 +7,10 @@ import pytest
 from typer.testing import CliRunner
 
 from arena.errors import IntakeError
+from arena.examples import example_dir
 from arena_command import app
 from submissions.intake import pack_folder
 from tests.submissions.zips import GOOD_POLICY
-
-EXAMPLES = Path(__file__).resolve().parents[2] / "submissions" / "examples"
 
 
 def agent_folder(root: Path, policy: str = GOOD_POLICY) -> Path:
@@ -46,7 +45,7 @@ def test_pack_refuses_a_symlink(tmp_path: Path) -> None:
 @pytest.mark.parametrize("name", ["random", "keep_lane"])
 def test_cli_packs_an_example(name: str, tmp_path: Path) -> None:
     out = tmp_path / f"{name}.zip"
-    arguments = ["submission", "pack", str(EXAMPLES / name), "--out", str(out)]
+    arguments = ["submission", "pack", str(example_dir(name)), "--out", str(out)]
     result = CliRunner().invoke(app, arguments)
     assert result.exit_code == 0, result.output
     assert "ok" in result.output

@@ -8,14 +8,8 @@ import pytest
 
 from arena.config import SandboxKind
 
-REPO = Path(__file__).resolve().parents[3]
-EXAMPLES = REPO / "submissions" / "examples"
 # Independent of Docker; the docker-marked test covers the production sandbox.
 TEST_SANDBOX = SandboxKind.process
-
-
-def example(name: str) -> Path:
-    return EXAMPLES / name
 
 
 @pytest.fixture(scope="session")

@@ -14,13 +14,14 @@ import pytest
 
 from arena.config import get_settings
 from arena.episodes import traffic_seed
+from arena.examples import example_dir
 from arena.outcome import ScenarioStatus
 from arena.scenario import load_scenario
 from arena.suite import load_suite
 from evaluator.runner import EvaluationRequest, evaluate, score_results_dir
 from evaluator.scoring import DEFAULT_PROFILE, load_profile
 from evaluator.summary import read_summary
-from tests.evaluator.runner.conftest import TEST_SANDBOX, example, write_policy
+from tests.evaluator.runner.conftest import TEST_SANDBOX, write_policy
 from tests.settings import evaluate_args
 
 pytestmark = pytest.mark.slow
@@ -216,7 +217,7 @@ def test_a_resumed_run_reuses_the_scores_of_unchanged_records_only(public_suite,
 
 def test_planner_beats_keep_lane_beats_random_on_the_public_set(public_suite, tmp_path):
     results = {
-        name: run(example(name), public_suite, tmp_path / name)
+        name: run(example_dir(name), public_suite, tmp_path / name)
         for name in ("planner", "keep_lane", "random")
     }
     n = len(load_suite(public_suite).scenarios)
@@ -325,7 +326,7 @@ def test_warm_and_cold_agents_give_identical_summary_and_records(
         get_settings.cache_clear()
         out[warm] = tmp_path / f"warm-{warm}"
         request = EvaluationRequest(
-            example("planner"),
+            example_dir("planner"),
             public_suite,
             out_dir=out[warm],
             scenario_ids=ids,

@@ -12,8 +12,8 @@ from __future__ import annotations
 import pytest
 
 from arena.config import SandboxKind, get_settings
+from arena.examples import example_dir
 from evaluator.runner import EvaluationRequest, evaluate
-from tests.evaluator.runner.conftest import example
 from tests.settings import evaluate_args
 
 pytestmark = pytest.mark.slow
@@ -36,7 +36,7 @@ SCENARIOS = [
 def test_smarts_interface_agent_drives_public_scenarios_in_docker(public_suite, tmp_path):
     summary = evaluate(
         EvaluationRequest(
-            example("smarts_follower"),
+            example_dir("smarts_follower"),
             public_suite,
             out_dir=tmp_path / "out",
             scenario_ids=SCENARIOS,

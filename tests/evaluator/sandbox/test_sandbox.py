@@ -17,6 +17,7 @@ import pytest
 from arena.config import SandboxKind, Settings
 from arena.cpu_limits import CpuLimits
 from arena.errors import AgentFailed, SandboxUnavailable
+from arena.examples import example_dir
 from arena.outcome import DoneReason
 from evaluator.sandbox import check_service_kind, cleanup, resolve_kind, start
 from submissions.intake import pack_folder, prepare_submission
@@ -24,11 +25,9 @@ from tests.evaluator.sandbox.agents import agent, observation
 from tests.evaluator.sandbox.conftest import leftovers, usable
 from tests.settings import sandbox_args, with_fields
 
-EXAMPLES = Path(__file__).resolve().parents[3] / "submissions" / "examples"
-
 
 def packed_example(name: str, tmp: Path, settings: Settings):
-    zipped = pack_folder(EXAMPLES / name, tmp / f"{name}.zip")
+    zipped = pack_folder(example_dir(name), tmp / f"{name}.zip")
     return prepare_submission(
         zipped, tmp / name, settings.intake, settings.sandbox, settings.storage.resolved_data_dir
     )
