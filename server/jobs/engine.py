@@ -2,16 +2,20 @@
 
     claim -> heartbeat -> fence -> finish | hand back -> reap
 
-written once here for all job kinds (an episode of a scenario, a training, ...), after
-grand-challenge's ``ComponentJob``:
+written once here for all job kinds (an upload's validation, an episode of a scenario, a
+training), after grand-challenge's ``ComponentJob``. This module is the worker half; the database
+half, the same for every kind, is :mod:`server.jobs.leases` over the job's row
+(:class:`~server.jobs.rows.LeasedJob`: worker, claim number, lease):
 
-- **claim**: the Celery task names a job by its ids; the kind takes the job's row in the database
-  (:mod:`server.services.leases`: worker, lease, claim counter) or returns None when the job is
-  over or held by a live lease (a duplicate delivery: nothing to do).
+- **claim**: the Celery task names a job by its ids; the kind takes the job's row
+  (:func:`~server.jobs.leases.claim`: the claim number goes up, the lease starts) or returns None
+  when the job is over or held by a live lease (a duplicate delivery: nothing to do).
 - **heartbeat**: while the job runs, the worker's one heartbeat thread
-  (:mod:`server.worker.heartbeat`) renews its lease, with the progress the job reports.
-- **fence**: every write of the job is fenced by its claim number, so a claim that was superseded
-  (its worker presumed dead) writes nothing; the heartbeat finding the claim gone stops the job.
+  (:mod:`server.jobs.heartbeat`) renews its lease, with the progress the job reports.
+- **fence**: every write of the job goes through its claim number
+  (:func:`~server.jobs.leases.fence`, :func:`~server.jobs.leases.owned`), so a claim that was
+  superseded (its worker presumed dead) writes nothing; the heartbeat finding the claim gone
+  stops the job.
 - **finish**: the job's result is written through the fence (and follow-up tasks are sent after
   the transaction committed).
 - **hand back**: a worker that stops (warm shutdown) releases the claim and sends the job again;
@@ -21,22 +25,30 @@ grand-challenge's ``ComponentJob``:
   a job whose workers died more than ``max_claims`` times end as a failure *on our side*
   (recorded, never charged to the team, and never re-sent forever).
 - **reap**: :func:`reap_once` (the worker's reaper thread) asks every kind for jobs whose lease
-  expired and sends them again.
+  expired, or whose task was lost before anyone took it (:func:`~server.jobs.leases.reap`), and
+  sends them again.
 
-Adding a job kind (e.g. validating an uploaded zip in a sandbox):
+Adding a job kind costs a table and its transitions:
 
-1. A table with ``worker: str``, ``lease_expires_at: datetime | None`` and a claim counter
-   (Alembic migration), and service functions that claim, renew, release, finish and reap it over
-   :mod:`server.services.leases` (see :mod:`server.services.training`, ~250 lines with its
-   state machine). The claim object it returns has a ``claim_number`` (the fence token).
-2. A class satisfying :class:`JobKind` (see :mod:`server.worker.trainings`): mostly one-line
-   calls of those service functions, plus ``run`` (the sandboxed work; call
-   ``lease.stop_with(...)`` to be killable from outside and ``lease.report(...)`` to show
-   progress) and ``finish``.
+1. A table mixing in :class:`~server.jobs.rows.LeasedJob` and saying when its job is
+   ``under_way`` (a hybrid property, 3 lines), with its Alembic migration; in its service, the
+   claim object the worker gets (with its ``claim_number``) and the transitions: claim (lock the
+   row, check its state, :func:`~server.jobs.leases.claim`), fence, renew, release, the finish
+   guard and reap, each a call into :mod:`server.jobs.leases` plus what is the kind's own, and
+   the writes of its results. Measured on the three kinds (lines of those functions and the
+   claim object, docstrings included): 70 for the training, 88 for the validation (its time
+   budget is charged per claim), 150 for the episode (its claim also makes the row and checks
+   the suite, its reap also re-sends whole runs and queued submissions); 96, 111 and 160 when
+   each wrote its own claim, fence, guard and reap.
+2. A class satisfying :class:`~server.jobs.kind.JobKind` (see :mod:`server.worker.trainings`):
+   claim, renew, release, send_again and reap are calls of those service functions (25, 29 and
+   38 lines in the three kinds), plus ``run`` (the sandboxed work; call ``lease.stop_with(...)``
+   to be killable from outside and ``lease.report(...)`` to show progress), ``ours`` and
+   ``finish``.
 3. A task name in :mod:`server.core.celery_app`, a ``TaskQueue`` method that sends it, and in
    :mod:`server.worker.tasks` a task ``run_job(KIND, self, get_settings(), <ids>)`` declared with
    ``arena_task`` (``bind=True``, ``max_retries=INFRASTRUCTURE_RETRIES``), with the kind added
-   to ``JOB_KINDS`` (the reaper's list).
+   to ``JOB_KINDS`` (the reaper's list): about 10 lines.
 """
 
 from __future__ import annotations
