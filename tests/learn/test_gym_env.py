@@ -37,6 +37,17 @@ def test_passes_gymnasiums_env_checker_with_rasters(closing) -> None:
     assert obs["top_down_rgb"].shape == (64, 64, 3) and obs["top_down_rgb"].any()
 
 
+def test_passes_stable_baselines3s_env_checker_unwrapped(closing) -> None:
+    """SB3 indexes each top-level box's out-of-bounds entries: no leaf may be 0-d."""
+    env_checker = pytest.importorskip("stable_baselines3.common.env_checker")
+    env = DrivingArenaEnv(CRUISE, action_space="LaneWithContinuousSpeed")
+    closing(env)
+    with pytest.warns(UserWarning, match="Nested observation spaces"):
+        env_checker.check_env(env)
+    obs, _ = env.reset(seed=0)
+    assert obs["step_count"].shape == (1,) and obs["ego_vehicle_state"]["speed"].shape == (1,)
+
+
 class Repeat:
     """An in-process agent for the evaluator's episode loop: the same action every step."""
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gymnasium
 import numpy as np
 import pytest
 from pettingzoo.test import parallel_api_test
@@ -17,6 +18,37 @@ def test_passes_pettingzoos_parallel_api_test(closing) -> None:
     env = DrivingArenaParallelEnv(TWO_AGENTS, action_space="LaneWithContinuousSpeed")
     closing(env)
     parallel_api_test(env, num_cycles=60)
+
+
+class OneAgent(gymnasium.Env):
+    """One agent of the parallel env, present from the first step, seen as a Gymnasium env (the
+    others keep their lane): the shape in which SB3 checks it."""
+
+    def __init__(self, env: DrivingArenaParallelEnv, agent: str) -> None:
+        self.env, self.agent = env, agent
+        self.observation_space = env.observation_space(agent)
+        self.action_space = env.action_space(agent)
+
+    def reset(self, *, seed=None, options=None):
+        obs, infos = self.env.reset(seed=seed, options=options)
+        return obs[self.agent], infos[self.agent]
+
+    def step(self, action):
+        actions = {a: np.array([8.0, 0.0], np.float32) for a in self.env.agents}
+        actions[self.agent] = action
+        obs, rewards, terminations, truncations, infos = self.env.step(actions)
+        a = self.agent
+        return obs[a], rewards[a], terminations[a], truncations[a], infos[a]
+
+
+def test_each_agent_passes_stable_baselines3s_env_checker(closing) -> None:
+    env_checker = pytest.importorskip("stable_baselines3.common.env_checker")
+    env = DrivingArenaParallelEnv(TWO_AGENTS, action_space="LaneWithContinuousSpeed")
+    closing(env)
+    env.reset(seed=0)
+    for agent in env.agents:  # those present from the start (a Gymnasium env has one from reset)
+        with pytest.warns(UserWarning, match="Nested observation spaces"):
+            env_checker.check_env(OneAgent(env, agent))
 
 
 @pytest.mark.slow

@@ -49,4 +49,4 @@ def test_the_views_are_the_layouts_arrays_over_the_same_record(interface) -> Non
         assert np.shares_memory(view, want)
         np.testing.assert_array_equal(view, want)
     got["ego_vehicle_state"]["speed"][...] = 42.0  # views: written through to the record
-    assert float(layout.arrays(record)["ego_vehicle_state"]["speed"]) == 42.0
+    assert layout.arrays(record)["ego_vehicle_state"]["speed"].item() == 42.0

@@ -23,7 +23,7 @@ def test_rows_read_back_equal_the_archive(tmp_path):
         while not sim.done:
             ego = obs["Agent_0"].arrays["ego_vehicle_state"]
             x, y, _ = ego["position"].tolist()  # TargetPose: 10 m/s along the lane
-            obs = sim.step({"Agent_0": [x + 1.0, y, float(ego["heading"]), 0.1]})
+            obs = sim.step({"Agent_0": [x + 1.0, y, ego["heading"].item(), 0.1]})
         sim.write_record(tmp_path / "r.npz")
     finally:
         sim.close()

@@ -48,11 +48,11 @@ for agent_id, o in obs.items():
 return out
 """
 SUMS = (
-    "[float(o['ego_vehicle_state']['speed']),"
+    "[o['ego_vehicle_state']['speed'].item(),"
     " float(o['waypoint_paths']['pos'].astype(np.float64).sum()),"
     " float(o['neighborhood_vehicle_states']['mask'].sum()),"
     " float(o['top_down_rgb'].astype(np.float64).sum()),"
-    " float(o['step_count'])]"
+    " o['step_count'].item()]"
 )
 
 
