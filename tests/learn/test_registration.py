@@ -66,7 +66,8 @@ def test_a_fresh_interpreter_makes_the_env_by_name(short_road, tmp_path) -> None
         f"env = gymnasium.make({ENV_ID!r}, suite={str(short_road)!r},"
         " action_space='Continuous')\n"
         "obs, info = env.reset(seed=0)\n"
-        "print(info['scenario_id'], env.step([1.0, 0.0, 0.0])[0]['ego_vehicle_state']['speed'].item())\n"
+        "speed = env.step([1.0, 0.0, 0.0])[0]['ego_vehicle_state']['speed'].item()\n"
+        "print(info['scenario_id'], speed)\n"
         "env.close()\n"
     )
     # The installed package, as a user has it: no PYTHONPATH, run from outside the checkout.

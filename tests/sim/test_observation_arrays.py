@@ -60,7 +60,8 @@ def test_the_sample_observation_encodes_into_its_leaves() -> None:
     np.testing.assert_allclose(paths["pos"][2, 10], [110.0, 6.4])  # lane 2, 10 m ahead
     np.testing.assert_allclose(paths["lane_offset"][1, :3], [0.0, 1.0, 2.0])
     ego = encoded["ego_vehicle_state"]
-    assert ego["goal_position"].tolist() == [400.0, 0.0] and ego["speed"].shape == (1,) and ego["speed"].item() == 12.0
+    assert ego["goal_position"].tolist() == [400.0, 0.0]
+    assert ego["speed"].shape == (1,) and ego["speed"].item() == 12.0
     assert encoded["step_count"] == 12 and encoded["dt"].dtype == np.float32
     assert not any(encoded["events"].values())
     np.testing.assert_array_equal(encoded["top_down_rgb"], obs["top_down_rgb"])
