@@ -8,16 +8,14 @@ from typing import Annotated
 import typer
 
 from server.commands.console import console, err_console, fail, progress
-from server.commands.context import MAX_ID, AdminContext, or_fail
+from server.commands.context import AdminContext, OptionalSubmissionId, or_fail
 
 app = typer.Typer(no_args_is_help=True)
 
 
 @app.command("audit")
 def audit(
-    submission_id: Annotated[
-        int | None, typer.Argument(help="Submission id.", min=1, max=MAX_ID)
-    ] = None,
+    submission_id: OptionalSubmissionId = None,
     sample: Annotated[
         int | None,
         typer.Option(

@@ -15,6 +15,10 @@ from server.commands.console import fail
 # overflow traceback.
 MAX_ID = 2**31 - 1
 SubmissionId = Annotated[int, typer.Argument(help="Submission id.", min=1, max=MAX_ID)]
+# The same, where other options can stand in for it (`rescore --all`, `audit --sample N`).
+OptionalSubmissionId = Annotated[
+    int | None, typer.Argument(help="Submission id.", min=1, max=MAX_ID)
+]
 
 T = TypeVar("T")
 

@@ -12,16 +12,14 @@ import typer
 from arena.figures import METRICS, metric_text
 from arena.terminal import print_rows
 from server.commands.console import console, fail, progress
-from server.commands.context import MAX_ID, AdminContext, SubmissionId, or_fail
+from server.commands.context import AdminContext, OptionalSubmissionId, SubmissionId, or_fail
 
 app = typer.Typer(no_args_is_help=True)
 
 
 @app.command("rescore")
 def rescore(
-    submission_id: Annotated[
-        int | None, typer.Argument(help="Submission id.", min=1, max=MAX_ID)
-    ] = None,
+    submission_id: OptionalSubmissionId = None,
     all_: Annotated[bool, typer.Option("--all", help="Every scored submission.")] = False,
     phase: Annotated[str | None, typer.Option(help="Every scored submission of a phase.")] = None,
     profile: Annotated[

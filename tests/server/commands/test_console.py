@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import os
 import subprocess
-import sys
 
 from server.commands.console import progress
 from tests.server.builders import make_team, queued_submission
+from tests.server.live import ARENA
 from tests.server.worker.test_evaluation_flow import run_everything, start
 
 ESCAPE = "\x1b"
@@ -20,7 +20,7 @@ def arena_piped(*args: str) -> subprocess.CompletedProcess[str]:
     env = {key: value for key, value in os.environ.items() if "COLOR" not in key}
     env["TERM"] = "xterm-256color"
     return subprocess.run(
-        [sys.executable, "-c", "from arena_command import app; app()", "admin", *args],
+        [*ARENA, "admin", *args],
         capture_output=True,
         text=True,
         env=env,
