@@ -8,7 +8,9 @@ default when nothing else simulates here); the same env with all three rasters a
 for comparison, the env without rasters with its simulator in a child process
 (``simulator="subprocess"``: the pipe and packing on top). The env sides time ``env.step`` as a
 training loop sees it (simulator, observation encoding, scoring terms, reward); the policy's own
-time is not counted. Best of ``--repeat`` each.
+time is not counted. Best of ``--repeat`` each. A fifth side is the env without rasters with the
+simulator's pure-Python reference instead of its compiled core (``ARENA_PURE_PYTHON=1``,
+``sim/compiled.py``), in a process of its own (the switch is read at import).
 
 Two clocks: wall time, and CPU time (this process's plus any simulator child's, from ``/proc``).
 On a shared, loaded machine wall time mostly measures the neighbours; the summary line uses CPU
@@ -16,7 +18,8 @@ time, which counts only the work done.
 
 Usage: ``python bench/env_throughput.py [--steps 1000] [--vehicles 100] [--repeat 2]``.
 The last line printed is ``env_ratio=<env_time/raw_time> raster_ms=<extra ms per agent-step for
-rasters>`` (targets: at most 3 and at most 1).
+rasters> pure_env_ratio=<pure-Python env_time/raw_time> compiled_speedup=<pure-Python env_time /
+env_time>`` (targets: env_ratio at most 2.5, raster_ms at most 1).
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from sim_throughput import build, in_child, raw_side
 
 from learn.gym_env import DrivingArenaEnv
 from learn.worker import SimulatorProcess
+from sim.compiled import core_status
 
 RASTERS = {"top_down_rgb": True, "occupancy_grid_map": True, "drivable_area_grid_map": True}
 
@@ -75,6 +79,11 @@ def env_side(
     return wall, cpu
 
 
+def env_side_in_child(folder: str, steps: int, queue) -> None:
+    """:func:`env_side` without rasters in a process of its own (``sim_throughput.in_child``)."""
+    queue.put((env_side(Path(folder), steps, rasters=False), ""))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=1000)
@@ -90,22 +99,34 @@ def main() -> None:
     )
     with tempfile.TemporaryDirectory() as tmp:
         folder = build(Path(tmp) / "bench", args.vehicles, args.steps)
-        raw, plain, raster, child = [], [], [], []
+        print(f"simulator core: {core_status()}")
+        raw, plain, raster, child, pure = [], [], [], [], []
         for _ in range(args.repeat):
             raw.append(in_child(raw_side, str(folder), args.steps)[0])
             plain.append(env_side(folder, args.steps, rasters=False))
             raster.append(env_side(folder, args.steps, rasters=True))
             child.append(env_side(folder, args.steps, rasters=False, simulator="subprocess"))
+            pure.append(in_child(env_side_in_child, str(folder), args.steps, pure_python=True)[0])
     n = args.steps
-    sides = (("raw libsumo", raw), ("env", plain), ("env+rasters", raster), ("env (child)", child))
+    sides = (
+        ("raw libsumo", raw),
+        ("env", plain),
+        ("env+rasters", raster),
+        ("env (child)", child),
+        ("env (pure Python)", pure),
+    )
     best = {name: (min(w for w, _ in runs), min(c for _, c in runs)) for name, runs in sides}
     for name, (wall, cpu) in best.items():
         print(
-            f"{name + ':':13s} wall {n / wall:7,.0f} steps/s ({wall * 1e3 / n:.3f} ms/step)"
+            f"{name + ':':19s} wall {n / wall:7,.0f} steps/s ({wall * 1e3 / n:.3f} ms/step)"
             f"   CPU {n / cpu:7,.0f} steps/s ({cpu * 1e3 / n:.3f} ms/step)"
         )
     raster_ms = (best["env+rasters"][1] - best["env"][1]) * 1e3 / n
-    print(f"env_ratio={best['env'][1] / best['raw libsumo'][1]:.2f} raster_ms={raster_ms:.3f}")
+    raw, env, pure = best["raw libsumo"][1], best["env"][1], best["env (pure Python)"][1]
+    print(
+        f"env_ratio={env / raw:.2f} raster_ms={raster_ms:.3f} pure_env_ratio={pure / raw:.2f}"
+        f" compiled_speedup={pure / env:.2f}"
+    )
 
 
 if __name__ == "__main__":

@@ -13,9 +13,13 @@ three each, the sides taking turns so that a changing load falls on all of them.
 Two clocks, as in ``bench/env_throughput.py``: wall time, and the side's CPU time. On a shared,
 loaded machine wall time mostly measures the neighbours, so ``ratio`` uses CPU time.
 
+Both our sides run once more with the simulator's pure-Python reference instead of its compiled
+core (``ARENA_PURE_PYTHON=1``, ``sim/compiled.py``), taking turns with the others.
+
 Usage: ``python bench/sim_throughput.py [--steps 1000] [--vehicles 100] [--repeat 3]``.
 The last line printed is ``ratio=<arrays_cpu/raw_cpu> native_ratio=<native_cpu/raw_cpu>
-wall_ratio=<arrays_wall/raw_wall>`` (target: ratio at most 2).
+wall_ratio=<arrays_wall/raw_wall> pure_ratio=<pure arrays_cpu/raw_cpu>
+compiled_speedup=<pure arrays_cpu/arrays_cpu>`` (target: ratio at most 2).
 
 ``--sumo-costs`` first prints what SUMO itself costs per step for the ways we could put an ego
 into it and read its surroundings (libsumo only, no code of ours; an ego at constant speed along
@@ -28,6 +32,7 @@ import argparse
 import cProfile
 import io
 import multiprocessing as mp
+import os
 import pstats
 import tempfile
 import time
@@ -44,6 +49,7 @@ from scenarios.handmade import (
     straight_road,
     vehicle_xml,
 )
+from sim.compiled import PURE_PYTHON_VARIABLE, core_status
 
 LANES = 3
 ROAD_LENGTH = 3000.0  # [m]
@@ -228,11 +234,21 @@ def our_side(folder: str, steps: int, arrays: bool, profile: bool, queue) -> Non
     queue.put(((wall, cpu), text))
 
 
-def in_child(target, *args) -> tuple[float, str]:
+def in_child(target, *args, pure_python: bool = False) -> tuple[float, str]:
+    """``target(*args, queue)`` in a process of its own; ``pure_python``: with the simulator's
+    pure-Python reference (the switch is read as the child imports the simulator)."""
     ctx = mp.get_context("spawn")
     queue = ctx.Queue()
     proc = ctx.Process(target=target, args=(*args, queue))
-    proc.start()
+    before = os.environ.get(PURE_PYTHON_VARIABLE)
+    os.environ[PURE_PYTHON_VARIABLE] = "1" if pure_python else "0"
+    try:
+        proc.start()
+    finally:
+        if before is None:
+            del os.environ[PURE_PYTHON_VARIABLE]
+        else:
+            os.environ[PURE_PYTHON_VARIABLE] = before
     try:
         result = queue.get(timeout=600)
     except Empty:
@@ -262,11 +278,22 @@ def main() -> None:
         folder = str(build(Path(tmp) / "bench", args.vehicles, args.steps))
         if args.sumo_costs:
             sumo_costs(folder, args.steps, args.repeat)
-        runs: dict[str, list[tuple[float, float]]] = {"raw": [], "native": [], "arrays": []}
+        print(f"simulator core: {core_status()}")
+        runs: dict[str, list[tuple[float, float]]] = {
+            "raw": [],
+            "native": [],
+            "arrays": [],
+            "native (pure Python)": [],
+            "arrays (pure Python)": [],
+        }
         for _ in range(args.repeat):
             runs["raw"].append(in_child(raw_side, folder, args.steps)[0])
-            runs["native"].append(in_child(our_side, folder, args.steps, False, False)[0])
-            runs["arrays"].append(in_child(our_side, folder, args.steps, True, False)[0])
+            for pure in (False, True):
+                suffix = " (pure Python)" if pure else ""
+                for arrays in (False, True):
+                    side = ("arrays" if arrays else "native") + suffix
+                    result = in_child(our_side, folder, args.steps, arrays, False, pure_python=pure)
+                    runs[side].append(result[0])
         if args.profile:
             for arrays in (False, True):
                 print("arrays" if arrays else "native")
@@ -275,14 +302,16 @@ def main() -> None:
     best = {name: (min(w for w, _ in side), min(c for _, c in side)) for name, side in runs.items()}
     for name, (wall, cpu) in best.items():
         print(
-            f"{name + ':':8s} wall {n / wall:7,.0f} steps/s ({wall * 1e3 / n:.3f} ms/step)"
+            f"{name + ':':22s} wall {n / wall:7,.0f} steps/s ({wall * 1e3 / n:.3f} ms/step)"
             f"   CPU {n / cpu:7,.0f} steps/s ({cpu * 1e3 / n:.3f} ms/step)"
             f"   {cpu / best['raw'][1]:.2f} x raw CPU"
         )
     raw_wall, raw_cpu = best["raw"]
+    arrays_cpu, pure_cpu = best["arrays"][1], best["arrays (pure Python)"][1]
     print(
-        f"ratio={best['arrays'][1] / raw_cpu:.2f} native_ratio={best['native'][1] / raw_cpu:.2f}"
-        f" wall_ratio={best['arrays'][0] / raw_wall:.2f}"
+        f"ratio={arrays_cpu / raw_cpu:.2f} native_ratio={best['native'][1] / raw_cpu:.2f}"
+        f" wall_ratio={best['arrays'][0] / raw_wall:.2f} pure_ratio={pure_cpu / raw_cpu:.2f}"
+        f" compiled_speedup={pure_cpu / arrays_cpu:.2f}"
     )
 
 

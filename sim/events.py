@@ -7,9 +7,12 @@ from typing import NamedTuple
 
 import numpy as np
 
+from sim.compiled import compiled
 from sim.geometry import box_overlaps_box
 from sim.road import LanePosition, angle_between
 from sim.vehicle.states import VehicleStates
+
+_boxes = compiled("sim._boxes")
 
 WRONG_WAY_ANGLE = math.pi / 2  # [rad] heading difference to the lane beyond which is wrong way
 NOT_MOVING_SPEED = 0.1  # [m/s]
@@ -54,6 +57,9 @@ def collisions(
         return ()
     if distance is None:
         distance = np.hypot(others.x - x, others.y - y)
+    if _boxes is not None:
+        hit = _boxes.overlapping(x, y, heading, length, width, others.values, distance)
+        return tuple(sorted([others.ids[i] for i in hit]))
     # Boxes further apart than their half-diagonals cannot touch: skip the exact test for them.
     # (In place, the same operations as 0.5 * (hypot + np.hypot(...)), with fewer arrays.)
     values = others.values

@@ -17,9 +17,11 @@ from typing import Protocol
 import numpy as np
 
 from arena.errors import InfrastructureError
+from sim.compiled import compiled
 from sim.road import LanePosition
 from sim.vehicle.states import VehicleStates
 
+_neighbours = compiled("sim._neighbours")
 _open_instance: SumoTraffic | None = None
 
 # Speed / lane-change modes of SUMO: 0 = obey nothing (we or a script drive it); defaults below.
@@ -247,6 +249,11 @@ class SumoTraffic:
         """Vehicles SUMO found near watched vehicle ``vid`` at the last step, but for ``vid`` and
         the vehicles in ``skip``."""
         results = self._context(vid)
+        if _neighbours is not None:
+            ids, values, lanes = _neighbours.report_states(
+                results, vid, skip, self._dims, self._measure, *self._vars
+            )
+            return VehicleStates.of(ids, values, lanes) if ids else VehicleStates.empty()
         return self._states(results, [v for v in results if v not in skip and v != vid])
 
     def is_in_network(self, vid: str) -> bool:

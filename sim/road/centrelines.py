@@ -16,7 +16,10 @@ from typing import NamedTuple
 import numpy as np
 
 from agent_runtime.packed_waypoints import POINT_VALUES, PackedPaths
+from sim.compiled import compiled
 from sim.road.lane import WAYPOINT_SPACING, Lane
+
+_sampling = compiled("sim.road._sampling")
 
 # [m] offsets of a piece's points from its first (a longer piece makes its own: _piece_steps)
 _STEPS = WAYPOINT_SPACING * np.arange(256)
@@ -54,9 +57,11 @@ class CentrelineTable:
         # A column of zeros first: the search counts the vertices at or before an offset, so
         # the count is the column of the vertex found.
         columns, keys = [np.zeros((INDEX + 1, 1))], []
+        vertices = []
         for k, lane in enumerate(lanes):
             cum, pts = lane.cumulative_s, lane.centreline
             n = len(cum)
+            vertices.append(n)
             values = np.zeros((INDEX + 1, n))
             values[_CUM], values[X], values[Y] = cum, pts[:, 0], pts[:, 1]
             # np.interp's slopes, (y[j+1] - y[j]) / (s[j+1] - s[j]). A zero-length segment's
@@ -75,6 +80,9 @@ class CentrelineTable:
             keys.append(k + 1j * cum)
         self.values = np.concatenate(columns, axis=1)
         self.keys = np.concatenate(keys)  # (lane ordinal, offset), in lexicographic order
+        # Each lane's vertices and the column of its first, for the compiled core's search.
+        self._vertices = np.array(vertices, dtype=np.int64)
+        self._first_column = 1 + np.concatenate([[0], np.cumsum(self._vertices)[:-1]])
         # Where an offset falls on a vertex, np.interp gives the vertex's own value, where the
         # slope's term (+0 or -0) would turn a vertex's -0 into +0: only -0 needs telling.
         xy = self.values[X : Y + 1]
@@ -89,6 +97,15 @@ class CentrelineTable:
         if not pieces:
             return WaypointArrays(counts, np.zeros((INDEX - X + 1, 0)), [])
         ordinal = self.ordinal
+        if _sampling is not None:
+            values = _sampling.sample(
+                self.values,
+                self._first_column,
+                self._vertices,
+                [(ordinal[lane], s, count) for lane, s, count in pieces],
+                self._negative_zeros,
+            )
+            return WaypointArrays(counts, values, [(lane, count) for lane, _, count in pieces])
         piece_counts = tuple([count for _, _, count in pieces])
         # Each point's search key: its lane's ordinal, and its offset (the imaginary part).
         key = np.array([complex(ordinal[lane], s) for lane, s, _ in pieces]).repeat(piece_counts)

@@ -10,6 +10,9 @@ from itertools import pairwise
 import numpy as np
 
 from arena import portable_math
+from sim.compiled import compiled
+
+_lane_search = compiled("sim.road._lane_search")
 
 WAYPOINT_SPACING = 1.0  # [m] distance between consecutive waypoints along a lane
 # Lanes of more centreline points than this are projected onto through a grid of their segments
@@ -39,6 +42,7 @@ class Lane:
     is_internal: bool
     is_shoulder: bool
     successors: list[str] = field(default_factory=list)  # lane ids reachable at the lane's end
+    _shape = None  # the compiled core's copy of the centreline (_make_shape), when it runs
 
     def __post_init__(self) -> None:
         pts = np.asarray(self.centreline, dtype=np.float64)
@@ -67,6 +71,8 @@ class Lane:
     def project(self, x: float, y: float) -> tuple[float, float, float]:
         """Lane coordinates of a point: (s [m] along the lane, t [m] signed lateral offset, left
         positive, heading [rad] of the lane at s), on the lane's first nearest segment."""
+        if _lane_search is not None:
+            return (self._shape or self._make_shape()).project(x, y)
         pts = self._points
         if len(pts) > _VECTOR_PROJECTION_POINTS:
             return self._project_long(x, y)
@@ -132,6 +138,23 @@ class Lane:
                     cells.setdefault((ix, iy), []).append(i)
         self._cells = cells
         return cells
+
+    def _make_shape(self):
+        """The compiled core's LaneShape of this lane (its grid too, for a long lane)."""
+        long = len(self._points) > _VECTOR_PROJECTION_POINTS
+        self._shape = _lane_search.LaneShape(
+            np.ascontiguousarray(self.centreline),
+            self._seg_len2,
+            np.array(self._frame_len),
+            self.cumulative_s,
+            self.segment_headings,
+            (self._cells or self._make_cells()) if long else None,
+        )
+        return self._shape
+
+    def __getstate__(self) -> dict:
+        # The compiled core's shape is not picklable: remade where first needed.
+        return {k: v for k, v in self.__dict__.items() if k != "_shape"}
 
     def _frame(self, i: int, u: float, x: float, y: float) -> tuple[float, float, float]:
         (x0, y0), (x1, y1) = self._points[i], self._points[i + 1]

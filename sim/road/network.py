@@ -14,7 +14,10 @@ from shapely.geometry import GeometryCollection, LineString, MultiPolygon, Polyg
 from shapely.geometry.base import BaseGeometry
 
 from arena import portable_math
+from sim.compiled import compiled
 from sim.road.lane import Lane, angle_between
+
+_lane_search = compiled("sim.road._lane_search")
 
 # Lanes whose centreline is within this much of the nearest one [m] compete on heading, so that
 # overlapping junction connections resolve to the one the vehicle follows.
@@ -92,11 +95,12 @@ class RoadNetwork:
     # Pickled: an episode's process gets the network parsed by its evaluator (sim.inputs).
     def __getstate__(self) -> dict:
         # The segment tree is rebuilt from its arrays: several times faster than unpickling it
-        # one geometry at a time.
-        return {k: v for k, v in self.__dict__.items() if k != "_tree"}
+        # one geometry at a time; the compiled core's table is remade where first needed.
+        return {k: v for k, v in self.__dict__.items() if k not in ("_tree", "_seg_table")}
 
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)
+        self._seg_table = None
         self._tree = _segment_tree(self._seg_p0, self._seg_d)
         # Geometries are pickled unprepared; the per-step point queries rely on preparation.
         shapely.prepare(self.drivable_area)
@@ -175,10 +179,23 @@ class RoadNetwork:
         self._seg_heading_list = self._seg_heading.tolist()
         self._grid = {cell: [rows[k] for k in segs] for cell, segs in cells.items()}
         self._grid_segments: dict[tuple[int, int], np.ndarray] = {}  # made by nearest_lanes
+        self._seg_table: np.ndarray | None = None  # the compiled core's (_make_seg_table)
 
     def nearest_lane(self, x: float, y: float, heading: float | None = None) -> LanePosition:
         """The lane whose centreline is nearest to (x, y) [m]. Among lanes within 0.5 m of the
         nearest, the one best aligned with ``heading`` [rad] wins (overlapping junction lanes)."""
+        if _lane_search is not None:
+            listed = (self._grid_segments or self._make_grid_segments()).get(
+                (math.floor(x / _GRID_CELL), math.floor(y / _GRID_CELL))
+            )
+            if listed is not None:
+                table = self._seg_table if self._seg_table is not None else self._make_seg_table()
+                found = _lane_search.grid_nearest(
+                    table, self._seg_lane, self._seg_heading, listed, x, y, heading
+                )
+                if found is not None:  # else the tree, below
+                    k, s, t, lane_heading, distance, seg = found
+                    return LanePosition(self._lane_list[k], s, t, lane_heading, distance, seg)
         # Scalar Python on the few segments of one grid cell beats numpy's per-call overhead.
         found = []  # (distance, u, segment)
         for k, px, py, dx, dy, len2, _ in self._grid.get(
@@ -212,6 +229,14 @@ class RoadNetwork:
             distance=float(distance),
             segment=seg,
         )
+
+    def _make_seg_table(self) -> np.ndarray:
+        """The compiled core's rows of each index segment: start x, y, direction x, y, length
+        squared, length and offset along its lane."""
+        p0, d = self._seg_p0, self._seg_d
+        columns = (p0[:, 0], p0[:, 1], *d.T, self._seg_len2, self._seg_len, self._seg_s0)
+        self._seg_table = np.ascontiguousarray(np.stack(columns, axis=1))
+        return self._seg_table
 
     def _search_tree(self, x: float, y: float) -> list[tuple[float, float, int]]:
         point = shapely.Point(x, y)

@@ -6,6 +6,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sim.compiled import compiled
+
+_neighbours = compiled("sim._neighbours")
+
 # The matrix's columns, in order; each is also an attribute (a view of its column).
 FIELDS = ("x", "y", "heading", "speed", "length", "width")
 
@@ -89,6 +93,9 @@ class VehicleStates:
         """The vehicles whose centre is within ``radius`` [m] of (x, y) [m], nearest first (ties
         in their present order), and those distances [m]."""
         values = self.values
+        if _neighbours is not None:
+            order, distance = _neighbours.nearest_first(values, x, y, radius)
+            return self.select(order), distance
         distance = np.hypot(values[:, 0] - x, values[:, 1] - y)
         # A stable sort of all, cut after those within the radius: the same order as sorting
         # only those, with fewer numpy calls (each costs more than the arithmetic here).
