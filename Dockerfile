@@ -7,6 +7,28 @@
 # scripts/pin_images.py prints it from the pulled image. Hosts without a registry build one offline
 # (scripts/build_offline_images.py: Debian packages, local wheels, no network).
 ARG BASE_IMAGE
+
+# The simulator's compiled core (setup.py, sim/compiled.py) needs a C compiler, which the base
+# has not: its modules are built in this stage and copied into the service image below. (The
+# offline base has the compiler and Python's headers already: it cannot reach apt.)
+FROM ${BASE_IMAGE} AS core
+ARG BUILD_PACKAGES="gcc libc6-dev"
+RUN dpkg-query -W $BUILD_PACKAGES >/dev/null 2>&1 || { \
+        apt-get update \
+        && DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends \
+            $BUILD_PACKAGES \
+        && rm -rf /var/lib/apt/lists/*; }
+WORKDIR /src
+COPY pyproject.toml setup.py ./
+COPY sim ./sim
+# Every .pyx must become a module: setup.py's extensions are optional (a host without a compiler
+# installs without them), the image must not be.
+RUN python -c "import tomllib; print(*tomllib.load(open('pyproject.toml', 'rb'))['build-system']['requires'], sep='\n')" > /tmp/build-requirements.txt \
+    && pip install --no-cache-dir -r /tmp/build-requirements.txt \
+    && python setup.py build_ext --inplace \
+    && test "$(find sim -name '*.so' | wc -l)" -eq "$(find sim -name '*.pyx' | wc -l)" \
+    && mkdir /core && find sim -name '*.so' -exec cp --parents {} /core \;
+
 FROM ${BASE_IMAGE}
 
 ENV PYTHONDONTWRITEBYTECODE=1 \
@@ -30,7 +52,7 @@ COPY pyproject.toml ./
 RUN python -c "import tomllib; print(*tomllib.load(open('pyproject.toml', 'rb'))['project']['dependencies'], sep='\n')" > /tmp/requirements.txt \
     && pip install --no-cache-dir -r /tmp/requirements.txt \
     && rm -rf /root/.cache /tmp/requirements.txt
-COPY README.md alembic.ini ./
+COPY README.md alembic.ini setup.py ./
 COPY build_backend ./build_backend
 COPY migrations ./migrations
 COPY arena ./arena
@@ -46,8 +68,11 @@ COPY arena_command ./arena_command
 # expert of the solvability check and of the public replays (arena/examples.py).
 COPY examples ./examples
 COPY docs ./docs
-# Editable, so `arena admin db upgrade` finds alembic.ini and migrations/ next to the code.
-RUN pip install --no-cache-dir --no-deps -e . && rm -rf /root/.cache
+COPY --from=core /core/sim ./sim
+# Editable, so `arena admin db upgrade` finds alembic.ini and migrations/ next to the code; the
+# compiled core is in place (ARENA_CORE_PREBUILT: nothing to build), and must load.
+RUN ARENA_CORE_PREBUILT=1 pip install --no-cache-dir --no-deps -e . && rm -rf /root/.cache \
+    && python -c "from sim.compiled import core_status; s = core_status(); assert s == 'compiled', s"
 
 # /var/lib/arena-api: the API's own scratch in docker-compose.yml (a volume starts with this
 # folder's owner).

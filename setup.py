@@ -5,11 +5,16 @@ the package by ``pip install .`` and ``pip install -e .`` (pyproject.toml holds 
 The C code must round as the Python it replaces (the record and observation digests of
 ``tests/sim`` are the pure-Python path's): no contraction of a * b + c into one fused
 multiply-add, no fast-math, and the C library's own sin, cos and pow (GCC would otherwise fold
-sin and cos of one angle into sincos and pow(x, 2.0) into x * x)."""
+sin and cos of one angle into sincos and pow(x, 2.0) into x * x).
 
+Where no compiler is found the package installs without the core (each module is an optional
+extension) and the simulator runs its pure-Python reference, saying so once.
+``ARENA_CORE_PREBUILT=1`` builds nothing: the modules are in place already (the Dockerfile's build
+stage compiles them in an image that has a compiler, the service image copies them in)."""
+
+import os
 from pathlib import Path
 
-from Cython.Build import cythonize
 from setuptools import Extension, setup
 
 EXACT_IEEE = [
@@ -23,20 +28,29 @@ EXACT_IEEE = [
 ]
 SOURCES = sorted(Path("sim").rglob("*.pyx"))
 
-setup(
-    ext_modules=cythonize(
-        [
-            Extension(
-                ".".join(source.with_suffix("").parts), [str(source)], extra_compile_args=EXACT_IEEE
-            )
-            for source in SOURCES
-        ],
-        compiler_directives={
-            "language_level": 3,
-            "cdivision": True,
-            "boundscheck": False,
-            "wraparound": False,
-            "initializedcheck": False,
-        },
-    )
-)
+
+def extensions() -> list[Extension]:
+    if os.environ.get("ARENA_CORE_PREBUILT") == "1":
+        return []
+    from Cython.Build import cythonize  # a build requirement (pyproject.toml)
+
+    modules = [
+        Extension(
+            ".".join(source.with_suffix("").parts),
+            [str(source)],
+            extra_compile_args=EXACT_IEEE,
+            optional=True,
+        )
+        for source in SOURCES
+    ]
+    directives = {
+        "language_level": 3,
+        "cdivision": True,  # no ZeroDivisionError checks: every divisor is kept from zero
+        "boundscheck": False,
+        "wraparound": False,
+        "initializedcheck": False,
+    }
+    return cythonize(modules, compiler_directives=directives)
+
+
+setup(ext_modules=extensions())

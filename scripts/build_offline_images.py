@@ -55,6 +55,10 @@ ROOT_PACKAGES = (
     "libatomic1",
     "libexpat1",
     "zlib1g",
+    # The Dockerfile's build stage compiles the simulator's core (setup.py) and cannot reach apt.
+    "gcc",
+    "libc6-dev",
+    "python3-dev",
     "postgresql",
     "redis-server",
 )

@@ -10,6 +10,10 @@ dev=0
 
 need_apt=()
 command -v bwrap >/dev/null || need_apt+=(bubblewrap)
+# The simulator's compiled core (setup.py): a C compiler and Python's headers.
+command -v gcc >/dev/null || need_apt+=(gcc libc6-dev)
+python3 -c 'import os, sys, sysconfig; sys.exit(not os.path.isfile(os.path.join(sysconfig.get_paths()["include"], "Python.h")))' \
+  || need_apt+=(python3-dev)
 if [ "$dev" = 1 ]; then
   command -v chromium >/dev/null || need_apt+=(chromium)
 fi
@@ -30,6 +34,7 @@ if [ "$dev" = 1 ]; then
   python3 -m pip install -q --disable-pip-version-check "torch==2.13.0"
 fi
 python3 -m pip install -q --disable-pip-version-check -e ".${extras}"
+python3 -c 'from sim.compiled import core_status; print("simulator core:", core_status())'
 
 # The Docker sandbox: engine, daemon and the offline-built agent image (skipped where impossible).
 if [ -x scripts/setup-sandbox.sh ]; then
