@@ -1,13 +1,14 @@
 """Which per-step core runs: the compiled one, or the pure-Python reference.
 
 The hot spots of a step (lane projection and the nearest-lane search, the neighbours' states from
-SUMO's report, the collision boxes, the waypoint sampling) have Cython versions (the ``_*.pyx``
-files next to the modules they serve, built by ``pip install .`` and ``pip install -e .`` through
-``setup.py``) that do the Python's arithmetic operation for operation, so that records and
-observations are the same bytes either way (``tests/sim/test_compiled_core.py`` runs the public
-suite both ways). The Python stays the reference: ``ARENA_PURE_PYTHON=1`` runs it, and it runs,
-with one warning, where the compiled modules were not built. The choice is made when a module
-of the simulator is first imported, so a process runs one core throughout.
+SUMO's report, the collision boxes, the waypoint paths, and the neighbours and waypoints of the
+arrays observation's record) have Cython versions (the ``_*.pyx`` files next to the modules they
+serve, built by ``pip install .`` and ``pip install -e .`` through ``setup.py``) that do the
+Python's arithmetic operation for operation, so that records and observations are the same
+bytes either way (``tests/sim/test_compiled_core.py`` runs the public suite both ways). The
+Python stays the reference: ``ARENA_PURE_PYTHON=1`` runs it, and it runs, with one warning,
+where the compiled modules were not built. The choice is made when a module of the simulator is
+first imported, so a process runs one core throughout.
 """
 
 from __future__ import annotations
@@ -19,7 +20,13 @@ from types import ModuleType
 
 PURE_PYTHON_VARIABLE = "ARENA_PURE_PYTHON"
 # The compiled modules; setup.py builds each from its .pyx.
-MODULES = ("sim._boxes", "sim._neighbours", "sim.road._lane_search", "sim.road._sampling")
+MODULES = (
+    "sim._boxes",
+    "sim._neighbours",
+    "sim._record_writer",
+    "sim.road._lane_search",
+    "sim.road._sampling",
+)
 
 _missing: list[str] = []
 

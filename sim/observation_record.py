@@ -15,6 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from sim.compiled import compiled
 from sim.events import Events
 from sim.mission_vehicle import MissionVehicle
 from sim.observation import DEFAULT_HEIGHT, neighbour_lanes
@@ -32,6 +33,8 @@ from sim.observation_arrays import (
 from sim.road import LanePosition, RoadNetwork
 from sim.road.centrelines import WaypointArrays
 from sim.vehicle.states import VehicleStates
+
+_record_writer = compiled("sim._record_writer")
 
 
 class ArraysObservation(NamedTuple):
@@ -65,6 +68,7 @@ class ObservationRecord:
         # The slots of the first n neighbours' values, flat, for each n: no index array per step.
         self._nbr_slots = [slots[:n].ravel() for n in range(self.max_neighbours + 1)]
         self._nbr_floats = np.ndarray((8 * self.max_neighbours,), F32, self.record, floats_at)
+        self._nbr_floats_at, self._nbr_slot_table = floats_at, np.ascontiguousarray(slots, np.int64)
         paths = self.arrays[PATHS]
         self._per_path = layout.interface.waypoints_per_path
         self._path_mask = paths["mask"].reshape(-1)
@@ -77,6 +81,14 @@ class ObservationRecord:
             (len(WAYPOINT_FIELDS), self._path_mask.size), first.dtype, self.record, first.offset
         )
         self._path_bytes = _span(layout, PATHS)
+        # [bytes] where the compiled core writes each point's mask, position, lane and floats
+        self._path_offsets = (
+            layout.leaf(PATHS, "mask").offset,
+            layout.leaf(PATHS, "pos").offset,
+            layout.leaf(PATHS, "lane_index").offset,
+            first.offset,
+            self._path_mask.size,
+        )
         # The paths' bytes with the first k paths' mask set and nothing else written, for each k:
         # full paths (the usual case) are then one copy and their values.
         start, end = self._path_bytes
@@ -146,6 +158,17 @@ class ObservationRecord:
             return
         if len(neighbours) > n:  # the nearest are kept (the states are nearest first)
             neighbours = neighbours.first(n)
+        if _record_writer is not None:
+            _record_writer.write_neighbours(
+                self.record,
+                self._nbr_floats_at,
+                self._nbr_slot_table,
+                neighbours.values,
+                n,
+                self._nbr_lane_at,
+                neighbour_lanes(neighbours, road),
+            )
+            return
         self._nbr_floats[self._nbr_slots[n]] = neighbours.values.ravel()
         self._nbr_lane[n].pack_into(
             self.record,
@@ -156,6 +179,10 @@ class ObservationRecord:
     def _write_waypoints(self, waypoints: WaypointArrays) -> None:
         first, end = self._path_bytes
         w, values, counts = self._per_path, waypoints.values, waypoints.counts
+        if _record_writer is not None:  # every mask it writes itself
+            self.record[first:end] = self._path_blank[0]
+            _record_writer.write_waypoints(self.record, values, counts, w, *self._path_offsets)
+            return
         if values.shape[1] == w * len(counts):  # every path full: the slots in a row
             self.record[first:end] = self._path_blank[len(counts)]
             at: slice | np.ndarray = slice(0, values.shape[1])

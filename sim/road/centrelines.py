@@ -9,7 +9,7 @@ arithmetic, slope times the distance from that vertex plus its value, with its s
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from functools import lru_cache
 from typing import NamedTuple
 
@@ -52,7 +52,7 @@ class CentrelineTable:
     one), its position, the lane's heading there and the lane's constants."""
 
     def __init__(self, lanes: Iterable[Lane]) -> None:
-        lanes = list(lanes)
+        self.lanes = lanes = list(lanes)
         self.ordinal = {lane: k for k, lane in enumerate(lanes)}  # Lanes hash by identity
         # A column of zeros first: the search counts the vertices at or before an offset, so
         # the count is the column of the vertex found.
@@ -121,6 +121,32 @@ class CentrelineTable:
         xy.round(4, out=xy)
         values[OFFSET] = s
         return WaypointArrays(counts, values[X:], [(lane, count) for lane, _, count in pieces])
+
+    def paths(
+        self,
+        starts: list[tuple[Lane, float]],
+        n: int,
+        successor: Callable[[Lane], Lane | None],
+    ) -> WaypointArrays:
+        """:func:`sim.road.waypoints.waypoint_arrays` by the compiled core: the paths of up to
+        ``n`` points from each (lane, s) of ``starts``, ``successor`` giving the lane after
+        each (None at a dead end)."""
+        ordinal, lanes = self.ordinal, self.lanes
+
+        def next_ordinal(k: int) -> int:
+            lane = successor(lanes[k])
+            return -1 if lane is None else ordinal[lane]
+
+        counts, values, pieces = _sampling.paths(
+            self.values,
+            self._first_column,
+            self._vertices,
+            [(ordinal[lane], s) for lane, s in starts],
+            n,
+            next_ordinal,
+            self._negative_zeros,
+        )
+        return WaypointArrays(counts, values, [(lanes[k], count) for k, count in pieces])
 
 
 @lru_cache(maxsize=1024)

@@ -16,6 +16,7 @@ import math
 from weakref import WeakKeyDictionary
 
 from agent_runtime.packed_waypoints import waypoint_paths as unpacked_paths
+from sim.compiled import compiled
 from sim.road.centrelines import CentrelineTable, WaypointArrays, packed
 from sim.road.lane import WAYPOINT_SPACING, Lane
 from sim.road.network import LanePosition, RoadNetwork
@@ -24,6 +25,7 @@ _MAX_LANE_HOPS = 256  # a path crosses at most this many lanes (zero-length junc
 _MAX_INTERNAL_CHAIN = 8  # junction-internal lanes in a row before a normal lane
 _JUNCTION_MATCH_DISTANCE = 0.5  # [m] a route lane this much farther than the nearest still wins
 
+_sampling = compiled("sim.road._sampling")
 _junction_lanes: WeakKeyDictionary[RoadNetwork, dict[str, list[Lane]]] = WeakKeyDictionary()
 _predecessor_cache: WeakKeyDictionary[RoadNetwork, dict[str, list[Lane]]] = WeakKeyDictionary()
 _successor_cache: WeakKeyDictionary[RoadNetwork, dict[tuple[str, tuple[str, ...]], Lane]] = (
@@ -115,6 +117,11 @@ def waypoint_arrays(
     (:func:`path_starts`), sampled into arrays in one pass over all paths: what the arrays
     observation holds, and what the waypoint dicts are made from. A path with no point ahead
     holds its last lane's end point."""
+    table = _centrelines.get(road)
+    if table is None:
+        table = _centrelines[road] = CentrelineTable(road.lanes.values())
+    if _sampling is not None:
+        return table.paths(starts, n, lambda lane: preferred_successor(road, lane, route))
     pieces: list[tuple[Lane, float, int]] = []
     counts = []
     for lane, s in starts:
@@ -123,9 +130,6 @@ def waypoint_arrays(
             walk, count = [(last_lane, last_lane.length, 1)], 1
         pieces += walk
         counts.append(count)
-    table = _centrelines.get(road)
-    if table is None:
-        table = _centrelines[road] = CentrelineTable(road.lanes.values())
     return table.sample(pieces, counts)
 
 

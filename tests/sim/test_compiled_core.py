@@ -20,14 +20,19 @@ import numpy as np
 import pytest
 
 import sim.events
+import sim.observation_record
 import sim.road.centrelines
 import sim.road.lane
 import sim.road.network
+import sim.road.waypoints
 import sim.traffic
 import sim.vehicle.states
 from arena.suite import SHIPPED_PUBLIC_DIR
 from sim.compiled import MODULES, PURE_PYTHON_VARIABLE, compiled, core_status
 from sim.events import collisions
+from sim.interface import AgentInterface
+from sim.observation_arrays import ObservationLayout
+from sim.observation_record import ObservationRecord
 from sim.road.waypoints import path_starts, waypoint_arrays
 from sim.vehicle.states import VehicleStates
 from tests.sim.test_road import MAPS, beside, shipped_road
@@ -181,7 +186,41 @@ def test_waypoint_sampling_is_the_reference_bit_for_bit(scenario_id, monkeypatch
         return found
 
     compiled = answers()
+    monkeypatch.setattr(sim.road.waypoints, "_sampling", None)
     monkeypatch.setattr(sim.road.centrelines, "_sampling", None)
+    assert compiled == answers()
+
+
+def test_observation_records_are_the_reference_bytes(monkeypatch):
+    # Neighbours fewer and more than the slots, with SUMO's lanes and without (the nearest
+    # lane's), and waypoint paths full and cut short by a dead end.
+    road = shipped_road("p000_left_turn_t_low")
+    interface = AgentInterface(max_neighbours=8, waypoints_per_path=30, max_waypoint_paths=3)
+    rng = np.random.default_rng(17)
+    lanes = list(road.lanes.values())
+    (xmin, ymin, xmax, ymax), route = road.bounds, tuple(road.edges)
+    cases = []
+    for _ in range(150):
+        states = _random_states(rng, int(rng.integers(0, 14)), 1.0)
+        states.values[:, :2] = rng.uniform([xmin, ymin], [xmax, ymax], (len(states), 2))
+        states.lane_id[:] = [lanes[k].id if k % 3 else "" for k in range(len(states))]
+        x, y = states.values[0, :2].tolist() if len(states) else (xmin, ymin)
+        position = road.nearest_lane(x, y)
+        starts = path_starts(road, position, x, y, route, interface.max_waypoint_paths)
+        cases.append((states, waypoint_arrays(road, starts, route, interface.waypoints_per_path)))
+
+    def answers():
+        record = ObservationRecord(ObservationLayout(interface))
+        found = []
+        for states, waypoints in cases:
+            record._write_neighbours(states, road)
+            record._write_waypoints(waypoints)
+            found.append(bytes(record.record))
+        return found
+
+    compiled = answers()
+    assert any(sum(w.counts) < 90 for _, w in cases)  # some paths cut short
+    monkeypatch.setattr(sim.observation_record, "_record_writer", None)
     assert compiled == answers()
 
 
