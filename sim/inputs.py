@@ -72,12 +72,18 @@ class PackedInputsCache:
         """A new descriptor (the caller closes it) of the memory file holding the inputs of
         ``scenario_dir``, or None when they cannot be parsed (or no memory file can be made:
         out of descriptors)."""
+        keyed = self.open_keyed(scenario_dir)
+        return keyed[1] if keyed is not None else None
+
+    def open_keyed(self, scenario_dir: Path) -> tuple[str, int] | None:
+        """:meth:`open`'s descriptor with the inputs' content key (which names them in a
+        process that keeps them parsed, :mod:`sim.episode_workers`)."""
         try:
             return self._open(Path(scenario_dir))
         except OSError:
             return None
 
-    def _open(self, scenario_dir: Path) -> int | None:
+    def _open(self, scenario_dir: Path) -> tuple[str, int] | None:
         try:
             scenario = load_scenario(scenario_dir)
             key = _content_key(scenario_dir, scenario)
@@ -86,7 +92,7 @@ class PackedInputsCache:
         with self._lock:
             if key in self._files:
                 self._files.move_to_end(key)
-                return os.dup(self._files[key][0])
+                return key, os.dup(self._files[key][0])
         try:  # parsed outside the lock: two jobs rarely start the same scenario at once
             packed = pickle.dumps(ScenarioInputs.parse(scenario_dir, scenario), protocol=5)
         except Exception:  # any parse error: the episode meets it again and reports it
@@ -100,7 +106,7 @@ class PackedInputsCache:
                 sum(size for _, size in self._files.values()) > self.limit and len(self._files) > 1
             ):
                 os.close(self._files.popitem(last=False)[1][0])
-            return os.dup(fd)
+            return key, os.dup(fd)
 
 
 def _sealed_memory_file(data: bytes) -> int:

@@ -82,14 +82,14 @@ def run_episode_isolated(
         target=_child_main,
         args=(Path(scenario_dir), agent_factory, interface, Path(record_path), seed),
         kwargs={
-            "wall_timeout_s": _wall_timeout(timeout_s, episode_timeout_s),
+            "wall_timeout_s": wall_timeout(timeout_s, episode_timeout_s),
             "conn": sender,
             "inputs": None if inputs is None else _ChildDescriptor(inputs),
         },
         name=f"episode-{Path(scenario_dir).name}",
     )
     try:
-        _start_without_main(child, agent_factory)
+        start_without_main(child, agent_factory)
     finally:
         sender.close()
         if inputs is not None:
@@ -114,9 +114,9 @@ def run_episode_isolated(
             error = f"episode process exceeded {timeout_s:.0f} s and was killed"
         else:
             error = f"episode process died (exit code {child.exitcode})"
-        return _failed_result(scenario_dir, error, "", elapsed)
+        return failed_result(scenario_dir, error, "", elapsed)
     error, detail = message
-    return _failed_result(scenario_dir, error, detail, time.monotonic() - started)
+    return failed_result(scenario_dir, error, detail, time.monotonic() - started)
 
 
 def preload_modules(agent_factory: Callable[[], Agent]) -> list[str]:
@@ -137,7 +137,7 @@ def preload_modules(agent_factory: Callable[[], Agent]) -> list[str]:
     return [*modules, _FREEZE]
 
 
-def _start_without_main(child: mp.process.BaseProcess, agent_factory) -> None:
+def start_without_main(child: mp.process.BaseProcess, agent_factory) -> None:
     """Start ``child`` without running the main script again in it.
 
     multiprocessing runs the parent's main script in every child (as ``__mp_main__``) so that
@@ -182,7 +182,7 @@ def _reap(child: mp.process.BaseProcess) -> None:
         child.join()
 
 
-def _wall_timeout(timeout_s: float, episode_timeout_s: float | None) -> float:
+def wall_timeout(timeout_s: float, episode_timeout_s: float | None) -> float:
     """The episode's own wall limit: inside the hard limit, leaving time to write the record."""
     inside_hard_limit = max(timeout_s - _GRACE_S, 0.8 * timeout_s)
     if episode_timeout_s is None:
@@ -193,38 +193,65 @@ def _wall_timeout(timeout_s: float, episode_timeout_s: float | None) -> float:
 def _child_main(
     scenario_dir, agent_factory, interface, record_path, seed, *, wall_timeout_s, conn, inputs
 ):
-    # deferred: only the episode's child process (forked from the server that preloads it) simulates
+    try:
+        conn.send(
+            episode_in_this_process(
+                scenario_dir,
+                agent_factory,
+                interface,
+                record_path,
+                seed,
+                wall_timeout_s=wall_timeout_s,
+                inputs_fd=inputs,
+            )
+        )
+    finally:
+        conn.close()
+
+
+def episode_in_this_process(
+    scenario_dir,
+    agent_factory,
+    interface,
+    record_path,
+    seed,
+    *,
+    wall_timeout_s: float,
+    inputs_fd: int | None = None,
+    parsed=None,
+) -> EpisodeResult | tuple[str, str]:
+    """The episode in an episode process: its result, or (error, detail) when the simulator
+    failed. Its inputs are ``parsed`` or read from memory file ``inputs_fd`` (:mod:`sim.inputs`),
+    else parsed by the simulation."""
+    # deferred: only the episode's process (forked from the server that preloads it) simulates
     from sim.episode import describe_exception, run_episode
     from sim.inputs import read_inputs
 
     try:
-        parsed = read_inputs(inputs) if inputs is not None else None  # see sim.inputs
+        if inputs_fd is not None:
+            parsed = read_inputs(inputs_fd)
         try:
             agent = agent_factory()
         except AgentFailed as exc:
-            result = _write_failed_start(scenario_dir, interface, record_path, seed, exc, parsed)
-        else:
-            result = run_episode(
-                scenario_dir,
-                agent,
-                interface,
-                record_path=record_path,
-                seed=seed,
-                wall_timeout_s=wall_timeout_s,
-                inputs=parsed,
-            )
-            log = _close_agent(agent)
-            if log is not None:
-                result.extra["agent_log"] = log
-            stack = getattr(agent, "stack", None)  # a sandboxed handle's reported libraries
-            if isinstance(stack, dict):
-                result.extra["agent_stack"] = stack
-            result = dataclasses.replace(result, agent_cpu_s=_agent_cpu_s(agent))
-        conn.send(result)
+            return _write_failed_start(scenario_dir, interface, record_path, seed, exc, parsed)
+        result = run_episode(
+            scenario_dir,
+            agent,
+            interface,
+            record_path=record_path,
+            seed=seed,
+            wall_timeout_s=wall_timeout_s,
+            inputs=parsed,
+        )
+        log = _close_agent(agent)
+        if log is not None:
+            result.extra["agent_log"] = log
+        stack = getattr(agent, "stack", None)  # a sandboxed handle's reported libraries
+        if isinstance(stack, dict):
+            result.extra["agent_stack"] = stack
+        return dataclasses.replace(result, agent_cpu_s=_agent_cpu_s(agent))
     except BaseException as exc:
-        conn.send((f"{type(exc).__name__}: {exc}", describe_exception(exc)))
-    finally:
-        conn.close()
+        return f"{type(exc).__name__}: {exc}", describe_exception(exc)
 
 
 def _close_agent(agent: Agent) -> str | None:
@@ -269,7 +296,7 @@ def _write_failed_start(scenario_dir, interface, record_path, seed, exc: AgentFa
     )
 
 
-def _failed_result(scenario_dir: Path, error: str, detail: str, elapsed: float) -> EpisodeResult:
+def failed_result(scenario_dir: Path, error: str, detail: str, elapsed: float) -> EpisodeResult:
     try:
         scenario = load_scenario(scenario_dir)
         scenario_id, agent_ids = scenario.id, [m.agent_id for m in scenario.missions]

@@ -21,7 +21,7 @@ from evaluator import sandbox as sandboxes
 from evaluator.failures import describe_end
 from evaluator.provenance import Environment, environment
 from evaluator.sandbox.warm_pool import warm_agents
-from sim.isolation import run_episode_isolated
+from sim.episode_workers import episode_workers
 
 if TYPE_CHECKING:
     from evaluator.sandbox.warm import ForkedAgent
@@ -203,7 +203,7 @@ def run_scenario(
         labels = sandbox_labels(run_key, attempt)
         record_path.unlink(missing_ok=True)
         with agent_factory(submission, kind, labels, config, data_dir, limits) as factory:
-            result = run_episode_isolated(
+            result = episode_workers().run_episode(
                 scenario_dir,
                 factory,
                 submission.interface,
