@@ -254,7 +254,7 @@ def release(session: Session, claim: ValidationClaim, worker: str) -> bool:
     claim a worker died with (``max_claims``), so a validation that yields its worker again and
     again is not taken for one that kills workers. Its claim number is free again: the run
     that held it is over."""
-    job = session.scalar(select(UploadValidation).where(*_fence(claim, worker)).with_for_update())
+    job = leases.locked(session, UploadValidation, *_fence(claim, worker))
     if job is None:
         return False
     _charge(job)
