@@ -182,9 +182,9 @@ def end_submission(
     ours: bool = False,
     status: SubmissionStatus = SubmissionStatus.failed,
 ) -> None:
-    """End a submission still under way as ``failed`` (or, from its validation, ``rejected``),
-    ``reason`` being what its team reads; ``ours``: through no fault of the team (the one
-    failure that gives its daily quota try back)."""
+    """Give a submission its outcome: ``failed`` (``rejected`` from its validation, ``scored``
+    once its score is written), ``reason`` being what its team reads about it; ``ours``: failed
+    through no fault of the team (the one failure that gives its daily quota try back)."""
     submission.status = advance(submission.status, status, SUBMISSION_MOVES)
     submission.status_reason = reason
     submission.failed_on_our_side = ours
@@ -505,10 +505,7 @@ def finish_run(session: Session, store: ArtifactStore, run_id: int) -> RunStatus
                 )
             return run.status
     if submission.status in (SubmissionStatus.running, SubmissionStatus.failed):
-        submission.status = advance(submission.status, SubmissionStatus.scored, SUBMISSION_MOVES)
-        submission.failed_on_our_side = False
-        submission.status_reason = ""
-        submission.finished_at = now()
+        end_submission(submission, "", status=SubmissionStatus.scored)
     return run.status
 
 
