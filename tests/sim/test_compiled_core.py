@@ -331,7 +331,7 @@ def test_episodes_are_the_same_bytes_with_the_compiled_core(tmp_path):
 def test_every_public_scenario_is_the_same_bytes_with_the_compiled_core(tmp_path):
     manifest = json.loads((SHIPPED_PUBLIC_DIR / "manifest.json").read_text())
     ids = [entry["id"] for entry in manifest["scenarios"]]
-    assert len(ids) >= 40
+    assert len(ids) > 30
     compiled, reference = both_ways(ids, 300, tmp_path)
     assert compiled.keys() == reference.keys()
     differing = [sid for sid in ids if compiled[sid] != reference[sid]]
