@@ -21,6 +21,7 @@ from arena.config import (
 )
 from arena.errors import IntakeError
 from evaluator import sandbox
+from evaluator.runner import new_run_key
 from evaluator.validation import validate
 from server.core.artifacts import ArtifactStore
 from server.core.db import Database
@@ -73,7 +74,11 @@ class Validations:
     def run(self, claim: ValidationClaim, lease: Lease, settings: Settings) -> Verdict | None:
         if claim.time_budget_s <= 0:
             return Verdict(None, _budget_spent(settings.intake))
-        labels = {"arena.validation": f"s{claim.submission_id}c{claim.claim_number}"}
+        # A random part, as an episode's and a training's labels have: a validation handed back
+        # gets its claim number again (validation.release), and the stopping worker's hook of
+        # the earlier claim (server/jobs/heartbeat.py) must not kill the next claim's sandbox.
+        run_key = new_run_key()
+        labels = {"arena.validation": f"s{claim.submission_id}c{claim.claim_number}-{run_key}"}
         lease.stop_with(partial(sandbox.cleanup, settings.sandbox, labels))
         try:
             verdict = judge(
