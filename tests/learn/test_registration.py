@@ -33,6 +33,9 @@ def test_the_registered_env_resets_into_its_space() -> None:
         env.close()
 
 
+# Slow: the build compiles the simulator's core (setup.py), about 25 CPU seconds, a sixth of the
+# whole fast tier; the integration tier runs it.
+@pytest.mark.slow
 @pytest.mark.filterwarnings("ignore::UserWarning")  # setuptools says it builds an editable wheel
 def test_every_wheel_carries_the_start_up_hook(tmp_path) -> None:
     # In an interpreter of its own, as pip runs a build backend: setuptools refuses to load
