@@ -215,7 +215,11 @@ class EpisodeWorker:
         ctx = mp.get_context("forkserver")
         ctx.set_forkserver_preload(preload_modules(agent_factory))
         self.sock, theirs = socket.socketpair()
-        self.process = ctx.Process(target=_serve, args=(theirs,), name="episode-worker")
+        # Daemonic: multiprocessing's exit handler, which may run before ours, ends it instead
+        # of waiting for it (it would wait for its next episode forever).
+        self.process = ctx.Process(
+            target=_serve, args=(theirs,), name="episode-worker", daemon=True
+        )
         try:
             start_without_main(self.process, agent_factory)
         finally:

@@ -5,7 +5,10 @@ from __future__ import annotations
 
 import os
 import socket
+import subprocess
+import sys
 from dataclasses import dataclass
+from pathlib import Path
 
 import pytest
 
@@ -21,6 +24,7 @@ from tests.sim.agents import ScriptedAgent, crashing_agent, hanging_agent
 # A lane-following agent: every episode drives through the scenario's traffic to its end.
 IN_LANE = AgentInterface(action_space="LaneWithContinuousSpeed")
 MERGE, CRUISE = "p009_merge_2lane_low", "p016_cruise_2lane_low"
+REPO = Path(__file__).resolve().parents[2]
 
 
 def keep_lane_at_8(obs: dict) -> list[float]:
@@ -147,3 +151,24 @@ def test_relative_paths_are_the_caller_s_at_each_episode(tmp_path, monkeypatch):
         workers.close()
     assert (tmp_path / "first/records/r.npz").is_file()
     assert (tmp_path / "second/records/r.npz").is_file()
+
+
+EXITS_AFTER_AN_EPISODE = f"""
+from arena.suite import SHIPPED_PUBLIC_DIR
+from sim.episode_workers import episode_workers
+from tests.sim.test_episode_workers import IN_LANE, pid_agent
+
+episode_workers().run_episode(SHIPPED_PUBLIC_DIR / {CRUISE!r}, pid_agent, IN_LANE,
+                              record_path={{record!r}})
+"""
+
+
+def test_a_process_with_an_idle_worker_exits(tmp_path):
+    """At exit its idle worker ends, whichever exit handler comes first (multiprocessing's
+    waits for every child that is not daemonic)."""
+    script = EXITS_AFTER_AN_EPISODE.format(record=str(tmp_path / "r.npz"))
+    done = subprocess.run(
+        [sys.executable, "-c", script], cwd=REPO, timeout=120, capture_output=True, text=True
+    )
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "r.npz").is_file()
