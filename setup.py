@@ -36,10 +36,7 @@ def extensions() -> list[Extension]:
 
     modules = [
         Extension(
-            ".".join(source.with_suffix("").parts),
-            [str(source)],
-            extra_compile_args=EXACT_IEEE,
-            optional=True,
+            ".".join(source.with_suffix("").parts), [str(source)], extra_compile_args=EXACT_IEEE
         )
         for source in SOURCES
     ]
@@ -50,7 +47,10 @@ def extensions() -> list[Extension]:
         "wraparound": False,
         "initializedcheck": False,
     }
-    return cythonize(modules, compiler_directives=directives)
+    extensions = cythonize(modules, compiler_directives=directives)
+    for extension in extensions:
+        extension.optional = True  # set here: cythonize does not keep it from its templates
+    return extensions
 
 
 setup(ext_modules=extensions())
