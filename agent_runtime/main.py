@@ -203,20 +203,34 @@ class ArrayObservations:
 
         self.size = layout["size"]
         self.ndarray = numpy.ndarray
-        # (key, (shape, dtype, offset), None) for an array, (key, None, [(name, shape, dtype,
-        # offset)]) for a dict of arrays (the layout nests two deep), in the layout's order.
+        # The whole record as one structured value, a field per leaf ("group/name"): a leaf's
+        # view is then a field lookup, about a third of the time of making each view anew.
+        fields = {
+            "/".join(path): (dtype, tuple(shape), offset)
+            for path, dtype, shape, offset in layout["leaves"]
+        }
+        self.record_type = numpy.dtype(
+            {
+                "names": list(fields),
+                "formats": [(dtype, shape) for dtype, shape, _ in fields.values()],
+                "offsets": [offset for _, _, offset in fields.values()],
+                "itemsize": self.size,
+            }
+        )
+        # (key, field, None) for an array, (key, None, [(name, field)]) for a dict of arrays
+        # (the layout nests two deep), in the layout's order.
         self.plan = []
         groups: dict[str, list] = {}
-        for path, dtype, shape, offset in layout["leaves"]:
-            leaf = (tuple(shape), numpy.dtype(dtype), offset)
+        for path, *_ in layout["leaves"]:
+            field = "/".join(path)
             if len(path) == 1:
-                self.plan.append((path[0], leaf, None))
+                self.plan.append((path[0], field, None))
                 continue
             group, name = path
             if group not in groups:
                 groups[group] = []
                 self.plan.append((group, None, groups[group]))
-            groups[group].append((name, *leaf))
+            groups[group].append((name, field))
         self.ready: list[tuple[bytearray, dict]] = []  # unused records and their observations
         self.agents = 0  # how many agents the last frame had: the next one likely has as many
 
@@ -249,13 +263,13 @@ class ArrayObservations:
     def observation(self) -> tuple[bytearray, dict]:
         """A new record (zeros) and the observation dict of its views."""
         record = bytearray(self.size)
-        ndarray = self.ndarray
+        whole = self.ndarray((), self.record_type, record)
         obs = {}
-        for key, leaf, group in self.plan:
+        for key, field, group in self.plan:
             if group is None:
-                obs[key] = ndarray(leaf[0], leaf[1], record, leaf[2])
+                obs[key] = whole[field]
             else:
-                obs[key] = {name: ndarray(s, d, record, o) for name, s, d, o in group}
+                obs[key] = {name: whole[field] for name, field in group}
         return record, obs
 
 
