@@ -43,7 +43,3 @@ def overlapping(double x, double y, double heading, double length, double width,
             hit.append(i)
     return hit
 
-
-def box_overlaps(a, b):
-    """:func:`sim.geometry.box_overlaps_box` of two (x, y, heading, length, width)."""
-    return box_overlaps_box(a[0], a[1], a[2], a[3], a[4], b[0], b[1], b[2], b[3], b[4])

@@ -14,17 +14,12 @@ cdef double _SPACING = 1.0  # sim.road.lane.WAYPOINT_SPACING
 cdef long _MAX_LANE_HOPS = 256  # sim.road.waypoints._MAX_LANE_HOPS
 
 
-def sample(const double[:, ::1] table, const long[::1] first_column, const long[::1] vertices,
-           list pieces, bint negative_zeros):
+cdef object _sample(const double[:, ::1] table, const long[::1] first_column,
+                    const long[::1] vertices, list pieces, bint negative_zeros):
     """The (7, points) waypoint values of ``pieces`` (lane ordinal, first offset, count): rows X
     to INDEX of the table's column at each offset (its lane's last vertex at or before it, as
     the reference's search finds it), x and y interpolated as np.interp does and rounded to
     0.1 mm as ndarray.round(4) does (times 10,000, rint, divided by 10,000)."""
-    return _sample(table, first_column, vertices, pieces, negative_zeros)
-
-
-cdef object _sample(const double[:, ::1] table, const long[::1] first_column,
-                    const long[::1] vertices, list pieces, bint negative_zeros):
     cdef Py_ssize_t total = 0, p, k, lo, hi, mid, col, at = 0, count
     for piece in pieces:
         total += <Py_ssize_t>piece[2]

@@ -97,15 +97,6 @@ class CentrelineTable:
         if not pieces:
             return WaypointArrays(counts, np.zeros((INDEX - X + 1, 0)), [])
         ordinal = self.ordinal
-        if _sampling is not None:
-            values = _sampling.sample(
-                self.values,
-                self._first_column,
-                self._vertices,
-                [(ordinal[lane], s, count) for lane, s, count in pieces],
-                self._negative_zeros,
-            )
-            return WaypointArrays(counts, values, [(lane, count) for lane, _, count in pieces])
         piece_counts = tuple([count for _, _, count in pieces])
         # Each point's search key: its lane's ordinal, and its offset (the imaginary part).
         key = np.array([complex(ordinal[lane], s) for lane, s, _ in pieces]).repeat(piece_counts)
