@@ -12,17 +12,18 @@ import numpy as np
 import pytest
 
 from arena.config import SandboxKind, get_settings
+from arena.examples import example_dir
 from arena.suite import SHIPPED_PUBLIC_DIR
 from evaluator.runner import EvaluationRequest, evaluate
 from evaluator.training import train
+from scenarios.dataset import features as dataset_features
 from scenarios.dataset.build import TRANSITIONS, write_transitions
 from scenarios.dataset.collect import collect
 from submissions.intake import prepare_submission
 from tests.evaluator.sandbox.conftest import usable
-from tests.server.builders import EXAMPLES
 from tests.settings import env_only, evaluate_args, sandbox_args
 
-EXAMPLE = EXAMPLES / "offline_bc"
+EXAMPLE = example_dir("offline_bc")
 REPLAY = "p033_replay_merge_2agents"
 SCENARIO = "p016_cruise_2lane_low"
 
@@ -30,7 +31,7 @@ SCENARIO = "p016_cruise_2lane_low"
 def test_its_features_are_the_datasets():
     """A copy (the sandbox cannot import the project), kept identical."""
     shipped = (EXAMPLE / "features.py").read_text()
-    assert shipped == (EXAMPLE.parents[2] / "scenarios" / "dataset" / "features.py").read_text()
+    assert shipped == Path(dataset_features.__file__).read_text()
 
 
 @pytest.fixture
