@@ -46,9 +46,14 @@ Adding a job kind costs a table and its transitions:
    to be killable from outside and ``lease.report(...)`` to show progress), ``ours`` and
    ``finish``.
 3. A task name in :mod:`server.core.celery_app`, a ``TaskQueue`` method that sends it, and in
-   :mod:`server.worker.tasks` a task ``run_job(KIND, self, get_settings(), <ids>)`` declared with
-   ``arena_task`` (``bind=True``, ``max_retries=INFRASTRUCTURE_RETRIES``), with the kind added
-   to ``JOB_KINDS`` (the reaper's list): about 10 lines.
+   :mod:`server.worker.tasks` a task ``run_job(KIND, self, get_settings(), local.worker(),
+   <ids>)`` declared with ``arena_task`` (``bind=True``,
+   ``max_retries=INFRASTRUCTURE_RETRIES``), with the kind added to ``JOB_KINDS`` (the reaper's
+   list): about 10 lines.
+
+The engine and the heartbeat import nothing of :mod:`server.worker`: the worker process's name,
+database and queue come in as a :class:`~server.jobs.kind.Worker` from its composition root
+(:mod:`server.worker.local`).
 """
 
 from __future__ import annotations
@@ -61,10 +66,9 @@ from celery import Task
 
 from arena.config import ServiceSettings, Settings
 from arena.errors import InfrastructureError
-from server.core.queue import BROKER_ERRORS
+from server.core.queue import BROKER_ERRORS, TaskQueue
 from server.jobs.heartbeat import heartbeat
-from server.jobs.kind import JobKind
-from server.worker import local
+from server.jobs.kind import JobKind, Worker
 
 log = logging.getLogger(__name__)
 
@@ -75,25 +79,25 @@ RETRY_BACKOFF_S = 10
 WORKER_LOST = "worker_lost"
 
 
-def run_job(kind: JobKind, task: Task, settings: Settings, **ids: Any) -> None:
-    """The whole life of one job in the Celery ``task`` (bound) that names it by ``ids``."""
-    worker = local.worker_name()
-    with local.database().session() as session:
-        claim = kind.claim(session, settings, worker, **ids)
+def run_job(kind: JobKind, task: Task, settings: Settings, worker: Worker, **ids: Any) -> None:
+    """The whole life of one job in the Celery ``task`` (bound) that names it by ``ids``, run by
+    ``worker``."""
+    with worker.database.session() as session:
+        claim = kind.claim(session, settings, worker.name, **ids)
     if claim is None:
         return
     if claim.claim_number > kind.max_claims:
         # Every worker that took this job died with it (or was killed): stop handing it out.
         died = f"{claim.claim_number - 1} workers died holding it"
-        kind.finish(claim, worker, kind.ours(claim, WORKER_LOST, died), settings)
+        kind.finish(claim, worker.name, kind.ours(claim, WORKER_LOST, died), settings)
         return
     try:
         with heartbeat().hold(kind, claim, worker, settings.service) as lease:
             result = kind.run(claim, lease, settings)
     except InfrastructureError as exc:
         if task.request.retries < INFRASTRUCTURE_RETRIES:
-            with local.database().session() as session:
-                kind.release(session, claim, worker)
+            with worker.database.session() as session:
+                kind.release(session, claim, worker.name)
             countdown = RETRY_BACKOFF_S * (task.request.retries + 1)
             raise task.retry(exc=exc, countdown=countdown) from exc
         result = kind.ours(claim, type(exc).__name__, str(exc))
@@ -109,21 +113,22 @@ def run_job(kind: JobKind, task: Task, settings: Settings, **ids: Any) -> None:
             return
         if lease.lost.is_set() or result is None:
             return  # cancelled, or another worker has it: its writes would be fenced off
-    kind.finish(claim, worker, result, settings)
+    kind.finish(claim, worker.name, result, settings)
 
 
-def hand_back(kind: JobKind, claim: Any, worker: str) -> None:
+def hand_back(kind: JobKind, claim: Any, worker: Worker) -> None:
     """This worker is stopping: release the claim and send the job again for another worker."""
-    with local.database().session() as session:
-        released = kind.release(session, claim, worker)
+    with worker.database.session() as session:
+        released = kind.release(session, claim, worker.name)
     if released:
-        kind.send_again(local.queue(), claim)
+        kind.send_again(worker.queue, claim)
         log.warning("handed %s %s back", kind.name, claim)
 
 
-def reap_once(kinds: tuple[JobKind, ...], service: ServiceSettings) -> dict[str, int]:
-    """Send again every kind's jobs whose lease expired; how many, per kind."""
-    queue = local.queue()
+def reap_once(
+    kinds: tuple[JobKind, ...], service: ServiceSettings, queue: TaskQueue
+) -> dict[str, int]:
+    """Send again every kind's jobs whose lease expired, through ``queue``; how many, per kind."""
     try:
         queue_empty = queue.depth() == 0
     except BROKER_ERRORS as exc:

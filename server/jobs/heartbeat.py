@@ -24,8 +24,8 @@ from typing import Any
 from sqlalchemy.exc import SQLAlchemyError
 
 from arena.config import ServiceSettings
-from server.jobs.kind import HAND_BACK, JobKind, Lease
-from server.worker import local
+from server.core.db import Database
+from server.jobs.kind import HAND_BACK, JobKind, Lease, Worker
 
 log = logging.getLogger(__name__)
 
@@ -50,16 +50,19 @@ class Heartbeat:
 
     @contextmanager
     def hold(
-        self, kind: JobKind, claim: Any, worker: str, service: ServiceSettings
+        self, kind: JobKind, claim: Any, worker: Worker, service: ServiceSettings
     ) -> Iterator[Lease]:
         """``service``: the lease's settings; the thread, started with the process's first lease,
-        keeps them (a process has one configuration)."""
-        lease = Lease(kind, claim, worker)
+        keeps them and the worker's database (a process has one configuration)."""
+        lease = Lease(kind, claim, worker.name)
         with self._lock:
             self._leases.add(lease)
             if self._thread is None:
                 self._thread = threading.Thread(
-                    target=self._run, args=(service,), name="arena-heartbeat", daemon=True
+                    target=self._run,
+                    args=(service, worker.database),
+                    name="arena-heartbeat",
+                    daemon=True,
                 )
                 self._thread.start()
         try:
@@ -72,7 +75,7 @@ class Heartbeat:
         with self._lock:
             return list(self._leases)
 
-    def _run(self, service: ServiceSettings) -> None:
+    def _run(self, service: ServiceSettings, database: Database) -> None:
         interval = beat_interval_s(service.lease_seconds)
         next_beat = time.monotonic() + interval
         while True:
@@ -87,12 +90,12 @@ class Heartbeat:
             next_beat += interval
             for lease in self._held():
                 if not lease.lost.is_set():
-                    self._renew(lease, service)
+                    self._renew(lease, service, database)
 
     @staticmethod
-    def _renew(lease: Lease, service: ServiceSettings) -> None:
+    def _renew(lease: Lease, service: ServiceSettings, database: Database) -> None:
         try:
-            with local.database().session() as session:
+            with database.session() as session:
                 active = lease.kind.renew(
                     session, service, lease.claim, lease.worker, **lease.progress
                 )

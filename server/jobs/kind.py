@@ -1,6 +1,7 @@
 """What the job engine and the heartbeat share: :class:`JobKind`, one kind of sandboxed job
-(:mod:`server.jobs.engine` runs every kind through one life), and :class:`Lease`, one claim a
-worker holds while its job runs (:mod:`server.jobs.heartbeat` renews it)."""
+(:mod:`server.jobs.engine` runs every kind through one life), :class:`Lease`, one claim a
+worker holds while its job runs (:mod:`server.jobs.heartbeat` renews it), and :class:`Worker`,
+the process it runs in."""
 
 from __future__ import annotations
 
@@ -12,7 +13,18 @@ from typing import Any, Protocol, TypeVar
 from sqlalchemy.orm import Session
 
 from arena.config import ServiceSettings, Settings
+from server.core.db import Database
 from server.core.queue import TaskQueue
+
+
+@dataclass(frozen=True)
+class Worker:
+    """The worker process a job runs in, as the engine needs it: handed in by the process's
+    composition root (:mod:`server.worker.local`), so that the engine depends on no worker."""
+
+    name: str  # what claims name their holder by: ``host:pid``
+    database: Database
+    queue: TaskQueue
 
 
 class Claim(Protocol):

@@ -29,6 +29,7 @@ from evaluator.validation import validate
 from server.core.artifacts import ArtifactStore, artifact_store
 from server.core.db import Database
 from server.core.queue import TaskQueue
+from server.jobs.kind import Worker
 from submissions.intake import PreparedSubmission
 from submissions.intake.archive import remove_tree
 
@@ -45,6 +46,11 @@ def database() -> Database:
 @lru_cache(maxsize=1)
 def queue() -> TaskQueue:
     return TaskQueue(get_settings())
+
+
+def worker() -> Worker:
+    """This process as the job engine sees it (after a fork: the child's name and clients)."""
+    return Worker(worker_name(), database(), queue())
 
 
 @lru_cache(maxsize=1)

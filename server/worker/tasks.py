@@ -85,7 +85,7 @@ def arena_task(name: str, *, time_limit: int, **options: Any):
 )
 def validate_submission(self, *, submission_id: int) -> None:
     """An upload validated in the sandbox: queued (and sent to evaluation) or rejected."""
-    engine.run_job(VALIDATIONS, self, get_settings(), submission_id=submission_id)
+    engine.run_job(VALIDATIONS, self, get_settings(), local.worker(), submission_id=submission_id)
 
 
 @arena_task(TASK_EVALUATE, time_limit=BOOKKEEPING_TIME_LIMIT_S)
@@ -107,7 +107,7 @@ def evaluate_submission(*, submission_id: int) -> None:
     TASK_TRAIN, time_limit=TRAIN_TIME_LIMIT_S, bind=True, max_retries=INFRASTRUCTURE_RETRIES
 )
 def train_submission(self, *, training_id: int) -> None:
-    engine.run_job(TRAININGS, self, get_settings(), training_id=training_id)
+    engine.run_job(TRAININGS, self, get_settings(), local.worker(), training_id=training_id)
 
 
 @arena_task(
@@ -118,7 +118,13 @@ def train_submission(self, *, training_id: int) -> None:
 )
 def run_scenario(self, *, run_id: int, scenario_id: str, episode: int = 0) -> None:
     engine.run_job(
-        EPISODES, self, get_settings(), run_id=run_id, scenario_id=scenario_id, episode=episode
+        EPISODES,
+        self,
+        get_settings(),
+        local.worker(),
+        run_id=run_id,
+        scenario_id=scenario_id,
+        episode=episode,
     )
 
 
@@ -135,7 +141,7 @@ def aggregate_run(*, run_id: int) -> None:
 
 def reap_once() -> dict[str, int]:
     """Re-send work whose lease expired, of every job kind (see :func:`engine.reap_once`)."""
-    return engine.reap_once(JOB_KINDS, get_settings().service)
+    return engine.reap_once(JOB_KINDS, get_settings().service, local.queue())
 
 
 def remove_finished_scratch() -> int:

@@ -82,7 +82,7 @@ def run(tmp_path, monkeypatch):
     def run_one(kind: ToyJobs, job: str = "a") -> None:
         @app.task(bind=True, max_retries=engine.INFRASTRUCTURE_RETRIES)
         def toy(self, *, job: str) -> None:
-            engine.run_job(kind, self, get_settings(), job=job)
+            engine.run_job(kind, self, get_settings(), local.worker(), job=job)
 
         toy.apply(kwargs={"job": job}, throw=True)
 

@@ -55,7 +55,7 @@ def train(settings, db, monkeypatch):
     def run_one(kind, training_id: int) -> None:
         @app.task(bind=True, max_retries=engine.INFRASTRUCTURE_RETRIES)
         def train_submission(self, *, training_id: int) -> None:
-            engine.run_job(kind, self, get_settings(), training_id=training_id)
+            engine.run_job(kind, self, get_settings(), local.worker(), training_id=training_id)
 
         # Not thrown: an eager task's retry is a Retry its apply() catches to apply it again.
         result = train_submission.apply(kwargs={"training_id": training_id}, throw=False)
