@@ -106,6 +106,10 @@ class InputsKept:
             return self._kept[key][0]
         size = os.fstat(fd).st_size
         inputs = read_inputs(fd)
+        if inputs.replay is not None:
+            # The recording's rows by step and their nearest lanes, worked out at a replay's
+            # first step, once here: each episode's copy (ReplayTable.fresh) shares them.
+            inputs.replay.states(0)
         self._kept[key] = (inputs, size)
         while sum(s for _, s in self._kept.values()) > self.limit and len(self._kept) > 1:
             self._kept.popitem(last=False)

@@ -24,6 +24,7 @@ from tests.sim.agents import ScriptedAgent, crashing_agent, hanging_agent
 # A lane-following agent: every episode drives through the scenario's traffic to its end.
 IN_LANE = AgentInterface(action_space="LaneWithContinuousSpeed")
 MERGE, CRUISE = "p009_merge_2lane_low", "p016_cruise_2lane_low"
+BUBBLE = "p029_replay_i80_bubble"
 REPO = Path(__file__).resolve().parents[2]
 
 
@@ -81,6 +82,21 @@ def test_an_episode_records_the_same_bytes_alone_and_after_others(tmp_path):
     assert shared.steps > 100 and shared.simulator_error is None
     assert shared_record.read_bytes() == own_record.read_bytes()
     assert shared.agents == own.agents
+
+
+@pytest.mark.slow
+def test_a_bubble_replay_records_the_same_bytes_alone_and_after_itself(tmp_path):
+    """A replay's recording, worked out once per worker, replays anew in every episode."""
+    after, alone = EpisodeWorkers(), EpisodeWorkers()
+    try:
+        run(after, tmp_path / "after", BUBBLE, 0)
+        shared, shared_record = run(after, tmp_path / "after", BUBBLE, 1)
+        _, own_record = run(alone, tmp_path / "alone", BUBBLE, 1)
+    finally:
+        after.close()
+        alone.close()
+    assert shared.steps > 100 and shared.simulator_error is None
+    assert shared_record.read_bytes() == own_record.read_bytes()
 
 
 def test_a_crash_is_a_simulator_error_and_the_next_episode_gets_a_new_process(tmp_path):
