@@ -209,7 +209,10 @@ def _serve(sock: socket.socket) -> None:
             # The agent's descriptors end with its episode (a closed socket closes no more).
             for made in unpickler.sockets:
                 made.close()
-        _send(sock, pickle.dumps(reply, protocol=5), [])
+        try:
+            _send(sock, pickle.dumps(reply, protocol=5), [])
+        except OSError:  # the evaluating process gave up on this episode (its hard limit)
+            return
 
 
 class EpisodeWorker:
