@@ -32,8 +32,8 @@ Prints, in order:
   transport (observation building, encoding, scoring, records).
 
 The last line is ``wall_s=<planner, jobs 2> speedup=<jobs1/jobs2> fixed_ms=<...> step_ms=<...>
-floor_ms=<...> floor_ratio=<step_ms/floor_ms>``. Targets (2-core machine): wall_s <= 20,
-speedup >= 1.8, fixed_ms <= 100, step_ms <= 0.25, floor_ratio <= 2. With ``--only trivial``
+floor_ms=<...> floor_ratio=<step_ms/floor_ms>``. Targets (2-core machine): wall_s <= 12,
+speedup >= 1.8, floor_ratio <= 2.5. With ``--only trivial``
 the last line is ``fixed_ms=<...> step_ms=<...> floor_ms=<...> floor_ratio=<...>``.
 
 Agents are forked in warm sandboxes, as every evaluation runs them (docs/protocol.md); run with
@@ -52,7 +52,7 @@ evaluating process), its later episodes' time is scaled by ``(N - 1) / (K - 1)``
 wall time by the ratio of that extrapolated episode time to the measured one (the same overlap of
 the two jobs). The output says whether the figure is measured or extrapolated. The last line is
 ``ds2022_protocol_s=<wall time of the protocol [s]> episodes=<N> measured_episodes=<K>
-extrapolated=<yes|no>``; target: at most 600 s on the 2-core machine with ``N = 50``. On one
+extrapolated=<yes|no>``; target: at most 300 s on the 2-core machine with ``N = 50``. On one
 machine, the full run (``--measure-episodes 50``, 1,066,148 steps) took 1,562 s and the default
 extrapolation from 3 episodes gave 1,490 s (5% under). The extrapolation once undershot a full run
 by a third: the evaluation then rewrote ``summary.json`` after every episode, which costs in
