@@ -160,8 +160,9 @@ def judge(
     """The verdict on the claimed upload: its zip fetched into ``scratch`` and validated in the
     sandbox (``intake``, ``config``, ``data_dir``: as :func:`evaluator.validation.validate`
     takes them); the scratch folder is gone when this returns."""
-    folder = scratch / "validation" / f"{claim.submission_id}-c{claim.claim_number}"
-    remove_tree(folder)
+    # A folder of this run's own, not of its claim number: a handed-back validation is claimed
+    # again with the same number, and the earlier run's removal must not take the later's files.
+    folder = scratch / "validation" / f"{claim.submission_id}-c{claim.claim_number}-{new_run_key()}"
     try:
         zip_path = store.fetch(claim.upload_key, folder / "upload.zip")
         return Verdict(
