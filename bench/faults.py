@@ -50,7 +50,7 @@ from arena.settings_changes import env_only, with_fields
 from arena.suite import SHIPPED_PUBLIC_DIR
 from evaluator.sandbox import check_service_kind
 from evaluator.sandbox.backend import SANDBOX_LABEL
-from evaluator.sandbox.subprocess_sandbox import labelled_pids
+from evaluator.sandbox.subprocess_sandbox import LABELS_ENV, labelled_pids
 from server.core.db import Database
 from server.core.migrate import upgrade_database
 from server.models import EvaluationRun, ScenarioResult, Score, Submission
@@ -384,6 +384,7 @@ class Sandbox:
     key: str  # the container's id or the process's pid
     driver: tuple[str, str]  # the worker (``host:pid``, as claims name it) and upload folder
     running: bool
+    labels: str  # its labels beyond the sandbox label, shown when it is left over
     kill: Callable[[], None]
     remove: Callable[[], None]
 
@@ -406,19 +407,55 @@ def campaign_sandboxes(root: Path, kind: SandboxKind) -> list[Sandbox]:
                 running = container.attrs.get("State") == "running"
                 kill = _gone_ok(container.kill)
                 remove = _gone_ok(functools.partial(container.remove, force=True))
-                found.append(Sandbox(container.id, driver, running, kill, remove))
+                labels = _shown_labels(container.attrs.get("Labels") or {})
+                found.append(Sandbox(container.id[:12], driver, running, labels, kill, remove))
         return found
-    for pid in labelled_pids({SANDBOX_LABEL: "1"}):
+    labelled = set(labelled_pids({SANDBOX_LABEL: "1"}))
+    for pid in labelled:
         try:
-            cmdline = Path(f"/proc/{pid}/cmdline").read_bytes()
+            outermost = _parent_of(pid) not in labelled
+            sources = _bound_folders(pid)
+            labels = _shown_labels(dict(_label_pairs(pid)))
         except OSError:
+            continue  # ended meanwhile
+        if not outermost or not any(s.startswith(str(root)) for s in sources):
             continue
-        if str(root).encode() not in cmdline:
-            continue
-        kill = functools.partial(os.kill, pid, signal.SIGKILL)
-        driver = _driver_of(cmdline.decode(errors="replace"))
-        found.append(Sandbox(str(pid), driver, True, kill, kill))
+        # The outermost bwrap: its namespace's other processes die with it (--die-with-parent).
+        kill = functools.partial(_kill_if_alive, pid)
+        driver = _driver_of(" ".join(sources))
+        found.append(Sandbox(str(pid), driver, True, labels, kill, kill))
     return found
+
+
+def _shown_labels(labels: dict[str, str]) -> str:
+    return " ".join(f"{k}={v}" for k, v in sorted(labels.items()) if k != SANDBOX_LABEL)
+
+
+def _label_pairs(pid: int) -> list[tuple[str, str]]:
+    """The labels a sandbox process carries in its environment (subprocess_sandbox's)."""
+    prefix = f"{LABELS_ENV}="
+    for variable in Path(f"/proc/{pid}/environ").read_bytes().decode(errors="replace").split("\0"):
+        if variable.startswith(prefix):
+            return [tuple(p.split("=", 1)) for p in variable[len(prefix) :].split(";") if "=" in p]
+    return []
+
+
+def _parent_of(pid: int) -> int:
+    return int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[1])
+
+
+def _bound_folders(pid: int) -> list[str]:
+    """The folders a bubblewrap sandbox binds, as its mount namespace lists them (each mount's
+    root: the folder's path, the campaign's being on the root filesystem). Not its command
+    line: as root, the backend binds them onto a staging folder first
+    (evaluator/sandbox/bwrap_backend.py), so bwrap's arguments name only the staging folder."""
+    lines = Path(f"/proc/{pid}/mountinfo").read_text().splitlines()
+    return [line.split()[3].replace("\\040", " ") for line in lines]
+
+
+def _kill_if_alive(pid: int) -> None:
+    with contextlib.suppress(ProcessLookupError):
+        os.kill(pid, signal.SIGKILL)
 
 
 def _gone_ok(action: Callable[[], object]) -> Callable[[], None]:
@@ -807,6 +844,14 @@ class Campaign:
         sandboxes = campaign_sandboxes(self.root, self.kind)
         for pid in processes:
             print(f"leftover process {pid}: {_cmdline(pid)}", flush=True)
+        for sandbox in sandboxes:
+            state = "running" if sandbox.running else "stopped"
+            worker, upload = sandbox.driver
+            print(
+                f"leftover sandbox {sandbox.key} ({state}) of worker {worker or '?'} "
+                f"upload {upload[:12] or '?'}: {sandbox.labels}",
+                flush=True,
+            )
         counts = {s: sum(1 for v, _ in states.values() if v == s) for s in FINAL_STATES}
         for sid, (status, reason) in sorted(states.items()):
             if status != "scored":
