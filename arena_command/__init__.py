@@ -7,6 +7,8 @@ The area CLIs keep their imports light at module level so ``arena --help`` stays
 
 from __future__ import annotations
 
+import inspect
+
 import typer
 
 from evaluator.cli import app as evaluator_app
@@ -58,3 +60,24 @@ app.add_typer(admin_app(), name="admin", help="Organiser administration of the s
 app.add_typer(evaluator_app)
 app.add_typer(service.app)
 app.command("init")(init_agent)
+
+
+def _reflowed(doc: str) -> str:
+    """``doc`` with each paragraph on one line: the docstrings wrap at 100 columns in the source,
+    and Typer's Rich help keeps every line break of a paragraph, so a command list broke
+    mid-sentence. Paragraphs (blank lines) stay apart."""
+    paragraphs = inspect.cleandoc(doc).split("\n\n")
+    return "\n\n".join(" ".join(p.split()) for p in paragraphs)
+
+
+def _reflow_help(typer_app: typer.Typer) -> None:
+    """Give every command of the tree its docstring reflowed as its help (Typer's Markdown mode
+    would reflow too, but cuts long names and code in narrow columns with an ellipsis)."""
+    for command in typer_app.registered_commands:
+        if command.help is None and command.callback is not None and command.callback.__doc__:
+            command.help = _reflowed(command.callback.__doc__)
+    for group in typer_app.registered_groups:
+        _reflow_help(group.typer_instance)
+
+
+_reflow_help(app)
