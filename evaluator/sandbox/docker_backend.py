@@ -111,6 +111,34 @@ def remove_orphan_socket_dirs(live_instances: set[str], shared: Path | None) -> 
                 shutil.rmtree(path, ignore_errors=True)
 
 
+def remove_binding(folders: list[Path], labels: dict[str, str]) -> int:
+    """Remove the containers carrying ``labels`` (running or stopped) that bind anything in one
+    of ``folders``; how many. A container outlives the process that started it (bubblewrap's
+    sandboxes die with theirs), so a worker process that died (SIGKILL, the OOM killer) leaves
+    its agents' and intakes' containers behind: its successor finds them by the dead process's
+    scratch folder. Matched by each folder's last two parts (``scratch/<host>-<pid>``): a
+    containerised worker may see the data folder under another path than the daemon does."""
+    # deferred: the docker client is needed only with the Docker sandbox
+    import docker.errors
+    import requests.exceptions
+
+    tails = [f"/{folder.parent.name}/{folder.name}/" for folder in folders]
+    selector = [f"{key}={value}" for key, value in labels.items()]
+    removed = 0
+    try:
+        # Sparse: the listing's own mounts, no inspection that a container ending meanwhile fails.
+        listed = docker_client().containers.list(all=True, sparse=True, filters={"label": selector})
+        for container in listed:
+            sources = [m.get("Source", "") for m in container.attrs.get("Mounts") or []]
+            if any(tail in f"{source}/" for source in sources for tail in tails):
+                with contextlib.suppress(docker.errors.NotFound):
+                    container.remove(force=True)
+                    removed += 1
+    except (docker.errors.DockerException, requests.exceptions.RequestException):
+        return removed  # no daemon, no containers
+    return removed
+
+
 @lru_cache
 def docker_client():
     # deferred: the docker client is needed only with the Docker sandbox

@@ -32,6 +32,8 @@ from celery.signals import (
 
 from arena.config import get_settings
 from arena.suite import hidden_suite_dir
+from evaluator.sandbox.backend import SANDBOX_LABEL, owner_labels
+from evaluator.sandbox.docker_backend import remove_binding
 from evaluator.sandbox.warm_pool import warm_agents
 from server.core.celery_app import (
     QUEUE,
@@ -196,8 +198,16 @@ def _remove_scratch(**_: Any) -> None:
 
 @worker_ready.connect
 def _remove_orphan_scratch(**_: Any) -> None:
-    """Scratch of this host's worker processes that died without removing theirs."""
-    for folder in local.orphan_scratch():
+    """Scratch of this host's worker processes that died without removing theirs, and the
+    Docker containers that bind it (a SIGKILLed worker's intake or warm agent: a container
+    outlives its process, bubblewrap's sandboxes do not)."""
+    orphans = local.orphan_scratch()
+    if orphans:
+        data_dir = get_settings().storage.resolved_data_dir
+        removed = remove_binding(orphans, {SANDBOX_LABEL: "1", **owner_labels(data_dir)})
+        if removed:
+            log.warning("removed %d sandbox(es) of worker processes that died", removed)
+    for folder in orphans:
         remove_tree(folder)
 
 
