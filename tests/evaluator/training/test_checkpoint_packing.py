@@ -37,6 +37,8 @@ def swap_forever(folder: str, target: str) -> None:
         os.rename(link, os.path.join(folder, "z.bin"))
 
 
+# A race run for 4 s with a process swapping the file on the other core: slow, so integration.
+@pytest.mark.slow
 def test_a_file_swapped_for_a_link_is_never_followed(tmp_path: Path) -> None:
     secret = tmp_path / "host" / "secret.txt"
     secret.parent.mkdir()

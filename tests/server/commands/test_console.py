@@ -6,6 +6,8 @@ from __future__ import annotations
 import os
 import subprocess
 
+import pytest
+
 from server.commands.console import progress
 from tests.server.builders import make_team, queued_submission
 from tests.server.live import ARENA
@@ -43,6 +45,9 @@ def test_a_long_command_piped_says_its_progress_on_stderr_at_a_bounded_rate(caps
     ]
 
 
+# Three real `arena` processes, each importing the whole command tree (about 5 s of CPU): the fast
+# tier starts none, so this runs with the integration tier.
+@pytest.mark.integration
 def test_piped_the_commands_write_plain_lines_and_progress_apart(arena, db, settings):
     team, _ = make_team(db, "alpha")
     sid = queued_submission(db, team)
