@@ -5,12 +5,15 @@ processes and every test marked slow. ``./scripts/test.sh`` (and CI) runs both."
 
 from __future__ import annotations
 
+import os
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 
 from arena.config import get_settings
 from scenarios.suites import build_suite
+from tests.planner_episodes import PlannerDigests, planner_digests_once
 
 # Markers that mean a test needs more than this process, or takes long: such a test is
 # integration whatever else it is.
@@ -40,3 +43,13 @@ def hidden_dev(tmp_path_factory, cache_dir) -> Path:
     out = tmp_path_factory.mktemp("hidden") / "suite"
     build_suite("hidden", get_settings().suites.development_seed, out, cache_dir)
     return out
+
+
+@pytest.fixture(scope="session")
+def planner_episode(tmp_path_factory) -> Callable[[str], PlannerDigests]:
+    """The planner's episode digests of a public scenario, run once per test session: the tests of
+    its actions and of its observations share it, from whichever xdist process (the processes of
+    one session share the parent of their temporary folders, a new one each session)."""
+    base = tmp_path_factory.getbasetemp()
+    shared = (base.parent if "PYTEST_XDIST_WORKER" in os.environ else base) / "planner-episodes"
+    return lambda scenario_id: planner_digests_once(scenario_id, shared)

@@ -12,16 +12,12 @@ of its driving updates them in the same commit, saying why:
 
 from __future__ import annotations
 
-import hashlib
-import json
 import tempfile
 from pathlib import Path
 
 import pytest
 
-from arena.suite import SHIPPED_PUBLIC_DIR
-from scenarios.experts import PlannerAgent, planner_interface
-from sim.episode import run_episode
+from tests.planner_episodes import planner_digests
 
 # scenario id -> (sha256 of every step's actions as JSON, sha256 of the .npz record)
 EXPECTED = {
@@ -48,30 +44,15 @@ EXPECTED = {
 }
 
 
-class _ActionsHashed(PlannerAgent):
-    """The reference planner, hashing every action it answers."""
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.digest = hashlib.sha256()
-
-    def act(self, obs):
-        actions = super().act(obs)
-        as_floats = {k: [float(v) for v in action] for k, action in actions.items()}
-        self.digest.update(json.dumps(as_floats, sort_keys=True).encode())
-        return actions
-
-
 def digests(scenario_id: str, folder: Path) -> tuple[str, str]:
-    agent = _ActionsHashed()
-    record = folder / "record.npz"
-    run_episode(SHIPPED_PUBLIC_DIR / scenario_id, agent, planner_interface(), record_path=record)
-    return agent.digest.hexdigest(), hashlib.sha256(record.read_bytes()).hexdigest()
+    run = planner_digests(scenario_id, folder)
+    return run.actions, run.record
 
 
 @pytest.mark.parametrize("scenario_id", sorted(EXPECTED))
-def test_planner_actions_and_record_unchanged(scenario_id, tmp_path):
-    assert digests(scenario_id, tmp_path) == EXPECTED[scenario_id]
+def test_planner_actions_and_record_unchanged(scenario_id, planner_episode):
+    run = planner_episode(scenario_id)  # one run with tests/sim/test_record_regression.py
+    assert (run.actions, run.record) == EXPECTED[scenario_id]
 
 
 if __name__ == "__main__":

@@ -35,10 +35,10 @@ import pytest
 
 from arena.examples import example_dir
 from arena.suite import SHIPPED_PUBLIC_DIR
-from scenarios.experts import PlannerAgent, planner_interface
 from sim.episode import run_episode
 from sim.inputs import ScenarioInputs
 from sim.interface import AgentInterface
+from tests.planner_episodes import planner_digests
 
 # scenario id -> (sha256 of the .npz record, sha256 of every observation the agent got as JSON)
 EXPECTED = {
@@ -231,26 +231,11 @@ def _agent(name: str):
     )
 
 
-class _WatchedPlanner(PlannerAgent):
-    """The reference planner, hashing every observation it is given."""
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.digest = hashlib.sha256()
-
-    def act(self, obs):
-        self.digest.update(json.dumps(obs, sort_keys=True).encode())
-        return super().act(obs)
-
-
 def digests(
     scenario_id: str, folder: Path, inputs: ScenarioInputs | None = None
 ) -> tuple[str, str]:
-    agent = _WatchedPlanner()
-    record = folder / "record.npz"
-    scenario_dir = SHIPPED_PUBLIC_DIR / scenario_id
-    run_episode(scenario_dir, agent, planner_interface(), record_path=record, inputs=inputs)
-    return hashlib.sha256(record.read_bytes()).hexdigest(), agent.digest.hexdigest()
+    run = planner_digests(scenario_id, folder, inputs)
+    return run.record, run.observations
 
 
 def interface_digests(scenario_id: str, name: str, folder: Path) -> tuple[str, str]:
@@ -261,8 +246,9 @@ def interface_digests(scenario_id: str, name: str, folder: Path) -> tuple[str, s
 
 
 @pytest.mark.parametrize("scenario_id", sorted(EXPECTED))
-def test_public_scenario_record_and_observations_unchanged(scenario_id, tmp_path):
-    assert digests(scenario_id, tmp_path) == EXPECTED[scenario_id]
+def test_public_scenario_record_and_observations_unchanged(scenario_id, planner_episode):
+    run = planner_episode(scenario_id)  # one run with tests/examples/test_planner_actions.py
+    assert (run.record, run.observations) == EXPECTED[scenario_id]
 
 
 @pytest.mark.parametrize(("scenario_id", "name"), sorted(EXPECTED_INTERFACES))
