@@ -6,9 +6,9 @@ import re
 
 import click
 import typer
-from typer.testing import CliRunner
 
 from arena_command import app
+from tests.cli_runner import CliRunner
 
 BOX = re.compile(r"[╭╮╰╯│─]")
 

@@ -5,10 +5,10 @@ import shutil
 import sys
 
 import pytest
-from typer.testing import CliRunner
 
 from arena.suite import SHIPPED_PUBLIC_DIR
 from arena_command import app
+from tests.cli_runner import CliRunner
 
 runner = CliRunner()
 ARENA_COMMAND = [sys.executable, "-c", "from arena_command import app; app()"]

@@ -12,7 +12,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from typer.testing import CliRunner
 
 from arena.config import get_settings
 from arena.scenario import Family, load_scenario
@@ -29,6 +28,7 @@ from scenarios.recorded.naturalistic import (
 )
 from scenarios.recorded.naturalistic_pool import TRACKS_FILE, NaturalisticPool
 from scenarios.verify import verify_scenario
+from tests.cli_runner import CliRunner
 from tests.scenarios import corpus_builders as cb
 from tests.scenarios.test_dataset import _dataset, _suite_from
 

@@ -11,7 +11,6 @@ from pathlib import Path
 import minari  # the dev extra installs it: no silent skip in CI
 import numpy as np
 import pytest
-from typer.testing import CliRunner
 
 from arena.config import get_settings
 from arena.scenario import Family
@@ -26,6 +25,7 @@ from scenarios.recorded.corpus import read_corpus
 from scenarios.recorded.naturalistic import ego_choices, load_scene, scene_net, write_naturalistic
 from scenarios.recorded.naturalistic_pool import TRACKS_FILE, NaturalisticPool
 from sim.trajectories import read_trajectories
+from tests.cli_runner import CliRunner
 from tests.scenarios import corpus_builders as cb
 
 runner = CliRunner()

@@ -17,7 +17,6 @@ import shutil
 from pathlib import Path
 
 import pytest
-from typer.testing import CliRunner
 
 from arena.config import get_settings
 from arena.scenario import DataLabel, Family, load_scenario
@@ -32,6 +31,7 @@ from scenarios.suites import REPLAYS
 from scenarios.verify import verify_scenario
 from scenarios.writer import TRAJECTORIES_FILE
 from sim.trajectories import read_trajectories
+from tests.cli_runner import CliRunner
 from tests.scenarios import corpus_builders as cb
 from tests.scenarios.conftest import manifest
 

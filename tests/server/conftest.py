@@ -12,7 +12,6 @@ from pathlib import Path
 import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy import text
-from typer.testing import CliRunner
 
 from arena.config import Settings, get_settings
 from arena_command import app
@@ -20,6 +19,7 @@ from server.app import create_app
 from server.core.db import Database
 from server.core.migrate import upgrade_database
 from server.models import Base
+from tests.cli_runner import CliRunner
 from tests.server.builders import default_phases, write_suite
 from tests.server.live import export_settings
 from tests.settings import env_only

@@ -322,6 +322,9 @@ def both_ways(scenario_ids: list[str], steps: int, tmp_path: Path) -> list[dict]
     return results
 
 
+# Two simulator processes: the integration tier's (every public scenario, below, and this short
+# sample); the fast tier keeps the function-level comparisons above.
+@pytest.mark.slow
 def test_episodes_are_the_same_bytes_with_the_compiled_core(tmp_path):
     compiled, reference = both_ways(FAST_SCENARIOS, 40, tmp_path)
     assert compiled == reference

@@ -4,12 +4,12 @@ import zipfile
 from pathlib import Path
 
 import pytest
-from typer.testing import CliRunner
 
 from arena.errors import IntakeError
 from arena.examples import example_dir
 from arena_command import app
 from submissions.intake import pack_folder
+from tests.cli_runner import CliRunner
 from tests.submissions.zips import GOOD_POLICY
 
 

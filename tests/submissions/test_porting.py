@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from typer.testing import CliRunner
 
 from arena.config import Settings
 from arena.errors import IntakeError
@@ -13,6 +12,7 @@ from arena_command import app
 from evaluator.validation import validate
 from submissions.intake import check_zip
 from submissions.intake.porting import explain_unresolved
+from tests.cli_runner import CliRunner
 from tests.settings import with_fields
 from tests.submissions.zips import GOOD_POLICY, write_zip
 

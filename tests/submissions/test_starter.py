@@ -7,9 +7,9 @@ import sys
 from pathlib import Path
 
 import pytest
-from typer.testing import CliRunner
 
 from arena_command import app
+from tests.cli_runner import CliRunner
 
 REPO = Path(__file__).resolve().parents[2]
 

@@ -4,7 +4,6 @@ import json
 from pathlib import Path
 
 import pytest
-from typer.testing import CliRunner
 
 from arena.outcome import ScenarioStatus
 from arena.suite import ManifestEntry, Suite, SuiteManifest
@@ -13,6 +12,7 @@ from evaluator.runner.results import record_path, score_outcomes
 from evaluator.runner.scenario import ScenarioOutcome
 from evaluator.scoring import load_profile
 from evaluator.summary import read_summary, write_summary
+from tests.cli_runner import CliRunner
 from tests.evaluator.scoring.builders import AgentSpec, drive, write_record
 
 SUITE = Suite(

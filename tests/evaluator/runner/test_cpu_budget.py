@@ -109,9 +109,8 @@ def test_under_the_budget_every_episode_runs_and_its_cpu_is_counted(public_suite
 
 
 def test_arena_evaluate_says_the_budget_was_passed_and_exits_1(public_suite, tmp_path, monkeypatch):
-    from typer.testing import CliRunner
-
     from arena_command import app
+    from tests.cli_runner import CliRunner
 
     ids = few_scenarios(public_suite, 2)
     source = write_policy(tmp_path / "busy", BUSY_POLICY)

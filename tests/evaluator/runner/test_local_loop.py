@@ -5,9 +5,9 @@ stops early when the agent cannot start."""
 import json
 
 import pytest
-from typer.testing import CliRunner
 
 from arena_command import app
+from tests.cli_runner import CliRunner
 from tests.evaluator.runner.conftest import write_policy
 
 SCENARIOS = ["p000_left_turn_t_low", "p001_left_turn_t_rotated_mid", "p002_turn_c_left_turn_c_low"]

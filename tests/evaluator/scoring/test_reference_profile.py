@@ -7,11 +7,11 @@ import json
 
 import numpy as np
 import pytest
-from typer.testing import CliRunner
 
 from arena_command import app
 from evaluator.scoring import aggregate, load_profile, load_record, score_episode
 from evaluator.scoring.registry import get_term
+from tests.cli_runner import CliRunner
 from tests.evaluator.runner.test_cli import results  # noqa: F401  (fixture: a results folder)
 from tests.evaluator.scoring.builders import DT, AgentSpec, drive, track, write_record
 

@@ -229,9 +229,8 @@ def test_a_missing_dataset_is_named(tmp_path, settings):
 
 def test_arena_train_keeps_train_py_output_on_success(tmp_path, dataset):
     """Printed and saved beside the model (never inside it: the model folder is evaluated)."""
-    from typer.testing import CliRunner
-
     from arena_command import app
+    from tests.cli_runner import CliRunner
 
     folder = tmp_path / "src"
     folder.mkdir()

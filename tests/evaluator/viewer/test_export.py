@@ -6,9 +6,9 @@ import json
 import cv2
 import numpy as np
 import pytest
-from typer.testing import CliRunner
 
 from arena_command import app
+from tests.cli_runner import CliRunner
 from tests.server.api.test_browser import CHROMIUM, CHROMIUM_ARGS
 
 

@@ -5,10 +5,10 @@ backends), configured like a deployment: through ARENA_* environment variables."
 from __future__ import annotations
 
 import pytest
-from typer.testing import CliRunner
 
 from arena.config import get_settings
 from arena_command import app
+from tests.cli_runner import CliRunner
 
 runner = CliRunner()
 

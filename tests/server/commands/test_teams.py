@@ -5,10 +5,9 @@ from __future__ import annotations
 
 import re
 
-from typer.testing import CliRunner
-
 from arena_command import app
 from server.models import Submission
+from tests.cli_runner import CliRunner
 from tests.server.builders import make_team, queued_submission, seed_scored
 from tests.server.worker.test_evaluation_flow import run_everything, start
 

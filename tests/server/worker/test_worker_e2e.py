@@ -511,11 +511,10 @@ def test_audit_reruns_a_score_bit_identically_and_names_what_differs(
     """`arena admin audit`: a score the worker made re-runs bit-identically from its manifest;
     a manifest naming other software is refused, component named; a stored record that no
     longer matches is reported as the first differing record."""
-    from typer.testing import CliRunner
-
     from arena.config import get_settings
     from arena_command import app
     from server.models import Score
+    from tests.cli_runner import CliRunner
 
     db = Database(stack_settings.storage.database_url)
     _, token = make_team(db, "auditors")
