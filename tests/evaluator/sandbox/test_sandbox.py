@@ -323,16 +323,16 @@ def test_one_agents_exception_fails_the_whole_agent(any_kind, settings, labels, 
 
 
 def test_the_step_limit_counts_cpu_time_not_waiting(any_kind, settings, labels, tmp) -> None:
-    """An act that waits 1.5 s without computing is within a 1 s CPU limit (a busy worker or a
-    slow disk is not the agent's time); one that computes for 1.5 s is not, and is stopped by
+    """An act that waits 0.6 s without computing is within a 0.4 s CPU limit (a busy worker or
+    a slow disk is not the agent's time); one that computes for 0.6 s is not, and is stopped by
     its CPU time, not by the wall-clock backstop (whose message names no CPU)."""
-    limits = with_fields(settings, sandbox={"step_cpu_s": 1.0, "step_timeout_s": 120.0})
+    limits = with_fields(settings, sandbox={"step_cpu_s": 0.4, "step_timeout_s": 120.0})
     act = """
     if obs["Agent_0"]["step_count"] == 0:
-        time.sleep(1.5)
+        time.sleep(0.6)
     else:
         began = time.process_time()
-        while time.process_time() - began < 1.5:
+        while time.process_time() - began < 0.6:
             pass
     return {k: [1.0, 0.0] for k in obs}
     """
