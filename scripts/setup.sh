@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs what Driving Arena needs on a fresh Debian machine (idempotent, fast when done).
 #   scripts/setup.sh           the project and the agent sandbox (bubblewrap; Docker when possible)
-#   scripts/setup.sh --dev     also test tools (pytest, ruff, Playwright + Debian's Chromium)
+#   scripts/setup.sh --dev     also test tools (pytest, ruff, Playwright + Debian's Chromium,
+#                              docker-compose)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -16,6 +17,8 @@ python3 -c 'import os, sys, sysconfig; sys.exit(not os.path.isfile(os.path.join(
   || need_apt+=(python3-dev)
 if [ "$dev" = 1 ]; then
   command -v chromium >/dev/null || need_apt+=(chromium)
+  # docker-compose.yml's checks and bench/deploy_compose.py (the compose deployment).
+  command -v docker-compose >/dev/null || need_apt+=(docker-compose)
 fi
 if [ "${#need_apt[@]}" -gt 0 ]; then
   if [ "$(id -u)" = 0 ]; then
