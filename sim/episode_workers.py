@@ -22,7 +22,12 @@ inputs by content (:class:`InputsKept`). What stays as before:
 A worker retires after :data:`EPISODES_PER_WORKER` episodes and when idle for
 :data:`IDLE_S`, which bounds what a long-lived process could accumulate (SUMO's own
 allocations). :class:`EpisodeWorkers` keeps the idle ones of an evaluating process; each
-caller (an evaluation's job) takes one for an episode and gives it back.
+caller (an evaluation's job) takes one for an episode and gives it back. They close at exit,
+and when the evaluations of their process end, which may go on (a script, a notebook):
+``evaluator.runner.evaluate`` runs its episodes in :meth:`EpisodeWorkers.serving`, and a
+service worker, whose episodes are tasks of their own, closes them when none of its submissions
+is in work any more (``server/worker/local.py``, at its reaper's next round). No simulator
+process waits out the idle time after the work that needed it.
 
 The request travels as a pickle over a socket pair, the descriptors it holds (an agent's
 sockets, the inputs' memory file) beside it as ancillary data: unlike the fork server, a running
@@ -42,7 +47,8 @@ import struct
 import threading
 import time
 from collections import OrderedDict
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -332,6 +338,7 @@ class EpisodeWorkers:
         self._idle: list[EpisodeWorker] = []
         self._lock = threading.Lock()
         self._timer: threading.Timer | None = None
+        self._evaluations = 0  # under way in :meth:`serving`
 
     def run_episode(
         self,
@@ -375,7 +382,25 @@ class EpisodeWorkers:
         self._give_back(worker)
         return result
 
+    @contextmanager
+    def serving(self) -> Iterator[None]:
+        """Around an evaluation: its episodes share the workers (as do those of evaluations
+        running beside it), and when the last evaluation under way ends, the idle workers
+        close."""
+        with self._lock:
+            self._evaluations += 1
+        try:
+            yield
+        finally:
+            with self._lock:
+                self._evaluations -= 1
+                last = self._evaluations == 0
+            if last:
+                self.close()
+
     def close(self) -> None:
+        """End the idle workers (one running an episode is not idle: it is given back after
+        it, and the idle timer ends it if nothing takes it again)."""
         with self._lock:
             closing, self._idle = self._idle, []
         for worker in closing:

@@ -63,6 +63,7 @@ from evaluator.summary import (
     write_summary,
 )
 from evaluator.training import folder_digest
+from sim.episode_workers import episode_workers
 from submissions.intake import prepare_submission
 
 TIMINGS_FILE = "timings.json"  # wall times: kept out of summary.json, which is deterministic
@@ -178,6 +179,8 @@ def evaluate(
 
         with (
             _warm_agents_of(submission),
+            # Its simulator processes end with it, not an idle time later.
+            episode_workers().serving(),
             ThreadPoolExecutor(max_workers=max(1, request.jobs)) as pool,
         ):
             pending: dict[Future, Episode] = {}

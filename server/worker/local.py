@@ -30,6 +30,7 @@ from server.core.artifacts import ArtifactStore, artifact_store
 from server.core.db import Database
 from server.core.queue import TaskQueue
 from server.jobs.kind import Worker
+from sim.episode_workers import episode_workers
 from submissions.intake import PreparedSubmission
 from submissions.intake.archive import remove_tree
 
@@ -189,7 +190,9 @@ def forget_finished(upload_keys: set[str], model_keys: set[str]) -> int:
     """Delete what this process unpacked for submissions no longer in work (their runs ended):
     only ``upload_keys`` and ``model_keys`` are kept. How many folders went. The idle warm
     agents bound to a folder close first; a folder another upload in work shares (same zip)
-    stays."""
+    stays. With nothing of this process left in work, its idle episode processes
+    (:mod:`sim.episode_workers`) end too: they hold a simulator's memory each, and would
+    otherwise wait out their idle time after the last episode."""
     with _unpack_lock:
         gone = [_prepared.pop(key) for key in list(_prepared) if key not in upload_keys]
         kept = {submission.root.parent for submission in _prepared.values()}
@@ -201,6 +204,9 @@ def forget_finished(upload_keys: set[str], model_keys: set[str]) -> int:
         for model_dir in gone_models:
             warm_agents().close(model_dir=model_dir)
             _discard(model_dir.parent)
+        idle = not _prepared and not _models
+    if idle:
+        episode_workers().close()
     return len(folders) + len(gone_models)
 
 

@@ -141,6 +141,23 @@ def test_a_factory_s_sockets_reach_the_episode_and_close_with_it(tmp_path):
     assert result.simulator_error is None
 
 
+def test_the_workers_of_an_evaluation_end_with_it(tmp_path):
+    """Evaluations under way share the workers (one ending beside another keeps them); when
+    the last one ends, its idle worker ends at once, not after the idle time."""
+    workers = EpisodeWorkers()
+    try:
+        with workers.serving():
+            with workers.serving():
+                first, _ = run(workers, tmp_path, CRUISE, 0)
+            second, _ = run(workers, tmp_path, CRUISE, 1)
+            pid = int(first.extra["agent_log"].removeprefix("pid "))
+            assert second.extra["agent_log"] == first.extra["agent_log"]
+            assert Path(f"/proc/{pid}").exists()
+        assert not Path(f"/proc/{pid}").exists()
+    finally:
+        workers.close()
+
+
 def test_kept_inputs_are_read_once_per_content_and_bounded(tmp_path):
     cache = PackedInputsCache()
     merge_key, merge_fd = cache.open_keyed(SHIPPED_PUBLIC_DIR / MERGE)
@@ -174,17 +191,21 @@ from arena.suite import SHIPPED_PUBLIC_DIR
 from sim.episode_workers import episode_workers
 from tests.sim.test_episode_workers import IN_LANE, pid_agent
 
-episode_workers().run_episode(SHIPPED_PUBLIC_DIR / {CRUISE!r}, pid_agent, IN_LANE,
-                              record_path={{record!r}})
+result = episode_workers().run_episode(SHIPPED_PUBLIC_DIR / {CRUISE!r}, pid_agent, IN_LANE,
+                                       record_path={{record!r}})
+print(result.extra["agent_log"])
 """
 
 
 def test_a_process_with_an_idle_worker_exits(tmp_path):
     """At exit its idle worker ends, whichever exit handler comes first (multiprocessing's
-    waits for every child that is not daemonic)."""
+    waits for every child that is not daemonic), and no simulator process outlives it (as
+    `arena evaluate` exits)."""
     script = EXITS_AFTER_AN_EPISODE.format(record=str(tmp_path / "r.npz"))
     done = subprocess.run(
         [sys.executable, "-c", script], cwd=REPO, timeout=120, capture_output=True, text=True
     )
     assert done.returncode == 0, done.stderr
     assert (tmp_path / "r.npz").is_file()
+    worker = int(done.stdout.split()[-1])
+    assert not Path(f"/proc/{worker}").exists()

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import multiprocessing
 import os
 import signal
 import subprocess
@@ -72,6 +73,9 @@ def test_same_submission_twice_gives_identical_summary_and_records(public_suite,
     source = steady(tmp_path)
     first = run(source, public_suite, tmp_path / "a", ids)
     second = run(source, public_suite, tmp_path / "b", ids, jobs=1)
+    # The simulator processes of an evaluation end with it (sim.episode_workers), not an idle
+    # time later, though this process goes on.
+    assert not [p for p in multiprocessing.active_children() if p.name == "episode-worker"]
 
     assert first.complete and first.metrics is not None
     summary_a = (tmp_path / "a" / "summary.json").read_bytes()
