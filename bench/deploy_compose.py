@@ -7,6 +7,8 @@ example, three teams) through the API on a loopback port, and checks:
 
 * every submission is scored, with the metrics and per-scenario outcomes `arena evaluate` gives
   for the same agent on the same suite;
+* the simulator's compiled core runs in the API's container and in every worker (`arena admin
+  status`);
 * every agent container the workers started (through the host's Docker socket) has no network;
 * no scenario was recorded or simulated twice, and every worker ran part of the episodes;
 * `docker-compose stop` leaves no container of the project running and no agent container of
@@ -68,6 +70,8 @@ SCORED_TIMEOUT_S = 1800
 # [s] One upload's sandboxed validation (its requirements included).
 VALIDATION_TIMEOUT_S = 600
 CLAIMED = re.compile(r"run (\d+): episode (\d+) of (\S+) claimed \(claim (\d+)\)")
+# `arena admin status`'s line when every worker answered with the compiled core.
+WORKER_CORES = re.compile(r"simulator core of the workers: compiled \(([^;()]+)\)")
 
 
 def log(message: str) -> None:
@@ -452,6 +456,21 @@ def compose_services() -> list[str]:
     return done.stdout.split()
 
 
+def compiled_everywhere(stack: Stack) -> tuple[bool, str]:
+    """The simulator's compiled core runs in the image, as an organiser checks it: `arena admin
+    status` in the API's container says its own core and each worker's."""
+    status = stack.exec("api", "arena", "admin", "status").splitlines()
+    cores = [line for line in status if line.startswith("simulator core")]
+    workers = [WORKER_CORES.fullmatch(line) for line in cores[1:]]
+    ok = (
+        cores[:1] == ["simulator core here: compiled"]
+        and len(workers) == 1
+        and workers[0] is not None
+        and len(workers[0].group(1).split(", ")) == stack.workers
+    )
+    return ok, f"the compiled core in the API's container and every worker ({'; '.join(cores)})"
+
+
 def same_metrics(service: dict | None, local: dict | None) -> bool:
     if service is None or local is None:
         return service == local
@@ -487,6 +506,7 @@ def main() -> None:
     try:
         log(f"project {stack.project}, API on {stack.url}, data {stack.data}")
         log(f"up in {stack.up():.0f} s with {arguments.workers} workers")
+        checks.check(*compiled_everywhere(stack))
         tokens = [
             stack.exec("api", "arena", "admin", "teams", "create", f"team-{i}").split()[-1]
             for i in range(TEAMS)

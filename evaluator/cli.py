@@ -104,6 +104,7 @@ def evaluate(
     console = make_console(stderr=as_json)
     per_submission = out is None
     out = out or Path("arena-results") / path.stem
+    _print_core(console)
     progress = _RichProgress(console)
     try:
         with _exit_on_error(console):
@@ -144,6 +145,18 @@ def evaluate(
     if summary.uncharged:
         explain_uncharged(summary, out, notes)
         raise typer.Exit(3)
+
+
+def _print_core(console: Console) -> None:
+    """Which per-step core the simulator runs (sim/compiled.py): the pure-Python reference
+    (ARENA_PURE_PYTHON, or the core not built) gives the same results several times slower."""
+    from sim.compiled import core_status
+
+    core = core_status()
+    if core == "compiled":
+        console.print("simulator core: compiled", style="dim")
+    else:
+        console.print(f"[yellow]simulator core: {escape(core)}[/] (the same results, slower)")
 
 
 def explain_uncharged(summary: Summary, results_dir: Path, console: Console) -> None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import typer
+from rich.markup import escape
 
 from arena.terminal import print_rows
 from server.commands.console import console, moment_text
@@ -13,9 +14,10 @@ app = typer.Typer(no_args_is_help=True)
 
 @app.command("status")
 def status() -> None:
-    """Queue depth, workers, submissions by status, runs whose lease expired, submissions
-    waiting longer than ARENA_OVERDUE_AFTER_S, phases nothing can be evaluated in, and training
-    seeds lost on our side (waiting for a requeue)."""
+    """Queue depth, workers, the simulator's per-step core (compiled, or the pure-Python
+    reference and why) here and in each worker, submissions by status, runs whose lease expired,
+    submissions waiting longer than ARENA_OVERDUE_AFTER_S, phases nothing can be evaluated in,
+    and training seeds lost on our side (waiting for a requeue)."""
     # deferred: CLI start-up time
     from server.services import admin
 
@@ -27,6 +29,7 @@ def status() -> None:
         console.print("workers: (the embedded broker cannot list workers)")
     else:
         console.print(f"workers ({len(state.workers)}): {', '.join(state.workers) or 'none'}")
+    _print_cores(state.simulator_core, state.worker_cores)
     console.print(f"running evaluations: {state.running_runs}")
     print_rows(
         console,
@@ -79,3 +82,22 @@ def status() -> None:
             title="training seeds waiting: `arena admin submissions requeue ID` sends them again",
             numeric=("submission", "seed"),
         )
+
+
+def _print_cores(here: str, workers: dict[str, str] | None) -> None:
+    """The core of this installation (the embedded worker of `arena up` runs it) and of each
+    worker that answered, grouped by core; a pure-Python one stands out: it is several times
+    slower per step."""
+
+    def shown(core: str) -> str:
+        return escape(core) if core == "compiled" else f"[bold yellow]{escape(core)}[/]"
+
+    console.print(f"simulator core here: {shown(here)}")
+    if workers:
+        by_core: dict[str, list[str]] = {}
+        for name, core in sorted(workers.items()):
+            by_core.setdefault(core, []).append(name)
+        listed = "; ".join(
+            f"{shown(core)} ({escape(', '.join(names))})" for core, names in by_core.items()
+        )
+        console.print(f"simulator core of the workers: {listed}")

@@ -21,6 +21,8 @@ TASK_SCENARIO = "arena.run_scenario"
 TASK_AGGREGATE = "arena.aggregate_run"
 TASK_TRAIN = "arena.train_submission"
 TASK_VALIDATE = "arena.validate_submission"
+# The remote-control command a worker answers with its simulator core (`arena admin status`).
+COMMAND_SIMULATOR_CORE = "arena_simulator_core"
 
 
 def is_embedded_broker(broker_url: str) -> bool:

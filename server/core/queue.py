@@ -11,6 +11,7 @@ from kombu.exceptions import OperationalError
 from arena.config import Settings
 from arena.episodes import Episode
 from server.core.celery_app import (
+    COMMAND_SIMULATOR_CORE,
     QUEUE,
     TASK_AGGREGATE,
     TASK_EVALUATE,
@@ -96,6 +97,21 @@ class TaskQueue:
             return None
         replies = self.celery.control.ping(timeout=1.0) or []
         return sorted(name for reply in replies for name in reply)
+
+    def worker_cores(self, expected: int) -> dict[str, str] | None:
+        """The per-step core each answering worker's simulator runs (``sim.compiled.core_status``
+        in its process), by worker name; None where the broker cannot broadcast. Waits only
+        until ``expected`` workers answered."""
+        if is_embedded_broker(self.settings.storage.resolved_broker_url):
+            return None
+        replies = self.celery.control.broadcast(
+            COMMAND_SIMULATOR_CORE, reply=True, timeout=1.0, limit=expected
+        )
+        return {
+            name: str(answer.get("core", "unknown (the worker does not say)"))
+            for reply in replies or []
+            for name, answer in reply.items()
+        }
 
     def close(self) -> None:
         if "celery" in self.__dict__:

@@ -39,6 +39,7 @@ from server.status import (
     SubmissionStatus,
     advance,
 )
+from sim.compiled import core_status
 
 
 def requeue(db: Database, settings: Settings, queue: TaskQueue, submission_id: int) -> str:
@@ -394,6 +395,11 @@ class ServiceStatus:
     # Phases nothing can be evaluated in, with why.
     broken_phases: dict[str, str]
     lost_seeds: list[LostSeed]
+    # The simulator's per-step core (sim.compiled.core_status) in this process, as this
+    # installation runs it (the embedded worker of `arena up` runs this one), and in each worker
+    # that answered (None: the broker cannot ask them).
+    simulator_core: str
+    worker_cores: dict[str, str] | None
 
 
 def service_status(db: Database, settings: Settings, queue: TaskQueue) -> ServiceStatus:
@@ -419,8 +425,9 @@ def service_status(db: Database, settings: Settings, queue: TaskQueue) -> Servic
     try:
         depth = queue.depth()
         workers = queue.workers()
+        cores = queue.worker_cores(len(workers)) if workers else None
     except BROKER_ERRORS:  # reported as unreachable, not a crash
-        depth = workers = None
+        depth = workers = cores = None
     return ServiceStatus(
         queue_depth=depth,
         workers=workers,
@@ -430,6 +437,8 @@ def service_status(db: Database, settings: Settings, queue: TaskQueue) -> Servic
         overdue=overdue,
         broken_phases=broken,
         lost_seeds=lost,
+        simulator_core=core_status(),
+        worker_cores=cores,
     )
 
 

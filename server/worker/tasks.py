@@ -29,6 +29,7 @@ from celery.signals import (
     worker_shutdown,
     worker_shutting_down,
 )
+from celery.worker.control import inspect_command
 
 from arena.config import get_settings
 from arena.suite import hidden_suite_dir
@@ -36,6 +37,7 @@ from evaluator.sandbox.backend import SANDBOX_LABEL, owner_labels
 from evaluator.sandbox.docker_backend import remove_binding
 from evaluator.sandbox.warm_pool import warm_agents
 from server.core.celery_app import (
+    COMMAND_SIMULATOR_CORE,
     QUEUE,
     TASK_AGGREGATE,
     TASK_EVALUATE,
@@ -52,6 +54,7 @@ from server.worker import local
 from server.worker.episodes import EPISODES
 from server.worker.trainings import TRAININGS
 from server.worker.validations import VALIDATIONS
+from sim.compiled import core_status
 from submissions.intake.archive import remove_tree
 
 log = logging.getLogger(__name__)
@@ -151,6 +154,14 @@ def remove_finished_scratch() -> int:
     with local.database().read_session() as session:
         uploads, models = submissions.keys_in_work(session)
     return local.forget_finished(uploads, models)
+
+
+@inspect_command(name=COMMAND_SIMULATOR_CORE)
+def simulator_core(state: Any, **_: Any) -> dict[str, str]:
+    """The per-step core this worker's simulator runs (`arena admin status` asks): a worker
+    installed without a compiler, or with ARENA_PURE_PYTHON set, runs the pure-Python
+    reference, several times slower."""
+    return {"core": core_status()}
 
 
 _reaper_stop = threading.Event()

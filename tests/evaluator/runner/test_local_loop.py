@@ -7,6 +7,7 @@ import json
 import pytest
 
 from arena_command import app
+from sim.compiled import core_status
 from tests.cli_runner import CliRunner
 from tests.evaluator.runner.conftest import write_policy
 
@@ -54,6 +55,7 @@ def test_an_agent_that_cannot_start_stops_the_run_with_one_error(tmp_path):
     agent = write_policy(tmp_path / "agent", "import not_a_package_anywhere\n" + KEEP_LANE)
     result = evaluate(str(agent), "--out", str(tmp_path / "out"), scenarios=SCENARIOS)
     assert result.exit_code == 1
+    assert f"simulator core: {core_status()}\n" in result.output  # compiled, or why not
     assert result.output.count("your agent could not start") == 1
     assert result.output.count("ModuleNotFoundError") == 1
     assert "requirements.txt" in result.output

@@ -31,3 +31,13 @@ def test_status_lists_overdue_work_and_broken_phases(arena, db, settings, monkey
     shutil.rmtree(settings.suites.hidden_suite_dir)
     output = arena("status")
     assert "BROKEN PHASES" in output and "final\tphase 'final': suite 'hidden'" in output
+
+
+def test_status_says_which_simulator_core_runs_and_why(arena, db, monkeypatch):
+    """For the organiser checking a deployment: the compiled core, or the pure-Python
+    reference with its reason (forced here; a core not built names its missing modules)."""
+    from sim.compiled import PURE_PYTHON_VARIABLE, core_status
+
+    assert f"\nsimulator core here: {core_status()}\n" in arena("status")
+    monkeypatch.setenv(PURE_PYTHON_VARIABLE, "1")
+    assert "\nsimulator core here: pure-python (ARENA_PURE_PYTHON)\n" in arena("status")

@@ -22,8 +22,10 @@ from arena.config import ArtifactBackend, get_settings
 from server.core.artifacts import artifact_store
 from server.core.db import Database
 from server.core.migrate import upgrade_database
+from server.core.queue import TaskQueue
 from server.models import ScenarioResult, Team, utcnow
-from server.services import validation
+from server.services import admin, validation
+from sim.compiled import core_status
 from tests.server.builders import bearer, make_team
 from tests.server.conftest import REDIS_URL, _create_pg_database, _drop_pg_database
 from tests.server.live import api_server, free_port, stop
@@ -68,6 +70,33 @@ def stack_settings(suite, broker_prefix):
     yield settings
     _drop_pg_database(name)
     subprocess.run(["rm", "-rf", str(data)], check=False)
+
+
+def episode_processes(root: int) -> list[int]:
+    """The simulator's episode processes below process ``root``: the children of its fork
+    server (sim.episode_workers), which share its command line."""
+    parents: dict[int, int] = {}
+    forkservers = set()
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            stat = (entry / "stat").read_text()
+            cmdline = (entry / "cmdline").read_bytes()
+        except OSError:  # ended since the listing
+            continue
+        parents[int(entry.name)] = int(stat[stat.rindex(")") + 2 :].split()[1])
+        if b"multiprocessing.forkserver" in cmdline:
+            forkservers.add(int(entry.name))
+
+    def below_root(pid: int) -> bool:
+        while pid > 1:
+            pid = parents.get(pid, 0)
+            if pid == root:
+                return True
+        return False
+
+    return [pid for pid in forkservers if parents[pid] in forkservers and below_root(pid)]
 
 
 def results_per_scenario(db: Database) -> dict[str, int]:
@@ -116,7 +145,18 @@ def test_three_examples_are_scored_and_ranked(stack_settings, tmp_path):
             while any(unpacked.glob("*/submissions/*")) and time.monotonic() < deadline:
                 time.sleep(0.5)
             assert not any(unpacked.glob("*/submissions/*")), list(unpacked.glob("*/*/*"))
+            # ...and its simulator processes end (sim.episode_workers: not after their idle
+            # time, 120 s).
+            while episode_processes(worker.pid) and time.monotonic() < deadline:
+                time.sleep(0.5)
+            assert not episode_processes(worker.pid)
             assert worker.poll() is None
+            # `arena admin status` asks the worker which per-step core its simulator runs.
+            queue = TaskQueue(stack_settings)
+            state = admin.service_status(db, stack_settings, queue)
+            queue.close()
+            assert state.worker_cores == {name: core_status() for name in state.workers or ()}
+            assert len(state.worker_cores) == 1
     finally:
         stop(worker)
     assert set(results_per_scenario(db).values()) == {3}  # one row per submission and scenario
