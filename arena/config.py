@@ -264,6 +264,15 @@ class SandboxSettings(SettingsGroup):
     # fresh agent for each episode; off: a new sandbox per episode. Idle ones close after this.
     warm_agents: bool = True
     warm_agent_idle_s: float = 120.0
+    # Each evaluation job's simulator and agent on the same CPU (evaluator/sandbox/placement.py,
+    # docs/performance.md "The round trip"): every step is a strict hand-off between the two, and
+    # across CPUs each hand-off wakes an idle core (about 50 us on a virtual machine, twice a
+    # step); on one CPU it is a context switch. Job i gets CPU i of this process's allowed set
+    # (round robin when jobs exceed CPUs; ceil(agent_cpus) CPUs a job when the agent may use
+    # more than one, none when that is all of them). The agent's quota (agent_cpus) and its CPU
+    # time limits are unchanged: they count its own CPU time, and the simulator waits while the
+    # agent computes. On by default; ARENA_PIN_JOBS=false leaves placement to the scheduler.
+    pin_jobs: bool = True
 
     @property
     def cpu_limits(self) -> CpuLimits:

@@ -31,10 +31,14 @@ Prints, in order:
   ``floor_ratio = step_ms / floor_ms``: what the evaluator adds per step over SUMO and the
   transport (observation building, encoding, scoring, records).
 
-The last line is ``wall_s=<planner, jobs 2> speedup=<jobs1/jobs2> fixed_ms=<...> step_ms=<...>
-floor_ms=<...> floor_ratio=<step_ms/floor_ms>``. Targets (2-core machine): wall_s <= 12,
-speedup >= 1.8, floor_ratio <= 2.5. With ``--only trivial``
-the last line is ``fixed_ms=<...> step_ms=<...> floor_ms=<...> floor_ratio=<...>``.
+The planner with two jobs and the trivial agent also run with each job's simulator and agent left
+to the scheduler (``pin_jobs`` off, ``evaluator.sandbox.placement``) beside the runs as the
+setting places them (on by default), so one run shows what the placement does. The last line is
+``wall_s=<planner, jobs 2> unpinned_wall_s=<the same, unpinned> speedup=<jobs1/jobs2>
+fixed_ms=<...> step_ms=<...> unpinned_step_ms=<the fit, unpinned> floor_ms=<...>
+floor_ratio=<step_ms/floor_ms> load=<load average>``. Targets (2-core machine): wall_s <= 12,
+speedup >= 1.8, floor_ratio <= 2.5. With ``--only trivial`` the last line is ``fixed_ms=<...>
+step_ms=<...> unpinned_step_ms=<...> floor_ms=<...> floor_ratio=<...> load=<...>``.
 
 Agents are forked in warm sandboxes, as every evaluation runs them (docs/protocol.md); run with
 ``ARENA_WARM_AGENTS=false`` for the cold figures (a new sandbox per scenario) side by side. The
@@ -116,9 +120,14 @@ def timed_evaluation(
     sandbox: SandboxKind,
     ids: list[str] | None,
     episodes: int = 1,
+    pin_jobs: bool | None = None,
 ) -> SuiteRun:
-    """``episodes`` of each reactive scenario; ``scenario_s`` is then by episode name."""
+    """``episodes`` of each reactive scenario; ``scenario_s`` is then by episode name.
+    ``pin_jobs``: each job's simulator and agent on its CPU or not (None: the setting)."""
     settings = get_settings()
+    config = settings.sandbox
+    if pin_jobs is not None:
+        config = config.model_copy(update={"pin_jobs": pin_jobs})
     started = time.perf_counter()
     summary = evaluate(
         EvaluationRequest(
@@ -131,7 +140,7 @@ def timed_evaluation(
             episodes_per_scenario=episodes,
         ),
         intake=settings.intake,
-        config=settings.sandbox,
+        config=config,
         data_dir=settings.storage.resolved_data_dir,
     )
     wall = time.perf_counter() - started
@@ -142,10 +151,12 @@ def timed_evaluation(
     completion = summary.metrics.completion if summary.metrics else float("nan")
     scenario_s = json.loads((out / TIMINGS_FILE).read_text())
     # Sum of per-scenario wall times: above jobs x wall means episodes slowed each other down.
+    placed = "pinned" if config.pin_jobs else "unpinned"
     print(
-        f"{agent.name} jobs={jobs}: {len(steps)} scenarios in {wall:.1f} s, {total} episode "
-        f"steps, {total / wall:.0f} steps/s, scenario time sum {sum(scenario_s.values()):.0f} s, "
-        f"completion={completion:.3f}, load average {os.getloadavg()[0]:.1f}"
+        f"{agent.name} jobs={jobs} {placed}: {len(steps)} scenarios in {wall:.1f} s, {total} "
+        f"episode steps, {total / wall:.0f} steps/s, scenario time sum "
+        f"{sum(scenario_s.values()):.0f} s, completion={completion:.3f}, load average "
+        f"{os.getloadavg()[0]:.1f}"
     )
     return SuiteRun(wall, steps, scenario_s)
 
@@ -367,8 +378,22 @@ def main() -> None:
         else:
             jobs_1 = timed_evaluation(PLANNER, suite, work / "planner-jobs1", 1, args.sandbox, ids)
             jobs_2 = timed_evaluation(PLANNER, suite, work / "planner-jobs2", 2, args.sandbox, ids)
+            unpinned_2 = timed_evaluation(
+                PLANNER,
+                suite,
+                work / "planner-jobs2-unpinned",
+                2,
+                args.sandbox,
+                ids,
+                pin_jobs=False,
+            )
+        # Unpinned first here, pinned first above: neither side always runs second.
+        unpinned = timed_evaluation(
+            TRIVIAL, suite, work / "trivial-jobs1-unpinned", 1, args.sandbox, ids, pin_jobs=False
+        )
         trivial = timed_evaluation(TRIVIAL, suite, work / "trivial-jobs1", 1, args.sandbox, ids)
         fixed_ms, step_ms = fit_fixed_and_step(trivial)
+        unpinned_step_ms = fit_fixed_and_step(unpinned)[1]
         interface = AgentInterface(**yaml.safe_load((TRIVIAL / "agent.yaml").read_text()))
         watch_radius = interface.observation_radius + CONTEXT_MARGIN
         records = work / "trivial-jobs1" / RECORDS_DIR
@@ -389,13 +414,17 @@ def main() -> None:
             f"(moving them {costs.sumo_moves_ms:.3f}): "
             f"sumo_ego_ratio={costs.sumo_egos_ms / costs.sumo_raw_ms:.2f}"
         )
-    floors = f"step_ms={step_ms:.3f} floor_ms={floor_ms:.3f} floor_ratio={step_ms / floor_ms:.2f}"
+    floors = (
+        f"step_ms={step_ms:.3f} unpinned_step_ms={unpinned_step_ms:.3f} floor_ms={floor_ms:.3f} "
+        f"floor_ratio={step_ms / floor_ms:.2f}"
+    )
     if args.only:
-        print(f"fixed_ms={fixed_ms:.0f} {floors}")
+        print(f"fixed_ms={fixed_ms:.0f} {floors} load={os.getloadavg()[0]:.1f}")
         return
     print(
-        f"wall_s={jobs_2.wall_s:.1f} speedup={jobs_1.wall_s / jobs_2.wall_s:.2f} "
-        f"fixed_ms={fixed_ms:.0f} {floors}"
+        f"wall_s={jobs_2.wall_s:.1f} unpinned_wall_s={unpinned_2.wall_s:.1f} "
+        f"speedup={jobs_1.wall_s / jobs_2.wall_s:.2f} fixed_ms={fixed_ms:.0f} {floors} "
+        f"load={os.getloadavg()[0]:.1f}"
     )
 
 

@@ -22,7 +22,11 @@ evaluator path from the simulator's observation dict to the actions, once per fo
   calls the policy, answers in JSON; we decode the JSON.
 
 ``docker (forked)`` is an agent forked in a warm Docker sandbox, as evaluations run them
-(docs/protocol.md). ``gvisor`` is the Docker sandbox under gVisor's runtime
+(docs/protocol.md). Every sandbox row runs as an evaluation's first job does (``pin_jobs``,
+``evaluator.sandbox.placement``): this process, the simulator's stand-in, and the sandbox both on
+that job's CPU; its ``unpinned`` row is the same with both left to the scheduler, run beside it
+(both sandboxes started, their round trips in turns of 100), so the last line shows what the
+placement saves in one run. ``gvisor`` is the Docker sandbox under gVisor's runtime
 (``ARENA_DOCKER_RUNTIME=runsc``, docs/sandbox.md "A stronger tier") where the daemon has it:
 its agents run cold (a forked agent cannot make its episode's namespaces there), so its start,
 a new sandbox per episode, is timed beside Docker's (``start s``: from launch to the policy
@@ -36,12 +40,15 @@ decoding the observation.
 The last line is ``docker_median_ms=<arrays, Docker> docker_native_median_ms=<native, Docker>
 bwrap_median_ms=<arrays, bubblewrap> docker_ratio=<arrays Docker / in-process>
 docker_floor_ms=<arrays, Docker> gvisor_median_ms=<arrays, gVisor> docker_start_s=<Docker>
-gvisor_start_s=<gVisor>`` (nan where not measured).
+gvisor_start_s=<gVisor>``, all pinned, then ``docker_unpinned_ms=<arrays, Docker, unpinned>
+docker_floor_unpinned_ms=<...> process_median_ms=<arrays, process> process_unpinned_ms=<...>
+bwrap_unpinned_ms=<...>`` (nan where not measured).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib.util
 import tempfile
 import time
@@ -58,6 +65,7 @@ from arena.config import SandboxKind, SandboxSettings, Settings
 from arena.settings_changes import with_fields
 from evaluator.sandbox import start
 from evaluator.sandbox.backend_registry import backend_for
+from evaluator.sandbox.placement import job_cpus, pin_process
 from evaluator.sandbox.warm import WarmAgent
 from sim.interface import AgentInterface
 from sim.observation_arrays import ObservationEncoder, ObservationLayout
@@ -73,8 +81,10 @@ class Policy:
 FORMATS = ("native", "arrays")
 GVISOR_ROW, GVISOR_RUNTIME = "gvisor", "runsc"
 WARMUP = 200
+BLOCK = 100  # rounds of one placement before the next one's turn (side_by_side)
 EMPTY = {"native": {"Agent_0": {}}, "arrays": {}}
 LANE_ID = itemgetter("lane_id")
+UNPINNED = " unpinned"  # the suffix of a row's side-by-side run without placement
 
 
 Observations = Callable[[int], dict]  # round -> the observation sent in that round
@@ -195,46 +205,58 @@ def main() -> None:
     }
     labels = {"bench": "roundtrip"}
     starts: dict[str, list[float]] = {}  # row -> its sandboxes' start times [s]
+    # An evaluation's first job's CPUs, whatever the setting: the pinned rows run there.
+    pinned = job_cpus(0, settings.sandbox.model_copy(update={"pin_jobs": True}))
+    data_dir = settings.storage.resolved_data_dir
     for name in args.kinds.split(","):
         kind, config = row_sandbox(name, settings)
         reason = backend_for(kind).unavailable_reason(config)
         if reason:
             print(f"{name}: skipped ({reason})")
             continue
-        # Formats interleaved per row, so that both see the same load on a shared machine.
+        # Formats interleaved per row, and a row's placements in alternating blocks, so that
+        # all see the same load on a shared machine.
         for fmt, submission in submissions.items():
-            started = time.perf_counter()
-            with start(
-                submission,
-                kind=kind,
-                config=config,
-                data_dir=settings.storage.resolved_data_dir,
-                labels=labels,
-            ) as handle:
-                starts.setdefault(name, []).append(time.perf_counter() - started)
-                results.setdefault(name, {})[fmt] = both(handle.act, submission, args.steps)
+            with contextlib.ExitStack() as stack:
+                placed = {}
+                for suffix, cpus in placements(pinned):
+                    pin_process(cpus)  # an unpinned sandbox inherits nothing of the other's
+                    started = time.perf_counter()
+                    handle = stack.enter_context(
+                        start(
+                            submission,
+                            kind=kind,
+                            config=config,
+                            data_dir=data_dir,
+                            labels=labels,
+                            cpus=cpus,
+                        )
+                    )
+                    starts.setdefault(name + suffix, []).append(time.perf_counter() - started)
+                    placed[suffix] = (cpus, handle.act)
+                for suffix, timed in both(placed, submission, args.steps).items():
+                    results.setdefault(name + suffix, {})[fmt] = timed
         if kind is SandboxKind.docker:
             for fmt, submission in submissions.items():
-                warm = WarmAgent.start(
-                    submission,
-                    kind,
-                    settings.sandbox,
-                    settings.storage.resolved_data_dir,
-                    labels=labels,
-                )
-                forked = warm.fork(settings.sandbox, labels)
-                try:
-                    with forked.start() as handle:
-                        row = results.setdefault("docker (forked)", {})
-                        row[fmt] = both(handle.act, submission, args.steps)
-                finally:
-                    forked.close()
-                    warm.close()
+                with contextlib.ExitStack() as stack:
+                    placed = {}
+                    for suffix, cpus in placements(pinned):
+                        pin_process(cpus)
+                        warm = WarmAgent.start(
+                            submission, kind, settings.sandbox, data_dir, labels=labels, cpus=cpus
+                        )
+                        stack.callback(warm.close)
+                        forked = warm.fork(settings.sandbox, labels)
+                        stack.callback(forked.close)
+                        placed[suffix] = (cpus, stack.enter_context(forked.start()).act)
+                    for suffix, timed in both(placed, submission, args.steps).items():
+                        results.setdefault("docker (forked)" + suffix, {})[fmt] = timed
+    pin_process(None)
 
     print(f"act round trip, {args.steps} steps, observation of 4 x 50 waypoints + 20 neighbours")
     columns = f"{'median ms':>10} {'p99 ms':>8} {'floor ms':>9}"
-    print(f"{'':>16} {'native':^29} | {'arrays':^29} | {'arrays x in-process':>19}")
-    print(f"{'':>16} {columns} | {columns} |")
+    print(f"{'':>24} {'native':^29} | {'arrays':^29} | {'arrays x in-process':>19}")
+    print(f"{'':>24} {columns} | {columns} |")
     baseline = float(np.median(results["in-process"]["native"][0]))
     for name, row in results.items():
         cells = []
@@ -248,7 +270,7 @@ def main() -> None:
                 f"{np.median(floor):>9.4f}"
             )
         ratio = median_of(results, name, "arrays", 0) / baseline
-        print(f"{name:>16} {cells[0]} | {cells[1]} | {ratio:>19.1f}".replace("nan", "  -"))
+        print(f"{name:>24} {cells[0]} | {cells[1]} | {ratio:>19.1f}".replace("nan", "  -"))
     docker = median_of(results, "docker", "arrays", 0)
     print(
         f"docker_median_ms={docker:.4f} "
@@ -258,8 +280,21 @@ def main() -> None:
         f"docker_floor_ms={median_of(results, 'docker', 'arrays', 1):.4f} "
         f"gvisor_median_ms={median_of(results, 'gvisor', 'arrays', 0):.4f} "
         f"docker_start_s={median_start(starts, 'docker'):.2f} "
-        f"gvisor_start_s={median_start(starts, 'gvisor'):.2f}"
+        f"gvisor_start_s={median_start(starts, 'gvisor'):.2f} "
+        f"docker_unpinned_ms={median_of(results, 'docker' + UNPINNED, 'arrays', 0):.4f} "
+        f"docker_floor_unpinned_ms={median_of(results, 'docker' + UNPINNED, 'arrays', 1):.4f} "
+        f"process_median_ms={median_of(results, 'process', 'arrays', 0):.4f} "
+        f"process_unpinned_ms={median_of(results, 'process' + UNPINNED, 'arrays', 0):.4f} "
+        f"bwrap_unpinned_ms={median_of(results, 'bubblewrap' + UNPINNED, 'arrays', 0):.4f}"
     )
+
+
+def placements(pinned: tuple[int, ...] | None) -> list[tuple[str, tuple[int, ...] | None]]:
+    """(row suffix, CPUs) of a row's runs: on the first job's CPUs, and unpinned; unpinned
+    alone where there is one CPU."""
+    if pinned is None:
+        return [(UNPINNED, None)]
+    return [("", pinned), (UNPINNED, None)]
 
 
 def row_sandbox(name: str, settings: Settings) -> tuple[SandboxKind, SandboxSettings]:
@@ -279,8 +314,9 @@ def floor_round_trip_ms(
     kind: SandboxKind, settings: Settings, fmt: str = "native", steps: int = 2000
 ) -> float:
     """The median ``act`` round trip [ms] of an empty observation to a trivial agent forked in a
-    warm sandbox of ``kind``, as evaluations run agents: what the transport alone costs per step
-    (``bench/evaluate_suite.py`` adds it to raw SUMO stepping for its floor)."""
+    warm sandbox of ``kind``, as evaluations run agents (placed as their first job): what the
+    transport alone costs per step (``bench/evaluate_suite.py`` adds it to raw SUMO stepping for
+    its floor)."""
     base = Path(tempfile.mkdtemp(prefix="arena-bench-"))
     source = base / "src"
     source.mkdir()
@@ -294,8 +330,16 @@ def floor_round_trip_ms(
         settings.storage.resolved_data_dir,
     )
     labels = {"bench": "floor"}
+    # Placed as an evaluation's first job (pin_jobs): this process stands for its simulator.
+    cpus = job_cpus(0, settings.sandbox)
+    pin_process(cpus)
     warm = WarmAgent.start(
-        submission, kind, settings.sandbox, settings.storage.resolved_data_dir, labels=labels
+        submission,
+        kind,
+        settings.sandbox,
+        settings.storage.resolved_data_dir,
+        labels=labels,
+        cpus=cpus,
     )
     forked = warm.fork(settings.sandbox, labels)
     try:
@@ -304,14 +348,44 @@ def floor_round_trip_ms(
     finally:
         forked.close()
         warm.close()
+        pin_process(None)
 
 
-def both(act, submission, steps: int) -> tuple[np.ndarray, np.ndarray]:
-    """Round trips with fresh driving observations, as the simulator hands them to the
-    submission's format, and with an empty observation [ms]."""
+def both(
+    placed: dict[str, tuple[tuple[int, ...] | None, Callable]], submission, steps: int
+) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """For each placement (row suffix -> its CPUs and its agent's act): round trips with fresh
+    driving observations, as the simulator hands them to the submission's format, and with an
+    empty observation [ms]."""
     fmt = submission.interface.observation_format
     fresh = in_place(submission.interface) if fmt == "arrays" else lambda i: packed(driving(i))
-    return timings_ms(act, fresh, steps), timings_ms(act, empty(fmt), steps)
+    timed = side_by_side(placed, fresh, steps)
+    floors = side_by_side(placed, empty(fmt), steps)
+    return {suffix: (timed[suffix], floors[suffix]) for suffix in placed}
+
+
+def side_by_side(
+    placed: dict[str, tuple[tuple[int, ...] | None, Callable]],
+    observations: Observations,
+    steps: int,
+) -> dict[str, np.ndarray]:
+    """``timings_ms`` of each placement's act, in turns of ``BLOCK`` rounds (this process, the
+    simulator's stand-in, moved to the placement's CPUs for its turn): a load that comes and
+    goes on a shared machine falls on all of them alike."""
+    times: dict[str, list[float]] = {suffix: [] for suffix in placed}
+    for cpus, act in placed.values():
+        pin_process(cpus)
+        for i in range(WARMUP):
+            act(observations(i))
+    for first in range(0, steps, BLOCK):
+        for suffix, (cpus, act) in placed.items():
+            pin_process(cpus)
+            for i in range(first, min(first + BLOCK, steps)):
+                obs = observations(WARMUP + i)
+                started = time.perf_counter()
+                act(obs)
+                times[suffix].append(time.perf_counter() - started)
+    return {suffix: np.array(values) * 1000.0 for suffix, values in times.items()}
 
 
 def median_of(results: dict, name: str, fmt: str, column: int) -> float:

@@ -1,8 +1,9 @@
 """Evaluate one submission on a scenario set: ``arena evaluate``.
 
 Up to ``jobs`` episodes run at once, each in its own simulator process with its own sandboxed
-agent (the threads here only wait on those processes). A reactive scenario runs
-``episodes_per_scenario`` episodes, each with other traffic (:mod:`arena.episodes`).
+agent (the threads here only wait on those processes); the episodes of job i run, simulator and
+agent, on that job's CPUs (``pin_jobs``, :mod:`evaluator.sandbox.placement`). A reactive
+scenario runs ``episodes_per_scenario`` episodes, each with other traffic (:mod:`arena.episodes`).
 ``summary.json`` is rewritten as episodes start and finish (at most once per round of those that
 finish and start together, and less often as it grows: :meth:`ResultsFolder.checkpoint`), so a
 crash leaves a trace and a re-run with the same ``out_dir`` resumes where it stopped.
@@ -15,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import os
 import shutil
 import tempfile
 import threading
@@ -52,6 +54,7 @@ from evaluator.runner.results import (
 from evaluator.runner.scenario import ScenarioOutcome, run_scenario
 from evaluator.runner.score_cache import SCORES_FILE, ScoreCache
 from evaluator.sandbox.backend_registry import backend_for, resolve_kind
+from evaluator.sandbox.placement import job_cpus
 from evaluator.sandbox.warm_pool import warm_agents
 from evaluator.scoring import DEFAULT_PROFILE, ScoringProfile, load_profile
 from evaluator.summary import (
@@ -137,6 +140,7 @@ def evaluate(
     suite = load_suite(request.suite_dir).select(request.scenario_ids)
     out_dir = Path(request.out_dir)
     model_dir = request.model_dir
+    allowed = os.sched_getaffinity(0)  # the CPUs the jobs share out (job_cpus)
     with tempfile.TemporaryDirectory(prefix="arena-submission-") as tmp:
         Path(tmp).chmod(0o755)  # sandboxes run the agent as another user, who must enter it
         submission = prepare_submission(
@@ -165,7 +169,7 @@ def evaluate(
         if progress:
             progress.started(len(run.episodes), list(run.outcomes.values()))
 
-        def play(episode: Episode) -> ScenarioOutcome:
+        def play(episode: Episode, job: int) -> ScenarioOutcome:
             return run_scenario(
                 submission,
                 suite.scenario_dir(episode.scenario_id),
@@ -175,6 +179,7 @@ def evaluate(
                 sandbox=sandbox,
                 episode=episode.index,
                 limits=cpu_limits,
+                cpus=job_cpus(job, config, allowed),
             )
 
         with (
@@ -184,6 +189,8 @@ def evaluate(
             ThreadPoolExecutor(max_workers=max(1, request.jobs)) as pool,
         ):
             pending: dict[Future, Episode] = {}
+            # Which job (0 to jobs - 1) each running episode is: its CPUs are the job's.
+            jobs_of: dict[Future, int] = {}
             queue = list(todo)
             starts = _StartWatch(request.fail_fast_after)
             finished: list[ScenarioOutcome] = []
@@ -195,7 +202,9 @@ def evaluate(
                 ):
                     episode = queue.pop(0)
                     run.mark_running(episode)
-                    pending[pool.submit(play, episode)] = episode
+                    job = min(set(range(request.jobs)) - set(jobs_of.values()))
+                    future = pool.submit(play, episode, job)
+                    pending[future], jobs_of[future] = episode, job
                 # The episodes that finished are scored (reading their records) while the next
                 # ones start.
                 for outcome in finished:
@@ -206,6 +215,8 @@ def evaluate(
                 if not pending:
                     break
                 done, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for future in done:
+                    del jobs_of[future]
                 finished = [_outcome_of(future, pending.pop(future)) for future in done]
                 for outcome in finished:
                     starts.saw(outcome)

@@ -20,6 +20,7 @@ from arena.scenario import load_scenario
 from evaluator import sandbox as sandboxes
 from evaluator.failures import describe_end
 from evaluator.provenance import Environment, environment
+from evaluator.sandbox.placement import pin_process
 from evaluator.sandbox.warm_pool import warm_agents
 from sim.episode_workers import episode_workers
 
@@ -36,7 +37,10 @@ SIMULATOR_ATTEMPTS = 2
 
 @dataclass(frozen=True)
 class SandboxedAgentFactory:
-    """Picklable: the simulator's child process calls it to start the agent in its sandbox."""
+    """Picklable: the simulator's child process calls it to start the agent in its sandbox. The
+    process that calls it (the episode's simulator) moves to ``cpus``, where the sandbox starts
+    too (the job's, :mod:`evaluator.sandbox.placement`; None: wherever the scheduler puts them).
+    """
 
     submission: PreparedSubmission
     kind: SandboxKind | None
@@ -44,8 +48,10 @@ class SandboxedAgentFactory:
     config: SandboxSettings
     data_dir: Path
     limits: CpuLimits | None = None
+    cpus: tuple[int, ...] | None = None
 
     def __call__(self) -> Agent:
+        pin_process(self.cpus)
         return sandboxes.start(
             self.submission,
             config=self.config,
@@ -53,6 +59,7 @@ class SandboxedAgentFactory:
             kind=self.kind,
             labels=self.labels,
             limits=self.limits,
+            cpus=self.cpus,
         )
 
     @property
@@ -65,12 +72,16 @@ class SandboxedAgentFactory:
 @dataclass(frozen=True)
 class ForkedAgentFactory:
     """Picklable: the simulator's child process calls it to take over the agent forked for this
-    episode in the submission's warm sandbox (:mod:`evaluator.sandbox.warm`)."""
+    episode in the submission's warm sandbox (:mod:`evaluator.sandbox.warm`), whose zygote runs
+    on ``cpus``; the process that calls it moves there too, as with
+    :class:`SandboxedAgentFactory`."""
 
     agent: ForkedAgent
     limits: CpuLimits | None = None
+    cpus: tuple[int, ...] | None = None
 
     def __call__(self) -> Agent:
+        pin_process(self.cpus)
         return self.agent.start(self.limits)
 
     preload_modules = ("evaluator.sandbox.warm",)
@@ -84,18 +95,20 @@ def agent_factory(
     config: SandboxSettings,
     data_dir: Path,
     limits: CpuLimits | None = None,
+    cpus: tuple[int, ...] | None = None,
 ) -> Iterator[SandboxedAgentFactory | ForkedAgentFactory]:
     """How one episode gets its agent: forked in a warm sandbox when the setting allows and the
-    submission's zygote started, else in a sandbox of its own; either acts under ``limits``."""
-    cold = SandboxedAgentFactory(submission, kind, labels, config, data_dir, limits)
+    submission's zygote started, else in a sandbox of its own; either acts under ``limits`` and
+    runs on ``cpus`` with the episode's simulator."""
+    cold = SandboxedAgentFactory(submission, kind, labels, config, data_dir, limits, cpus)
     if not config.warm_agents:
         yield cold
         return
-    with warm_agents().lease(submission, kind, labels, config, data_dir) as forked:
+    with warm_agents().lease(submission, kind, labels, config, data_dir, cpus) as forked:
         if forked is None:
             yield cold
         else:
-            yield ForkedAgentFactory(forked, limits)
+            yield ForkedAgentFactory(forked, limits, cpus)
 
 
 @dataclass(frozen=True)
@@ -178,6 +191,7 @@ def run_scenario(
     run_key: str | None = None,
     episode: int = 0,
     limits: CpuLimits | None = None,
+    cpus: tuple[int, ...] | None = None,
 ) -> ScenarioOutcome:
     """Simulate episode ``episode`` of ``scenario_dir`` (its traffic seed from
     :func:`arena.episodes.traffic_seed`) with the submission's agent, writing
@@ -188,7 +202,8 @@ def run_scenario(
     the sandboxes (:func:`sandbox_labels`); a fresh one is made when not given. The agent runs
     in a sandbox of ``config`` (``sandbox``: its kind, None: the setting's) owned by
     ``data_dir``, and acts under ``limits`` (default: ``config``'s); the outcome says the CPU
-    it used.
+    it used. The episode's simulator and agent run on ``cpus`` (its job's,
+    :func:`evaluator.sandbox.placement.job_cpus`; None: wherever the scheduler puts them).
     """
     kind = sandboxes.resolve_kind(sandbox, config)
     scenario = load_scenario(scenario_dir)
@@ -202,7 +217,7 @@ def run_scenario(
     for attempt in range(1, SIMULATOR_ATTEMPTS + 1):
         labels = sandbox_labels(run_key, attempt)
         record_path.unlink(missing_ok=True)
-        with agent_factory(submission, kind, labels, config, data_dir, limits) as factory:
+        with agent_factory(submission, kind, labels, config, data_dir, limits, cpus) as factory:
             result = episode_workers().run_episode(
                 scenario_dir,
                 factory,

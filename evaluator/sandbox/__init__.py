@@ -44,17 +44,19 @@ def start(
     kind: SandboxKind | str | None = None,
     labels: dict[str, str] | None = None,
     limits: CpuLimits | None = None,
+    cpus: tuple[int, ...] | None = None,
 ) -> AgentHandle:
     """Start ``submission`` (a PreparedSubmission) and wait until its Policy is built; the
     sandbox is owned by (labelled with) the resolved ``data_dir``; its acts run under
-    ``limits`` (default: ``config``'s).
+    ``limits`` (default: ``config``'s), on ``cpus`` (its job's,
+    :mod:`evaluator.sandbox.placement`; None: any).
 
     Raises :class:`~arena.errors.AgentFailed` when the policy fails to import or construct
     in ``init_timeout_s``, :class:`~arena.errors.SandboxUnavailable` when the sandbox itself
     cannot start.
     """
     chosen = backend_for(resolve_kind(kind, config))
-    sandbox = chosen.launch(LaunchSpec.of_agent(submission, config, data_dir, labels))
+    sandbox = chosen.launch(LaunchSpec.of_agent(submission, config, data_dir, labels, cpus=cpus))
     return AgentHandle.started(sandbox, config, submission.interface, limits)
 
 

@@ -105,6 +105,8 @@ class LaunchSpec:
     instance: str = field(default_factory=lambda: uuid.uuid4().hex)
     model: Path | None = None  # a trained output the agent reads (mounted read-only)
     training: Training | None = None  # set: run train.py, not the agent runner
+    # The CPUs it runs on, its evaluation job's (evaluator.sandbox.placement); None: any.
+    cpus: tuple[int, ...] | None = None
 
     @classmethod
     def of_agent(
@@ -116,7 +118,7 @@ class LaunchSpec:
         **options,
     ) -> LaunchSpec:
         """The spec of ``submission``'s (a PreparedSubmission) agent, as its ``agent.yaml`` and
-        trained output say; ``options``: zygote."""
+        trained output say; ``options``: zygote, cpus."""
         return cls(
             submission=submission.root,
             deps=submission.deps_dir,

@@ -138,7 +138,7 @@ class BubblewrapBackend:
         seccomp = seccomp_fd(spec.seccomp_program())
         file_bytes = spec.training.output_bytes if spec.training is not None else None
         if group is not None:
-            rlimits = rlimit_setter(None, None, file_bytes=file_bytes)
+            rlimits = rlimit_setter(None, None, file_bytes=file_bytes, cpus=spec.cpus)
 
             def preexec() -> None:
                 group.join()
@@ -149,6 +149,7 @@ class BubblewrapBackend:
                 config.agent_pids,
                 cpu_seconds=spec.cpu_seconds(),
                 file_bytes=file_bytes,
+                cpus=spec.cpus,
             )
         try:
             process = subprocess.Popen(

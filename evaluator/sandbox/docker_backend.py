@@ -36,6 +36,7 @@ from evaluator.sandbox.backend import (
 )
 from evaluator.sandbox.channel import Channel, ChannelClosed, ChannelTimeout
 from evaluator.sandbox.cpu import CpuMeter, cgroup_meter
+from evaluator.sandbox.placement import cpuset
 
 SOCKET_MOUNT = "/run/arena"
 SOCKET_NAME = "agent.sock"
@@ -183,6 +184,9 @@ def container_options(spec: LaunchSpec, socket_dir: Path | None) -> dict[str, An
     pids_limit = config.agent_pids
     if config.docker_runtime:
         extra["runtime"] = config.docker_runtime
+    if spec.cpus is not None:
+        # Its job's CPUs (evaluator.sandbox.placement), beside the quota, which stays nano_cpus.
+        extra["cpuset_cpus"] = cpuset(spec.cpus)
     if config.docker_runtime in USER_SPACE_KERNELS:
         # The container's cgroup holds gVisor's kernel (its threads, its ptrace stubs), not the
         # agent's processes one for one: the agent's are counted by that kernel, per uid, and

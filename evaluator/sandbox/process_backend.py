@@ -85,6 +85,7 @@ class ProcessBackend:
                     spec.config.agent_memory_bytes,
                     None,
                     file_bytes=training.output_bytes if training else None,
+                    cpus=spec.cpus,
                 ),
             )
         finally:

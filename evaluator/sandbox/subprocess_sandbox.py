@@ -58,15 +58,20 @@ def rlimit_setter(
     processes: int | None,
     cpu_seconds: float | None = None,
     file_bytes: int | None = None,
+    cpus: tuple[int, ...] | None = None,
 ) -> Callable[[], None]:
     """A preexec function that caps core dumps and, when given, address space, processes, CPU
     time and file size: per process, so only where no control group caps the whole sandbox.
+    With ``cpus`` it also puts the sandbox's first process, and so all it starts, on those CPUs
+    (its job's, :mod:`evaluator.sandbox.placement`).
 
     Without cgroups there is no CPU share to cap, so the CPU time an agent may burn is bounded
     instead: start-up plus one episode's wall time on one CPU (SIGXCPU, then SIGKILL 5 s later).
     """
 
     def apply() -> None:
+        if cpus is not None:
+            os.sched_setaffinity(0, cpus)
         if memory_bytes is not None:
             resource.setrlimit(resource.RLIMIT_AS, (memory_bytes, memory_bytes))
         resource.setrlimit(resource.RLIMIT_CORE, (0, 0))

@@ -160,12 +160,19 @@ class WarmAgent:
         config: SandboxSettings,
         data_dir: Path,
         labels: dict[str, str] | None = None,
+        cpus: tuple[int, ...] | None = None,
     ) -> WarmAgent:
-        """Start ``submission``'s zygote. Raises :class:`SandboxUnavailable` when it does not say
-        hello and ready in ``init_timeout_s``: it runs none of the participant's code, so that
-        is ours (the caller then starts each agent cold, which reports the agent's own errors)."""
+        """Start ``submission``'s zygote, on ``cpus`` (those of the job it serves; its agents
+        inherit them). Raises :class:`SandboxUnavailable` when it does not say hello and ready
+        in ``init_timeout_s``: it runs none of the participant's code, so that is ours (the
+        caller then starts each agent cold, which reports the agent's own errors)."""
         spec = LaunchSpec.of_agent(
-            submission, config, data_dir, {**(labels or {}), WARM_LABEL: "1"}, zygote=True
+            submission,
+            config,
+            data_dir,
+            {**(labels or {}), WARM_LABEL: "1"},
+            zygote=True,
+            cpus=cpus,
         )
         sandbox = backend_for(kind).launch(spec)
         deadline = time.monotonic() + config.init_timeout_s

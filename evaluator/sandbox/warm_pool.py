@@ -24,11 +24,13 @@ from evaluator.sandbox.warm import KILL_WAIT_S, ForkedAgent, WarmAgent
 
 log = logging.getLogger(__name__)
 
-# (the submission zip's sha256, its trained model folder or None, sandbox kind): by content, so
-# that a submission prepared again (into another folder) finds its warm agent, and one prepared
-# elsewhere never borrows another's. The folders a warm agent binds are never changed under it
-# (a worker prepares each zip once, into a folder named after its digest).
-Key = tuple[str, Path | None, SandboxKind]
+# (the submission zip's sha256, its trained model folder or None, sandbox kind, the CPUs it runs
+# on or None): by content, so that a submission prepared again (into another folder) finds its
+# warm agent, and one prepared elsewhere never borrows another's. The folders a warm agent binds
+# are never changed under it (a worker prepares each zip once, into a folder named after its
+# digest). A zygote's CPUs are its sandbox's (Docker's cpuset is set at creation), so each
+# job's episodes fork from a zygote on the job's CPUs (evaluator.sandbox.placement).
+Key = tuple[str, Path | None, SandboxKind, tuple[int, ...] | None]
 
 
 class WarmAgents:
@@ -47,11 +49,13 @@ class WarmAgents:
         labels: dict[str, str],
         config: SandboxSettings,
         data_dir: Path,
+        cpus: tuple[int, ...] | None = None,
     ) -> Iterator[ForkedAgent | None]:
-        """A freshly forked agent of ``submission`` for one episode, or None when this
-        submission runs cold. Raises nothing of the zygote's: it falls back to cold."""
+        """A freshly forked agent of ``submission`` for one episode, on ``cpus`` (the job's;
+        None: any), or None when this submission runs cold. Raises nothing of the zygote's: it
+        falls back to cold."""
         # A retrained model is another agent: it gets a zygote of its own.
-        key = (submission.sha256, submission.model_dir, kind)
+        key = (submission.sha256, submission.model_dir, kind, cpus)
         self.close_idle(config.warm_agent_idle_s)
         warm = self._take(key, submission, config, data_dir)
         if warm is None:
@@ -123,7 +127,9 @@ class WarmAgents:
                 return warm
             warm.close()
         try:
-            return WarmAgent.start(submission, key[2], config, data_dir, labels=self._labels)
+            return WarmAgent.start(
+                submission, key[2], config, data_dir, labels=self._labels, cpus=key[3]
+            )
         except SandboxUnavailable as error:
             log.warning("no warm agent for %s, its episodes start cold: %s", key[0], error)
             with self._lock:
