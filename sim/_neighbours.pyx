@@ -1,6 +1,7 @@
 """Compiled neighbours' states: :meth:`sim.traffic.SumoTraffic.vehicles_around`'s states from
-SUMO's report and :meth:`sim.vehicle.states.VehicleStates.nearest_first`, with their arithmetic
-operation for operation (``sim/compiled.py``)."""
+SUMO's report, :meth:`sim.vehicle.states.VehicleStates.nearest_first`, and the two in one
+(:meth:`sim.traffic.SumoTraffic.vehicles_within`), with their arithmetic operation for operation
+(``sim/compiled.py``)."""
 
 import numpy as np
 
@@ -70,3 +71,22 @@ def nearest_first(const double[:, :] values, double x, double y, double radius):
     if k < n:
         return order[:k], distance[:k]
     return order, distance
+
+
+def report_nearest(dict results, str vid, skip, dict dims, measure, position, angle, speed,
+                   lane, double x, double y, double radius):
+    """:func:`report_states` and :func:`nearest_first` of them in one: (ids, values (k, 6),
+    lane ids, distances) of the reported vehicles within ``radius`` of (x, y), nearest first
+    (ties in id order), as VehicleStates.nearest_first selects them."""
+    ids, values, lanes = report_states(results, vid, skip, dims, measure, position, angle,
+                                       speed, lane)
+    order, distance = nearest_first(values, x, y, radius)
+    cdef const double[:, ::1] every = values
+    cdef const Py_ssize_t[::1] at = order
+    cdef Py_ssize_t k = at.shape[0], i, j
+    near = np.empty((k, 6))
+    cdef double[:, ::1] out = near
+    for i in range(k):
+        for j in range(6):
+            out[i, j] = every[at[i], j]
+    return [ids[at[i]] for i in range(k)], near, [lanes[at[i]] for i in range(k)], distance

@@ -1,7 +1,7 @@
 """Which per-step core runs: the compiled one, or the pure-Python reference.
 
 The hot spots of a step (lane projection and the nearest-lane search, the neighbours' states from
-SUMO's report, the collision boxes, the waypoint paths, and the neighbours and waypoints of the
+SUMO's report and their nearest-first order, the collision boxes, the waypoint paths, and the
 arrays observation's record) have Cython versions (the ``_*.pyx`` files next to the modules they
 serve, built by ``pip install .`` and ``pip install -e .`` through ``setup.py``) that do the
 Python's arithmetic operation for operation, so that records and observations are the same

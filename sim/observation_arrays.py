@@ -268,13 +268,18 @@ _NEIGHBOUR_FIELDS = itemgetter("position", "heading", "speed", "bounding_box", "
 _EVENTS = itemgetter(*EVENT_NAMES)
 
 
-def head_struct(layout: ObservationLayout) -> struct.Struct:
-    """One struct for the head leaves (those before the neighbours): events pack any value's
-    truth ('?'), as ``bool``."""
+def head_leaves(layout: ObservationLayout) -> tuple[Leaf, ...]:
+    """The head's leaves, in record order: those before the neighbours (the scalars, the
+    events, the ego's fields, its lane index and the goal)."""
     first_variable = next(i for i, f in enumerate(layout.leaves) if f.path[0] == NEIGHBOURS)
-    leaves = layout.leaves[:first_variable]
+    return layout.leaves[:first_variable]
+
+
+def head_struct(layout: ObservationLayout) -> struct.Struct:
+    """One struct for the :func:`head_leaves`: events pack any value's truth ('?'), as
+    ``bool``."""
     parts, at = ["<"], 0
-    for leaf in leaves:
+    for leaf in head_leaves(layout):
         parts.append("x" * (leaf.offset - at))
         code = "?" if leaf.path[0] == "events" else _STRUCT_CODE[leaf.dtype]
         parts.append(f"{math.prod(leaf.shape)}{code}")

@@ -27,6 +27,7 @@ from sim.observation_arrays import (
     RASTER_NAMES,
     WAYPOINT_FIELDS,
     ObservationLayout,
+    head_leaves,
     head_struct,
     head_values,
 )
@@ -68,7 +69,6 @@ class ObservationRecord:
         # The slots of the first n neighbours' values, flat, for each n: no index array per step.
         self._nbr_slots = [slots[:n].ravel() for n in range(self.max_neighbours + 1)]
         self._nbr_floats = np.ndarray((8 * self.max_neighbours,), F32, self.record, floats_at)
-        self._nbr_floats_at, self._nbr_slot_table = floats_at, np.ascontiguousarray(slots, np.int64)
         paths = self.arrays[PATHS]
         self._per_path = layout.interface.waypoints_per_path
         self._path_mask = paths["mask"].reshape(-1)
@@ -81,14 +81,6 @@ class ObservationRecord:
             (len(WAYPOINT_FIELDS), self._path_mask.size), first.dtype, self.record, first.offset
         )
         self._path_bytes = _span(layout, PATHS)
-        # [bytes] where the compiled core writes each point's mask, position, lane and floats
-        self._path_offsets = (
-            layout.leaf(PATHS, "mask").offset,
-            layout.leaf(PATHS, "pos").offset,
-            layout.leaf(PATHS, "lane_index").offset,
-            first.offset,
-            self._path_mask.size,
-        )
         # The paths' bytes with the first k paths' mask set and nothing else written, for each k:
         # full paths (the usual case) are then one copy and their values.
         start, end = self._path_bytes
@@ -99,6 +91,29 @@ class ObservationRecord:
             block[mask_at : mask_at + k * self._per_path] = b"\x01" * (k * self._per_path)
             self._path_blank.append(bytes(block))
         self._rasters = [name for name in RASTER_NAMES if name in self.arrays]
+        # The compiled core writes the head, the neighbours and the paths in one call.
+        self._writer = None
+        if _record_writer is not None:
+            head = head_leaves(layout)
+            self._writer = _record_writer.RecordWriter(
+                [leaf.offset for leaf in head],
+                head[-1].offset + head[-1].nbytes,
+                self._nbr_bytes[0],
+                self._nbr_blank,
+                floats_at,
+                np.ascontiguousarray(slots, np.int64),
+                self._nbr_lane_at,
+                self._path_bytes[0],
+                self._path_blank[0],
+                self._per_path,
+                (  # [bytes] each point's mask, position, lane index and floats; the slots
+                    layout.leaf(PATHS, "mask").offset,
+                    layout.leaf(PATHS, "pos").offset,
+                    layout.leaf(PATHS, "lane_index").offset,
+                    first.offset,
+                    self._path_mask.size,
+                ),
+            )
 
     def write(
         self,
@@ -115,12 +130,49 @@ class ObservationRecord:
         done: bool,
     ) -> ArraysObservation:
         """The values :func:`sim.observation.build_observation` would give, in place."""
+        elapsed = round(step * dt, 6)
+        if self._writer is not None:
+            n = min(len(neighbours), self.max_neighbours)
+            if len(neighbours) > n:  # the nearest are kept (the states are nearest first)
+                neighbours = neighbours.first(n)
+            self._writer.write(
+                self.record,
+                vehicle,
+                step,
+                dt,
+                elapsed,
+                lane,
+                events,
+                neighbours.values,
+                neighbour_lanes(neighbours, road),
+                waypoints.values,
+                waypoints.counts,
+            )
+        else:
+            self._write_head(vehicle, step, dt, elapsed, lane, events)
+            self._write_neighbours(neighbours, road)
+            self._write_waypoints(waypoints)
+        for name in self._rasters:
+            self.arrays[name][...] = rasters[name]
+        return ArraysObservation(
+            self.record, self.arrays, done, events, lane.lane.edge_id, lane.lane.id
+        )
+
+    def _write_head(
+        self,
+        vehicle: MissionVehicle,
+        step: int,
+        dt: float,
+        elapsed: float,
+        lane: LanePosition,
+        events: Events,
+    ) -> None:
         pose, k, mission = vehicle.pose, vehicle.kinematics, vehicle.mission
         self._head.pack_into(
             self.record,
             0,
             *head_values(
-                (dt, step, round(step * dt, 6), vehicle.distance_travelled),
+                (dt, step, elapsed, vehicle.distance_travelled),
                 events,
                 [
                     (pose.x, pose.y, 0.0),
@@ -142,13 +194,6 @@ class ObservationRecord:
                 mission.goal.radius,
             ),
         )
-        self._write_neighbours(neighbours, road)
-        self._write_waypoints(waypoints)
-        for name in self._rasters:
-            self.arrays[name][...] = rasters[name]
-        return ArraysObservation(
-            self.record, self.arrays, done, events, lane.lane.edge_id, lane.lane.id
-        )
 
     def _write_neighbours(self, neighbours: VehicleStates, road: RoadNetwork) -> None:
         n = min(len(neighbours), self.max_neighbours)
@@ -158,17 +203,6 @@ class ObservationRecord:
             return
         if len(neighbours) > n:  # the nearest are kept (the states are nearest first)
             neighbours = neighbours.first(n)
-        if _record_writer is not None:
-            _record_writer.write_neighbours(
-                self.record,
-                self._nbr_floats_at,
-                self._nbr_slot_table,
-                neighbours.values,
-                n,
-                self._nbr_lane_at,
-                neighbour_lanes(neighbours, road),
-            )
-            return
         self._nbr_floats[self._nbr_slots[n]] = neighbours.values.ravel()
         self._nbr_lane[n].pack_into(
             self.record,
@@ -179,10 +213,6 @@ class ObservationRecord:
     def _write_waypoints(self, waypoints: WaypointArrays) -> None:
         first, end = self._path_bytes
         w, values, counts = self._per_path, waypoints.values, waypoints.counts
-        if _record_writer is not None:  # every mask it writes itself
-            self.record[first:end] = self._path_blank[0]
-            _record_writer.write_waypoints(self.record, values, counts, w, *self._path_offsets)
-            return
         if values.shape[1] == w * len(counts):  # every path full: the slots in a row
             self.record[first:end] = self._path_blank[len(counts)]
             at: slice | np.ndarray = slice(0, values.shape[1])

@@ -366,12 +366,14 @@ class Simulation:
     ) -> Surroundings:
         """Other vehicles within the observation radius of ``v``'s centre, nearest first:
         SUMO's, ``replay``'s and the other live egos of ``egos``."""
-        assert self._traffic is not None
-        others = self._traffic.vehicles_around(v.id, self._mission_ids)
-        if len(replay) or len(egos):
-            others = VehicleStates.concat([others, replay, egos.without({v.id})])
-        near, distance = others.nearest_first(v.pose.x, v.pose.y, self.interface.observation_radius)
-        return Surroundings(near, distance)
+        traffic = self._traffic
+        assert traffic is not None
+        x, y, radius = v.pose.x, v.pose.y, self.interface.observation_radius
+        if not (len(replay) or len(egos)):  # SUMO's alone
+            return Surroundings(*traffic.vehicles_within(v.id, self._mission_ids, x, y, radius))
+        sumo = traffic.vehicles_around(v.id, self._mission_ids)
+        others = VehicleStates.concat([sumo, replay, egos.without({v.id})])
+        return Surroundings(*others.nearest_first(x, y, radius))
 
     def _lane_of(self, v: MissionVehicle) -> LanePosition:
         lane = self._moved_to.pop(v.id, None)  # found for SUMO's mapping, at the same pose

@@ -106,6 +106,9 @@ class Traffic(Protocol):
     def watch_around(self, vid: str, radius: float) -> None: ...
     def step(self) -> None: ...
     def vehicles_around(self, vid: str, skip: Collection[str] = ()) -> VehicleStates: ...
+    def vehicles_within(
+        self, vid: str, skip: Collection[str], x: float, y: float, radius: float
+    ) -> tuple[VehicleStates, np.ndarray]: ...
     def is_in_network(self, vid: str) -> bool: ...
     def all_vehicles(self) -> VehicleStates: ...
     def close(self) -> None: ...
@@ -256,6 +259,18 @@ class SumoTraffic:
             return VehicleStates.of(ids, values, lanes) if ids else VehicleStates.empty()
         return self._states(results, [v for v in results if v not in skip and v != vid])
 
+    def vehicles_within(
+        self, vid: str, skip: Collection[str], x: float, y: float, radius: float
+    ) -> tuple[VehicleStates, np.ndarray]:
+        """:meth:`vehicles_around` whose centre is within ``radius`` [m] of (x, y) [m], nearest
+        first, and their distances [m] (:meth:`VehicleStates.nearest_first`)."""
+        if _neighbours is not None:  # read, measured and ordered in one call
+            ids, values, lanes, distance = _neighbours.report_nearest(
+                self._context(vid), vid, skip, self._dims, self._measure, *self._vars, x, y, radius
+            )
+            return VehicleStates.of(ids, values, lanes) if ids else VehicleStates.empty(), distance
+        return self.vehicles_around(vid, skip).nearest_first(x, y, radius)
+
     def is_in_network(self, vid: str) -> bool:
         """Whether vehicle ``vid`` is driving, or waiting to enter at the next step."""
         if vid in self._context(vid):  # a watched vehicle driving is in its own report: no
@@ -358,6 +373,11 @@ class MissionsOnlyTraffic:
 
     def vehicles_around(self, vid: str, skip: Collection[str] = ()) -> VehicleStates:
         return VehicleStates.empty()
+
+    def vehicles_within(
+        self, vid: str, skip: Collection[str], x: float, y: float, radius: float
+    ) -> tuple[VehicleStates, np.ndarray]:
+        return self.vehicles_around(vid, skip).nearest_first(x, y, radius)
 
     def is_in_network(self, vid: str) -> bool:
         return vid in self._present

@@ -27,13 +27,16 @@ import sim.road.network
 import sim.road.waypoints
 import sim.traffic
 import sim.vehicle.states
+from arena.scenario import load_scenario
 from arena.suite import SHIPPED_PUBLIC_DIR
 from sim.compiled import MODULES, PURE_PYTHON_VARIABLE, compiled, core_status
-from sim.events import collisions
+from sim.events import Events, collisions
 from sim.interface import AgentInterface
+from sim.mission_vehicle import Kinematics, MissionVehicle
 from sim.observation_arrays import ObservationLayout
 from sim.observation_record import ObservationRecord
 from sim.road.waypoints import path_starts, waypoint_arrays
+from sim.vehicle import Pose
 from sim.vehicle.states import VehicleStates
 from tests.sim.test_road import MAPS, beside, shipped_road
 
@@ -152,14 +155,20 @@ def test_states_from_sumos_report_are_the_reference_bit_for_bit(monkeypatch):
     def answers():
         traffic = _Report({"ego": (2.0, 4.0, 1.8), "bg7": (2.5, 5.0, 2.0)})
         found = []
-        for report in reports:
+        for i, report in enumerate(reports):
             traffic._around = {"ego": report}
             states = traffic.vehicles_around("ego", {"bg1", "bg2"})
             found.append((states.ids, states.lane_id, states.values.tobytes()))
+            # read and ordered in one: about a third of them within the radius
+            near, distance = traffic.vehicles_within("ego", {"bg1"}, 4.0 * i, -30.0, 400.0)
+            found.append((near.ids, near.lane_id, near.values.tobytes(), distance.tobytes()))
         return found
 
     compiled = answers()
+    within = compiled[1::2]
+    assert sum(len(f[0]) for f in within) > 500 and any(not f[0] for f in within)
     monkeypatch.setattr(sim.traffic, "_neighbours", None)
+    monkeypatch.setattr(sim.vehicle.states, "_neighbours", None)
     assert compiled == answers()
 
 
@@ -192,34 +201,56 @@ def test_waypoint_sampling_is_the_reference_bit_for_bit(scenario_id, monkeypatch
 
 
 def test_observation_records_are_the_reference_bytes(monkeypatch):
-    # Neighbours fewer and more than the slots, with SUMO's lanes and without (the nearest
-    # lane's), and waypoint paths full and cut short by a dead end.
-    road = shipped_road("p000_left_turn_t_low")
+    # Whole observations: the head (pose, kinematics, lane, events), neighbours fewer and more
+    # than the slots, with SUMO's lanes and without (the nearest lane's), and waypoint paths
+    # full and cut short by a dead end.
+    scenario_id = "p000_left_turn_t_low"
+    road = shipped_road(scenario_id)
+    mission = load_scenario(SHIPPED_PUBLIC_DIR / scenario_id).missions[0]
     interface = AgentInterface(max_neighbours=8, waypoints_per_path=30, max_waypoint_paths=3)
     rng = np.random.default_rng(17)
     lanes = list(road.lanes.values())
     (xmin, ymin, xmax, ymax), route = road.bounds, tuple(road.edges)
     cases = []
-    for _ in range(150):
+    for step in range(150):
         states = _random_states(rng, int(rng.integers(0, 14)), 1.0)
         states.values[:, :2] = rng.uniform([xmin, ymin], [xmax, ymax], (len(states), 2))
         states.lane_id[:] = [lanes[k].id if k % 3 else "" for k in range(len(states))]
-        x, y = states.values[0, :2].tolist() if len(states) else (xmin, ymin)
+        vehicle = MissionVehicle.from_mission(mission)
+        x, y = rng.uniform([xmin, ymin], [xmax, ymax]).tolist()
+        heading, speed, steering, distance = rng.uniform(-4.0, 30.0, 4).tolist()
+        vehicle.pose = Pose(x, y, heading, speed, steering)
+        pairs = rng.normal(0.0, 10.0, (3, 2)).tolist()
+        vehicle.kinematics = Kinematics(*map(tuple, pairs), *rng.normal(0.0, 3.0, 3).tolist())
+        vehicle.distance_travelled = distance * step
+        flags = (rng.uniform(size=8) < 0.3).tolist()
+        events = Events(("v1", "v2") if flags[0] else (), *flags[1:])
         position = road.nearest_lane(x, y)
         starts = path_starts(road, position, x, y, route, interface.max_waypoint_paths)
-        cases.append((states, waypoint_arrays(road, starts, route, interface.waypoints_per_path)))
+        waypoints = waypoint_arrays(road, starts, route, interface.waypoints_per_path)
+        cases.append((vehicle, step, position, events, states, waypoints))
 
     def answers():
         record = ObservationRecord(ObservationLayout(interface))
         found = []
-        for states, waypoints in cases:
-            record._write_neighbours(states, road)
-            record._write_waypoints(waypoints)
-            found.append(bytes(record.record))
+        for vehicle, step, position, events, states, waypoints in cases:
+            observation = record.write(
+                vehicle=vehicle,
+                step=step,
+                dt=0.1,
+                lane=position,
+                events=events,
+                neighbours=states,
+                road=road,
+                waypoints=waypoints,
+                rasters=None,
+                done=False,
+            )
+            found.append(bytes(observation.record))
         return found
 
     compiled = answers()
-    assert any(sum(w.counts) < 90 for _, w in cases)  # some paths cut short
+    assert any(sum(w.counts) < 90 for *_, w in cases)  # some paths cut short
     monkeypatch.setattr(sim.observation_record, "_record_writer", None)
     assert compiled == answers()
 
