@@ -49,8 +49,10 @@ def step_outcome(
         "events": events,
         "done_reason": reason,
         "scoring_terms": terms,
-        **({"ids": reply.ids[agent_id]} if agent_id in reply.ids else {}),
     }
+    ids = reply.ids.get(agent_id)
+    if ids is not None:
+        info["ids"] = ids
     terminated = reason is not None and reason != MAX_STEPS_REASON
     truncated = reason == MAX_STEPS_REASON
     return obs, float(reward), terminated, truncated, info

@@ -54,12 +54,16 @@ class Closeness:
     def update(self, row: RecordRow) -> float:
         speed = row.speed
         nbr = row.neighbours
-        if not speed > 0.0 or not len(nbr):
+        count = len(nbr)
+        if not speed > 0.0 or not count:
             return 0.0
         reach = self._headway * speed  # [m]
         x, y, heading = row.x, row.y, row.heading
-        for nx, ny in zip(nbr.x.tolist(), nbr.y.tolist(), strict=True):
-            dx, dy = nx - x, ny - y
+        # Read value by value: the loop mostly stops at the second or third neighbour, and a
+        # memoryview's item is a plain float without converting the rest.
+        values = memoryview(nbr.values)
+        for i in range(count):
+            dx, dy = values[i, 0] - x, values[i, 1] - y
             # A neighbour farther than reach along either axis is farther in a straight line:
             # skipped before the costly functions, with the same verdict.
             if abs(dx) > reach or abs(dy) > reach:
@@ -67,7 +71,9 @@ class Closeness:
             distance = math.hypot(dx, dy)
             if distance > reach:
                 return 0.0  # and so are all the rest
-            if abs(wrap_angle(math.atan2(dy, dx) - heading)) <= self._half_angle:
+            # wrap_angle inline: a call is a fifth of an iteration's cost
+            off_heading = (math.atan2(dy, dx) - heading + math.pi) % _TWO_PI - math.pi
+            if abs(off_heading) <= self._half_angle:
                 return math.exp(-self._decay * distance)
         return 0.0
 

@@ -59,20 +59,23 @@ class SimulatorSession:
     def step(self, actions: dict[str, Any]) -> Reply:
         sim = self.sim
         assert sim is not None, "reset first"
-        live_before = {v.id for v in sim.live}
+        live_before = sim.live  # in the order of sim.vehicles
         # The simulator hands an agent that finished while driving this step its last
         # observation once (``done`` True): that is the Gymnasium terminal observation.
         drove = sim.step(actions)
-        obs = {k: o for k, o in drove.items() if not o.done}
         reply = Reply(observations={}, scenario_id=sim.scenario.id)
-        for v in sim.vehicles:
-            if v.id in live_before and v.id not in obs:
+        obs = {}
+        rows = sim.recorder.rows
+        for agent_id, observation in drove.items():
+            if not observation.done:
+                obs[agent_id] = observation
+            reply.events[agent_id] = observation.events.as_observation()
+            reply.terms[agent_id] = self._terms.step(agent_id, rows[agent_id])
+        for v in live_before:
+            if v.id not in obs:
                 reply.finished[v.id] = str(v.reason)
                 if v.id in drove:  # drove this step (not ended by an invalid action)
                     reply.terminal[v.id] = self._encode(drove[v.id])
-        for agent_id, observation in drove.items():
-            reply.events[agent_id] = observation.events.as_observation()
-            reply.terms[agent_id] = self._terms.step(agent_id, sim.recorder.rows[agent_id])
         # Only agents still waiting to enter: move time on until one does or the episode ends.
         while not obs and not sim.done:
             obs = {k: o for k, o in sim.step({}).items() if not o.done}

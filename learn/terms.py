@@ -8,17 +8,20 @@ late in an episode as early.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 from evaluator.scoring.profile import ScoringProfile
-from learn.running_terms import RUNNING_TERMS, RunningTerm
+from learn.running_terms import RUNNING_TERMS
 from sim.record import RecordRow
 
 
 class _AgentTerms:
     def __init__(self, profile: ScoringProfile) -> None:
         names = (*profile.humanness_terms, *profile.rules_terms)
-        self.terms: dict[str, RunningTerm] = {name: RUNNING_TERMS[name](profile) for name in names}
+        # (name, the running term's bound update) of each term: no lookups per row
+        self.updates: list[tuple[str, Callable[[RecordRow], float]]] = [
+            (name, RUNNING_TERMS[name](profile).update) for name in names
+        ]
         self.rows_seen = 0
         self.last: dict[str, float] = {}
 
@@ -36,7 +39,9 @@ class EpisodeTerms:
         agent = self._agents.get(agent_id)
         if agent is None:
             agent = self._agents[agent_id] = _AgentTerms(self._profile)
-        for row in rows[agent.rows_seen :]:
-            agent.last = {name: term.update(row) for name, term in agent.terms.items()}
-        agent.rows_seen = len(rows)
+        seen, count = agent.rows_seen, len(rows)
+        for t in range(seen, count):
+            row = rows[t]
+            agent.last = {name: update(row) for name, update in agent.updates}
+        agent.rows_seen = count
         return dict(agent.last)
