@@ -30,6 +30,13 @@ def is_embedded_broker(broker_url: str) -> bool:
     return broker_url.startswith("sqla+")
 
 
+def reaches_workers(broker_url: str) -> bool:
+    """Whether a ping can reach a worker process through this broker: not through the embedded
+    one, nor kombu's in-memory transport (the fast tier's), which passes messages between the
+    threads of one process only, so a ping would only wait out its timeout."""
+    return not (is_embedded_broker(broker_url) or broker_url.startswith("memory://"))
+
+
 def celery_config(settings: Settings) -> dict[str, Any]:
     broker = settings.storage.resolved_broker_url
     config: dict[str, Any] = {

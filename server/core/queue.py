@@ -20,6 +20,7 @@ from server.core.celery_app import (
     TASK_VALIDATE,
     create_celery_app,
     is_embedded_broker,
+    reaches_workers,
 )
 
 # What sending to or reading from an unreachable broker raises (kombu wraps most as
@@ -92,8 +93,8 @@ class TaskQueue:
             return declared.message_count
 
     def workers(self) -> list[str] | None:
-        """Names of the workers that answer a ping; None where the broker cannot broadcast."""
-        if is_embedded_broker(self.settings.storage.resolved_broker_url):
+        """Names of the workers that answer a ping; None where the broker cannot reach them."""
+        if not reaches_workers(self.settings.storage.resolved_broker_url):
             return None
         replies = self.celery.control.ping(timeout=1.0) or []
         return sorted(name for reply in replies for name in reply)

@@ -3,13 +3,22 @@ configured like a deployment: through ARENA_* environment variables."""
 
 from __future__ import annotations
 
+import re
+
 from server.models import Submission
 from tests.server.builders import make_team, queued_submission
 
 
-def test_status_reports_queue_and_stuck_runs(arena, db):
+def test_status_reports_queue_workers_and_stuck_runs(arena, settings):
+    """Redis reaches every worker process: they are pinged and listed. The in-memory broker
+    passes messages between the threads of one process only, so a ping could only wait out its
+    timeout: status says it cannot list them instead."""
     output = arena("status")
     assert "queue depth:" in output and "stuck runs: none" in output
+    if settings.storage.resolved_broker_url.startswith("memory://"):
+        assert "\nworkers: (the embedded broker cannot list workers)\n" in output
+    else:
+        assert re.search(r"^workers \(\d+\): ", output, re.MULTILINE), output
 
 
 def test_status_lists_overdue_work_and_broken_phases(arena, db, settings, monkeypatch):
