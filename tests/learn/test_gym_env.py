@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import itertools
 from pathlib import Path
 
 import gymnasium
@@ -62,6 +63,25 @@ class Repeat:
 
     def close(self) -> None:
         pass
+
+
+def test_a_kept_observation_is_not_changed_by_later_steps(closing) -> None:
+    """Training loops keep observations (replay buffers, frame stacks), so each one's arrays are
+    its own: no later step writes into them (the simulator rewrites its record every step)."""
+    env = DrivingArenaEnv(CRUISE, action_space="LaneWithContinuousSpeed")
+    closing(env)
+    flatten = functools.partial(gymnasium.spaces.utils.flatten, env.observation_space)
+    obs, _ = env.reset(seed=0)
+    kept = [(obs, flatten(obs))]
+    for _ in range(5):
+        obs, *_ = env.step(np.array([9.0, 0.0], np.float32))
+        kept.append((obs, flatten(obs)))
+    for observation, values in kept:
+        np.testing.assert_array_equal(flatten(observation), values)
+    for (earlier, _), (later, _) in itertools.pairwise(kept):
+        position = earlier["ego_vehicle_state"]["position"]
+        assert not np.shares_memory(position, later["ego_vehicle_state"]["position"])
+    assert len({values.tobytes() for _, values in kept}) == len(kept)  # the ego moved
 
 
 def test_an_episode_is_the_evaluators_episode(closing, tmp_path) -> None:
