@@ -38,6 +38,7 @@ def test_passes_gymnasiums_env_checker_with_rasters(closing) -> None:
     assert obs["top_down_rgb"].shape == (64, 64, 3) and obs["top_down_rgb"].any()
 
 
+@pytest.mark.slow  # stable-baselines3's import (torch): seconds of CPU in a fast-tier process
 def test_passes_stable_baselines3s_env_checker_unwrapped(closing) -> None:
     """SB3 indexes each top-level box's out-of-bounds entries: no leaf may be 0-d."""
     env_checker = pytest.importorskip("stable_baselines3.common.env_checker")

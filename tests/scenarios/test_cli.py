@@ -88,6 +88,8 @@ def test_an_empty_seed_is_refused_with_what_a_seed_may_be(tmp_path):
     assert "number or a passphrase" in result.output
 
 
+# A real `arena` process running the planner's episode in a pipe: the fast tier starts none.
+@pytest.mark.integration
 def test_verify_in_a_pipe_is_not_cut_at_80_columns(tmp_path):
     """Output piped (`arena scenarios verify ... | tee log`): each row whole on one line."""
     import os
