@@ -21,10 +21,13 @@ def serve(host: str = "127.0.0.1", port: int = 8000, workers: int = 1) -> None:
 
     import uvicorn
 
-    from arena.config import get_settings
+    from arena.config import ServiceSettings
     from server.core.http import HeaderDeadlineProtocol
 
-    service = get_settings().service
+    # Its group alone, not get_settings(): that withdraws the secrets' plain variables from this
+    # process's environment, which uvicorn's worker processes (--workers above 1, as in the
+    # service image) start from: they found a password file without its URL, and stopped.
+    service = ServiceSettings()
     uvicorn.run(
         "server.app:create_app",
         factory=True,
