@@ -54,7 +54,7 @@ from evaluator.runner.results import (
 from evaluator.runner.scenario import ScenarioOutcome, run_scenario
 from evaluator.runner.score_cache import SCORES_FILE, ScoreCache
 from evaluator.sandbox.backend_registry import backend_for, resolve_kind
-from evaluator.sandbox.placement import job_cpus
+from evaluator.sandbox.placement import claimed_cpus
 from evaluator.sandbox.warm_pool import warm_agents
 from evaluator.scoring import DEFAULT_PROFILE, ScoringProfile, load_profile
 from evaluator.summary import (
@@ -140,7 +140,7 @@ def evaluate(
     suite = load_suite(request.suite_dir).select(request.scenario_ids)
     out_dir = Path(request.out_dir)
     model_dir = request.model_dir
-    allowed = os.sched_getaffinity(0)  # the CPUs the jobs share out (job_cpus)
+    allowed = os.sched_getaffinity(0)  # the CPUs the jobs share out (claimed_cpus)
     with tempfile.TemporaryDirectory(prefix="arena-submission-") as tmp:
         Path(tmp).chmod(0o755)  # sandboxes run the agent as another user, who must enter it
         submission = prepare_submission(
@@ -170,17 +170,18 @@ def evaluate(
             progress.started(len(run.episodes), list(run.outcomes.values()))
 
         def play(episode: Episode, job: int) -> ScenarioOutcome:
-            return run_scenario(
-                submission,
-                suite.scenario_dir(episode.scenario_id),
-                out_dir / RECORDS_DIR,
-                config=config,
-                data_dir=data_dir,
-                sandbox=sandbox,
-                episode=episode.index,
-                limits=cpu_limits,
-                cpus=job_cpus(job, config, allowed),
-            )
+            with claimed_cpus(job, config, allowed) as cpus:
+                return run_scenario(
+                    submission,
+                    suite.scenario_dir(episode.scenario_id),
+                    out_dir / RECORDS_DIR,
+                    config=config,
+                    data_dir=data_dir,
+                    sandbox=sandbox,
+                    episode=episode.index,
+                    limits=cpu_limits,
+                    cpus=cpus,
+                )
 
         with (
             _warm_agents_of(submission),

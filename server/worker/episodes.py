@@ -8,6 +8,7 @@ import logging
 from functools import partial
 from pathlib import Path
 
+from celery.utils.log import current_process_index
 from sqlalchemy.orm import Session
 
 from arena.config import ServiceSettings, Settings
@@ -15,6 +16,7 @@ from evaluator import sandbox
 from evaluator.runner import new_run_key, sandbox_labels
 from evaluator.runner import run_scenario as run_episode
 from evaluator.runner.scenario import ScenarioOutcome
+from evaluator.sandbox.placement import claimed_cpus
 from server.core.queue import TaskQueue
 from server.jobs.kind import Lease
 from server.services import evaluation
@@ -80,17 +82,21 @@ class Episodes:
         submission = local.prepared(claim.upload_key)
         if claim.model_key is not None:
             submission = dataclasses.replace(submission, model_dir=local.model(claim.model_key))
-        return run_episode(
-            submission,
-            Path(claim.scenario_dir),
-            records,
-            config=settings.sandbox,
-            data_dir=settings.storage.resolved_data_dir,
-            sandbox=local.sandbox_kind(),
-            run_key=run_key,
-            episode=claim.episode,
-            limits=claim.limits,
-        )
+        # Each pool process is a job: its simulator and agent share a CPU no other job holds.
+        job = current_process_index(base=0) or 0
+        with claimed_cpus(job, settings.sandbox) as cpus:
+            return run_episode(
+                submission,
+                Path(claim.scenario_dir),
+                records,
+                config=settings.sandbox,
+                data_dir=settings.storage.resolved_data_dir,
+                sandbox=local.sandbox_kind(),
+                run_key=run_key,
+                episode=claim.episode,
+                limits=claim.limits,
+                cpus=cpus,
+            )
 
     def ours(self, claim: ScenarioJob, reason: str, error: str) -> ScenarioOutcome:
         return ScenarioOutcome.ours(

@@ -71,6 +71,10 @@ def test_each_job_runs_on_its_own_cpu(public_suite, tmp_path, pin_jobs, warm_age
         agent, parent = SEEN.search((out / "logs" / f"{scenario_id}.txt").read_text()).groups()
         assert agent == parent
         seen.append(agent)
-    # Both episodes start at once, as jobs 0 and 1.
-    expected = [str(allowed[0]), str(allowed[1])] if pin_jobs else [listed(allowed)] * 2
-    assert sorted(seen) == sorted(expected)
+    if pin_jobs:
+        # Both episodes start at once, as jobs 0 and 1: each on a CPU of its own (CPUs 0 and 1
+        # unless another evaluation on this machine holds one, placement.claimed_cpus).
+        assert len(set(seen)) == 2
+        assert {int(cpu) for cpu in seen} <= set(allowed)
+    else:
+        assert seen == [listed(allowed)] * 2

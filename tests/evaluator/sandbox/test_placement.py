@@ -3,13 +3,14 @@ what the agent sees of itself inside its sandbox, on every backend, cold and for
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 
 import pytest
 
 from arena.config import Settings
 from evaluator.sandbox import start
-from evaluator.sandbox.placement import job_cpus
+from evaluator.sandbox.placement import claimed_cpus, job_cpus
 from evaluator.sandbox.warm_pool import WarmAgents
 from tests.evaluator.sandbox.agents import agent, observation
 from tests.settings import sandbox_args, with_fields
@@ -65,6 +66,49 @@ def test_jobs_get_cpus_in_turn(settings: Settings) -> None:
     assert job_cpus(0, config, [3]) is None
     off = with_fields(settings, sandbox={"pin_jobs": False}).sandbox
     assert job_cpus(1, off, [0, 1, 2]) is None
+
+
+# CPU numbers no machine here has: their lock files are this test's alone, whatever evaluations
+# run beside it.
+UNREAL = [9000, 9001, 9002]
+
+
+def test_a_claimed_cpu_is_not_given_to_another_job(settings: Settings) -> None:
+    config = settings.sandbox
+    with claimed_cpus(0, config, UNREAL) as first, claimed_cpus(0, config, UNREAL) as second:
+        # Another evaluation (or pool process) numbering its jobs from 0 gets the next free CPU.
+        assert (first, second) == ((9000,), (9001,))
+        with claimed_cpus(2, config, UNREAL) as third, claimed_cpus(1, config, UNREAL) as fourth:
+            assert third == (9002,)
+            assert fourth is None  # every CPU held: the scheduler places it
+    with claimed_cpus(1, config, UNREAL) as again:
+        assert again == (9001,)  # released with its block
+    off = with_fields(settings, sandbox={"pin_jobs": False}).sandbox
+    with claimed_cpus(0, off, UNREAL) as unpinned:
+        assert unpinned is None
+
+
+def _hold_first_cpu(config, held, release) -> None:
+    with claimed_cpus(0, config, UNREAL[:2]):
+        held.set()
+        release.wait(30)
+
+
+def test_claims_hold_across_processes(settings: Settings) -> None:
+    ctx = multiprocessing.get_context("spawn")
+    held, release = ctx.Event(), ctx.Event()
+    other = ctx.Process(target=_hold_first_cpu, args=(settings.sandbox, held, release))
+    other.start()
+    try:
+        assert held.wait(30)
+        with claimed_cpus(0, settings.sandbox, UNREAL[:2]) as cpus:
+            assert cpus == (9001,)
+    finally:
+        release.set()
+        other.join(30)
+    # A process's claims end with it.
+    with claimed_cpus(0, settings.sandbox, UNREAL[:2]) as cpus:
+        assert cpus == (9000,)
 
 
 def test_the_agent_runs_on_its_jobs_cpu(any_kind, settings, labels, tmp) -> None:
