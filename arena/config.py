@@ -270,12 +270,13 @@ class SandboxSettings(SettingsGroup):
     # step); on one CPU it is a context switch. Job i gets CPU i of this process's allowed set
     # (round robin when jobs exceed CPUs; ceil(agent_cpus) CPUs a job when the agent may use
     # more than one, none when that is all of them), or the first CPU no other job on the machine
-    # holds (a service worker's pool process is a job; none free: not pinned). The agent's quota (agent_cpus) and its CPU
-    # time limits are unchanged: they count its own CPU time, and the simulator waits while the
-    # agent computes. On by default, from measurements side by side (docs/performance.md "One CPU
-    # a job"): on a quiet 2-core VM a hand-off took 17 us pinned against 64-80 us, and on a busy
-    # one the round trip was the same either way. ARENA_PIN_JOBS=false leaves placement to the
-    # scheduler: for a host whose CPUs other processes keep busy, where a pinned job cannot move.
+    # holds (a service worker's pool process is a job; none free: not pinned). The agent's quota
+    # (agent_cpus) and its CPU time limits are unchanged: they count its own CPU time, and the
+    # simulator waits while the agent computes. On by default, from measurements side by side
+    # (docs/performance.md "One CPU a job"): on a quiet 2-core VM a hand-off took 17 us pinned
+    # against 64-80 us, and on a busy one the round trip was the same either way.
+    # ARENA_PIN_JOBS=false leaves placement to the scheduler: for a host whose CPUs other
+    # processes keep busy, where a pinned job cannot move.
     pin_jobs: bool = True
 
     @property

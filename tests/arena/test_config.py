@@ -48,6 +48,7 @@ VARIABLES = {
     "ARENA_AGENT_GLIBC_VERSION": ("sandbox", "agent_glibc_version", "2.40", "2.40"),
     "ARENA_WARM_AGENTS": ("sandbox", "warm_agents", "false", False),
     "ARENA_WARM_AGENT_IDLE_S": ("sandbox", "warm_agent_idle_s", "12", 12.0),
+    "ARENA_PIN_JOBS": ("sandbox", "pin_jobs", "false", False),
     "ARENA_MAX_ZIP_BYTES": ("intake", "max_zip_bytes", "13", 13),
     "ARENA_MAX_UNZIPPED_BYTES": ("intake", "max_unzipped_bytes", "14", 14),
     "ARENA_MAX_ZIP_ENTRIES": ("intake", "max_zip_entries", "15", 15),
