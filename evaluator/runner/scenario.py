@@ -203,7 +203,8 @@ def run_scenario(
     in a sandbox of ``config`` (``sandbox``: its kind, None: the setting's) owned by
     ``data_dir``, and acts under ``limits`` (default: ``config``'s); the outcome says the CPU
     it used. The episode's simulator and agent run on ``cpus`` (its job's,
-    :func:`evaluator.sandbox.placement.job_cpus`; None: wherever the scheduler puts them).
+    held by :func:`evaluator.sandbox.placement.claimed_cpus`; None: wherever the scheduler
+    puts them).
     """
     kind = sandboxes.resolve_kind(sandbox, config)
     scenario = load_scenario(scenario_dir)
