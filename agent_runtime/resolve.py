@@ -53,6 +53,8 @@ MAX_TRIED_VERSIONS = 4
 RELAY_CHUNK = 64 * 1024
 FILE_TOO_LARGE = "[Errno 27] File too large"
 MAX_TAIL_LINES = 24
+# Lines of each failed build's own words when several failed (their names come first).
+MIN_TAIL_LINES_EACH = 4
 LEGACY_BUILD_ENV = "legacy-build-env"
 # What legacy setup.py files import without declaring it (d3rlpy 1.1.1: Cython and numpy, which
 # pip's isolated build environment lacks); the file's own numpy pin applies (the built extension
@@ -61,6 +63,18 @@ LEGACY_BUILD_REQUIRES = ("setuptools", "wheel", "Cython<3", "numpy")
 _LEGACY_FAILURE = re.compile(r"metadata-generation-failed|ModuleNotFoundError: No module named")
 _WORKING_ON = ("Collecting ", "Downloading ", "Processing ", "Building wheel for ")
 _BOILERPLATE = ("note:", "hint:", "╰─> See above", "[notice]")
+# pip's own lines around a failed build's output.
+_PIP_FRAMING = (
+    "error: subprocess-exited-with-error",
+    "×",
+    "│",
+    "╰─>",
+    "ERROR: Failed",
+    "Failed to",
+    "Building wheel for",
+)
+# "error" as a word (a compiler's "error:"; not "-Werror=") or an exception's name.
+_ERROR_WORD = re.compile(r"(?<![\w-])[Ee]rror\b|[a-z]Error\b")
 _VERSIONS_LINE = re.compile(r"^Available versions: (.*)$", re.MULTILINE)
 _NO_MATCH = re.compile(r"No matching distribution found for (\S+)")
 _FROM_VERSIONS = re.compile(r"\(from versions: ([^)]*)\)")
@@ -506,12 +520,13 @@ def run_download(request: dict, output: Path, proxy_port: int | None) -> dict:
 
 def run_build(request: dict, source: Path, output: Path) -> dict:
     """Each sdist of ``source`` built into a wheel, with no network (``--no-index``) and only
-    the build requirements downloaded before."""
+    the build requirements downloaded before. Every sdist is tried, so that one upload names
+    all that do not build, each with its own words."""
     pip = Pip(request, output, None)
     if (source / LEGACY_BUILD_ENV).is_dir():
         pip.use_build_env(source / LEGACY_BUILD_ENV)
     wheels = output / WHEELS_DIR
-    built = []
+    built, failures = [], {}
     sdists = source / SDISTS_DIR
     for sdist in sorted(sdists.iterdir()) if sdists.is_dir() else []:
         code, failed = pip.run(
@@ -525,20 +540,44 @@ def run_build(request: dict, source: Path, output: Path) -> dict:
             str(wheels),
             str(sdist),
         )
-        if code != 0:
-            return {
-                "ok": False,
-                "errors": [],
-                "conflict": [],
-                "tail": [
-                    f"building {sdist.name} into a wheel failed (no network, only its "
-                    "downloaded build requirements, a C/C++ compiler and Python's headers; a "
-                    "system library it needs is not there: ship a wheel of it instead):",
-                    *failure_tail(failed),
-                ],
-            }
-        built.append(sdist.name)
+        if code == 0:
+            built.append(sdist.name)
+        else:
+            failures[sdist.name] = failure_tail(failed)
+    if failures:
+        return {"ok": False, "errors": [], "conflict": [], "tail": build_failure_tail(failures)}
     return {"ok": True, "wheels": sorted(p.name for p in wheels.glob("*.whl")), "built": built}
+
+
+def build_failure_tail(failures: dict[str, list[str]]) -> list[str]:
+    """What the team is told of the sdists that did not build: their names, why a build can
+    fail here, then each one's own words, the lines shared out among them."""
+    names = ", ".join(failures)
+    heading = (
+        f"building {names} into {'a wheel' if len(failures) == 1 else 'wheels'} failed (no "
+        "network, only its downloaded build requirements, a C/C++ compiler and Python's "
+        "headers; a system library it needs is not there: ship a wheel of it instead):"
+    )
+    if len(failures) == 1:
+        return [heading, *next(iter(failures.values()))]
+    each = max(MIN_TAIL_LINES_EACH, MAX_TAIL_LINES // len(failures) - 1)
+    return [heading] + [
+        line for name, tail in failures.items() for line in (f"{name}:", *own_words(tail, each))
+    ]
+
+
+def own_words(tail: list[str], limit: int) -> list[str]:
+    """``limit`` lines of a failed build from the first that its build said error in (the
+    compiler's, a setup script's exception), past pip's framing around it."""
+    start = next(
+        (
+            i
+            for i, line in enumerate(tail)
+            if _ERROR_WORD.search(line) and not line.lstrip().startswith(_PIP_FRAMING)
+        ),
+        0,
+    )
+    return tail[start : start + limit]
 
 
 def main(argv: list[str]) -> int:

@@ -5,6 +5,7 @@ a missing builder is ours, a C file that does not compile is the team's."""
 from __future__ import annotations
 
 import json
+import re
 import zipfile
 from collections.abc import Iterator
 from importlib.metadata import distribution
@@ -64,28 +65,30 @@ def installed_wheel(folder: Path, project: str) -> Path:
     return path
 
 
-def extension_sdist(folder: Path, version: str, source: str) -> Path:
+def extension_sdist(folder: Path, version: str, source: str, project: str = "fastcalc") -> Path:
     return build_sdist(
         folder,
-        "fastcalc",
+        project,
         version,
         {
-            "setup.py": SETUP.replace("1.0", version),
+            "setup.py": SETUP.replace("1.0", version).replace("fastcalc", project),
             "pyproject.toml": PYPROJECT,
-            "fastcalc.c": source,
+            f"{project}.c": source.replace("fastcalc", project),
         },
     )
 
 
 @pytest.fixture(scope="module")
 def index(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    """A loopback index with setuptools, fastcalc 1.0 (compiles) and 2.0 (does not)."""
+    """A loopback index with setuptools, fastcalc 1.0 (compiles), fastcalc 2.0 and slowcalc 1.0
+    (do not)."""
     root = tmp_path_factory.mktemp("index")
     files = root / "files"
     files.mkdir()
     installed_wheel(files, "setuptools")
     extension_sdist(files, "1.0", EXTENSION)
     extension_sdist(files, "2.0", EXTENSION.replace("6 * 7", "6 * 7 +"))
+    extension_sdist(files, "1.0", EXTENSION.replace("6 * 7", "6 *"), project="slowcalc")
     with served_index(files, root / "web") as url:
         yield url
 
@@ -141,6 +144,22 @@ def test_a_c_file_that_does_not_compile_is_the_teams_failure_with_the_compilers_
     assert "building fastcalc-2.0.tar.gz into a wheel failed" in message
     assert "fastcalc.c" in message and "error" in message
     assert str(tmp_path) not in message  # no path of ours
+
+
+@pytest.mark.slow  # compiles in the resolver sandbox
+def test_every_sdist_that_does_not_build_is_named_in_one_rejection(
+    kind: SandboxKind, tmp_path: Path, index: str
+) -> None:
+    settings = settings_for(tmp_path, index)
+    with pytest.raises(IntakeError) as caught:
+        validated(tmp_path, settings, kind, "fastcalc==2.0\nslowcalc==1.0\n")
+    message = str(caught.value)
+    assert caught.value.rule == "sdist-build"
+    assert "building fastcalc-2.0.tar.gz, slowcalc-1.0.tar.gz into wheels failed" in message
+    # Each build's own words under its name, from its compiler's error.
+    for sdist, source in (("fastcalc-2.0.tar.gz", "fastcalc"), ("slowcalc-1.0.tar.gz", "slowcalc")):
+        assert re.search(rf"{sdist}: / {source}\.c:\d+:\d+: error: expected expression", message)
+    assert str(tmp_path) not in message
 
 
 @pytest.mark.docker
