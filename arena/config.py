@@ -236,7 +236,16 @@ class SandboxSettings(SettingsGroup):
     sandbox_shared_dir: Path | None = None
     # Debian mirror the offline agent image is bootstrapped from; empty: the host's apt sources.
     debian_mirror: str = ""
-    init_timeout_s: float = 60.0
+    # Loading the policy (importing policy.py, Policy()) and each reset, counted from the
+    # runtime's hello (docs/protocol.md, "Time limits"): the agent's own CPU time, as for an act,
+    # so that a busy worker (two evaluations, a slow disk) charges the team nothing; the wall
+    # clock only as the backstop for an agent that waits or sleeps, five times the CPU limit: a
+    # legal start-up near its 60 s of CPU then still finishes with the agent given a fifth of a
+    # CPU. Where no CPU meter exists, init_cpu_s applies to the wall clock. Both are charged
+    # init_timeout. init_timeout_s also bounds, on the wall clock, our runtime's own start
+    # before hello (a failure there is ours) and a warm zygote's.
+    init_cpu_s: float = 60.0
+    init_timeout_s: float = 300.0
     # An act's limits (docs/protocol.md, "Time limits"): the agent's own CPU time, read from the
     # host, so that a busy worker changes no score; the wall clock only as a generous backstop
     # (an agent that sleeps or waits uses no CPU). Where no CPU meter exists, step_cpu_s

@@ -52,8 +52,8 @@ def start(
     :mod:`evaluator.sandbox.placement`; None: any).
 
     Raises :class:`~arena.errors.AgentFailed` when the policy fails to import or construct
-    in ``init_timeout_s``, :class:`~arena.errors.SandboxUnavailable` when the sandbox itself
-    cannot start.
+    within ``init_cpu_s`` of its CPU time (``init_timeout_s`` of wall time as the backstop),
+    :class:`~arena.errors.SandboxUnavailable` when the sandbox itself cannot start.
     """
     chosen = backend_for(resolve_kind(kind, config))
     sandbox = chosen.launch(LaunchSpec.of_agent(submission, config, data_dir, labels, cpus=cpus))

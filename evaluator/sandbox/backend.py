@@ -170,11 +170,12 @@ class LaunchSpec:
         return confine.docker_profile(warm_parent=self.zygote)
 
     def cpu_seconds(self) -> float:
-        """CPU time the sandbox may burn where no cgroup caps its share (bubblewrap)."""
+        """CPU time the sandbox may burn where no cgroup caps its share (bubblewrap): the
+        start-up's CPU limit plus the run's wall time on its CPUs (an episode's on one)."""
         config = self.config
         if self.training is not None:
-            return self.training.timeout_s * config.agent_cpus + config.init_timeout_s
-        return config.init_timeout_s + config.episode_timeout_s
+            return self.training.timeout_s * config.agent_cpus + config.init_cpu_s
+        return config.init_cpu_s + config.episode_timeout_s
 
     @property
     def all_labels(self) -> dict[str, str]:

@@ -7,13 +7,22 @@ The episode's CPU is the team's from the moment its code is loaded: the runtime 
 it reads anything of the submission, and from then on every second the sandbox's meter reads
 (importing ``policy.py``, ``Policy()``, ``reset``, every ``act``, ``close``, and whatever the
 agent's threads do between them) is added to ``episode_cpu_s``, the episode's budget and the
-evaluation's; a failure carries what was used up to it. Only an act has the step's own limit.
+evaluation's; a failure carries what was used up to it.
+
+Each exchange with the team's code has its own limit of the same kind (a :class:`TimeLimit`): its
+CPU time, read from the sandbox's meter, so that a busy worker charges the team nothing, and a
+generous wall-clock backstop for an agent that waits or sleeps (where no meter reads CPU, the CPU
+limit applies to the wall clock). Loading the policy (``ready``) and each ``reset`` have
+``init_cpu_s`` and ``init_timeout_s`` (``init_timeout``), an act ``step_cpu_s`` and
+``step_timeout_s`` (``step_timeout``). Before hello only our runtime runs: it has
+``init_timeout_s`` of wall time, and missing it is ours (``sandbox_error``).
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any, NoReturn
 
 from arena.config import SandboxSettings
@@ -33,6 +42,23 @@ CLOSE_GRACE_S = 1.0
 EXIT_STATUS_WAIT_S = 2.0
 # How often the CPU an unanswered act has used is read while waiting for its answer [s].
 CPU_POLL_S = 0.25
+
+
+@dataclass(frozen=True)
+class TimeLimit:
+    """What one exchange with the agent may take, charged ``reason`` when it takes more:
+    ``cpu_s`` of the agent's CPU time (on the wall clock where no meter reads CPU) and ``wall_s``
+    of wall time as the backstop. ``doing`` names the exchange in the failure's message."""
+
+    reason: DoneReason
+    doing: str
+    cpu_s: float
+    wall_s: float
+
+    def deadline(self, cpu_from: float | None) -> float:
+        """When to stop waiting: the backstop while the meter reads CPU (from ``cpu_from``),
+        else the CPU limit itself."""
+        return time.monotonic() + (self.wall_s if cpu_from is not None else self.cpu_s)
 
 
 class AgentHandle:
@@ -60,10 +86,21 @@ class AgentHandle:
         self.takes_arrays = self._arrays is not None
         self.takes_packed_waypoints = self._arrays is None
         self.takes_agent_ids = True  # reset names the episode's agents (sim.agent)
-        self._step_cpu_s = limits.step_s
-        self._step_timeout_s = config.step_timeout_s
+        self._step = TimeLimit(
+            DoneReason.step_timeout, "one act", limits.step_s, config.step_timeout_s
+        )
+        self._load = TimeLimit(
+            DoneReason.init_timeout,
+            "importing and building the policy",
+            config.init_cpu_s,
+            config.init_timeout_s,
+        )
+        self._reset = TimeLimit(
+            DoneReason.init_timeout, "the policy's reset", config.init_cpu_s, config.init_timeout_s
+        )
         self._episode_cpu_s = limits.episode_s
-        self._init_timeout_s = config.init_timeout_s
+        # Our runtime's start, before hello: wall time, and ours.
+        self._runtime_start_s = config.init_timeout_s
         self._meter: CpuReader | None = None
         self._cpu_mark: float | None = None  # the meter when last charged [s]
         self.episode_cpu_s = 0.0  # agent CPU time of this episode so far, from its loading [s]
@@ -94,10 +131,10 @@ class AgentHandle:
         return handle
 
     def handshake(self) -> None:
-        deadline = time.monotonic() + self._init_timeout_s
+        deadline = time.monotonic() + self._runtime_start_s
         # Until hello the sandbox runs our runtime only (it says hello before it reads anything
         # of the submission): whatever ends it before then is ours (sandbox_error, not charged;
-        # arena.outcome.verdict), after it the team's.
+        # arena.outcome.verdict), after it the team's, under the loading's own limits.
         try:
             self._channel = self._sandbox.connect(deadline)
         except ChannelTimeout:
@@ -106,11 +143,12 @@ class AgentHandle:
             self._fail(DoneReason.sandbox_error, self._ended_detail("before the runner started"))
         meter = self._sandbox.cpu_meter()
         self._meter = meter.open() if meter is not None else None
-        self.hello = self._expect("hello", deadline, DoneReason.init_timeout, startup=True)
+        self.hello = self._expect("hello", deadline)
         # From here on the sandbox loads and runs the team's code: every CPU second is theirs.
-        self._cpu_mark = self._cpu_now()
-        ready = self._expect("ready", deadline, DoneReason.init_timeout)
-        self._charge_episode()
+        self._cpu_mark = started = self._cpu_now()
+        deadline = self._load.deadline(started)
+        ready = self._expect("ready", deadline, self._load, cpu_from=started)
+        self._charge(self._load)
         init_s = ready.get("init_s")
         # The agent's own figure: kept only when it is a plain, sane number.
         self.init_s = (
@@ -118,33 +156,28 @@ class AgentHandle:
         )
         self.stack = reported_stack(ready.get("stack"))
         if self._arrays is not None:  # no answer: the runner keeps it for the act frames
-            self._send("layout", self._arrays.layout.describe(), deadline, DoneReason.init_timeout)
+            self._send("layout", self._arrays.layout.describe(), deadline, self._load.reason)
 
     def reset(self, agent_ids: Sequence[str] = ()) -> None:
-        """A new episode of the agents ``agent_ids`` (all of them, those starting later too)."""
-        deadline = time.monotonic() + self._init_timeout_s
-        self._send("reset", {"agents": list(agent_ids)}, deadline, DoneReason.init_timeout)
-        self._expect("done", time.monotonic() + self._init_timeout_s, DoneReason.init_timeout)
-        self._charge_episode()
+        """A new episode of the agents ``agent_ids`` (all of them, those starting later too),
+        within the start-up's CPU limit and wall-clock backstop, and the episode's CPU budget."""
+        started = self._cpu_start()
+        deadline = self._reset.deadline(started)
+        self._send("reset", {"agents": list(agent_ids)}, deadline, self._reset.reason)
+        self._expect("done", deadline, self._reset, cpu_from=started)
+        self._charge(self._reset)
 
     def act(self, obs: dict[str, Observation]) -> dict[str, Any]:
         """The agent's actions for ``obs``, within the step's CPU limit (the wall clock where
         no meter reads CPU) and the wall-clock backstop, and the episode's CPU budget."""
-        if self._cpu_mark is None:
-            self._cpu_mark = self._cpu_now()
-        started = self._cpu_mark
-        metered = started is not None
-        limit = self._step_timeout_s if metered else self._step_cpu_s
-        deadline = time.monotonic() + limit
+        started = self._cpu_start()
+        deadline = self._step.deadline(started)
         if self._arrays is None:
-            self._send("act", obs, deadline, DoneReason.step_timeout)
+            self._send("act", obs, deadline, self._step.reason)
         else:
             self._send_frame(self._arrays.frame(obs), deadline)
-        message = self._expect(
-            "actions", deadline, DoneReason.step_timeout, cpu_from=started if metered else None
-        )
-        if metered:
-            self._charge_act()
+        message = self._expect("actions", deadline, self._step, cpu_from=started)
+        self._charge(self._step)
         actions = message.get("actions")
         if not isinstance(actions, dict):
             self._fail(DoneReason.agent_error, "protocol violation: actions are not a dict")
@@ -201,6 +234,13 @@ class AgentHandle:
     def _cpu_now(self) -> float | None:
         return self._meter.seconds() if self._meter is not None else None
 
+    def _cpu_start(self) -> float | None:
+        """The meter's reading an exchange counts from: the last charge's (what the agent's
+        threads used since is the exchange's too); None where no meter reads CPU."""
+        if self._cpu_mark is None:
+            self._cpu_mark = self._cpu_now()
+        return self._cpu_mark
+
     def _account(self) -> float | None:
         """Add the CPU the sandbox used since the last mark to the episode's, and mark now;
         what was added [s] (None: nothing reads CPU, or nothing of the team's ran yet)."""
@@ -214,19 +254,13 @@ class AgentHandle:
         self.episode_cpu_s += used
         return used
 
-    def _charge_act(self) -> None:
-        """Charge an answered act: against the step's limit and the episode's budget."""
+    def _charge(self, limit: TimeLimit) -> None:
+        """Charge an answered exchange: against its own CPU limit and the episode's budget."""
         used = self._account()
-        if used is not None and used > self._step_cpu_s:
+        if used is not None and used > limit.cpu_s:
             self._fail(
-                DoneReason.step_timeout,
-                f"one act used {used:.2f} s of CPU (limit {self._step_cpu_s:g} s)",
+                limit.reason, f"{limit.doing} used {used:.2f} s of CPU (limit {limit.cpu_s:g} s)"
             )
-        self._check_episode_budget()
-
-    def _charge_episode(self) -> None:
-        """Charge loading or resetting the agent: against the episode's budget only."""
-        self._account()
         self._check_episode_budget()
 
     def _check_episode_budget(self) -> None:
@@ -237,11 +271,13 @@ class AgentHandle:
                 f"(limit {self._episode_cpu_s:g} s)",
             )
 
-    def _receive(self, deadline: float, cpu_from: float | None) -> dict[str, Any]:
+    def _receive(
+        self, deadline: float, limit: TimeLimit | None, cpu_from: float | None
+    ) -> dict[str, Any]:
         """The next message by ``deadline``; with ``cpu_from`` (a meter reading), also fail as
-        soon as the agent has used more CPU than one step may while we wait."""
+        soon as the agent has used more CPU than ``limit`` allows while we wait."""
         assert self._channel is not None
-        if cpu_from is None:
+        if limit is None or cpu_from is None:
             return self._channel.receive(deadline)
         while True:
             try:
@@ -250,37 +286,34 @@ class AgentHandle:
                 if time.monotonic() >= deadline:
                     raise
             now = self._cpu_now()
-            if now is not None and now - cpu_from > self._step_cpu_s:
-                # Charged too (by _fail): the evaluation's budget counts what the act used.
+            if now is not None and now - cpu_from > limit.cpu_s:
+                # Charged too (by _fail): the evaluation's budget counts what the exchange used.
                 self._fail(
-                    DoneReason.step_timeout,
-                    f"one act used more than {self._step_cpu_s:g} s of CPU without answering",
+                    limit.reason,
+                    f"{limit.doing} used more than {limit.cpu_s:g} s of CPU without answering",
                 )
 
     def _expect(
         self,
         kind: str,
         deadline: float,
-        late: DoneReason,
+        limit: TimeLimit | None = None,
         *,
-        startup: bool = False,
         cpu_from: float | None = None,
     ) -> dict[str, Any]:
+        """The next message, of type ``kind``, within ``limit`` (None: our runtime's start,
+        whose failures are ours) counted from the meter's ``cpu_from``."""
         assert self._channel is not None
         try:
-            message = self._receive(deadline, cpu_from)
+            message = self._receive(deadline, limit, cpu_from)
         except ChannelTimeout:
-            if startup:
+            if limit is None:
                 self._fail(DoneReason.sandbox_error, f"the runner did not say {kind} in time")
-            if late is not DoneReason.step_timeout:
-                limit = self._init_timeout_s
-            elif cpu_from is None:
-                limit = self._step_cpu_s
-            else:
-                self._fail(late, f"no {kind} within {self._step_timeout_s:g} s of wall time")
-            self._fail(late, f"no {kind} within {limit:g} s")
+            if cpu_from is None:  # the CPU limit, on the wall clock
+                self._fail(limit.reason, f"no {kind} within {limit.cpu_s:g} s")
+            self._fail(limit.reason, f"no {kind} within {limit.wall_s:g} s of wall time")
         except ChannelClosed:
-            if startup:
+            if limit is None:
                 self._fail(
                     DoneReason.sandbox_error, self._ended_detail("before the runner started")
                 )

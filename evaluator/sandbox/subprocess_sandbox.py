@@ -66,7 +66,8 @@ def rlimit_setter(
     (its job's, :mod:`evaluator.sandbox.placement`).
 
     Without cgroups there is no CPU share to cap, so the CPU time an agent may burn is bounded
-    instead: start-up plus one episode's wall time on one CPU (SIGXCPU, then SIGKILL 5 s later).
+    instead: start-up's CPU limit plus one episode's wall time on one CPU (SIGXCPU, then SIGKILL
+    5 s later).
     """
 
     def apply() -> None:

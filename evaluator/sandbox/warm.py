@@ -164,8 +164,10 @@ class WarmAgent:
     ) -> WarmAgent:
         """Start ``submission``'s zygote, on ``cpus`` (those of the job it serves; its agents
         inherit them). Raises :class:`SandboxUnavailable` when it does not say hello and ready
-        in ``init_timeout_s``: it runs none of the participant's code, so that is ours (the
-        caller then starts each agent cold, which reports the agent's own errors)."""
+        in ``init_timeout_s`` of wall time: it runs none of the participant's code, so that is
+        ours (the caller then starts each agent cold, which reports the agent's own errors).
+        Each forked agent then loads the policy under the start-up's CPU limit
+        (:class:`AgentHandle`), as a cold one does."""
         spec = LaunchSpec.of_agent(
             submission,
             config,

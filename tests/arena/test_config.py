@@ -33,6 +33,7 @@ VARIABLES = {
         "http://127.0.0.1:9/d",
         "http://127.0.0.1:9/d",
     ),
+    "ARENA_INIT_CPU_S": ("sandbox", "init_cpu_s", "6", 6.0),
     "ARENA_INIT_TIMEOUT_S": ("sandbox", "init_timeout_s", "5", 5.0),
     "ARENA_STEP_CPU_S": ("sandbox", "step_cpu_s", "2", 2.0),
     "ARENA_STEP_TIMEOUT_S": ("sandbox", "step_timeout_s", "3", 3.0),

@@ -3,13 +3,18 @@
 from __future__ import annotations
 
 import textwrap
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
-from arena.config import Settings
+from arena.config import SandboxKind, Settings
+from evaluator.sandbox import AgentHandle, start
+from evaluator.sandbox.warm import WarmAgent
 from submissions.intake import PreparedSubmission, prepare_submission
 from submissions.sample import sample_observation as observation
+from tests.settings import sandbox_args
 
-__all__ = ["agent", "observation", "policy_source"]
+__all__ = ["agent", "handle_of", "observation", "policy_source"]
 
 
 def policy_source(act: str = "return {k: [1.0, 0.0] for k in obs}", init: str = "pass") -> str:
@@ -47,3 +52,31 @@ def agent(
         settings.sandbox,
         settings.storage.resolved_data_dir,
     )
+
+
+@contextmanager
+def handle_of(
+    submission: PreparedSubmission,
+    kind: SandboxKind,
+    settings: Settings,
+    labels: dict[str, str],
+    warm: bool,
+) -> Iterator[AgentHandle]:
+    """The started agent of ``submission``: in a sandbox of its own (cold), or forked by a warm
+    zygote (``warm``), as an evaluation starts it."""
+    if not warm:
+        with start(submission, kind=kind, labels=labels, **sandbox_args(settings)) as handle:
+            yield handle
+        return
+    zygote = WarmAgent.start(
+        submission, kind, settings.sandbox, settings.storage.resolved_data_dir, labels=labels
+    )
+    try:
+        forked = zygote.fork(settings.sandbox, {})
+        try:
+            with forked.start() as handle:
+                yield handle
+        finally:
+            forked.close()
+    finally:
+        zygote.close()

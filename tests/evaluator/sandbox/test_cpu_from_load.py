@@ -4,16 +4,12 @@ fails to start still carries what it used. Every isolating backend, cold and for
 
 from __future__ import annotations
 
-from contextlib import contextmanager
-
 import pytest
 
 from arena.errors import AgentFailed
 from arena.outcome import DoneReason
-from evaluator.sandbox import start
-from evaluator.sandbox.warm import WarmAgent
-from tests.evaluator.sandbox.agents import agent, observation
-from tests.settings import sandbox_args, with_fields
+from tests.evaluator.sandbox.agents import agent, handle_of, observation
+from tests.settings import with_fields
 
 BURN = """
 def burn(seconds):
@@ -48,26 +44,6 @@ class Policy:
     def act(self, obs):
         return {{}}
 """
-
-
-@contextmanager
-def handle_of(submission, kind, settings, labels, warm: bool):
-    if not warm:
-        with start(submission, kind=kind, labels=labels, **sandbox_args(settings)) as handle:
-            yield handle
-        return
-    zygote = WarmAgent.start(
-        submission, kind, settings.sandbox, settings.storage.resolved_data_dir, labels=labels
-    )
-    try:
-        forked = zygote.fork(settings.sandbox, {})
-        try:
-            with forked.start() as handle:
-                yield handle
-        finally:
-            forked.close()
-    finally:
-        zygote.close()
 
 
 @pytest.mark.parametrize("warm", [False, True], ids=["cold", "warm"])
