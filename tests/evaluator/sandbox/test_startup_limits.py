@@ -12,12 +12,13 @@ from arena.outcome import DoneReason
 from tests.evaluator.sandbox.agents import agent, handle_of, observation
 from tests.settings import with_fields
 
-# The limits of these tests: a second of CPU, ten of wall time.
-SMALL = {"init_cpu_s": 1.0, "init_timeout_s": 10.0}
+# The limits of these tests: half a second of CPU (loading this policy takes a few ms of it),
+# ten of wall time.
+SMALL = {"init_cpu_s": 0.5, "init_timeout_s": 10.0}
 # A wall backstop passed quickly, still long enough for the runtime's own start (before hello).
-SHORT_WALL = {"init_cpu_s": 1.0, "init_timeout_s": 4.0}
+SHORT_WALL = {"init_cpu_s": 0.5, "init_timeout_s": 4.0}
 
-WAITS = "time.sleep(2.0)"  # twice the CPU limit of waiting, a fifth of the backstop
+WAITS = "time.sleep(1.2)"  # over twice the CPU limit of waiting, an eighth of the backstop
 SPINS = "while True:\n    pass"  # CPU past any limit, never answering
 SLEEPS = "time.sleep(60)"  # past the backstop, using no CPU
 
@@ -40,11 +41,18 @@ def policy(init: str = "pass", reset: str = "pass") -> str:
     )
 
 
-@pytest.mark.parametrize("warm", [False, True], ids=["cold", "warm"])
-@pytest.mark.parametrize("phase", ["init", "reset"])
+# The fast tier keeps a cold start of each kind; a warm one and a reset go with the slow tests.
+COLD_OR_WARM = pytest.mark.parametrize(
+    "warm", [False, pytest.param(True, marks=pytest.mark.slow)], ids=["cold", "warm"]
+)
+RESET = pytest.mark.slow
+
+
+@COLD_OR_WARM
+@pytest.mark.parametrize("phase", ["init", pytest.param("reset", marks=RESET)])
 def test_waiting_while_starting_is_not_charged(phase, warm, any_kind, settings, labels, tmp):
-    """Two seconds of waiting in ``__init__`` or ``reset`` pass a 1 s CPU limit: the agent
-    starts, resets and acts."""
+    """Over a second of waiting in ``__init__`` or ``reset`` passes a 0.5 s CPU limit: the
+    agent starts, resets and acts."""
     limits = with_fields(settings, sandbox=SMALL)
     submission = agent(tmp, limits, source=policy(**{phase: WAITS}))
     with handle_of(submission, any_kind, limits, labels, warm) as handle:
@@ -52,10 +60,13 @@ def test_waiting_while_starting_is_not_charged(phase, warm, any_kind, settings, 
         assert handle.act(observation()) == {"Agent_0": [1.0, 0.0]}
 
 
-@pytest.mark.parametrize("warm", [False, True], ids=["cold", "warm"])
+@COLD_OR_WARM
 @pytest.mark.parametrize(
     ("phase", "doing"),
-    [("init", "importing and building the policy"), ("reset", "the policy's reset")],
+    [
+        ("init", "importing and building the policy"),
+        pytest.param("reset", "the policy's reset", marks=RESET),
+    ],
 )
 def test_computing_past_the_cpu_limit_is_init_timeout(
     phase, doing, warm, any_kind, settings, labels, tmp
@@ -70,10 +81,11 @@ def test_computing_past_the_cpu_limit_is_init_timeout(
     ):
         handle.reset()
     assert caught.value.reason is DoneReason.init_timeout
-    assert f"{doing} used more than 1 s of CPU" in caught.value.detail, caught.value.detail
-    assert caught.value.cpu_s > 1.0
+    assert f"{doing} used more than 0.5 s of CPU" in caught.value.detail, caught.value.detail
+    assert caught.value.cpu_s > 0.5
 
 
+@pytest.mark.slow  # seconds of sleeping, on every backend
 @pytest.mark.parametrize(("phase", "kind_of_answer"), [("init", "ready"), ("reset", "done")])
 def test_waiting_past_the_wall_backstop_is_init_timeout(
     phase, kind_of_answer, any_kind, settings, labels, tmp
