@@ -3,10 +3,11 @@
 :func:`spawn_resolver` is the one way the service starts a resolver child
 (``agent_runtime/resolve.py``). It runs in the backend agents run in (bubblewrap or Docker), as
 uid 65534, with the sandbox's explicit environment (``LaunchSpec.sandbox_env``: nothing of the
-host's, no secret), the runtime, the evaluator's own pip and the package index's folders bound
-read-only, its request as its only input and one writable output folder; memory
-(``resolver_memory_bytes``), wall time (``resolver_timeout_s``), one file's size
-(``max_wheel_bytes``) and the output's bytes (``max_deps_download_bytes``) capped.
+host's, no secret), the runtime, the evaluator's own pip (and its CA bundle, where a distribution
+keeps it apart) and the package index's folders bound read-only, its request as its only input
+and one writable output folder; memory (``resolver_memory_bytes``), wall time
+(``resolver_timeout_s``), one file's size (``max_wheel_bytes``) and the output's bytes
+(``max_deps_download_bytes``) capped.
 
 Its network namespace has loopback only. In ``download`` mode its way out is the host's
 :class:`~evaluator.sandbox.index_proxy.IndexProxy`, whose socket is bound in and which reaches
@@ -39,7 +40,7 @@ from evaluator.sandbox.backend import (
     Training,
 )
 from evaluator.sandbox.batch_folders import open_to_sandbox, output_usage, writable_by_sandbox
-from evaluator.sandbox.docker_backend import missing_image_reason, shared_copy
+from evaluator.sandbox.docker_backend import missing_image_reason
 from evaluator.sandbox.index_proxy import IndexProxy, allowed_address
 from submissions.intake.contents import REQUIREMENTS
 from submissions.intake.package_index import local_path
@@ -61,6 +62,18 @@ def host_pip() -> Path:
     if spec is None or not spec.submodule_search_locations:
         raise SandboxUnavailable("pip is not installed beside the evaluator")
     return Path(next(iter(spec.submodule_search_locations)))
+
+
+def pip_ca_bundle(pip: Path) -> str | None:
+    """The CA bundle the evaluator's pip checks HTTPS with, when it lies outside ``pip``'s
+    folder (Debian's pip reads the system's, ``/etc/ssl/certs/ca-certificates.crt``): bound as a
+    configured ``cert`` is, or pip in the sandbox finds no bundle and stops at the first HTTPS
+    index. None when pip carries its own (bound with it)."""
+    # deferred: pip's vendored certifi, patched by distributions that debundle it
+    from pip._vendor import certifi
+
+    bundle = Path(certifi.where()).resolve()
+    return None if bundle.is_relative_to(pip.resolve()) else str(bundle)
 
 
 def _stub(mode: str) -> str:
@@ -130,10 +143,12 @@ def spawn_resolver(
     if chosen is SandboxKind.process:
         raise SandboxUnavailable("the resolver runs only in a sandbox (docker or bubblewrap)")
     request = json.loads((inputs / resolve.REQUEST).read_text())
+    pip = host_pip()
     request |= {
         "pip_path": PIP_MOUNT,
         "proxy": f"{PROXY_MOUNT}/{PROXY_SOCKET}" if proxy_dir is not None else None,
         "target": [],
+        "cert": request.get("cert") or pip_ca_bundle(pip),
     }
     (inputs / resolve.REQUEST).write_text(json.dumps(request))
     (program / TRAIN_SCRIPT).write_text(_stub(mode))
@@ -151,14 +166,9 @@ def spawn_resolver(
         output,
         intake.resolver_timeout_s,
         intake.max_wheel_bytes,
-        # A worker in a container: the daemon binds a copy in the shared folder.
-        mounts=resolver_mounts(
-            request,
-            shared_copy(host_pip(), config.sandbox_shared_dir, "resolver-pip")
-            if chosen is SandboxKind.docker
-            else host_pip(),
-            proxy_dir,
-        ),
+        # Host folders: a worker in a container has the Docker backend bind copies of them
+        # (docker_backend.daemon_source).
+        mounts=resolver_mounts(request, pip, proxy_dir),
     )
     return sandbox.start_training(
         SimpleNamespace(root=program, deps_dir=None),

@@ -74,7 +74,9 @@ class Training:
     gpu: bool = False
     seed: int = 0  # ARENA_TRAIN_SEED
     # More host folders bound read-only, (where the sandbox sees it, host folder): the
-    # resolver's pip, package index folders and its proxy's socket (evaluator/sandbox/resolver.py).
+    # resolver's pip, package index folders and its proxy's socket (evaluator/resolver.py).
+    # Under Docker with a shared folder, those the daemon cannot see are bound as copies
+    # (docker_backend.daemon_source); the proxy's is made in the shared folder, a live socket.
     mounts: tuple[tuple[str, Path], ...] = ()
 
     def env(self, dataset: str, output: str) -> dict[str, str]:

@@ -70,20 +70,46 @@ def socket_dir_for(instance: str, shared: Path | None) -> Path:
     return root / f"{SOCKET_DIR_PREFIX}{instance}"
 
 
-def runtime_source(shared: Path | None) -> Path:
-    """The agent runtime folder the daemon binds: the package itself, or, with
-    ``ARENA_SANDBOX_SHARED_DIR`` (a worker in a container), a copy of it there."""
-    return shared_copy(runtime_dir(), shared, "agent-runtime")
+def daemon_source(folder: Path, spec: LaunchSpec) -> Path:
+    """The host folder the daemon binds to show ``folder`` read-only in ``spec``'s container:
+    ``folder`` itself, or, with ``ARENA_SANDBOX_SHARED_DIR`` (a worker in a container, whose own
+    folders the host's daemon cannot see), for a folder outside the shared and the data folder
+    (both at the same path on either side), its copy in the shared folder. Every read-only bind
+    goes through here, so a folder of the worker's image (the agent runtime, the resolver's pip,
+    a wheel folder or a ``file:`` index of its pip configuration, the certificates) reaches the
+    container whoever asks for it."""
+    shared = spec.config.sandbox_shared_dir
+    if shared is None:
+        return folder
+    real = folder.resolve()
+    if any(real.is_relative_to(seen.resolve()) for seen in (shared, spec.data_dir)):
+        return folder
+    return shared_copy(real, shared, real.name or "root")
+
+
+# shared_copy's memo per process: (folder, shared folder, name) -> (the folder's stat signature,
+# its copy). The copy is named after the content's digest, which reads every byte, and a wheel
+# folder can hold GBs that every resolution binds: a folder whose files keep their inode, size,
+# mtime and ctime (ctime cannot be set back, unlike mtime) keeps its digest, so only a stat per
+# file is repeated. One entry per folder, the latest: the memo stays as small as the set of
+# folders; two threads racing on it at worst both hash.
+_COPIES: dict[tuple[Path, Path, str], tuple[tuple, Path]] = {}
 
 
 def shared_copy(package: Path, shared: Path | None, name: str) -> Path:
     """The folder ``package`` as the daemon can bind it: itself, or, with a shared folder (a
     worker in a container), a copy there named ``name`` and its content's digest (several
-    workers and threads make it at once: each copies, then renames)."""
+    workers and threads make it at once: each copies, then renames), readable by everyone (the
+    sandbox's uid 65534)."""
     if shared is None:
         return package
-    digest = hashlib.sha256()
     files = sorted(p for p in package.rglob("*") if p.is_file() and "__pycache__" not in p.parts)
+    signature = tuple(_stamp(package, path) for path in files)
+    key = (package, shared, name)
+    known = _COPIES.get(key)
+    if known is not None and known[0] == signature and known[1].is_dir():
+        return known[1]
+    digest = hashlib.sha256()
     for path in files:
         digest.update(str(path.relative_to(package)).encode() + b"\0" + path.read_bytes())
     target = shared / f"{name}-{digest.hexdigest()[:16]}"
@@ -100,7 +126,14 @@ def shared_copy(package: Path, shared: Path | None, name: str) -> Path:
             partial.rename(target)
         except OSError:  # another process made it first
             shutil.rmtree(partial, ignore_errors=True)
+    _COPIES[key] = (signature, target)
     return target
+
+
+def _stamp(package: Path, path: Path) -> tuple[str, int, int, int, int]:
+    status = path.stat()
+    relative = str(path.relative_to(package))
+    return relative, status.st_ino, status.st_size, status.st_mtime_ns, status.st_ctime_ns
 
 
 def remove_orphan_socket_dirs(live_instances: set[str], shared: Path | None) -> None:
@@ -172,12 +205,12 @@ def container_options(spec: LaunchSpec, socket_dir: Path | None) -> dict[str, An
     from docker.types import DeviceRequest, LogConfig, Ulimit
 
     config = spec.config
-    volumes = {
-        str(spec.submission): {"bind": SUBMISSION_MOUNT, "mode": "ro"},
-        str(runtime_source(config.sandbox_shared_dir)): {"bind": RUNTIME_MOUNT, "mode": "ro"},
-    }
+    # (host folder, where the container sees it): bound read-only, as the daemon sees it.
+    readonly = [(spec.submission, SUBMISSION_MOUNT), (runtime_dir(), RUNTIME_MOUNT)]
+    # Bound as they are: they must already be where the daemon sees them.
+    live: dict[str, dict[str, str]] = {}
     if spec.deps:
-        volumes[str(spec.deps)] = {"bind": DEPS_MOUNT, "mode": "ro"}
+        readonly.append((spec.deps, DEPS_MOUNT))
     command = ["python3", *spec.python_args()]
     extra: dict[str, Any] = {}
     ulimits = []
@@ -194,20 +227,25 @@ def container_options(spec: LaunchSpec, socket_dir: Path | None) -> dict[str, An
         ulimits.append(Ulimit(name="nproc", soft=config.agent_pids, hard=config.agent_pids))
         pids_limit = USER_SPACE_KERNEL_TASKS + USER_SPACE_KERNEL_TASKS_PER_PROCESS * pids_limit
     if spec.training is not None:
-        volumes[str(spec.training.dataset)] = {"bind": DATASET_MOUNT, "mode": "ro"}
-        volumes[str(spec.training.output)] = {"bind": MODEL_MOUNT, "mode": "rw"}
-        for target, source in spec.training.mounts:
-            volumes[str(source)] = {"bind": target, "mode": "ro"}
+        readonly.append((spec.training.dataset, DATASET_MOUNT))
+        readonly += [(source, target) for target, source in spec.training.mounts]
+        # Written by the container: a copy would swallow what it writes.
+        live[str(spec.training.output)] = {"bind": MODEL_MOUNT, "mode": "rw"}
         cap = spec.training.output_bytes
         ulimits.append(Ulimit(name="fsize", soft=cap, hard=cap))
         if spec.training.gpu:
             extra["device_requests"] = [DeviceRequest(count=-1, capabilities=[["gpu"]])]
     else:
         if spec.model is not None:
-            volumes[str(spec.model)] = {"bind": MODEL_MOUNT, "mode": "ro"}
+            readonly.append((spec.model, MODEL_MOUNT))
         assert socket_dir is not None
-        volumes[str(socket_dir)] = {"bind": SOCKET_MOUNT, "mode": "ro"}
+        # A socket, not a copy: socket_dir_for makes it in the shared folder.
+        live[str(socket_dir)] = {"bind": SOCKET_MOUNT, "mode": "ro"}
         command += ["--socket", f"{SOCKET_MOUNT}/{SOCKET_NAME}"]
+    volumes = {
+        str(daemon_source(folder, spec)): {"bind": target, "mode": "ro"}
+        for folder, target in readonly
+    }
     return {
         "image": config.agent_image,
         "command": command,
@@ -229,7 +267,7 @@ def container_options(spec: LaunchSpec, socket_dir: Path | None) -> dict[str, An
         "ipc_mode": "none",
         "working_dir": SUBMISSION_MOUNT,
         "environment": spec.sandbox_env(IMAGE_PATH),
-        "volumes": volumes,
+        "volumes": volumes | live,
         "labels": spec.all_labels,
         "log_config": LogConfig(
             type="json-file", config={"max-size": LOG_MAX_SIZE, "max-file": "1"}

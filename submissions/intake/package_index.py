@@ -2,9 +2,9 @@
 for, or the ``package_index`` setting; never a host name of ours.
 
 Only the index's location is taken from the host's configuration (``index-url``,
-``extra-index-url``, ``find-links``, ``cert``): its constraints and other options are the host's
-business, not the sandbox's (a host constraint once turned a missing wheel into an unexplained
-``ResolutionImpossible``).
+``extra-index-url``, ``no-index``, ``find-links``, ``cert``): its constraints and other options
+are the host's business, not the sandbox's (a host constraint once turned a missing wheel into an
+unexplained ``ResolutionImpossible``).
 """
 
 from __future__ import annotations
@@ -21,6 +21,8 @@ from arena.config import IntakeSettings
 
 # What `pip config list` reads besides its files: its own variables and where the files are.
 PIP_CONFIG_VARIABLES = ("HOME", "XDG_CONFIG_HOME", "XDG_CONFIG_DIRS", "VIRTUAL_ENV")
+# How pip's configuration spells a flag that is on (pip's strtobool).
+PIP_TRUE = ("1", "true", "yes", "on", "y", "t")
 
 
 @dataclass(frozen=True)
@@ -96,6 +98,12 @@ def host_pip_sources() -> PackageSources:
         if equals:
             # Later sources override earlier ones (files, then variables), as pip reads them.
             values[key.rpartition(".")[2]] = value.strip().strip("'\"")
+    find_links = tuple(values.get("find-links", "").split())
+    cert = values.get("cert") or None
+    if values.get("no-index", "").lower() in PIP_TRUE:
+        # Wheel folders only, as the host's pip installs (the offline service image's /wheels):
+        # pip's default index in its place would be a host it never reaches.
+        return PackageSources(find_links=find_links, cert=cert)
     index = values.get("index-url")
     file_hosts: tuple[str, ...] = ()
     if not index:
@@ -106,7 +114,7 @@ def host_pip_sources() -> PackageSources:
     extra = values.get("extra-index-url", "").split()
     return PackageSources(
         index_urls=(index, *extra),
-        find_links=tuple(values.get("find-links", "").split()),
-        cert=values.get("cert") or None,
+        find_links=find_links,
+        cert=cert,
         file_hosts=file_hosts,
     )

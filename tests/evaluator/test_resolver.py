@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import http.client
 import json
+import shutil
 import socket
+import tempfile
 import time
 import uuid
 from collections.abc import Iterator
@@ -14,13 +16,22 @@ from pathlib import Path
 import pytest
 
 from agent_runtime import resolve
-from arena.config import Settings
+from arena.config import SandboxKind, Settings
 from arena.errors import IntakeError
 from bench._package_index import build_wheel, served_index
-from evaluator.resolver import PROXY_SOCKET, run_resolver, spawn_resolver
+from evaluator.resolver import (
+    PROXY_SOCKET,
+    host_pip,
+    pip_ca_bundle,
+    run_resolver,
+    spawn_resolver,
+)
 from evaluator.sandbox.index_proxy import IndexProxy
 from evaluator.sandbox.subprocess_sandbox import labelled_pids
+from evaluator.validation import validate
+from tests.evaluator.sandbox.conftest import usable
 from tests.settings import with_fields
+from tests.submissions.zips import with_policy, write_zip
 
 SECRET = "s3cret-admin-token-9b2e"
 
@@ -166,3 +177,49 @@ def test_the_resolver_is_bounded_in_time(tmp_path: Path) -> None:
             )
     assert caught.value.rule == "resolver-timeout"
     assert time.monotonic() - started < 30
+
+
+@pytest.mark.docker
+@pytest.mark.slow  # the resolver and the upload's validation in Docker
+def test_a_docker_resolver_of_a_worker_with_a_shared_folder_installs_from_its_wheel_folder(
+    tmp_path: Path, request: pytest.FixtureRequest
+) -> None:
+    """The compose worker's case (its image's /wheels, docs/deployment.md): the wheel folder and
+    pip are outside the data folder, so the containers bind their copies in the shared folder,
+    which the sandbox's uid reads."""
+    wheels = tmp_path / "wheels"
+    wheels.mkdir()
+    # Short: the index proxy's socket is made in it (AF_UNIX paths are short).
+    shared = Path(tempfile.mkdtemp(prefix="arena-shared-"))
+    request.addfinalizer(lambda: shutil.rmtree(shared))
+    build_wheel(wheels, "wheelpkg", "1.0")
+    settings = with_fields(
+        Settings(),
+        storage={"data_dir": tmp_path / "data"},
+        intake={"package_index": [str(wheels)]},
+        sandbox={"sandbox_shared_dir": shared},
+    )
+    usable(SandboxKind.docker, settings)
+    upload = write_zip(tmp_path / "a.zip", with_policy(**{"requirements.txt": "wheelpkg==1.0\n"}))
+    prepared = validate(
+        upload,
+        tmp_path / "a",
+        settings.intake,
+        settings.sandbox,
+        settings.storage.resolved_data_dir,
+        kind=SandboxKind.docker,
+    )
+    assert prepared.deps_dir is not None
+    assert (prepared.deps_dir / "wheelpkg" / "__init__.py").is_file()
+    copies = {path.name.rsplit("-", 1)[0] for path in shared.iterdir() if path.is_dir()}
+    assert {"wheels", "pip", "agent_runtime"} <= copies
+
+
+def test_a_pip_whose_ca_bundle_lies_outside_it_has_the_bundle_bound(tmp_path: Path) -> None:
+    """Debian's pip reads the system's bundle, which the sandbox lacks: pip there stopped at the
+    first HTTPS index ("Could not find a suitable TLS CA certificate bundle"). This pip's own
+    bundle is inside it; for a pip folder without it, the bundle is named, as a cert would be."""
+    from pip._vendor import certifi
+
+    assert pip_ca_bundle(host_pip()) is None
+    assert pip_ca_bundle(tmp_path / "pip") == str(Path(certifi.where()).resolve())
