@@ -242,10 +242,13 @@ class SandboxSettings(SettingsGroup):
     # clock only as the backstop for an agent that waits or sleeps, five times the CPU limit: a
     # legal start-up near its 60 s of CPU then still finishes with the agent given a fifth of a
     # CPU. Where no CPU meter exists, init_cpu_s applies to the wall clock. Both are charged
-    # init_timeout. init_timeout_s also bounds, on the wall clock, our runtime's own start
-    # before hello (a failure there is ours) and a warm zygote's.
+    # init_timeout.
     init_cpu_s: float = 60.0
     init_timeout_s: float = 300.0
+    # Our runtime's own start, until its hello, and a warm zygote's: wall time, and a failure
+    # there is ours (sandbox_error; a silent zygote's agents start cold). Nothing of the team's
+    # runs yet, so no backstop of theirs applies.
+    runtime_start_timeout_s: float = 60.0
     # An act's limits (docs/protocol.md, "Time limits"): the agent's own CPU time, read from the
     # host, so that a busy worker changes no score; the wall clock only as a generous backstop
     # (an agent that sleeps or waits uses no CPU). Where no CPU meter exists, step_cpu_s

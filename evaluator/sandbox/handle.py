@@ -15,7 +15,7 @@ generous wall-clock backstop for an agent that waits or sleeps (where no meter r
 limit applies to the wall clock). Loading the policy (``ready``) and each ``reset`` have
 ``init_cpu_s`` and ``init_timeout_s`` (``init_timeout``), an act ``step_cpu_s`` and
 ``step_timeout_s`` (``step_timeout``). Before hello only our runtime runs: it has
-``init_timeout_s`` of wall time, and missing it is ours (``sandbox_error``).
+``runtime_start_timeout_s`` of wall time, and missing it is ours (``sandbox_error``).
 """
 
 from __future__ import annotations
@@ -100,7 +100,7 @@ class AgentHandle:
         )
         self._episode_cpu_s = limits.episode_s
         # Our runtime's start, before hello: wall time, and ours.
-        self._runtime_start_s = config.init_timeout_s
+        self._runtime_start_s = config.runtime_start_timeout_s
         self._meter: CpuReader | None = None
         self._cpu_mark: float | None = None  # the meter when last charged [s]
         self.episode_cpu_s = 0.0  # agent CPU time of this episode so far, from its loading [s]

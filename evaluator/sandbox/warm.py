@@ -164,8 +164,9 @@ class WarmAgent:
     ) -> WarmAgent:
         """Start ``submission``'s zygote, on ``cpus`` (those of the job it serves; its agents
         inherit them). Raises :class:`SandboxUnavailable` when it does not say hello and ready
-        in ``init_timeout_s`` of wall time: it runs none of the participant's code, so that is
-        ours (the caller then starts each agent cold, which reports the agent's own errors).
+        in ``runtime_start_timeout_s`` of wall time: it runs none of the participant's code, so
+        that is ours (the caller then starts each agent cold, which reports the agent's own
+        errors).
         Each forked agent then loads the policy under the start-up's CPU limit
         (:class:`AgentHandle`), as a cold one does."""
         spec = LaunchSpec.of_agent(
@@ -177,7 +178,7 @@ class WarmAgent:
             cpus=cpus,
         )
         sandbox = backend_for(kind).launch(spec)
-        deadline = time.monotonic() + config.init_timeout_s
+        deadline = time.monotonic() + config.runtime_start_timeout_s
         try:
             channel = sandbox.connect(deadline)
             hello = channel.receive(deadline)

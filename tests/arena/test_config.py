@@ -35,6 +35,7 @@ VARIABLES = {
     ),
     "ARENA_INIT_CPU_S": ("sandbox", "init_cpu_s", "6", 6.0),
     "ARENA_INIT_TIMEOUT_S": ("sandbox", "init_timeout_s", "5", 5.0),
+    "ARENA_RUNTIME_START_TIMEOUT_S": ("sandbox", "runtime_start_timeout_s", "8", 8.0),
     "ARENA_STEP_CPU_S": ("sandbox", "step_cpu_s", "2", 2.0),
     "ARENA_STEP_TIMEOUT_S": ("sandbox", "step_timeout_s", "3", 3.0),
     "ARENA_EPISODE_CPU_S": ("sandbox", "episode_cpu_s", "4", 4.0),

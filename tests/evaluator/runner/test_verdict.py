@@ -125,7 +125,7 @@ def _run(tmp_path, settings, kind, body, *, files=None, broken=False, config=Non
 def test_a_sandbox_silent_before_hello_is_ours(tmp_path, settings, kind):
     """No hello within the start-up limit: only our runtime had run (it says hello before it
     reads anything of the team's)."""
-    hasty = settings.sandbox.model_copy(update={"init_timeout_s": 0.001})
+    hasty = settings.sandbox.model_copy(update={"runtime_start_timeout_s": 0.001})
     outcome = _run(tmp_path, settings, kind, DRIVE.format(pause=0), config=hasty)
     assert outcome.verdict is Verdict.ours, outcome.log
     assert outcome.status is ScenarioStatus.evaluator_error and outcome.attempts == 2
