@@ -61,6 +61,12 @@ START_POLL_S = 0.1
 # those a killed worker left behind; a younger one may belong to a container still being created.
 SOCKET_DIR_PREFIX = "arena-agent-"
 ORPHAN_SOCKET_DIR_AGE_S = 60.0
+# The shared folder's copies of folders the daemon cannot see (shared_copy), and how long one
+# stays unused before the cleanup removes it: longer than any episode, training or validation
+# binds it.
+COPIES_DIR = "copies"
+STALE_COPY_AGE_S = 24 * 3600.0
+STALE_PREFIX = ".stale-"
 
 
 def socket_dir_for(instance: str, shared: Path | None) -> Path:
@@ -98,25 +104,28 @@ _COPIES: dict[tuple[Path, Path, str], tuple[tuple, Path]] = {}
 
 def shared_copy(package: Path, shared: Path | None, name: str) -> Path:
     """The folder ``package`` as the daemon can bind it: itself, or, with a shared folder (a
-    worker in a container), a copy there named ``name`` and its content's digest (several
-    workers and threads make it at once: each copies, then renames), readable by everyone (the
-    sandbox's uid 65534)."""
+    worker in a container), a copy in its ``copies`` folder named ``name`` and its content's
+    digest (several workers and threads make it at once: each copies, then renames), readable by
+    everyone (the sandbox's uid 65534). Each use touches the copy; each new copy, and the
+    sandbox cleanup, removes those no launch used for a day (:func:`remove_stale_copies`: a new
+    image's wheels leave the old ones behind)."""
     if shared is None:
         return package
     files = sorted(p for p in package.rglob("*") if p.is_file() and "__pycache__" not in p.parts)
     signature = tuple(_stamp(package, path) for path in files)
     key = (package, shared, name)
     known = _COPIES.get(key)
-    if known is not None and known[0] == signature and known[1].is_dir():
+    if known is not None and known[0] == signature and _used(known[1]):
         return known[1]
     digest = hashlib.sha256()
     for path in files:
         digest.update(str(path.relative_to(package)).encode() + b"\0" + path.read_bytes())
-    target = shared / f"{name}-{digest.hexdigest()[:16]}"
-    if not target.is_dir():
+    copies = shared / COPIES_DIR
+    target = copies / f"{name}-{digest.hexdigest()[:16]}"
+    if not _used(target):
         # The first launch may be an upload's validation, before any agent made the folder.
-        shared.mkdir(parents=True, exist_ok=True)
-        partial = Path(tempfile.mkdtemp(prefix=f".{name}-", dir=shared))
+        copies.mkdir(parents=True, exist_ok=True)
+        partial = Path(tempfile.mkdtemp(prefix=f".{name}-", dir=copies))
         for path in files:
             (partial / path.relative_to(package)).parent.mkdir(parents=True, exist_ok=True)
             shutil.copyfile(path, partial / path.relative_to(package))
@@ -126,8 +135,40 @@ def shared_copy(package: Path, shared: Path | None, name: str) -> Path:
             partial.rename(target)
         except OSError:  # another process made it first
             shutil.rmtree(partial, ignore_errors=True)
+        # A folder's content changed (a new image's wheels): its old copy may now go unused.
+        remove_stale_copies(shared)
     _COPIES[key] = (signature, target)
     return target
+
+
+def _used(copy: Path) -> bool:
+    """Mark ``copy`` as used now; False when it is not there (never made, or removed stale)."""
+    try:
+        os.utime(copy)
+    except FileNotFoundError:
+        return False
+    return True
+
+
+def remove_stale_copies(shared: Path | None) -> int:
+    """Remove the shared folder's copies (and half-made ones) no launch used for
+    :data:`STALE_COPY_AGE_S`; how many. Each is renamed out of the way first, so that a launch
+    never binds a folder half removed: it makes the copy again."""
+    copies = (shared / COPIES_DIR) if shared is not None else None
+    if copies is None or not copies.is_dir():
+        return 0
+    cutoff = time.time() - STALE_COPY_AGE_S
+    removed = 0
+    for path in copies.iterdir():
+        # Another worker's cleanup may take the same copy first.
+        with contextlib.suppress(OSError):
+            if path.name.startswith(STALE_PREFIX):  # a removal that did not finish
+                shutil.rmtree(path, ignore_errors=True)
+            elif path.stat().st_mtime < cutoff:
+                doomed = path.rename(copies / f"{STALE_PREFIX}{path.name.lstrip('.')}")
+                shutil.rmtree(doomed, ignore_errors=True)
+                removed += 1
+    return removed
 
 
 def _stamp(package: Path, path: Path) -> tuple[str, int, int, int, int]:
@@ -464,4 +505,5 @@ class DockerBackend:
         remove_orphan_socket_dirs(
             {c.labels.get(INSTANCE_LABEL, "") for c in ours}, config.sandbox_shared_dir
         )
+        remove_stale_copies(config.sandbox_shared_dir)
         return len(containers)

@@ -11,6 +11,7 @@ import os
 import shutil
 import subprocess
 import tempfile
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -18,8 +19,11 @@ import pytest
 
 from evaluator.sandbox.backend import RUNTIME_MAIN, RUNTIME_MOUNT, LaunchSpec, Training, runtime_dir
 from evaluator.sandbox.docker_backend import (
+    COPIES_DIR,
+    STALE_COPY_AGE_S,
     UNPRIVILEGED_ID,
     container_options,
+    remove_stale_copies,
     shared_copy,
     socket_dir_for,
 )
@@ -85,11 +89,11 @@ def test_folders_the_daemon_cannot_see_are_bound_as_copies_in_the_shared_folder(
     for name in ("wheels", "certs"):
         target = str(world / name)  # at its own path inside: file: URLs read the same
         copy, mode = seen[target]
-        assert (copy.parent, mode) == (shared, "ro")
+        assert (copy.parent, mode) == (shared / COPIES_DIR, "ro")
         assert copy.name.startswith(f"{name}-")
         assert same_files(copy, world / name)
     runtime_copy, _ = seen[RUNTIME_MOUNT]
-    assert runtime_copy.parent == shared and same_files(runtime_copy, runtime_dir())
+    assert runtime_copy.parent == shared / COPIES_DIR and same_files(runtime_copy, runtime_dir())
     # What the daemon already sees is bound as it is: the proxy's live socket folder, the stub
     # in the shared folder, the request and the output in the data folder.
     assert seen["/run/arena-index"] == (shared / "proxy", "ro")
@@ -97,9 +101,9 @@ def test_folders_the_daemon_cannot_see_are_bound_as_copies_in_the_shared_folder(
     assert seen["/dataset"] == (world / "data" / "inputs", "ro")
     assert seen["/model"] == (world / "data" / "output", "rw")
     # One copy per content: a second launch binds the same ones and adds no folder.
-    before = sorted(shared.iterdir())
+    before = sorted((shared / COPIES_DIR).iterdir())
     assert binds(container_options(resolver_spec(world, shared), None)) == seen
-    assert sorted(shared.iterdir()) == before
+    assert sorted((shared / COPIES_DIR).iterdir()) == before
 
 
 @pytest.mark.skipif(os.geteuid() != 0, reason="reads as uid 65534, which needs root")
@@ -133,6 +137,30 @@ def test_a_changed_folder_gets_a_new_copy_even_with_its_size_and_mtime_kept(worl
     assert (first / wheel.name).read_bytes() == b"first"
     shutil.rmtree(second)  # a copy removed (the shared folder cleaned) is made again
     assert shared_copy(folder, shared, "wheels") == second and second.is_dir()
+
+
+def test_copies_no_launch_used_for_a_day_are_removed(world: Path):
+    """A new image's wheel folder leaves its old copy behind: the cleanup removes copies unused
+    for a day, and a copy used again (its folder unchanged) is kept, or made again if gone."""
+    shared = world / "shared"
+    old = shared_copy(world / "wheels", shared, "wheels")
+    kept = shared_copy(world / "certs", shared, "certs")
+    half_made = shared / COPIES_DIR / ".wheels-unfinished"
+    half_made.mkdir()
+    long_ago = time.time() - STALE_COPY_AGE_S - 60
+    for path in (old, kept, half_made):
+        os.utime(path, (long_ago, long_ago))
+    assert shared_copy(world / "certs", shared, "certs") == kept  # used now: touched
+    assert remove_stale_copies(shared) == 2
+    assert sorted((shared / COPIES_DIR).iterdir()) == [kept]
+    assert shared_copy(world / "wheels", shared, "wheels") == old and same_files(
+        old, world / "wheels"
+    )
+    # A folder whose content changed gets a new copy, which clears the copies unused for a day.
+    os.utime(old, (long_ago, long_ago))
+    (world / "certs" / "ca.pem").write_text("-----BEGIN CERTIFICATE-----\nnew\n")
+    renewed = shared_copy(world / "certs", shared, "certs")
+    assert sorted((shared / COPIES_DIR).iterdir()) == sorted([kept, renewed])
 
 
 def test_without_a_shared_folder_every_folder_is_bound_as_it_is(world: Path):
