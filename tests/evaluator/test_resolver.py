@@ -26,6 +26,7 @@ from evaluator.resolver import (
     run_resolver,
     spawn_resolver,
 )
+from evaluator.sandbox.docker_backend import COPIES_DIR
 from evaluator.sandbox.index_proxy import IndexProxy
 from evaluator.sandbox.subprocess_sandbox import labelled_pids
 from evaluator.validation import validate
@@ -211,7 +212,7 @@ def test_a_docker_resolver_of_a_worker_with_a_shared_folder_installs_from_its_wh
     )
     assert prepared.deps_dir is not None
     assert (prepared.deps_dir / "wheelpkg" / "__init__.py").is_file()
-    copies = {path.name.rsplit("-", 1)[0] for path in shared.iterdir() if path.is_dir()}
+    copies = {path.name.rsplit("-", 1)[0] for path in (shared / COPIES_DIR).iterdir()}
     assert {"wheels", "pip", "agent_runtime"} <= copies
 
 
