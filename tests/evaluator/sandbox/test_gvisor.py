@@ -23,11 +23,17 @@ from arena.config import SandboxKind, Settings
 from evaluator.sandbox import start
 from evaluator.sandbox.docker_backend import DockerBackend, docker_client
 from tests.evaluator.sandbox.agents import agent, observation
+from tests.evaluator.sandbox.test_placement import expanded, two_cpus
 from tests.settings import sandbox_args, with_fields
 
 RUNTIME = "runsc"
 REPO = Path(__file__).resolve().parents[3]
-MODULES = ("test_contract.py", "test_hostile.py", "test_child_environment.py")
+MODULES = (
+    "test_contract.py",
+    "test_hostile.py",
+    "test_child_environment.py",
+    "test_startup_limits.py",
+)
 GAPS = (
     "test_contract.py::test_memory_is_capped_for_all_processes_together[docker-warm]",
     "test_contract.py::test_dev_is_not_writable_and_shm_is_bounded[docker-warm]",
@@ -39,6 +45,12 @@ GAPS = (
     "test_hostile.py::test_hostile_agent_fails_with_its_reason[docker-allocating 8 GiB-arrays]",
     "test_hostile.py::test_killing_its_parent_changes_nothing[docker]",
     "test_child_environment.py::test_no_sandboxed_child_can_find_a_secret[warm agent-docker]",
+    "test_startup_limits.py::test_waiting_while_starting_is_not_charged[docker-init-warm]",
+    "test_startup_limits.py::test_waiting_while_starting_is_not_charged[docker-reset-warm]",
+    "test_startup_limits.py::test_computing_past_the_cpu_limit_is_init_timeout"
+    "[docker-init-importing and building the policy-warm]",
+    "test_startup_limits.py::test_computing_past_the_cpu_limit_is_init_timeout"
+    "[docker-reset-the policy's reset-warm]",
 )
 
 pytestmark = [pytest.mark.integration, pytest.mark.docker, pytest.mark.slow]
@@ -70,6 +82,46 @@ def test_the_agent_runs_on_gvisor(gvisor, tmp_path, labels) -> None:
         selector = [f"{key}={value}" for key, value in labels.items()]
         (container,) = docker_client().containers.list(filters={"label": selector})
         assert container.attrs["HostConfig"]["Runtime"] == RUNTIME
+
+
+def host_tasks(container) -> list[Path]:
+    """Every host thread of ``container`` (gVisor's kernel, its stubs): its cpuset cgroup's,
+    read on the host, where placement acts (inside, gVisor's kernel shows CPUs of its own)."""
+    pid = container.attrs["State"]["Pid"]
+    for line in Path(f"/proc/{pid}/cgroup").read_text().splitlines():
+        _, controllers, path = line.split(":", 2)
+        if controllers in ("", "cpuset"):  # cgroup v2's one hierarchy, or v1's cpuset
+            group = Path("/sys/fs/cgroup", controllers, path.lstrip("/"))
+            pids = (group / "cgroup.procs").read_text().split()
+            return [task for p in pids for task in Path(f"/proc/{p}/task").iterdir()]
+    raise AssertionError(f"no cpuset cgroup for {pid}")
+
+
+def test_the_agent_runs_on_its_jobs_cpu(gvisor, tmp_path, labels) -> None:
+    """Placement under gVisor: every host thread of the sandbox is on the job's CPU, and the
+    agent sees one CPU (gVisor's kernel gives its own numbers)."""
+    first, last = two_cpus()
+    submission = agent(
+        tmp_path, gvisor, act="return {k: [len(os.sched_getaffinity(0))] for k in obs}"
+    )
+    selector = [f"{key}={value}" for key, value in labels.items()]
+    for cpus in ((last,), (first,)):
+        with start(
+            submission, kind=SandboxKind.docker, labels=labels, cpus=cpus, **sandbox_args(gvisor)
+        ) as handle:
+            handle.reset()
+            assert handle.act(observation()) == {"Agent_0": [1.0]}
+            (container,) = docker_client().containers.list(filters={"label": selector})
+            tasks = host_tasks(container)
+            allowed = {
+                task.name: next(
+                    expanded(line.split(":", 1)[1].strip())
+                    for line in (task / "status").read_text().splitlines()
+                    if line.startswith("Cpus_allowed_list:")
+                )
+                for task in tasks
+            }
+        assert len(allowed) > 1 and all(cpu_list == list(cpus) for cpu_list in allowed.values())
 
 
 def test_the_process_limit_is_per_sandbox(gvisor, tmp_path) -> None:
