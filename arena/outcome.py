@@ -121,7 +121,8 @@ AGENT_FAULTS = frozenset(
 def episode_facts(reasons: Iterable[DoneReason | str], *, simulator_failed: bool) -> Facts:
     """The facts of an episode from how its agents ended (reasons our side assigned) and whether
     the simulator's process failed. ``sandbox_error`` is the one reason our side gives a sandbox
-    that ended before its runtime said hello: nothing of the team's was loaded."""
+    that ended by our side's doing: before its runtime said hello (nothing of the team's was
+    loaded), or stopped from outside, as the daemon that runs it says."""
     reasons = {DoneReason(r) for r in reasons}
     team_failed = bool(reasons & AGENT_FAULTS)
     if simulator_failed:

@@ -225,8 +225,13 @@ class LaunchSpec:
 class ExitStatus:
     code: int | None
     oom_killed: bool = False
+    # Who stopped the sandbox from outside, as facts of ours say (the Docker daemon's events:
+    # nothing inside a container can make the daemon kill it); "" when nothing we can see did.
+    stopped_by: str = ""
 
     def describe(self) -> str:
+        if self.stopped_by:
+            return f"stopped from outside by {self.stopped_by}"
         if self.oom_killed:
             return "killed for exceeding its memory limit"
         if self.code is None:

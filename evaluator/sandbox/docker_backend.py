@@ -33,6 +33,7 @@ from evaluator.sandbox.backend import (
     ExitStatus,
     LaunchSpec,
     runtime_dir,
+    signal_name,
 )
 from evaluator.sandbox.channel import Channel, ChannelClosed, ChannelTimeout
 from evaluator.sandbox.cpu import CpuMeter, cgroup_meter
@@ -329,16 +330,48 @@ def share_with_agent(socket_dir: Path, path: Path) -> None:
         path.chmod(0o777)
 
 
+def daemon_stop(container_id: str, since: float, until: float) -> str:
+    """How the Docker daemon was told to stop container ``container_id`` between ``since`` and
+    ``until`` (``docker kill``, ``stop``, ``rm -f``, its own shutdown), as its events say: "the
+    Docker daemon (SIGKILL)", or "" when it was not (what ended the container happened inside
+    it, or the daemon cannot say)."""
+    # deferred: the docker client is needed only with the Docker sandbox
+    import docker.errors
+    import requests.exceptions
+
+    try:
+        events = docker_client().events(
+            since=f"{since:.6f}",
+            until=f"{until:.6f}",
+            filters={"container": container_id, "event": "kill"},
+            decode=True,
+        )
+        for event in events:
+            number = event.get("Actor", {}).get("Attributes", {}).get("signal", "")
+            return f"the Docker daemon ({signal_name(int(number)) if number.isdigit() else number})"
+    except (docker.errors.DockerException, requests.exceptions.RequestException):
+        pass
+    return ""
+
+
 class DockerSandbox:
     def __init__(
-        self, container, listener: socket.socket | None, socket_dir: Path | None, log_limit: int
+        self,
+        container,
+        listener: socket.socket | None,
+        socket_dir: Path | None,
+        log_limit: int,
+        launched: float,
     ):
         self.container = container
+        self.launched = launched  # [s] time.time() before the container was created
         self._listener = listener
         self._socket_dir = socket_dir
         self._log_limit = log_limit
         self._connection: socket.socket | None = None
         self._final_logs: str | None = None
+        self._killed_at: float | None = None  # when we killed it: later kills are ours
+        self._status: ExitStatus | None = None
 
     def connect(self, deadline: float) -> Channel:
         """Wait for the runner to connect, noticing a container that dies first."""
@@ -377,7 +410,12 @@ class DockerSandbox:
             raise SandboxUnavailable(f"cannot inspect the agent container: {error}") from error
         if state["Running"] and not state["OOMKilled"]:
             return None
-        return ExitStatus(state["ExitCode"], oom_killed=state["OOMKilled"])
+        if self._status is None:  # read once: training and resolver loops poll this
+            stopped = daemon_stop(self.container.id, self.launched, self._killed_at or time.time())
+            self._status = ExitStatus(
+                state["ExitCode"], oom_killed=state["OOMKilled"], stopped_by=stopped
+            )
+        return self._status
 
     def cpu_meter(self) -> CpuMeter | None:
         """The container's own cgroup, found through its first process."""
@@ -394,6 +432,8 @@ class DockerSandbox:
         import docker.errors
         import requests.exceptions
 
+        if self._killed_at is None:
+            self._killed_at = time.time()
         try:
             if self._final_logs is None:
                 # The daemon drains the agent's output before it reports the exit, so the log
@@ -464,12 +504,13 @@ class DockerBackend:
         # deferred: the docker client is needed only with the Docker sandbox
         import docker.errors
 
+        launched = time.time()
         if spec.training is not None:
             try:
                 container = docker_client().containers.run(**container_options(spec, None))
             except docker.errors.DockerException as error:
                 raise SandboxUnavailable(f"cannot start the training container: {error}") from error
-            return DockerSandbox(container, None, None, spec.config.agent_log_tail_bytes)
+            return DockerSandbox(container, None, None, spec.config.agent_log_tail_bytes, launched)
         socket_dir = socket_dir_for(spec.instance, spec.config.sandbox_shared_dir)
         listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         try:
@@ -484,7 +525,9 @@ class DockerBackend:
             listener.close()
             shutil.rmtree(socket_dir, ignore_errors=True)
             raise SandboxUnavailable(f"cannot start the agent container: {error}") from error
-        return DockerSandbox(container, listener, socket_dir, spec.config.agent_log_tail_bytes)
+        return DockerSandbox(
+            container, listener, socket_dir, spec.config.agent_log_tail_bytes, launched
+        )
 
     def cleanup(self, labels: dict[str, str], config: SandboxSettings) -> int:
         # deferred: the docker client is needed only with the Docker sandbox

@@ -335,6 +335,10 @@ class AgentHandle:
 
     def _died(self) -> NoReturn:
         status = self._sandbox.exit_status(EXIT_STATUS_WAIT_S)
+        if status is not None and status.stopped_by:
+            # Stopped from outside (an operator, the daemon's restart), not by anything the
+            # agent did: ours, and the episode is run again (arena.outcome.episode_facts).
+            self._fail(DoneReason.sandbox_error, "the agent's sandbox was " + status.describe())
         if status is not None and status.oom_killed:
             self._fail(DoneReason.memory_limit, "the agent was " + status.describe())
         self._fail(DoneReason.agent_exited, self._ended_detail("unexpectedly", status))

@@ -27,7 +27,7 @@ import pickle
 import select
 import socket
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from arena.config import SandboxKind, SandboxSettings
@@ -43,6 +43,7 @@ from evaluator.sandbox.channel import (
     ChannelViolation,
 )
 from evaluator.sandbox.cpu import CpuMeter
+from evaluator.sandbox.docker_backend import DockerSandbox, daemon_stop
 from evaluator.sandbox.handle import AgentHandle
 from evaluator.sandbox.subprocess_sandbox import LogTail
 from sim.interface import AgentInterface
@@ -68,6 +69,9 @@ class ForkedAgent:
     labels: dict[str, str] = field(default_factory=dict)
     interface: AgentInterface | None = None  # the submission's agent.yaml
     meter: CpuMeter | None = None  # the zygote's sandbox: its idle parent uses no CPU
+    # The zygote's container and when it was launched, under Docker: whether the daemon stopped
+    # it is asked when the zygote ends without saying how this agent did.
+    zygote_container: tuple[str, float] | None = None
 
     def kill(self) -> None:
         """Ask the zygote to kill this agent (it may be gone already)."""
@@ -105,6 +109,9 @@ class ForkedSandbox:
                 return None
             self._status_read = True
             self._status = read_exit_status(lifeline)
+            if self._status.code is None and self._agent.zygote_container is not None:
+                stopped = daemon_stop(*self._agent.zygote_container, time.time())
+                self._status = replace(self._status, stopped_by=stopped)
         return self._status
 
     def kill(self) -> None:
@@ -223,6 +230,11 @@ class WarmAgent:
             labels={SANDBOX_LABEL: "1", **labels},
             interface=self.interface,
             meter=self.meter,
+            zygote_container=(
+                (self._sandbox.container.id, self._sandbox.launched)
+                if isinstance(self._sandbox, DockerSandbox)
+                else None
+            ),
         )
 
     def wait_ready(self, timeout: float) -> bool:
