@@ -15,13 +15,16 @@ from pathlib import Path
 
 from arena.config import SandboxKind, SandboxSettings
 from arena.cpu_limits import CpuLimits
-from evaluator.sandbox.backend import SANDBOX_LABEL, LaunchSpec, Sandbox, Training
+from arena.errors import SandboxUnavailable
+from evaluator.sandbox.backend import SANDBOX_LABEL, ExitStatus, LaunchSpec, Sandbox, Training
 from evaluator.sandbox.backend_registry import (
     backend_for,
     check_service_kind,
     client_modules,
     resolve_kind,
 )
+from evaluator.sandbox.channel import Channel
+from evaluator.sandbox.cpu import CpuMeter
 from evaluator.sandbox.handle import AgentHandle
 from evaluator.sandbox.warm_pool import warm_agents
 
@@ -71,7 +74,8 @@ def start_training(
 ) -> Sandbox:
     """Start ``submission``'s ``train.py`` (see :mod:`evaluator.training`) on ``training``'s
     folders, limits and seed (``ARENA_TRAIN_SEED``); it runs until it exits or is killed.
-    Raises :class:`~arena.errors.SandboxUnavailable`."""
+    Raises :class:`~arena.errors.SandboxUnavailable`, also from its ``exit_status`` when it was
+    stopped from outside (:class:`BatchSandbox`)."""
     chosen = backend_for(resolve_kind(kind, config))
     spec = LaunchSpec(
         submission=submission.root,
@@ -83,7 +87,35 @@ def start_training(
             training, dataset=training.dataset.resolve(), output=training.output.resolve()
         ),
     )
-    return chosen.launch(spec)
+    return BatchSandbox(chosen.launch(spec))
+
+
+class BatchSandbox:
+    """A batch run's sandbox (training, an upload's checks, the resolver), whose end its caller
+    judges as the team's, except one stopped from outside (``ExitStatus.stopped_by``: the
+    Docker daemon told to kill it): ours, raised as :class:`~arena.errors.SandboxUnavailable`,
+    so that the job is run again and never charged, whichever batch it was."""
+
+    def __init__(self, sandbox: Sandbox) -> None:
+        self._sandbox = sandbox
+
+    def connect(self, deadline: float) -> Channel:
+        return self._sandbox.connect(deadline)
+
+    def exit_status(self, timeout: float) -> ExitStatus | None:
+        status = self._sandbox.exit_status(timeout)
+        if status is not None and status.stopped_by:
+            raise SandboxUnavailable(f"the sandbox was {status.describe()}")
+        return status
+
+    def kill(self) -> None:
+        self._sandbox.kill()
+
+    def logs(self) -> str:
+        return self._sandbox.logs()
+
+    def cpu_meter(self) -> CpuMeter | None:
+        return self._sandbox.cpu_meter()
 
 
 def cleanup(config: SandboxSettings, labels: dict[str, str] | None = None) -> int:

@@ -2,18 +2,21 @@
 operator, the daemon's restart) is ours, ``sandbox_error``, and its episode runs again; an agent
 that ends itself, however it does it, stays the team's. Which one it was is read from the
 daemon's events, which nothing inside a container can make: cold and warm (where the zygote's
-container is the one stopped)."""
+container is the one stopped), and for the batch sandboxes (training, checks, resolver)."""
 
 from __future__ import annotations
 
 import threading
 import time
+from types import SimpleNamespace
 
 import pytest
 
 from arena.config import SandboxKind
-from arena.errors import AgentFailed
+from arena.errors import AgentFailed, SandboxUnavailable
 from arena.outcome import DoneReason, Verdict, episode_verdict
+from evaluator.sandbox import start_training
+from evaluator.sandbox.backend import TRAIN_SCRIPT, Training
 from evaluator.sandbox.docker_backend import docker_client
 from tests.evaluator.sandbox.agents import agent, handle_of, observation
 from tests.evaluator.sandbox.conftest import usable
@@ -78,3 +81,40 @@ def test_an_agent_that_ends_itself_stays_the_teams(ends_itself, warm, settings, 
             handle.act(observation())
     assert caught.value.reason is DoneReason.agent_exited, caught.value.detail
     assert episode_verdict([caught.value.reason]) is Verdict.agent
+
+
+@pytest.mark.parametrize(
+    ("train", "stopped"),
+    [("import time; time.sleep(20)", True), ("raise SystemExit(3)", False)],
+    ids=["stopped from outside", "exits itself"],
+)
+def test_a_batch_sandbox_stopped_from_outside_is_ours(train, stopped, settings, labels, tmp):
+    """Training, an upload's checks and the resolver run as batches: one stopped from outside
+    raises SandboxUnavailable (the job is retried, never charged); one that exits keeps its
+    status for its caller to judge."""
+    usable(SandboxKind.docker, settings)
+    program, dataset, output = tmp / "program", tmp / "dataset", tmp / "output"
+    for folder in (program, dataset, output):
+        folder.mkdir()
+        folder.chmod(0o777)
+    (program / TRAIN_SCRIPT).write_text(train + "\n")
+    box = start_training(
+        SimpleNamespace(root=program, deps_dir=None),
+        Training(dataset, output, timeout_s=60.0, output_bytes=1024**2),
+        config=settings.sandbox,
+        data_dir=settings.storage.resolved_data_dir,
+        kind=SandboxKind.docker,
+        labels=labels,
+    )
+    try:
+        if stopped:
+            stop_when_acting(labels, lambda container: container.kill()).join()
+            with pytest.raises(SandboxUnavailable, match=r"stopped from outside by the Docker"):
+                while box.exit_status(0.2) is None:
+                    pass
+        else:
+            while (status := box.exit_status(0.2)) is None:
+                pass
+            assert (status.code, status.stopped_by) == (3, "")
+    finally:
+        box.kill()
