@@ -155,8 +155,7 @@ def remove_stale_copies(shared: Path | None) -> int:
     """Remove the shared folder's copies (and half-made ones) no launch used for
     :data:`STALE_COPY_AGE_S`; how many. Each is renamed out of the way first, so that a launch
     never binds a folder half removed: it makes the copy again."""
-    copies = (shared / COPIES_DIR) if shared is not None else None
-    if copies is None or not copies.is_dir():
+    if shared is None or not (copies := shared / COPIES_DIR).is_dir():
         return 0
     cutoff = time.time() - STALE_COPY_AGE_S
     removed = 0
