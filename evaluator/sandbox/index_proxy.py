@@ -3,9 +3,10 @@ package index's hosts and nothing else.
 
 The sandbox has no network of its own (a namespace with loopback only); its relay
 (``agent_runtime/resolve.py``) forwards pip's proxied connections to this socket, mounted into
-it. Each connection carries one request: ``CONNECT host:port`` (HTTPS: a tunnel, pip checks the
-certificate end to end) or a plain ``GET http://host:port/...`` (a local index), allowed only when
-``host:port`` is one of the index's. Anything else gets ``403`` and the connection is closed.
+it. Each connection carries one request: ``CONNECT <host>:<port>`` (HTTPS: a tunnel, pip checks
+the certificate end to end) or a plain ``GET http://<host>:<port>/...`` (a local index), allowed
+only when ``<host>:<port>`` is one of the index's. Anything else gets ``403`` and the connection
+is closed.
 """
 
 from __future__ import annotations
